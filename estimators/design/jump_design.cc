@@ -1,0 +1,164 @@
+// estimators/design/jump_design.cc — value iteration for the jump observer gains.
+#include "estimators/design/jump_design.h"
+
+#include <fmt/format.h>
+
+#include <bit>
+#include <cmath>
+
+namespace ncosim::est {
+
+int groups_per_N(Grouping g, const ExtendedModel& ext) {
+  switch (g) {
+    case Grouping::kS1: return 1;
+    case Grouping::kS2: return ext.sensors;
+    case Grouping::kS3: return ext.fictitious_count();
+    case Grouping::kS4: return (1 << ext.fictitious_count()) - 1;
+  }
+  return 0;
+}
+
+int group_of(Grouping g, const ExtendedModel& ext, std::uint64_t pattern) {
+  switch (g) {
+    case Grouping::kS1: return 0;
+    case Grouping::kS2: return ext.real_sensors(pattern) - 1;
+    case Grouping::kS3: return std::popcount(pattern) - 1;
+    case Grouping::kS4: return static_cast<int>(pattern) - 1;
+  }
+  return 0;
+}
+
+namespace {
+
+struct Term {
+  int N;                 // 1..Nbar (Nbar = the tail N >= Nbar)
+  std::uint64_t pattern;
+  double weight;         // sum over the terms of one N is 1 for the tail, p0^(N-1)(1-p0) else
+  Eigen::VectorXd mask;  // row mask of the pattern
+  int group;             // global gain index
+};
+
+}  // namespace
+
+JumpDesign design_jump_iterative(const ExtendedModel& ext, const std::vector<double>& prob, int Nbar,
+                                 Grouping grouping, int max_iterations, double tolerance) {
+  JumpDesign d;
+  d.grouping = grouping;
+  d.Nbar = Nbar;
+  const Eigen::Index nb = ext.nb;
+  const Eigen::Index nm = ext.nmb;
+  const std::size_t patterns = prob.size();
+  d.p0 = prob[0];
+  const double p0 = d.p0;
+  const int per_N = groups_per_N(grouping, ext);
+  d.stored_gains = static_cast<long>(per_N) * Nbar;
+  d.gains.assign(static_cast<std::size_t>(per_N) * Nbar, Eigen::MatrixXd::Zero(nb, nm));
+  d.gain_of.assign(Nbar, std::vector<int>(patterns, -1));
+  for (int N = 1; N <= Nbar; ++N) {
+    for (std::size_t m = 1; m < patterns; ++m) {
+      d.gain_of[N - 1][m] = (N - 1) * per_N + group_of(grouping, ext, m);
+    }
+  }
+  d.P = Eigen::MatrixXd::Zero(nb, nb);
+  d.Pt = Eigen::MatrixXd::Constant(nb, nb, std::nan(""));
+
+  const double rho = ext.A.eigenvalues().cwiseAbs().maxCoeff();
+  if (p0 >= 1.0) {
+    d.status = "no_measurements";
+    return d;
+  }
+  if (p0 * rho * rho >= 1.0) {
+    d.status = fmt::format("unstable: p0 rho(A)^2 = {:.4g} >= 1", p0 * rho * rho);
+    return d;
+  }
+
+  // Precomputed powers and noise sums: Apow[N] = Abar^N, SW[N] = sum_{j<N} A^j Q A^j'.
+  std::vector<Eigen::MatrixXd> Apow(Nbar + 1), SW(Nbar + 1);
+  Apow[0] = Eigen::MatrixXd::Identity(nb, nb);
+  SW[0] = Eigen::MatrixXd::Zero(nb, nb);
+  for (int N = 1; N <= Nbar; ++N) {
+    Apow[N] = ext.A * Apow[N - 1];
+    SW[N] = SW[N - 1] + Apow[N - 1] * ext.Q * Apow[N - 1].transpose();
+  }
+  const Eigen::MatrixXd stein = stein_operator(ext.A, p0);
+  const Eigen::MatrixXd SWinf = stein_sum(stein, ext.Q);  // S'_W,inf (eq. 23)
+  const Eigen::MatrixXd& AN = Apow[Nbar];
+  const Eigen::MatrixXd tail_noise = SW[Nbar] + p0 * AN * SWinf * AN.transpose();
+
+  std::vector<Term> terms;
+  for (int N = 1; N <= Nbar; ++N) {
+    const double wN = N < Nbar ? std::pow(p0, N - 1) : std::pow(p0, Nbar - 1) / (1.0 - p0);
+    for (std::size_t m = 1; m < patterns; ++m) {
+      if (prob[m] <= 0.0) continue;
+      terms.push_back({N, m, wN * prob[m], ext.row_mask(m), d.gain_of[N - 1][m]});
+    }
+  }
+
+  std::vector<Eigen::MatrixXd> X(Nbar + 1);
+  std::vector<Eigen::MatrixXd> num(d.gains.size()), den(d.gains.size());
+  Eigen::MatrixXd Pnew(nb, nb);
+  const Eigen::MatrixXd I = Eigen::MatrixXd::Identity(nb, nb);
+  for (d.iterations = 1; d.iterations <= max_iterations; ++d.iterations) {
+    // Prior covariance before an update N periods after the last one (tail: N >= Nbar,
+    // conditional mixture).
+    for (int N = 1; N < Nbar; ++N) X[N] = Apow[N] * d.P * Apow[N].transpose() + SW[N];
+    const Eigen::MatrixXd SP = stein_sum(stein, d.P);
+    X[Nbar] = (1.0 - p0) * AN * SP * AN.transpose() + tail_noise;
+
+    if (grouping == Grouping::kS4) {
+      for (const Term& t : terms) {
+        // Optimal gain on the delivered rows (zero columns elsewhere).
+        const Eigen::MatrixXd& Xn = X[t.N];
+        Eigen::MatrixXd CX = t.mask.asDiagonal() * ext.C * Xn;  // rows outside the pattern zero
+        Eigen::MatrixXd S = CX * ext.C.transpose() * t.mask.asDiagonal();
+        S += t.mask.asDiagonal() * ext.V * t.mask.asDiagonal();
+        for (Eigen::Index r = 0; r < nm; ++r) {
+          if (t.mask(r) == 0.0) S(r, r) = 1.0;  // decouple unused rows
+        }
+        d.gains[t.group] = (S.ldlt().solve(CX)).transpose();
+      }
+    } else {
+      for (std::size_t g = 0; g < d.gains.size(); ++g) {
+        num[g].setZero(nb, nm);
+        den[g].setZero(nm, nm);
+      }
+      for (const Term& t : terms) {
+        const Eigen::MatrixXd& Xn = X[t.N];
+        num[t.group] += t.weight * Xn * ext.C.transpose() * t.mask.asDiagonal();
+        den[t.group] += t.weight * t.mask.asDiagonal() *
+                        (ext.C * Xn * ext.C.transpose() + ext.V) * t.mask.asDiagonal();
+      }
+      for (std::size_t g = 0; g < d.gains.size(); ++g) {
+        if (den[g].isZero(0.0)) continue;
+        d.gains[g] = num[g] * den[g].completeOrthogonalDecomposition().pseudoInverse();
+      }
+    }
+
+    Pnew.setZero();
+    for (const Term& t : terms) {
+      const Eigen::MatrixXd LE = d.gains[t.group] * t.mask.asDiagonal();
+      const Eigen::MatrixXd F = I - LE * ext.C;
+      Pnew += t.weight * (F * X[t.N] * F.transpose() + LE * ext.V * LE.transpose());
+    }
+    Pnew = 0.5 * (Pnew + Pnew.transpose());
+    if (!Pnew.allFinite() || Pnew.trace() > 1e15) {
+      d.status = "diverged";
+      return d;
+    }
+    const double change = (Pnew - d.P).cwiseAbs().maxCoeff();
+    d.P = Pnew;
+    if (change <= tolerance * std::max(1.0, d.P.cwiseAbs().maxCoeff())) break;
+  }
+  if (d.iterations > max_iterations) {
+    d.iterations = max_iterations;
+    d.status = "not_converged";
+    return d;
+  }
+  const Eigen::MatrixXd SP = stein_sum(stein, d.P);
+  d.Pt = (1.0 - p0) * d.P + p0 * ((1.0 - p0) * ext.A * SP * ext.A.transpose() + SWinf);
+  d.Pt = 0.5 * (d.Pt + d.Pt.transpose());
+  d.stable = true;
+  return d;
+}
+
+}  // namespace ncosim::est

@@ -1,0 +1,44 @@
+// estimators/design/jump_design.h — offline design of the jump observer gains L(N, pattern)
+// (Dolz et al. 2014, eqs. (16)–(23), paper-notes §1), method "iterative".
+// Each term of the expected-covariance operator (18) is w (F X F' + L eta V eta L') with
+// F = I - L eta Cbar. S4 (a gain per (N, pattern)) uses the closed-form minimiser
+// L = X Cs'(Cs X Cs' + Vs)^-1 and iterates P <- min_L E_L{P} from P = 0 (exact value
+// iteration). S1–S3 share a gain across a group of (N, pattern) terms and use the
+// trace-minimising shared gain L = (sum w X Cbar' eta)(sum w eta (Cbar X Cbar' + V) eta)^+.
+// Failure (p0 rho(Abar)^2 >= 1, divergence, no convergence) is a status, never a throw.
+#pragma once
+
+#include <Eigen/Dense>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "estimators/extended_model.h"
+
+namespace ncosim::est {
+
+enum class Grouping { kS1, kS2, kS3, kS4 };
+
+struct JumpDesign {
+  Grouping grouping = Grouping::kS4;
+  int Nbar = 1;
+  std::vector<Eigen::MatrixXd> gains;          // one per group (nb x nmb)
+  std::vector<std::vector<int>> gain_of;       // [N-1][pattern] -> index into gains, -1 for 0
+  long stored_gains = 0;                       // the paper's count |L|
+  double p0 = 0.0;                             // P[no measurement in a period]
+  Eigen::MatrixXd P;                           // covariance at update instants
+  Eigen::MatrixXd Pt;                          // covariance at every period (corrected eq. 28)
+  int iterations = 0;
+  bool stable = false;
+  std::string status = "ok";
+};
+
+// Group of the term (N, pattern) and the number of groups per N.
+int group_of(Grouping g, const ExtendedModel& ext, std::uint64_t pattern);
+int groups_per_N(Grouping g, const ExtendedModel& ext);
+
+JumpDesign design_jump_iterative(const ExtendedModel& ext, const std::vector<double>& pattern_prob,
+                                 int Nbar, Grouping grouping, int max_iterations = 200000,
+                                 double tolerance = 1e-13);
+
+}  // namespace ncosim::est

@@ -1,0 +1,54 @@
+// estimators/estimator.cc — shared helpers and the one place where built-in kinds register.
+#include "estimators/estimator.h"
+
+#include <fmt/format.h>
+
+#include "estimators/kinds.h"
+
+namespace ncosim::est {
+
+std::vector<double> SensorModel::delay_pmf(int max_delay) const {
+  if (link == nullptr) {
+    std::vector<double> pmf(static_cast<std::size_t>(max_delay) + 1, 0.0);
+    pmf[0] = 1.0;
+    return pmf;
+  }
+  return link->delay_pmf(max_delay);
+}
+
+Eigen::Index Model::total_outputs() const {
+  Eigen::Index n = 0;
+  for (const auto& s : sensors) n += s.spec.ny();
+  return n;
+}
+
+InitialEstimate read_initial(const sim::Table& t, const Model& model) {
+  const Eigen::Index n = model.plant.n();
+  InitialEstimate init{model.plant.x0, Eigen::MatrixXd::Zero(n, n)};
+  if (t.has("xhat0")) {
+    init.xhat0 = t.vector("xhat0");
+    if (init.xhat0.size() != n) {
+      t.fail("xhat0", fmt::format("expected {} entries (the state size), got {}", n, init.xhat0.size()));
+    }
+  }
+  if (t.has("P0")) {
+    init.P0 = t.matrix("P0");
+    sim::require_shape(t, "P0", init.P0, n, n);
+    sim::require_psd(t, "P0", init.P0);
+  }
+  return init;
+}
+
+int read_max_delay(const sim::Table& t, int fallback) {
+  const auto d = t.integer_or("max_delay", fallback);
+  if (d < 0 || d > 62) t.fail("max_delay", fmt::format("expected an integer in 0..62, got {}", d));
+  return static_cast<int>(d);
+}
+
+void register_estimators(EstimatorRegistry& registry) {
+  register_jump(registry);
+  register_kalman_extended(registry);
+  register_open_loop(registry);
+}
+
+}  // namespace ncosim::est

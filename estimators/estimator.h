@@ -1,0 +1,108 @@
+// estimators/estimator.h — the estimator interface, its offline design, and the registry.
+// An EstimatorDesign is built once per campaign from the scenario (gains, predicted
+// covariances) and is shared read-only by every run and thread; instantiate() makes the
+// per-run Estimator. Estimators see packets and the known input, never the true state.
+#pragma once
+
+#include <Eigen/Dense>
+#include <cstdint>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "models/link.h"
+#include "models/plant.h"
+#include "models/sensor.h"
+#include "sim/config.h"
+#include "sim/registry.h"
+
+namespace ncosim::est {
+
+// What an estimator may know of the scenario: the plant model, the sensors and the
+// statistics of the links their packets cross.
+struct SensorModel {
+  models::SensorSpec spec;
+  const models::Link* link = nullptr;  // nullptr: ideal link (delay 0, never lost)
+  // P[a sample of this sensor arrives with delay d], d = 0..max_delay (design model).
+  std::vector<double> delay_pmf(int max_delay) const;
+};
+
+struct Model {
+  models::LinearPlant plant;
+  std::vector<SensorModel> sensors;
+  double period = 1.0;  // seconds
+  Eigen::Index total_outputs() const;
+};
+
+// A packet as delivered: samples of one sensor, newest first, with their sampling periods.
+struct Packet {
+  int sensor = -1;
+  std::int64_t send_period = 0;
+  int count = 0;                      // number of samples
+  std::vector<std::int64_t> stamps;   // stamps[i] = sampling period of sample i
+  Eigen::VectorXd values;             // sample i occupies rows [i*ny, (i+1)*ny)
+};
+
+// What every estimator knows at the update of period k.
+struct PeriodInput {
+  const Eigen::VectorXd& u;      // input sent at k-1 (nu)
+  const Eigen::VectorXd& drive;  // known part of x[k] - A x[k-1] - Bw w[k-1] (n): Bu u + re-centring
+};
+
+class Estimator {
+ public:
+  virtual ~Estimator() = default;
+  // A packet delivered at period k (arrivals precede the update of period k). Returns the
+  // number of its samples this estimator will use (in time and not seen before).
+  virtual int on_packet(const Packet& packet, std::int64_t k) = 0;
+  // The update of period k: predict with the known input (k > 0), then correct with what
+  // arrived. Never throws; numerical trouble is reported by status().
+  virtual void on_period(std::int64_t k, const PeriodInput& in) = 0;
+  // xhat[k|k] (n).
+  virtual const Eigen::VectorXd& state() const = 0;
+  // The delay-extended estimate [xhat[k]; xhat[k-1]; ...] or nullptr when it has none.
+  virtual const Eigen::VectorXd* extended() const { return nullptr; }
+  // "ok" or why the run's estimate cannot be trusted (e.g. "numerical_failure").
+  virtual std::string status() const { return "ok"; }
+};
+
+// Offline part, reported in design.json.
+struct DesignReport {
+  std::string method;             // e.g. "iterative", "none"
+  double design_seconds = 0.0;
+  std::optional<long> stored_gains;
+  std::optional<double> predicted_mse;      // tr of the plant-state block of Pt
+  std::optional<double> predicted_mse_ext;  // tr(Pt) over the extended state
+  std::optional<bool> stable;
+  std::string status = "ok";                // "ok" or why the design failed
+  nlohmann::json extra = nlohmann::json::object();  // kind-specific fields
+};
+
+class EstimatorDesign {
+ public:
+  virtual ~EstimatorDesign() = default;
+  virtual std::unique_ptr<Estimator> instantiate() const = 0;
+  virtual const DesignReport& report() const = 0;
+  // FLOPs per period by the paper's formula (upper bound of one update).
+  virtual std::optional<double> flops_per_period() const = 0;
+  // Size of the delay-extended state (n (dbar+1)), or 0 when it has none.
+  virtual Eigen::Index extended_size() const { return 0; }
+};
+
+using EstimatorRegistry =
+    sim::Registry<std::unique_ptr<EstimatorDesign>, const Model&>;
+void register_estimators(EstimatorRegistry& registry);
+
+// Common keys of every estimator: xhat0 (default: the plant's x0) and P0 (default 0).
+struct InitialEstimate {
+  Eigen::VectorXd xhat0;
+  Eigen::MatrixXd P0;
+};
+InitialEstimate read_initial(const sim::Table& t, const Model& model);
+
+// Reads `max_delay` (dbar) in 0..max.
+int read_max_delay(const sim::Table& t, int fallback);
+
+}  // namespace ncosim::est

@@ -1,0 +1,81 @@
+// estimators/open_loop.cc
+// Open-loop prediction xhat[k] = A xhat[k-1] + (known input): ignores every packet. The floor
+// every estimator must beat. With max_delay it also reports the delay-extended estimate.
+#include <fmt/format.h>
+
+#include "estimators/kinds.h"
+
+namespace ncosim::est {
+
+namespace {
+
+class OpenLoop final : public Estimator {
+ public:
+  OpenLoop(const Eigen::MatrixXd& A, const Eigen::VectorXd& xhat0, int dbar)
+      : A_(A), n_(A.rows()), dbar_(dbar), x_(A.rows() * (dbar < 0 ? 1 : dbar + 1)), head_(A.rows()) {
+    for (Eigen::Index b = 0; b < x_.size() / n_; ++b) x_.segment(b * n_, n_) = xhat0;
+  }
+  int on_packet(const Packet&, std::int64_t) override { return 0; }
+  void on_period(std::int64_t k, const PeriodInput& in) override {
+    if (k == 0) return;
+    head_.noalias() = A_ * x_.head(n_);
+    for (Eigen::Index b = x_.size() / n_ - 1; b >= 1; --b) x_.segment(b * n_, n_) = x_.segment((b - 1) * n_, n_);
+    x_.head(n_) = head_ + in.drive;
+  }
+  const Eigen::VectorXd& state() const override {
+    state_ = x_.head(n_);
+    return state_;
+  }
+  const Eigen::VectorXd* extended() const override { return dbar_ < 0 ? nullptr : &x_; }
+
+ private:
+  const Eigen::MatrixXd& A_;
+  Eigen::Index n_;
+  int dbar_;
+  Eigen::VectorXd x_;
+  Eigen::VectorXd head_;
+  mutable Eigen::VectorXd state_;
+};
+
+class OpenLoopDesign final : public EstimatorDesign {
+ public:
+  OpenLoopDesign(const Model& model, int dbar, Eigen::VectorXd xhat0)
+      : A_(model.plant.A), nu_(model.plant.nu()), dbar_(dbar), xhat0_(std::move(xhat0)) {
+    report_.method = "none";
+    report_.stored_gains = 0;
+    if (dbar >= 0) report_.extra["max_delay"] = dbar;
+  }
+  std::unique_ptr<Estimator> instantiate() const override {
+    return std::make_unique<OpenLoop>(A_, xhat0_, dbar_);
+  }
+  const DesignReport& report() const override { return report_; }
+  std::optional<double> flops_per_period() const override {
+    const double n = static_cast<double>(A_.rows());
+    return n * n + n * static_cast<double>(nu_);  // A xhat + Bu u (as the jump count, no update)
+  }
+  Eigen::Index extended_size() const override { return dbar_ < 0 ? 0 : A_.rows() * (dbar_ + 1); }
+
+ private:
+  Eigen::MatrixXd A_;
+  Eigen::Index nu_;
+  int dbar_;
+  Eigen::VectorXd xhat0_;
+  DesignReport report_;
+};
+
+std::unique_ptr<EstimatorDesign> read_open_loop(const sim::Table& t, const Model& model) {
+  const int dbar = t.has("max_delay") ? read_max_delay(t, 0) : -1;
+  InitialEstimate init = read_initial(t, model);
+  return std::make_unique<OpenLoopDesign>(model, dbar, std::move(init.xhat0));
+}
+
+}  // namespace
+
+void register_open_loop(EstimatorRegistry& registry) {
+  registry.add("open_loop",
+               "open-loop prediction, ignores every packet (the floor): max_delay (optional, for "
+               "mse_ext)",
+               read_open_loop);
+}
+
+}  // namespace ncosim::est

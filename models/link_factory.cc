@@ -1,0 +1,163 @@
+// models/link_factory.cc — [[link]] readers: parameters range-checked, errors at their line.
+#include "models/link_factory.h"
+
+#include <fmt/format.h>
+
+#include <filesystem>
+
+namespace ncosim::models {
+
+namespace {
+
+std::vector<double> read_pmf(const sim::Table& t, std::string_view key) {
+  std::vector<double> pmf = t.numbers(key);
+  if (pmf.empty()) t.fail(key, "expected at least one probability, got an empty array");
+  sim::require_subprobability(t, key, pmf);
+  return pmf;
+}
+
+double read_probability(const sim::Table& t, std::string_view key, double fallback) {
+  const double p = t.number_or(key, fallback);
+  sim::require_probability(t, key, p);
+  return p;
+}
+
+std::unique_ptr<Link> read_delay(const sim::Table& t, const LinkContext&) {
+  return std::make_unique<DelayPmfLink>(read_pmf(t, "pmf"), t.boolean_or("independent", false));
+}
+
+std::unique_ptr<Link> read_bernoulli(const sim::Table& t, const LinkContext&) {
+  const double loss = read_probability(t, "loss", 0.0);
+  const auto delay = t.integer_or("delay", 0);
+  if (delay < 0 || delay > 1'000'000) t.fail("delay", fmt::format("expected an integer in 0..1000000, got {}", delay));
+  return std::make_unique<BernoulliLink>(loss, delay);
+}
+
+std::unique_ptr<Link> read_negative_binomial(const sim::Table& t, const LinkContext&) {
+  const auto r = t.integer("successes");
+  if (r < 1 || r > 10000) t.fail("successes", fmt::format("expected an integer in 1..10000, got {}", r));
+  const double p = t.number("p");
+  if (!(p > 0.0 && p <= 1.0)) t.fail("p", fmt::format("expected a probability in (0, 1], got {}", p));
+  const double loss = read_probability(t, "loss", 0.0);
+  return std::make_unique<NegativeBinomialLink>(static_cast<int>(r), p, loss);
+}
+
+std::unique_ptr<Link> read_arrival_cdf(const sim::Table& t, const LinkContext&) {
+  std::vector<double> cdf = t.numbers("cdf");
+  if (cdf.empty()) t.fail("cdf", "expected at least one value, got an empty array");
+  for (std::size_t h = 0; h < cdf.size(); ++h) {
+    if (!(cdf[h] >= 0.0 && cdf[h] <= 1.0)) {
+      t.fail("cdf", fmt::format("expected probabilities in [0, 1], got {} at h = {}", cdf[h], h));
+    }
+    if (h > 0 && cdf[h] < cdf[h - 1]) {
+      t.fail("cdf", fmt::format("expected a non-decreasing P[delay <= h], got {} after {} at h = {}",
+                                cdf[h], cdf[h - 1], h));
+    }
+  }
+  const double tail = t.number_or("tail", cdf.back());
+  sim::require_probability(t, "tail", tail);
+  if (tail < cdf.back()) {
+    t.fail("tail", fmt::format("expected tail >= the last cdf value {}, got {}", cdf.back(), tail));
+  }
+  return std::make_unique<ArrivalCdfLink>(std::move(cdf), tail);
+}
+
+std::unique_ptr<Link> read_gilbert_elliott(const sim::Table& t, const LinkContext&) {
+  const double gb = t.number("p_good_to_bad");
+  sim::require_probability(t, "p_good_to_bad", gb);
+  const double bg = t.number("p_bad_to_good");
+  sim::require_probability(t, "p_bad_to_good", bg);
+  if (gb + bg <= 0.0) {
+    t.fail("p_bad_to_good", "expected p_good_to_bad + p_bad_to_good > 0 (a chain that can move)");
+  }
+  const double lg = read_probability(t, "loss_good", 0.0);
+  const double lb = read_probability(t, "loss_bad", 1.0);
+  return make_gilbert_elliott(gb, bg, lg, lb);
+}
+
+std::unique_ptr<Link> read_markov(const sim::Table& t, const LinkContext&) {
+  const Eigen::MatrixXd T = t.matrix("transition");
+  if (T.rows() != T.cols()) {
+    t.fail("transition", fmt::format("expected a square matrix, got {}x{}", T.rows(), T.cols()));
+  }
+  const Eigen::Index s = T.rows();
+  for (Eigen::Index i = 0; i < s; ++i) {
+    if (T.row(i).minCoeff() < 0.0 || std::abs(T.row(i).sum() - 1.0) > 1e-9) {
+      t.fail("transition", fmt::format("expected non-negative rows summing to 1, got row {} summing to {}",
+                                       i, T.row(i).sum()));
+    }
+  }
+  std::vector<double> loss = t.numbers("loss");
+  if (static_cast<Eigen::Index>(loss.size()) != s) {
+    t.fail("loss", fmt::format("expected {} per-state loss probabilities, got {}", s, loss.size()));
+  }
+  for (double p : loss) {
+    if (!(p >= 0.0 && p <= 1.0)) t.fail("loss", fmt::format("expected probabilities in [0, 1], got {}", p));
+  }
+  std::vector<std::vector<double>> delay;
+  if (t.has("delay_pmf")) {
+    delay = t.ragged("delay_pmf");
+    if (static_cast<Eigen::Index>(delay.size()) != s) {
+      t.fail("delay_pmf", fmt::format("expected one pmf per state ({}), got {}", s, delay.size()));
+    }
+    for (const auto& pmf : delay) {
+      double sum = 0.0;
+      for (double p : pmf) {
+        if (p < 0.0) t.fail("delay_pmf", fmt::format("probabilities must be non-negative, got {}", p));
+        sum += p;
+      }
+      if (std::abs(sum - 1.0) > 1e-9) {
+        t.fail("delay_pmf", fmt::format("expected each state's delay pmf to sum to 1 (loss is `loss`), got {:.6g}", sum));
+      }
+    }
+  }
+  std::vector<double> initial;
+  if (t.has("initial")) {
+    initial = t.numbers("initial");
+    if (static_cast<Eigen::Index>(initial.size()) != s) {
+      t.fail("initial", fmt::format("expected {} probabilities, got {}", s, initial.size()));
+    }
+    sim::require_subprobability(t, "initial", initial);
+    double sum = 0.0;
+    for (double p : initial) sum += p;
+    if (std::abs(sum - 1.0) > 1e-9) t.fail("initial", fmt::format("expected probabilities summing to 1, got {:.6g}", sum));
+  }
+  return std::make_unique<MarkovLink>(T, std::move(loss), std::move(delay), std::move(initial));
+}
+
+std::unique_ptr<Link> read_trace(const sim::Table& t, const LinkContext& ctx) {
+  const std::string file = t.string("file");
+  std::filesystem::path path(file);
+  if (path.is_relative() && !ctx.scenario_dir.empty()) path = std::filesystem::path(ctx.scenario_dir) / path;
+  try {
+    auto delays = load_trace(path.string());
+    if (delays.empty()) t.fail("file", fmt::format("trace '{}' holds no packet", path.string()));
+    return std::make_unique<TraceLink>(std::move(delays));
+  } catch (const TraceError& e) {
+    if (e.line <= 0) t.fail("file", fmt::format("cannot read trace file '{}': {}", path.string(), e.what()));
+    throw sim::ScenarioError(fmt::format("{}:{}: {} (trace of key '{}' in {})", e.file, e.line, e.what(),
+                                         t.key_path("file"), t.file()));
+  }
+}
+
+}  // namespace
+
+void register_links(LinkRegistry& registry) {
+  registry.add("delay", "delay d periods with probability pmf[d], lost otherwise: pmf, independent",
+               read_delay);
+  registry.add("bernoulli", "lost with probability loss, else delayed `delay` periods: loss, delay",
+               read_bernoulli);
+  registry.add("negative_binomial",
+               "negative-binomial delay (failures before `successes` successes of probability p): "
+               "successes, p, loss",
+               read_negative_binomial);
+  registry.add("arrival_cdf", "Schenato's lambda_h = P[delay <= h]: cdf, tail", read_arrival_cdf);
+  registry.add("gilbert_elliott",
+               "two-state Markov loss: p_good_to_bad, p_bad_to_good, loss_good, loss_bad",
+               read_gilbert_elliott);
+  registry.add("markov", "finite Markov chain per packet: transition, loss, delay_pmf, initial",
+               read_markov);
+  registry.add("trace", "replay a recorded CSV of seq,delay (empty delay = lost): file", read_trace);
+}
+
+}  // namespace ncosim::models

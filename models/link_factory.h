@@ -1,0 +1,19 @@
+// models/link_factory.h — readers of [[link]] tables, one per registered link kind.
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include "models/link.h"
+#include "sim/registry.h"
+
+namespace ncosim::models {
+
+struct LinkContext {
+  std::string scenario_dir;  // relative trace paths are resolved from here
+};
+
+using LinkRegistry = sim::Registry<std::unique_ptr<Link>, const LinkContext&>;
+void register_links(LinkRegistry& registry);
+
+}  // namespace ncosim::models

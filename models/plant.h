@@ -1,0 +1,38 @@
+// models/plant.h — linear plants: x[k+1] = A x[k] + Bu u[k] + Bw w[k], w ~ N(0, W).
+// `lti` is given in discrete time; `lti_continuous` is discretised exactly at the control
+// period: zero-order hold for the input, Van Loan (1978) for the noise covariance.
+// Bad parameters raise ScenarioError from the readers.
+#pragma once
+
+#include <Eigen/Dense>
+
+#include "sim/config.h"
+#include "sim/registry.h"
+
+namespace ncosim::models {
+
+struct LinearPlant {
+  Eigen::MatrixXd A;   // n x n
+  Eigen::MatrixXd Bu;  // n x nu (nu may be 0)
+  Eigen::MatrixXd Bw;  // n x nw
+  Eigen::MatrixXd W;   // nw x nw, symmetric PSD
+  Eigen::VectorXd x0;  // n
+  Eigen::Index n() const { return A.rows(); }
+  Eigen::Index nu() const { return Bu.cols(); }
+  Eigen::Index nw() const { return Bw.cols(); }
+  double spectral_radius() const;
+};
+
+// Exact discretisation of dx = (Ac x + Bc u) dt + Gc dβ, E[dβ dβ'] = Wc dt, at period T:
+// A = e^{Ac T}, Bu = ∫_0^T e^{Ac s} ds Bc, and W = ∫_0^T e^{Ac s} Gc Wc Gc' e^{Ac' s} ds
+// (Van Loan's block exponential), returned with Bw = I.
+LinearPlant discretise(const Eigen::MatrixXd& Ac, const Eigen::MatrixXd& Bc,
+                       const Eigen::MatrixXd& Gc, const Eigen::MatrixXd& Wc, double period);
+
+// Symmetric square root S (S S' = M) of a PSD matrix by eigen-decomposition.
+Eigen::MatrixXd psd_sqrt(const Eigen::MatrixXd& M);
+
+using PlantRegistry = sim::Registry<LinearPlant, double /*period seconds*/>;
+void register_plants(PlantRegistry& registry);
+
+}  // namespace ncosim::models

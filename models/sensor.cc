@@ -1,0 +1,44 @@
+// models/sensor.cc — [[sensor]] reader.
+#include "models/sensor.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+
+namespace ncosim::models {
+
+SensorSpec read_sensor(const sim::Table& t, const LinearPlant& plant,
+                       const std::vector<std::string>& links, int index) {
+  SensorSpec s;
+  s.name = t.string_or("name", fmt::format("y{}", index + 1));
+  s.C = t.matrix("C");
+  if (s.C.cols() != plant.n()) {
+    t.fail("C", fmt::format("expected {} columns (the state size), got a {}x{} matrix", plant.n(),
+                            s.C.rows(), s.C.cols()));
+  }
+  s.R = t.matrix("R");
+  sim::require_shape(t, "R", s.R, s.C.rows(), s.C.rows());
+  sim::require_psd(t, "R", s.R);
+  if (t.has("link")) {
+    const std::string name = t.string("link");
+    auto it = std::find(links.begin(), links.end(), name);
+    if (it == links.end()) {
+      std::string list;
+      for (const auto& l : links) list += (list.empty() ? "" : ", ") + fmt::format("\"{}\"", l);
+      const std::string hint = sim::did_you_mean(name, links);
+      t.fail("link", fmt::format("expected the name of a [[link]] ({}), got \"{}\"{}",
+                                 list.empty() ? "none defined" : list, name,
+                                 hint.empty() ? "" : fmt::format(" (did you mean \"{}\"?)", hint)));
+    }
+    s.link = static_cast<int>(it - links.begin());
+  }
+  const auto every = t.integer_or("every", 1);
+  if (every < 1 || every > 1'000'000) t.fail("every", fmt::format("expected an integer >= 1, got {}", every));
+  s.every = static_cast<int>(every);
+  const auto buffer = t.integer_or("buffer", 0);
+  if (buffer < 0 || buffer > 62) t.fail("buffer", fmt::format("expected an integer in 0..62, got {}", buffer));
+  s.buffer = static_cast<int>(buffer);
+  return s;
+}
+
+}  // namespace ncosim::models

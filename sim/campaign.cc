@@ -1,0 +1,451 @@
+// sim/campaign.cc — the event-driven simulation of one run, and the campaign over threads.
+#include "sim/campaign.h"
+
+#include <fmt/format.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <boost/random/normal_distribution.hpp>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <exception>
+#include <mutex>
+#include <thread>
+
+#include "sim/check.h"
+#include "sim/event_queue.h"
+#include "sim/rng.h"
+
+namespace ncosim::sim {
+
+namespace {
+
+// Adapts a member function to an EventHandler.
+template <class T, void (T::*Method)(SimTime, std::uint64_t)>
+class MemberHandler final : public EventHandler {
+ public:
+  explicit MemberHandler(T* self) : self_(self) {}
+  void handle(SimTime now, std::uint64_t arg) override { (self_->*Method)(now, arg); }
+
+ private:
+  T* self_;
+};
+
+// Standard normal vector from a Boost.Random stream.
+void draw_normal(Rng& rng, Eigen::VectorXd& out) {
+  boost::random::normal_distribution<double> normal(0.0, 1.0);
+  for (Eigen::Index i = 0; i < out.size(); ++i) out(i) = normal(rng);
+}
+
+constexpr double kDivergence = 1e150;
+
+// Log of run 0 as the estimators saw it, replayed to time each estimator alone.
+struct ReplayLog {
+  std::vector<est::Packet> packets;
+  std::vector<std::int64_t> packet_period;
+  std::vector<Eigen::VectorXd> u, drive;  // per period
+};
+
+class RunSimulation {
+ public:
+  RunSimulation(const Scenario& sc, std::uint64_t run, std::vector<TraceRow>* trace, ReplayLog* log)
+      : sc_(sc),
+        plant_(sc.model.plant),
+        period_ns_(seconds_to_time(sc.run.period)),
+        trace_(trace),
+        log_(log),
+        plant_handler_(this),
+        sample_handler_(this),
+        send_handler_(this),
+        arrival_handler_(this),
+        estimate_handler_(this),
+        control_handler_(this),
+        actuate_handler_(this),
+        metrics_handler_(this) {
+    const std::uint64_t seed = sc.run.seed;
+    const Eigen::Index n = plant_.n();
+    plant_rng_ = make_stream(seed, run, stream_id(StreamKind::kPlant, 0));
+    input_rng_ = make_stream(seed, run, stream_id(StreamKind::kInput, 0));
+    w_sqrt_ = models::psd_sqrt(plant_.W);
+    w_.resize(plant_.nw());
+    x_ = plant_.x0;
+    next_x_.resize(n);
+    u_ = Eigen::VectorXd::Zero(plant_.nu());
+    u_applied_ = u_;
+    u_prev_ = u_;
+    drive_ = Eigen::VectorXd::Zero(n);
+    recentre_ = Eigen::VectorXd::Zero(n);
+
+    // Sensors and their noise streams.
+    for (std::size_t s = 0; s < sc.model.sensors.size(); ++s) {
+      const auto& spec = sc.model.sensors[s].spec;
+      SensorState st;
+      st.rng = make_stream(seed, run, stream_id(StreamKind::kSensor, s));
+      st.r_sqrt = models::psd_sqrt(spec.R);
+      st.noise.resize(spec.ny());
+      st.stamps.assign(static_cast<std::size_t>(spec.buffer) + 1, 0);
+      st.values = Eigen::MatrixXd::Zero(spec.ny(), spec.buffer + 1);
+      sensors_.push_back(std::move(st));
+    }
+    // Links: one fresh instance per run.
+    for (std::size_t l = 0; l < sc.links.size(); ++l) {
+      LinkState ls;
+      ls.link = sc.links[l].link->clone();
+      ls.rng = make_stream(seed, run, stream_id(StreamKind::kLink, l));
+      ls.link->reset(ls.rng);
+      links_.push_back(std::move(ls));
+    }
+    // Estimators.
+    int max_ext_blocks = 1;
+    for (const auto& e : sc.estimators) {
+      estimators_.push_back(e.design->instantiate());
+      const auto ext = e.design->extended_size();
+      if (ext > 0) max_ext_blocks = std::max<int>(max_ext_blocks, static_cast<int>(ext / n));
+      EstimatorRunMetrics m;
+      m.sse_state.assign(static_cast<std::size_t>(n), 0.0);
+      metrics_.push_back(std::move(m));
+    }
+    // True history x[k], x[k-1], ... (x[-j] = x0: the plant rests at x0 before t = 0).
+    history_.assign(static_cast<std::size_t>(max_ext_blocks), plant_.x0);
+    arrivals_.assign(sc.model.sensors.size(), 0);
+    err_.resize(n);
+  }
+
+  RunMetrics execute() {
+    const std::int64_t periods = sc_.run.periods;
+    queue_.reserve(64);
+    queue_.schedule(0, Phase::kPlant, &plant_handler_, 0);
+    for (std::size_t s = 0; s < sensors_.size(); ++s) queue_.schedule(0, Phase::kSample, &sample_handler_, s);
+    queue_.schedule(0, Phase::kEstimate, &estimate_handler_, 0);
+    queue_.schedule(0, Phase::kControl, &control_handler_, 0);
+    queue_.schedule(0, Phase::kActuate, &actuate_handler_, 0);
+    queue_.schedule(0, Phase::kMetrics, &metrics_handler_, 0);
+    queue_.run_until((periods - 1) * period_ns_);
+    for (std::size_t e = 0; e < estimators_.size(); ++e) metrics_[e].status = estimators_[e]->status();
+    return std::move(metrics_);
+  }
+
+ private:
+  struct SensorState {
+    Rng rng;
+    Eigen::MatrixXd r_sqrt;
+    Eigen::VectorXd noise;
+    std::vector<std::int64_t> stamps;  // ring of the last buffer+1 samples (newest at head_)
+    Eigen::MatrixXd values;            // column per ring slot
+    int head = -1;
+    int filled = 0;
+  };
+  struct LinkState {
+    std::unique_ptr<models::Link> link;
+    Rng rng;
+  };
+
+  std::int64_t period_of(SimTime t) const { return (t + period_ns_ - 1) / period_ns_; }
+  bool reschedule(SimTime now, std::int64_t step, Phase phase, EventHandler* h, std::uint64_t arg) {
+    const std::int64_t next = now / period_ns_ + step;
+    if (next >= sc_.run.periods) return false;
+    queue_.schedule(next * period_ns_, phase, h, arg);
+    return true;
+  }
+
+  // Plant step: x[k] = A x[k-1] + Bu u_applied[k-1] + Bw w[k-1] (+ re-centring, known).
+  void on_plant(SimTime now, std::uint64_t) {
+    const std::int64_t k = now / period_ns_;
+    if (k > 0) {
+      draw_normal(plant_rng_, w_);
+      if (sc_.recentre) recentre_.noalias() = -plant_.A * x_;  // deadbeat: known to every estimator
+      drive_.noalias() = plant_.Bu * u_applied_;
+      drive_ += recentre_;
+      next_x_.noalias() = plant_.A * x_;
+      next_x_ += drive_;
+      next_x_.noalias() += plant_.Bw * (w_sqrt_ * w_);
+      x_.swap(next_x_);
+      std::rotate(history_.rbegin(), history_.rbegin() + 1, history_.rend());
+      history_.front() = x_;
+    }
+    reschedule(now, 1, Phase::kPlant, &plant_handler_, 0);
+  }
+
+  void on_sample(SimTime now, std::uint64_t s) {
+    const std::int64_t k = now / period_ns_;
+    const auto& spec = sc_.model.sensors[s].spec;
+    SensorState& st = sensors_[s];
+    draw_normal(st.rng, st.noise);
+    st.head = (st.head + 1) % (spec.buffer + 1);
+    st.filled = std::min(st.filled + 1, spec.buffer + 1);
+    st.stamps[static_cast<std::size_t>(st.head)] = k;
+    st.values.col(st.head).noalias() = spec.C * x_;
+    st.values.col(st.head).noalias() += st.r_sqrt * st.noise;
+    if (k >= sc_.run.warmup) {
+      for (auto& m : metrics_) ++m.samples_taken;
+    }
+    queue_.schedule(now, Phase::kSend, &send_handler_, s);
+    reschedule(now, spec.every, Phase::kSample, &sample_handler_, s);
+  }
+
+  void on_send(SimTime now, std::uint64_t s) {
+    const auto& spec = sc_.model.sensors[s].spec;
+    const std::int64_t k = now / period_ns_;
+    if (spec.link < 0) {
+      deliver_copy(now, s, k, 0);
+      return;
+    }
+    LinkState& ls = links_[static_cast<std::size_t>(spec.link)];
+    ls.link->transmit_copies(ls.rng, delays_);
+    for (std::int64_t d : delays_) deliver_copy(now, s, k, d);
+  }
+
+  void deliver_copy(SimTime now, std::uint64_t s, std::int64_t k, std::int64_t delay) {
+    const auto& spec = sc_.model.sensors[s].spec;
+    const std::int64_t arrival = k + delay;
+    if (arrival >= sc_.run.periods) return;  // beyond the horizon
+    std::size_t id;
+    if (!free_.empty()) {
+      id = free_.back();
+      free_.pop_back();
+    } else {
+      id = pool_.size();
+      pool_.emplace_back();
+    }
+    est::Packet& p = pool_[id];
+    const SensorState& st = sensors_[s];
+    p.sensor = static_cast<int>(s);
+    p.send_period = k;
+    p.count = st.filled;
+    p.stamps.resize(static_cast<std::size_t>(st.filled));
+    p.values.resize(spec.ny() * st.filled);
+    for (int i = 0; i < st.filled; ++i) {
+      const int slot = (st.head - i + spec.buffer + 1) % (spec.buffer + 1);
+      p.stamps[static_cast<std::size_t>(i)] = st.stamps[static_cast<std::size_t>(slot)];
+      p.values.segment(i * spec.ny(), spec.ny()) = st.values.col(slot);
+    }
+    (void)now;
+    queue_.schedule(arrival * period_ns_, Phase::kArrival, &arrival_handler_, id);
+  }
+
+  void on_arrival(SimTime now, std::uint64_t id) {
+    const std::int64_t k = period_of(now);
+    const est::Packet& p = pool_[id];
+    for (std::size_t e = 0; e < estimators_.size(); ++e) {
+      const int used = estimators_[e]->on_packet(p, k);
+      if (k >= sc_.run.warmup) metrics_[e].samples_used += used;
+    }
+    ++arrivals_[static_cast<std::size_t>(p.sensor)];
+    if (log_ != nullptr) {
+      log_->packets.push_back(p);
+      log_->packet_period.push_back(k);
+    }
+    free_.push_back(id);
+  }
+
+  void on_estimate(SimTime now, std::uint64_t) {
+    const std::int64_t k = now / period_ns_;
+    const est::PeriodInput in{u_prev_, drive_};
+    for (auto& e : estimators_) e->on_period(k, in);
+    if (log_ != nullptr) {
+      log_->u.push_back(u_prev_);
+      log_->drive.push_back(drive_);
+    }
+    reschedule(now, 1, Phase::kEstimate, &estimate_handler_, 0);
+  }
+
+  void on_control(SimTime now, std::uint64_t) {
+    using Kind = models::InputSpec::Kind;
+    switch (sc_.input.kind) {
+      case Kind::kNone: break;
+      case Kind::kWhite: {
+        draw_normal(input_rng_, u_);
+        u_ = u_.cwiseProduct(sc_.input.std);
+        break;
+      }
+      case Kind::kStateFeedback: {
+        const Eigen::VectorXd& xs =
+            sc_.input.source_index < 0 ? x_ : estimators_[static_cast<std::size_t>(sc_.input.source_index)]->state();
+        u_.noalias() = -sc_.input.K * xs;
+        break;
+      }
+    }
+    reschedule(now, 1, Phase::kControl, &control_handler_, 0);
+  }
+
+  void on_actuate(SimTime now, std::uint64_t) {
+    u_applied_ = u_;  // ideal actuation (actuator links come with their issue)
+    u_prev_ = u_;     // what the estimators know at the next update
+    reschedule(now, 1, Phase::kActuate, &actuate_handler_, 0);
+  }
+
+  void on_metrics(SimTime now, std::uint64_t) {
+    const std::int64_t k = now / period_ns_;
+    const Eigen::Index n = plant_.n();
+    if (trace_ != nullptr) {
+      TraceRow row;
+      row.period = k;
+      row.x.assign(x_.data(), x_.data() + n);
+      for (auto& e : estimators_) {
+        const auto& xh = e->state();
+        row.xhat.emplace_back(xh.data(), xh.data() + n);
+      }
+      row.arrivals = arrivals_;
+      trace_->push_back(std::move(row));
+    }
+    std::fill(arrivals_.begin(), arrivals_.end(), 0);
+    if (k >= sc_.run.warmup) {
+      for (std::size_t e = 0; e < estimators_.size(); ++e) {
+        EstimatorRunMetrics& m = metrics_[e];
+        if (m.diverged) continue;
+        err_ = x_ - estimators_[e]->state();
+        const double e2 = err_.squaredNorm();
+        double e2_ext = e2;
+        if (const Eigen::VectorXd* xb = estimators_[e]->extended()) {
+          for (Eigen::Index b = 1; b < xb->size() / n; ++b) {
+            e2_ext += (history_[static_cast<std::size_t>(b)] - xb->segment(b * n, n)).squaredNorm();
+          }
+        }
+        if (!std::isfinite(e2_ext) || e2_ext > kDivergence) {
+          m.diverged = true;
+          continue;
+        }
+        m.sse += e2;
+        m.sse_ext += e2_ext;
+        for (Eigen::Index i = 0; i < n; ++i) m.sse_state[static_cast<std::size_t>(i)] += err_(i) * err_(i);
+        ++m.count;
+      }
+    }
+    reschedule(now, 1, Phase::kMetrics, &metrics_handler_, 0);
+  }
+
+  const Scenario& sc_;
+  const models::LinearPlant& plant_;
+  SimTime period_ns_;
+  std::vector<TraceRow>* trace_;
+  ReplayLog* log_;
+  EventQueue queue_;
+  MemberHandler<RunSimulation, &RunSimulation::on_plant> plant_handler_;
+  MemberHandler<RunSimulation, &RunSimulation::on_sample> sample_handler_;
+  MemberHandler<RunSimulation, &RunSimulation::on_send> send_handler_;
+  MemberHandler<RunSimulation, &RunSimulation::on_arrival> arrival_handler_;
+  MemberHandler<RunSimulation, &RunSimulation::on_estimate> estimate_handler_;
+  MemberHandler<RunSimulation, &RunSimulation::on_control> control_handler_;
+  MemberHandler<RunSimulation, &RunSimulation::on_actuate> actuate_handler_;
+  MemberHandler<RunSimulation, &RunSimulation::on_metrics> metrics_handler_;
+
+  Rng plant_rng_, input_rng_;
+  Eigen::MatrixXd w_sqrt_;
+  Eigen::VectorXd w_, x_, next_x_, u_, u_applied_, u_prev_, drive_, recentre_, err_;
+  std::vector<Eigen::VectorXd> history_;
+  std::vector<SensorState> sensors_;
+  std::vector<LinkState> links_;
+  std::vector<std::int64_t> delays_;
+  std::vector<est::Packet> pool_;
+  std::vector<std::size_t> free_;
+  std::vector<int> arrivals_;
+  std::vector<std::unique_ptr<est::Estimator>> estimators_;
+  RunMetrics metrics_;
+};
+
+// Replays run 0's inputs into a fresh instance of each estimator and times it alone:
+// the median over repetitions of (wall time / periods).
+std::vector<double> time_estimators(const Scenario& sc, const ReplayLog& log) {
+  std::vector<double> out;
+  const std::size_t periods = log.u.size();
+  for (const auto& entry : sc.estimators) {
+    std::vector<double> samples;
+    const auto budget = std::chrono::milliseconds(200);
+    const auto begin = std::chrono::steady_clock::now();
+    for (int rep = 0; rep < 15 && (rep < 3 || std::chrono::steady_clock::now() - begin < budget); ++rep) {
+      auto est = entry.design->instantiate();
+      std::size_t next = 0;
+      const auto t0 = std::chrono::steady_clock::now();
+      for (std::size_t k = 0; k < periods; ++k) {
+        const auto kk = static_cast<std::int64_t>(k);
+        while (next < log.packets.size() && log.packet_period[next] == kk) {
+          est->on_packet(log.packets[next], kk);
+          ++next;
+        }
+        est->on_period(kk, est::PeriodInput{log.u[k], log.drive[k]});
+      }
+      const auto t1 = std::chrono::steady_clock::now();
+      samples.push_back(std::chrono::duration<double, std::nano>(t1 - t0).count() / static_cast<double>(periods));
+    }
+    std::sort(samples.begin(), samples.end());
+    out.push_back(samples[samples.size() / 2]);
+  }
+  return out;
+}
+
+}  // namespace
+
+RunMetrics simulate_run(const Scenario& sc, std::uint64_t run, std::vector<TraceRow>* trace,
+                        std::vector<double>* ns_per_period) {
+  ReplayLog log;
+  RunSimulation sim(sc, run, trace, ns_per_period != nullptr ? &log : nullptr);
+  RunMetrics m = sim.execute();
+  if (ns_per_period != nullptr) *ns_per_period = time_estimators(sc, log);
+  return m;
+}
+
+CampaignResult run_campaign(const Scenario& sc, const CampaignOptions& options) {
+  CampaignResult result;
+  const auto runs = static_cast<std::size_t>(sc.run.runs);
+  result.runs.resize(runs);
+  int threads = options.threads > 0 ? options.threads : static_cast<int>(std::thread::hardware_concurrency());
+  threads = std::max(1, std::min<int>(threads, static_cast<int>(runs)));
+  result.threads = threads;
+  const auto start = std::chrono::steady_clock::now();
+
+  std::atomic<std::size_t> next{0};
+  std::atomic<std::size_t> done{0};
+  std::exception_ptr error;
+  std::mutex error_mutex;
+  auto worker = [&] {
+    while (true) {
+      const std::size_t r = next.fetch_add(1);
+      if (r >= runs) return;
+      try {
+        result.runs[r] = simulate_run(sc, r, r == 0 && options.trace ? &result.trace : nullptr);
+      } catch (...) {
+        std::lock_guard<std::mutex> lock(error_mutex);
+        if (!error) error = std::current_exception();
+        next = runs;
+        return;
+      }
+      done.fetch_add(1);
+    }
+  };
+  std::vector<std::thread> pool;
+  for (int t = 1; t < threads; ++t) pool.emplace_back(worker);
+  if (options.progress) {
+    std::thread progress([&] {
+      while (done.load() < runs && next.load() <= runs) {
+        const double el = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        std::fprintf(stderr, "\r%s run %zu/%zu  %.1f s ", options.progress_label.c_str(), done.load(), runs, el);
+        std::fflush(stderr);
+        std::this_thread::sleep_for(std::chrono::milliseconds(200));
+        if (error) break;
+      }
+    });
+    worker();
+    for (auto& t : pool) t.join();
+    progress.join();
+    std::fprintf(stderr, "\r%s %zu runs done in %.1f s      \n", options.progress_label.c_str(), runs,
+                 std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+  } else {
+    worker();
+    for (auto& t : pool) t.join();
+  }
+  if (error) std::rethrow_exception(error);
+  result.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (options.time_estimators) {
+    // Timed alone, after the campaign, on a replay of run 0 (not part of the results' identity).
+    std::vector<double> ns;
+    simulate_run(sc, 0, nullptr, &ns);
+    result.ns_per_period = std::move(ns);
+  } else {
+    result.ns_per_period.assign(sc.estimators.size(), std::nan(""));
+  }
+  return result;
+}
+
+}  // namespace ncosim::sim

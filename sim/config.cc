@@ -1,0 +1,327 @@
+// sim/config.cc — typed reading of TOML scenario tables with file:line errors.
+#include "sim/config.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+namespace ncosim::sim {
+
+std::string format_error(const std::string& file, int line, const std::string& path,
+                         const std::string& message) {
+  std::string out;
+  if (!file.empty()) out += line > 0 ? fmt::format("{}:{}: ", file, line) : file + ": ";
+  if (!path.empty()) out += fmt::format("key '{}': ", path);
+  out += message;
+  return out;
+}
+
+namespace {
+
+std::size_t edit_distance(std::string_view a, std::string_view b) {
+  std::vector<std::size_t> prev(b.size() + 1), cur(b.size() + 1);
+  for (std::size_t j = 0; j <= b.size(); ++j) prev[j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i) {
+    cur[0] = i;
+    for (std::size_t j = 1; j <= b.size(); ++j) {
+      const std::size_t sub = prev[j - 1] + (a[i - 1] == b[j - 1] ? 0 : 1);
+      cur[j] = std::min({prev[j] + 1, cur[j - 1] + 1, sub});
+    }
+    std::swap(prev, cur);
+  }
+  return prev[b.size()];
+}
+
+}  // namespace
+
+std::string did_you_mean(std::string_view word, const std::vector<std::string>& candidates) {
+  std::string best;
+  std::size_t best_d = std::max<std::size_t>(2, word.size() / 3) + 1;
+  for (const auto& c : candidates) {
+    const std::size_t d = edit_distance(word, c);
+    if (d < best_d) {
+      best_d = d;
+      best = c;
+    }
+  }
+  return best;
+}
+
+std::string describe(const toml::node& node) {
+  if (auto s = node.value_exact<std::string>()) return fmt::format("a string \"{}\"", *s);
+  if (auto b = node.value_exact<bool>()) return *b ? "true" : "false";
+  if (auto i = node.value_exact<std::int64_t>()) return fmt::format("{}", *i);
+  if (auto d = node.value_exact<double>()) return fmt::format("{}", *d);
+  if (node.is_table()) return "a table";
+  if (const auto* arr = node.as_array()) {
+    std::ostringstream os;
+    os << *arr;
+    std::string text = os.str();
+    if (text.size() > 60) text = text.substr(0, 57) + "...";
+    return "an array " + text;
+  }
+  return "a date/time";
+}
+
+Table::Table(const toml::table& table, std::string path, std::string file)
+    : table_(&table),
+      path_(std::move(path)),
+      file_(std::move(file)),
+      known_(std::make_shared<std::set<std::string, std::less<>>>()) {}
+
+int Table::line() const { return static_cast<int>(table_->source().begin.line); }
+
+std::string Table::key_path(std::string_view key) const {
+  return path_.empty() ? std::string(key) : fmt::format("{}.{}", path_, key);
+}
+
+const toml::node* Table::get(std::string_view key) const {
+  known_->emplace(key);
+  return table_->get(key);
+}
+
+bool Table::has(std::string_view key) const { return get(key) != nullptr; }
+
+void Table::allow(std::string_view key) const { known_->emplace(key); }
+
+int Table::line_of(std::string_view key) const {
+  const toml::node* n = table_->get(key);
+  if (n == nullptr) return line();
+  const int l = static_cast<int>(n->source().begin.line);
+  return l > 0 ? l : line();
+}
+
+void Table::fail(std::string_view key, const std::string& message) const {
+  throw ScenarioError(format_error(file_, line_of(key), key_path(key), message));
+}
+
+void Table::fail_here(const std::string& message) const {
+  throw ScenarioError(format_error(file_, line(), path_, message));
+}
+
+void Table::type_error(std::string_view key, const std::string& expected) const {
+  const toml::node* n = table_->get(key);
+  if (n == nullptr) fail(key, fmt::format("expected {}, got nothing (the key is required)", expected));
+  fail(key, fmt::format("expected {}, got {}", expected, describe(*n)));
+}
+
+namespace {
+std::optional<double> as_number(const toml::node& n) {
+  if (auto d = n.value_exact<double>()) return *d;
+  if (auto i = n.value_exact<std::int64_t>()) return static_cast<double>(*i);
+  return std::nullopt;
+}
+}  // namespace
+
+double Table::number(std::string_view key) const {
+  const toml::node* n = get(key);
+  if (n == nullptr) type_error(key, "a number");
+  auto v = as_number(*n);
+  if (!v) type_error(key, "a number");
+  if (!std::isfinite(*v)) type_error(key, "a finite number");
+  return *v;
+}
+
+double Table::number_or(std::string_view key, double fallback) const {
+  return has(key) ? number(key) : fallback;
+}
+
+std::optional<double> Table::opt_number(std::string_view key) const {
+  if (!has(key)) return std::nullopt;
+  return number(key);
+}
+
+std::int64_t Table::integer(std::string_view key) const {
+  const toml::node* n = get(key);
+  if (n == nullptr) type_error(key, "an integer");
+  if (auto i = n->value_exact<std::int64_t>()) return *i;
+  if (auto d = n->value_exact<double>()) {
+    if (std::isfinite(*d) && std::floor(*d) == *d && std::fabs(*d) < 9e15) {
+      return static_cast<std::int64_t>(*d);
+    }
+  }
+  type_error(key, "an integer");
+}
+
+std::int64_t Table::integer_or(std::string_view key, std::int64_t fallback) const {
+  return has(key) ? integer(key) : fallback;
+}
+
+bool Table::boolean_or(std::string_view key, bool fallback) const {
+  const toml::node* n = get(key);
+  if (n == nullptr) return fallback;
+  if (auto b = n->value_exact<bool>()) return *b;
+  type_error(key, "true or false");
+}
+
+std::string Table::string(std::string_view key) const {
+  const toml::node* n = get(key);
+  if (n == nullptr) type_error(key, "a string");
+  if (auto s = n->value_exact<std::string>()) return *s;
+  type_error(key, "a string");
+}
+
+std::string Table::string_or(std::string_view key, std::string_view fallback) const {
+  return has(key) ? string(key) : std::string(fallback);
+}
+
+std::string Table::choice_or(std::string_view key, std::string_view fallback,
+                             const std::vector<std::string>& choices) const {
+  std::string v = string_or(key, fallback);
+  if (std::find(choices.begin(), choices.end(), v) != choices.end()) return v;
+  std::string list;
+  for (const auto& c : choices) list += (list.empty() ? "" : ", ") + fmt::format("\"{}\"", c);
+  std::string hint = did_you_mean(v, choices);
+  fail(key, fmt::format("expected one of {}, got \"{}\"{}", list, v,
+                        hint.empty() ? "" : fmt::format(" (did you mean \"{}\"?)", hint)));
+}
+
+std::vector<double> Table::numbers(std::string_view key) const {
+  const toml::node* n = get(key);
+  if (n == nullptr) type_error(key, "an array of numbers");
+  if (auto v = as_number(*n)) return {*v};
+  const toml::array* arr = n->as_array();
+  if (arr == nullptr) type_error(key, "an array of numbers");
+  std::vector<double> out;
+  for (const toml::node& e : *arr) {
+    auto v = as_number(e);
+    if (!v || !std::isfinite(*v)) type_error(key, "an array of finite numbers");
+    out.push_back(*v);
+  }
+  return out;
+}
+
+Eigen::VectorXd Table::vector(std::string_view key) const {
+  const std::vector<double> v = numbers(key);
+  return Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()));
+}
+
+std::vector<std::vector<double>> Table::ragged(std::string_view key) const {
+  const toml::node* n = get(key);
+  if (n == nullptr) type_error(key, "an array of arrays of numbers");
+  const toml::array* arr = n->as_array();
+  if (arr == nullptr) type_error(key, "an array of arrays of numbers");
+  std::vector<std::vector<double>> rows;
+  for (const toml::node& r : *arr) {
+    const toml::array* row = r.as_array();
+    if (row == nullptr) type_error(key, "an array of arrays of numbers");
+    std::vector<double> vals;
+    for (const toml::node& e : *row) {
+      auto v = as_number(e);
+      if (!v || !std::isfinite(*v)) type_error(key, "an array of arrays of finite numbers");
+      vals.push_back(*v);
+    }
+    rows.push_back(std::move(vals));
+  }
+  return rows;
+}
+
+Eigen::MatrixXd Table::matrix(std::string_view key) const {
+  const toml::node* n = get(key);
+  if (n == nullptr) type_error(key, "a matrix [[...], ...]");
+  if (auto v = as_number(*n)) return Eigen::MatrixXd::Constant(1, 1, *v);
+  const toml::array* arr = n->as_array();
+  if (arr == nullptr || arr->empty()) type_error(key, "a matrix [[...], ...]");
+  if (!(*arr)[0].is_array()) {
+    fail(key, fmt::format("expected a matrix [[...], ...] (an array of rows), got {}", describe(*n)));
+  }
+  const auto rows = ragged(key);
+  const std::size_t cols = rows[0].size();
+  if (cols == 0) type_error(key, "a matrix with at least one column");
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    if (rows[i].size() != cols) {
+      fail(key, fmt::format("expected every row to have {} entries, got {} in row {}", cols,
+                            rows[i].size(), i));
+    }
+  }
+  Eigen::MatrixXd m(static_cast<Eigen::Index>(rows.size()), static_cast<Eigen::Index>(cols));
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    for (std::size_t j = 0; j < cols; ++j) {
+      m(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = rows[i][j];
+    }
+  }
+  return m;
+}
+
+Table Table::table(std::string_view key) const {
+  const toml::node* n = get(key);
+  if (n == nullptr || !n->is_table()) type_error(key, "a table");
+  return Table(*n->as_table(), key_path(key), file_);
+}
+
+std::optional<Table> Table::opt_table(std::string_view key) const {
+  if (!has(key)) return std::nullopt;
+  return table(key);
+}
+
+std::vector<Table> Table::tables(std::string_view key) const {
+  const toml::node* n = get(key);
+  std::vector<Table> out;
+  if (n == nullptr) return out;
+  const toml::array* arr = n->as_array();
+  if (arr == nullptr) type_error(key, fmt::format("an array of tables [[{}]]", key));
+  std::size_t i = 0;
+  for (const toml::node& e : *arr) {
+    if (!e.is_table()) type_error(key, fmt::format("an array of tables [[{}]]", key));
+    out.emplace_back(*e.as_table(), fmt::format("{}[{}]", key_path(key), i++), file_);
+  }
+  return out;
+}
+
+void Table::finish() const {
+  std::vector<std::string> known(known_->begin(), known_->end());
+  for (const auto& [k, v] : *table_) {
+    if (known_->count(k.str()) != 0) continue;
+    std::string hint = did_you_mean(k.str(), known);
+    const int l = static_cast<int>(v.source().begin.line);
+    std::string list;
+    for (const auto& c : known) list += (list.empty() ? "" : ", ") + c;
+    throw ScenarioError(format_error(
+        file_, l > 0 ? l : line(), key_path(k.str()),
+        hint.empty() ? fmt::format("unknown key (valid keys here: {})", list)
+                     : fmt::format("unknown key (did you mean '{}'?)", hint)));
+  }
+}
+
+void require_shape(const Table& t, std::string_view key, const Eigen::MatrixXd& m, Eigen::Index rows,
+                   Eigen::Index cols) {
+  if (m.rows() != rows || m.cols() != cols) {
+    t.fail(key, fmt::format("expected a {}x{} matrix, got {}x{}", rows, cols, m.rows(), m.cols()));
+  }
+}
+
+void require_psd(const Table& t, std::string_view key, const Eigen::MatrixXd& m) {
+  if (m.rows() != m.cols()) {
+    t.fail(key, fmt::format("expected a square covariance matrix, got {}x{}", m.rows(), m.cols()));
+  }
+  const double scale = std::max(1.0, m.cwiseAbs().maxCoeff());
+  if ((m - m.transpose()).cwiseAbs().maxCoeff() > 1e-12 * scale) {
+    t.fail(key, "expected a symmetric positive semidefinite matrix, got a non-symmetric one");
+  }
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(m);
+  const double min_eig = es.eigenvalues().minCoeff();
+  if (min_eig < -1e-12 * scale) {
+    t.fail(key, fmt::format("expected a symmetric positive semidefinite matrix, got one with "
+                            "eigenvalue {:.6g}",
+                            min_eig));
+  }
+}
+
+void require_probability(const Table& t, std::string_view key, double p) {
+  if (!(p >= 0.0 && p <= 1.0)) t.fail(key, fmt::format("expected a probability in [0, 1], got {}", p));
+}
+
+void require_subprobability(const Table& t, std::string_view key, const std::vector<double>& pmf) {
+  double sum = 0.0;
+  for (std::size_t i = 0; i < pmf.size(); ++i) {
+    if (pmf[i] < 0.0) {
+      t.fail(key, fmt::format("probabilities must be non-negative, got {} at index {}", pmf[i], i));
+    }
+    sum += pmf[i];
+  }
+  if (sum > 1.0 + 1e-9) t.fail(key, fmt::format("probabilities must sum to <= 1, got {:.6g}", sum));
+}
+
+}  // namespace ncosim::sim

@@ -1,0 +1,108 @@
+// sim/config.h — typed, checked reading of scenario tables (TOML) with precise errors.
+// Every getter records the key as known; Table::finish() rejects keys that no reader
+// asked for, with a did-you-mean. Every error is a ScenarioError whose message reads
+// `FILE:LINE: key 'PATH': expected ..., got ...` (the line of the offending value).
+#pragma once
+
+#include <Eigen/Dense>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <set>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <toml++/toml.h>
+
+
+namespace ncosim::sim {
+
+// Bad user input: the message is complete and ready to print.
+class ScenarioError : public std::runtime_error {
+ public:
+  explicit ScenarioError(const std::string& message) : std::runtime_error(message) {}
+};
+
+// "FILE:LINE: key 'PATH': MESSAGE" (FILE:LINE omitted parts when unknown).
+std::string format_error(const std::string& file, int line, const std::string& path,
+                         const std::string& message);
+
+// Closest candidate by edit distance, or "" when none is close enough.
+std::string did_you_mean(std::string_view word, const std::vector<std::string>& candidates);
+
+class Table {
+ public:
+  // `file` names the source used in messages; `path` is the key path of this table
+  // ("" for the root, "plant", "link[1]").
+  Table(const toml::table& table, std::string path, std::string file);
+
+  const std::string& path() const { return path_; }
+  const std::string& file() const { return file_; }
+  int line() const;
+  std::string key_path(std::string_view key) const;
+
+  bool has(std::string_view key) const;
+
+  double number(std::string_view key) const;
+  double number_or(std::string_view key, double fallback) const;
+  std::optional<double> opt_number(std::string_view key) const;
+
+  std::int64_t integer(std::string_view key) const;
+  std::int64_t integer_or(std::string_view key, std::int64_t fallback) const;
+
+  bool boolean_or(std::string_view key, bool fallback) const;
+
+  std::string string(std::string_view key) const;
+  std::string string_or(std::string_view key, std::string_view fallback) const;
+  // A string that must be one of `choices` (the error lists them).
+  std::string choice_or(std::string_view key, std::string_view fallback,
+                        const std::vector<std::string>& choices) const;
+
+  // A matrix: an array of rows (arrays of numbers), all of one length. A bare number
+  // is read as a 1x1 matrix.
+  Eigen::MatrixXd matrix(std::string_view key) const;
+  // A vector: an array of numbers (a bare number is a vector of size 1).
+  Eigen::VectorXd vector(std::string_view key) const;
+  std::vector<double> numbers(std::string_view key) const;
+  // An array of arrays of numbers, rows of any length.
+  std::vector<std::vector<double>> ragged(std::string_view key) const;
+
+  Table table(std::string_view key) const;
+  std::optional<Table> opt_table(std::string_view key) const;
+  std::vector<Table> tables(std::string_view key) const;  // array of tables; empty if absent
+
+  // Errors at this key's value (its line), or at this table.
+  [[noreturn]] void fail(std::string_view key, const std::string& message) const;
+  [[noreturn]] void fail_here(const std::string& message) const;
+  int line_of(std::string_view key) const;
+
+  // Rejects keys of this table that no getter asked for. Call once all keys are read.
+  void finish() const;
+
+  // Marks a key as known without reading it (a key read by another component).
+  void allow(std::string_view key) const;
+
+ private:
+  const toml::node* get(std::string_view key) const;
+  [[noreturn]] void type_error(std::string_view key, const std::string& expected) const;
+
+  const toml::table* table_;
+  std::string path_;
+  std::string file_;
+  std::shared_ptr<std::set<std::string, std::less<>>> known_;
+};
+
+// Describes a TOML value briefly for "got ..." messages (e.g. `a string "x"`, `1.2`).
+std::string describe(const toml::node& node);
+
+// Range/shape helpers raising ScenarioError at `key`.
+void require_shape(const Table& t, std::string_view key, const Eigen::MatrixXd& m, Eigen::Index rows,
+                   Eigen::Index cols);
+void require_psd(const Table& t, std::string_view key, const Eigen::MatrixXd& m);
+void require_probability(const Table& t, std::string_view key, double p);
+// Non-negative entries summing to at most 1 (+1e-9).
+void require_subprobability(const Table& t, std::string_view key, const std::vector<double>& pmf);
+
+}  // namespace ncosim::sim

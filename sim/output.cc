@@ -1,0 +1,329 @@
+// sim/output.cc — summary statistics and the result files.
+#include "sim/output.h"
+
+#include <fmt/format.h>
+
+#include <boost/math/distributions/students_t.hpp>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <unistd.h>
+
+namespace ncosim::sim {
+
+std::optional<double> ci95_half_width(const std::vector<double>& values) {
+  const std::size_t n = values.size();
+  if (n < 2) return std::nullopt;
+  double mean = 0.0;
+  for (double v : values) mean += v;
+  mean /= static_cast<double>(n);
+  double ss = 0.0;
+  for (double v : values) ss += (v - mean) * (v - mean);
+  const double sd = std::sqrt(ss / static_cast<double>(n - 1));
+  const boost::math::students_t dist(static_cast<double>(n - 1));
+  const double t = boost::math::quantile(boost::math::complement(dist, 0.025));
+  return t * sd / std::sqrt(static_cast<double>(n));
+}
+
+namespace {
+
+std::optional<double> finite(double v) {
+  if (!std::isfinite(v)) return std::nullopt;
+  return v;
+}
+
+double mean_of(const std::vector<double>& v) {
+  double s = 0.0;
+  for (double x : v) s += x;
+  return s / static_cast<double>(v.size());
+}
+
+}  // namespace
+
+std::vector<SummaryRow> summarise(const Scenario& sc, const CampaignResult& result,
+                                  const std::vector<std::string>& sweep_labels) {
+  std::vector<SummaryRow> rows;
+  const Eigen::Index n = sc.model.plant.n();
+  for (std::size_t e = 0; e < sc.estimators.size(); ++e) {
+    const auto& entry = sc.estimators[e];
+    const auto& rep = entry.design->report();
+    SummaryRow row;
+    row.sweep_labels = sweep_labels;
+    row.estimator = entry.name;
+    row.kind = entry.kind;
+    row.runs = static_cast<std::int64_t>(result.runs.size());
+    std::vector<double> mse, mse_ext;
+    std::vector<double> state_sse(static_cast<std::size_t>(n), 0.0);
+    std::int64_t count = 0, used = 0, taken = 0, diverged = 0;
+    std::string status = rep.status == "ok" ? "ok" : "design_" + rep.status;
+    for (const auto& run : result.runs) {
+      const EstimatorRunMetrics& m = run[e];
+      used += m.samples_used;
+      taken += m.samples_taken;
+      if (m.diverged) {
+        ++diverged;
+        continue;
+      }
+      if (m.status != "ok" && status == "ok") status = m.status;
+      mse.push_back(m.sse / static_cast<double>(m.count));
+      mse_ext.push_back(m.sse_ext / static_cast<double>(m.count));
+      for (std::size_t i = 0; i < state_sse.size(); ++i) state_sse[i] += m.sse_state[i];
+      count += m.count;
+    }
+    if (diverged > 0) {
+      status = "diverged";
+    } else {
+      row.mse = finite(mean_of(mse));
+      row.mse_ci95 = ci95_half_width(mse);
+      if (entry.design->extended_size() > 0) {
+        row.mse_ext = finite(mean_of(mse_ext));
+        row.mse_ext_ci95 = ci95_half_width(mse_ext);
+      }
+      for (double s : state_sse) row.rmse.push_back(finite(std::sqrt(s / static_cast<double>(count))));
+    }
+    row.rmse.resize(static_cast<std::size_t>(n));
+    row.flops_per_period = entry.design->flops_per_period();
+    row.stored_gains = rep.stored_gains;
+    row.ns_per_period = finite(result.ns_per_period.at(e));
+    row.predicted_mse_ext = rep.predicted_mse_ext;
+    if (taken > 0) row.delivered_ratio = static_cast<double>(used) / static_cast<double>(taken);
+    row.status = status;
+    rows.push_back(std::move(row));
+  }
+  return rows;
+}
+
+std::string csv_field(const std::string& s) {
+  if (s.find_first_of(",\"\n\r") == std::string::npos) return s;
+  std::string out = "\"";
+  for (char c : s) {
+    if (c == '"') out += '"';
+    out += c;
+  }
+  return out + "\"";
+}
+
+std::string fmt_number(std::optional<double> v) {
+  if (!v || !std::isfinite(*v)) return "";
+  return fmt::format("{:.6g}", *v);
+}
+
+std::vector<std::string> summary_columns(const std::vector<SweepAxis>& sweeps, Eigen::Index n) {
+  std::vector<std::string> cols;
+  for (const auto& s : sweeps) cols.push_back(s.key);
+  for (const char* c : {"estimator", "kind", "runs", "mse", "mse_ci95", "mse_ext", "mse_ext_ci95"}) cols.push_back(c);
+  for (Eigen::Index i = 0; i < n; ++i) cols.push_back(fmt::format("rmse_x{}", i + 1));
+  for (const char* c : {"mde_percent", "flops_per_period", "stored_gains", "ns_per_period", "predicted_mse_ext",
+                        "delivered_ratio", "status"}) {
+    cols.push_back(c);
+  }
+  return cols;
+}
+
+namespace {
+
+std::vector<std::string> row_cells(const SummaryRow& r) {
+  std::vector<std::string> cells = r.sweep_labels;
+  cells.push_back(r.estimator);
+  cells.push_back(r.kind);
+  cells.push_back(std::to_string(r.runs));
+  cells.push_back(fmt_number(r.mse));
+  cells.push_back(fmt_number(r.mse_ci95));
+  cells.push_back(fmt_number(r.mse_ext));
+  cells.push_back(fmt_number(r.mse_ext_ci95));
+  for (const auto& v : r.rmse) cells.push_back(fmt_number(v));
+  cells.push_back(fmt_number(r.mde_percent));
+  cells.push_back(r.flops_per_period ? fmt::format("{:.0f}", *r.flops_per_period) : "");
+  cells.push_back(r.stored_gains ? std::to_string(*r.stored_gains) : "");
+  cells.push_back(r.ns_per_period ? fmt::format("{:.1f}", *r.ns_per_period) : "");
+  cells.push_back(fmt_number(r.predicted_mse_ext));
+  cells.push_back(fmt_number(r.delivered_ratio));
+  cells.push_back(r.status);
+  return cells;
+}
+
+}  // namespace
+
+std::string summary_csv(const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows, Eigen::Index n) {
+  std::string out;
+  const auto cols = summary_columns(sweeps, n);
+  for (std::size_t i = 0; i < cols.size(); ++i) out += (i ? "," : "") + csv_field(cols[i]);
+  out += "\n";
+  for (const auto& r : rows) {
+    const auto cells = row_cells(r);
+    for (std::size_t i = 0; i < cells.size(); ++i) out += (i ? "," : "") + csv_field(cells[i]);
+    out += "\n";
+  }
+  return out;
+}
+
+std::string summary_markdown(const std::string& title, const std::vector<SweepAxis>& sweeps,
+                             const std::vector<SummaryRow>& rows, Eigen::Index n) {
+  // Readable columns: mse ± ci, mse_ext ± ci, predicted, FLOPs, gains, ns, delivered, status.
+  std::vector<std::string> head;
+  for (const auto& s : sweeps) head.push_back(s.key);
+  for (const char* c : {"estimator", "mse ± 95% CI", "mse_ext ± 95% CI", "predicted mse_ext"}) head.push_back(c);
+  for (Eigen::Index i = 0; i < n; ++i) head.push_back(fmt::format("rmse_x{}", i + 1));
+  for (const char* c : {"FLOPs", "gains", "ns/period", "delivered", "status"}) head.push_back(c);
+  auto pm = [](std::optional<double> v, std::optional<double> ci) {
+    if (!v) return std::string("–");
+    return ci ? fmt::format("{:.4g} ± {:.2g}", *v, *ci) : fmt::format("{:.4g}", *v);
+  };
+  auto num = [](std::optional<double> v, const char* f) {
+    return v && std::isfinite(*v) ? fmt::format(fmt::runtime(f), *v) : std::string("–");
+  };
+  std::vector<std::vector<std::string>> body;
+  for (const auto& r : rows) {
+    std::vector<std::string> c = r.sweep_labels;
+    c.push_back(r.estimator);
+    c.push_back(pm(r.mse, r.mse_ci95));
+    c.push_back(pm(r.mse_ext, r.mse_ext_ci95));
+    c.push_back(num(r.predicted_mse_ext, "{:.4g}"));
+    for (const auto& v : r.rmse) c.push_back(num(v, "{:.4g}"));
+    c.push_back(num(r.flops_per_period, "{:.0f}"));
+    c.push_back(r.stored_gains ? std::to_string(*r.stored_gains) : "–");
+    c.push_back(num(r.ns_per_period, "{:.0f}"));
+    c.push_back(num(r.delivered_ratio, "{:.3f}"));
+    c.push_back(r.status);
+    body.push_back(std::move(c));
+  }
+  // Pad for alignment (width in code points, so "±" and "–" count once).
+  auto width = [](const std::string& s) {
+    std::size_t w = 0;
+    for (unsigned char ch : s) w += (ch & 0xC0) != 0x80;
+    return w;
+  };
+  std::vector<std::size_t> wid(head.size(), 3);
+  for (std::size_t i = 0; i < head.size(); ++i) wid[i] = std::max(wid[i], width(head[i]));
+  for (const auto& r : body) {
+    for (std::size_t i = 0; i < r.size(); ++i) wid[i] = std::max(wid[i], width(r[i]));
+  }
+  auto line = [&](const std::vector<std::string>& cells) {
+    std::string out = "|";
+    for (std::size_t i = 0; i < cells.size(); ++i) {
+      out += " " + cells[i] + std::string(wid[i] - width(cells[i]), ' ') + " |";
+    }
+    return out + "\n";
+  };
+  std::string out = fmt::format("# {}\n\n", title);
+  out += line(head);
+  std::string sep = "|";
+  for (std::size_t i = 0; i < head.size(); ++i) sep += std::string(wid[i] + 2, '-') + "|";
+  out += sep + "\n";
+  for (const auto& r : body) out += line(r);
+  return out;
+}
+
+std::string runs_csv(const std::vector<SweepAxis>& sweeps, const std::vector<std::vector<std::string>>& labels,
+                     const std::vector<const Scenario*>& scenarios, const std::vector<const CampaignResult*>& results) {
+  std::string out;
+  for (const auto& s : sweeps) out += csv_field(s.key) + ",";
+  out += "run,estimator,mse,mse_ext,periods,samples_used,samples_taken,diverged,status\n";
+  for (std::size_t c = 0; c < scenarios.size(); ++c) {
+    const Scenario& sc = *scenarios[c];
+    for (std::size_t r = 0; r < results[c]->runs.size(); ++r) {
+      for (std::size_t e = 0; e < sc.estimators.size(); ++e) {
+        const auto& m = results[c]->runs[r][e];
+        for (const auto& l : labels[c]) out += csv_field(l) + ",";
+        const bool has_ext = sc.estimators[e].design->extended_size() > 0;
+        const bool ok = !m.diverged && m.count > 0;
+        out += fmt::format("{},{},{},{},{},{},{},{},{}\n", r, csv_field(sc.estimators[e].name),
+                           ok ? fmt_number(m.sse / static_cast<double>(m.count)) : "",
+                           ok && has_ext ? fmt_number(m.sse_ext / static_cast<double>(m.count)) : "", m.count,
+                           m.samples_used, m.samples_taken, m.diverged ? 1 : 0, m.status);
+      }
+    }
+  }
+  return out;
+}
+
+namespace {
+
+nlohmann::json opt_json(const std::optional<double>& v) {
+  if (!v || !std::isfinite(*v)) return nullptr;
+  return *v;
+}
+
+}  // namespace
+
+nlohmann::json design_json(const LoadedScenario& loaded) {
+  nlohmann::json cases = nlohmann::json::array();
+  for (const auto& c : loaded.cases) {
+    nlohmann::json ests = nlohmann::json::array();
+    for (const auto& e : c.scenario->estimators) {
+      const auto& r = e.design->report();
+      nlohmann::json j;
+      j["name"] = e.name;
+      j["kind"] = e.kind;
+      j["method"] = r.method;
+      j["design_seconds"] = r.design_seconds;
+      j["stored_gains"] = r.stored_gains ? nlohmann::json(*r.stored_gains) : nlohmann::json(nullptr);
+      j["predicted_mse"] = opt_json(r.predicted_mse);
+      j["predicted_mse_ext"] = opt_json(r.predicted_mse_ext);
+      j["stable"] = r.stable ? nlohmann::json(*r.stable) : nlohmann::json(nullptr);
+      j["status"] = r.status;
+      j["flops_per_period"] = opt_json(e.design->flops_per_period());
+      for (const auto& [k, v] : r.extra.items()) j[k] = v;
+      ests.push_back(std::move(j));
+    }
+    if (loaded.sweeps.empty()) return nlohmann::json{{"estimators", ests}};
+    nlohmann::json sweep = nlohmann::json::object();
+    for (std::size_t a = 0; a < loaded.sweeps.size(); ++a) sweep[loaded.sweeps[a].key] = c.labels[a];
+    cases.push_back({{"sweep", sweep}, {"estimators", ests}});
+  }
+  // With sweeps: the first case's estimators stay under "estimators" (the contract's shape),
+  // and every case is listed under "cases".
+  return nlohmann::json{{"estimators", cases.front()["estimators"]}, {"cases", cases}};
+}
+
+std::string trajectory_csv(const Scenario& sc, const std::vector<TraceRow>& trace) {
+  const Eigen::Index n = sc.model.plant.n();
+  std::string out = "period";
+  for (Eigen::Index i = 0; i < n; ++i) out += fmt::format(",x{}", i + 1);
+  for (const auto& e : sc.estimators) {
+    for (Eigen::Index i = 0; i < n; ++i) out += "," + csv_field(fmt::format("{}:xhat{}", e.name, i + 1));
+  }
+  for (const auto& s : sc.model.sensors) out += "," + csv_field(fmt::format("arrived:{}", s.spec.name));
+  out += "\n";
+  for (const auto& r : trace) {
+    out += std::to_string(r.period);
+    for (double v : r.x) out += fmt::format(",{:.9g}", v);
+    for (const auto& xh : r.xhat) {
+      for (double v : xh) out += fmt::format(",{:.9g}", v);
+    }
+    for (int a : r.arrivals) out += fmt::format(",{}", a);
+    out += "\n";
+  }
+  return out;
+}
+
+void write_files_atomically(const std::string& dir, const std::vector<std::pair<std::string, std::string>>& files) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) throw std::runtime_error(fmt::format("cannot create the output directory '{}': {}", dir, ec.message()));
+  std::vector<fs::path> temps;
+  auto cleanup = [&] {
+    for (const auto& t : temps) fs::remove(t, ec);
+  };
+  for (const auto& [name, content] : files) {
+    const fs::path tmp = fs::path(dir) / fmt::format(".{}.tmp{}", name, static_cast<long>(::getpid()));
+    temps.push_back(tmp);
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    out << content;
+    out.close();
+    if (!out) {
+      cleanup();
+      throw std::runtime_error(fmt::format("cannot write '{}'", tmp.string()));
+    }
+  }
+  for (std::size_t i = 0; i < files.size(); ++i) {
+    fs::rename(temps[i], fs::path(dir) / files[i].first, ec);
+    if (ec) {
+      cleanup();
+      throw std::runtime_error(fmt::format("cannot rename into '{}': {}", dir, ec.message()));
+    }
+  }
+}
+
+}  // namespace ncosim::sim

@@ -1,0 +1,56 @@
+// sim/output.h — summaries and result files: summary.csv, summary.md, runs.csv, design.json,
+// manifest.json, trajectory.csv. Every file is written to a temporary name and renamed only
+// once all of them are complete, so a failure never leaves a half-written result set.
+#pragma once
+
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "sim/campaign.h"
+#include "sim/scenario.h"
+
+namespace ncosim::sim {
+
+// One row of summary.csv.
+struct SummaryRow {
+  std::vector<std::string> sweep_labels;
+  std::string estimator, kind;
+  std::int64_t runs = 0;
+  std::optional<double> mse, mse_ci95, mse_ext, mse_ext_ci95;
+  std::vector<std::optional<double>> rmse;  // per plant state
+  std::optional<double> mde_percent;
+  std::optional<double> flops_per_period;
+  std::optional<long> stored_gains;
+  std::optional<double> ns_per_period;
+  std::optional<double> predicted_mse_ext;
+  std::optional<double> delivered_ratio;
+  std::string status;
+};
+
+// Half-width of the 95% confidence interval of the mean of `values` (Student t, n-1
+// degrees of freedom); nullopt for fewer than 2 values.
+std::optional<double> ci95_half_width(const std::vector<double>& values);
+
+std::vector<SummaryRow> summarise(const Scenario& sc, const CampaignResult& result,
+                                  const std::vector<std::string>& sweep_labels);
+
+std::vector<std::string> summary_columns(const std::vector<SweepAxis>& sweeps, Eigen::Index n);
+std::string summary_csv(const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows, Eigen::Index n);
+std::string summary_markdown(const std::string& title, const std::vector<SweepAxis>& sweeps,
+                             const std::vector<SummaryRow>& rows, Eigen::Index n);
+std::string runs_csv(const std::vector<SweepAxis>& sweeps, const std::vector<std::vector<std::string>>& labels,
+                     const std::vector<const Scenario*>& scenarios, const std::vector<const CampaignResult*>& results);
+nlohmann::json design_json(const LoadedScenario& loaded);
+std::string trajectory_csv(const Scenario& sc, const std::vector<TraceRow>& trace);
+
+// Writes every (name, content) into `dir` atomically: all to temporary files first, then
+// renames. Creates `dir` if needed. Throws std::runtime_error on failure (temporaries removed).
+void write_files_atomically(const std::string& dir, const std::vector<std::pair<std::string, std::string>>& files);
+
+// CSV field quoting (RFC 4180) and number formatting (empty for nullopt / non-finite).
+std::string csv_field(const std::string& s);
+std::string fmt_number(std::optional<double> v);
+
+}  // namespace ncosim::sim

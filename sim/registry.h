@@ -1,0 +1,62 @@
+// sim/registry.h — one registry per component kind: a name, a one-line help and a factory
+// that reads its own table. A failed lookup lists the valid names (with a did-you-mean).
+// Built-ins are registered by explicit calls from one place (sim/registry.cc).
+#pragma once
+
+#include <fmt/format.h>
+
+#include <functional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "sim/config.h"
+
+namespace ncosim::sim {
+
+template <class Product, class... Args>
+class Registry {
+ public:
+  using Factory = std::function<Product(const Table&, Args...)>;
+  struct Entry {
+    std::string name;
+    std::string help;
+    Factory factory;
+  };
+
+  void add(std::string name, std::string help, Factory factory) {
+    entries_.push_back(Entry{std::move(name), std::move(help), std::move(factory)});
+  }
+
+  const Entry* find(std::string_view name) const {
+    for (const auto& e : entries_) {
+      if (e.name == name) return &e;
+    }
+    return nullptr;
+  }
+
+  std::vector<std::string> names() const {
+    std::vector<std::string> out;
+    for (const auto& e : entries_) out.push_back(e.name);
+    return out;
+  }
+
+  // The entry named by table key `key` (default `fallback` when absent); a ScenarioError
+  // listing the valid kinds when unknown.
+  const Entry& lookup(const Table& t, std::string_view key, std::string_view fallback) const {
+    const std::string kind = t.has(key) || fallback.empty() ? t.string(key) : std::string(fallback);
+    if (const Entry* e = find(kind)) return *e;
+    std::string list;
+    for (const auto& e : entries_) list += (list.empty() ? "" : ", ") + fmt::format("\"{}\"", e.name);
+    const std::string hint = did_you_mean(kind, names());
+    t.fail(key, fmt::format("expected one of {}, got \"{}\"{}", list, kind,
+                            hint.empty() ? "" : fmt::format(" (did you mean \"{}\"?)", hint)));
+  }
+
+  const std::vector<Entry>& entries() const { return entries_; }
+
+ private:
+  std::vector<Entry> entries_;
+};
+
+}  // namespace ncosim::sim

@@ -1,0 +1,369 @@
+// sim/scenario.cc — scenario loading: TOML parse, --set overrides, sweeps, validation, design.
+#include "sim/scenario.h"
+
+#include <fmt/format.h>
+
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include "sim/registries.h"
+#include "sim/time.h"
+
+namespace ncosim::sim {
+
+std::string fnv1a_hex(const std::string& text) {
+  std::uint64_t h = 0xcbf29ce484222325ULL;
+  for (unsigned char c : text) {
+    h ^= c;
+    h *= 0x100000001b3ULL;
+  }
+  return fmt::format("{:016x}", h);
+}
+
+namespace {
+
+struct PathSegment {
+  std::string key;
+  std::optional<std::size_t> index;
+};
+
+std::vector<PathSegment> parse_path(const std::string& path, const std::string& origin, int line) {
+  std::vector<PathSegment> out;
+  std::size_t i = 0;
+  auto bad = [&](const std::string& why) {
+    throw ScenarioError(format_error(origin, line, path, why));
+  };
+  while (i < path.size()) {
+    std::size_t j = i;
+    while (j < path.size() && path[j] != '.' && path[j] != '[') ++j;
+    if (j == i) bad("expected a key path like 'estimator[0].history' or 'run.runs'");
+    PathSegment seg{path.substr(i, j - i), std::nullopt};
+    if (j < path.size() && path[j] == '[') {
+      const std::size_t close = path.find(']', j);
+      if (close == std::string::npos) bad("expected ']' in the key path");
+      const std::string idx = path.substr(j + 1, close - j - 1);
+      if (idx.empty() || idx.find_first_not_of("0123456789") != std::string::npos) {
+        bad(fmt::format("expected a 0-based index inside [], got '{}'", idx));
+      }
+      seg.index = std::stoul(idx);
+      j = close + 1;
+    }
+    out.push_back(seg);
+    if (j < path.size()) {
+      if (path[j] != '.') bad("expected '.' between keys");
+      ++j;
+      if (j == path.size()) bad("the key path ends with '.'");
+    }
+    i = j;
+  }
+  if (out.empty()) bad("expected a key path");
+  if (out.back().index) bad("expected the path to end with a key, not an index");
+  return out;
+}
+
+}  // namespace
+
+void set_path(toml::table& doc, const std::string& path, const toml::node& value, const std::string& origin,
+              int line) {
+  const auto segs = parse_path(path, origin, line);
+  toml::table* cur = &doc;
+  std::string walked;
+  for (std::size_t s = 0; s + 1 < segs.size(); ++s) {
+    const auto& seg = segs[s];
+    walked += (walked.empty() ? "" : ".") + seg.key;
+    toml::node* n = cur->get(seg.key);
+    if (seg.index) {
+      toml::array* arr = n ? n->as_array() : nullptr;
+      const std::size_t size = arr ? arr->size() : 0;
+      if (*seg.index >= size) {
+        throw ScenarioError(format_error(
+            origin, line, path,
+            fmt::format("there is no [[{}]] number {} (the scenario has {}; indices are 0-based)",
+                        seg.key, *seg.index, size)));
+      }
+      toml::table* t = (*arr)[*seg.index].as_table();
+      if (t == nullptr) {
+        throw ScenarioError(format_error(origin, line, path, fmt::format("'{}' is not an array of tables", walked)));
+      }
+      cur = t;
+      walked += fmt::format("[{}]", *seg.index);
+    } else {
+      if (n == nullptr) {
+        cur->insert(seg.key, toml::table{});
+        n = cur->get(seg.key);
+      }
+      if (!n->is_table()) {
+        throw ScenarioError(format_error(origin, line, path, fmt::format("'{}' is not a table", walked)));
+      }
+      cur = n->as_table();
+    }
+  }
+  cur->insert_or_assign(segs.back().key, value);
+}
+
+void apply_set(toml::table& doc, const std::string& assignment, const std::string& origin) {
+  const std::size_t eq = assignment.find('=');
+  if (eq == std::string::npos || eq == 0) {
+    throw ScenarioError(format_error(origin, 0, "", fmt::format("expected KEY=VALUE, got '{}'", assignment)));
+  }
+  std::string key = assignment.substr(0, eq);
+  while (!key.empty() && key.back() == ' ') key.pop_back();
+  const std::string value = assignment.substr(eq + 1);
+  toml::table parsed;
+  try {
+    parsed = toml::parse("value = " + value, std::string_view(origin));
+  } catch (const toml::parse_error& e) {
+    throw ScenarioError(format_error(
+        origin, 0, key, fmt::format("expected a TOML value (e.g. 4, 0.5, \"S4\", [0.9, 0.05]), got '{}': {}",
+                                    value, e.description())));
+  }
+  set_path(doc, key, *parsed.get("value"), origin, 0);
+}
+
+namespace {
+
+RunSettings read_run(const Table& root) {
+  RunSettings r;
+  const auto t = root.opt_table("run");
+  if (!t) return r;
+  r.periods = t->integer_or("periods", r.periods);
+  if (r.periods < 1 || r.periods > 1'000'000'000) {
+    t->fail("periods", fmt::format("expected an integer in 1..1e9, got {}", r.periods));
+  }
+  r.warmup = t->integer_or("warmup", std::min<std::int64_t>(r.warmup, r.periods / 10));
+  if (r.warmup < 0 || r.warmup >= r.periods) {
+    t->fail("warmup", fmt::format("expected an integer in 0..periods-1 ({}), got {}", r.periods - 1, r.warmup));
+  }
+  r.runs = t->integer_or("runs", r.runs);
+  if (r.runs < 1 || r.runs > 10'000'000) t->fail("runs", fmt::format("expected an integer >= 1, got {}", r.runs));
+  const auto seed = t->integer_or("seed", 1);
+  if (seed < 0) t->fail("seed", fmt::format("expected a non-negative integer, got {}", seed));
+  r.seed = static_cast<std::uint64_t>(seed);
+  r.period = t->number_or("period", 1.0);
+  if (!(r.period > 0.0 && r.period <= 1e6) || seconds_to_time(r.period) <= 0) {
+    t->fail("period", fmt::format("expected a period in seconds in (1e-9, 1e6], got {}", r.period));
+  }
+  r.recentre = t->choice_or("recentre", "auto", {"auto", "always", "never"});
+  t->finish();
+  return r;
+}
+
+}  // namespace
+
+std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::string& file, const std::string& dir) {
+  auto sc = std::make_unique<Scenario>();
+  sc->file = file;
+  Table root(doc, "", file);
+  sc->title = root.string_or("title", std::filesystem::path(file).stem().string());
+  sc->run = read_run(root);
+  root.allow("sweep");  // expanded by load_cases
+
+  // Plant.
+  const Table plant = root.table("plant");
+  const auto& pk = plant_registry().lookup(plant, "kind", "lti");
+  sc->plant_kind = pk.name;
+  sc->model.plant = pk.factory(plant, sc->run.period);
+  sc->model.period = sc->run.period;
+  plant.finish();
+
+  // Links.
+  std::vector<std::string> link_names;
+  const models::LinkContext ctx{dir};
+  for (const Table& t : root.tables("link")) {
+    LinkEntry e;
+    e.name = t.string("name");
+    if (std::find(link_names.begin(), link_names.end(), e.name) != link_names.end()) {
+      t.fail("name", fmt::format("expected a unique link name, got \"{}\" twice", e.name));
+    }
+    const auto& k = link_registry().lookup(t, "kind", "");
+    e.kind = k.name;
+    e.link = k.factory(t, ctx);
+    t.finish();
+    link_names.push_back(e.name);
+    sc->links.push_back(std::move(e));
+  }
+
+  // Sensors.
+  const auto sensor_tables = root.tables("sensor");
+  if (sensor_tables.empty()) root.fail_here("expected at least one [[sensor]] table");
+  std::set<std::string> sensor_names;
+  for (std::size_t i = 0; i < sensor_tables.size(); ++i) {
+    const Table& t = sensor_tables[i];
+    est::SensorModel sm;
+    sm.spec = models::read_sensor(t, sc->model.plant, link_names, static_cast<int>(i));
+    if (!sensor_names.insert(sm.spec.name).second) {
+      t.fail("name", fmt::format("expected a unique sensor name, got \"{}\" twice", sm.spec.name));
+    }
+    if (sm.spec.link >= 0) sm.link = sc->links[static_cast<std::size_t>(sm.spec.link)].link.get();
+    t.finish();
+    sc->model.sensors.push_back(std::move(sm));
+  }
+  // Trace links must hold every packet a run sends.
+  for (std::size_t l = 0; l < sc->links.size(); ++l) {
+    const auto* trace = dynamic_cast<const models::TraceLink*>(sc->links[l].link.get());
+    if (trace == nullptr) continue;
+    std::int64_t packets = 0;
+    for (const auto& s : sc->model.sensors) {
+      if (s.spec.link == static_cast<int>(l)) packets += (sc->run.periods + s.spec.every - 1) / s.spec.every;
+    }
+    if (static_cast<std::int64_t>(trace->size()) < packets) {
+      const Table t = root.tables("link")[l];
+      t.fail("file", fmt::format("expected a trace of at least {} packets (one run sends {}), got {}",
+                                 packets, packets, trace->size()));
+    }
+  }
+
+  // Input.
+  if (auto input = root.opt_table("input")) {
+    const auto& ik = input_registry().lookup(*input, "kind", "none");
+    sc->input = ik.factory(*input, sc->model.plant);
+    input->finish();
+  }
+
+  // Estimators.
+  const auto est_tables = root.tables("estimator");
+  if (est_tables.empty()) root.fail_here("expected at least one [[estimator]] table");
+  std::set<std::string> est_names;
+  for (std::size_t i = 0; i < est_tables.size(); ++i) {
+    const Table& t = est_tables[i];
+    EstimatorEntry e;
+    const auto& k = estimator_registry().lookup(t, "kind", "");
+    e.kind = k.name;
+    e.name = t.string_or("name", fmt::format("{} {}", e.kind, i));
+    if (!est_names.insert(e.name).second) {
+      t.fail("name", fmt::format("expected a unique estimator name, got \"{}\" twice", e.name));
+    }
+    e.design = k.factory(t, sc->model);
+    t.finish();
+    sc->estimators.push_back(std::move(e));
+  }
+
+  // The state-feedback source.
+  if (sc->input.kind == models::InputSpec::Kind::kStateFeedback && sc->input.source != "plant") {
+    for (std::size_t i = 0; i < sc->estimators.size(); ++i) {
+      if (sc->estimators[i].name == sc->input.source) sc->input.source_index = static_cast<int>(i);
+    }
+    if (sc->input.source_index < 0) {
+      std::vector<std::string> names{"plant"};
+      for (const auto& e : sc->estimators) names.push_back(e.name);
+      std::string list;
+      for (const auto& n : names) list += (list.empty() ? "" : ", ") + fmt::format("\"{}\"", n);
+      const std::string hint = did_you_mean(sc->input.source, names);
+      throw ScenarioError(format_error(
+          file, sc->input.line, "input.source",
+          fmt::format("expected \"plant\" or an estimator name ({}), got \"{}\"{}", list, sc->input.source,
+                      hint.empty() ? "" : fmt::format(" (did you mean \"{}\"?)", hint))));
+    }
+  }
+
+  // Re-centring: an open-loop unstable plant is simulated in coordinates that the known
+  // input keeps bounded; the estimation error is unchanged (scenarios/README.md).
+  const bool unstable = sc->model.plant.spectral_radius() >= 1.0;
+  const bool feedback = sc->input.kind == models::InputSpec::Kind::kStateFeedback;
+  if (sc->run.recentre == "always") {
+    sc->recentre = true;
+  } else if (sc->run.recentre == "auto") {
+    sc->recentre = unstable && !feedback;
+  }
+  if (sc->recentre && feedback && sc->input.source_index >= 0) {
+    throw ScenarioError(format_error(file, sc->input.line, "run.recentre",
+                                     "re-centring cannot be combined with feedback on an estimate "
+                                     "(the controller would see re-centred estimates)"));
+  }
+  root.finish();
+  return sc;
+}
+
+LoadedScenario load_cases(const std::string& file, const std::vector<std::string>& sets,
+                          const RunOverrides& overrides) {
+  LoadedScenario out;
+  out.file = file;
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw ScenarioError(format_error(file, 0, "", "cannot open the scenario file"));
+  std::stringstream ss;
+  ss << in.rdbuf();
+  out.text = ss.str();
+  out.overrides = sets;
+  std::string hashed = out.text;
+  for (const auto& s : sets) hashed += "\n--set " + s;
+  out.hash = fnv1a_hex(hashed);
+
+  toml::table doc;
+  try {
+    doc = toml::parse(out.text, std::string_view(file));
+  } catch (const toml::parse_error& e) {
+    throw ScenarioError(format_error(file, static_cast<int>(e.source().begin.line), "",
+                                     fmt::format("TOML syntax error: {}", e.description())));
+  }
+  for (const auto& s : sets) apply_set(doc, s, "--set");
+  if (overrides.runs > 0) set_path(doc, "run.runs", toml::value<std::int64_t>(overrides.runs), "--runs", 0);
+  if (overrides.periods > 0) {
+    set_path(doc, "run.periods", toml::value<std::int64_t>(overrides.periods), "--periods", 0);
+  }
+  if (overrides.seed) {
+    set_path(doc, "run.seed", toml::value<std::int64_t>(static_cast<std::int64_t>(*overrides.seed)), "--seed", 0);
+  }
+
+  // Sweeps: cartesian product, the first axis varying slowest.
+  std::vector<std::vector<const toml::node*>> axis_values;
+  {
+    Table root(doc, "", file);
+    for (const Table& t : root.tables("sweep")) {
+      SweepAxis axis;
+      axis.key = t.string("key");
+      const toml::node* vals = doc.get("sweep")->as_array()->get(out.sweeps.size())->as_table()->get("values");
+      if (vals == nullptr || !vals->is_array() || vals->as_array()->empty()) {
+        t.fail("values", "expected a non-empty array of values");
+      }
+      std::vector<const toml::node*> nodes;
+      for (const toml::node& v : *vals->as_array()) {
+        std::ostringstream os;
+        os << toml::toml_formatter{v};
+        std::string label = os.str();
+        if (v.is_string()) label = *v.value<std::string>();
+        axis.labels.push_back(label);
+        nodes.push_back(&v);
+      }
+      t.finish();
+      // Validate the path now, on a scratch copy.
+      toml::table scratch = doc;
+      set_path(scratch, axis.key, *nodes.front(), file, t.line_of("key"));
+      out.sweeps.push_back(std::move(axis));
+      axis_values.push_back(std::move(nodes));
+    }
+  }
+  std::size_t total = 1;
+  for (const auto& v : axis_values) total *= v.size();
+  if (total > 100000) throw ScenarioError(format_error(file, 0, "sweep", fmt::format("{} cases is too many", total)));
+  const std::string dir = std::filesystem::path(file).parent_path().string();
+  for (std::size_t c = 0; c < total; ++c) {
+    toml::table case_doc = doc;
+    Case cs;
+    std::size_t rem = c;
+    std::vector<std::size_t> idx(axis_values.size());
+    for (std::size_t a = axis_values.size(); a-- > 0;) {
+      idx[a] = rem % axis_values[a].size();
+      rem /= axis_values[a].size();
+    }
+    for (std::size_t a = 0; a < axis_values.size(); ++a) {
+      set_path(case_doc, out.sweeps[a].key, *axis_values[a][idx[a]], file, 0);
+      cs.labels.push_back(out.sweeps[a].labels[idx[a]]);
+    }
+    try {
+      cs.scenario = build_scenario(case_doc, file, dir);
+    } catch (const ScenarioError& e) {
+      if (cs.labels.empty()) throw;
+      std::string where;
+      for (std::size_t a = 0; a < cs.labels.size(); ++a) {
+        where += fmt::format("{}{} = {}", a ? ", " : "", out.sweeps[a].key, cs.labels[a]);
+      }
+      throw ScenarioError(fmt::format("{} (in the sweep case {})", e.what(), where));
+    }
+    out.cases.push_back(std::move(cs));
+  }
+  return out;
+}
+
+}  // namespace ncosim::sim

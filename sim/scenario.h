@@ -1,0 +1,95 @@
+// sim/scenario.h — a scenario file parsed, validated and designed: everything a campaign needs.
+// load_cases() reads the TOML file, applies --set overrides, expands [[sweep]] tables into
+// cases and builds every case (estimator designs included) before anything runs, so bad
+// input is reported (ScenarioError) before t = 0 and nothing is written.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "estimators/estimator.h"
+#include "models/input.h"
+#include "models/link.h"
+#include "models/plant.h"
+#include "sim/config.h"
+
+namespace ncosim::sim {
+
+struct RunSettings {
+  std::int64_t periods = 10000;
+  std::int64_t warmup = 100;
+  std::int64_t runs = 10;
+  std::uint64_t seed = 1;
+  double period = 1.0;  // seconds
+  std::string recentre = "auto";  // auto | always | never
+};
+
+struct LinkEntry {
+  std::string name;
+  std::string kind;
+  std::unique_ptr<models::Link> link;
+};
+
+struct EstimatorEntry {
+  std::string name;
+  std::string kind;
+  std::unique_ptr<est::EstimatorDesign> design;
+};
+
+struct Scenario {
+  std::string file;
+  std::string title;
+  RunSettings run;
+  std::string plant_kind;
+  est::Model model;  // plant, sensors (with pointers into links)
+  models::InputSpec input;
+  std::vector<LinkEntry> links;
+  std::vector<EstimatorEntry> estimators;
+  bool recentre = false;  // simulate in re-centred coordinates (see scenarios/README.md)
+};
+
+struct SweepAxis {
+  std::string key;
+  std::vector<std::string> labels;  // TOML text of each value
+};
+
+struct Case {
+  std::vector<std::string> labels;  // one per sweep axis
+  std::unique_ptr<Scenario> scenario;
+};
+
+struct LoadedScenario {
+  std::string file;
+  std::string text;      // the file's text
+  std::string hash;      // FNV-1a 64 of the text and the overrides, hex
+  std::vector<std::string> overrides;
+  std::vector<SweepAxis> sweeps;
+  std::vector<Case> cases;
+};
+
+// Command-line overrides applied to [run] after --set (0 / empty: keep the file's).
+struct RunOverrides {
+  std::int64_t runs = 0;
+  std::int64_t periods = 0;
+  std::optional<std::uint64_t> seed;
+};
+
+LoadedScenario load_cases(const std::string& file, const std::vector<std::string>& sets,
+                          const RunOverrides& overrides = {});
+
+// Parses and validates one scenario table (no sweep expansion).
+std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::string& file,
+                                         const std::string& dir);
+
+// Applies `KEY=VALUE` (VALUE in TOML syntax) to `doc`. Throws ScenarioError.
+void apply_set(toml::table& doc, const std::string& assignment, const std::string& origin);
+// Sets the value at a key path ("estimator[0].history", "run.runs"). Throws ScenarioError.
+void set_path(toml::table& doc, const std::string& path, const toml::node& value,
+              const std::string& origin, int line);
+
+std::string fnv1a_hex(const std::string& text);
+
+}  // namespace ncosim::sim
