@@ -23,7 +23,17 @@ double read_probability(const sim::Table& t, std::string_view key, double fallba
 }
 
 std::unique_ptr<Link> read_delay(const sim::Table& t, const LinkContext&) {
-  return std::make_unique<DelayPmfLink>(read_pmf(t, "pmf"), t.boolean_or("independent", false));
+  const bool independent = t.boolean_or("independent", false);
+  if (!independent) return std::make_unique<DelayPmfLink>(read_pmf(t, "pmf"), false);
+  // Independent copies: each pmf[d] is its own probability (they need not sum to <= 1).
+  std::vector<double> pmf = t.numbers("pmf");
+  if (pmf.empty()) t.fail("pmf", "expected at least one probability, got an empty array");
+  for (std::size_t d = 0; d < pmf.size(); ++d) {
+    if (!(pmf[d] >= 0.0 && pmf[d] <= 1.0)) {
+      t.fail("pmf", fmt::format("expected probabilities in [0, 1], got {} at index {}", pmf[d], d));
+    }
+  }
+  return std::make_unique<DelayPmfLink>(std::move(pmf), true);
 }
 
 std::unique_ptr<Link> read_bernoulli(const sim::Table& t, const LinkContext&) {

@@ -1,0 +1,48 @@
+#!/usr/bin/env bash
+# scripts/bootstrap.sh — set up a Debian 12 machine and build ncosim, then either run the
+# flagship scenario (`run`) or the whole test suite (`test`: Release, then the unit tests
+# again under -fsanitize=address,undefined). Idempotent: installs only missing packages
+# (one `apt-get update`), reuses existing build directories.
+set -euo pipefail
+mode=${1:-run}
+case $mode in run|test) ;; *) echo "usage: $0 run|test" >&2; exit 2 ;; esac
+cd "$(dirname "$0")/.."
+
+packages=(g++ make cmake libeigen3-dev libboost-dev libboost-random-dev libboost-math-dev
+          libfmt-dev libtomlplusplus-dev libcli11-dev nlohmann-json3-dev
+          libgtest-dev libgmock-dev libbenchmark-dev)
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if ((${#missing[@]})); then
+  sudo=""; [[ $(id -u) -ne 0 ]] && sudo=sudo
+  echo "ncosim: installing ${missing[*]}"
+  $sudo apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi
+
+jobs=$(nproc)
+build() {  # build DIR [cmake options...]: configure and build quietly, show the log on failure
+  local dir=$1; shift
+  mkdir -p "$dir"
+  if ! { cmake -S . -B "$dir" "$@" && cmake --build "$dir" -j "$jobs"; } >"$dir/build.log" 2>&1; then
+    tail -40 "$dir/build.log"; echo "ncosim: build failed (full log: $dir/build.log)" >&2; exit 1
+  fi
+}
+
+if [[ $mode == run ]]; then
+  echo "ncosim: building (Release)..."
+  build build -DCMAKE_BUILD_TYPE=Release -DNCOSIM_BUILD_TESTS=OFF -DNCOSIM_BUILD_BENCH=OFF
+  exec build/sim/ncosim run scenarios/dolz2014_table2.toml
+fi
+
+echo "ncosim: building (Release)..."
+build build -DCMAKE_BUILD_TYPE=Release -DNCOSIM_BUILD_TESTS=ON -DNCOSIM_BUILD_BENCH=ON -DNCOSIM_WERROR=ON
+echo "ncosim: test suite (Release)"
+ctest --test-dir build --output-on-failure -j "$jobs"
+echo "ncosim: building the unit tests with -fsanitize=address,undefined..."
+build build-asan -DCMAKE_BUILD_TYPE=Debug -DNCOSIM_SANITIZE=ON -DNCOSIM_BUILD_BENCH=OFF -DNCOSIM_WERROR=ON
+echo "ncosim: unit tests under AddressSanitizer + UndefinedBehaviorSanitizer"
+ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+  ctest --test-dir build-asan -L unit --output-on-failure -j "$jobs"
