@@ -27,7 +27,7 @@ class DelayWindow {
       if (d < 0 || d > ext_->dbar) continue;
       const std::uint64_t bit = std::uint64_t{1} << d;
       std::uint64_t& seen = seen_[static_cast<std::size_t>(p.sensor)];
-      if (seen & bit) continue;  // duplicate of a sample already used
+      if ((seen & bit) && !p.independent_copy) continue;  // a sample already used
       seen |= bit;
       const int j = ext_->index(p.sensor, static_cast<int>(d));
       values_.segment(ext_->fict[j].row, ny) = p.values.segment(i * ny, ny);

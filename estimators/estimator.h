@@ -43,6 +43,9 @@ struct Packet {
   int count = 0;                      // number of samples
   std::vector<std::int64_t> stamps;   // stamps[i] = sampling period of sample i
   Eigen::VectorXd values;             // sample i occupies rows [i*ny, (i+1)*ny)
+  // A copy from an independent-copies link (the design model of Dolz Remark 2.3): it carries
+  // its own measurement noise, so it is a new measurement even if its sample was seen before.
+  bool independent_copy = false;
 };
 
 // What every estimator knows at the update of period k.

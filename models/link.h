@@ -34,6 +34,9 @@ class Link {
   // Delays of every copy of the next packet that is delivered (empty: lost). Physical
   // links deliver at most one copy; the `independent` delay link delivers a copy per
   // delay d independently (the design model of Dolz et al. 2014, Remark 2.3).
+  // True when copies are independent measurements (the design model): each delivered copy
+  // then carries its own measurement noise, and estimators treat it as a new sample.
+  virtual bool independent_copies() const { return false; }
   virtual void transmit_copies(sim::Rng& rng, std::vector<std::int64_t>& delays) {
     delays.clear();
     const std::int64_t d = transmit(rng);
@@ -55,6 +58,7 @@ class DelayPmfLink final : public Link {
   std::unique_ptr<Link> clone() const override;
   std::int64_t transmit(sim::Rng& rng) override;
   void transmit_copies(sim::Rng& rng, std::vector<std::int64_t>& delays) override;
+  bool independent_copies() const override { return independent_; }
   std::vector<double> delay_pmf(int max_delay) const override;
   double loss_probability() const override;
 

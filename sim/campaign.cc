@@ -194,10 +194,19 @@ class RunSimulation {
     }
     LinkState& ls = links_[static_cast<std::size_t>(spec.link)];
     ls.link->transmit_copies(ls.rng, delays_);
-    for (std::int64_t d : delays_) deliver_copy(now, s, k, d);
+    const bool independent = ls.link->independent_copies();
+    for (std::size_t c = 0; c < delays_.size(); ++c) {
+      if (independent && c > 0) {  // the design model: every copy has its own noise
+        SensorState& st = sensors_[s];
+        draw_normal(st.rng, st.noise);
+        st.values.col(st.head).noalias() = spec.C * x_;
+        st.values.col(st.head).noalias() += st.r_sqrt * st.noise;
+      }
+      deliver_copy(now, s, k, delays_[c], independent);
+    }
   }
 
-  void deliver_copy(SimTime now, std::uint64_t s, std::int64_t k, std::int64_t delay) {
+  void deliver_copy(SimTime now, std::uint64_t s, std::int64_t k, std::int64_t delay, bool independent = false) {
     const auto& spec = sc_.model.sensors[s].spec;
     const std::int64_t arrival = k + delay;
     if (arrival >= sc_.run.periods) return;  // beyond the horizon
@@ -213,6 +222,7 @@ class RunSimulation {
     const SensorState& st = sensors_[s];
     p.sensor = static_cast<int>(s);
     p.send_period = k;
+    p.independent_copy = independent;
     p.count = st.filled;
     p.stamps.resize(static_cast<std::size_t>(st.filled));
     p.values.resize(spec.ny() * st.filled);

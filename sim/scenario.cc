@@ -197,6 +197,10 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
       t.fail("name", fmt::format("expected a unique sensor name, got \"{}\" twice", sm.spec.name));
     }
     if (sm.spec.link >= 0) sm.link = sc->links[static_cast<std::size_t>(sm.spec.link)].link.get();
+    if (sm.link != nullptr && sm.link->independent_copies() && sm.spec.buffer > 0) {
+      t.fail("buffer", fmt::format("expected buffer = 0 on a link with independent copies (link \"{}\"), got {}",
+                                   link_names[static_cast<std::size_t>(sm.spec.link)], sm.spec.buffer));
+    }
     t.finish();
     sc->model.sensors.push_back(std::move(sm));
   }
