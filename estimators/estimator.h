@@ -67,6 +67,8 @@ class Estimator {
   virtual const Eigen::VectorXd& state() const = 0;
   // The delay-extended estimate [xhat[k]; xhat[k-1]; ...] or nullptr when it has none.
   virtual const Eigen::VectorXd* extended() const { return nullptr; }
+  // The filter's own error covariance of extended() (or of state()), when it keeps one.
+  virtual const Eigen::MatrixXd* covariance() const { return nullptr; }
   // "ok" or why the run's estimate cannot be trusted (e.g. "numerical_failure").
   virtual std::string status() const { return "ok"; }
 };

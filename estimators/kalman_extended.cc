@@ -79,6 +79,7 @@ class KalmanExtended final : public Estimator {
     return state_;
   }
   const Eigen::VectorXd* extended() const override { return &x_; }
+  const Eigen::MatrixXd* covariance() const override { return &P_; }
   std::string status() const override { return failed_ ? "numerical_failure" : "ok"; }
 
  private:
