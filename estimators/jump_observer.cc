@@ -33,7 +33,8 @@ class JumpObserver final : public Estimator {
         window_(ext),
         x_(ext.nb),
         head_(ext.n),
-        innov_(Eigen::VectorXd::Zero(ext.nmb)) {
+        innov_(Eigen::VectorXd::Zero(ext.nmb)),
+        masks_(design.masks) {
     for (int b = 0; b <= ext.dbar; ++b) x_.segment(b * ext.n, ext.n) = init.xhat0;
   }
 
@@ -51,17 +52,9 @@ class JumpObserver final : public Estimator {
     if (pattern != 0 && design_.stable) {
       const int N = static_cast<int>(std::min<std::int64_t>(k - last_update_, design_.Nbar));
       const Eigen::MatrixXd& L = design_.gains[design_.gain_of[N - 1][pattern]];
-      // eq. (10): xhat += L alpha (mbar - Cbar xhat) on the delivered rows.
-      for (std::uint64_t bits = pattern; bits != 0; bits &= bits - 1) {
-        const auto& f = ext_.fict[std::countr_zero(bits)];
-        innov_.segment(f.row, f.rows).noalias() =
-            window_.values().segment(f.row, f.rows) - ext_.C.middleRows(f.row, f.rows) * x_;
-      }
-      x_.noalias() += L * innov_;
-      for (std::uint64_t bits = pattern; bits != 0; bits &= bits - 1) {
-        const auto& f = ext_.fict[std::countr_zero(bits)];
-        innov_.segment(f.row, f.rows).setZero();
-      }
+      // eq. (10): xhat += L alpha (mbar - Cbar xhat); alpha is the row mask of the pattern.
+      innov_.noalias() = window_.values() - ext_.C * x_;
+      x_.noalias() += L * innov_.cwiseProduct(masks_[pattern]);
       last_update_ = k;
     }
     window_.clear_pattern();
@@ -81,6 +74,7 @@ class JumpObserver final : public Estimator {
   Eigen::VectorXd x_;
   Eigen::VectorXd head_;
   Eigen::VectorXd innov_;
+  const std::vector<Eigen::VectorXd>& masks_;
   mutable Eigen::VectorXd state_;
   std::int64_t last_update_ = -1;
 };

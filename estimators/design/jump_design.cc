@@ -59,6 +59,7 @@ JumpDesign design_jump_iterative(const ExtendedModel& ext, const std::vector<dou
       d.gain_of[N - 1][m] = (N - 1) * per_N + group_of(grouping, ext, m);
     }
   }
+  for (std::size_t m = 0; m < patterns; ++m) d.masks.push_back(ext.row_mask(m));
   d.P = Eigen::MatrixXd::Zero(nb, nb);
   d.Pt = Eigen::MatrixXd::Constant(nb, nb, std::nan(""));
 
@@ -90,7 +91,7 @@ JumpDesign design_jump_iterative(const ExtendedModel& ext, const std::vector<dou
     const double wN = N < Nbar ? std::pow(p0, N - 1) : std::pow(p0, Nbar - 1) / (1.0 - p0);
     for (std::size_t m = 1; m < patterns; ++m) {
       if (prob[m] <= 0.0) continue;
-      terms.push_back({N, m, wN * prob[m], ext.row_mask(m), d.gain_of[N - 1][m]});
+      terms.push_back({N, m, wN * prob[m], d.masks[m], d.gain_of[N - 1][m]});
     }
   }
 

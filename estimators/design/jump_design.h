@@ -24,6 +24,7 @@ struct JumpDesign {
   int Nbar = 1;
   std::vector<Eigen::MatrixXd> gains;          // one per group (nb x nmb)
   std::vector<std::vector<int>> gain_of;       // [N-1][pattern] -> index into gains, -1 for 0
+  std::vector<Eigen::VectorXd> masks;          // [pattern] -> 0/1 row mask (alpha of eq. 10)
   long stored_gains = 0;                       // the paper's count |L|
   double p0 = 0.0;                             // P[no measurement in a period]
   Eigen::MatrixXd P;                           // covariance at update instants

@@ -46,7 +46,9 @@ TEST(DolzTable2, EveryRowReproducesThePaper) {
                 fmt_number(row.predicted_mse_ext).c_str());
     EXPECT_EQ(row.status, "ok");
     EXPECT_EQ(*row.flops_per_period, paper.flops) << row.estimator;
-    if (paper.gains > 0) EXPECT_EQ(row.stored_gains.value_or(-1), paper.gains) << row.estimator;
+    if (paper.gains > 0) {
+      EXPECT_EQ(row.stored_gains.value_or(-1), paper.gains) << row.estimator;
+    }
     if (row.estimator == "S4, 60 gains" || row.estimator == "Kalman") {
       EXPECT_LT(ci, 0.01 * sim) << row.estimator << ": the CI is too wide for a 5% test";
       EXPECT_NEAR(sim, paper.tr_pt, 0.05 * paper.tr_pt) << row.estimator;

@@ -1,0 +1,113 @@
+// bench/estimators_bench.cc — per-period update of each estimator (system A3 of Dolz et al.
+// 2014, Table 2 configuration), the S4 design, and the whole flagship scenario.
+#include <benchmark/benchmark.h>
+
+#include <memory>
+#include <vector>
+
+#include "estimators/design/jump_design.h"
+#include "estimators/extended_model.h"
+#include "sim/campaign.h"
+#include "sim/registries.h"
+#include "sim/scenario.h"
+
+namespace ncosim {
+namespace {
+
+const std::string kTable2 = std::string(NCOSIM_SOURCE_DIR) + "/scenarios/dolz2014_table2.toml";
+
+// Packets of 4096 periods drawn from the Table 2 links, replayed cyclically (stamps shifted).
+struct Stream {
+  std::unique_ptr<sim::Scenario> sc;
+  std::vector<std::vector<est::Packet>> per_period;
+};
+
+Stream& stream() {
+  static Stream s = [] {
+    Stream st;
+    st.sc = std::move(sim::load_cases(kTable2, {}).cases.front().scenario);
+    const int periods = 4096;
+    st.per_period.resize(periods);
+    sim::Rng rng = sim::make_stream(1, 0, 0);
+    for (std::size_t i = 0; i < st.sc->model.sensors.size(); ++i) {
+      auto link = st.sc->model.sensors[i].link->clone();
+      for (int k = 0; k < periods; ++k) {
+        const auto d = link->transmit(rng);
+        if (d == models::kLost || k + d >= periods) continue;
+        est::Packet p;
+        p.sensor = static_cast<int>(i);
+        p.send_period = k;
+        p.count = 1;
+        p.stamps = {k};
+        p.values = Eigen::VectorXd::Constant(1, 0.1 * (k % 7));
+        st.per_period[static_cast<std::size_t>(k + d)].push_back(p);
+      }
+    }
+    return st;
+  }();
+  return s;
+}
+
+void run_updates(benchmark::State& state, const std::string& name) {
+  Stream& s = stream();
+  const est::EstimatorDesign* design = nullptr;
+  for (const auto& e : s.sc->estimators) {
+    if (e.name == name) design = e.design.get();
+  }
+  auto est = design->instantiate();
+  const Eigen::VectorXd u = Eigen::VectorXd::Zero(1), drive = Eigen::VectorXd::Constant(2, 0.01);
+  const est::PeriodInput in{u, drive};
+  std::int64_t k = 0;
+  const auto n = static_cast<std::int64_t>(s.per_period.size());
+  for (auto _ : state) {
+    auto& arrivals = s.per_period[static_cast<std::size_t>(k % n)];
+    const std::int64_t offset = k - k % n;
+    for (auto& p : arrivals) {
+      p.stamps[0] = p.send_period + offset;  // in place: the stream repeats shifted in time
+      est->on_packet(p, k);
+    }
+    est->on_period(k, in);
+    benchmark::DoNotOptimize(est->state().data());
+    ++k;
+  }
+  state.SetItemsProcessed(state.iterations());
+}
+
+void BM_PeriodUpdate_OpenLoop(benchmark::State& s) { run_updates(s, "open loop"); }
+void BM_PeriodUpdate_JumpS4N4(benchmark::State& s) { run_updates(s, "S4, 60 gains"); }
+void BM_PeriodUpdate_JumpS1(benchmark::State& s) { run_updates(s, "S1, 1 gain"); }
+void BM_PeriodUpdate_KalmanExtended(benchmark::State& s) { run_updates(s, "Kalman"); }
+BENCHMARK(BM_PeriodUpdate_OpenLoop);
+BENCHMARK(BM_PeriodUpdate_JumpS1);
+BENCHMARK(BM_PeriodUpdate_JumpS4N4);
+BENCHMARK(BM_PeriodUpdate_KalmanExtended);
+
+void BM_DesignS4N4(benchmark::State& state) {
+  const Stream& s = stream();
+  const est::ExtendedModel ext = est::build_extended(s.sc->model, 1);
+  for (auto _ : state) {
+    const auto prob = est::pattern_probabilities(s.sc->model, ext);
+    auto d = est::design_jump_iterative(ext, prob, 4, est::Grouping::kS4);
+    benchmark::DoNotOptimize(d.P.data());
+  }
+}
+BENCHMARK(BM_DesignS4N4)->Unit(benchmark::kMillisecond);
+
+// The whole flagship scenario on one thread: 20 runs x 20000 periods x 7 estimators.
+void BM_FlagshipScenario(benchmark::State& state) {
+  auto sc = std::move(sim::load_cases(kTable2, {}).cases.front().scenario);
+  sim::CampaignOptions opt;
+  opt.threads = 1;
+  opt.time_estimators = false;
+  for (auto _ : state) {
+    auto r = sim::run_campaign(*sc, opt);
+    benchmark::DoNotOptimize(r.runs.data());
+  }
+  state.SetItemsProcessed(state.iterations() * sc->run.runs * sc->run.periods *
+                          static_cast<std::int64_t>(sc->estimators.size()));
+  state.SetLabel("items = periods x runs x estimators");
+}
+BENCHMARK(BM_FlagshipScenario)->Unit(benchmark::kMillisecond)->Iterations(3);
+
+}  // namespace
+}  // namespace ncosim
