@@ -123,6 +123,12 @@ class KalmanExtendedDesign final : public EstimatorDesign {
 
 std::unique_ptr<EstimatorDesign> read_kalman_extended(const sim::Table& t, const Model& model) {
   const int dbar = read_max_delay(t, 0);
+  const auto nf = static_cast<long>(model.sensors.size()) * (dbar + 1);
+  if (nf > 64) {
+    t.fail("max_delay", fmt::format("expected at most 64 fictitious sensors (sensors x (max_delay + 1)), "
+                                    "got {} x {} = {}",
+                                    model.sensors.size(), dbar + 1, nf));
+  }
   return std::make_unique<KalmanExtendedDesign>(model, dbar, read_initial(t, model));
 }
 

@@ -22,7 +22,10 @@ InputSpec read_white(const sim::Table& t, const LinearPlant& plant) {
   s.std = t.vector("std");
   if (s.std.size() == 1 && plant.nu() > 1) s.std = Eigen::VectorXd::Constant(plant.nu(), s.std(0));
   if (s.std.size() != plant.nu()) {
-    t.fail("std", fmt::format("expected 1 or {} entries (the input size), got {}", plant.nu(), s.std.size()));
+    t.fail("std", plant.nu() == 1
+                      ? fmt::format("expected 1 entry (the input size), got {}", s.std.size())
+                      : fmt::format("expected 1 or {} entries (the input size), got {}", plant.nu(),
+                                    s.std.size()));
   }
   if (s.std.minCoeff() < 0) t.fail("std", "expected non-negative standard deviations");
   return s;

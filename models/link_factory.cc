@@ -144,9 +144,13 @@ std::unique_ptr<Link> read_trace(const sim::Table& t, const LinkContext& ctx) {
     if (delays.empty()) t.fail("file", fmt::format("trace '{}' holds no packet", path.string()));
     return std::make_unique<TraceLink>(std::move(delays));
   } catch (const TraceError& e) {
-    if (e.line <= 0) t.fail("file", fmt::format("cannot read trace file '{}': {}", path.string(), e.what()));
-    throw sim::ScenarioError(fmt::format("{}:{}: {} (trace of key '{}' in {})", e.file, e.line, e.what(),
-                                         t.key_path("file"), t.file()));
+    if (e.line <= 0)
+      t.fail("file",
+             fmt::format("expected a readable trace file, got '{}' ({})", path.string(), e.what()));
+    // The error is in the trace: its file and line first, then the key that named it.
+    throw sim::ScenarioError(fmt::format("{}:{}: {} (the trace named by {}:{}: key '{}')", e.file,
+                                         e.line, e.what(), t.file(), t.line_of("file"),
+                                         t.key_path("file")));
   }
 }
 

@@ -40,6 +40,7 @@ void draw_normal(Rng& rng, Eigen::VectorXd& out) {
 }
 
 constexpr double kDivergence = 1e150;
+constexpr double kPrecisionLimit = 1e10;
 
 // Log of run 0 as the estimators saw it, replayed to time each estimator alone.
 struct ReplayLog {
@@ -123,7 +124,10 @@ class RunSimulation {
     queue_.schedule(0, Phase::kActuate, &actuate_handler_, 0);
     queue_.schedule(0, Phase::kMetrics, &metrics_handler_, 0);
     queue_.run_until((periods - 1) * period_ns_);
-    for (std::size_t e = 0; e < estimators_.size(); ++e) metrics_[e].status = estimators_[e]->status();
+    for (std::size_t e = 0; e < estimators_.size(); ++e) {
+      metrics_[e].status = estimators_[e]->status();
+      if (precision_lost_ && metrics_[e].status == "ok") metrics_[e].status = "precision_lost";
+    }
     return std::move(metrics_);
   }
 
@@ -301,6 +305,9 @@ class RunSimulation {
       trace_->push_back(std::move(row));
     }
     std::fill(arrivals_.begin(), arrivals_.end(), 0);
+    // |x| > 1e10: x - xhat has lost 10 of its 16 significant digits to rounding (an unstable
+    // plant left without feedback or re-centring); the errors are no longer trustworthy.
+    if (!precision_lost_ && x_.cwiseAbs().maxCoeff() > kPrecisionLimit) precision_lost_ = true;
     if (k >= sc_.run.warmup) {
       for (std::size_t e = 0; e < estimators_.size(); ++e) {
         EstimatorRunMetrics& m = metrics_[e];
@@ -353,6 +360,7 @@ class RunSimulation {
   std::vector<int> arrivals_;
   std::vector<std::unique_ptr<est::Estimator>> estimators_;
   RunMetrics metrics_;
+  bool precision_lost_ = false;
 };
 
 // Replays run 0's inputs into a fresh instance of each estimator and times it alone:

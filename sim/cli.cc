@@ -5,10 +5,12 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <chrono>
 #include <ctime>
 #include <filesystem>
 #include <iostream>
+#include <limits>
 #include <thread>
 
 #include "ncosim_version.h"
@@ -169,11 +171,15 @@ int run_cli(int argc, char** argv) {
   };
   CLI::App* run = app.add_subcommand("run", "run the Monte Carlo campaign and write the results");
   add_common(run, true);
-  run->add_option("--runs", a.overrides.runs, "Monte Carlo runs (overrides run.runs)")->check(CLI::PositiveNumber);
+  // Ranges as in [run] (CLI::PositiveNumber would print its bound as a 300-digit double).
+  run->add_option("--runs", a.overrides.runs, "Monte Carlo runs (overrides run.runs)")
+      ->check(CLI::Range(std::int64_t{1}, std::int64_t{10'000'000}));
   run->add_option("--periods", a.overrides.periods, "periods per run (overrides run.periods)")
-      ->check(CLI::PositiveNumber);
-  run->add_option("--seed", a.seed, "campaign seed (overrides run.seed)")->check(CLI::NonNegativeNumber);
-  run->add_option("--threads", threads, "worker threads (default: all cores)")->check(CLI::NonNegativeNumber);
+      ->check(CLI::Range(std::int64_t{1}, std::int64_t{1'000'000'000}));
+  run->add_option("--seed", a.seed, "campaign seed (overrides run.seed)")
+      ->check(CLI::Range(std::int64_t{0}, std::numeric_limits<std::int64_t>::max()));
+  run->add_option("--threads", threads, "worker threads (default: all cores)")
+      ->check(CLI::Range(0, 4096));
   run->add_flag("--trace", trace, "also write trajectory.csv (x, xhat, arrivals of run 0)");
   run->add_flag("--quiet", quiet, "no progress line");
   CLI::App* design = app.add_subcommand("design", "offline design only: write design.json");
@@ -182,6 +188,18 @@ int run_cli(int argc, char** argv) {
   add_common(check, false);
   app.add_subcommand("list", "list every registered kind with a one-line help");
 
+  // An unknown command: CLI11 would only say "A subcommand is required".
+  if (argc > 1 && argv[1][0] != '-') {
+    std::vector<std::string> commands;
+    for (const CLI::App* sub : app.get_subcommands({})) commands.push_back(sub->get_name());
+    if (std::find(commands.begin(), commands.end(), argv[1]) == commands.end()) {
+      const std::string hint = did_you_mean(argv[1], commands);
+      std::cerr << fmt::format(
+          "ncosim: expected a command (run, design, check or list), got '{}'{}\n", argv[1],
+          hint.empty() ? "" : fmt::format(" (did you mean '{}'?)", hint));
+      return 2;
+    }
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

@@ -49,16 +49,38 @@ std::string did_you_mean(std::string_view word, const std::vector<std::string>& 
   return best;
 }
 
-std::string describe(const toml::node& node) {
-  if (auto s = node.value_exact<std::string>()) return fmt::format("a string \"{}\"", *s);
+std::string compact_toml(const toml::node& node) {
+  if (auto s = node.value_exact<std::string>()) return fmt::format("\"{}\"", *s);
   if (auto b = node.value_exact<bool>()) return *b ? "true" : "false";
   if (auto i = node.value_exact<std::int64_t>()) return fmt::format("{}", *i);
-  if (auto d = node.value_exact<double>()) return fmt::format("{}", *d);
-  if (node.is_table()) return "a table";
+  if (auto d = node.value_exact<double>()) {
+    std::string text = fmt::format("{}", *d);
+    if (text.find_first_of(".eEn") == std::string::npos) text += ".0";  // keep it a float
+    return text;
+  }
   if (const auto* arr = node.as_array()) {
-    std::ostringstream os;
-    os << *arr;
-    std::string text = os.str();
+    std::string out = "[";
+    for (std::size_t i = 0; i < arr->size(); ++i)
+      out += (i ? ", " : "") + compact_toml(*arr->get(i));
+    return out + "]";
+  }
+  if (const auto* tab = node.as_table()) {
+    std::string out = "{";
+    for (const auto& [k, v] : *tab)
+      out += fmt::format("{}{} = {}", out.size() > 1 ? ", " : " ", k.str(), compact_toml(v));
+    return out + (tab->empty() ? "}" : " }");
+  }
+  std::ostringstream os;
+  os << toml::toml_formatter{node};
+  return os.str();
+}
+
+std::string describe(const toml::node& node) {
+  if (auto s = node.value_exact<std::string>()) return fmt::format("a string \"{}\"", *s);
+  if (node.is_boolean() || node.is_integer() || node.is_floating_point()) return compact_toml(node);
+  if (node.is_table()) return "a table";
+  if (node.is_array()) {
+    std::string text = compact_toml(node);
     if (text.size() > 60) text = text.substr(0, 57) + "...";
     return "an array " + text;
   }
@@ -86,15 +108,24 @@ bool Table::has(std::string_view key) const { return get(key) != nullptr; }
 
 void Table::allow(std::string_view key) const { known_->emplace(key); }
 
+std::pair<std::string, int> Table::location(const toml::node& node) const {
+  const toml::source_region& src = node.source();
+  if (src.path && src.path->starts_with(kCommandLineOrigin)) return {*src.path, 0};
+  const int l = static_cast<int>(src.begin.line);
+  return {file_, l > 0 ? l : line()};
+}
+
 int Table::line_of(std::string_view key) const {
   const toml::node* n = table_->get(key);
   if (n == nullptr) return line();
-  const int l = static_cast<int>(n->source().begin.line);
+  const int l = location(*n).second;
   return l > 0 ? l : line();
 }
 
 void Table::fail(std::string_view key, const std::string& message) const {
-  throw ScenarioError(format_error(file_, line_of(key), key_path(key), message));
+  const toml::node* n = table_->get(key);
+  const auto [file, l] = n != nullptr ? location(*n) : std::pair<std::string, int>{file_, line()};
+  throw ScenarioError(format_error(file, l, key_path(key), message));
 }
 
 void Table::fail_here(const std::string& message) const {
@@ -187,7 +218,10 @@ std::vector<double> Table::numbers(std::string_view key) const {
   std::vector<double> out;
   for (const toml::node& e : *arr) {
     auto v = as_number(e);
-    if (!v || !std::isfinite(*v)) type_error(key, "an array of finite numbers");
+    if (!v || !std::isfinite(*v)) {
+      fail(key, fmt::format("expected an array of finite numbers, got {} at index {}", describe(e),
+                            out.size()));
+    }
     out.push_back(*v);
   }
   return out;
@@ -206,11 +240,17 @@ std::vector<std::vector<double>> Table::ragged(std::string_view key) const {
   std::vector<std::vector<double>> rows;
   for (const toml::node& r : *arr) {
     const toml::array* row = r.as_array();
-    if (row == nullptr) type_error(key, "an array of arrays of numbers");
+    if (row == nullptr) {
+      fail(key, fmt::format("expected an array of arrays of numbers, got {} as row {}", describe(r),
+                            rows.size()));
+    }
     std::vector<double> vals;
     for (const toml::node& e : *row) {
       auto v = as_number(e);
-      if (!v || !std::isfinite(*v)) type_error(key, "an array of arrays of finite numbers");
+      if (!v || !std::isfinite(*v)) {
+        fail(key, fmt::format("expected an array of arrays of finite numbers, got {} at [{}][{}]",
+                              describe(e), rows.size(), vals.size()));
+      }
       vals.push_back(*v);
     }
     rows.push_back(std::move(vals));
@@ -275,13 +315,13 @@ void Table::finish() const {
   for (const auto& [k, v] : *table_) {
     if (known_->count(k.str()) != 0) continue;
     std::string hint = did_you_mean(k.str(), known);
-    const int l = static_cast<int>(v.source().begin.line);
+    const auto [file, l] = location(v);
     std::string list;
     for (const auto& c : known) list += (list.empty() ? "" : ", ") + c;
-    throw ScenarioError(format_error(
-        file_, l > 0 ? l : line(), key_path(k.str()),
-        hint.empty() ? fmt::format("unknown key (valid keys here: {})", list)
-                     : fmt::format("unknown key (did you mean '{}'?)", hint)));
+    throw ScenarioError(format_error(file, l, key_path(k.str()),
+                                     hint.empty()
+                                         ? fmt::format("unknown key (valid keys here: {})", list)
+                                         : fmt::format("unknown key (did you mean '{}'?)", hint)));
   }
 }
 

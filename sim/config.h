@@ -1,7 +1,9 @@
 // sim/config.h — typed, checked reading of scenario tables (TOML) with precise errors.
 // Every getter records the key as known; Table::finish() rejects keys that no reader
 // asked for, with a did-you-mean. Every error is a ScenarioError whose message reads
-// `FILE:LINE: key 'PATH': expected ..., got ...` (the line of the offending value).
+// `FILE:LINE: key 'PATH': expected ..., got ...` (the line of the offending value). A value
+// that came from the command line carries its origin instead of FILE:LINE
+// (`--set: key 'PATH': ...`): its node's source path is the option name (kCommandLineOrigin).
 #pragma once
 
 #include <Eigen/Dense>
@@ -12,6 +14,7 @@
 #include <stdexcept>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include <toml++/toml.h>
@@ -28,6 +31,10 @@ class ScenarioError : public std::runtime_error {
 // "FILE:LINE: key 'PATH': MESSAGE" (FILE:LINE omitted parts when unknown).
 std::string format_error(const std::string& file, int line, const std::string& path,
                          const std::string& message);
+
+// Source paths that start with this prefix name a command-line option ("--set", "--runs"),
+// not a file: errors at such values omit the line.
+inline constexpr std::string_view kCommandLineOrigin = "--";
 
 // Closest candidate by edit distance, or "" when none is close enough.
 std::string did_you_mean(std::string_view word, const std::vector<std::string>& candidates);
@@ -76,6 +83,7 @@ class Table {
   // Errors at this key's value (its line), or at this table.
   [[noreturn]] void fail(std::string_view key, const std::string& message) const;
   [[noreturn]] void fail_here(const std::string& message) const;
+  // The line of this key's value (of this table when absent or set on the command line).
   int line_of(std::string_view key) const;
 
   // Rejects keys of this table that no getter asked for. Call once all keys are read.
@@ -87,6 +95,8 @@ class Table {
  private:
   const toml::node* get(std::string_view key) const;
   [[noreturn]] void type_error(std::string_view key, const std::string& expected) const;
+  // "FILE:LINE: key 'PATH': " prefix parts for a value node of this table.
+  std::pair<std::string, int> location(const toml::node& node) const;
 
   const toml::table* table_;
   std::string path_;
@@ -96,6 +106,9 @@ class Table {
 
 // Describes a TOML value briefly for "got ..." messages (e.g. `a string "x"`, `1.2`).
 std::string describe(const toml::node& node);
+// A value in one-line TOML syntax with numbers in their shortest exact form: "[0.9, 0.05]",
+// not toml++'s "[ 0.90000000000000002, 0.050000000000000003 ]".
+std::string compact_toml(const toml::node& node);
 
 // Range/shape helpers raising ScenarioError at `key`.
 void require_shape(const Table& t, std::string_view key, const Eigen::MatrixXd& m, Eigen::Index rows,

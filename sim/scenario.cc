@@ -65,9 +65,11 @@ std::vector<PathSegment> parse_path(const std::string& path, const std::string& 
 
 }  // namespace
 
-void set_path(toml::table& doc, const std::string& path, const toml::node& value, const std::string& origin,
-              int line) {
-  const auto segs = parse_path(path, origin, line);
+namespace {
+
+// The table that holds the last key of `path` (intermediate tables are created).
+toml::table& parent_of(toml::table& doc, const std::string& path,
+                       const std::vector<PathSegment>& segs, const std::string& origin, int line) {
   toml::table* cur = &doc;
   std::string walked;
   for (std::size_t s = 0; s + 1 < segs.size(); ++s) {
@@ -100,7 +102,37 @@ void set_path(toml::table& doc, const std::string& path, const toml::node& value
       cur = n->as_table();
     }
   }
-  cur->insert_or_assign(segs.back().key, value);
+  return *cur;
+}
+
+// Parses `value = TEXT` with `origin` as the source path, so that errors at the value name
+// the option that set it (see kCommandLineOrigin).
+toml::table parse_value(const std::string& key, const std::string& text,
+                        const std::string& origin) {
+  try {
+    return toml::parse("value = " + text, std::string_view(origin));
+  } catch (const toml::parse_error& e) {
+    throw ScenarioError(format_error(
+        origin, 0, key,
+        fmt::format("expected a TOML value (e.g. 4, 0.5, \"S4\", [0.9, 0.05]), got '{}': {}", text,
+                    e.description())));
+  }
+}
+
+}  // namespace
+
+void set_path(toml::table& doc, const std::string& path, const toml::node& value,
+              const std::string& origin, int line) {
+  const auto segs = parse_path(path, origin, line);
+  parent_of(doc, path, segs, origin, line).insert_or_assign(segs.back().key, value);
+}
+
+void set_path(toml::table& doc, const std::string& path, toml::node&& value,
+              const std::string& origin, int line) {
+  const auto segs = parse_path(path, origin, line);
+  // Moving keeps the value's source (file and line, or command-line origin) for error messages;
+  // toml++ drops it on copies.
+  parent_of(doc, path, segs, origin, line).insert_or_assign(segs.back().key, std::move(value));
 }
 
 void apply_set(toml::table& doc, const std::string& assignment, const std::string& origin) {
@@ -110,16 +142,9 @@ void apply_set(toml::table& doc, const std::string& assignment, const std::strin
   }
   std::string key = assignment.substr(0, eq);
   while (!key.empty() && key.back() == ' ') key.pop_back();
-  const std::string value = assignment.substr(eq + 1);
-  toml::table parsed;
-  try {
-    parsed = toml::parse("value = " + value, std::string_view(origin));
-  } catch (const toml::parse_error& e) {
-    throw ScenarioError(format_error(
-        origin, 0, key, fmt::format("expected a TOML value (e.g. 4, 0.5, \"S4\", [0.9, 0.05]), got '{}': {}",
-                                    value, e.description())));
-  }
-  set_path(doc, key, *parsed.get("value"), origin, 0);
+  while (!key.empty() && key.front() == ' ') key.erase(0, 1);
+  toml::table parsed = parse_value(key, assignment.substr(eq + 1), origin);
+  set_path(doc, key, std::move(*parsed.get("value")), origin, 0);
 }
 
 namespace {
@@ -157,8 +182,12 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
   sc->file = file;
   Table root(doc, "", file);
   sc->title = root.string_or("title", std::filesystem::path(file).stem().string());
+  // Unknown top-level keys first (a misspelt [[sensor]] is reported as such, not as a missing
+  // table). Every top-level key read below must be listed here.
+  for (const char* key : {"run", "sweep", "plant", "link", "sensor", "input", "estimator"})
+    root.allow(key);
+  root.finish();
   sc->run = read_run(root);
-  root.allow("sweep");  // expanded by load_cases
 
   // Plant.
   const Table plant = root.table("plant");
@@ -187,7 +216,8 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
 
   // Sensors.
   const auto sensor_tables = root.tables("sensor");
-  if (sensor_tables.empty()) root.fail_here("expected at least one [[sensor]] table");
+  if (sensor_tables.empty())
+    root.fail("sensor", "expected at least one [[sensor]] table, got none");
   std::set<std::string> sensor_names;
   for (std::size_t i = 0; i < sensor_tables.size(); ++i) {
     const Table& t = sensor_tables[i];
@@ -220,7 +250,8 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
   }
 
   // Input.
-  if (auto input = root.opt_table("input")) {
+  const std::optional<Table> input = root.opt_table("input");
+  if (input) {
     const auto& ik = input_registry().lookup(*input, "kind", "none");
     sc->input = ik.factory(*input, sc->model.plant);
     input->finish();
@@ -228,7 +259,8 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
 
   // Estimators.
   const auto est_tables = root.tables("estimator");
-  if (est_tables.empty()) root.fail_here("expected at least one [[estimator]] table");
+  if (est_tables.empty())
+    root.fail("estimator", "expected at least one [[estimator]] table, got none");
   std::set<std::string> est_names;
   for (std::size_t i = 0; i < est_tables.size(); ++i) {
     const Table& t = est_tables[i];
@@ -255,10 +287,10 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
       std::string list;
       for (const auto& n : names) list += (list.empty() ? "" : ", ") + fmt::format("\"{}\"", n);
       const std::string hint = did_you_mean(sc->input.source, names);
-      throw ScenarioError(format_error(
-          file, sc->input.line, "input.source",
-          fmt::format("expected \"plant\" or an estimator name ({}), got \"{}\"{}", list, sc->input.source,
-                      hint.empty() ? "" : fmt::format(" (did you mean \"{}\"?)", hint))));
+      input->fail("source",
+                  fmt::format("expected \"plant\" or an estimator name ({}), got \"{}\"{}", list,
+                              sc->input.source,
+                              hint.empty() ? "" : fmt::format(" (did you mean \"{}\"?)", hint)));
     }
   }
 
@@ -272,13 +304,53 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
     sc->recentre = unstable && !feedback;
   }
   if (sc->recentre && feedback && sc->input.source_index >= 0) {
-    throw ScenarioError(format_error(file, sc->input.line, "run.recentre",
-                                     "re-centring cannot be combined with feedback on an estimate "
-                                     "(the controller would see re-centred estimates)"));
+    root.table("run").fail(
+        "recentre", fmt::format("expected \"auto\" or \"never\" with feedback on an estimate "
+                                "(input.source = \"{}\"), got \"always\" (the controller "
+                                "would see re-centred estimates)",
+                                sc->input.source));
   }
   root.finish();
   return sc;
 }
+
+namespace {
+
+// The scenario text parsed, with --set and the [run] options applied. Parsed afresh for every
+// sweep case: toml++ copies drop the source lines that error messages need.
+toml::table parse_document(const std::string& text, const std::string& file,
+                           const std::vector<std::string>& sets, const RunOverrides& overrides) {
+  toml::table doc;
+  try {
+    doc = toml::parse(text, std::string_view(file));
+  } catch (const toml::parse_error& e) {
+    throw ScenarioError(format_error(file, static_cast<int>(e.source().begin.line), "",
+                                     fmt::format("TOML syntax error: {}", e.description())));
+  }
+  for (const auto& s : sets) apply_set(doc, s, "--set");
+  auto override_run = [&](const char* key, std::int64_t value, const char* option) {
+    toml::table parsed = parse_value(key, std::to_string(value), option);
+    set_path(doc, fmt::format("run.{}", key), std::move(*parsed.get("value")), option, 0);
+  };
+  if (overrides.runs > 0) override_run("runs", overrides.runs, "--runs");
+  if (overrides.periods > 0) override_run("periods", overrides.periods, "--periods");
+  if (overrides.seed) override_run("seed", static_cast<std::int64_t>(*overrides.seed), "--seed");
+  return doc;
+}
+
+// A swept value as written in summary.csv: strings bare, numbers in their shortest exact
+// form ("0.3", not toml++'s "0.29999999999999999"), arrays as "[0.9, 0.05]".
+std::string sweep_label(const toml::node& v) {
+  if (auto s = v.value_exact<std::string>()) return *s;
+  return compact_toml(v);
+}
+
+// The `values` array of [[sweep]] number `axis`.
+toml::array& sweep_values(toml::table& doc, std::size_t axis) {
+  return *doc.get("sweep")->as_array()->get(axis)->as_table()->get("values")->as_array();
+}
+
+}  // namespace
 
 LoadedScenario load_cases(const std::string& file, const std::vector<std::string>& sets,
                           const RunOverrides& overrides) {
@@ -294,65 +366,67 @@ LoadedScenario load_cases(const std::string& file, const std::vector<std::string
   for (const auto& s : sets) hashed += "\n--set " + s;
   out.hash = fnv1a_hex(hashed);
 
-  toml::table doc;
-  try {
-    doc = toml::parse(out.text, std::string_view(file));
-  } catch (const toml::parse_error& e) {
-    throw ScenarioError(format_error(file, static_cast<int>(e.source().begin.line), "",
-                                     fmt::format("TOML syntax error: {}", e.description())));
-  }
-  for (const auto& s : sets) apply_set(doc, s, "--set");
-  if (overrides.runs > 0) set_path(doc, "run.runs", toml::value<std::int64_t>(overrides.runs), "--runs", 0);
-  if (overrides.periods > 0) {
-    set_path(doc, "run.periods", toml::value<std::int64_t>(overrides.periods), "--periods", 0);
-  }
-  if (overrides.seed) {
-    set_path(doc, "run.seed", toml::value<std::int64_t>(static_cast<std::int64_t>(*overrides.seed)), "--seed", 0);
-  }
+  toml::table doc = parse_document(out.text, file, sets, overrides);
 
   // Sweeps: cartesian product, the first axis varying slowest.
-  std::vector<std::vector<const toml::node*>> axis_values;
+  std::vector<std::size_t> axis_sizes;
   {
     Table root(doc, "", file);
-    for (const Table& t : root.tables("sweep")) {
+    const auto sweep_tables = root.tables("sweep");
+    for (std::size_t a = 0; a < sweep_tables.size(); ++a) {
+      const Table& t = sweep_tables[a];
       SweepAxis axis;
       axis.key = t.string("key");
-      const toml::node* vals = doc.get("sweep")->as_array()->get(out.sweeps.size())->as_table()->get("values");
+      const int key_line = t.line_of("key");
+      if (axis.key == "sweep" || axis.key.starts_with("sweep.") || axis.key.starts_with("sweep[")) {
+        t.fail("key",
+               fmt::format("expected the key path of a scenario value, got \"{}\" (a sweep cannot "
+                           "change the sweeps)",
+                           axis.key));
+      }
+      t.allow("values");
+      const toml::node* vals = doc.get("sweep")->as_array()->get(a)->as_table()->get("values");
       if (vals == nullptr || !vals->is_array() || vals->as_array()->empty()) {
-        t.fail("values", "expected a non-empty array of values");
+        t.fail("values", fmt::format("expected a non-empty array of values, got {}",
+                                     vals == nullptr ? std::string("nothing (the key is required)")
+                                                     : describe(*vals)));
       }
-      std::vector<const toml::node*> nodes;
-      for (const toml::node& v : *vals->as_array()) {
-        std::ostringstream os;
-        os << toml::toml_formatter{v};
-        std::string label = os.str();
-        if (v.is_string()) label = *v.value<std::string>();
-        axis.labels.push_back(label);
-        nodes.push_back(&v);
-      }
+      for (const toml::node& v : *vals->as_array()) axis.labels.push_back(sweep_label(v));
       t.finish();
+      for (const auto& prev : out.sweeps) {
+        if (prev.key == axis.key)
+          t.fail("key", fmt::format("expected each swept key once, got \"{}\" twice", axis.key));
+      }
       // Validate the path now, on a scratch copy.
       toml::table scratch = doc;
-      set_path(scratch, axis.key, *nodes.front(), file, t.line_of("key"));
+      set_path(scratch, axis.key, *vals->as_array()->get(0), file, key_line);
+      axis_sizes.push_back(vals->as_array()->size());
       out.sweeps.push_back(std::move(axis));
-      axis_values.push_back(std::move(nodes));
     }
   }
   std::size_t total = 1;
-  for (const auto& v : axis_values) total *= v.size();
-  if (total > 100000) throw ScenarioError(format_error(file, 0, "sweep", fmt::format("{} cases is too many", total)));
+  for (const std::size_t n : axis_sizes) {
+    total *= n;
+    if (total > 100000) {
+      throw ScenarioError(
+          format_error(file, 0, "sweep", "expected at most 100000 cases, got more"));
+    }
+  }
   const std::string dir = std::filesystem::path(file).parent_path().string();
   for (std::size_t c = 0; c < total; ++c) {
-    toml::table case_doc = doc;
+    toml::table case_doc =
+        c == 0 ? std::move(doc) : parse_document(out.text, file, sets, overrides);
     Case cs;
     std::size_t rem = c;
-    std::vector<std::size_t> idx(axis_values.size());
-    for (std::size_t a = axis_values.size(); a-- > 0;) {
-      idx[a] = rem % axis_values[a].size();
-      rem /= axis_values[a].size();
+    std::vector<std::size_t> idx(axis_sizes.size());
+    for (std::size_t a = axis_sizes.size(); a-- > 0;) {
+      idx[a] = rem % axis_sizes[a];
+      rem /= axis_sizes[a];
     }
-    for (std::size_t a = 0; a < axis_values.size(); ++a) {
-      set_path(case_doc, out.sweeps[a].key, *axis_values[a][idx[a]], file, 0);
+    for (std::size_t a = 0; a < axis_sizes.size(); ++a) {
+      // Moved, not copied: an error at the swept value then points at its line in `values`.
+      toml::node& value = *sweep_values(case_doc, a).get(idx[a]);
+      set_path(case_doc, out.sweeps[a].key, std::move(value), file, 0);
       cs.labels.push_back(out.sweeps[a].labels[idx[a]]);
     }
     try {
