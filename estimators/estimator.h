@@ -63,8 +63,9 @@ class Estimator {
   // The update of period k: predict with the known input (k > 0), then correct with what
   // arrived. Never throws; numerical trouble is reported by status().
   virtual void on_period(std::int64_t k, const PeriodInput& in) = 0;
-  // xhat[k|k] (n).
-  virtual const Eigen::VectorXd& state() const = 0;
+  // xhat[k|k] (n): a view valid until the next call of on_period (no copy).
+  using StateView = Eigen::Map<const Eigen::VectorXd>;
+  virtual StateView state() const = 0;
   // The delay-extended estimate [xhat[k]; xhat[k-1]; ...] or nullptr when it has none.
   virtual const Eigen::VectorXd* extended() const { return nullptr; }
   // The filter's own error covariance of extended() (or of state()), when it keeps one.

@@ -53,17 +53,16 @@ class JumpObserver final : public Estimator {
       const int N = static_cast<int>(std::min<std::int64_t>(k - last_update_, design_.Nbar));
       const Eigen::MatrixXd& L = design_.gains[design_.gain_of[N - 1][pattern]];
       // eq. (10): xhat += L alpha (mbar - Cbar xhat); alpha is the row mask of the pattern.
-      innov_.noalias() = window_.values() - ext_.C * x_;
-      x_.noalias() += L * innov_.cwiseProduct(masks_[pattern]);
+      innov_ = window_.values();  // (two steps: no temporary allocated in the hot path)
+      innov_.noalias() -= ext_.C * x_;
+      innov_.array() *= masks_[pattern].array();
+      x_.noalias() += L * innov_;
       last_update_ = k;
     }
     window_.clear_pattern();
   }
 
-  const Eigen::VectorXd& state() const override {
-    state_ = x_.head(ext_.n);
-    return state_;
-  }
+  StateView state() const override { return StateView(x_.data(), ext_.n); }
   const Eigen::VectorXd* extended() const override { return &x_; }
   std::string status() const override { return design_.stable ? "ok" : "design_failed"; }
 
@@ -75,7 +74,6 @@ class JumpObserver final : public Estimator {
   Eigen::VectorXd head_;
   Eigen::VectorXd innov_;
   const std::vector<Eigen::VectorXd>& masks_;
-  mutable Eigen::VectorXd state_;
   std::int64_t last_update_ = -1;
 };
 

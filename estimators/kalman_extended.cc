@@ -74,10 +74,7 @@ class KalmanExtended final : public Estimator {
     if (!x_.allFinite()) failed_ = true;
   }
 
-  const Eigen::VectorXd& state() const override {
-    state_ = x_.head(ext_.n);
-    return state_;
-  }
+  StateView state() const override { return StateView(x_.data(), ext_.n); }
   const Eigen::VectorXd* extended() const override { return &x_; }
   const Eigen::MatrixXd* covariance() const override { return &P_; }
   std::string status() const override { return failed_ ? "numerical_failure" : "ok"; }
@@ -89,7 +86,6 @@ class KalmanExtended final : public Estimator {
   Eigen::MatrixXd P_;
   Eigen::MatrixXd tmp_;
   std::vector<Eigen::Index> rows_;
-  mutable Eigen::VectorXd state_;
   bool failed_ = false;
 };
 

@@ -22,10 +22,7 @@ class OpenLoop final : public Estimator {
     for (Eigen::Index b = x_.size() / n_ - 1; b >= 1; --b) x_.segment(b * n_, n_) = x_.segment((b - 1) * n_, n_);
     x_.head(n_) = head_ + in.drive;
   }
-  const Eigen::VectorXd& state() const override {
-    state_ = x_.head(n_);
-    return state_;
-  }
+  StateView state() const override { return StateView(x_.data(), n_); }
   const Eigen::VectorXd* extended() const override { return dbar_ < 0 ? nullptr : &x_; }
 
  private:
@@ -34,7 +31,6 @@ class OpenLoop final : public Estimator {
   int dbar_;
   Eigen::VectorXd x_;
   Eigen::VectorXd head_;
-  mutable Eigen::VectorXd state_;
 };
 
 class OpenLoopDesign final : public EstimatorDesign {

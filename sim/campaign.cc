@@ -275,9 +275,11 @@ class RunSimulation {
         break;
       }
       case Kind::kStateFeedback: {
-        const Eigen::VectorXd& xs =
-            sc_.input.source_index < 0 ? x_ : estimators_[static_cast<std::size_t>(sc_.input.source_index)]->state();
-        u_.noalias() = -sc_.input.K * xs;
+        if (sc_.input.source_index < 0) {
+          u_.noalias() = -sc_.input.K * x_;
+        } else {
+          u_.noalias() = -sc_.input.K * estimators_[static_cast<std::size_t>(sc_.input.source_index)]->state();
+        }
         break;
       }
     }
@@ -298,7 +300,7 @@ class RunSimulation {
       row.period = k;
       row.x.assign(x_.data(), x_.data() + n);
       for (auto& e : estimators_) {
-        const auto& xh = e->state();
+        const auto xh = e->state();
         row.xhat.emplace_back(xh.data(), xh.data() + n);
       }
       row.arrivals = arrivals_;

@@ -61,7 +61,7 @@ TEST(KalmanExtended, MatchesFilterpyIntermittentObservationsStepByStep) {
     const std::int64_t k = static_cast<std::int64_t>(v[0]) + 1;
     if (v[1] == 1.0) kf->on_packet(packet(0, k, Eigen::VectorXd::Constant(1, v[2])), k);
     kf->on_period(k, PeriodInput{u0, drive});
-    const Eigen::VectorXd& x = kf->state();
+    const Eigen::VectorXd x = kf->state();
     const Eigen::MatrixXd& P = *kf->covariance();
     // Norm-wise relative error, 1e-9: the plant is unstable and left without feedback in the
     // peer run (x reaches 1e48), and x1's update uses the innovation z - x0, whose rounding
