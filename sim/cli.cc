@@ -71,6 +71,8 @@ int cmd_run(const CommonArgs& a, int threads, bool trace, bool quiet, const std:
   RunOverrides ov = a.overrides;
   if (a.seed >= 0) ov.seed = static_cast<std::uint64_t>(a.seed);
   LoadedScenario loaded = load_cases(a.file, a.sets, ov);
+  const std::string out = a.out.empty() ? default_out(a.file) : a.out;
+  prepare_output_dir(out);  // fail before the campaign, not after it
   const bool tty = ::isatty(2) != 0 && !quiet;
   std::vector<SummaryRow> rows;
   std::vector<CampaignResult> results;
@@ -109,8 +111,7 @@ int cmd_run(const CommonArgs& a, int threads, bool trace, bool quiet, const std:
       {"manifest.json", manifest(loaded, command_line, used_threads, wall).dump(2) + "\n"},
   };
   if (trace) files.emplace_back("trajectory.csv", trajectory_csv(first, results.front().trace));
-  const std::string out = a.out.empty() ? default_out(a.file) : a.out;
-  write_files_atomically(out, files);
+  write_files_atomically(out, files, {"trajectory.csv"});
   std::cout << md << fmt::format("\n{} runs x {} periods x {} case(s) in {:.2f} s on {} thread(s); results in {}/\n",
                                  first.run.runs, first.run.periods, loaded.cases.size(), wall, used_threads, out);
   return 0;

@@ -71,7 +71,7 @@ std::vector<SummaryRow> summarise(const Scenario& sc, const CampaignResult& resu
       count += m.count;
     }
     if (diverged > 0) {
-      status = "diverged";
+      if (status == "ok") status = "diverged";  // a failed design says why it diverged
     } else {
       row.mse = finite(mean_of(mse));
       row.mse_ci95 = ci95_half_width(mse);
@@ -297,7 +297,19 @@ std::string trajectory_csv(const Scenario& sc, const std::vector<TraceRow>& trac
   return out;
 }
 
-void write_files_atomically(const std::string& dir, const std::vector<std::pair<std::string, std::string>>& files) {
+void prepare_output_dir(const std::string& dir) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) throw std::runtime_error(fmt::format("cannot create the output directory '{}': {}", dir, ec.message()));
+  const fs::path probe = fs::path(dir) / fmt::format(".probe.tmp{}", static_cast<long>(::getpid()));
+  std::ofstream(probe) << "";
+  if (!fs::exists(probe, ec)) throw std::runtime_error(fmt::format("cannot write into the output directory '{}'", dir));
+  fs::remove(probe, ec);
+}
+
+void write_files_atomically(const std::string& dir, const std::vector<std::pair<std::string, std::string>>& files,
+                            const std::vector<std::string>& stale) {
   namespace fs = std::filesystem;
   std::error_code ec;
   fs::create_directories(dir, ec);
@@ -323,6 +335,11 @@ void write_files_atomically(const std::string& dir, const std::vector<std::pair<
       cleanup();
       throw std::runtime_error(fmt::format("cannot rename into '{}': {}", dir, ec.message()));
     }
+  }
+  for (const auto& name : stale) {
+    bool written = false;
+    for (const auto& f : files) written = written || f.first == name;
+    if (!written) fs::remove(fs::path(dir) / name, ec);
   }
 }
 

@@ -47,7 +47,13 @@ std::string trajectory_csv(const Scenario& sc, const std::vector<TraceRow>& trac
 
 // Writes every (name, content) into `dir` atomically: all to temporary files first, then
 // renames. Creates `dir` if needed. Throws std::runtime_error on failure (temporaries removed).
-void write_files_atomically(const std::string& dir, const std::vector<std::pair<std::string, std::string>>& files);
+// `stale` names earlier outputs to remove when they are not part of this set (e.g. a
+// trajectory.csv of an earlier --trace run), so the folder never mixes two runs.
+void write_files_atomically(const std::string& dir, const std::vector<std::pair<std::string, std::string>>& files,
+                            const std::vector<std::string>& stale = {});
+
+// Creates `dir` and checks it is writable, before any work: throws std::runtime_error.
+void prepare_output_dir(const std::string& dir);
 
 // CSV field quoting (RFC 4180) and number formatting (empty for nullopt / non-finite).
 std::string csv_field(const std::string& s);

@@ -364,6 +364,9 @@ LoadedScenario load_cases(const std::string& file, const std::vector<std::string
   out.overrides = sets;
   std::string hashed = out.text;
   for (const auto& s : sets) hashed += "\n--set " + s;
+  if (overrides.runs > 0) hashed += "\n--runs " + std::to_string(overrides.runs);
+  if (overrides.periods > 0) hashed += "\n--periods " + std::to_string(overrides.periods);
+  if (overrides.seed) hashed += "\n--seed " + std::to_string(*overrides.seed);
   out.hash = fnv1a_hex(hashed);
 
   toml::table doc = parse_document(out.text, file, sets, overrides);
