@@ -44,7 +44,7 @@ class JumpObserver final : public Estimator {
     window_.advance(k);
     const Eigen::Index n = ext_.n;
     if (k > 0) {  // eq. (6): xhat[t-] = Abar xhat[t-1] + Bbar_u u[t-1]
-      head_.noalias() = ext_.A.topLeftCorner(n, n) * x_.head(n);
+      head_.noalias() = ext_.A.topLeftCorner(n, n).lazyProduct(x_.head(n));  // lazy: small sizes
       for (int b = ext_.dbar; b >= 1; --b) x_.segment(b * n, n) = x_.segment((b - 1) * n, n);
       x_.head(n) = head_ + in.drive;
     }
@@ -54,9 +54,9 @@ class JumpObserver final : public Estimator {
       const Eigen::MatrixXd& L = design_.gains[design_.gain_of[N - 1][pattern]];
       // eq. (10): xhat += L alpha (mbar - Cbar xhat); alpha is the row mask of the pattern.
       innov_ = window_.values();  // (two steps: no temporary allocated in the hot path)
-      innov_.noalias() -= ext_.C * x_;
+      innov_.noalias() -= ext_.C.lazyProduct(x_);
       innov_.array() *= masks_[pattern].array();
-      x_.noalias() += L * innov_;
+      x_.noalias() += L.lazyProduct(innov_);
       last_update_ = k;
     }
     window_.clear_pattern();

@@ -18,7 +18,7 @@ class OpenLoop final : public Estimator {
   int on_packet(const Packet&, std::int64_t) override { return 0; }
   void on_period(std::int64_t k, const PeriodInput& in) override {
     if (k == 0) return;
-    head_.noalias() = A_ * x_.head(n_);
+    head_.noalias() = A_.lazyProduct(x_.head(n_));  // lazy: small sizes
     for (Eigen::Index b = x_.size() / n_ - 1; b >= 1; --b) x_.segment(b * n_, n_) = x_.segment((b - 1) * n_, n_);
     x_.head(n_) = head_ + in.drive;
   }

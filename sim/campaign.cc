@@ -419,6 +419,7 @@ CampaignResult run_campaign(const Scenario& sc, const CampaignOptions& options) 
   std::atomic<std::size_t> done{0};
   std::exception_ptr error;
   std::mutex error_mutex;
+  std::atomic<bool> failed{false};
   auto worker = [&] {
     while (true) {
       const std::size_t r = next.fetch_add(1);
@@ -428,6 +429,7 @@ CampaignResult run_campaign(const Scenario& sc, const CampaignOptions& options) 
       } catch (...) {
         std::lock_guard<std::mutex> lock(error_mutex);
         if (!error) error = std::current_exception();
+        failed = true;
         next = runs;
         return;
       }
@@ -438,12 +440,11 @@ CampaignResult run_campaign(const Scenario& sc, const CampaignOptions& options) 
   for (int t = 1; t < threads; ++t) pool.emplace_back(worker);
   if (options.progress) {
     std::thread progress([&] {
-      while (done.load() < runs && next.load() <= runs) {
+      while (done.load() < runs && !failed.load()) {
         const double el = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
         std::fprintf(stderr, "\r%s run %zu/%zu  %.1f s ", options.progress_label.c_str(), done.load(), runs, el);
         std::fflush(stderr);
         std::this_thread::sleep_for(std::chrono::milliseconds(200));
-        if (error) break;
       }
     });
     worker();
