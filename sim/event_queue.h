@@ -90,9 +90,11 @@ class EventQueue {
     std::uint32_t fill = kBlockEvents;  // no head block: the next push takes one
   };
 
-  Event& slot(std::uint32_t block, std::uint32_t i) { return slots_[block * kBlockEvents + i]; }
+  Event& slot(std::uint32_t block, std::uint32_t i) {
+    return slots_[std::size_t{block} * kBlockEvents + i];
+  }
   const Event& slot(std::uint32_t block, std::uint32_t i) const {
-    return slots_[block * kBlockEvents + i];
+    return slots_[std::size_t{block} * kBlockEvents + i];
   }
   std::uint32_t take_block();
   void push(Bucket& bucket, const Event& e);
@@ -113,7 +115,7 @@ class EventQueue {
   std::uint32_t digits_ = 0;                        // bit d: occupied_[d] != 0
   std::vector<Event> current_;  // the events at time base_, a binary min-heap on key
   std::size_t size_ = 0;
-  SimTime base_ = 0;
+  SimTime base_ = 0;  // the last dispatched time (0 at first); <= every pending time
   SimTime now_ = 0;
   std::uint64_t seq_ = 0;
 };
