@@ -80,9 +80,8 @@ TEST(KalmanExtended, MatchesFilterpyIntermittentObservationsStepByStep) {
   std::printf("worst relative deviation over %d steps: %.3g\n", rows, worst);
 }
 
-// A static plant (A = I, Q = 0): one sample y of x0 ~ N(0, P0) gives the same posterior mean
-// whether it arrives with delay 0 or delay 1 (the extended filter smooths x[k-1] = x[k]).
-TEST(KalmanExtended, LateSampleGivesTheSamePosteriorOnAStaticPlant) {
+// A static scalar plant (A = I, Q = 0) seen directly (C = 1, R = 1) by one sensor.
+Model static_model(int buffer) {
   Model model;
   model.plant.A = Eigen::MatrixXd::Identity(1, 1);
   model.plant.Bu = Eigen::MatrixXd::Zero(1, 0);
@@ -92,7 +91,15 @@ TEST(KalmanExtended, LateSampleGivesTheSamePosteriorOnAStaticPlant) {
   SensorModel s;
   s.spec.C = Eigen::MatrixXd::Identity(1, 1);
   s.spec.R = Eigen::MatrixXd::Constant(1, 1, 1.0);
+  s.spec.buffer = buffer;
   model.sensors.push_back(s);
+  return model;
+}
+
+// A static plant (A = I, Q = 0): one sample y of x0 ~ N(0, P0) gives the same posterior mean
+// whether it arrives with delay 0 or delay 1 (the extended filter smooths x[k-1] = x[k]).
+TEST(KalmanExtended, LateSampleGivesTheSamePosteriorOnAStaticPlant) {
+  const Model model = static_model(0);
   toml::table t{{"max_delay", 1}, {"P0", 4.0}};
   const auto design = make("kalman_extended", t, model);
   const Eigen::VectorXd u0(0), drive = Eigen::VectorXd::Zero(1);
@@ -118,17 +125,7 @@ TEST(KalmanExtended, LateSampleGivesTheSamePosteriorOnAStaticPlant) {
 
 TEST(KalmanExtended, DuplicateBufferedSampleIsIgnored) {
   // Buffered packets repeat samples; a repeat must not be used twice (Dolz Remark 2.2).
-  Model model;
-  model.plant.A = Eigen::MatrixXd::Identity(1, 1);
-  model.plant.Bu = Eigen::MatrixXd::Zero(1, 0);
-  model.plant.Bw = Eigen::MatrixXd::Identity(1, 1);
-  model.plant.W = Eigen::MatrixXd::Zero(1, 1);
-  model.plant.x0 = Eigen::VectorXd::Zero(1);
-  SensorModel s;
-  s.spec.C = Eigen::MatrixXd::Identity(1, 1);
-  s.spec.R = Eigen::MatrixXd::Constant(1, 1, 1.0);
-  s.spec.buffer = 1;
-  model.sensors.push_back(s);
+  const Model model = static_model(1);
   toml::table t{{"max_delay", 1}, {"P0", 4.0}};
   const auto design = make("kalman_extended", t, model);
   auto kf = design->instantiate();
