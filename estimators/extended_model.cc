@@ -67,7 +67,7 @@ std::vector<double> pattern_probabilities(const Model& model, const ExtendedMode
     const std::vector<double> q = sm.delay_pmf(ext.dbar);
     const double rate = 1.0 / sm.spec.every;  // share of periods with a sample
     // Packet sent d periods ago arrives now with probability rate * q[d]; it carries the
-    // fictitious sensors d .. d + buffer (those within dbar).
+    // samples of delays d, d + every, ..., d + buffer * every (those within dbar).
     std::vector<double> local(std::size_t{1} << width, 0.0);
     for (std::uint32_t arrived = 0; arrived < (1U << width); ++arrived) {
       double prob = 1.0;
@@ -76,7 +76,10 @@ std::vector<double> pattern_probabilities(const Model& model, const ExtendedMode
         const double pd = rate * q[d];
         if ((arrived >> d) & 1U) {
           prob *= pd;
-          for (int c = d; c <= std::min(ext.dbar, d + sm.spec.buffer); ++c) mask |= 1U << c;
+          for (int c = 0; c <= sm.spec.buffer; ++c) {
+            const int delay = d + c * sm.spec.every;
+            if (delay <= ext.dbar) mask |= 1U << delay;
+          }
         } else {
           prob *= 1.0 - pd;
         }

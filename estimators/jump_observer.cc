@@ -8,6 +8,7 @@
 
 #include <bit>
 #include <chrono>
+#include <cmath>
 
 #include "estimators/delay_window.h"
 #include "estimators/design/jump_design.h"
@@ -30,7 +31,7 @@ class JumpObserver final : public Estimator {
   JumpObserver(const ExtendedModel& ext, const JumpDesign& design, const InitialEstimate& init)
       : ext_(ext),
         design_(design),
-        window_(ext),
+        window_(ext, /*deduplicate=*/false),
         x_(ext.nb),
         head_(ext.n),
         innov_(Eigen::VectorXd::Zero(ext.nmb)),
@@ -136,6 +137,12 @@ std::unique_ptr<EstimatorDesign> read_jump(const sim::Table& t, const Model& mod
     t.fail("max_delay", fmt::format("the design enumerates 2^{} availability patterns "
                                     "({} sensors x {} delays); at most 2^20 are supported",
                                     nf, model.sensors.size(), p.dbar + 1));
+  }
+  // The design sums over every (N, pattern) term at each iteration: bound the work.
+  if (static_cast<double>(p.Nbar) * std::ldexp(1.0, nf) > 262144.0) {
+    t.fail("history", fmt::format("the design has history x 2^(fictitious sensors) = {} x 2^{} terms; "
+                                  "at most 2^18 are supported (reduce history, max_delay or sensors)",
+                                  p.Nbar, nf));
   }
   if (p.grouping == Grouping::kS4 && nf > 16) {
     t.fail("grouping", fmt::format("S4 stores (2^{} - 1) gains per N; use S1..S3 or fewer "

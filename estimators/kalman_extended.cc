@@ -1,8 +1,8 @@
 // estimators/kalman_extended.cc
 // Time-varying Kalman filter on the delay-extended model (Dolz et al. 2014, section 2, the
 // comparison "adapted from Schenato (2008)"): predict xbar and P with Abar, then update with the
-// rows of the fictitious sensors delivered this period. A non-positive-definite innovation
-// covariance skips the update and marks the run "numerical_failure".
+// rows of the fictitious sensors delivered this period. An innovation covariance that is only
+// semidefinite uses its pseudo-inverse; a non-finite estimate marks the run "numerical_failure".
 #include <Eigen/Cholesky>
 #include <bit>
 #include <fmt/format.h>
@@ -19,14 +19,16 @@ class KalmanExtended final : public Estimator {
  public:
   KalmanExtended(const ExtendedModel& ext, const InitialEstimate& init)
       : ext_(ext),
-        window_(ext),
+        window_(ext, /*deduplicate=*/true),
         x_(ext.nb),
         P_(Eigen::MatrixXd::Zero(ext.nb, ext.nb)),
         tmp_(ext.nb, ext.nb),
         rows_(static_cast<std::size_t>(ext.nmb)) {
+    // Before t = 0 the plant rests at x0 (x[-j] = x0) and every block starts at xhat0, so all
+    // blocks share one error: P = (1 1') ⊗ P0.
     for (int b = 0; b <= ext.dbar; ++b) {
       x_.segment(b * ext.n, ext.n) = init.xhat0;
-      P_.block(b * ext.n, b * ext.n, ext.n, ext.n) = init.P0;  // P0 for every block (uncorrelated)
+      for (int c = 0; c <= ext.dbar; ++c) P_.block(b * ext.n, c * ext.n, ext.n, ext.n) = init.P0;
     }
   }
 
@@ -63,11 +65,14 @@ class KalmanExtended final : public Estimator {
     const Eigen::MatrixXd PCt = P_ * Cs.transpose();
     Eigen::MatrixXd S = Cs * PCt + Vs;
     Eigen::LLT<Eigen::MatrixXd> llt(S);
-    if (llt.info() != Eigen::Success) {
-      failed_ = true;
-      return;
+    Eigen::MatrixXd K;
+    if (llt.info() == Eigen::Success) {
+      K = llt.solve(PCt.transpose()).transpose();  // P Cs' S^-1
+    } else {
+      // S is only semidefinite (R singular, or P0 = 0 with R = 0): the minimum-variance gain
+      // is P Cs' S^+ (rows without information get no weight).
+      K = PCt * S.completeOrthogonalDecomposition().pseudoInverse();
     }
-    const Eigen::MatrixXd K = llt.solve(PCt.transpose()).transpose();  // P Cs' S^-1
     x_.noalias() += K * r;
     P_.noalias() -= K * PCt.transpose();
     P_ = 0.5 * (P_ + P_.transpose()).eval();

@@ -212,7 +212,10 @@ std::string Table::choice_or(std::string_view key, std::string_view fallback,
 std::vector<double> Table::numbers(std::string_view key) const {
   const toml::node* n = get(key);
   if (n == nullptr) type_error(key, "an array of numbers");
-  if (auto v = as_number(*n)) return {*v};
+  if (auto v = as_number(*n)) {
+    if (!std::isfinite(*v)) type_error(key, "an array of finite numbers");
+    return {*v};
+  }
   const toml::array* arr = n->as_array();
   if (arr == nullptr) type_error(key, "an array of numbers");
   std::vector<double> out;
@@ -261,7 +264,10 @@ std::vector<std::vector<double>> Table::ragged(std::string_view key) const {
 Eigen::MatrixXd Table::matrix(std::string_view key) const {
   const toml::node* n = get(key);
   if (n == nullptr) type_error(key, "a matrix [[...], ...]");
-  if (auto v = as_number(*n)) return Eigen::MatrixXd::Constant(1, 1, *v);
+  if (auto v = as_number(*n)) {
+    if (!std::isfinite(*v)) type_error(key, "a matrix of finite numbers");
+    return Eigen::MatrixXd::Constant(1, 1, *v);
+  }
   const toml::array* arr = n->as_array();
   if (arr == nullptr || arr->empty()) type_error(key, "a matrix [[...], ...]");
   if (!(*arr)[0].is_array()) {

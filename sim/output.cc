@@ -55,7 +55,8 @@ std::vector<SummaryRow> summarise(const Scenario& sc, const CampaignResult& resu
     std::vector<double> mse, mse_ext;
     std::vector<double> state_sse(static_cast<std::size_t>(n), 0.0);
     std::int64_t count = 0, used = 0, taken = 0, diverged = 0;
-    std::string status = rep.status == "ok" ? "ok" : "design_" + rep.status;
+    const std::string design_status = rep.status == "ok" ? "ok" : "design_" + rep.status;
+    std::string run_status = "ok";  // the first non-ok status of a run that did not diverge
     for (const auto& run : result.runs) {
       const EstimatorRunMetrics& m = run[e];
       used += m.samples_used;
@@ -64,15 +65,15 @@ std::vector<SummaryRow> summarise(const Scenario& sc, const CampaignResult& resu
         ++diverged;
         continue;
       }
-      if (m.status != "ok" && status == "ok") status = m.status;
+      if (m.status != "ok" && run_status == "ok") run_status = m.status;
       mse.push_back(m.sse / static_cast<double>(m.count));
       mse_ext.push_back(m.sse_ext / static_cast<double>(m.count));
       for (std::size_t i = 0; i < state_sse.size(); ++i) state_sse[i] += m.sse_state[i];
       count += m.count;
     }
-    if (diverged > 0) {
-      if (status == "ok") status = "diverged";  // a failed design says why it diverged
-    } else {
+    // Precedence: a failed design (it says why the rest went wrong), divergence, run status.
+    const std::string status = design_status != "ok" ? design_status : diverged > 0 ? "diverged" : run_status;
+    if (diverged == 0) {
       row.mse = finite(mean_of(mse));
       row.mse_ci95 = ci95_half_width(mse);
       if (entry.design->extended_size() > 0) {

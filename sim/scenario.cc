@@ -170,6 +170,11 @@ RunSettings read_run(const Table& root) {
   if (!(r.period > 0.0 && r.period <= 1e6) || seconds_to_time(r.period) <= 0) {
     t->fail("period", fmt::format("expected a period in seconds in (1e-9, 1e6], got {}", r.period));
   }
+  // The integer-ns clock must hold every event time (arrivals may lie beyond the horizon).
+  if (static_cast<double>(r.periods) * static_cast<double>(seconds_to_time(r.period)) > 4.0e18) {
+    t->fail("period", fmt::format("expected periods x period <= 4e9 s (the nanosecond clock), got {} x {} s",
+                                  r.periods, r.period));
+  }
   r.recentre = t->choice_or("recentre", "auto", {"auto", "always", "never"});
   t->finish();
   return r;

@@ -30,6 +30,17 @@ int group_of(Grouping g, const ExtendedModel& ext, std::uint64_t pattern) {
 
 namespace {
 
+// Closed-form S4 gain of one term: L = X Cs'(Cs X Cs' + Vs)^-1 on the delivered rows.
+Eigen::MatrixXd optimal_gain(const ExtendedModel& ext, const Eigen::MatrixXd& X, const Eigen::VectorXd& mask) {
+  Eigen::MatrixXd CX = mask.asDiagonal() * ext.C * X;  // rows outside the pattern zero
+  Eigen::MatrixXd S = CX * ext.C.transpose() * mask.asDiagonal();
+  S += mask.asDiagonal() * ext.V * mask.asDiagonal();
+  for (Eigen::Index r = 0; r < S.rows(); ++r) {
+    if (mask(r) == 0.0) S(r, r) = 1.0;  // decouple unused rows
+  }
+  return S.ldlt().solve(CX).transpose();
+}
+
 struct Term {
   int N;                 // 1..Nbar (Nbar = the tail N >= Nbar)
   std::uint64_t pattern;
@@ -107,17 +118,7 @@ JumpDesign design_jump_iterative(const ExtendedModel& ext, const std::vector<dou
     X[Nbar] = (1.0 - p0) * AN * SP * AN.transpose() + tail_noise;
 
     if (grouping == Grouping::kS4) {
-      for (const Term& t : terms) {
-        // Optimal gain on the delivered rows (zero columns elsewhere).
-        const Eigen::MatrixXd& Xn = X[t.N];
-        Eigen::MatrixXd CX = t.mask.asDiagonal() * ext.C * Xn;  // rows outside the pattern zero
-        Eigen::MatrixXd S = CX * ext.C.transpose() * t.mask.asDiagonal();
-        S += t.mask.asDiagonal() * ext.V * t.mask.asDiagonal();
-        for (Eigen::Index r = 0; r < nm; ++r) {
-          if (t.mask(r) == 0.0) S(r, r) = 1.0;  // decouple unused rows
-        }
-        d.gains[t.group] = (S.ldlt().solve(CX)).transpose();
-      }
+      for (const Term& t : terms) d.gains[t.group] = optimal_gain(ext, X[t.N], t.mask);
     } else {
       for (std::size_t g = 0; g < d.gains.size(); ++g) {
         num[g].setZero(nb, nm);
@@ -154,6 +155,41 @@ JumpDesign design_jump_iterative(const ExtendedModel& ext, const std::vector<dou
     d.iterations = max_iterations;
     d.status = "not_converged";
     return d;
+  }
+  // Patterns the design model gives probability 0 (e.g. a buffered sample seen alone) may
+  // still occur: give them the gain their term would have, instead of none. S4: the closed
+  // form at the final X; shared groups with no weight: the shared formula, equal weights.
+  for (int N = 1; N < Nbar; ++N) X[N] = Apow[N] * d.P * Apow[N].transpose() + SW[N];
+  X[Nbar] = (1.0 - p0) * AN * stein_sum(stein, d.P) * AN.transpose() + tail_noise;
+  std::vector<bool> weighted(d.gains.size(), false);
+  for (const Term& t : terms) weighted[static_cast<std::size_t>(t.group)] = true;
+  for (int N = 1; N <= Nbar; ++N) {
+    for (std::size_t m = 1; m < patterns; ++m) {
+      const int g = d.gain_of[N - 1][m];
+      if (weighted[static_cast<std::size_t>(g)]) continue;
+      if (grouping == Grouping::kS4) {
+        d.gains[g] = optimal_gain(ext, X[N], d.masks[m]);
+      } else {
+        num[g].setZero(nb, nm);
+        den[g].setZero(nm, nm);
+      }
+    }
+  }
+  if (grouping != Grouping::kS4) {
+    for (int N = 1; N <= Nbar; ++N) {
+      for (std::size_t m = 1; m < patterns; ++m) {
+        const int g = d.gain_of[N - 1][m];
+        if (weighted[static_cast<std::size_t>(g)]) continue;
+        const Eigen::VectorXd& mask = d.masks[m];
+        num[g] += X[N] * ext.C.transpose() * mask.asDiagonal();
+        den[g] += mask.asDiagonal() * (ext.C * X[N] * ext.C.transpose() + ext.V) * mask.asDiagonal();
+      }
+    }
+    for (std::size_t g = 0; g < d.gains.size(); ++g) {
+      if (!weighted[g] && num[g].size() > 0 && !den[g].isZero(0.0)) {
+        d.gains[g] = num[g] * den[g].completeOrthogonalDecomposition().pseudoInverse();
+      }
+    }
   }
   const Eigen::MatrixXd SP = stein_sum(stein, d.P);
   d.Pt = (1.0 - p0) * d.P + p0 * ((1.0 - p0) * ext.A * SP * ext.A.transpose() + SWinf);
