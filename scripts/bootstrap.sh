@@ -38,7 +38,8 @@ build() {  # build DIR [cmake options...]: configure and build quietly, show the
 if [[ $mode == run ]]; then
   echo "ncosim: building (Release)..."
   build build -DCMAKE_BUILD_TYPE=Release -DNCOSIM_BUILD_TESTS=OFF -DNCOSIM_BUILD_BENCH=OFF
-  exec build/sim/ncosim run scenarios/dolz2014_table2.toml
+  # Into build/ so that the committed reference results/dolz2014_table2/ stays as committed.
+  exec build/sim/ncosim run scenarios/dolz2014_table2.toml --out build/results/dolz2014_table2
 fi
 
 echo "ncosim: building (Release)..."
