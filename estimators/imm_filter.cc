@@ -1,0 +1,260 @@
+// estimators/imm_filter.cc — IMM mixing, mode-matched Kalman filters, mode probabilities.
+#include "estimators/imm_filter.h"
+
+#include <Eigen/Cholesky>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+#include <utility>
+
+#include "sim/check.h"
+
+namespace ncosim::est {
+
+namespace {
+
+// Makes P exactly symmetric (averages the two triangles) without a temporary.
+void symmetrize(Eigen::MatrixXd& P) {
+  for (Eigen::Index c = 0; c < P.cols(); ++c) {
+    for (Eigen::Index r = c + 1; r < P.rows(); ++r) {
+      const double v = 0.5 * (P(r, c) + P(c, r));
+      P(r, c) = v;
+      P(c, r) = v;
+    }
+  }
+}
+
+bool is_distribution(const Eigen::Ref<const Eigen::VectorXd>& p) {
+  return p.allFinite() && p.minCoeff() >= 0.0 && std::abs(p.sum() - 1.0) <= 1e-9;
+}
+
+}  // namespace
+
+ImmFilter::ImmFilter(std::vector<ImmMode> modes, const Eigen::MatrixXd& transition,
+                     const Eigen::VectorXd& x0, const Eigen::MatrixXd& P0,
+                     const Eigen::VectorXd& mu0)
+    : modes_(std::move(modes)), M_(transition) {
+  NCOSIM_CHECK(!modes_.empty());
+  const auto s = static_cast<Eigen::Index>(modes_.size());
+  n_ = modes_[0].F.rows();
+  m_ = modes_[0].H.rows();
+  nu_ = modes_[0].B.cols();
+  NCOSIM_CHECK(n_ > 0 && m_ > 0);
+  for (const ImmMode& mode : modes_) {
+    NCOSIM_CHECK(mode.F.rows() == n_ && mode.F.cols() == n_);
+    NCOSIM_CHECK(mode.B.rows() == n_ && mode.B.cols() == nu_);
+    NCOSIM_CHECK(mode.Q.rows() == n_ && mode.Q.cols() == n_);
+    NCOSIM_CHECK(mode.H.rows() == m_ && mode.H.cols() == n_);
+    NCOSIM_CHECK(mode.R.rows() == m_ && mode.R.cols() == m_);
+  }
+  NCOSIM_CHECK(M_.rows() == s && M_.cols() == s);
+  for (Eigen::Index i = 0; i < s; ++i) NCOSIM_CHECK(is_distribution(M_.row(i).transpose()));
+
+  const auto ss = modes_.size();
+  x_.assign(ss, Eigen::VectorXd::Zero(n_));
+  x_mix_ = x_;
+  P_.assign(ss, Eigen::MatrixXd::Zero(n_, n_));
+  P_mix_ = P_;
+  innov_.assign(ss, Eigen::VectorXd::Zero(m_));
+  gain_.assign(ss, Eigen::MatrixXd::Zero(m_, n_));
+  loglik_ = Eigen::VectorXd::Zero(s);
+  cbar_ = Eigen::VectorXd::Zero(s);
+  mu_ = Eigen::VectorXd::Zero(s);
+  omega_ = Eigen::MatrixXd::Zero(s, s);
+  x_comb_ = Eigen::VectorXd::Zero(n_);
+  d_ = Eigen::VectorXd::Zero(n_);
+  dw_ = Eigen::VectorXd::Zero(n_);
+  P_comb_ = Eigen::MatrixXd::Zero(n_, n_);
+  tmp_nn_ = Eigen::MatrixXd::Zero(n_, n_);
+  rows_.assign(static_cast<std::size_t>(m_), 0);
+  Hs_ = Eigen::MatrixXd::Zero(m_, n_);
+  Rs_ = Eigen::MatrixXd::Zero(m_, m_);
+  S_ = Eigen::MatrixXd::Zero(m_, m_);
+  zs_ = Eigen::VectorXd::Zero(m_);
+  reset(x0, P0, mu0);
+}
+
+void ImmFilter::reset(const Eigen::VectorXd& x0, const Eigen::MatrixXd& P0,
+                      const Eigen::VectorXd& mu0) {
+  NCOSIM_CHECK(x0.size() == n_ && P0.rows() == n_ && P0.cols() == n_);
+  NCOSIM_CHECK(mu0.size() == static_cast<Eigen::Index>(modes_.size()) && is_distribution(mu0));
+  for (std::size_t j = 0; j < modes_.size(); ++j) {
+    x_[j] = x0;
+    P_[j] = P0;
+  }
+  mu_ = mu0;
+  cbar_ = mu0;
+  loglik_.setZero();
+  status_ = ImmStatus::kOk;
+  last_applied_ = false;
+  combine();
+}
+
+// Steps 1-2: mixing probabilities mu_{i|j} and the mixed initial condition of each filter.
+void ImmFilter::mix() {
+  const Eigen::Index s = mu_.size();
+  cbar_.noalias() = M_.transpose() * mu_;
+  for (Eigen::Index j = 0; j < s; ++j) {
+    for (Eigen::Index i = 0; i < s; ++i) {
+      // An unreachable mode (cbar_j = 0) keeps its own estimate; its probability stays 0.
+      omega_(i, j) = cbar_(j) > 0.0 ? M_(i, j) * mu_(i) / cbar_(j) : (i == j ? 1.0 : 0.0);
+    }
+  }
+  for (Eigen::Index j = 0; j < s; ++j) {
+    auto& xm = x_mix_[static_cast<std::size_t>(j)];
+    auto& Pm = P_mix_[static_cast<std::size_t>(j)];
+    xm.setZero();
+    for (Eigen::Index i = 0; i < s; ++i) xm += omega_(i, j) * x_[static_cast<std::size_t>(i)];
+    Pm.setZero();
+    for (Eigen::Index i = 0; i < s; ++i) {
+      const double w = omega_(i, j);
+      if (w == 0.0) continue;
+      d_ = x_[static_cast<std::size_t>(i)] - xm;
+      dw_ = w * d_;
+      Pm += w * P_[static_cast<std::size_t>(i)];
+      Pm.noalias() += dw_ * d_.transpose();
+    }
+  }
+}
+
+// Step 5 (also used for the prior): x = sum_j mu_j x_j, P = sum_j mu_j (P_j + spread).
+void ImmFilter::combine() {
+  const auto s = modes_.size();
+  x_comb_.setZero();
+  for (std::size_t j = 0; j < s; ++j) x_comb_ += mu_(static_cast<Eigen::Index>(j)) * x_[j];
+  P_comb_.setZero();
+  for (std::size_t j = 0; j < s; ++j) {
+    const double w = mu_(static_cast<Eigen::Index>(j));
+    if (w == 0.0) continue;
+    d_ = x_[j] - x_comb_;
+    dw_ = w * d_;
+    P_comb_ += w * P_[j];
+    P_comb_.noalias() += dw_ * d_.transpose();
+  }
+  symmetrize(P_comb_);
+}
+
+void ImmFilter::predict() {
+  NCOSIM_CHECK(nu_ == 0);
+  predict(Eigen::VectorXd());  // size 0: no allocation
+}
+
+// Step 3, first half: mode-matched prediction from the mixed initial conditions.
+void ImmFilter::predict(const Eigen::Ref<const Eigen::VectorXd>& u) {
+  NCOSIM_CHECK(u.size() == nu_);
+  mix();
+  for (std::size_t j = 0; j < modes_.size(); ++j) {
+    const ImmMode& mode = modes_[j];
+    x_[j].noalias() = mode.F * x_mix_[j];
+    if (nu_ > 0) x_[j].noalias() += mode.B * u;
+    tmp_nn_.noalias() = mode.F * P_mix_[j];
+    P_[j].noalias() = tmp_nn_ * mode.F.transpose();
+    P_[j] += mode.Q;
+    symmetrize(P_[j]);
+  }
+  mu_ = cbar_;
+  combine();
+}
+
+void ImmFilter::update(const Eigen::Ref<const Eigen::VectorXd>& z) {
+  NCOSIM_CHECK(z.size() == m_);
+  for (Eigen::Index r = 0; r < m_; ++r) rows_[static_cast<std::size_t>(r)] = r;
+  m_used_ = m_;
+  correct(z);
+}
+
+void ImmFilter::update(const Eigen::Ref<const Eigen::VectorXd>& z,
+                       const Eigen::Ref<const Eigen::VectorXd>& row_mask) {
+  NCOSIM_CHECK(z.size() == m_ && row_mask.size() == m_);
+  m_used_ = 0;
+  for (Eigen::Index r = 0; r < m_; ++r) {
+    if (row_mask(r) != 0.0) rows_[static_cast<std::size_t>(m_used_++)] = r;
+  }
+  if (m_used_ == 0) {
+    skip_update();
+    return;
+  }
+  correct(z);
+}
+
+void ImmFilter::skip_update() {
+  loglik_.setZero();
+  last_applied_ = false;
+}
+
+void ImmFilter::fail(ImmStatus why) {
+  if (status_ == ImmStatus::kOk) status_ = why;
+  loglik_.setZero();
+  last_applied_ = false;
+}
+
+// Step 3, second half, and step 4. Pass 1 factors every S_j and keeps w_j = L_j^-1 y_j and
+// U_j = L_j^-1 H_j P_j, so that K_j y_j = U_j' w_j and K_j S_j K_j' = U_j' U_j; pass 2 applies
+// them only if every mode succeeded, so a failure leaves all priors untouched.
+void ImmFilter::correct(const Eigen::Ref<const Eigen::VectorXd>& z) {
+  const Eigen::Index mr = m_used_;  // rows used
+  const double half_log_2pi = 0.5 * std::log(2.0 * std::numbers::pi);
+  for (Eigen::Index a = 0; a < mr; ++a) zs_(a) = z(rows_[static_cast<std::size_t>(a)]);
+  auto Hs = Hs_.topRows(mr);
+  auto Rs = Rs_.topLeftCorner(mr, mr);
+  auto S = S_.topLeftCorner(mr, mr);
+  for (std::size_t j = 0; j < modes_.size(); ++j) {
+    const ImmMode& mode = modes_[j];
+    for (Eigen::Index a = 0; a < mr; ++a) {
+      const Eigen::Index ra = rows_[static_cast<std::size_t>(a)];
+      Hs.row(a) = mode.H.row(ra);
+      for (Eigen::Index b = 0; b < mr; ++b)
+        Rs(a, b) = mode.R(ra, rows_[static_cast<std::size_t>(b)]);
+    }
+    auto w = innov_[j].head(mr);
+    auto U = gain_[j].topRows(mr);
+    w = zs_.head(mr);
+    w.noalias() -= Hs * x_[j];
+    U.noalias() = Hs * P_[j];
+    S.noalias() = U * Hs.transpose();
+    S += Rs;
+    if (!w.allFinite() || !S.allFinite()) return fail(ImmStatus::kNonFiniteLikelihood);
+    Eigen::Ref<Eigen::MatrixXd> Sref(S);
+    Eigen::LLT<Eigen::Ref<Eigen::MatrixXd>> llt(Sref);  // in place: S_ holds L
+    if (llt.info() != Eigen::Success) return fail(ImmStatus::kInnovationNotPositiveDefinite);
+    llt.matrixL().solveInPlace(w);
+    llt.matrixL().solveInPlace(U);
+    const double half_log_det = S.diagonal().array().log().sum();
+    loglik_(static_cast<Eigen::Index>(j)) =
+        -0.5 * w.squaredNorm() - half_log_det - static_cast<double>(mr) * half_log_2pi;
+    if (std::isnan(loglik_(static_cast<Eigen::Index>(j))) || !U.allFinite()) {
+      return fail(ImmStatus::kNonFiniteLikelihood);
+    }
+  }
+  // Step 4 in the log domain: mu_j ∝ exp(log mu_j + log Lambda_j - max).
+  const Eigen::Index s = mu_.size();
+  double amax = -std::numeric_limits<double>::infinity();
+  for (Eigen::Index j = 0; j < s; ++j) amax = std::max(amax, std::log(mu_(j)) + loglik_(j));
+  if (!std::isfinite(amax)) return fail(ImmStatus::kNonFiniteLikelihood);
+  double sum = 0.0;
+  for (Eigen::Index j = 0; j < s; ++j) {
+    mu_(j) = std::exp(std::log(mu_(j)) + loglik_(j) - amax);
+    sum += mu_(j);
+  }
+  mu_ /= sum;  // sum >= 1: the maximising term is exp(0)
+  for (std::size_t j = 0; j < modes_.size(); ++j) {
+    auto w = innov_[j].head(mr);
+    auto U = gain_[j].topRows(mr);
+    x_[j].noalias() += U.transpose() * w;
+    P_[j].noalias() -= U.transpose() * U;
+    symmetrize(P_[j]);
+  }
+  last_applied_ = true;
+  combine();
+}
+
+double ImmFilter::likelihood(int j) const { return std::exp(loglik_(j)); }
+
+int ImmFilter::most_probable_mode() const {
+  Eigen::Index best = 0;
+  mu_.maxCoeff(&best);
+  return static_cast<int>(best);
+}
+
+}  // namespace ncosim::est
