@@ -142,3 +142,30 @@ TEST(KalmanExtended, DuplicateBufferedSampleIsIgnored) {
 
 }  // namespace
 }  // namespace ncosim::est
+
+namespace ncosim::est {
+namespace {
+
+TEST(KalmanExtended, SemidefiniteInnovationUsesThePseudoInverse) {
+  // R = 0 and P0 = 0: at k = 0 the innovation covariance S = C P C' + R = 0. The filter must
+  // not skip or fail: K = P C' S^+ = 0 leaves the (exact) prior, status stays ok. One period
+  // later P = Q = 1 > 0, S = 1 and a noiseless sample y = 3 sets xhat = 3 exactly.
+  Model model = static_model(0);
+  model.plant.W = Eigen::MatrixXd::Constant(1, 1, 1.0);
+  model.sensors[0].spec.R = Eigen::MatrixXd::Zero(1, 1);
+  toml::table t{{"max_delay", 0}};
+  const auto design = make("kalman_extended", t, model);
+  auto kf = design->instantiate();
+  const Eigen::VectorXd u0(0), drive = Eigen::VectorXd::Zero(1);
+  kf->on_packet(packet(0, 0, Eigen::VectorXd::Constant(1, 0.0)), 0);
+  kf->on_period(0, PeriodInput{u0, drive});
+  EXPECT_EQ(kf->state()(0), 0.0);
+  kf->on_packet(packet(0, 1, Eigen::VectorXd::Constant(1, 3.0)), 1);
+  kf->on_period(1, PeriodInput{u0, drive});
+  EXPECT_NEAR(kf->state()(0), 3.0, 1e-15);
+  EXPECT_NEAR((*kf->covariance())(0, 0), 0.0, 1e-15);
+  EXPECT_EQ(kf->status(), "ok");
+}
+
+}  // namespace
+}  // namespace ncosim::est

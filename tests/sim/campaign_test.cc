@@ -114,3 +114,25 @@ TEST(Campaign, BufferedSensorsKeepEveryEstimatorCorrecting) {
 
 }  // namespace
 }  // namespace ncosim::sim
+
+namespace ncosim::sim {
+namespace {
+
+TEST(ScenarioValidation, NonFiniteScalarsAndClockOverflowAreRejected) {
+  // A bare nan/inf where a number array or matrix is expected, and periods x period beyond
+  // the nanosecond clock (20000 x 1e6 s = 2e10 s > 4e9 s), are bad input, not a crash.
+  const std::string f = testing::source_path("scenarios/dolz2014_table2.toml");
+  for (const std::string set : {"link[0].pmf=nan", "sensor[0].R=inf", "input.std=nan", "run.period=1e6"}) {
+    try {
+      testing::load_one(f, {set});
+      ADD_FAILURE() << set << " was accepted";
+    } catch (const ScenarioError& e) {
+      const std::string what = e.what();
+      EXPECT_TRUE(what.find("finite") != std::string::npos || what.find("clock") != std::string::npos)
+          << set << ": " << what;
+    }
+  }
+}
+
+}  // namespace
+}  // namespace ncosim::sim
