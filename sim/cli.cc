@@ -126,7 +126,10 @@ int cmd_design(const CommonArgs& a, const std::string& command_line) {
   for (const auto& e : dj["estimators"]) {
     std::cout << fmt::format("{:<28} {:<16} method={:<10} gains={:<6} predicted_mse_ext={:<10} status={}\n",
                              e["name"].get<std::string>(), e["kind"].get<std::string>(),
-                             e["method"].get<std::string>(), e["stored_gains"].dump(), e["predicted_mse_ext"].dump(),
+                             e["method"].get<std::string>(), e["stored_gains"].dump(),
+                             e["predicted_mse_ext"].is_number()
+                                 ? fmt::format("{:.6g}", e["predicted_mse_ext"].get<double>())
+                                 : std::string("null"),
                              e["status"].get<std::string>());
   }
   std::cout << fmt::format("design.json written to {}/\n", out);
