@@ -38,7 +38,6 @@ InputSpec read_state_feedback(const sim::Table& t, const LinearPlant& plant) {
   s.K = t.matrix("K");
   sim::require_shape(t, "K", s.K, plant.nu(), plant.n());
   s.source = t.string_or("source", "plant");
-  s.line = t.line_of("source");
   return s;
 }
 

@@ -18,7 +18,6 @@ struct InputSpec {
   Eigen::MatrixXd K;     // state_feedback: nu x n
   std::string source;    // state_feedback: "plant" or an estimator name
   int source_index = -1; // resolved estimator index (-1: plant)
-  int line = 0;          // for errors found later (the source check)
 };
 
 using InputRegistry = sim::Registry<InputSpec, const LinearPlant&>;

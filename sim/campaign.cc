@@ -193,7 +193,7 @@ class RunSimulation {
     const auto& spec = sc_.model.sensors[s].spec;
     const std::int64_t k = now / period_ns_;
     if (spec.link < 0) {
-      deliver_copy(now, s, k, 0);
+      deliver_copy(s, k, 0);
       return;
     }
     LinkState& ls = links_[static_cast<std::size_t>(spec.link)];
@@ -206,11 +206,11 @@ class RunSimulation {
         st.values.col(st.head).noalias() = spec.C * x_;
         st.values.col(st.head).noalias() += st.r_sqrt * st.noise;
       }
-      deliver_copy(now, s, k, delays_[c], independent);
+      deliver_copy(s, k, delays_[c], independent);
     }
   }
 
-  void deliver_copy(SimTime now, std::uint64_t s, std::int64_t k, std::int64_t delay, bool independent = false) {
+  void deliver_copy(std::uint64_t s, std::int64_t k, std::int64_t delay, bool independent = false) {
     const auto& spec = sc_.model.sensors[s].spec;
     const std::int64_t arrival = k + delay;
     if (arrival >= sc_.run.periods) return;  // beyond the horizon
@@ -235,7 +235,6 @@ class RunSimulation {
       p.stamps[static_cast<std::size_t>(i)] = st.stamps[static_cast<std::size_t>(slot)];
       p.values.segment(i * spec.ny(), spec.ny()) = st.values.col(slot);
     }
-    (void)now;
     queue_.schedule(arrival * period_ns_, Phase::kArrival, &arrival_handler_, id);
   }
 

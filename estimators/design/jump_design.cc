@@ -107,34 +107,39 @@ JumpDesign design_jump_iterative(const ExtendedModel& ext, const std::vector<dou
   }
 
   std::vector<Eigen::MatrixXd> X(Nbar + 1);
+  // Prior covariance before an update N periods after the last one (tail: N >= Nbar,
+  // conditional mixture).
+  auto priors = [&](const Eigen::MatrixXd& P) {
+    for (int N = 1; N < Nbar; ++N) X[N] = Apow[N] * P * Apow[N].transpose() + SW[N];
+    X[Nbar] = (1.0 - p0) * AN * stein_sum(stein, P) * AN.transpose() + tail_noise;
+  };
+  // Gains of the groups present in `ts` at the current X: the closed form per term (S4) or
+  // the weighted trace-minimising shared gain (S1-S3).
   std::vector<Eigen::MatrixXd> num(d.gains.size()), den(d.gains.size());
+  auto update_gains = [&](const std::vector<Term>& ts) {
+    if (grouping == Grouping::kS4) {
+      for (const Term& t : ts) d.gains[t.group] = optimal_gain(ext, X[t.N], t.mask);
+      return;
+    }
+    for (const Term& t : ts) {
+      num[t.group].setZero(nb, nm);
+      den[t.group].setZero(nm, nm);
+    }
+    for (const Term& t : ts) {
+      num[t.group] += t.weight * X[t.N] * ext.C.transpose() * t.mask.asDiagonal();
+      den[t.group] += t.weight * t.mask.asDiagonal() * (ext.C * X[t.N] * ext.C.transpose() + ext.V) *
+                      t.mask.asDiagonal();
+    }
+    for (const Term& t : ts) {
+      if (den[t.group].isZero(0.0)) continue;
+      d.gains[t.group] = num[t.group] * den[t.group].completeOrthogonalDecomposition().pseudoInverse();
+    }
+  };
   Eigen::MatrixXd Pnew(nb, nb);
   const Eigen::MatrixXd I = Eigen::MatrixXd::Identity(nb, nb);
   for (d.iterations = 1; d.iterations <= max_iterations; ++d.iterations) {
-    // Prior covariance before an update N periods after the last one (tail: N >= Nbar,
-    // conditional mixture).
-    for (int N = 1; N < Nbar; ++N) X[N] = Apow[N] * d.P * Apow[N].transpose() + SW[N];
-    const Eigen::MatrixXd SP = stein_sum(stein, d.P);
-    X[Nbar] = (1.0 - p0) * AN * SP * AN.transpose() + tail_noise;
-
-    if (grouping == Grouping::kS4) {
-      for (const Term& t : terms) d.gains[t.group] = optimal_gain(ext, X[t.N], t.mask);
-    } else {
-      for (std::size_t g = 0; g < d.gains.size(); ++g) {
-        num[g].setZero(nb, nm);
-        den[g].setZero(nm, nm);
-      }
-      for (const Term& t : terms) {
-        const Eigen::MatrixXd& Xn = X[t.N];
-        num[t.group] += t.weight * Xn * ext.C.transpose() * t.mask.asDiagonal();
-        den[t.group] += t.weight * t.mask.asDiagonal() *
-                        (ext.C * Xn * ext.C.transpose() + ext.V) * t.mask.asDiagonal();
-      }
-      for (std::size_t g = 0; g < d.gains.size(); ++g) {
-        if (den[g].isZero(0.0)) continue;
-        d.gains[g] = num[g] * den[g].completeOrthogonalDecomposition().pseudoInverse();
-      }
-    }
+    priors(d.P);
+    update_gains(terms);
 
     Pnew.setZero();
     for (const Term& t : terms) {
@@ -157,39 +162,20 @@ JumpDesign design_jump_iterative(const ExtendedModel& ext, const std::vector<dou
     return d;
   }
   // Patterns the design model gives probability 0 (e.g. a buffered sample seen alone) may
-  // still occur: give them the gain their term would have, instead of none. S4: the closed
-  // form at the final X; shared groups with no weight: the shared formula, equal weights.
-  for (int N = 1; N < Nbar; ++N) X[N] = Apow[N] * d.P * Apow[N].transpose() + SW[N];
-  X[Nbar] = (1.0 - p0) * AN * stein_sum(stein, d.P) * AN.transpose() + tail_noise;
+  // still occur: give their groups the gain of the same formula at the fixed point, with
+  // equal weights, instead of none.
   std::vector<bool> weighted(d.gains.size(), false);
   for (const Term& t : terms) weighted[static_cast<std::size_t>(t.group)] = true;
+  std::vector<Term> unweighted;
   for (int N = 1; N <= Nbar; ++N) {
     for (std::size_t m = 1; m < patterns; ++m) {
       const int g = d.gain_of[N - 1][m];
-      if (weighted[static_cast<std::size_t>(g)]) continue;
-      if (grouping == Grouping::kS4) {
-        d.gains[g] = optimal_gain(ext, X[N], d.masks[m]);
-      } else {
-        num[g].setZero(nb, nm);
-        den[g].setZero(nm, nm);
-      }
+      if (!weighted[static_cast<std::size_t>(g)]) unweighted.push_back({N, m, 1.0, d.masks[m], g});
     }
   }
-  if (grouping != Grouping::kS4) {
-    for (int N = 1; N <= Nbar; ++N) {
-      for (std::size_t m = 1; m < patterns; ++m) {
-        const int g = d.gain_of[N - 1][m];
-        if (weighted[static_cast<std::size_t>(g)]) continue;
-        const Eigen::VectorXd& mask = d.masks[m];
-        num[g] += X[N] * ext.C.transpose() * mask.asDiagonal();
-        den[g] += mask.asDiagonal() * (ext.C * X[N] * ext.C.transpose() + ext.V) * mask.asDiagonal();
-      }
-    }
-    for (std::size_t g = 0; g < d.gains.size(); ++g) {
-      if (!weighted[g] && num[g].size() > 0 && !den[g].isZero(0.0)) {
-        d.gains[g] = num[g] * den[g].completeOrthogonalDecomposition().pseudoInverse();
-      }
-    }
+  if (!unweighted.empty()) {
+    priors(d.P);
+    update_gains(unweighted);
   }
   const Eigen::MatrixXd SP = stein_sum(stein, d.P);
   d.Pt = (1.0 - p0) * d.P + p0 * ((1.0 - p0) * ext.A * SP * ext.A.transpose() + SWinf);
