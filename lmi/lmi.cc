@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <Eigen/Eigenvalues>
+#include <Eigen/SparseCore>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -220,10 +221,27 @@ Constraint lmi(Constraint c, double margin, std::string name) {
 // ---------------------------------------------------------------- problem
 
 namespace {
+using Sparse = Eigen::SparseMatrix<double>;
+
+// max |M - M'| of a sparse matrix (0 for an empty one).
+double asymmetry(const Sparse& M) {
+  Sparse D = M - Sparse(M.transpose());
+  double m = 0.0;
+  for (int k = 0; k < D.outerSize(); ++k)
+    for (Sparse::InnerIterator it(D, k); it; ++it) m = std::max(m, std::abs(it.value()));
+  return m;
+}
+double max_abs(const Sparse& M) {
+  double m = 0.0;
+  for (int k = 0; k < M.outerSize(); ++k)
+    for (Sparse::InnerIterator it(M, k); it; ++it) m = std::max(m, std::abs(it.value()));
+  return m;
+}
+
 // An LMI expanded over raw scalars: F0 + sum_k y_k F_k (F_k symmetric, only nonzero kept).
 struct Expanded {
   Eigen::MatrixXd F0;
-  std::map<int, Eigen::MatrixXd> F;  // raw scalar -> coefficient
+  std::map<int, Sparse> F;  // raw scalar -> coefficient
   bool strict = false;
   double margin = 0.0;
   std::string name;
@@ -280,26 +298,42 @@ struct Problem::Impl {
     return "?";
   }
 
-  // Calls fn(k, M) with the coefficient matrix M of raw scalar k, for each term L V(') R of e.
+  // Calls fn(k, M) with the (sparse) coefficient matrix M of raw scalar k, for each term L V(') R.
   template <typename Fn>
   void for_each_coefficient(const Expr& e, Fn&& fn) const {
+    std::vector<Eigen::Triplet<double>> trip;
     for (const auto& t : e.terms()) {
       const Var& v = vars[t.var];
+      // Nonzero rows of each column of L and nonzero columns of each row of R.
+      std::vector<std::vector<int>> lnz(t.L.cols()), rnz(t.R.rows());
+      for (Eigen::Index q = 0; q < t.L.cols(); ++q)
+        for (Eigen::Index r = 0; r < t.L.rows(); ++r)
+          if (t.L(r, q) != 0.0) lnz[q].push_back(static_cast<int>(r));
+      for (Eigen::Index q = 0; q < t.R.cols(); ++q)
+        for (Eigen::Index r = 0; r < t.R.rows(); ++r)
+          if (t.R(r, q) != 0.0) rnz[r].push_back(static_cast<int>(q));
+      auto outer = [&](int col, int row) {
+        for (int i : lnz[col])
+          for (int j : rnz[row]) trip.emplace_back(i, j, t.L(i, col) * t.R(row, j));
+      };
       for (int b = 0; b < v.cols; ++b)
         for (int a = 0; a < v.rows; ++a) {
           if (v.symmetric && a > b) continue;
           // Basis E_ab (+ E_ba when symmetric off-diagonal); transposed swaps the roles.
           const int ra = t.transposed ? b : a, cb = t.transposed ? a : b;
-          Eigen::MatrixXd M = t.L.col(ra) * t.R.row(cb);
-          if (v.symmetric && a != b) M += t.L.col(cb) * t.R.row(ra);
-          if (M.isZero(0.0)) continue;
+          trip.clear();
+          outer(ra, cb);
+          if (v.symmetric && a != b) outer(cb, ra);
+          if (trip.empty()) continue;
+          Sparse M(t.L.rows(), t.R.cols());
+          M.setFromTriplets(trip.begin(), trip.end());
           fn(raw(v, a, b), std::move(M));
         }
     }
   }
 
-  void expand(const Expr& e, std::map<int, Eigen::MatrixXd>& out) const {
-    for_each_coefficient(e, [&](int k, Eigen::MatrixXd&& M) {
+  void expand(const Expr& e, std::map<int, Sparse>& out) const {
+    for_each_coefficient(e, [&](int k, Sparse&& M) {
       auto it = out.find(k);
       if (it == out.end()) out.emplace(k, std::move(M));
       else it->second += M;
@@ -314,7 +348,12 @@ struct Problem::Impl {
       for (const auto& t : e.terms())
         if (t.problem != serial) throw Error("lmi: objective uses a variable of another problem");
       c0 += sign * (w.array() * e.constant().array()).sum();
-      for_each_coefficient(e, [&](int k, Eigen::MatrixXd&& M) { c(k) += sign * (w.array() * M.array()).sum(); });
+      for_each_coefficient(e, [&](int k, Sparse&& M) {
+        double x = 0.0;
+        for (int o = 0; o < M.outerSize(); ++o)
+          for (Sparse::InnerIterator it(M, o); it; ++it) x += w(it.row(), it.col()) * it.value();
+        c(k) += sign * x;
+      });
     }
     has_objective = true;
   }
@@ -389,12 +428,14 @@ int Problem::add(Constraint c) {
   x.F0 = 0.5 * (e.constant() + e.constant().transpose());
   impl_->expand(e, x.F);
   for (auto& [k, M] : x.F) {
-    check_sym(M, "coefficient of " + impl_->describe(k));
-    M = 0.5 * (M + M.transpose()).eval();
+    const double m = max_abs(M);
+    if (!std::isfinite(m)) throw Error("lmi: " + x.name + " has a non-finite coefficient");
+    if (asymmetry(M) > tol * std::max(1.0, m))
+      throw Error("lmi: " + x.name + " is not symmetric (coefficient of " + impl_->describe(k) + ")");
+    M = 0.5 * (M + Sparse(M.transpose()));
+    M.prune(0.0);
   }
   if (!x.F0.allFinite()) throw Error("lmi: " + x.name + " has a non-finite constant");
-  for (const auto& [k, M] : x.F)
-    if (!M.allFinite()) throw Error("lmi: " + x.name + " has a non-finite coefficient");
   impl_->cons.push_back(std::move(x));
   return static_cast<int>(impl_->cons.size()) - 1;
 }
@@ -418,7 +459,7 @@ struct Translation {
   std::vector<int> scalar_cons;        // 1x1 constraints in the diagonal block
   std::vector<int> constant_cons;      // variable-free constraints
   // per constraint: solver var -> coefficient (aliases summed)
-  std::vector<std::map<int, Eigen::MatrixXd>> coef;
+  std::vector<std::map<int, Sparse>> coef;
   SdpSize size;
   std::string error;
 };
@@ -451,7 +492,8 @@ Translation translate(Problem::Impl& p) {
       else it->second += M;
     }
     for (auto it = t.coef[i].begin(); it != t.coef[i].end();) {
-      if (it->second.isZero(0.0)) it = t.coef[i].erase(it);
+      it->second.prune(0.0);
+      if (it->second.nonZeros() == 0) it = t.coef[i].erase(it);
       else { used[it->first] = true; ++it; }
     }
     if (t.coef[i].empty()) t.constant_cons.push_back(static_cast<int>(i));
@@ -614,16 +656,17 @@ Solution Problem::solve() const {
   for (std::size_t b = 0; b < t.matrix_cons.size(); ++b)
     for (const auto& [s, M] : t.coef[t.matrix_cons[b]]) {
       std::vector<std::tuple<int, int, double>> ent;
-      for (int j = 0; j < M.cols(); ++j)
-        for (int i = 0; i <= j; ++i)
-          if (M(i, j) != 0.0) ent.emplace_back(i + 1, j + 1, M(i, j));
+      for (int o = 0; o < M.outerSize(); ++o)
+        for (Sparse::InnerIterator it(M, o); it; ++it)
+          if (it.row() <= it.col() && it.value() != 0.0)
+            ent.emplace_back(static_cast<int>(it.row()) + 1, static_cast<int>(it.col()) + 1, it.value());
       if (!ent.empty()) per_var[s].emplace_back(static_cast<int>(b) + 1, std::move(ent));
     }
   if (t.size.diagonal_block) {
     std::vector<std::vector<std::tuple<int, int, double>>> diag(k);
     for (std::size_t i = 0; i < t.scalar_cons.size(); ++i)
       for (const auto& [s, M] : t.coef[t.scalar_cons[i]])
-        diag[s].emplace_back(static_cast<int>(i) + 1, static_cast<int>(i) + 1, M(0, 0));
+        diag[s].emplace_back(static_cast<int>(i) + 1, static_cast<int>(i) + 1, M.coeff(0, 0));
     for (int s = 0; s < k; ++s)
       if (!diag[s].empty()) per_var[s].emplace_back(nblocks, std::move(diag[s]));
   }
