@@ -9,8 +9,11 @@
 #include <bit>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
+#include <optional>
 
 #include "estimators/delay_window.h"
+#include "estimators/design/ccl_design.h"
 #include "estimators/design/jump_design.h"
 #include "estimators/extended_model.h"
 #include "estimators/kinds.h"
@@ -23,6 +26,8 @@ struct JumpParams {
   Grouping grouping;
   int Nbar;
   int dbar;
+  std::string design = "iterative";  // "iterative", "ccl" or "both"
+  bool verbose = false;
   InitialEstimate init;
 };
 
@@ -65,7 +70,8 @@ class JumpObserver final : public Estimator {
 
   StateView state() const override { return StateView(x_.data(), ext_.n); }
   const Eigen::VectorXd* extended() const override { return &x_; }
-  std::string status() const override { return design_.stable ? "ok" : "design_failed"; }
+  std::string status() const override { return design_.stable ? "ok" : row_status_; }
+  void set_row_status(std::string s) { row_status_ = std::move(s); }
 
  private:
   const ExtendedModel& ext_;
@@ -76,18 +82,45 @@ class JumpObserver final : public Estimator {
   Eigen::VectorXd innov_;
   const std::vector<Eigen::VectorXd>& masks_;
   std::int64_t last_update_ = -1;
+  std::string row_status_ = "design_failed";
 };
 
 class JumpObserverDesign final : public EstimatorDesign {
  public:
   JumpObserverDesign(const Model& model, JumpParams params)
       : params_(std::move(params)), ext_(build_extended(model, params_.dbar)) {
-    const auto start = std::chrono::steady_clock::now();
-    design_ = design_jump_iterative(ext_, pattern_probabilities(model, ext_), params_.Nbar,
-                                    params_.grouping);
-    report_.method = "iterative";
-    report_.design_seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const auto probs = pattern_probabilities(model, ext_);
+    auto clock = [] { return std::chrono::steady_clock::now(); };
+    auto seconds = [](auto a, auto b) { return std::chrono::duration<double>(b - a).count(); };
+    std::optional<JumpDesign> iterative, ccl;
+    double t_iter = 0.0, t_ccl = 0.0;
+    CclInfo info;
+    if (params_.design != "ccl") {
+      const auto start = clock();
+      // Reported through evaluate_jump_gains like CCL, so both predictions are computed alike.
+      JumpDesign it = design_jump_iterative(ext_, probs, params_.Nbar, params_.grouping);
+      if (it.stable) {
+        JumpDesign ev = evaluate_jump_gains(ext_, probs, params_.Nbar, params_.grouping, it.gains);
+        if (ev.stable) {
+          ev.iterations = it.iterations;
+          it = std::move(ev);
+        }
+      }
+      iterative = std::move(it);
+      t_iter = seconds(start, clock());
+    }
+    if (params_.design != "iterative") {
+      const auto start = clock();
+      CclOptions o;
+      o.verbose = params_.verbose;
+      ccl = design_jump_ccl(ext_, probs, params_.Nbar, params_.grouping, o, &info);
+      t_ccl = seconds(start, clock());
+    }
+    const bool use_ccl = !iterative || (ccl && ccl->stable &&
+                                        (!iterative->stable || ccl->Pt.trace() < iterative->Pt.trace()));
+    design_ = use_ccl ? *ccl : *iterative;
+    report_.method = use_ccl ? "ccl" : "iterative";
+    report_.design_seconds = t_iter + t_ccl;
     report_.stored_gains = design_.stored_gains;
     report_.stable = design_.stable;
     report_.status = design_.status;
@@ -95,16 +128,41 @@ class JumpObserverDesign final : public EstimatorDesign {
       report_.predicted_mse_ext = design_.Pt.trace();
       report_.predicted_mse = design_.Pt.topLeftCorner(ext_.n, ext_.n).trace();
     }
+    report_.extra["design"] = params_.design;
+    if (iterative) {
+      report_.extra["design_seconds_iterative"] = t_iter;
+      report_.extra["iterations"] = iterative->iterations;
+      if (iterative->stable) report_.extra["predicted_mse_ext_iterative"] = iterative->Pt.trace();
+      else report_.extra["status_iterative"] = iterative->status;
+    }
+    if (ccl) {
+      report_.extra["design_seconds_ccl"] = t_ccl;
+      if (ccl->stable) report_.extra["predicted_mse_ext_ccl"] = ccl->Pt.trace();
+      else report_.extra["status_ccl"] = ccl->status;
+      report_.extra["sdp"] = {{"variables", info.size.variables},
+                              {"blocks", info.size.blocks},
+                              {"block_sizes", info.size.block_sizes},
+                              {"solves", info.sdp_solves},
+                              {"bisections", info.bisections},
+                              {"ccl_iterations", info.ccl_iterations},
+                              {"lower_bound_trP", info.lower_bound},
+                              {"upper_bound_trP", info.upper_bound}};
+    }
+    if (iterative && ccl) report_.extra["chosen"] = report_.method;
+    // A failed iterative design keeps its historical row status; a failed LMI design is
+    // design_<lmi status> (design_infeasible, design_numerical_trouble, ...).
+    row_status_ = use_ccl ? "design_" + design_.status : "design_failed";
     static const char* names[] = {"S1", "S2", "S3", "S4"};
     report_.extra["grouping"] = names[static_cast<int>(params_.grouping)];
     report_.extra["history"] = params_.Nbar;
     report_.extra["max_delay"] = params_.dbar;
     report_.extra["p0"] = design_.p0;
-    report_.extra["iterations"] = design_.iterations;
   }
 
   std::unique_ptr<Estimator> instantiate() const override {
-    return std::make_unique<JumpObserver>(ext_, design_, params_.init);
+    auto e = std::make_unique<JumpObserver>(ext_, design_, params_.init);
+    e->set_row_status(row_status_);
+    return e;
   }
   const DesignReport& report() const override { return report_; }
   std::optional<double> flops_per_period() const override {
@@ -120,6 +178,7 @@ class JumpObserverDesign final : public EstimatorDesign {
   ExtendedModel ext_;
   JumpDesign design_;
   DesignReport report_;
+  std::string row_status_ = "design_failed";
 };
 
 std::unique_ptr<EstimatorDesign> read_jump(const sim::Table& t, const Model& model) {
@@ -130,7 +189,10 @@ std::unique_ptr<EstimatorDesign> read_jump(const sim::Table& t, const Model& mod
   if (Nbar < 1 || Nbar > 1000) t.fail("history", fmt::format("expected an integer in 1..1000, got {}", Nbar));
   p.Nbar = static_cast<int>(Nbar);
   p.dbar = read_max_delay(t, 0);
-  t.choice_or("design", "iterative", {"iterative"});
+  p.design = t.choice_or("design", "iterative", {"iterative", "ccl", "both"});
+  // CSDP's iteration log on stderr (it is never written to stdout).
+  const char* lmi_log = std::getenv("NCOSIM_LMI_VERBOSE");
+  p.verbose = lmi_log != nullptr && std::string(lmi_log) == "1";
   p.init = read_initial(t, model);
   const int nf = static_cast<int>(model.sensors.size()) * (p.dbar + 1);
   if (nf > 20) {
@@ -156,7 +218,7 @@ std::unique_ptr<EstimatorDesign> read_jump(const sim::Table& t, const Model& mod
 void register_jump(EstimatorRegistry& registry) {
   registry.add("jump",
                "jump observer with precomputed gains L(N, pattern), Dolz et al. 2014: grouping "
-               "(S1..S4), history (Nbar), max_delay (dbar), design (iterative)",
+               "(S1..S4), history (Nbar), max_delay (dbar), design (iterative, ccl or both)",
                read_jump);
 }
 

@@ -149,11 +149,15 @@ Expr block(const std::vector<std::vector<Expr>>& rows) {
   for (std::size_t i = 0; i < rows.size(); ++i) {
     int c0 = 0;
     for (std::size_t j = 0; j < nc; ++j) {
-      Eigen::MatrixXd Pl = Eigen::MatrixXd::Zero(H, heights[i]);
-      Pl.middleRows(r0, heights[i]).setIdentity();
-      Eigen::MatrixXd Pr = Eigen::MatrixXd::Zero(widths[j], W);
-      Pr.middleCols(c0, widths[j]).setIdentity();
-      r += Expr::rmul(Expr::lmul(Pl, rows[i][j]), Pr);
+      const Expr& e = rows[i][j];
+      r.constant_.block(r0, c0, heights[i], widths[j]) += e.constant();
+      for (const auto& t : e.terms()) {  // pad L with zero rows and R with zero columns
+        Expr::Term p{t.var, t.problem, t.transposed, Eigen::MatrixXd::Zero(H, t.L.cols()),
+                     Eigen::MatrixXd::Zero(t.R.rows(), W)};
+        p.L.middleRows(r0, heights[i]) = t.L;
+        p.R.middleCols(c0, widths[j]) = t.R;
+        r.terms_.push_back(std::move(p));
+      }
       c0 += widths[j];
     }
     r0 += heights[i];

@@ -81,6 +81,7 @@ class Expr {
 
   static Expr lmul(const Eigen::MatrixXd& m, const Expr& e);  // m * e
   static Expr rmul(const Expr& e, const Eigen::MatrixXd& m);  // e * m
+  friend Expr block(const std::vector<std::vector<Expr>>& rows);
 
   struct Term {
     int var;

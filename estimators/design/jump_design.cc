@@ -184,4 +184,112 @@ JumpDesign design_jump_iterative(const ExtendedModel& ext, const std::vector<dou
   return d;
 }
 
+JumpDesign evaluate_jump_gains(const ExtendedModel& ext, const std::vector<double>& prob, int Nbar,
+                               Grouping grouping, const std::vector<Eigen::MatrixXd>& gains) {
+  JumpDesign d;
+  d.grouping = grouping;
+  d.Nbar = Nbar;
+  const Eigen::Index nb = ext.nb;
+  const std::size_t patterns = prob.size();
+  d.p0 = prob[0];
+  const double p0 = d.p0;
+  const int per_N = groups_per_N(grouping, ext);
+  d.stored_gains = static_cast<long>(per_N) * Nbar;
+  d.gains = gains;
+  d.gain_of.assign(Nbar, std::vector<int>(patterns, -1));
+  for (int N = 1; N <= Nbar; ++N)
+    for (std::size_t m = 1; m < patterns; ++m) d.gain_of[N - 1][m] = (N - 1) * per_N + group_of(grouping, ext, m);
+  for (std::size_t m = 0; m < patterns; ++m) d.masks.push_back(ext.row_mask(m));
+  d.P = Eigen::MatrixXd::Constant(nb, nb, std::nan(""));
+  d.Pt = d.P;
+  if (gains.size() != static_cast<std::size_t>(per_N) * Nbar) {
+    d.status = "wrong_gain_count";
+    return d;
+  }
+  if (p0 >= 1.0) {
+    d.status = "no_measurements";
+    return d;
+  }
+  const double rho = ext.A.eigenvalues().cwiseAbs().maxCoeff();
+  if (p0 * rho * rho >= 1.0) {
+    d.status = fmt::format("unstable: p0 rho(A)^2 = {:.4g} >= 1", p0 * rho * rho);
+    return d;
+  }
+  std::vector<Eigen::MatrixXd> Apow(Nbar + 1), SW(Nbar + 1);
+  Apow[0] = Eigen::MatrixXd::Identity(nb, nb);
+  SW[0] = Eigen::MatrixXd::Zero(nb, nb);
+  for (int N = 1; N <= Nbar; ++N) {
+    Apow[N] = ext.A * Apow[N - 1];
+    SW[N] = SW[N - 1] + Apow[N - 1] * ext.Q * Apow[N - 1].transpose();
+  }
+  const Eigen::MatrixXd stein = stein_operator(ext.A, p0);
+  const Eigen::MatrixXd SWinf = stein_sum(stein, ext.Q);
+  const Eigen::MatrixXd& AN = Apow[Nbar];
+  const Eigen::MatrixXd tail_noise = SW[Nbar] + p0 * AN * SWinf * AN.transpose();
+  // vec(P) = T vec(P) + vec(U): T = sum w (F A^N (x) F A^N), the tail through the Stein sum.
+  const Eigen::Index n2 = nb * nb;
+  Eigen::MatrixXd T = Eigen::MatrixXd::Zero(n2, n2);
+  Eigen::MatrixXd U = Eigen::MatrixXd::Zero(nb, nb);
+  const Eigen::MatrixXd I = Eigen::MatrixXd::Identity(nb, nb);
+  auto kron = [](const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
+    Eigen::MatrixXd k(a.rows() * b.rows(), a.cols() * b.cols());
+    for (Eigen::Index i = 0; i < a.rows(); ++i)
+      for (Eigen::Index j = 0; j < a.cols(); ++j) k.block(i * b.rows(), j * b.cols(), b.rows(), b.cols()) = a(i, j) * b;
+    return k;
+  };
+  Eigen::MatrixXd tailT = Eigen::MatrixXd::Zero(n2, n2);
+  for (int N = 1; N <= Nbar; ++N) {
+    const double wN = N < Nbar ? std::pow(p0, N - 1) : std::pow(p0, Nbar - 1) / (1.0 - p0);
+    for (std::size_t m = 1; m < patterns; ++m) {
+      if (prob[m] <= 0.0) continue;
+      const double w = wN * prob[m];
+      const Eigen::MatrixXd LE = d.gains[d.gain_of[N - 1][m]] * d.masks[m].asDiagonal();
+      const Eigen::MatrixXd F = I - LE * ext.C;
+      if (N < Nbar) {
+        const Eigen::MatrixXd FA = F * Apow[N];
+        T += w * kron(FA, FA);
+        U += w * (F * SW[N] * F.transpose() + LE * ext.V * LE.transpose());
+      } else {
+        const Eigen::MatrixXd FA = F * AN;
+        tailT += w * (1.0 - p0) * kron(FA, FA);
+        U += w * (F * tail_noise * F.transpose() + LE * ext.V * LE.transpose());
+      }
+    }
+  }
+  T += tailT * stein;  // vec(S_P) = stein vec(P)
+  const double radius = T.eigenvalues().cwiseAbs().maxCoeff();
+  if (!std::isfinite(radius) || radius >= 1.0) {
+    d.status = "unstable_gains";
+    return d;
+  }
+  Eigen::VectorXd vecU = Eigen::Map<const Eigen::VectorXd>(U.data(), n2);
+  Eigen::VectorXd vecP = (Eigen::MatrixXd::Identity(n2, n2) - T).partialPivLu().solve(vecU);
+  d.P = Eigen::Map<const Eigen::MatrixXd>(vecP.data(), nb, nb);
+  d.P = 0.5 * (d.P + d.P.transpose());
+  // Groups without a weighted term: the fallback of design_jump_iterative, at this P.
+  std::vector<bool> weighted(d.gains.size(), false);
+  for (int N = 1; N <= Nbar; ++N)
+    for (std::size_t m = 1; m < patterns; ++m)
+      if (prob[m] > 0.0) weighted[static_cast<std::size_t>(d.gain_of[N - 1][m])] = true;
+  for (std::size_t g = 0; g < d.gains.size(); ++g) {
+    if (weighted[g]) continue;
+    const int N = static_cast<int>(g) / per_N + 1;
+    const Eigen::MatrixXd X = N < Nbar ? Eigen::MatrixXd(Apow[N] * d.P * Apow[N].transpose() + SW[N])
+                                       : Eigen::MatrixXd((1.0 - p0) * AN * stein_sum(stein, d.P) * AN.transpose() + tail_noise);
+    Eigen::MatrixXd num = Eigen::MatrixXd::Zero(nb, ext.nmb), den = Eigen::MatrixXd::Zero(ext.nmb, ext.nmb);
+    for (std::size_t m = 1; m < patterns; ++m) {
+      if (d.gain_of[N - 1][m] != static_cast<int>(g)) continue;
+      num += X * ext.C.transpose() * d.masks[m].asDiagonal();
+      den += d.masks[m].asDiagonal() * (ext.C * X * ext.C.transpose() + ext.V) * d.masks[m].asDiagonal();
+    }
+    if (!den.isZero(0.0)) d.gains[g] = num * den.completeOrthogonalDecomposition().pseudoInverse();
+  }
+  const Eigen::MatrixXd SP = stein_sum(stein, d.P);
+  d.Pt = (1.0 - p0) * d.P + p0 * ((1.0 - p0) * ext.A * SP * ext.A.transpose() + SWinf);
+  d.Pt = 0.5 * (d.Pt + d.Pt.transpose());
+  d.stable = true;
+  d.status = "ok";
+  return d;
+}
+
 }  // namespace ncosim::est

@@ -42,4 +42,13 @@ JumpDesign design_jump_iterative(const ExtendedModel& ext, const std::vector<dou
                                  int Nbar, Grouping grouping, int max_iterations = 200000,
                                  double tolerance = 1e-13);
 
+// Covariances of given gains (one per group, as JumpDesign::gains): P is the fixed point of
+// the operator (18) with these gains, solved exactly as a linear equation in vec(P), and Pt
+// the corrected eq. (28). Every design method reports its prediction through this function,
+// so predicted values of different methods are computed the same way. Groups that no term of
+// positive probability uses get the gain of design_jump_iterative's fallback formula at the
+// fixed point. status "unstable_gains" when the operator's spectral radius is >= 1.
+JumpDesign evaluate_jump_gains(const ExtendedModel& ext, const std::vector<double>& pattern_prob,
+                               int Nbar, Grouping grouping, const std::vector<Eigen::MatrixXd>& gains);
+
 }  // namespace ncosim::est
