@@ -13,6 +13,7 @@
 #include "estimators/delay_window.h"
 #include "estimators/design/jump_design.h"
 #include "estimators/extended_model.h"
+#include "estimators/jump_observer.h"
 #include "estimators/kinds.h"
 
 namespace ncosim::est {
@@ -78,7 +79,7 @@ class JumpObserver final : public Estimator {
   std::int64_t last_update_ = -1;
 };
 
-class JumpObserverDesign final : public EstimatorDesign {
+class JumpObserverDesign final : public EstimatorDesign, public JumpDesignAccess {
  public:
   JumpObserverDesign(const Model& model, JumpParams params)
       : params_(std::move(params)), ext_(build_extended(model, params_.dbar)) {
@@ -114,6 +115,9 @@ class JumpObserverDesign final : public EstimatorDesign {
     return nb * nb + nb * nu + 2 * nb * nmb + 2 * nb + nmb;
   }
   Eigen::Index extended_size() const override { return ext_.nb; }
+  const ExtendedModel& extended_model() const override { return ext_; }
+  const JumpDesign& jump_design() const override { return design_; }
+  const InitialEstimate& initial_estimate() const override { return params_.init; }
 
  private:
   JumpParams params_;
