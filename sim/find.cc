@@ -93,7 +93,8 @@ bool met(const FindTarget& t, const std::optional<double>& q) {
   return *q > t.value;
 }
 
-// True when the finite values, ordered by key, never go both up and down (1e-9 relative slack).
+}  // namespace
+
 bool is_monotone(const std::map<double, std::optional<double>>& pts) {
   int dir = 0;
   std::optional<double> prev;
@@ -112,8 +113,6 @@ bool is_monotone(const std::map<double, std::optional<double>>& pts) {
   }
   return true;
 }
-
-}  // namespace
 
 FindResult find_threshold(const std::string& file, const std::vector<std::string>& sets, const FindOptions& opt,
                           std::ostream& log) {

@@ -5,6 +5,7 @@
 // scan and every bisection point are checked and a violation is reported, never hidden.
 #pragma once
 
+#include <map>
 #include <optional>
 #include <ostream>
 #include <string>
@@ -55,6 +56,10 @@ FindResult find_threshold(const std::string& file, const std::vector<std::string
                           std::ostream& log);
 
 std::string find_csv(const FindResult& result, const FindOptions& opt);
+
+// True when the finite values, ordered by key, never go both up and down (1e-9 relative
+// slack); points without a value (failed designs) are skipped.
+bool is_monotone(const std::map<double, std::optional<double>>& points);
 
 // A double as a TOML float literal that reads back exactly ("0.5", "1.0", "1e-05").
 std::string toml_float(double v);
