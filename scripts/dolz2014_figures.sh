@@ -38,11 +38,11 @@ run "$NCOSIM" run scenarios/dolz2014_fig3.toml --out "$out/physical" --quiet
 run "$NCOSIM" run scenarios/dolz2014_fig3.toml --out "$out/independent" --quiet --set 'sensor[0].link="net1_independent"'
 awk -F, -v D="$out/design.csv" -v P="$out/physical/summary.csv" -v I="$out/independent/summary.csv" '
   BEGIN {
-    while ((getline l < D) > 0) { split(l, f, ","); if (f[3] == "reference") ref = f[6];
-      else if (f[3] == "jump") { k = f[2]; pr[k] = f[6]; fl[k] = f[9]; p0[k] = f[10]; keys[++n] = k } }
+    while ((getline l < D) > 0) { split(l, f, ","); if (f[3] != "jump") continue; if (f[2] == 9) { ref = f[6]; continue }
+      k = f[2]; pr[k] = f[6]; fl[k] = f[9]; p0[k] = f[10]; keys[++n] = k }
     while ((getline l < P) > 0) { split(l, f, ","); if (f[3] == "jump") { ps[f[2]] = f[6]; pc[f[2]] = f[7] } }
     while ((getline l < I) > 0) { split(l, f, ","); if (f[3] == "jump") { is[f[2]] = f[6]; ic[f[2]] = f[7] } }
-    print "# dbar predicted/ref flops p0 physical/ref ci independent/ref ci   (plant block; ref = dbar 10: " ref ")"
+    print "# dbar predicted/ref flops p0 physical/ref ci independent/ref ci   (plant block; ref = dbar 9: " ref ")"
     for (i = 1; i <= n; i++) { k = keys[i];
       printf "%s %.6g %s %s %.6g %.6g %.6g %.6g\n", k, pr[k] / ref, fl[k], p0[k], ps[k] / ref, pc[k] / ref, is[k] / ref, ic[k] / ref }
   }' > "$out/plot.dat"

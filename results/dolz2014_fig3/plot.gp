@@ -1,5 +1,5 @@
 # Figs. 2-3 of Dolz et al. 2014 (example 2). Fig. 2: the negative-binomial delay pmf
-# P[d] = C(d+2, 2) 0.5^(d+3). Fig. 3: normalised tr(Pt) (plant block, against dbar = 10), FLOPs
+# P[d] = C(d+2, 2) 0.5^(d+3). Fig. 3: normalised tr(Pt) (plant block, against dbar = 9), FLOPs
 # and p0 against dbar; points: simulation with 95% CI. Data: plot.dat.
 set datafile separator whitespace
 set grid
@@ -19,7 +19,7 @@ do for [t in "pngcairo svg"] {
   else { set terminal pngcairo size 700,900; set output "fig3.png" }
   set multiplot layout 3,1 title "Fig. 3: A_1, sensor 1, S4 (Nbar = 1)"
   set xlabel "dbar"; set xrange [-0.5:6.5]
-  set ylabel "tr(P_t) / tr(P_t, dbar = 10)"; set key top right
+  set ylabel "tr(P_t) / tr(P_t, dbar = 9)"; set key top right
   plot "plot.dat" using 1:2 with linespoints lw 2 pt 7 title "predicted", \
        "plot.dat" using ($1+0.08):7:8 with yerrorbars pt 5 title "simulated, independent copies", \
        "plot.dat" using ($1-0.08):5:6 with yerrorbars pt 4 title "simulated, physical"

@@ -1,7 +1,8 @@
 // tests/cli/export_c_test.cc — `ncosim design --export-c`: the exported C99 compiles with
 // cc -std=c99 -Wall -Werror -pedantic, selects the same gain as the C++ estimator for every
 // (N, pattern), and tracks the C++ jump estimator on a recorded run (packets with buffered,
-// delayed and out-of-window samples, multi-output sensor, random inputs) to 1e-12.
+// delayed and out-of-window samples, multi-output sensor, random inputs, samples of a simulated
+// plant) to 1e-12.
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <sys/wait.h>
@@ -154,9 +155,18 @@ TEST(ExportC, CompilesSelectsAndTracksTheCppEstimatorTo1e12) {
     std::uniform_real_distribution<double> uniform(0.0, 1.0);
     std::string script = "G\n";
     std::vector<Eigen::VectorXd> expected;
+    Eigen::VectorXd last_drive = Eigen::VectorXd::Zero(sc->model.plant.n());
     const int periods = 3000;
     const Eigen::Index n = ext.n;
+    // The plant, simulated here so that the samples are those of a real run.
+    const auto& plant = sc->model.plant;
+    std::vector<Eigen::VectorXd> xtrue{Eigen::VectorXd::Zero(n)};
     for (std::int64_t k = 0; k < periods; ++k) {
+      if (k > 0) {
+        Eigen::VectorXd w(plant.nw());
+        for (Eigen::Index i = 0; i < w.size(); ++i) w(i) = normal(rng);
+        xtrue.push_back(plant.A * xtrue.back() + last_drive + plant.Bw * (plant.W.llt().matrixL() * w));
+      }
       for (int s = 0; s < static_cast<int>(sc->model.sensors.size()); ++s) {
         const auto& spec = sc->model.sensors[static_cast<std::size_t>(s)].spec;
         if (uniform(rng) < 0.45) continue;  // nothing from this sensor at k
@@ -170,7 +180,10 @@ TEST(ExportC, CompilesSelectsAndTracksTheCppEstimatorTo1e12) {
         pk.count = static_cast<int>(pk.stamps.size());
         if (pk.count == 0) continue;
         pk.values.resize(pk.count * spec.ny());
-        for (Eigen::Index i = 0; i < pk.values.size(); ++i) pk.values(i) = 0.3 * normal(rng);
+        for (int i = 0; i < pk.count; ++i) {
+          const Eigen::VectorXd y = spec.C * xtrue[static_cast<std::size_t>(pk.stamps[static_cast<std::size_t>(i)])];
+          for (Eigen::Index r = 0; r < spec.ny(); ++r) pk.values(i * spec.ny() + r) = y(r) + 0.1 * normal(rng);
+        }
         estimator->on_packet(pk, k);
         for (int i = 0; i < pk.count; ++i) {
           script += fmt::format("R {} {} {}", s, k - pk.stamps[static_cast<std::size_t>(i)], spec.ny());
@@ -181,6 +194,7 @@ TEST(ExportC, CompilesSelectsAndTracksTheCppEstimatorTo1e12) {
       Eigen::VectorXd u(sc->model.plant.nu());
       for (Eigen::Index i = 0; i < u.size(); ++i) u(i) = normal(rng);
       const Eigen::VectorXd drive = sc->model.plant.Bu * u;
+      last_drive = drive;
       estimator->on_period(k, est::PeriodInput{u, drive});
       script += "S";
       for (Eigen::Index i = 0; i < n; ++i) script += fmt::format(" {:.17g}", drive(i));

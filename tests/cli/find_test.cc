@@ -136,3 +136,29 @@ TEST(DesignCsv, OneRowPerCaseAndEstimator) {
 }
 
 }  // namespace
+
+namespace {
+
+TEST(DelayLinkDelivery, ScalesTheShapeAndRejectsMixedForms) {
+  const fs::path out = fresh_dir("delivery");
+  // delivery 0.9 spread over delays 0 and 1 as 1:3: P[delay 0] = 0.225, so the b = 0 observers
+  // (max_delay 0) see p0 = 0.775.
+  Outcome o = ncosim(fmt::format("design '{}' --set 'sweep[0].values=[0.9]' --set 'link[0].shape=[1.0, 3.0]' --out '{}'",
+                                 kFig5.string(), out.string()));
+  ASSERT_EQ(o.code, 0) << o.output;
+  EXPECT_NE(slurp(out / "design.csv").find("0.9,S4 N1 b0,jump,iterative,"), std::string::npos);
+  EXPECT_NE(slurp(out / "design.csv").find(",0.775,"), std::string::npos) << slurp(out / "design.csv");
+  o = ncosim(fmt::format("check '{}' --set 'link[0].pmf=[0.5]'", kFig5.string()));
+  EXPECT_EQ(o.code, 2);
+  EXPECT_NE(o.output.find("expected either pmf or delivery (with shape), got both"), std::string::npos) << o.output;
+  o = ncosim(fmt::format("check '{}' --set 'link[0].shape=[0.0, 0.0]'", kFig5.string()));
+  EXPECT_EQ(o.code, 2);
+  EXPECT_NE(o.output.find("key 'link[0].shape': expected at least one positive weight"), std::string::npos)
+      << o.output;
+  o = ncosim(fmt::format("check '{}' --set 'sweep[0].values=[1.2]'", kFig5.string()));
+  EXPECT_EQ(o.code, 2);
+  EXPECT_NE(o.output.find("link[0].delivery"), std::string::npos) << o.output;
+  fs::remove_all(out);
+}
+
+}  // namespace
