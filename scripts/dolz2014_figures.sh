@@ -9,6 +9,8 @@ cd "$(dirname "$0")/.."
 NCOSIM=${NCOSIM:-build/sim/ncosim}
 start=$(date +%s)
 run() { echo "+ $*" >&2; "$@" > /dev/null; }
+# The design methods of a design.csv whose first column is the swept estimator[0].design.
+methods() { awk -F, 'NR > 1 { print $1 }' "$1" | sort -u; }
 
 # Fig. 1 (a)-(c): systems A1, A2, A3.
 for s in a b c; do
@@ -17,18 +19,22 @@ for s in a b c; do
   run "$NCOSIM" run scenarios/dolz2014_fig1$s.toml --out "$out/physical" --quiet
   run "$NCOSIM" run scenarios/dolz2014_fig1$s.toml --out "$out/independent" --quiet \
     --set 'link[0].independent=true' --set 'link[1].independent=true'
-  # plot data: per grouping, gains, predicted ratio, simulated ratios and CIs (extended state).
-  awk -F, -v D="$out/design.csv" -v P="$out/physical/summary.csv" -v I="$out/independent/summary.csv" '
+  # plot data, one file per design method (column 1): per grouping, gains, predicted ratio,
+  # simulated ratios and CIs (extended state).
+  rm -f "$out"/plot_*.dat
+  for m in $(methods "$out/design.csv"); do
+  awk -F, -v M="$m" -v D="$out/design.csv" -v P="$out/physical/summary.csv" -v I="$out/independent/summary.csv" '
     BEGIN {
       while ((getline l < D) > 0) { split(l, f, ","); if (f[4] == "reference") ref = f[8];
-        else if (f[4] == "jump") { k = f[2] " " f[3]; g[k] = f[9]; pr[k] = f[8]; keys[++n] = k } }
-      while ((getline l < P) > 0) { split(l, f, ","); if (f[4] == "jump") { k = f[2] " " f[3]; ps[k] = f[9]; pc[k] = f[10] } }
-      while ((getline l < I) > 0) { split(l, f, ","); if (f[4] == "jump") { k = f[2] " " f[3]; is[k] = f[9]; ic[k] = f[10] } }
+        else if (f[4] == "jump" && f[1] == M) { k = f[2] " " f[3]; g[k] = f[9]; pr[k] = f[8]; keys[++n] = k } }
+      while ((getline l < P) > 0) { split(l, f, ","); if (f[4] == "jump" && f[1] == M) { k = f[2] " " f[3]; ps[k] = f[9]; pc[k] = f[10] } }
+      while ((getline l < I) > 0) { split(l, f, ","); if (f[4] == "jump" && f[1] == M) { k = f[2] " " f[3]; is[k] = f[9]; ic[k] = f[10] } }
       print "# grouping history gains predicted/ref physical/ref ci independent/ref ci   (ref = " ref ")"
       for (i = 1; i <= n; i++) { k = keys[i]; split(k, a, " ");
         if (i > 1 && a[1] != prev) print "\n"; prev = a[1];
         printf "%s %s %s %.6g %.6g %.6g %.6g %.6g\n", a[1], a[2], g[k], pr[k] / ref, ps[k] / ref, pc[k] / ref, is[k] / ref, ic[k] / ref }
-    }' > "$out/plot.dat"
+    }' > "$out/plot_$m.dat"
+  done
 done
 
 # Figs. 2-3: A1, sensor 1, negative-binomial delay, dbar = 0..6.
@@ -36,30 +42,36 @@ out=results/dolz2014_fig3
 run "$NCOSIM" design scenarios/dolz2014_fig3.toml --out "$out"
 run "$NCOSIM" run scenarios/dolz2014_fig3.toml --out "$out/physical" --quiet
 run "$NCOSIM" run scenarios/dolz2014_fig3.toml --out "$out/independent" --quiet --set 'sensor[0].link="net1_independent"'
-awk -F, -v D="$out/design.csv" -v P="$out/physical/summary.csv" -v I="$out/independent/summary.csv" '
+rm -f "$out"/plot_*.dat
+for m in $(methods "$out/design.csv"); do
+awk -F, -v M="$m" -v D="$out/design.csv" -v P="$out/physical/summary.csv" -v I="$out/independent/summary.csv" '
   BEGIN {
-    while ((getline l < D) > 0) { split(l, f, ","); if (f[3] != "jump") continue; if (f[2] == 9) { ref = f[6]; continue }
+    while ((getline l < D) > 0) { split(l, f, ","); if (f[3] != "jump" || f[1] != M) continue; if (f[2] == 9) { ref = f[6]; continue }
       k = f[2]; pr[k] = f[6]; fl[k] = f[9]; p0[k] = f[10]; keys[++n] = k }
-    while ((getline l < P) > 0) { split(l, f, ","); if (f[3] == "jump") { ps[f[2]] = f[6]; pc[f[2]] = f[7] } }
-    while ((getline l < I) > 0) { split(l, f, ","); if (f[3] == "jump") { is[f[2]] = f[6]; ic[f[2]] = f[7] } }
+    while ((getline l < P) > 0) { split(l, f, ","); if (f[3] == "jump" && f[1] == M) { ps[f[2]] = f[6]; pc[f[2]] = f[7] } }
+    while ((getline l < I) > 0) { split(l, f, ","); if (f[3] == "jump" && f[1] == M) { is[f[2]] = f[6]; ic[f[2]] = f[7] } }
     print "# dbar predicted/ref flops p0 physical/ref ci independent/ref ci   (plant block; ref = dbar 9: " ref ")"
     for (i = 1; i <= n; i++) { k = keys[i];
       printf "%s %.6g %s %s %.6g %.6g %.6g %.6g\n", k, pr[k] / ref, fl[k], p0[k], ps[k] / ref, pc[k] / ref, is[k] / ref, ic[k] / ref }
-  }' > "$out/plot.dat"
+  }' > "$out/plot_$m.dat"
+done
 
 # Fig. 4: A3, buffered packets, dbar = b = 0..3, Nbar = 1..7.
 out=results/dolz2014_fig4
 run "$NCOSIM" design scenarios/dolz2014_fig4.toml --out "$out"
 run "$NCOSIM" run scenarios/dolz2014_fig4.toml --out "$out/physical" --quiet
-awk -F, -v D="$out/design.csv" -v P="$out/physical/summary.csv" '
+rm -f "$out"/plot_*.dat
+for m in $(methods "$out/design.csv"); do
+awk -F, -v M="$m" -v D="$out/design.csv" -v P="$out/physical/summary.csv" '
   BEGIN {
-    while ((getline l < D) > 0) { split(l, f, ","); if (f[4] == "jump") { k = f[2] " " f[3]; pr[k] = f[7]; pe[k] = f[8]; keys[++n] = k } }
-    while ((getline l < P) > 0) { split(l, f, ","); if (f[4] == "jump") { k = f[2] " " f[3]; ps[k] = f[7]; pc[k] = f[8]; es[k] = f[9]; ec[k] = f[10] } }
+    while ((getline l < D) > 0) { split(l, f, ","); if (f[4] == "jump" && f[1] == M) { k = f[2] " " f[3]; pr[k] = f[7]; pe[k] = f[8]; keys[++n] = k } }
+    while ((getline l < P) > 0) { split(l, f, ","); if (f[4] == "jump" && f[1] == M) { k = f[2] " " f[3]; ps[k] = f[7]; pc[k] = f[8]; es[k] = f[9]; ec[k] = f[10] } }
     print "# b Nbar predicted(plant) physical ci predicted(extended) physical ci"
     for (i = 1; i <= n; i++) { k = keys[i]; split(k, a, " ");
       if (i > 1 && a[1] != prev) print "\n"; prev = a[1];
       printf "%s %s %s %s %s %s %s %s\n", a[1], a[2], pr[k], ps[k], pc[k], pe[k], es[k], ec[k] }
-  }' > "$out/plot.dat"
+  }' > "$out/plot_$m.dat"
+done
 
 # Fig. 5: A3, sensor 1, buffered packets; tr(Pt) against delivery; thresholds by ncosim find.
 out=results/dolz2014_fig5
