@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Regenerates every figure of Dolz, Peñarrocha & Sanchis (2014) and Table 2 (results/README.md,
 # "Dolz et al. 2014: every figure"): designs (ncosim design -> design.csv), simulations (ncosim run
-# with physical packets and, where the link allows it, the independent copies of the design
-# model), the Fig. 5 thresholds (ncosim find), then the gnuplot figures (PNG and SVG).
+# with physical packets and the design model: independent copies where the link allows it, fresh
+# noise on re-sent buffered samples for Figs. 4-5), the Fig. 5 thresholds (ncosim find), then the gnuplot figures (PNG and SVG).
 # Usage, from the repository root after a build: bash scripts/dolz2014_figures.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -60,16 +60,19 @@ done
 out=results/dolz2014_fig4
 run "$NCOSIM" design scenarios/dolz2014_fig4.toml --out "$out"
 run "$NCOSIM" run scenarios/dolz2014_fig4.toml --out "$out/physical" --quiet
+run "$NCOSIM" run scenarios/dolz2014_fig4.toml --out "$out/fresh" --quiet \
+  --set 'sensor[0].resend_noise="fresh"' --set 'sensor[1].resend_noise="fresh"'
 rm -f "$out"/plot_*.dat
 for m in $(methods "$out/design.csv"); do
-awk -F, -v M="$m" -v D="$out/design.csv" -v P="$out/physical/summary.csv" '
+awk -F, -v M="$m" -v D="$out/design.csv" -v P="$out/physical/summary.csv" -v F="$out/fresh/summary.csv" '
   BEGIN {
     while ((getline l < D) > 0) { split(l, f, ","); if (f[4] == "jump" && f[1] == M) { k = f[2] " " f[3]; pr[k] = f[7]; pe[k] = f[8]; keys[++n] = k } }
     while ((getline l < P) > 0) { split(l, f, ","); if (f[4] == "jump" && f[1] == M) { k = f[2] " " f[3]; ps[k] = f[7]; pc[k] = f[8]; es[k] = f[9]; ec[k] = f[10] } }
-    print "# b Nbar predicted(plant) physical ci predicted(extended) physical ci"
+    while ((getline l < F) > 0) { split(l, f, ","); if (f[4] == "jump" && f[1] == M) { k = f[2] " " f[3]; fs[k] = f[7]; fc[k] = f[8] } }
+    print "# b Nbar predicted(plant) physical ci predicted(extended) physical ci fresh-resend-noise ci (plant)"
     for (i = 1; i <= n; i++) { k = keys[i]; split(k, a, " ");
       if (i > 1 && a[1] != prev) print "\n"; prev = a[1];
-      printf "%s %s %s %s %s %s %s %s\n", a[1], a[2], pr[k], ps[k], pc[k], pe[k], es[k], ec[k] }
+      printf "%s %s %s %s %s %s %s %s %s %s\n", a[1], a[2], pr[k], ps[k], pc[k], pe[k], es[k], ec[k], fs[k], fc[k] }
   }' > "$out/plot_$m.dat"
 done
 
@@ -77,16 +80,18 @@ done
 out=results/dolz2014_fig5
 run "$NCOSIM" design scenarios/dolz2014_fig5.toml --out "$out"
 run "$NCOSIM" run scenarios/dolz2014_fig5.toml --out "$out/physical" --quiet
+run "$NCOSIM" run scenarios/dolz2014_fig5.toml --out "$out/fresh" --quiet --set 'sensor[0].resend_noise="fresh"'
 run "$NCOSIM" find scenarios/dolz2014_fig5.toml --key 'link[0].delivery' --target 'predicted_mse<=0.03' \
   --lo 0.5 --hi 1 --tol 1e-5 --out "$out/find"
-awk -F, -v D="$out/design.csv" -v P="$out/physical/summary.csv" '
+awk -F, -v D="$out/design.csv" -v P="$out/physical/summary.csv" -v F="$out/fresh/summary.csv" '
   BEGIN {
     while ((getline l < D) > 0) { split(l, f, ","); if (f[1] ~ /^[0-9.]+$/) { k = f[2] "|" f[1]; pr[k] = f[5]; keys[++n] = k } }
     while ((getline l < P) > 0) { split(l, f, ","); if (f[1] ~ /^[0-9.]+$/) { k = f[2] "|" f[1]; ps[k] = f[5]; pc[k] = f[6] } }
-    print "# estimator delivery predicted(plant) physical ci"
+    while ((getline l < F) > 0) { split(l, f, ","); if (f[1] ~ /^[0-9.]+$/) { k = f[2] "|" f[1]; fs[k] = f[5]; fc[k] = f[6] } }
+    print "# estimator delivery predicted(plant) physical ci fresh-resend-noise ci"
     for (i = 1; i <= n; i++) { k = keys[i]; split(k, a, "|"); if (!(a[1] in seen)) { seen[a[1]] = 1; names[++m] = a[1] } }
     for (j = 1; j <= m; j++) { if (j > 1) print "\n"; for (i = 1; i <= n; i++) { k = keys[i]; split(k, a, "|");
-      if (a[1] == names[j]) printf "\"%s\" %s %s %s %s\n", a[1], a[2], pr[k], ps[k], pc[k] } }
+      if (a[1] == names[j]) printf "\"%s\" %s %s %s %s %s %s\n", a[1], a[2], pr[k], ps[k], pc[k], fs[k], fc[k] } }
   }' > "$out/plot.dat"
 
 # Table 2: physical packets (the committed reference) and the independent copies of the design model.

@@ -1,7 +1,7 @@
 # Fig. 4 of Dolz et al. 2014 (example 3): tr(Pt) (plant block) against Nbar for every buffer
-# length b (S4, dbar = b). Lines: prediction of the design model; points: simulation of physical
-# buffered packets with 95% CI (the design model counts a re-sent sample as a new measurement:
-# results/README.md). Data: plot_<method>.dat, one per design method.
+# length b (S4, dbar = b). Lines: prediction of the design model; points: simulation with 95% CI,
+# of physical buffered packets (open) and with resend_noise = "fresh" (filled: the design model
+# counts a re-sent sample as a new measurement, results/README.md). Data: plot_<method>.dat, one per design method.
 set datafile separator whitespace
 set grid
 set xlabel "Nbar"; set ylabel "tr(P_t), plant block"
@@ -15,6 +15,8 @@ do for [t in "pngcairo svg"] {
   plot for [m=1:words(files)] for [b=0:3] word(files, m) index b using 2:3 with linespoints lw 2 pt 7 lc b+1 dt m \
          title sprintf("b = %d predicted (%s)", b, method(word(files, m))), \
        for [m=1:words(files)] for [b=0:3] word(files, m) index b using ($2+0.05):4:5 with yerrorbars pt 4 lc b+1 \
-         title sprintf("b = %d simulated, physical (%s)", b, method(word(files, m)))
+         title sprintf("b = %d simulated, physical (%s)", b, method(word(files, m))), \
+       for [m=1:words(files)] for [b=0:3] word(files, m) index b using ($2-0.05):9:10 with yerrorbars pt 5 lc b+1 \
+         title sprintf("b = %d simulated, fresh resend noise (%s)", b, method(word(files, m)))
   unset output
 }
