@@ -261,3 +261,26 @@ TEST(ExportC, FailedDesignOrNoJumpEstimatorIsAnErrorAndWritesNothing) {
 }
 
 }  // namespace
+
+namespace {
+
+TEST(ExportC, SweepCasesGetTheirOwnNamesAndAllCompile) {
+  if (shell("cc --version").code != 0) GTEST_SKIP() << "no C compiler (cc) on this machine";
+  const fs::path dir = fresh_dir("sweep");
+  const fs::path fig5 = fs::path(NCOSIM_SOURCE_DIR) / "scenarios" / "dolz2014_fig5.toml";
+  const Outcome o = shell(fmt::format("'{}' design '{}' --set 'sweep[0].values=[0.9, 0.95]' --out '{}' --export-c '{}'",
+                                      kBinary, fig5.string(), (dir / "design").string(), (dir / "c").string()));
+  ASSERT_EQ(o.code, 0) << o.output;
+  int files = 0;
+  for (const auto& e : fs::directory_iterator(dir / "c")) files += e.path().extension() == ".c" ? 1 : 0;
+  EXPECT_EQ(files, 8);  // 2 cases x 4 estimators
+  EXPECT_TRUE(fs::exists(dir / "c" / "s4_n1_b0_case1.h"));
+  EXPECT_TRUE(fs::exists(dir / "c" / "s4_n4_b3_case2.c"));
+  // Every file compiles, and all of them link together (no symbol clash).
+  const Outcome cc = shell(fmt::format("cd '{}' && cc -std=c99 -Wall -Werror -pedantic -c *.c && ld -r *.o -o all.o",
+                                       (dir / "c").string()));
+  EXPECT_EQ(cc.code, 0) << cc.output;
+  fs::remove_all(dir);
+}
+
+}  // namespace
