@@ -16,6 +16,7 @@
 #include "estimators/design/ccl_design.h"
 #include "estimators/design/jump_design.h"
 #include "estimators/extended_model.h"
+#include "estimators/jump_observer.h"
 #include "estimators/kinds.h"
 
 namespace ncosim::est {
@@ -85,7 +86,7 @@ class JumpObserver final : public Estimator {
   std::string row_status_ = "design_failed";
 };
 
-class JumpObserverDesign final : public EstimatorDesign {
+class JumpObserverDesign final : public EstimatorDesign, public JumpDesignAccess {
  public:
   JumpObserverDesign(const Model& model, JumpParams params)
       : params_(std::move(params)), ext_(build_extended(model, params_.dbar)) {
@@ -172,6 +173,9 @@ class JumpObserverDesign final : public EstimatorDesign {
     return nb * nb + nb * nu + 2 * nb * nmb + 2 * nb + nmb;
   }
   Eigen::Index extended_size() const override { return ext_.nb; }
+  const ExtendedModel& extended_model() const override { return ext_; }
+  const JumpDesign& jump_design() const override { return design_; }
+  const InitialEstimate& initial_estimate() const override { return params_.init; }
 
  private:
   JumpParams params_;

@@ -3,6 +3,7 @@
 
 #include <fmt/format.h>
 
+#include <cmath>
 #include <filesystem>
 
 namespace ncosim::models {
@@ -22,8 +23,31 @@ double read_probability(const sim::Table& t, std::string_view key, double fallba
   return p;
 }
 
+// `delivery` + `shape`: pmf[d] = delivery * shape[d] / sum(shape), so that one scalar (the
+// probability that a sample is delivered at all, or with `independent`, the scale of every
+// copy's probability) can be swept or searched by `ncosim find`.
+std::vector<double> read_delivery(const sim::Table& t) {
+  if (t.has("pmf")) t.fail("delivery", "expected either pmf or delivery (with shape), got both");
+  const double delivery = t.number("delivery");
+  sim::require_probability(t, "delivery", delivery);
+  std::vector<double> shape = t.has("shape") ? t.numbers("shape") : std::vector<double>{1.0};
+  if (shape.empty()) t.fail("shape", "expected at least one weight, got an empty array");
+  double sum = 0.0;
+  for (std::size_t d = 0; d < shape.size(); ++d) {
+    if (!(shape[d] >= 0.0 && std::isfinite(shape[d]))) {
+      t.fail("shape", fmt::format("expected non-negative finite weights, got {} at index {}", shape[d], d));
+    }
+    sum += shape[d];
+  }
+  if (!(sum > 0.0)) t.fail("shape", "expected at least one positive weight, got all zero");
+  for (double& w : shape) w = delivery * w / sum;
+  return shape;
+}
+
 std::unique_ptr<Link> read_delay(const sim::Table& t, const LinkContext&) {
   const bool independent = t.boolean_or("independent", false);
+  if (t.has("delivery")) return std::make_unique<DelayPmfLink>(read_delivery(t), independent);
+  if (t.has("shape")) t.fail("shape", "expected shape only with delivery, got no delivery");
   if (!independent) return std::make_unique<DelayPmfLink>(read_pmf(t, "pmf"), false);
   // Independent copies: each pmf[d] is its own probability (they need not sum to <= 1).
   std::vector<double> pmf = t.numbers("pmf");
@@ -157,7 +181,7 @@ std::unique_ptr<Link> read_trace(const sim::Table& t, const LinkContext& ctx) {
 }  // namespace
 
 void register_links(LinkRegistry& registry) {
-  registry.add("delay", "delay d periods with probability pmf[d], lost otherwise: pmf, independent",
+  registry.add("delay", "delay d periods with probability pmf[d], lost otherwise: pmf (or delivery, shape), independent",
                read_delay);
   registry.add("bernoulli", "lost with probability loss, else delayed `delay` periods: loss, delay",
                read_bernoulli);

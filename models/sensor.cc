@@ -38,6 +38,7 @@ SensorSpec read_sensor(const sim::Table& t, const LinearPlant& plant,
   const auto buffer = t.integer_or("buffer", 0);
   if (buffer < 0 || buffer > 62) t.fail("buffer", fmt::format("expected an integer in 0..62, got {}", buffer));
   s.buffer = static_cast<int>(buffer);
+  s.fresh_resend_noise = t.choice_or("resend_noise", "same", {"same", "fresh"}) == "fresh";
   return s;
 }
 

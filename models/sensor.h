@@ -18,6 +18,10 @@ struct SensorSpec {
   int link = -1;      // index into the scenario's links; -1 = ideal (delay 0, never lost)
   int every = 1;      // samples at periods k with k % every == 0
   int buffer = 0;     // extra past samples per packet
+  // resend_noise = "fresh": a sample re-sent in a later buffered packet carries a new noise
+  // draw (the jump observer's design model for buffered packets); "same" (default): the
+  // physical case, the sample's own noise every time.
+  bool fresh_resend_noise = false;
   Eigen::Index ny() const { return C.rows(); }
 };
 

@@ -88,6 +88,7 @@ class RunSimulation {
       st.noise.resize(spec.ny());
       st.stamps.assign(static_cast<std::size_t>(spec.buffer) + 1, 0);
       st.values = Eigen::MatrixXd::Zero(spec.ny(), spec.buffer + 1);
+      if (spec.fresh_resend_noise) st.clean = Eigen::MatrixXd::Zero(spec.ny(), spec.buffer + 1);
       sensors_.push_back(std::move(st));
     }
     // Links: one fresh instance per run.
@@ -138,6 +139,7 @@ class RunSimulation {
     Eigen::VectorXd noise;
     std::vector<std::int64_t> stamps;  // ring of the last buffer+1 samples (newest at head_)
     Eigen::MatrixXd values;            // column per ring slot
+    Eigen::MatrixXd clean;             // C x of each slot (resend_noise = "fresh" only)
     int head = -1;
     int filled = 0;
   };
@@ -181,6 +183,7 @@ class RunSimulation {
     st.filled = std::min(st.filled + 1, spec.buffer + 1);
     st.stamps[static_cast<std::size_t>(st.head)] = k;
     st.values.col(st.head).noalias() = spec.C * x_;
+    if (spec.fresh_resend_noise) st.clean.col(st.head) = st.values.col(st.head);
     st.values.col(st.head).noalias() += st.r_sqrt * st.noise;
     if (k >= sc_.run.warmup) {
       for (auto& m : metrics_) ++m.samples_taken;
@@ -223,17 +226,24 @@ class RunSimulation {
       pool_.emplace_back();
     }
     est::Packet& p = pool_[id];
-    const SensorState& st = sensors_[s];
+    SensorState& st = sensors_[s];
     p.sensor = static_cast<int>(s);
     p.send_period = k;
-    p.independent_copy = independent;
+    // A re-sent sample with a fresh noise draw is a new measurement, like an independent copy.
+    p.independent_copy = independent || (spec.fresh_resend_noise && st.filled > 1);
     p.count = st.filled;
     p.stamps.resize(static_cast<std::size_t>(st.filled));
     p.values.resize(spec.ny() * st.filled);
     for (int i = 0; i < st.filled; ++i) {
       const int slot = (st.head - i + spec.buffer + 1) % (spec.buffer + 1);
       p.stamps[static_cast<std::size_t>(i)] = st.stamps[static_cast<std::size_t>(slot)];
-      p.values.segment(i * spec.ny(), spec.ny()) = st.values.col(slot);
+      if (spec.fresh_resend_noise && i > 0) {  // resend_noise = "fresh": a new draw per re-send
+        draw_normal(st.rng, st.noise);
+        p.values.segment(i * spec.ny(), spec.ny()) = st.clean.col(slot);
+        p.values.segment(i * spec.ny(), spec.ny()).noalias() += st.r_sqrt * st.noise;
+      } else {
+        p.values.segment(i * spec.ny(), spec.ny()) = st.values.col(slot);
+      }
     }
     queue_.schedule(arrival * period_ns_, Phase::kArrival, &arrival_handler_, id);
   }

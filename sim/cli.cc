@@ -14,7 +14,9 @@
 #include <thread>
 
 #include "ncosim_version.h"
+#include "estimators/export_c.h"
 #include "sim/campaign.h"
+#include "sim/find.h"
 #include "sim/output.h"
 #include "sim/registries.h"
 #include "sim/scenario.h"
@@ -117,12 +119,58 @@ int cmd_run(const CommonArgs& a, int threads, bool trace, bool quiet, const std:
   return 0;
 }
 
-int cmd_design(const CommonArgs& a, const std::string& command_line) {
+// The C export of every jump estimator of every case (`--export-c`); other kinds are listed
+// as skipped. With sweeps the prefix ends in _case<c> (1-based, in sweep order).
+std::vector<std::pair<std::string, std::string>> export_c_files(const LoadedScenario& loaded) {
+  std::vector<est::CExportItem> items;
+  std::vector<std::string> taken, skipped;
+  for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
+    const Scenario& sc = *loaded.cases[c].scenario;
+    std::string origin = loaded.file;
+    for (std::size_t a = 0; a < loaded.sweeps.size(); ++a) {
+      origin += fmt::format("{}{} = {}", a ? ", " : ", sweep case ", loaded.sweeps[a].key, loaded.cases[c].labels[a]);
+    }
+    for (const auto& e : sc.estimators) {
+      const auto* jump = dynamic_cast<const est::JumpDesignAccess*>(e.design.get());
+      if (jump == nullptr) {
+        if (c == 0) skipped.push_back(e.name);
+        continue;
+      }
+      const std::string base = loaded.sweeps.empty() ? e.name : fmt::format("{} case{}", e.name, c + 1);
+      items.push_back({e.name, est::c_identifier(base, taken), jump, &sc.model.plant, sc.model.period, origin});
+    }
+  }
+  if (items.empty()) throw ScenarioError(fmt::format("{}: --export-c: no estimator of kind jump to export", loaded.file));
+  for (const auto& name : skipped) {
+    std::cerr << fmt::format("ncosim design: --export-c exports jump estimators only; \"{}\" skipped\n", name);
+  }
+  auto files = est::export_c(items, fmt::format("ncosim {} ({})", NCOSIM_VERSION, NCOSIM_GIT_COMMIT));
+  for (const auto& it : items) std::cout << fmt::format("{:<28} -> {}.h, {}.c\n", it.name, it.prefix, it.prefix);
+  return files;
+}
+
+int cmd_design(const CommonArgs& a, const std::string& command_line, const std::string& export_dir) {
   LoadedScenario loaded = load_cases(a.file, a.sets, a.overrides);
   const std::string out = a.out.empty() ? default_out(a.file) : a.out;
   const auto dj = design_json(loaded);
+  std::vector<std::pair<std::string, std::string>> c_files;
+  if (!export_dir.empty()) {
+    try {
+      c_files = export_c_files(loaded);
+    } catch (const std::invalid_argument& e) {
+      throw std::runtime_error(fmt::format("--export-c: {}", e.what()));
+    }
+  }
   write_files_atomically(out, {{"design.json", dj.dump(2) + "\n"},
+                               {"design.csv", design_csv(loaded)},
                                {"manifest.json", manifest(loaded, command_line, 1, 0.0).dump(2) + "\n"}});
+  if (!c_files.empty()) {
+    write_files_atomically(export_dir, c_files);
+    std::cout << fmt::format("C99 sources written to {}/\n", export_dir);
+  }
+  if (loaded.cases.size() > 1) {
+    std::cout << fmt::format("{} cases designed; every case's estimators are in design.csv\n", loaded.cases.size());
+  }
   for (const auto& e : dj["estimators"]) {
     std::cout << fmt::format("{:<28} {:<16} method={:<10} gains={:<6} predicted_mse_ext={:<10} status={}\n",
                              e["name"].get<std::string>(), e["kind"].get<std::string>(),
@@ -132,7 +180,38 @@ int cmd_design(const CommonArgs& a, const std::string& command_line) {
                                  : std::string("null"),
                              e["status"].get<std::string>());
   }
-  std::cout << fmt::format("design.json written to {}/\n", out);
+  std::cout << fmt::format("design.json, design.csv written to {}/\n", out);
+  return 0;
+}
+
+int cmd_find(const CommonArgs& a, const FindOptions& opt, const std::string& target_text, const std::string& command_line) {
+  FindOptions o = opt;
+  o.target = parse_target(target_text, "--target");
+  const FindResult res = find_threshold(a.file, a.sets, o, std::cerr);
+  const std::string csv = find_csv(res, o);
+  std::cout << fmt::format("{} where {} {} {} (bisection to {}):\n", o.key, o.target.quantity, o.target.op,
+                           o.target.value, o.tol);
+  for (const auto& r : res.rows) {
+    std::string where;
+    for (std::size_t i = 0; i < r.sweep_labels.size(); ++i) {
+      where += fmt::format("{}={} ", res.sweeps[i].key, r.sweep_labels[i]);
+    }
+    std::cout << fmt::format("  {}{:<24} {} = {:<12} {} = {:<12} designs={} {}\n", where, r.estimator, o.key,
+                             r.threshold ? fmt::format("{:.6f}", *r.threshold) : std::string("none"),
+                             o.target.quantity, r.value ? fmt::format("{:.6g}", *r.value) : std::string("none"),
+                             r.evaluations, r.status);
+  }
+  if (!a.out.empty()) {
+    nlohmann::json m;
+    m["scenario"] = a.file;
+    m["overrides"] = a.sets;
+    m["command_line"] = command_line;
+    m["ncosim_version"] = NCOSIM_VERSION;
+    m["git_commit"] = NCOSIM_GIT_COMMIT;
+    m["date"] = utc_now();
+    write_files_atomically(a.out, {{"find.csv", csv}, {"manifest.json", m.dump(2) + "\n"}});
+    std::cout << fmt::format("find.csv written to {}/\n", a.out);
+  }
   return 0;
 }
 
@@ -186,8 +265,29 @@ int run_cli(int argc, char** argv) {
       ->check(CLI::Range(0, 4096));
   run->add_flag("--trace", trace, "also write trajectory.csv (x, xhat, arrivals of run 0)");
   run->add_flag("--quiet", quiet, "no progress line");
-  CLI::App* design = app.add_subcommand("design", "offline design only: write design.json");
+  CLI::App* design = app.add_subcommand("design", "offline design only: write design.json and design.csv");
   add_common(design, true);
+  std::string export_dir;
+  design->add_option("--export-c", export_dir,
+                     "also write a C99 header and source per jump estimator into this directory");
+  CLI::App* find = app.add_subcommand(
+      "find", "the value of one key at which a design quantity reaches a target (scan + bisection)");
+  add_common(find, false);
+  find->add_option("--out", a.out, "also write find.csv and manifest.json into this directory");
+  FindOptions find_opt;
+  std::string target_text;
+  find->add_option("--key", find_opt.key, "scenario key path to vary, set as a float (e.g. link[0].delivery)")
+      ->required();
+  find->add_option("--target", target_text, "QUANTITY<=VALUE (or >=, <, >) on a design.json field, "
+                                            "e.g. 'predicted_mse<=0.03'")
+      ->required();
+  find->add_option("--estimator", find_opt.estimators, "estimator name (repeatable; default: every estimator)");
+  find->add_option("--lo", find_opt.lo, "lower end of the key's range")->required();
+  find->add_option("--hi", find_opt.hi, "upper end of the key's range")->required();
+  find->add_option("--tol", find_opt.tol, "bisection stops when the bracket is narrower (default 1e-4)");
+  find->add_option("--scan", find_opt.scan,
+                   "equal intervals scanned before the bisection, to bracket and check monotonicity (default 8)")
+      ->check(CLI::Range(1, 100000));
   CLI::App* check = app.add_subcommand("check", "parse and validate only");
   add_common(check, false);
   app.add_subcommand("list", "list every registered kind with a one-line help");
@@ -199,7 +299,7 @@ int run_cli(int argc, char** argv) {
     if (std::find(commands.begin(), commands.end(), argv[1]) == commands.end()) {
       const std::string hint = did_you_mean(argv[1], commands);
       std::cerr << fmt::format(
-          "ncosim: expected a command (run, design, check or list), got '{}'{}\n", argv[1],
+          "ncosim: expected a command (run, design, find, check or list), got '{}'{}\n", argv[1],
           hint.empty() ? "" : fmt::format(" (did you mean '{}'?)", hint));
       return 2;
     }
@@ -220,7 +320,8 @@ int run_cli(int argc, char** argv) {
   for (int i = 0; i < argc; ++i) command_line += (i ? " " : "") + std::string(argv[i]);
   try {
     if (run->parsed()) return cmd_run(a, threads, trace, quiet, command_line);
-    if (design->parsed()) return cmd_design(a, command_line);
+    if (design->parsed()) return cmd_design(a, command_line, export_dir);
+    if (find->parsed()) return cmd_find(a, find_opt, target_text, command_line);
     if (check->parsed()) return cmd_check(a);
     return cmd_list();
   } catch (const ScenarioError& e) {

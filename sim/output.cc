@@ -277,6 +277,42 @@ nlohmann::json design_json(const LoadedScenario& loaded) {
   return nlohmann::json{{"estimators", cases.front()["estimators"]}, {"cases", cases}};
 }
 
+std::string design_csv(const LoadedScenario& loaded) {
+  std::string out;
+  std::vector<std::string> cols;
+  for (const auto& s : loaded.sweeps) cols.push_back(s.key);
+  for (const char* c : {"estimator", "kind", "method", "predicted_mse", "predicted_mse_ext", "stored_gains",
+                        "flops_per_period", "p0", "design_seconds", "status"}) {
+    cols.push_back(c);
+  }
+  for (std::size_t i = 0; i < cols.size(); ++i) out += (i ? "," : "") + csv_field(cols[i]);
+  out += "\n";
+  for (const auto& c : loaded.cases) {
+    for (const auto& e : c.scenario->estimators) {
+      const auto& r = e.design->report();
+      std::vector<std::string> cells = c.labels;
+      cells.push_back(e.name);
+      cells.push_back(e.kind);
+      cells.push_back(r.method);
+      auto precise = [](std::optional<double> v) {
+        return v && std::isfinite(*v) ? fmt::format("{:.10g}", *v) : std::string();
+      };
+      cells.push_back(precise(r.predicted_mse));
+      cells.push_back(precise(r.predicted_mse_ext));
+      cells.push_back(r.stored_gains ? std::to_string(*r.stored_gains) : "");
+      const auto flops = e.design->flops_per_period();
+      cells.push_back(flops ? fmt::format("{:.0f}", *flops) : "");
+      const auto p0 = r.extra.find("p0");
+      cells.push_back(p0 != r.extra.end() && p0->is_number() ? fmt_number(p0->get<double>()) : "");
+      cells.push_back(fmt::format("{:.6g}", r.design_seconds));
+      cells.push_back(r.status);
+      for (std::size_t i = 0; i < cells.size(); ++i) out += (i ? "," : "") + csv_field(cells[i]);
+      out += "\n";
+    }
+  }
+  return out;
+}
+
 std::string trajectory_csv(const Scenario& sc, const std::vector<TraceRow>& trace) {
   const Eigen::Index n = sc.model.plant.n();
   std::string out = "period";

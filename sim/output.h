@@ -43,6 +43,8 @@ std::string summary_markdown(const std::string& title, const std::vector<SweepAx
 std::string runs_csv(const std::vector<SweepAxis>& sweeps, const std::vector<std::vector<std::string>>& labels,
                      const std::vector<const Scenario*>& scenarios, const std::vector<const CampaignResult*>& results);
 nlohmann::json design_json(const LoadedScenario& loaded);
+// design.csv: one row per case and estimator (swept keys first), the design's predictions.
+std::string design_csv(const LoadedScenario& loaded);
 std::string trajectory_csv(const Scenario& sc, const std::vector<TraceRow>& trace);
 
 // Writes every (name, content) into `dir` atomically: all to temporary files first, then

@@ -358,7 +358,7 @@ toml::array& sweep_values(toml::table& doc, std::size_t axis) {
 }  // namespace
 
 LoadedScenario load_cases(const std::string& file, const std::vector<std::string>& sets,
-                          const RunOverrides& overrides) {
+                          const RunOverrides& overrides, std::optional<std::size_t> only_case) {
   LoadedScenario out;
   out.file = file;
   std::ifstream in(file, std::ios::binary);
@@ -421,7 +421,12 @@ LoadedScenario load_cases(const std::string& file, const std::vector<std::string
     }
   }
   const std::string dir = std::filesystem::path(file).parent_path().string();
+  if (only_case && *only_case >= total) {
+    throw ScenarioError(format_error(file, 0, "sweep",
+                                     fmt::format("expected a case index below {}, got {}", total, *only_case)));
+  }
   for (std::size_t c = 0; c < total; ++c) {
+    if (only_case && c != *only_case) continue;
     toml::table case_doc =
         c == 0 ? std::move(doc) : parse_document(out.text, file, sets, overrides);
     Case cs;

@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -77,8 +78,12 @@ struct RunOverrides {
   std::optional<std::uint64_t> seed;
 };
 
+// `only_case` (0-based index in sweep order): build that case only; `cases` then holds it
+// alone and `sweeps` still lists every axis (used by `ncosim find`, which redesigns one case
+// at many values of a key).
 LoadedScenario load_cases(const std::string& file, const std::vector<std::string>& sets,
-                          const RunOverrides& overrides = {});
+                          const RunOverrides& overrides = {},
+                          std::optional<std::size_t> only_case = std::nullopt);
 
 // Parses and validates one scenario table (no sweep expansion).
 std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::string& file,

@@ -471,7 +471,7 @@ TEST_F(Cli, UnknownCommandSuggestsTheClosest) {
   const Outcome o = ncosim({"chek", scenario(base_)});
   EXPECT_EQ(o.code, 2) << o.output;
   EXPECT_NE(
-      o.output.find("expected a command (run, design, check or list), got 'chek' (did you mean "
+      o.output.find("expected a command (run, design, find, check or list), got 'chek' (did you mean "
                     "'check'?)"),
       std::string::npos)
       << o.output;
@@ -644,7 +644,7 @@ TEST_F(Cli, ListPrintsEveryRegisteredKind) {
 TEST_F(Cli, DesignWritesDesignJsonWithTheContractFields) {
   const Outcome o = ncosim({"design", scenario(base_), "--out", out_.string()});
   ASSERT_EQ(o.code, 0) << o.output;
-  EXPECT_EQ(listing(out_), (std::set<std::string>{"design.json", "manifest.json"}));
+  EXPECT_EQ(listing(out_), (std::set<std::string>{"design.csv", "design.json", "manifest.json"}));
   const auto j = nlohmann::json::parse(read_file(out_ / "design.json"));
   ASSERT_TRUE(j.contains("estimators"));
   ASSERT_EQ(j["estimators"].size(), 2u);
