@@ -9,6 +9,7 @@
 // "numerical_failure" and keeps the priors.
 #include <fmt/format.h>
 
+#include "estimators/imm.h"
 #include "estimators/imm_filter.h"
 #include "estimators/kinds.h"
 #include "estimators/mode_model.h"
@@ -100,6 +101,11 @@ std::unique_ptr<EstimatorDesign> read_imm(const sim::Table& t, const Model& mode
 }
 
 }  // namespace
+
+const ImmFilter* imm_filter_of(const Estimator& estimator) {
+  const auto* imm = dynamic_cast<const Imm*>(&estimator);
+  return imm == nullptr ? nullptr : &imm->filter();
+}
 
 void register_imm(EstimatorRegistry& registry) {
   registry.add("imm",
