@@ -10,10 +10,11 @@
 // channels (0 on zero channels) and uhat[k-l] the applied inputs implied by the previous mode
 // estimates (eq. 22); Sigma = sum_i a_i^2 R + sum_j C M_j Q M_j' C' (eq. 23 with the exact
 // coefficients); p(theta[k-1] | Y_k) by eq. 19; thetahat = argmax (16); then the Kalman filter
-// (18) with thetahat (step 6). Unknown lags before period 0 are the prior mean (startup =
-// "prior_mean": y[-i] = C xhat0, uhat[-l] = the held part of xhat0) or no likelihood is used
-// until every lag is measured (startup = "skip"). A missing output enters the lags as C
-// xhat[k|k]. Needs actuator modes (not a jump_linear plant).
+// (18) with thetahat (step 6). A missing output enters the lags as C xhat[k|k]. Start-up (the paper does not say): while a lag would precede period 0 (k < n),
+// startup = "state" (default) uses the filter's one-step state-space likelihoods (eqs. 24-25, as
+// Algorithm 2), "prior_mean" takes the unknown lags as the prior mean (y[-i] = C xhat0,
+// uhat[-l] = the held part of xhat0), "skip" uses no likelihood (p = E). Needs actuator modes
+// (not a jump_linear plant).
 #include <fmt/format.h>
 
 #include <Eigen/Cholesky>
@@ -31,7 +32,7 @@ struct IoModel {
   Eigen::VectorXd a;              // a_0 .. a_n
   std::vector<Eigen::MatrixXd> G;  // G_j = C M_j, j = 1..n (index j-1)
   Eigen::MatrixXd Sigma;          // eq. 23
-  bool skip_startup = false;
+  enum class Startup { kState, kPriorMean, kSkip } startup = Startup::kState;
 };
 
 // Characteristic polynomial det(lambda I - A) = sum_i a_i lambda^(n-i), a_0 = 1 (Faddeev-LeVerrier).
@@ -104,9 +105,13 @@ class ModeIo final : public Estimator {
       Eigen::VectorXd ybar = Eigen::VectorXd::Zero(mm.m);
       for (Eigen::Index i = 1; i <= n; ++i) ybar -= io_.a(i) * ylag_[static_cast<std::size_t>(i - 1)];
       for (Eigen::Index l = 2; l <= n; ++l) ybar += io_.G[static_cast<std::size_t>(l - 1)] * glag_[static_cast<std::size_t>(l - 2)];
-      const bool lags_known = !io_.skip_startup || k >= n;
+      const bool lags_known = k >= n;
       const Eigen::Index rows = kf_.rows();
-      if (rows > 0 && lags_known) {
+      if (rows > 0 && !lags_known && io_.startup == IoModel::Startup::kState) {
+        // Until every lag is measured: the one-step state-space prediction of the filter.
+        for (int j = 0; j < mm.modes(); ++j) loglik_(j) = kf_.predicted_loglik(j, u_ext_, meas_.values());
+        bayes_log(e_, loglik_, p_);
+      } else if (rows > 0 && (lags_known || io_.startup == IoModel::Startup::kPriorMean)) {
         const Eigen::VectorXd ys = kf_.selected(meas_.values());
         const Eigen::VectorXd mask = meas_.mask();
         Eigen::MatrixXd Ss(rows, rows);
@@ -200,6 +205,7 @@ class ModeIoDesign final : public EstimatorDesign {
   }
   std::unique_ptr<Estimator> instantiate() const override { return std::make_unique<ModeIo>(setup_, io_); }
   const DesignReport& report() const override { return report_; }
+  void set_extra(const std::string& key, const std::string& value) { report_.extra[key] = value; }
   std::optional<double> flops_per_period() const override {
     const ModeModel& mm = setup_.model;
     const double s = mm.modes(), na = static_cast<double>(mm.na), m = static_cast<double>(mm.m);
@@ -223,8 +229,13 @@ std::unique_ptr<EstimatorDesign> read_mode_io(const sim::Table& t, const Model& 
   }
   ModeSetup setup = read_mode_setup(t, model);
   IoModel io = build_io(model, setup.model);
-  io.skip_startup = t.choice_or("startup", "prior_mean", {"prior_mean", "skip"}) == "skip";
-  return std::make_unique<ModeIoDesign>(std::move(setup), std::move(io));
+  const std::string startup = t.choice_or("startup", "state", {"state", "prior_mean", "skip"});
+  io.startup = startup == "state"        ? IoModel::Startup::kState
+               : startup == "prior_mean" ? IoModel::Startup::kPriorMean
+                                         : IoModel::Startup::kSkip;
+  auto design = std::make_unique<ModeIoDesign>(std::move(setup), std::move(io));
+  design->set_extra("startup", startup);
+  return design;
 }
 
 }  // namespace

@@ -21,7 +21,7 @@ const std::map<std::string, std::string> kEstimators{
     {"kalman_extended", "max_delay = 1"},
     {"open_loop", "max_delay = 1"},
     {"imm", "mode_prior = \"stationary\""},
-    {"mode_io", "mode_prior = \"uniform\"\nstartup = \"skip\""},
+    {"mode_io", "mode_prior = \"uniform\"\nstartup = \"prior_mean\""},
     {"mode_ss", "mode_prior = \"uniform\""},
 };
 
