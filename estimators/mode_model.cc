@@ -137,24 +137,39 @@ ModeSetup read_mode_setup(const sim::Table& t, const Model& model) {
         model.actuators[static_cast<std::size_t>(mm.hold[c])].spec.u0;
   }
   setup.P0 = Eigen::MatrixXd::Zero(na, na);
+  // Sizes accepted: n (the plant state), n + hold channels (the estimator's state), or
+  // n + r (one entry per actuator; entries of "zero" channels are ignored).
+  const auto r = static_cast<Eigen::Index>(mm.channels);
+  std::vector<Eigen::Index> pick;  // index into the given vector for each entry of z
+  auto pick_for = [&](Eigen::Index size) {
+    pick.clear();
+    for (Eigen::Index i = 0; i < n; ++i) pick.push_back(i);
+    if (size == na) {
+      for (Eigen::Index c = 0; c < na - n; ++c) pick.push_back(n + c);
+    } else if (size == n + r) {
+      for (const int c : mm.hold) pick.push_back(n + c);
+    } else if (size != n) {
+      return false;
+    }
+    return true;
+  };
+  const std::string sizes = r > 0 ? fmt::format("{} (the state), {} (and the held inputs) or {} (and one per actuator)",
+                                                n, na, n + r)
+                                  : fmt::format("{} (the state)", n);
   if (t.has("xhat0")) {
     const Eigen::VectorXd v = t.vector("xhat0");
-    if (v.size() == na) {
-      setup.x0 = v;
-    } else if (v.size() == n) {
-      setup.x0.head(n) = v;
-    } else {
-      t.fail("xhat0", fmt::format("expected {} entries (the state) or {} (the state and the held inputs), got {}",
-                                  n, na, v.size()));
-    }
+    if (!pick_for(v.size())) t.fail("xhat0", fmt::format("expected {} entries, got {}", sizes, v.size()));
+    for (std::size_t a = 0; a < pick.size(); ++a) setup.x0(static_cast<Eigen::Index>(a)) = v(pick[a]);
   }
   if (t.has("P0")) {
     const Eigen::MatrixXd P = t.matrix("P0");
-    if (P.rows() == na && P.cols() == na) {
-      setup.P0 = P;
-    } else {
-      sim::require_shape(t, "P0", P, n, n);
-      setup.P0.topLeftCorner(n, n) = P;
+    if (P.rows() != P.cols() || !pick_for(P.rows())) {
+      t.fail("P0", fmt::format("expected a square matrix of size {}, got {}x{}", sizes, P.rows(), P.cols()));
+    }
+    for (std::size_t a = 0; a < pick.size(); ++a) {
+      for (std::size_t b = 0; b < pick.size(); ++b) {
+        setup.P0(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(b)) = P(pick[a], pick[b]);
+      }
     }
     sim::require_psd(t, "P0", setup.P0);
   }
