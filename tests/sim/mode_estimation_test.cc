@@ -99,6 +99,49 @@ TEST(Actuator, MarkovOnTimeChainIsThePapersChain) {
   EXPECT_NEAR(b.on_time_chain()(0, 0), 0.7, 1e-15);
 }
 
+// A jump_linear plant whose modes differ in the sign of Bu, driven by a white input of std 10:
+// the mode is wrong only when |u| is within a few prediction sds (about 0.15) of 0, P ~ 0.01-0.02
+// per period. 4 runs x 200 periods: an MDE above 5 % would be more than 10 sds off.
+TEST(ModeEstimation, JumpLinearPlantModesAreEstimatedAndScored) {
+  auto sc = from_text(R"(
+[run]
+periods = 201
+warmup = 1
+runs = 4
+[plant]
+kind = "jump_linear"
+A = [[0.7]]
+Bu = [[1.0]]
+W = [[0.01]]
+transition = [[0.9, 0.1], [0.2, 0.8]]
+[[plant.mode]]
+[[plant.mode]]
+Bu = [[-1.0]]
+[input]
+kind = "white"
+std = 10.0
+[[sensor]]
+C = [[1.0]]
+R = [[0.01]]
+[[estimator]]
+kind = "imm"
+[[estimator]]
+kind = "mode_ss"
+[[estimator]]
+kind = "kalman_extended"
+)");
+  CampaignOptions opt;
+  opt.time_estimators = false;
+  const auto rows = summarise(*sc, run_campaign(*sc, opt), {});
+  for (std::size_t e = 0; e < 2; ++e) {
+    SCOPED_TRACE(rows[e].kind);
+    ASSERT_TRUE(rows[e].mde_percent.has_value());
+    EXPECT_LT(*rows[e].mde_percent, 5.0);
+    EXPECT_EQ(rows[e].modes, 2);
+  }
+  EXPECT_FALSE(rows[2].mde_percent.has_value());  // not a mode estimator
+}
+
 TEST(Actuator, WrongCountOrJumpPlantIsABadInputError) {
   std::string text = two_channel("hold", "[[1e-4, 0], [0, 1e-4]]", "[[0, 0], [0, 0]]", "", "", 1);
   const auto second = text.find("[[actuator]]", text.find("[[actuator]]") + 1);
@@ -109,6 +152,30 @@ TEST(Actuator, WrongCountOrJumpPlantIsABadInputError) {
   } catch (const ScenarioError& e) {
     EXPECT_NE(std::string(e.what()).find("one [[actuator]] per input channel (2), got 1"), std::string::npos)
         << e.what();
+  }
+  // mode_io needs actuator modes; an actuator with a jump_linear plant is rejected.
+  const std::string jump = R"(
+[plant]
+kind = "jump_linear"
+A = [[0.7]]
+Bu = [[1.0]]
+W = [[0.01]]
+transition = [[0.9, 0.1], [0.2, 0.8]]
+[[plant.mode]]
+[[plant.mode]]
+A = [[0.2]]
+[[sensor]]
+C = [[1.0]]
+R = [[0.01]]
+)";
+  EXPECT_THROW(from_text(jump + "[[estimator]]\nkind = \"mode_io\"\n"), ScenarioError);
+  EXPECT_THROW(from_text(jump + "[[actuator]]\n[[estimator]]\nkind = \"imm\"\n"), ScenarioError);
+  // A mode estimator without modes says what it needs.
+  try {
+    from_text("[plant]\nA = [[0.5]]\nW = [[1]]\n[[sensor]]\nC = [[1]]\nR = [[1]]\n[[estimator]]\nkind = \"imm\"\n");
+    ADD_FAILURE() << "imm without modes accepted";
+  } catch (const ScenarioError& e) {
+    EXPECT_NE(std::string(e.what()).find("expected a scenario with modes"), std::string::npos) << e.what();
   }
 }
 
