@@ -62,7 +62,9 @@ struct Packet {
 // What every estimator knows at the update of period k.
 struct PeriodInput {
   const Eigen::VectorXd& u;      // input sent at k-1 (nu)
-  const Eigen::VectorXd& drive;  // known part of x[k] - A x[k-1] - Bw w[k-1] (n): Bu u + re-centring
+  // Known part of x[k] - A x[k-1] - Bw w[k-1] (n): Bu u + re-centring. With actuator links or a
+  // jump_linear plant it is the nominal Bu times the *sent* u (what the estimators know).
+  const Eigen::VectorXd& drive;
 };
 
 class Estimator {
