@@ -20,7 +20,8 @@ std::unique_ptr<sim::Scenario> cstr(int inputs, const std::string& kind) {
   std::string text = R"(
 [plant]
 A = [[-0.8882, -0.0097], [293.8556, 2.2973]]
-Bu = )" + std::string(bu[inputs - 1]) + R"(
+Bu = )" + std::string(bu[inputs - 1]) +
+                     R"(
 W = [[0.0, 0.0], [0.0, 0.0]]
 [input]
 kind = "white"

@@ -7,9 +7,10 @@
 // some sensors: their rows only). Its mode estimate is argmax mu = argmax p(theta[k-1] | Y_k)
 // (Moayedi et al. eq. 16 with the IMM's mode probabilities). A failed update marks the run
 // "numerical_failure" and keeps the priors.
+#include "estimators/imm.h"
+
 #include <fmt/format.h>
 
-#include "estimators/imm.h"
 #include "estimators/imm_filter.h"
 #include "estimators/kinds.h"
 #include "estimators/mode_model.h"
@@ -108,10 +109,11 @@ const ImmFilter* imm_filter_of(const Estimator& estimator) {
 }
 
 void register_imm(EstimatorRegistry& registry) {
-  registry.add("imm",
-               "interacting multiple model filter over the actuator delivery patterns (hold/zero) or "
-               "a jump_linear plant's modes: mode_prior, transition, xhat0, P0, use_y0",
-               read_imm);
+  registry.add(
+      "imm",
+      "interacting multiple model filter over the actuator delivery patterns (hold/zero) or "
+      "a jump_linear plant's modes: mode_prior, transition, xhat0, P0, use_y0",
+      read_imm);
 }
 
 }  // namespace ncosim::est

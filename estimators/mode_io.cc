@@ -10,11 +10,11 @@
 // channels (0 on zero channels) and uhat[k-l] the applied inputs implied by the previous mode
 // estimates (eq. 22); Sigma = sum_i a_i^2 R + sum_j C M_j Q M_j' C' (eq. 23 with the exact
 // coefficients); p(theta[k-1] | Y_k) by eq. 19; thetahat = argmax (16); then the Kalman filter
-// (18) with thetahat (step 6). A missing output enters the lags as C xhat[k|k]. Start-up (the paper does not say): while a lag would precede period 0 (k < n),
-// startup = "state" (default) uses the filter's one-step state-space likelihoods (eqs. 24-25, as
-// Algorithm 2), "prior_mean" takes the unknown lags as the prior mean (y[-i] = C xhat0,
-// uhat[-l] = the held part of xhat0), "skip" uses no likelihood (p = E). Needs actuator modes
-// (not a jump_linear plant).
+// (18) with thetahat (step 6). A missing output enters the lags as C xhat[k|k]. Start-up (the paper
+// does not say): while a lag would precede period 0 (k < n), startup = "state" (default) uses the
+// filter's one-step state-space likelihoods (eqs. 24-25, as Algorithm 2), "prior_mean" takes the
+// unknown lags as the prior mean (y[-i] = C xhat0, uhat[-l] = the held part of xhat0), "skip" uses
+// no likelihood (p = E). Needs actuator modes (not a jump_linear plant).
 #include <fmt/format.h>
 
 #include <Eigen/Cholesky>
@@ -29,13 +29,14 @@ namespace ncosim::est {
 namespace {
 
 struct IoModel {
-  Eigen::VectorXd a;              // a_0 .. a_n
+  Eigen::VectorXd a;               // a_0 .. a_n
   std::vector<Eigen::MatrixXd> G;  // G_j = C M_j, j = 1..n (index j-1)
-  Eigen::MatrixXd Sigma;          // eq. 23
+  Eigen::MatrixXd Sigma;           // eq. 23
   enum class Startup { kState, kPriorMean, kSkip } startup = Startup::kState;
 };
 
-// Characteristic polynomial det(lambda I - A) = sum_i a_i lambda^(n-i), a_0 = 1 (Faddeev-LeVerrier).
+// Characteristic polynomial det(lambda I - A) = sum_i a_i lambda^(n-i), a_0 = 1
+// (Faddeev-LeVerrier).
 Eigen::VectorXd char_poly(const Eigen::MatrixXd& A) {
   const Eigen::Index n = A.rows();
   Eigen::VectorXd a = Eigen::VectorXd::Zero(n + 1);
@@ -69,8 +70,13 @@ IoModel build_io(const Model& model, const ModeModel& mm) {
 class ModeIo final : public Estimator {
  public:
   ModeIo(const ModeSetup& setup, const IoModel& io)
-      : setup_(setup), io_(io), kf_(setup.model, setup.x0, setup.P0), meas_(setup.model.ext0),
-        p_(setup.mu0), e_(setup.mu0.size()), loglik_(setup.mu0.size()),
+      : setup_(setup),
+        io_(io),
+        kf_(setup.model, setup.x0, setup.P0),
+        meas_(setup.model.ext0),
+        p_(setup.mu0),
+        e_(setup.mu0.size()),
+        loglik_(setup.mu0.size()),
         u_ext_(Eigen::VectorXd::Zero(setup.model.nue)) {
     const ModeModel& mm = setup.model;
     const Eigen::Index n = mm.n;
@@ -101,15 +107,19 @@ class ModeIo final : public Estimator {
       u_ext_.tail(n).noalias() -= mm.Bu * in.u;
       const auto d = u_ext_.tail(n);
       e_.noalias() = mm.transition.transpose() * p_;
-      // ybar: every term of yhat_j but the one of uhat[k-1] (ylag_[i-1] = y[k-i], glag_[l-1] = g[k-l]).
+      // ybar: every term of yhat_j but the one of uhat[k-1] (ylag_[i-1] = y[k-i], glag_[l-1] =
+      // g[k-l]).
       Eigen::VectorXd ybar = Eigen::VectorXd::Zero(mm.m);
-      for (Eigen::Index i = 1; i <= n; ++i) ybar -= io_.a(i) * ylag_[static_cast<std::size_t>(i - 1)];
-      for (Eigen::Index l = 2; l <= n; ++l) ybar += io_.G[static_cast<std::size_t>(l - 1)] * glag_[static_cast<std::size_t>(l - 2)];
+      for (Eigen::Index i = 1; i <= n; ++i)
+        ybar -= io_.a(i) * ylag_[static_cast<std::size_t>(i - 1)];
+      for (Eigen::Index l = 2; l <= n; ++l)
+        ybar += io_.G[static_cast<std::size_t>(l - 1)] * glag_[static_cast<std::size_t>(l - 2)];
       const bool lags_known = k >= n;
       const Eigen::Index rows = kf_.rows();
       if (rows > 0 && !lags_known && io_.startup == IoModel::Startup::kState) {
         // Until every lag is measured: the one-step state-space prediction of the filter.
-        for (int j = 0; j < mm.modes(); ++j) loglik_(j) = kf_.predicted_loglik(j, u_ext_, meas_.values());
+        for (int j = 0; j < mm.modes(); ++j)
+          loglik_(j) = kf_.predicted_loglik(j, u_ext_, meas_.values());
         bayes_log(e_, loglik_, p_);
       } else if (rows > 0 && (lags_known || io_.startup == IoModel::Startup::kPriorMean)) {
         const Eigen::VectorXd ys = kf_.selected(meas_.values());
@@ -130,7 +140,8 @@ class ModeIo final : public Estimator {
             Eigen::VectorXd w(rows);
             for (Eigen::Index a = 0; a < rows; ++a) w(a) = ys(a) - yj(idx[a]);
             const Eigen::VectorXd v = llt.matrixL().solve(w);
-            loglik_(j) = -0.5 * v.squaredNorm() - half_log_det - 0.5 * static_cast<double>(rows) * std::log(2.0 * M_PI);
+            loglik_(j) = -0.5 * v.squaredNorm() - half_log_det -
+                         0.5 * static_cast<double>(rows) * std::log(2.0 * M_PI);
           }
           bayes_log(e_, loglik_, p_);
         } else {
@@ -170,7 +181,8 @@ class ModeIo final : public Estimator {
 
  private:
   // Bu uhat_j[k-1] + d under mode j; leaves uhat_j[k-1] in uhat_.
-  Eigen::VectorXd applied_drive(int j, const Eigen::VectorXd& u, const Eigen::Ref<const Eigen::VectorXd>& d, int r) {
+  Eigen::VectorXd applied_drive(int j, const Eigen::VectorXd& u,
+                                const Eigen::Ref<const Eigen::VectorXd>& d, int r) {
     const ModeModel& mm = setup_.model;
     uhat_ = Eigen::VectorXd::Zero(mm.nu);
     for (int i = 0; i < r; ++i) {
@@ -190,7 +202,7 @@ class ModeIo final : public Estimator {
   ModeKalman kf_;
   CurrentMeasurement meas_;
   Eigen::VectorXd p_, e_, loglik_, u_ext_;
-  Eigen::VectorXd uhat_, uhat_prev_;       // applied input estimates uhat[k-1], uhat[k-2]
+  Eigen::VectorXd uhat_, uhat_prev_;         // applied input estimates uhat[k-1], uhat[k-2]
   std::deque<Eigen::VectorXd> ylag_, glag_;  // y[k-1..k-n]; Bu uhat + d at k-1..k-n
   int mode_ = -1;
 };
@@ -203,7 +215,9 @@ class ModeIoDesign final : public EstimatorDesign {
     report_.extra["modes"] = setup_.model.modes();
     report_.extra["armax_a"] = std::vector<double>(io_.a.data(), io_.a.data() + io_.a.size());
   }
-  std::unique_ptr<Estimator> instantiate() const override { return std::make_unique<ModeIo>(setup_, io_); }
+  std::unique_ptr<Estimator> instantiate() const override {
+    return std::make_unique<ModeIo>(setup_, io_);
+  }
   const DesignReport& report() const override { return report_; }
   void set_extra(const std::string& key, const std::string& value) { report_.extra[key] = value; }
   std::optional<double> flops_per_period() const override {
@@ -213,8 +227,9 @@ class ModeIoDesign final : public EstimatorDesign {
     // The Kalman filter (step 6); the mode-free part of yhat (2n m + 2(n-1)(m n + n nu)); per mode
     // the applied drive and its output (2n nu + 2m n + m) and the likelihood (m² + 2m + 4); the
     // Sigma factor (m³/3); the Bayes step (2s² + 4s).
-    return kalman_flops(na, static_cast<double>(mm.nue), m) + 2 * n * m + 2 * (n - 1) * (m * n + n * nu) +
-           s * (2 * n * nu + 2 * m * n + m + m * m + 2 * m + 4) + m * m * m / 3 + 2 * s * s + 4 * s;
+    return kalman_flops(na, static_cast<double>(mm.nue), m) + 2 * n * m +
+           2 * (n - 1) * (m * n + n * nu) + s * (2 * n * nu + 2 * m * n + m + m * m + 2 * m + 4) +
+           m * m * m / 3 + 2 * s * s + 4 * s;
   }
 
  private:
@@ -225,7 +240,9 @@ class ModeIoDesign final : public EstimatorDesign {
 
 std::unique_ptr<EstimatorDesign> read_mode_io(const sim::Table& t, const Model& model) {
   if (!model.plant.modes.empty()) {
-    t.fail_here("expected actuator modes ([[actuator]] tables); mode_io does not model a jump_linear plant");
+    t.fail_here(
+        "expected actuator modes ([[actuator]] tables); mode_io does not model a jump_linear "
+        "plant");
   }
   ModeSetup setup = read_mode_setup(t, model);
   IoModel io = build_io(model, setup.model);
@@ -241,10 +258,11 @@ std::unique_ptr<EstimatorDesign> read_mode_io(const sim::Table& t, const Model& 
 }  // namespace
 
 void register_mode_io(EstimatorRegistry& registry) {
-  registry.add("mode_io",
-               "Algorithm 1 of Moayedi et al.: mode by the input-output (ARMAX) form, then one Kalman "
-               "filter: mode_prior, transition, startup, xhat0, P0, use_y0",
-               read_mode_io);
+  registry.add(
+      "mode_io",
+      "Algorithm 1 of Moayedi et al.: mode by the input-output (ARMAX) form, then one Kalman "
+      "filter: mode_prior, transition, startup, xhat0, P0, use_y0",
+      read_mode_io);
 }
 
 }  // namespace ncosim::est

@@ -1,12 +1,13 @@
-// estimators/mode_model.cc — mode matrices, transition matrix, initial values of the mode estimators.
+// estimators/mode_model.cc — mode matrices, transition matrix, initial values of the mode
+// estimators.
 #include "estimators/mode_model.h"
 
 #include <fmt/format.h>
 
+#include <Eigen/Cholesky>
 #include <bit>
 #include <cmath>
 #include <limits>
-#include <Eigen/Cholesky>
 
 namespace ncosim::est {
 
@@ -23,7 +24,8 @@ ModeModel build(const Model& model) {
   mm.m = mm.ext0.nmb;
   mm.channels = static_cast<int>(model.actuators.size());
   for (int i = 0; i < mm.channels; ++i) {
-    if (model.actuators[static_cast<std::size_t>(i)].spec.on_loss == models::ActuatorSpec::OnLoss::kHold) {
+    if (model.actuators[static_cast<std::size_t>(i)].spec.on_loss ==
+        models::ActuatorSpec::OnLoss::kHold) {
       mm.hold.push_back(i);
     }
   }
@@ -97,7 +99,8 @@ ModeModel build(const Model& model) {
 
 ModeSetup read_mode_setup(const sim::Table& t, const Model& model) {
   if (model.plant.modes.empty() && model.actuators.empty()) {
-    t.fail_here("expected a scenario with modes: [[actuator]] tables or a jump_linear plant, got neither");
+    t.fail_here(
+        "expected a scenario with modes: [[actuator]] tables or a jump_linear plant, got neither");
   }
   if (model.actuators.size() > 6) {
     t.fail_here(fmt::format("expected at most 6 actuators (64 modes) for a mode estimator, got {}",
@@ -105,7 +108,8 @@ ModeSetup read_mode_setup(const sim::Table& t, const Model& model) {
   }
   for (const auto& s : model.sensors) {
     if (s.spec.every != 1 || s.spec.buffer != 0) {
-      t.fail_here(fmt::format("expected sensors with every = 1 and buffer = 0 (sensor \"{}\")", s.spec.name));
+      t.fail_here(fmt::format("expected sensors with every = 1 and buffer = 0 (sensor \"{}\")",
+                              s.spec.name));
     }
   }
   ModeSetup setup;
@@ -117,15 +121,17 @@ ModeSetup read_mode_setup(const sim::Table& t, const Model& model) {
     sim::require_shape(t, "transition", T, s, s);
     for (Eigen::Index i = 0; i < s; ++i) {
       if (T.row(i).minCoeff() < 0.0 || std::abs(T.row(i).sum() - 1.0) > 1e-9) {
-        t.fail("transition", fmt::format("expected non-negative rows summing to 1, row {} sums to {}", i,
-                                         T.row(i).sum()));
+        t.fail("transition",
+               fmt::format("expected non-negative rows summing to 1, row {} sums to {}", i,
+                           T.row(i).sum()));
       }
     }
     mm.transition = std::move(T);
   }
   mm.stationary = models::stationary_law(mm.transition);
   const std::string prior = t.choice_or("mode_prior", "uniform", {"uniform", "stationary"});
-  setup.mu0 = prior == "uniform" ? Eigen::VectorXd::Constant(s, 1.0 / static_cast<double>(s)) : mm.stationary;
+  setup.mu0 = prior == "uniform" ? Eigen::VectorXd::Constant(s, 1.0 / static_cast<double>(s))
+                                 : mm.stationary;
 
   // Initial estimate: the plant part from xhat0 (default x0), the held inputs from the
   // actuators' u0 (known); or the whole augmented vector.
@@ -153,18 +159,22 @@ ModeSetup read_mode_setup(const sim::Table& t, const Model& model) {
     }
     return true;
   };
-  const std::string sizes = r > 0 ? fmt::format("{} (the state), {} (and the held inputs) or {} (and one per actuator)",
-                                                n, na, n + r)
-                                  : fmt::format("{} (the state)", n);
+  const std::string sizes =
+      r > 0 ? fmt::format("{} (the state), {} (and the held inputs) or {} (and one per actuator)",
+                          n, na, n + r)
+            : fmt::format("{} (the state)", n);
   if (t.has("xhat0")) {
     const Eigen::VectorXd v = t.vector("xhat0");
-    if (!pick_for(v.size())) t.fail("xhat0", fmt::format("expected {} entries, got {}", sizes, v.size()));
-    for (std::size_t a = 0; a < pick.size(); ++a) setup.x0(static_cast<Eigen::Index>(a)) = v(pick[a]);
+    if (!pick_for(v.size()))
+      t.fail("xhat0", fmt::format("expected {} entries, got {}", sizes, v.size()));
+    for (std::size_t a = 0; a < pick.size(); ++a)
+      setup.x0(static_cast<Eigen::Index>(a)) = v(pick[a]);
   }
   if (t.has("P0")) {
     const Eigen::MatrixXd P = t.matrix("P0");
     if (P.rows() != P.cols() || !pick_for(P.rows())) {
-      t.fail("P0", fmt::format("expected a square matrix of size {}, got {}x{}", sizes, P.rows(), P.cols()));
+      t.fail("P0", fmt::format("expected a square matrix of size {}, got {}x{}", sizes, P.rows(),
+                               P.cols()));
     }
     for (std::size_t a = 0; a < pick.size(); ++a) {
       for (std::size_t b = 0; b < pick.size(); ++b) {
@@ -194,8 +204,18 @@ Eigen::Index CurrentMeasurement::take(std::int64_t k) {
 }
 
 ModeKalman::ModeKalman(const ModeModel& mm, const Eigen::VectorXd& x0, const Eigen::MatrixXd& P0)
-    : mm_(&mm), x_(x0), xp_(x0), w_(mm.m), P_(P0), Pp_(P0), tmp_(mm.na, mm.na), Cs_(mm.m, mm.na),
-      Rs_(mm.m, mm.m), S_(mm.m, mm.m), U_(mm.m, mm.na), rows_(static_cast<std::size_t>(mm.m)) {}
+    : mm_(&mm),
+      x_(x0),
+      xp_(x0),
+      w_(mm.m),
+      P_(P0),
+      Pp_(P0),
+      tmp_(mm.na, mm.na),
+      Cs_(mm.m, mm.na),
+      Rs_(mm.m, mm.m),
+      S_(mm.m, mm.m),
+      U_(mm.m, mm.na),
+      rows_(static_cast<std::size_t>(mm.m)) {}
 
 Eigen::Index ModeKalman::select(const Eigen::VectorXd& mask) {
   used_ = 0;
@@ -205,7 +225,8 @@ Eigen::Index ModeKalman::select(const Eigen::VectorXd& mask) {
   for (Eigen::Index a = 0; a < used_; ++a) {
     const Eigen::Index ra = rows_[static_cast<std::size_t>(a)];
     Cs_.row(a) = mm_->C.row(ra);
-    for (Eigen::Index b = 0; b < used_; ++b) Rs_(a, b) = mm_->R(ra, rows_[static_cast<std::size_t>(b)]);
+    for (Eigen::Index b = 0; b < used_; ++b)
+      Rs_(a, b) = mm_->R(ra, rows_[static_cast<std::size_t>(b)]);
   }
   return used_;
 }
@@ -237,7 +258,8 @@ double ModeKalman::predicted_loglik(int j, const Eigen::VectorXd& u, const Eigen
   if (llt.info() != Eigen::Success) return -std::numeric_limits<double>::infinity();
   const Eigen::VectorXd v = llt.matrixL().solve(w);
   const double half_log_det = llt.matrixLLT().diagonal().array().log().sum();
-  return -0.5 * v.squaredNorm() - half_log_det - 0.5 * static_cast<double>(mr) * std::log(2.0 * M_PI);
+  return -0.5 * v.squaredNorm() - half_log_det -
+         0.5 * static_cast<double>(mr) * std::log(2.0 * M_PI);
 }
 
 void ModeKalman::predict(int j, const Eigen::VectorXd& u) {
@@ -279,7 +301,8 @@ void ModeKalman::update(const Eigen::VectorXd& y) {
 bool bayes_log(const Eigen::VectorXd& prior, const Eigen::VectorXd& loglik, Eigen::VectorXd& p) {
   double amax = -std::numeric_limits<double>::infinity();
   for (Eigen::Index j = 0; j < prior.size(); ++j) {
-    if (prior(j) > 0.0 && std::isfinite(loglik(j))) amax = std::max(amax, std::log(prior(j)) + loglik(j));
+    if (prior(j) > 0.0 && std::isfinite(loglik(j)))
+      amax = std::max(amax, std::log(prior(j)) + loglik(j));
   }
   if (!std::isfinite(amax)) {
     p = prior;
@@ -287,7 +310,9 @@ bool bayes_log(const Eigen::VectorXd& prior, const Eigen::VectorXd& loglik, Eige
   }
   double sum = 0.0;
   for (Eigen::Index j = 0; j < prior.size(); ++j) {
-    p(j) = prior(j) > 0.0 && std::isfinite(loglik(j)) ? std::exp(std::log(prior(j)) + loglik(j) - amax) : 0.0;
+    p(j) = prior(j) > 0.0 && std::isfinite(loglik(j))
+               ? std::exp(std::log(prior(j)) + loglik(j) - amax)
+               : 0.0;
     sum += p(j);
   }
   p /= sum;
@@ -298,8 +323,9 @@ double kalman_flops(double na, double nue, double m) {
   // predict: A x + B u (2na² + 2na nue), A P A' + Q (4na³ + na²);
   // update: C P (2m na²), S (2m² na + m²), Cholesky (m³/3), two triangular solves (2m² + 2m² na),
   // x += U'w (2m na), P -= U'U (2m na² + na²).
-  return 2 * na * na + 2 * na * nue + 4 * na * na * na + na * na + 2 * m * na * na + 2 * m * m * na + m * m +
-         m * m * m / 3 + 2 * m * m + 2 * m * m * na + 2 * m * na + 2 * m * na * na + na * na;
+  return 2 * na * na + 2 * na * nue + 4 * na * na * na + na * na + 2 * m * na * na +
+         2 * m * m * na + m * m + m * m * m / 3 + 2 * m * m + 2 * m * m * na + 2 * m * na +
+         2 * m * na * na + na * na;
 }
 
 }  // namespace ncosim::est

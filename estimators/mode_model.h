@@ -16,26 +16,26 @@
 #include <string>
 #include <vector>
 
-#include "estimators/estimator.h"
 #include "estimators/delay_window.h"
+#include "estimators/estimator.h"
 #include "estimators/extended_model.h"
 
 namespace ncosim::est {
 
 struct ModeModel {
-  Eigen::Index n = 0;    // plant state
-  Eigen::Index na = 0;   // estimator state: n + hold channels
-  Eigen::Index nu = 0;   // inputs sent
-  Eigen::Index nue = 0;  // nu + n: inputs and the known re-centring drive
-  Eigen::Index m = 0;    // stacked sensor outputs
-  int channels = 0;      // actuators (0 for a jump_linear plant)
-  std::vector<int> hold;               // hold channels, in order (their u_applied is in z)
+  Eigen::Index n = 0;                    // plant state
+  Eigen::Index na = 0;                   // estimator state: n + hold channels
+  Eigen::Index nu = 0;                   // inputs sent
+  Eigen::Index nue = 0;                  // nu + n: inputs and the known re-centring drive
+  Eigen::Index m = 0;                    // stacked sensor outputs
+  int channels = 0;                      // actuators (0 for a jump_linear plant)
+  std::vector<int> hold;                 // hold channels, in order (their u_applied is in z)
   std::vector<Eigen::MatrixXd> A, B, Q;  // per mode: na x na, na x nue, na x na
-  Eigen::MatrixXd C, R;                // m x na (plant C padded), m x m block-diagonal
-  Eigen::MatrixXd Bu;                  // nominal plant Bu (n x nu), for the re-centring drive
-  Eigen::MatrixXd transition;          // s x s, row-stochastic
-  Eigen::VectorXd stationary;          // its stationary law
-  ExtendedModel ext0;                  // the sensors without delay (packet bookkeeping)
+  Eigen::MatrixXd C, R;                  // m x na (plant C padded), m x m block-diagonal
+  Eigen::MatrixXd Bu;                    // nominal plant Bu (n x nu), for the re-centring drive
+  Eigen::MatrixXd transition;            // s x s, row-stochastic
+  Eigen::VectorXd stationary;            // its stationary law
+  ExtendedModel ext0;                    // the sensors without delay (packet bookkeeping)
   int modes() const { return static_cast<int>(A.size()); }
 };
 

@@ -41,7 +41,8 @@ class ModeSs final : public Estimator {
     u_ext_.tail(mm.n).noalias() -= mm.Bu * in.u;
     e_.noalias() = mm.transition.transpose() * p_;
     if (kf_.rows() > 0) {
-      for (int j = 0; j < mm.modes(); ++j) loglik_(j) = kf_.predicted_loglik(j, u_ext_, meas_.values());
+      for (int j = 0; j < mm.modes(); ++j)
+        loglik_(j) = kf_.predicted_loglik(j, u_ext_, meas_.values());
       bayes_log(e_, loglik_, p_);
     } else {
       p_ = e_;
@@ -76,18 +77,20 @@ class ModeSsDesign final : public EstimatorDesign {
     report_.stored_gains = 0;
     report_.extra["modes"] = setup_.model.modes();
   }
-  std::unique_ptr<Estimator> instantiate() const override { return std::make_unique<ModeSs>(setup_); }
+  std::unique_ptr<Estimator> instantiate() const override {
+    return std::make_unique<ModeSs>(setup_);
+  }
   const DesignReport& report() const override { return report_; }
   std::optional<double> flops_per_period() const override {
     const ModeModel& mm = setup_.model;
     const double s = mm.modes(), na = static_cast<double>(mm.na), m = static_cast<double>(mm.m);
     const double nue = static_cast<double>(mm.nue);
     // One Kalman filter; per mode the predicted output and covariance (eqs. 24-25: 2na² + 2na nue
-    // + 4na³ + na² + 2m na² + 2m² na + m²), Cholesky, solve and log-likelihood (m³/3 + m² + 2m + 4);
-    // the Bayes step (2s² + 4s).
+    // + 4na³ + na² + 2m na² + 2m² na + m²), Cholesky, solve and log-likelihood (m³/3 + m² + 2m +
+    // 4); the Bayes step (2s² + 4s).
     return kalman_flops(na, nue, m) +
-           s * (2 * na * na + 2 * na * nue + 4 * na * na * na + na * na + 2 * m * na * na + 2 * m * m * na +
-                m * m + m * m * m / 3 + m * m + 2 * m + 4) +
+           s * (2 * na * na + 2 * na * nue + 4 * na * na * na + na * na + 2 * m * na * na +
+                2 * m * m * na + m * m + m * m * m / 3 + m * m + 2 * m + 4) +
            2 * s * s + 4 * s;
   }
 
@@ -103,10 +106,11 @@ std::unique_ptr<EstimatorDesign> read_mode_ss(const sim::Table& t, const Model& 
 }  // namespace
 
 void register_mode_ss(EstimatorRegistry& registry) {
-  registry.add("mode_ss",
-               "Algorithm 2 of Moayedi et al.: mode by one-step state-space likelihoods, one Kalman "
-               "filter: mode_prior, transition, xhat0, P0, use_y0",
-               read_mode_ss);
+  registry.add(
+      "mode_ss",
+      "Algorithm 2 of Moayedi et al.: mode by one-step state-space likelihoods, one Kalman "
+      "filter: mode_prior, transition, xhat0, P0, use_y0",
+      read_mode_ss);
 }
 
 }  // namespace ncosim::est

@@ -23,15 +23,17 @@ ActuatorSpec read_actuator(const sim::Table& t, const std::vector<std::string>& 
     }
     a.link = static_cast<int>(it - links.begin());
   }
-  a.on_loss = t.choice_or("on_loss", "hold", {"hold", "zero"}) == "hold" ? ActuatorSpec::OnLoss::kHold
-                                                                       : ActuatorSpec::OnLoss::kZero;
+  a.on_loss = t.choice_or("on_loss", "hold", {"hold", "zero"}) == "hold"
+                  ? ActuatorSpec::OnLoss::kHold
+                  : ActuatorSpec::OnLoss::kZero;
   a.u0 = t.number_or("u0", 0.0);
   if (!std::isfinite(a.u0)) t.fail("u0", "expected a finite number");
   return a;
 }
 
-ActuatorStage::ActuatorStage(const std::vector<ActuatorSpec>& specs, const std::vector<const Link*>& links,
-                             std::uint64_t seed, std::uint64_t run) {
+ActuatorStage::ActuatorStage(const std::vector<ActuatorSpec>& specs,
+                             const std::vector<const Link*>& links, std::uint64_t seed,
+                             std::uint64_t run) {
   applied_.resize(static_cast<Eigen::Index>(specs.size()));
   for (std::size_t i = 0; i < specs.size(); ++i) {
     Channel c;

@@ -19,7 +19,9 @@ namespace {
 struct Csv {
   std::map<std::string, std::size_t> column;
   std::vector<std::vector<double>> rows;
-  double at(std::size_t row, const std::string& name) const { return rows[row].at(column.at(name)); }
+  double at(std::size_t row, const std::string& name) const {
+    return rows[row].at(column.at(name));
+  }
 };
 
 Csv read_csv(const std::string& path) {
@@ -69,7 +71,8 @@ mode_prior = "uniform"
 )";
 
 std::unique_ptr<sim::Scenario> peer_scenario() {
-  return sim::build_scenario(toml::parse(kPeerScenario, std::string_view("peer.toml")), "peer.toml", ".");
+  return sim::build_scenario(toml::parse(kPeerScenario, std::string_view("peer.toml")), "peer.toml",
+                             ".");
 }
 
 Packet measurement(double z, std::int64_t k) {
@@ -133,7 +136,8 @@ TEST(Imm, KindMatchesFilterpyThroughAJumpLinearPlantAtEveryStep) {
     EXPECT_EQ(*est->mode(), ref.at(k, "mu1") > ref.at(k, "mu0") ? 1 : 0) << "step " << k;
   }
   EXPECT_LT(worst, 1e-9) << "worst: " << worst_what;
-  std::printf("imm kind vs filterpy: worst relative difference %.3g (%s)\n", worst, worst_what.c_str());
+  std::printf("imm kind vs filterpy: worst relative difference %.3g (%s)\n", worst,
+              worst_what.c_str());
   EXPECT_EQ(est->status(), "ok");
 }
 

@@ -46,8 +46,8 @@ TEST(CstrTable2, FreshRunsAgreeWithTheCommittedReproduction) {
     EXPECT_NEAR(*r.ermse[0], v.rmse1, f * v.sd_rmse1);
     EXPECT_NEAR(*r.ermse[1], v.rmse2, f * v.sd_rmse2);
     std::printf("%-12s MDE %.3g %% (paper %.3g)  E{RMSE1} %.3g (%.3g)  E{RMSE2} %.3g (%.3g)\n",
-                r.estimator.c_str(), *r.mde_percent, v.paper_mde, *r.ermse[0], v.paper_rmse1, *r.ermse[1],
-                v.paper_rmse2);
+                r.estimator.c_str(), *r.mde_percent, v.paper_mde, *r.ermse[0], v.paper_rmse1,
+                *r.ermse[1], v.paper_rmse2);
   }
 }
 

@@ -27,12 +27,14 @@ std::string two_channel(const std::string& on_loss, const std::string& r, const 
 [run]
 periods = 201
 warmup = 1
-runs = )" + std::to_string(runs) + R"(
+runs = )" +
+         std::to_string(runs) + R"(
 seed = 11
 [plant]
 A = [[-0.8882, -0.0097], [293.8556, 2.2973]]
 Bu = [[0.011, -0.0014], [-0.3602, 0.4732]]
-W = )" + w + R"(
+W = )" + w +
+         R"(
 x0 = [0.5, -0.5]
 [input]
 kind = "white"
@@ -48,11 +50,14 @@ kind = "bernoulli"
 loss = 0.2
 [[sensor]]
 C = [[1.0, 0.0], [0.0, 1.0]]
-R = )" + r + sensor_link + R"(
+R = )" + r +
+         sensor_link + R"(
 [[actuator]]
-)" + act_link + "on_loss = \"" + on_loss + R"("
+)" + act_link +
+         "on_loss = \"" + on_loss + R"("
 [[actuator]]
-)" + act_link + "on_loss = \"" + on_loss + R"("
+)" + act_link +
+         "on_loss = \"" + on_loss + R"("
 [[estimator]]
 name = "alg1"
 kind = "mode_io"
@@ -150,7 +155,8 @@ TEST(Actuator, WrongCountOrJumpPlantIsABadInputError) {
     from_text(text);
     ADD_FAILURE() << "one actuator for two inputs accepted";
   } catch (const ScenarioError& e) {
-    EXPECT_NE(std::string(e.what()).find("one [[actuator]] per input channel (2), got 1"), std::string::npos)
+    EXPECT_NE(std::string(e.what()).find("one [[actuator]] per input channel (2), got 1"),
+              std::string::npos)
         << e.what();
   }
   // mode_io needs actuator modes; an actuator with a jump_linear plant is rejected.
@@ -172,10 +178,13 @@ R = [[0.01]]
   EXPECT_THROW(from_text(jump + "[[actuator]]\n[[estimator]]\nkind = \"imm\"\n"), ScenarioError);
   // A mode estimator without modes says what it needs.
   try {
-    from_text("[plant]\nA = [[0.5]]\nW = [[1]]\n[[sensor]]\nC = [[1]]\nR = [[1]]\n[[estimator]]\nkind = \"imm\"\n");
+    from_text(
+        "[plant]\nA = [[0.5]]\nW = [[1]]\n[[sensor]]\nC = [[1]]\nR = [[1]]\n[[estimator]]\nkind = "
+        "\"imm\"\n");
     ADD_FAILURE() << "imm without modes accepted";
   } catch (const ScenarioError& e) {
-    EXPECT_NE(std::string(e.what()).find("expected a scenario with modes"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("expected a scenario with modes"), std::string::npos)
+        << e.what();
   }
 }
 
@@ -198,7 +207,8 @@ TEST(ModeEstimation, ObservableModeWithoutNoiseGivesZeroMde) {
       // Every (true, estimated) pair is on the diagonal; 4 runs x 200 scored periods.
       std::int64_t total = 0, diagonal = 0;
       for (int t = 0; t < r.modes; ++t) {
-        for (int e = 0; e < r.modes; ++e) total += r.confusion[static_cast<std::size_t>(t * r.modes + e)];
+        for (int e = 0; e < r.modes; ++e)
+          total += r.confusion[static_cast<std::size_t>(t * r.modes + e)];
         diagonal += r.confusion[static_cast<std::size_t>(t * r.modes + t)];
       }
       EXPECT_EQ(total, 4 * 200);
@@ -213,9 +223,9 @@ TEST(ModeEstimation, ObservableModeWithoutNoiseGivesZeroMde) {
 // (max_delay = 0, same xhat0 and P0) to 1e-9 at every period of run 0.
 TEST(ModeEstimation, IdealLinksReduceEveryEstimatorToTheKalmanFilter) {
   for (const std::string strategy : {"hold", "zero"}) {
-    auto sc = from_text(two_channel(strategy, "[[0.01, 0], [0, 0.02]]", "[[0.01, 0], [0, 0.04]]", "",
-                                    "\nlink = \"sens\"", 1,
-                                    "[[estimator]]\nname = \"kf\"\nkind = \"kalman_extended\"\nxhat0 = [0.5, -0.5]\n"));
+    auto sc = from_text(two_channel(
+        strategy, "[[0.01, 0], [0, 0.02]]", "[[0.01, 0], [0, 0.04]]", "", "\nlink = \"sens\"", 1,
+        "[[estimator]]\nname = \"kf\"\nkind = \"kalman_extended\"\nxhat0 = [0.5, -0.5]\n"));
     std::vector<TraceRow> trace;
     simulate_run(*sc, 0, &trace);
     ASSERT_EQ(trace.size(), 201U);
@@ -232,7 +242,8 @@ TEST(ModeEstimation, IdealLinksReduceEveryEstimatorToTheKalmanFilter) {
       }
     }
     EXPECT_LT(worst, 1e-9) << strategy;
-    std::printf("%s: worst relative difference to the Kalman filter %.3g\n", strategy.c_str(), worst);
+    std::printf("%s: worst relative difference to the Kalman filter %.3g\n", strategy.c_str(),
+                worst);
   }
 }
 
@@ -241,7 +252,8 @@ TEST(ModeEstimation, IdealLinksReduceEveryEstimatorToTheKalmanFilter) {
 // periods = 4000 draws, positively correlated (chain eigenvalue 0.4): sd <= sqrt(p(1-p)/4000 *
 // (1 + 0.4)/(1 - 0.4)) ~ 0.012, so |share - 4/9| < 0.05 is over 4 sd.
 TEST(ModeEstimation, TrueModeFollowsTheLinksStationaryLaw) {
-  auto sc = from_text(two_channel("hold", "[[1e-4, 0], [0, 1e-4]]", "[[0, 0], [0, 0]]", "link = \"act\"\n", "", 20));
+  auto sc = from_text(two_channel("hold", "[[1e-4, 0], [0, 1e-4]]", "[[0, 0], [0, 0]]",
+                                  "link = \"act\"\n", "", 20));
   std::int64_t all = 0, zero = 0;
   for (std::uint64_t run = 0; run < 20; ++run) {
     std::vector<TraceRow> trace;
