@@ -22,6 +22,12 @@ Eigen::Index Model::total_outputs() const {
   return n;
 }
 
+int Model::mode_count() const {
+  if (!plant.modes.empty()) return static_cast<int>(plant.modes.size());
+  if (!actuators.empty()) return 1 << actuators.size();
+  return 0;
+}
+
 InitialEstimate read_initial(const sim::Table& t, const Model& model) {
   const Eigen::Index n = model.plant.n();
   InitialEstimate init{model.plant.x0, Eigen::MatrixXd::Zero(n, n)};
@@ -49,6 +55,9 @@ void register_estimators(EstimatorRegistry& registry) {
   register_jump(registry);
   register_kalman_extended(registry);
   register_open_loop(registry);
+  register_imm(registry);
+  register_mode_io(registry);
+  register_mode_ss(registry);
 }
 
 }  // namespace ncosim::est

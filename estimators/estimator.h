@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "models/actuator.h"
 #include "models/link.h"
 #include "models/plant.h"
 #include "models/sensor.h"
@@ -29,11 +30,21 @@ struct SensorModel {
   std::vector<double> delay_pmf(int max_delay) const;
 };
 
+// A controller-to-actuator channel: the estimators know what was sent, not what arrived.
+struct ActuatorModel {
+  models::ActuatorSpec spec;
+  const models::Link* link = nullptr;  // nullptr: ideal (always delivered)
+};
+
 struct Model {
   models::LinearPlant plant;
   std::vector<SensorModel> sensors;
+  std::vector<ActuatorModel> actuators;  // empty, or one per input channel
   double period = 1.0;  // seconds
   Eigen::Index total_outputs() const;
+  // Number of modes scored by mode_detection (0: none): the jump_linear plant's modes, or
+  // 2^r with r actuators (delivery patterns, models/actuator.h numbering).
+  int mode_count() const;
 };
 
 // A packet as delivered: samples of one sensor, newest first, with their sampling periods.
@@ -51,7 +62,9 @@ struct Packet {
 // What every estimator knows at the update of period k.
 struct PeriodInput {
   const Eigen::VectorXd& u;      // input sent at k-1 (nu)
-  const Eigen::VectorXd& drive;  // known part of x[k] - A x[k-1] - Bw w[k-1] (n): Bu u + re-centring
+  // Known part of x[k] - A x[k-1] - Bw w[k-1] (n): Bu u + re-centring. With actuator links or a
+  // jump_linear plant it is the nominal Bu times the *sent* u (what the estimators know).
+  const Eigen::VectorXd& drive;
 };
 
 class Estimator {
@@ -70,6 +83,10 @@ class Estimator {
   virtual const Eigen::VectorXd* extended() const { return nullptr; }
   // The filter's own error covariance of extended() (or of state()), when it keeps one.
   virtual const Eigen::MatrixXd* covariance() const { return nullptr; }
+  // Mode estimators: the estimated mode of the transition into the current period
+  // (theta[k-1] after the update of period k, Moayedi et al. eq. 16), in the scenario's mode
+  // numbering; nullopt when the estimator has no mode or no estimate yet.
+  virtual std::optional<int> mode() const { return std::nullopt; }
   // "ok" or why the run's estimate cannot be trusted (e.g. "numerical_failure").
   virtual std::string status() const { return "ok"; }
 };

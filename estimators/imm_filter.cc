@@ -25,6 +25,44 @@ void symmetrize(Eigen::MatrixXd& P) {
   }
 }
 
+// Below this size, coefficient-based (lazy) products beat Eigen's blocked GEMM, whose set-up
+// dominates for the 2..16-state models of the mode estimators.
+constexpr Eigen::Index kLazyMax = 16;
+
+template <class D, class A, class B>
+void mul(D&& dst, const A& a, const B& b, bool lazy) {
+  if (lazy) {
+    dst.noalias() = a.lazyProduct(b);
+  } else {
+    dst.noalias() = a * b;
+  }
+}
+template <class D, class A, class B>
+void mul_add(D&& dst, const A& a, const B& b, bool lazy) {
+  if (lazy) {
+    dst.noalias() += a.lazyProduct(b);
+  } else {
+    dst.noalias() += a * b;
+  }
+}
+template <class D, class A, class B>
+void mul_sub(D&& dst, const A& a, const B& b, bool lazy) {
+  if (lazy) {
+    dst.noalias() -= a.lazyProduct(b);
+  } else {
+    dst.noalias() -= a * b;
+  }
+}
+
+// Solves L X = B in place for the lower triangle L of `l` (row by row; small sizes).
+template <class L, class B>
+void forward_substitute(const L& l, B&& b) {
+  for (Eigen::Index r = 0; r < b.rows(); ++r) {
+    for (Eigen::Index c = 0; c < r; ++c) b.row(r) -= l(r, c) * b.row(c);
+    b.row(r) /= l(r, r);
+  }
+}
+
 bool is_distribution(const Eigen::Ref<const Eigen::VectorXd>& p) {
   return p.allFinite() && p.minCoeff() >= 0.0 && std::abs(p.sum() - 1.0) <= 1e-9;
 }
@@ -61,6 +99,7 @@ ImmFilter::ImmFilter(std::vector<ImmMode> modes, const Eigen::MatrixXd& transiti
   loglik_ = Eigen::VectorXd::Zero(s);
   cbar_ = Eigen::VectorXd::Zero(s);
   mu_ = Eigen::VectorXd::Zero(s);
+  log_mu_ = Eigen::VectorXd::Zero(s);
   omega_ = Eigen::MatrixXd::Zero(s, s);
   x_comb_ = Eigen::VectorXd::Zero(n_);
   d_ = Eigen::VectorXd::Zero(n_);
@@ -107,13 +146,21 @@ void ImmFilter::mix() {
     xm.setZero();
     for (Eigen::Index i = 0; i < s; ++i) xm += omega_(i, j) * x_[static_cast<std::size_t>(i)];
     Pm.setZero();
+    // Pm += w (P_i + d d'), d = x_i - xm: one fused pass over the column-major storage (the
+    // separate Eigen expressions cost more than the arithmetic at these sizes).
+    const Eigen::Index n = n_;
+    double* pm = Pm.data();
+    double* d = d_.data();
     for (Eigen::Index i = 0; i < s; ++i) {
       const double w = omega_(i, j);
       if (w == 0.0) continue;
-      d_ = x_[static_cast<std::size_t>(i)] - xm;
-      dw_ = w * d_;
-      Pm += w * P_[static_cast<std::size_t>(i)];
-      Pm.noalias() += dw_ * d_.transpose();
+      const double* xi = x_[static_cast<std::size_t>(i)].data();
+      const double* pi = P_[static_cast<std::size_t>(i)].data();
+      for (Eigen::Index r = 0; r < n; ++r) d[r] = xi[r] - xm(r);
+      for (Eigen::Index c = 0; c < n; ++c) {
+        const double wdc = w * d[c];
+        for (Eigen::Index r = 0; r < n; ++r) pm[c * n + r] += w * pi[c * n + r] + wdc * d[r];
+      }
     }
   }
 }
@@ -123,6 +170,16 @@ void ImmFilter::combine() {
   const auto s = modes_.size();
   x_comb_.setZero();
   for (std::size_t j = 0; j < s; ++j) x_comb_ += mu_(static_cast<Eigen::Index>(j)) * x_[j];
+  p_stale_ = true;
+}
+
+const Eigen::MatrixXd& ImmFilter::P() const {
+  if (p_stale_) combine_covariance();
+  return P_comb_;
+}
+
+void ImmFilter::combine_covariance() const {
+  const auto s = modes_.size();
   P_comb_.setZero();
   for (std::size_t j = 0; j < s; ++j) {
     const double w = mu_(static_cast<Eigen::Index>(j));
@@ -130,9 +187,10 @@ void ImmFilter::combine() {
     d_ = x_[j] - x_comb_;
     dw_ = w * d_;
     P_comb_ += w * P_[j];
-    P_comb_.noalias() += dw_ * d_.transpose();
+    mul_add(P_comb_, dw_, d_.transpose(), n_ <= kLazyMax);
   }
   symmetrize(P_comb_);
+  p_stale_ = false;
 }
 
 void ImmFilter::predict() {
@@ -146,12 +204,40 @@ void ImmFilter::predict(const Eigen::Ref<const Eigen::VectorXd>& u) {
   mix();
   for (std::size_t j = 0; j < modes_.size(); ++j) {
     const ImmMode& mode = modes_[j];
-    x_[j].noalias() = mode.F * x_mix_[j];
-    if (nu_ > 0) x_[j].noalias() += mode.B * u;
-    tmp_nn_.noalias() = mode.F * P_mix_[j];
-    P_[j].noalias() = tmp_nn_ * mode.F.transpose();
-    P_[j] += mode.Q;
-    symmetrize(P_[j]);
+    const bool lazy = n_ <= kLazyMax;
+    mul(x_[j], mode.F, x_mix_[j], lazy);
+    if (nu_ > 0) mul_add(x_[j], mode.B, u, lazy);
+    if (lazy) {
+      // P = F Pm F' + Q by plain loops: tmp = F Pm, then the lower triangle of tmp F' mirrored
+      // (exactly symmetric, so no symmetrize pass).
+      const Eigen::Index n = n_;
+      const double* f = mode.F.data();
+      const double* pm = P_mix_[j].data();
+      const double* q = mode.Q.data();
+      double* t = tmp_nn_.data();
+      double* p = P_[j].data();
+      for (Eigen::Index c = 0; c < n; ++c) {
+        for (Eigen::Index r = 0; r < n; ++r) {
+          double acc = 0.0;
+          for (Eigen::Index k = 0; k < n; ++k) acc += f[k * n + r] * pm[c * n + k];
+          t[c * n + r] = acc;
+        }
+      }
+      for (Eigen::Index c = 0; c < n; ++c) {
+        for (Eigen::Index r = c; r < n; ++r) {
+          double acc = 0.0;
+          for (Eigen::Index k = 0; k < n; ++k) acc += t[k * n + r] * f[k * n + c];
+          const double v = acc + 0.5 * (q[c * n + r] + q[r * n + c]);
+          p[c * n + r] = v;
+          p[r * n + c] = v;
+        }
+      }
+    } else {
+      mul(tmp_nn_, mode.F, P_mix_[j], lazy);
+      mul(P_[j], tmp_nn_, mode.F.transpose(), lazy);
+      P_[j] += mode.Q;
+      symmetrize(P_[j]);
+    }
   }
   mu_ = cbar_;
   combine();
@@ -210,16 +296,22 @@ void ImmFilter::correct(const Eigen::Ref<const Eigen::VectorXd>& z) {
     auto w = innov_[j].head(mr);
     auto U = gain_[j].topRows(mr);
     w = zs_.head(mr);
-    w.noalias() -= Hs * x_[j];
-    U.noalias() = Hs * P_[j];
-    S.noalias() = U * Hs.transpose();
+    const bool lazy = n_ <= kLazyMax;
+    mul_sub(w, Hs, x_[j], lazy);
+    mul(U, Hs, P_[j], lazy);
+    mul(S, U, Hs.transpose(), lazy);
     S += Rs;
     if (!w.allFinite() || !S.allFinite()) return fail(ImmStatus::kNonFiniteLikelihood);
     Eigen::Ref<Eigen::MatrixXd> Sref(S);
     Eigen::LLT<Eigen::Ref<Eigen::MatrixXd>> llt(Sref);  // in place: S_ holds L
     if (llt.info() != Eigen::Success) return fail(ImmStatus::kInnovationNotPositiveDefinite);
-    llt.matrixL().solveInPlace(w);
-    llt.matrixL().solveInPlace(U);
+    if (mr <= kLazyMax) {
+      forward_substitute(S, w);
+      forward_substitute(S, U);
+    } else {
+      llt.matrixL().solveInPlace(w);
+      llt.matrixL().solveInPlace(U);
+    }
     const double half_log_det = S.diagonal().array().log().sum();
     loglik_(static_cast<Eigen::Index>(j)) =
         -0.5 * w.squaredNorm() - half_log_det - static_cast<double>(mr) * half_log_2pi;
@@ -230,19 +322,23 @@ void ImmFilter::correct(const Eigen::Ref<const Eigen::VectorXd>& z) {
   // Step 4 in the log domain: mu_j ∝ exp(log mu_j + log Lambda_j - max).
   const Eigen::Index s = mu_.size();
   double amax = -std::numeric_limits<double>::infinity();
-  for (Eigen::Index j = 0; j < s; ++j) amax = std::max(amax, std::log(mu_(j)) + loglik_(j));
+  for (Eigen::Index j = 0; j < s; ++j) {
+    log_mu_(j) = std::log(mu_(j)) + loglik_(j);
+    amax = std::max(amax, log_mu_(j));
+  }
   if (!std::isfinite(amax)) return fail(ImmStatus::kNonFiniteLikelihood);
   double sum = 0.0;
   for (Eigen::Index j = 0; j < s; ++j) {
-    mu_(j) = std::exp(std::log(mu_(j)) + loglik_(j) - amax);
+    mu_(j) = std::exp(log_mu_(j) - amax);
     sum += mu_(j);
   }
   mu_ /= sum;  // sum >= 1: the maximising term is exp(0)
   for (std::size_t j = 0; j < modes_.size(); ++j) {
     auto w = innov_[j].head(mr);
     auto U = gain_[j].topRows(mr);
-    x_[j].noalias() += U.transpose() * w;
-    P_[j].noalias() -= U.transpose() * U;
+    const bool lazy = n_ <= kLazyMax;
+    mul_add(x_[j], U.transpose(), w, lazy);
+    mul_sub(P_[j], U.transpose(), U, lazy);
     symmetrize(P_[j]);
   }
   last_applied_ = true;

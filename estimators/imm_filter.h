@@ -78,7 +78,8 @@ class ImmFilter {
   const Eigen::VectorXd& cbar() const { return cbar_; }
   const Eigen::VectorXd& mu() const { return mu_; }
   const Eigen::VectorXd& x() const { return x_comb_; }
-  const Eigen::MatrixXd& P() const { return P_comb_; }
+  // Combined on first use after a step (the estimate x() is combined eagerly).
+  const Eigen::MatrixXd& P() const;
   int most_probable_mode() const;
 
   // First failure since construction or reset() (kOk if none).
@@ -89,6 +90,7 @@ class ImmFilter {
  private:
   void mix();
   void combine();
+  void combine_covariance() const;
   void select_rows(const Eigen::Ref<const Eigen::VectorXd>* row_mask);
   void correct(const Eigen::Ref<const Eigen::VectorXd>& z);
   void fail(ImmStatus why);
@@ -102,8 +104,11 @@ class ImmFilter {
   std::vector<Eigen::MatrixXd> P_, P_mix_;
   std::vector<Eigen::VectorXd> innov_;  // w_j = L_j^-1 (z - H_j x_j), first m_used_ rows
   std::vector<Eigen::MatrixXd> gain_;   // U_j = L_j^-1 H_j P_j (m x n), first m_used_ rows
-  Eigen::VectorXd loglik_, cbar_, mu_, x_comb_, d_, dw_;
-  Eigen::MatrixXd P_comb_, tmp_nn_, omega_;  // omega_(i, j) = mu_{i|j}
+  Eigen::VectorXd loglik_, cbar_, mu_, x_comb_, log_mu_;
+  mutable Eigen::VectorXd d_, dw_;
+  mutable Eigen::MatrixXd P_comb_;
+  mutable bool p_stale_ = true;
+  Eigen::MatrixXd tmp_nn_, omega_;  // omega_(i, j) = mu_{i|j}
   // Selected measurement rows and their model blocks for one mode.
   std::vector<Eigen::Index> rows_;
   Eigen::Index m_used_ = 0;

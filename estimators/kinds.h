@@ -8,5 +8,8 @@ namespace ncosim::est {
 void register_jump(EstimatorRegistry& registry);             // estimators/jump_observer.cc
 void register_kalman_extended(EstimatorRegistry& registry);  // estimators/kalman_extended.cc
 void register_open_loop(EstimatorRegistry& registry);        // estimators/open_loop.cc
+void register_imm(EstimatorRegistry& registry);              // estimators/imm.cc
+void register_mode_io(EstimatorRegistry& registry);          // estimators/mode_io.cc
+void register_mode_ss(EstimatorRegistry& registry);          // estimators/mode_ss.cc
 
 }  // namespace ncosim::est

@@ -211,6 +211,13 @@ std::vector<double> ArrivalCdfLink::delay_pmf(int max_delay) const {
   return out;
 }
 
+Eigen::Matrix2d Link::on_time_chain() const {
+  const double p = delay_pmf(0)[0];
+  Eigen::Matrix2d m;
+  m << p, 1.0 - p, p, 1.0 - p;
+  return m;
+}
+
 // ---------------------------------------------------------------------------------------
 // MarkovLink
 
@@ -335,6 +342,25 @@ double MarkovLink::loss_probability() const {
     lost += stationary_(static_cast<Eigen::Index>(s)) * (1.0 - (1.0 - loss_[s]) * mass);
   }
   return lost;
+}
+
+// Pair law under the stationary chain: e_s = P(on time | state s),
+// P(a[k-1] = 1, a[k] = 1) = sum_s pi_s e_s sum_t T(s, t) e_t, P(a = 1) = sum_s pi_s e_s.
+Eigen::Matrix2d MarkovLink::on_time_chain() const {
+  const Eigen::Index n = transition_.rows();
+  Eigen::VectorXd e(n);
+  for (Eigen::Index s = 0; s < n; ++s) {
+    const auto us = static_cast<std::size_t>(s);
+    const double d0 = delay_pmf_.empty() || delay_pmf_[us].empty() ? 1.0 : delay_pmf_[us][0];
+    e(s) = (1.0 - loss_[us]) * d0;
+  }
+  const double p = stationary_.dot(e);
+  const double pdd = stationary_.cwiseProduct(e).dot(transition_ * e);
+  Eigen::Matrix2d m;
+  const double d_after_d = p > 0.0 ? std::clamp(pdd / p, 0.0, 1.0) : 0.0;
+  const double d_after_l = p < 1.0 ? std::clamp((p - pdd) / (1.0 - p), 0.0, 1.0) : 1.0;
+  m << d_after_d, 1.0 - d_after_d, d_after_l, 1.0 - d_after_l;
+  return m;
 }
 
 std::unique_ptr<MarkovLink> make_gilbert_elliott(double p_good_to_bad, double p_bad_to_good,

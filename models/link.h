@@ -47,6 +47,12 @@ class Link {
   virtual std::vector<double> delay_pmf(int max_delay) const = 0;
   // Long-run probability that a packet is lost (never delivered).
   virtual double loss_probability() const = 0;
+  // The on-time process a[k] = 1 when packet k arrives with delay 0 (what an actuator needs)
+  // as a two-state chain over (0 = delivered on time, 1 = not): M(i, j) = P(a[k] = j |
+  // a[k-1] = i) under the stationary law. Exact for independent packets and for a Markov link
+  // whose states deliver on time with probability 0 or 1; otherwise the one-step Markov fit
+  // of the stationary pair law. Default: independent packets, P(on time) = delay_pmf(0)[0].
+  virtual Eigen::Matrix2d on_time_chain() const;
 };
 
 // Each packet: delay d with probability pmf[d] (d = 0..size-1); lost otherwise.
@@ -128,6 +134,7 @@ class MarkovLink final : public Link {
   std::int64_t transmit(sim::Rng& rng) override;
   std::vector<double> delay_pmf(int max_delay) const override;
   double loss_probability() const override;
+  Eigen::Matrix2d on_time_chain() const override;
   // Stationary distribution of the chain (left eigenvector for eigenvalue 1).
   const Eigen::VectorXd& stationary() const { return stationary_; }
   int state() const { return state_; }

@@ -91,7 +91,68 @@ LinearPlant read_lti_continuous(const sim::Table& t, double period) {
   return p;
 }
 
+// jump_linear: the lti keys are the base; each [[plant.mode]] overrides A, Bu, Bw, W.
+LinearPlant read_jump_linear(const sim::Table& t, double period) {
+  LinearPlant p = read_lti(t, period);
+  const Eigen::Index n = p.n();
+  const auto tables = t.tables("mode");
+  if (tables.size() < 2 || tables.size() > 64) {
+    t.fail("mode", fmt::format("expected 2..64 [[plant.mode]] tables, got {}", tables.size()));
+  }
+  for (const sim::Table& m : tables) {
+    PlantMode pm{p.A, p.Bu, p.Bw, p.W};
+    if (m.has("A")) {
+      pm.A = m.matrix("A");
+      sim::require_shape(m, "A", pm.A, n, n);
+    }
+    if (m.has("Bu")) {
+      pm.Bu = m.matrix("Bu");
+      sim::require_shape(m, "Bu", pm.Bu, n, p.nu());
+    }
+    if (m.has("Bw")) {
+      pm.Bw = m.matrix("Bw");
+      sim::require_shape(m, "Bw", pm.Bw, n, p.nw());
+    }
+    if (m.has("W")) {
+      pm.W = m.matrix("W");
+      sim::require_shape(m, "W", pm.W, p.nw(), p.nw());
+      sim::require_psd(m, "W", pm.W);
+    }
+    m.finish();
+    p.modes.push_back(std::move(pm));
+  }
+  const auto s = static_cast<Eigen::Index>(p.modes.size());
+  p.mode_transition = t.matrix("transition");
+  sim::require_shape(t, "transition", p.mode_transition, s, s);
+  for (Eigen::Index i = 0; i < s; ++i) {
+    const auto row = p.mode_transition.row(i);
+    if (row.minCoeff() < 0.0 || std::abs(row.sum() - 1.0) > 1e-9) {
+      t.fail("transition", fmt::format("expected non-negative rows summing to 1, row {} sums to {}", i, row.sum()));
+    }
+  }
+  if (t.has("initial_mode")) {
+    p.mode_initial = t.vector("initial_mode");
+    if (p.mode_initial.size() != s || p.mode_initial.minCoeff() < 0.0 || std::abs(p.mode_initial.sum() - 1.0) > 1e-9) {
+      t.fail("initial_mode", fmt::format("expected {} non-negative entries summing to 1", s));
+    }
+  } else {
+    p.mode_initial = stationary_law(p.mode_transition);
+  }
+  return p;
+}
+
 }  // namespace
+
+Eigen::VectorXd stationary_law(const Eigen::MatrixXd& transition) {
+  const Eigen::Index n = transition.rows();
+  Eigen::MatrixXd m(n + 1, n);
+  m.topRows(n) = transition.transpose() - Eigen::MatrixXd::Identity(n, n);
+  m.row(n).setOnes();
+  Eigen::VectorXd rhs = Eigen::VectorXd::Zero(n + 1);
+  rhs(n) = 1.0;
+  Eigen::VectorXd pi = m.completeOrthogonalDecomposition().solve(rhs).cwiseMax(0.0);
+  return pi / pi.sum();
+}
 
 void register_plants(PlantRegistry& registry) {
   registry.add("lti", "discrete LTI plant: A, Bu (optional), Bw (default I), W, x0", read_lti);
@@ -99,6 +160,10 @@ void register_plants(PlantRegistry& registry) {
                "continuous LTI plant discretised at the period: Ac, Bc, Gc (default I), Wc "
                "(noise intensity), x0 (ZOH, Van Loan)",
                read_lti_continuous);
+  registry.add("jump_linear",
+               "Markov jump linear plant: the lti keys as base, [[plant.mode]] tables overriding A, Bu, "
+               "Bw, W, transition (mode chain), initial_mode (default: stationary)",
+               read_jump_linear);
 }
 
 }  // namespace ncosim::models

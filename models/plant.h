@@ -5,11 +5,17 @@
 #pragma once
 
 #include <Eigen/Dense>
+#include <vector>
 
 #include "sim/config.h"
 #include "sim/registry.h"
 
 namespace ncosim::models {
+
+// One mode of a jump_linear plant: its own A, Bu, Bw, W.
+struct PlantMode {
+  Eigen::MatrixXd A, Bu, Bw, W;
+};
 
 struct LinearPlant {
   Eigen::MatrixXd A;   // n x n
@@ -17,6 +23,12 @@ struct LinearPlant {
   Eigen::MatrixXd Bw;  // n x nw
   Eigen::MatrixXd W;   // nw x nw, symmetric PSD
   Eigen::VectorXd x0;  // n
+  // jump_linear only (empty otherwise): x[k+1] = A_m Bu_m ... with m = theta[k], a Markov chain
+  // with mode_transition(i, j) = P(theta[k] = j | theta[k-1] = i) and theta[0] ~ mode_initial.
+  // A, Bu, Bw, W above are then the nominal (base) matrices that the modes override.
+  std::vector<PlantMode> modes;
+  Eigen::MatrixXd mode_transition;
+  Eigen::VectorXd mode_initial;
   Eigen::Index n() const { return A.rows(); }
   Eigen::Index nu() const { return Bu.cols(); }
   Eigen::Index nw() const { return Bw.cols(); }
@@ -31,6 +43,9 @@ LinearPlant discretise(const Eigen::MatrixXd& Ac, const Eigen::MatrixXd& Bc,
 
 // Symmetric square root S (S S' = M) of a PSD matrix by eigen-decomposition.
 Eigen::MatrixXd psd_sqrt(const Eigen::MatrixXd& M);
+
+// Stationary law of a row-stochastic matrix (least squares on [T' - I; 1'] pi = [0; 1]).
+Eigen::VectorXd stationary_law(const Eigen::MatrixXd& transition);
 
 using PlantRegistry = sim::Registry<LinearPlant, double /*period seconds*/>;
 void register_plants(PlantRegistry& registry);

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <atomic>
 #include <boost/random/normal_distribution.hpp>
+#include <boost/random/uniform_01.hpp>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -14,6 +15,7 @@
 #include <mutex>
 #include <thread>
 
+#include "models/actuator.h"
 #include "sim/check.h"
 #include "sim/event_queue.h"
 #include "sim/rng.h"
@@ -78,6 +80,7 @@ class RunSimulation {
     u_prev_ = u_;
     drive_ = Eigen::VectorXd::Zero(n);
     recentre_ = Eigen::VectorXd::Zero(n);
+    known_drive_ = Eigen::VectorXd::Zero(n);
 
     // Sensors and their noise streams.
     for (std::size_t s = 0; s < sc.model.sensors.size(); ++s) {
@@ -99,6 +102,20 @@ class RunSimulation {
       ls.link->reset(ls.rng);
       links_.push_back(std::move(ls));
     }
+    // Actuator links and the mode process (jump_linear plant or actuator delivery patterns).
+    if (!sc.model.actuators.empty()) {
+      std::vector<const models::Link*> links;
+      for (const auto& l : sc.links) links.push_back(l.link.get());
+      std::vector<models::ActuatorSpec> specs;
+      for (const auto& a : sc.model.actuators) specs.push_back(a.spec);
+      actuators_ = std::make_unique<models::ActuatorStage>(specs, links, seed, run);
+      u_applied_ = actuators_->applied();  // u0: held before the first delivery
+    }
+    mode_count_ = sc.model.mode_count();
+    if (!plant_.modes.empty()) {
+      mode_rng_ = make_stream(seed, run, stream_id(StreamKind::kPlant, 1));
+      for (const auto& pm : plant_.modes) mode_w_sqrt_.push_back(models::psd_sqrt(pm.W));
+    }
     // Estimators.
     int max_ext_blocks = 1;
     for (const auto& e : sc.estimators) {
@@ -107,6 +124,9 @@ class RunSimulation {
       if (ext > 0) max_ext_blocks = std::max<int>(max_ext_blocks, static_cast<int>(ext / n));
       EstimatorRunMetrics m;
       m.sse_state.assign(static_cast<std::size_t>(n), 0.0);
+      if (mode_count_ > 0 && mode_count_ <= kMaxConfusionModes) {
+        m.confusion.assign(static_cast<std::size_t>(mode_count_ * mode_count_), 0);
+      }
       metrics_.push_back(std::move(m));
     }
     // True history x[k], x[k-1], ... (x[-j] = x0: the plant rests at x0 before t = 0).
@@ -162,16 +182,49 @@ class RunSimulation {
     if (k > 0) {
       draw_normal(plant_rng_, w_);
       if (sc_.recentre) recentre_.noalias() = -plant_.A * x_;  // deadbeat: known to every estimator
-      drive_.noalias() = plant_.Bu * u_applied_;
-      drive_ += recentre_;
-      next_x_.noalias() = plant_.A * x_;
-      next_x_ += drive_;
-      next_x_.noalias() += plant_.Bw * (w_sqrt_ * w_);
+      if (!plant_.modes.empty()) {
+        step_jump_plant(k);
+      } else {
+        drive_.noalias() = plant_.Bu * u_applied_;
+        drive_ += recentre_;
+        next_x_.noalias() = plant_.A * x_;
+        next_x_ += drive_;
+        next_x_.noalias() += plant_.Bw * (w_sqrt_ * w_);
+      }
+      if (actuators_ || !plant_.modes.empty()) {
+        // The estimators know what was sent (nominal Bu), not what was applied.
+        known_drive_.noalias() = plant_.Bu * u_prev_;
+        known_drive_ += recentre_;
+      }
+      if (actuators_) true_mode_ = actuated_mode_;
       x_.swap(next_x_);
       std::rotate(history_.rbegin(), history_.rbegin() + 1, history_.rend());
       history_.front() = x_;
     }
     reschedule(now, 1, Phase::kPlant, &plant_handler_, 0);
+  }
+
+  // x[k] = A_m x[k-1] + Bu_m u + Bw_m w with m = theta[k-1] drawn from the mode chain.
+  void step_jump_plant(std::int64_t k) {
+    const auto s = static_cast<Eigen::Index>(plant_.modes.size());
+    boost::random::uniform_01<double> uniform;
+    const double u = uniform(mode_rng_);
+    double c = 0.0;
+    int m = static_cast<int>(s) - 1;
+    for (Eigen::Index i = 0; i < s; ++i) {
+      c += k == 1 ? plant_.mode_initial(i) : plant_.mode_transition(true_mode_, i);
+      if (u < c) {
+        m = static_cast<int>(i);
+        break;
+      }
+    }
+    true_mode_ = m;
+    const models::PlantMode& pm = plant_.modes[static_cast<std::size_t>(m)];
+    drive_.noalias() = pm.Bu * u_applied_;
+    drive_ += recentre_;
+    next_x_.noalias() = pm.A * x_;
+    next_x_ += drive_;
+    next_x_.noalias() += pm.Bw * (mode_w_sqrt_[static_cast<std::size_t>(m)] * w_);
   }
 
   void on_sample(SimTime now, std::uint64_t s) {
@@ -265,11 +318,11 @@ class RunSimulation {
 
   void on_estimate(SimTime now, std::uint64_t) {
     const std::int64_t k = now / period_ns_;
-    const est::PeriodInput in{u_prev_, drive_};
+    const est::PeriodInput in{u_prev_, actuators_ || !plant_.modes.empty() ? known_drive_ : drive_};
     for (auto& e : estimators_) e->on_period(k, in);
     if (log_ != nullptr) {
       log_->u.push_back(u_prev_);
-      log_->drive.push_back(drive_);
+      log_->drive.push_back(in.drive);
     }
     reschedule(now, 1, Phase::kEstimate, &estimate_handler_, 0);
   }
@@ -296,8 +349,13 @@ class RunSimulation {
   }
 
   void on_actuate(SimTime now, std::uint64_t) {
-    u_applied_ = u_;  // ideal actuation (actuator links come with their issue)
-    u_prev_ = u_;     // what the estimators know at the next update
+    if (actuators_) {
+      actuated_mode_ = actuators_->actuate(u_);  // the plant applies what arrives
+      u_applied_ = actuators_->applied();
+    } else {
+      u_applied_ = u_;
+    }
+    u_prev_ = u_;  // what the estimators know at the next update: what was sent
     reschedule(now, 1, Phase::kActuate, &actuate_handler_, 0);
   }
 
@@ -313,6 +371,8 @@ class RunSimulation {
         row.xhat.emplace_back(xh.data(), xh.data() + n);
       }
       row.arrivals = arrivals_;
+      row.mode = true_mode_;
+      for (auto& e : estimators_) row.mode_hat.push_back(e->mode().value_or(-1));
       trace_->push_back(std::move(row));
     }
     std::fill(arrivals_.begin(), arrivals_.end(), 0);
@@ -340,8 +400,25 @@ class RunSimulation {
         for (Eigen::Index i = 0; i < n; ++i) m.sse_state[static_cast<std::size_t>(i)] += err_(i) * err_(i);
         ++m.count;
       }
+      score_modes(k);
     }
     reschedule(now, 1, Phase::kMetrics, &metrics_handler_, 0);
+  }
+
+  // Mode detection (Moayedi et al. eq. 27a-b): after the update of period k >= 1, each mode
+  // estimator's estimate of theta[k-1] against the true one.
+  void score_modes(std::int64_t k) {
+    if (mode_count_ == 0 || k < 1 || true_mode_ < 0) return;
+    for (std::size_t e = 0; e < estimators_.size(); ++e) {
+      const std::optional<int> est = estimators_[e]->mode();
+      if (!est) continue;
+      EstimatorRunMetrics& m = metrics_[e];
+      ++m.mode_count;
+      if (*est != true_mode_) ++m.mode_errors;
+      if (!m.confusion.empty() && *est >= 0 && *est < mode_count_) {
+        ++m.confusion[static_cast<std::size_t>(true_mode_ * mode_count_ + *est)];
+      }
+    }
   }
 
   const Scenario& sc_;
@@ -361,7 +438,13 @@ class RunSimulation {
 
   Rng plant_rng_, input_rng_;
   Eigen::MatrixXd w_sqrt_;
-  Eigen::VectorXd w_, x_, next_x_, u_, u_applied_, u_prev_, drive_, recentre_, err_;
+  Eigen::VectorXd w_, x_, next_x_, u_, u_applied_, u_prev_, drive_, recentre_, err_, known_drive_;
+  std::unique_ptr<models::ActuatorStage> actuators_;  // nullptr: ideal actuation
+  Rng mode_rng_;                                       // jump_linear plant's mode chain
+  std::vector<Eigen::MatrixXd> mode_w_sqrt_;
+  int mode_count_ = 0;
+  int actuated_mode_ = 0;  // delivery pattern of the last actuation
+  int true_mode_ = -1;     // mode of the transition into the current period (theta[k-1])
   std::vector<Eigen::VectorXd> history_;
   std::vector<SensorState> sensors_;
   std::vector<LinkState> links_;

@@ -23,7 +23,14 @@ struct EstimatorRunMetrics {
   std::int64_t samples_taken = 0;   // samples taken by the sensors
   bool diverged = false;            // a non-finite or > 1e150 error occurred
   std::string status = "ok";        // the estimator's own status at the end of the run
+  // Mode estimators (scenarios with modes): periods k >= max(warmup, 1) scored, wrong estimates,
+  // and the confusion counts [true * s + estimated] (s <= kMaxConfusionModes, else empty).
+  std::int64_t mode_count = 0;
+  std::int64_t mode_errors = 0;
+  std::vector<std::int64_t> confusion;
 };
+
+inline constexpr int kMaxConfusionModes = 64;
 
 using RunMetrics = std::vector<EstimatorRunMetrics>;  // one per estimator
 
@@ -33,6 +40,8 @@ struct TraceRow {
   std::vector<double> x;                    // true plant state
   std::vector<std::vector<double>> xhat;    // per estimator
   std::vector<int> arrivals;                // packets delivered this period, per sensor
+  int mode = -1;                            // true mode of the transition into this period
+  std::vector<int> mode_hat;                // per estimator (-1: none)
 };
 
 struct CampaignOptions {

@@ -113,7 +113,9 @@ int cmd_run(const CommonArgs& a, int threads, bool trace, bool quiet, const std:
       {"manifest.json", manifest(loaded, command_line, used_threads, wall).dump(2) + "\n"},
   };
   if (trace) files.emplace_back("trajectory.csv", trajectory_csv(first, results.front().trace));
-  write_files_atomically(out, files, {"trajectory.csv"});
+  const std::string confusion = confusion_csv(loaded.sweeps, rows);
+  if (confusion.find('\n') + 1 < confusion.size()) files.emplace_back("confusion.csv", confusion);
+  write_files_atomically(out, files, {"trajectory.csv", "confusion.csv"});
   std::cout << md << fmt::format("\n{} runs x {} periods x {} case(s) in {:.2f} s on {} thread(s); results in {}/\n",
                                  first.run.runs, first.run.periods, loaded.cases.size(), wall, used_threads, out);
   return 0;

@@ -4,6 +4,7 @@
 #include <fmt/format.h>
 
 #include <boost/math/distributions/students_t.hpp>
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -52,7 +53,8 @@ std::vector<SummaryRow> summarise(const Scenario& sc, const CampaignResult& resu
     row.estimator = entry.name;
     row.kind = entry.kind;
     row.runs = static_cast<std::int64_t>(result.runs.size());
-    std::vector<double> mse, mse_ext;
+    std::vector<double> mse, mse_ext, mde;
+    std::vector<std::vector<double>> root(static_cast<std::size_t>(n));
     std::vector<double> state_sse(static_cast<std::size_t>(n), 0.0);
     std::int64_t count = 0, used = 0, taken = 0, diverged = 0;
     const std::string design_status = rep.status == "ok" ? "ok" : "design_" + rep.status;
@@ -68,8 +70,16 @@ std::vector<SummaryRow> summarise(const Scenario& sc, const CampaignResult& resu
       if (m.status != "ok" && run_status == "ok") run_status = m.status;
       mse.push_back(m.sse / static_cast<double>(m.count));
       mse_ext.push_back(m.sse_ext / static_cast<double>(m.count));
-      for (std::size_t i = 0; i < state_sse.size(); ++i) state_sse[i] += m.sse_state[i];
+      for (std::size_t i = 0; i < state_sse.size(); ++i) {
+        state_sse[i] += m.sse_state[i];
+        root[i].push_back(std::sqrt(m.sse_state[i] / static_cast<double>(m.count)));
+      }
       count += m.count;
+      if (m.mode_count > 0) mde.push_back(100.0 * static_cast<double>(m.mode_errors) / static_cast<double>(m.mode_count));
+      if (!m.confusion.empty()) {
+        row.confusion.resize(m.confusion.size(), 0);
+        for (std::size_t c = 0; c < m.confusion.size(); ++c) row.confusion[c] += m.confusion[c];
+      }
     }
     // Precedence: a failed design (it says why the rest went wrong), divergence, run status.
     const std::string status = design_status != "ok" ? design_status : diverged > 0 ? "diverged" : run_status;
@@ -81,8 +91,22 @@ std::vector<SummaryRow> summarise(const Scenario& sc, const CampaignResult& resu
         row.mse_ext_ci95 = ci95_half_width(mse_ext);
       }
       for (double s : state_sse) row.rmse.push_back(finite(std::sqrt(s / static_cast<double>(count))));
+      for (const auto& r : root) {
+        row.ermse.push_back(finite(mean_of(r)));
+        row.ermse_ci95.push_back(ci95_half_width(r));
+      }
+      // Every run scores the same periods, so the mean of per-run MDEs is the pooled share.
+      if (!mde.empty() && mde.size() == result.runs.size()) {
+        row.mde_percent = mean_of(mde);
+        row.mde_ci95 = ci95_half_width(mde);
+        row.mde_run_min = *std::min_element(mde.begin(), mde.end());
+        row.mde_run_max = *std::max_element(mde.begin(), mde.end());
+      }
     }
     row.rmse.resize(static_cast<std::size_t>(n));
+    row.ermse.resize(static_cast<std::size_t>(n));
+    row.ermse_ci95.resize(static_cast<std::size_t>(n));
+    if (!row.confusion.empty()) row.modes = sc.model.mode_count();
     row.flops_per_period = entry.design->flops_per_period();
     row.stored_gains = rep.stored_gains;
     row.ns_per_period = finite(result.ns_per_period.at(e));
@@ -115,9 +139,11 @@ std::vector<std::string> summary_columns(const std::vector<SweepAxis>& sweeps, E
   for (const char* c : {"estimator", "kind", "runs", "mse", "mse_ci95", "mse_ext", "mse_ext_ci95"}) cols.push_back(c);
   for (Eigen::Index i = 0; i < n; ++i) cols.push_back(fmt::format("rmse_x{}", i + 1));
   for (const char* c : {"mde_percent", "flops_per_period", "stored_gains", "ns_per_period", "predicted_mse_ext",
-                        "delivered_ratio", "status"}) {
+                        "delivered_ratio", "status", "mde_ci95"}) {
     cols.push_back(c);
   }
+  for (Eigen::Index i = 0; i < n; ++i) cols.push_back(fmt::format("ermse_x{}", i + 1));
+  for (Eigen::Index i = 0; i < n; ++i) cols.push_back(fmt::format("ermse_x{}_ci95", i + 1));
   return cols;
 }
 
@@ -140,6 +166,9 @@ std::vector<std::string> row_cells(const SummaryRow& r) {
   cells.push_back(fmt_number(r.predicted_mse_ext));
   cells.push_back(fmt_number(r.delivered_ratio));
   cells.push_back(r.status);
+  cells.push_back(fmt_number(r.mde_ci95));
+  for (const auto& v : r.ermse) cells.push_back(fmt_number(v));
+  for (const auto& v : r.ermse_ci95) cells.push_back(fmt_number(v));
   return cells;
 }
 
@@ -158,6 +187,27 @@ std::string summary_csv(const std::vector<SweepAxis>& sweeps, const std::vector<
   return out;
 }
 
+std::string confusion_csv(const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows) {
+  std::string out;
+  for (const auto& s : sweeps) out += csv_field(s.key) + ",";
+  out += "estimator,true_mode,estimated_mode,count,share_of_true\n";
+  for (const auto& r : rows) {
+    if (r.confusion.empty()) continue;
+    const int s = r.modes;
+    for (int t = 0; t < s; ++t) {
+      std::int64_t total = 0;
+      for (int e = 0; e < s; ++e) total += r.confusion[static_cast<std::size_t>(t * s + e)];
+      for (int e = 0; e < s; ++e) {
+        const std::int64_t c = r.confusion[static_cast<std::size_t>(t * s + e)];
+        for (const auto& l : r.sweep_labels) out += csv_field(l) + ",";
+        out += fmt::format("{},{},{},{},{}\n", csv_field(r.estimator), t, e, c,
+                           total > 0 ? fmt_number(static_cast<double>(c) / static_cast<double>(total)) : "");
+      }
+    }
+  }
+  return out;
+}
+
 std::string summary_markdown(const std::string& title, const std::vector<SweepAxis>& sweeps,
                              const std::vector<SummaryRow>& rows, Eigen::Index n) {
   // Readable columns: mse ± ci, mse_ext ± ci, predicted, FLOPs, gains, ns, delivered, status.
@@ -165,6 +215,12 @@ std::string summary_markdown(const std::string& title, const std::vector<SweepAx
   for (const auto& s : sweeps) head.push_back(s.key);
   for (const char* c : {"estimator", "mse ± 95% CI", "mse_ext ± 95% CI", "predicted mse_ext"}) head.push_back(c);
   for (Eigen::Index i = 0; i < n; ++i) head.push_back(fmt::format("rmse_x{}", i + 1));
+  bool modes = false;
+  for (const auto& r : rows) modes = modes || r.mde_percent.has_value();
+  if (modes) {
+    head.push_back("MDE % ± 95% CI");
+    for (Eigen::Index i = 0; i < n; ++i) head.push_back(fmt::format("E{{RMSE{}}} ± 95% CI", i + 1));
+  }
   for (const char* c : {"FLOPs", "gains", "ns/period", "delivered", "status"}) head.push_back(c);
   auto pm = [](std::optional<double> v, std::optional<double> ci) {
     if (!v) return std::string("–");
@@ -181,6 +237,10 @@ std::string summary_markdown(const std::string& title, const std::vector<SweepAx
     c.push_back(pm(r.mse_ext, r.mse_ext_ci95));
     c.push_back(num(r.predicted_mse_ext, "{:.4g}"));
     for (const auto& v : r.rmse) c.push_back(num(v, "{:.4g}"));
+    if (modes) {
+      c.push_back(pm(r.mde_percent, r.mde_ci95));
+      for (std::size_t i = 0; i < r.ermse.size(); ++i) c.push_back(pm(r.ermse[i], r.ermse_ci95[i]));
+    }
     c.push_back(num(r.flops_per_period, "{:.0f}"));
     c.push_back(r.stored_gains ? std::to_string(*r.stored_gains) : "–");
     c.push_back(num(r.ns_per_period, "{:.0f}"));
@@ -219,7 +279,10 @@ std::string runs_csv(const std::vector<SweepAxis>& sweeps, const std::vector<std
                      const std::vector<const Scenario*>& scenarios, const std::vector<const CampaignResult*>& results) {
   std::string out;
   for (const auto& s : sweeps) out += csv_field(s.key) + ",";
-  out += "run,estimator,mse,mse_ext,periods,samples_used,samples_taken,diverged,status\n";
+  const Eigen::Index n = scenarios.empty() ? 0 : scenarios.front()->model.plant.n();
+  out += "run,estimator,mse,mse_ext,periods,samples_used,samples_taken,diverged,status,mde_percent";
+  for (Eigen::Index i = 0; i < n; ++i) out += fmt::format(",rmse_x{}", i + 1);
+  out += "\n";
   for (std::size_t c = 0; c < scenarios.size(); ++c) {
     const Scenario& sc = *scenarios[c];
     for (std::size_t r = 0; r < results[c]->runs.size(); ++r) {
@@ -228,10 +291,18 @@ std::string runs_csv(const std::vector<SweepAxis>& sweeps, const std::vector<std
         for (const auto& l : labels[c]) out += csv_field(l) + ",";
         const bool has_ext = sc.estimators[e].design->extended_size() > 0;
         const bool ok = !m.diverged && m.count > 0;
-        out += fmt::format("{},{},{},{},{},{},{},{},{}\n", r, csv_field(sc.estimators[e].name),
+        out += fmt::format("{},{},{},{},{},{},{},{},{}", r, csv_field(sc.estimators[e].name),
                            ok ? fmt_number(m.sse / static_cast<double>(m.count)) : "",
                            ok && has_ext ? fmt_number(m.sse_ext / static_cast<double>(m.count)) : "", m.count,
                            m.samples_used, m.samples_taken, m.diverged ? 1 : 0, m.status);
+        out += "," + (m.mode_count > 0 ? fmt_number(100.0 * static_cast<double>(m.mode_errors) /
+                                                     static_cast<double>(m.mode_count))
+                                        : std::string());
+        for (Eigen::Index i = 0; i < n && i < static_cast<Eigen::Index>(m.sse_state.size()); ++i) {
+          out += "," + (ok ? fmt_number(std::sqrt(m.sse_state[static_cast<std::size_t>(i)] / static_cast<double>(m.count)))
+                           : std::string());
+        }
+        out += "\n";
       }
     }
   }
@@ -321,6 +392,11 @@ std::string trajectory_csv(const Scenario& sc, const std::vector<TraceRow>& trac
     for (Eigen::Index i = 0; i < n; ++i) out += "," + csv_field(fmt::format("{}:xhat{}", e.name, i + 1));
   }
   for (const auto& s : sc.model.sensors) out += "," + csv_field(fmt::format("arrived:{}", s.spec.name));
+  const bool modes = sc.model.mode_count() > 0;
+  if (modes) {
+    out += ",mode";
+    for (const auto& e : sc.estimators) out += "," + csv_field(fmt::format("{}:mode", e.name));
+  }
   out += "\n";
   for (const auto& r : trace) {
     out += std::to_string(r.period);
@@ -329,6 +405,10 @@ std::string trajectory_csv(const Scenario& sc, const std::vector<TraceRow>& trac
       for (double v : xh) out += fmt::format(",{:.9g}", v);
     }
     for (int a : r.arrivals) out += fmt::format(",{}", a);
+    if (modes) {
+      out += r.mode >= 0 ? fmt::format(",{}", r.mode) : ",";
+      for (int m : r.mode_hat) out += m >= 0 ? fmt::format(",{}", m) : ",";
+    }
     out += "\n";
   }
   return out;

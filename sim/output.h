@@ -27,6 +27,12 @@ struct SummaryRow {
   std::optional<double> predicted_mse_ext;
   std::optional<double> delivered_ratio;
   std::string status;
+  // After status (columns added later keep the earlier positions):
+  std::optional<double> mde_ci95;
+  std::vector<std::optional<double>> ermse, ermse_ci95;  // per plant state: mean of per-run roots
+  std::optional<double> mde_run_min, mde_run_max;        // spread of the per-run MDE
+  std::vector<std::int64_t> confusion;                   // s x s, summed over runs
+  int modes = 0;
 };
 
 // Half-width of the 95% confidence interval of the mean of `values` (Student t, n-1
@@ -37,6 +43,9 @@ std::vector<SummaryRow> summarise(const Scenario& sc, const CampaignResult& resu
                                   const std::vector<std::string>& sweep_labels);
 
 std::vector<std::string> summary_columns(const std::vector<SweepAxis>& sweeps, Eigen::Index n);
+// confusion.csv: one row per (sweep case, mode estimator, true mode, estimated mode).
+std::string confusion_csv(const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows);
+
 std::string summary_csv(const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows, Eigen::Index n);
 std::string summary_markdown(const std::string& title, const std::vector<SweepAxis>& sweeps,
                              const std::vector<SummaryRow>& rows, Eigen::Index n);

@@ -189,7 +189,7 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
   sc->title = root.string_or("title", std::filesystem::path(file).stem().string());
   // Unknown top-level keys first (a misspelt [[sensor]] is reported as such, not as a missing
   // table). Every top-level key read below must be listed here.
-  for (const char* key : {"run", "sweep", "plant", "link", "sensor", "input", "estimator"})
+  for (const char* key : {"run", "sweep", "plant", "link", "sensor", "input", "estimator", "actuator"})
     root.allow(key);
   root.finish();
   sc->run = read_run(root);
@@ -251,6 +251,39 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
       const Table t = root.tables("link")[l];
       t.fail("file", fmt::format("expected a trace of at least {} packets (one run sends {}), got {}",
                                  packets, packets, trace->size()));
+    }
+  }
+
+  // Actuators (controller-to-actuator links): one per input channel, in input order.
+  const auto act_tables = root.tables("actuator");
+  if (!act_tables.empty()) {
+    const Eigen::Index nu = sc->model.plant.nu();
+    if (static_cast<Eigen::Index>(act_tables.size()) != nu) {
+      act_tables.back().fail_here(fmt::format("expected one [[actuator]] per input channel ({}), got {}", nu,
+                                              act_tables.size()));
+    }
+    if (nu > 16) act_tables.back().fail_here(fmt::format("expected at most 16 actuators, got {}", nu));
+    if (!sc->model.plant.modes.empty()) {
+      act_tables.front().fail_here("expected no [[actuator]] with a jump_linear plant (one mode source per scenario)");
+    }
+    std::set<std::string> names;
+    for (std::size_t i = 0; i < act_tables.size(); ++i) {
+      const Table& t = act_tables[i];
+      est::ActuatorModel am;
+      am.spec = models::read_actuator(t, link_names, static_cast<int>(i));
+      if (!names.insert(am.spec.name).second) {
+        t.fail("name", fmt::format("expected a unique actuator name, got \"{}\" twice", am.spec.name));
+      }
+      if (am.spec.link >= 0) {
+        am.link = sc->links[static_cast<std::size_t>(am.spec.link)].link.get();
+        const auto* trace = dynamic_cast<const models::TraceLink*>(am.link);
+        if (trace != nullptr && static_cast<std::int64_t>(trace->size()) < sc->run.periods) {
+          t.fail("link", fmt::format("expected a trace of at least {} packets (one per period), got {}",
+                                     sc->run.periods, trace->size()));
+        }
+      }
+      t.finish();
+      sc->model.actuators.push_back(std::move(am));
     }
   }
 

@@ -235,7 +235,7 @@ TEST_F(Cli, MisspeltTopLevelTableIsAnUnknownKeyNotAMissingTable) {
 TEST_F(Cli, UnknownPlantKindListsTheValidKinds) {
   expect_edit_rejected(
       "kind = \"lti\"", "kind = \"ltx\"", "plant.kind",
-      {"expected one of \"lti\", \"lti_continuous\", got \"ltx\"", "(did you mean \"lti\"?)"});
+      {"expected one of \"lti\", \"lti_continuous\", \"jump_linear\", got \"ltx\"", "(did you mean \"lti\"?)"});
 }
 
 TEST_F(Cli, UnknownLinkKindListsTheValidKinds) {
@@ -249,7 +249,7 @@ TEST_F(Cli, UnknownLinkKindListsTheValidKinds) {
 TEST_F(Cli, UnknownEstimatorKindListsTheValidKinds) {
   expect_edit_rejected(
       "kind = \"kalman_extended\"", "kind = \"kalman\"", "estimator[1].kind",
-      {"expected one of \"jump\", \"kalman_extended\", \"open_loop\", got \"kalman\""});
+      {"expected one of \"jump\", \"kalman_extended\", \"open_loop\", \"imm\", \"mode_io\", \"mode_ss\", got \"kalman\""});
 }
 
 TEST_F(Cli, UnknownInputKindListsTheValidKinds) {
@@ -699,7 +699,12 @@ TEST_F(Cli, RunWritesTheContractFilesAndNothingElse) {
                                          "ns_per_period",
                                          "predicted_mse_ext",
                                          "delivered_ratio",
-                                         "status"};
+                                         "status",
+                                         "mde_ci95",
+                                         "ermse_x1",
+                                         "ermse_x2",
+                                         "ermse_x1_ci95",
+                                         "ermse_x2_ci95"};
   EXPECT_EQ(s.header, columns);
   ASSERT_EQ(s.rows.size(), 2u);  // one per estimator, in scenario order
   EXPECT_EQ(s.at(0, "estimator"), "jump S2");

@@ -20,7 +20,13 @@ const std::map<std::string, std::string> kEstimators{
     {"jump", "grouping = \"S3\"\nhistory = 2\nmax_delay = 1"},
     {"kalman_extended", "max_delay = 1"},
     {"open_loop", "max_delay = 1"},
+    {"imm", "mode_prior = \"stationary\""},
+    {"mode_io", "mode_prior = \"uniform\"\nstartup = \"prior_mean\""},
+    {"mode_ss", "mode_prior = \"uniform\""},
 };
+
+// Mode estimators need modes: their scenarios get an [[actuator]] on the same link kind.
+bool is_mode_kind(const std::string& k) { return k == "imm" || k == "mode_io" || k == "mode_ss"; }
 
 const std::map<std::string, std::string> kLinks{
     {"delay", "pmf = [0.5, 0.3]"},
@@ -35,6 +41,10 @@ const std::map<std::string, std::string> kLinks{
 const std::map<std::string, std::string> kPlants{
     {"lti", "A = [[0.8821, -0.0351], [-0.0351, 0.7347]]\nBu = [[-0.3359], [0.3466]]\nW = [[0.01, 0], [0, 0.01]]"},
     {"lti_continuous", "Ac = [[-0.1, 1.0], [0.0, -0.3]]\nBc = [[0.0], [1.0]]\nWc = [[0.01, 0], [0, 0.01]]"},
+    {"jump_linear",
+     "A = [[0.8821, -0.0351], [-0.0351, 0.7347]]\nBu = [[-0.3359], [0.3466]]\nW = [[0.01, 0], [0, 0.01]]\n"
+     "transition = [[0.9, 0.1], [0.3, 0.7]]\n[[plant.mode]]\n[[plant.mode]]\nA = [[0.5, 0.0], [0.1, 0.6]]\n"
+     "W = [[0.05, 0], [0, 0.05]]"},
 };
 
 const std::map<std::string, std::string> kInputs{
@@ -64,6 +74,9 @@ std::string scenario_text(const std::string& plant_kind, const std::string& inpu
   s += "[[link]]\nname = \"net\"\nkind = \"" + link_kind + "\"\n" + kLinks.at(link_kind) + "\n\n";
   s += "[[sensor]]\nC = [[1.0, 0.0]]\nR = [[0.01]]\nlink = \"net\"\n\n";
   s += "[[sensor]]\nC = [[0.0, 1.0]]\nR = [[0.01]]\nlink = \"net\"\n\n";
+  bool modes = false;
+  for (const auto& k : est_kinds) modes = modes || is_mode_kind(k);
+  if (modes) s += "[[actuator]]\nlink = \"net\"\non_loss = \"hold\"\n\n";
   for (const auto& k : est_kinds) {
     s += "[[estimator]]\nname = \"" + k + "\"\nkind = \"" + k + "\"\n" + kEstimators.at(k) + "\n" +
          extra_estimator_key + "\n";
@@ -142,12 +155,16 @@ TEST(Conformance, EveryEstimatorRunsFiniteDeterministicAndBeatsNothingWithoutDat
 TEST(Conformance, EveryKindRejectsAnUnknownKeyWithADidYouMean) {
   TempDir dir;
   for (const auto& k : all_estimators()) {
-    const auto file = write_scenario(dir, scenario_text("lti", "none", "delay", {k}, "max_delayy = 1"));
+    const bool mode = is_mode_kind(k);
+    const auto file = write_scenario(
+        dir, scenario_text("lti", "none", "delay", {k}, mode ? "mode_priorr = \"uniform\"" : "max_delayy = 1"));
     try {
       testing::load_one(file);
       ADD_FAILURE() << k << " accepted an unknown key";
     } catch (const ScenarioError& e) {
-      EXPECT_NE(std::string(e.what()).find("did you mean 'max_delay'"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find(mode ? "did you mean 'mode_prior'" : "did you mean 'max_delay'"),
+                std::string::npos)
+          << e.what();
     }
   }
   for (const auto& l : link_registry().entries()) {

@@ -83,8 +83,8 @@ double rel_dev(double got, double want) {
 // different but equivalent forms (Joseph vs U'U covariance update, logpdf via eigh vs
 // Cholesky). x_prior is not compared: filterpy combines it with the previous mu, not cbar.
 TEST(ImmFilter, MatchesFilterpyTwoModeTrackerStepByStep) {
-  const Csv inputs = read_csv(NCOSIM_SOURCE_DIR "/../shared/peers/imm_filterpy_inputs.csv");
-  const Csv ref = read_csv(NCOSIM_SOURCE_DIR "/../shared/peers/imm_filterpy_output.csv");
+  const Csv inputs = read_csv(NCOSIM_SOURCE_DIR "/tests/data/peers/imm_filterpy_inputs.csv");
+  const Csv ref = read_csv(NCOSIM_SOURCE_DIR "/tests/data/peers/imm_filterpy_output.csv");
   ASSERT_EQ(inputs.rows.size(), 200U) << "peer inputs not found or truncated";
   ASSERT_EQ(ref.rows.size(), 200U) << "peer outputs not found or truncated";
   ImmFilter imm = peer_filter(0.01, 1.0);
@@ -176,7 +176,7 @@ TEST(ImmFilter, MissingMeasurementGivesMuEqualCbarAndPosteriorsEqualPriors) {
 // mixing identical estimates changes nothing: the combined estimate is one Kalman filter of
 // that model. Measurements: the 200 peer z's. Tolerance 1e-12 (rounding in the mixing sums).
 TEST(ImmFilter, IdenticalModesGiveMuEqualCbarAndMatchSingleKalmanFilter) {
-  const Csv inputs = read_csv(NCOSIM_SOURCE_DIR "/../shared/peers/imm_filterpy_inputs.csv");
+  const Csv inputs = read_csv(NCOSIM_SOURCE_DIR "/tests/data/peers/imm_filterpy_inputs.csv");
   ASSERT_EQ(inputs.rows.size(), 200U) << "peer inputs not found or truncated";
   const double q = 0.1;
   ImmFilter imm = peer_filter(q, q);

@@ -30,7 +30,7 @@ Packet packet(int sensor, std::int64_t stamp, const Eigen::VectorXd& y) {
 // step k; here the initial estimate is period 0, so row k is our period k + 1. With
 // max_delay = 0 kalman_extended is exactly that filter.
 TEST(KalmanExtended, MatchesFilterpyIntermittentObservationsStepByStep) {
-  std::ifstream in(testing::source_path("../shared/peers/kf_intermittent_filterpy.csv"));
+  std::ifstream in(testing::source_path("tests/data/peers/kf_intermittent_filterpy.csv"));
   ASSERT_TRUE(in) << "peer vectors not found";
   Model model;
   model.plant.A.resize(2, 2);
