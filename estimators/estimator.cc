@@ -49,6 +49,8 @@ void register_estimators(EstimatorRegistry& registry) {
   register_jump(registry);
   register_kalman_extended(registry);
   register_open_loop(registry);
+  register_kalman_buffer(registry);
+  register_static_buffer(registry);
 }
 
 }  // namespace ncosim::est

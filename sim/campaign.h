@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -23,6 +24,8 @@ struct EstimatorRunMetrics {
   std::int64_t samples_taken = 0;   // samples taken by the sensors
   bool diverged = false;            // a non-finite or > 1e150 error occurred
   std::string status = "ok";        // the estimator's own status at the end of the run
+  // FLOPs spent and packet bookkeeping, for estimators that count them (kalman_buffer).
+  std::optional<est::Estimator::RunCounters> counters;
 };
 
 using RunMetrics = std::vector<EstimatorRunMetrics>;  // one per estimator

@@ -27,6 +27,9 @@ struct SummaryRow {
   std::optional<double> predicted_mse_ext;
   std::optional<double> delivered_ratio;
   std::string status;
+  // After status (appended columns):
+  std::optional<double> predicted_mse;  // the design's analytic mean |x - xhat|^2, where one exists
+  std::optional<double> flops_mean;     // FLOPs per period averaged over every run (kalman_buffer)
 };
 
 // Half-width of the 95% confidence interval of the mean of `values` (Student t, n-1

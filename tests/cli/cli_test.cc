@@ -249,7 +249,7 @@ TEST_F(Cli, UnknownLinkKindListsTheValidKinds) {
 TEST_F(Cli, UnknownEstimatorKindListsTheValidKinds) {
   expect_edit_rejected(
       "kind = \"kalman_extended\"", "kind = \"kalman\"", "estimator[1].kind",
-      {"expected one of \"jump\", \"kalman_extended\", \"open_loop\", got \"kalman\""});
+      {"expected one of \"jump\", \"kalman_extended\", \"open_loop\", \"kalman_buffer\", \"static_buffer\", got \"kalman\""});
 }
 
 TEST_F(Cli, UnknownInputKindListsTheValidKinds) {
@@ -699,7 +699,9 @@ TEST_F(Cli, RunWritesTheContractFilesAndNothingElse) {
                                          "ns_per_period",
                                          "predicted_mse_ext",
                                          "delivered_ratio",
-                                         "status"};
+                                         "status",
+                                         "predicted_mse",
+                                         "flops_mean"};
   EXPECT_EQ(s.header, columns);
   ASSERT_EQ(s.rows.size(), 2u);  // one per estimator, in scenario order
   EXPECT_EQ(s.at(0, "estimator"), "jump S2");

@@ -20,6 +20,8 @@ const std::map<std::string, std::string> kEstimators{
     {"jump", "grouping = \"S3\"\nhistory = 2\nmax_delay = 1"},
     {"kalman_extended", "max_delay = 1"},
     {"open_loop", "max_delay = 1"},
+    {"kalman_buffer", "buffer = 2"},
+    {"static_buffer", "buffer = 2"},
 };
 
 const std::map<std::string, std::string> kLinks{
