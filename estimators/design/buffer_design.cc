@@ -183,7 +183,7 @@ CriticalProbability critical_probability_bisection(const Plant& plant, double to
   cp.upper_bound = 1.0 - 1.0 / prod;
   auto exists = [&](double lambda) {
     ++cp.evaluations;
-    return riccati_fixed_point(p, {lambda}).exists;
+    return riccati_fixed_point(p, {lambda}, 20000).exists;
   };
   if (rho < 1.0) {
     cp.value = 0.0;  // Phi_0 (open loop) already has a fixed point
