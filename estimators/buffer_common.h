@@ -5,7 +5,11 @@
 
 #include <fmt/format.h>
 
+#include <cmath>
+#include <map>
+#include <mutex>
 #include <nlohmann/json.hpp>
+#include <string>
 #include <vector>
 
 #include "estimators/design/buffer_design.h"
@@ -53,14 +57,44 @@ inline buffer::Plant buffer_plant(const Model& model) {
   return p;
 }
 
-// design.json fields of the critical probability (lambda_c of the sensors arriving together).
+// design.json fields of the critical probability (lambda_c of the sensors arriving together), by
+// the SDP of eq. (37) and by bisection on the fixed point of Phi_lambda. `critical_probability`
+// is the SDP value (the bisection value if the SDP failed). Both are cached per plant for the
+// process: a sweep over N designs the same plant many times.
 inline void report_critical_probability(const buffer::Plant& p, nlohmann::json& extra) {
-  const auto cp = buffer::critical_probability_bisection(p);
-  extra["critical_probability"] = cp.value;
-  extra["critical_probability_method"] = "bisection";
-  extra["critical_probability_seconds"] = cp.seconds;
-  extra["critical_probability_bounds"] = {cp.lower_bound, cp.upper_bound};
-  extra["detectable"] = cp.detectable;
+  struct Both {
+    buffer::CriticalProbability sdp, bisection;
+  };
+  static std::mutex mutex;
+  static std::map<std::string, Both> cache;
+  std::string key;
+  auto add = [&key](const Eigen::MatrixXd& m) {
+    key += std::to_string(m.rows()) + "x" + std::to_string(m.cols()) + ":";
+    key.append(reinterpret_cast<const char*>(m.data()), static_cast<std::size_t>(m.size()) * sizeof(double));
+  };
+  add(p.A);
+  for (std::size_t i = 0; i < p.C.size(); ++i) {
+    add(p.C[i]);
+    add(p.R[i]);
+  }
+  Both both;
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    auto it = cache.find(key);
+    if (it == cache.end()) {
+      it = cache.emplace(key, Both{buffer::critical_probability_sdp(p), buffer::critical_probability_bisection(p)}).first;
+    }
+    both = it->second;
+  }
+  const bool sdp_ok = std::isfinite(both.sdp.value);
+  extra["critical_probability"] = sdp_ok ? both.sdp.value : both.bisection.value;
+  extra["critical_probability_method"] = sdp_ok ? "sdp" : "bisection";
+  extra["critical_probability_sdp"] = sdp_ok ? nlohmann::json(both.sdp.value) : nlohmann::json(nullptr);
+  extra["critical_probability_sdp_seconds"] = both.sdp.seconds;
+  extra["critical_probability_bisection"] = both.bisection.value;
+  extra["critical_probability_bisection_seconds"] = both.bisection.seconds;
+  extra["critical_probability_bounds"] = {both.bisection.lower_bound, both.bisection.upper_bound};
+  extra["detectable"] = both.bisection.detectable;
 }
 
 }  // namespace ncosim::est

@@ -98,6 +98,14 @@ StaticGains design_static_gains(const Plant& p, const std::vector<std::vector<do
 std::vector<Eigen::MatrixXd> covariances_of_gains(const Plant& p, const std::vector<std::vector<double>>& lambda,
                                                   const std::vector<Gains>& K);
 
+// The same by the SDP of Schenato's eq. (37) (Sinopoli et al. 2004, Theorem 5): the fixed point
+// exists iff there are Y, Z with 0 <= Y <= I and
+//   Psi_lambda(Y, Z) = [[Y, sqrt(l)(Y A + Z C), sqrt(1-l) Y A], [*, Y, 0], [*, 0, Y]] > 0,
+// decided on CSDP (lmi/lmi.h) as the feasibility of Y >= I, Psi >= I (Psi is homogeneous in (Y, Z)).
+// Bisection on lambda in [lower bound, 1] as above. `evaluations` counts the SDPs solved; a
+// solver failure (other than infeasible) makes value NaN.
+CriticalProbability critical_probability_sdp(const Plant& p, double tolerance = 1e-7);
+
 // The sensors' rows stacked into one sensor (for the critical probability).
 Plant stacked(const Plant& p);
 

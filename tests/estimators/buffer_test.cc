@@ -72,6 +72,39 @@ TEST(BufferDesign, CriticalProbabilityOfTheExamplesAndOfTheCounterexample) {
   EXPECT_EQ(und.value, 1.0);
 }
 
+// Eq. (37) (SDP on CSDP) and the bisection on the fixed point agree to 1e-4: on both examples,
+// on A = diag(2, -2), C = [1 1], and on random systems.
+TEST(BufferDesign, CriticalProbabilityBySdpAgreesWithBisection) {
+  std::vector<buffer::Plant> plants{example(1.0), example(1.2)};
+  buffer::Plant d;
+  d.A = Eigen::Vector2d(2.0, -2.0).asDiagonal();
+  d.Q = Eigen::MatrixXd::Identity(2, 2);
+  d.C = {Eigen::MatrixXd::Ones(1, 2)};
+  d.R = {Eigen::MatrixXd::Identity(1, 1)};
+  plants.push_back(d);
+  std::mt19937_64 gen(37);
+  std::normal_distribution<double> N01(0.0, 1.0);
+  for (int r = 0; r < 8; ++r) {
+    buffer::Plant p;
+    const int n = 2 + r % 2;
+    p.A = Eigen::MatrixXd::NullaryExpr(n, n, [&] { return N01(gen); });
+    p.A *= (0.8 + 0.2 * r) / p.A.eigenvalues().cwiseAbs().maxCoeff();  // rho 0.8 .. 2.2
+    const Eigen::MatrixXd G = Eigen::MatrixXd::NullaryExpr(n, n, [&] { return N01(gen); });
+    p.Q = G * G.transpose() + 0.1 * Eigen::MatrixXd::Identity(n, n);
+    p.C = {Eigen::MatrixXd::NullaryExpr(1, n, [&] { return N01(gen); })};
+    p.R = {Eigen::MatrixXd::Identity(1, 1)};
+    plants.push_back(p);
+  }
+  for (std::size_t i = 0; i < plants.size(); ++i) {
+    const auto bis = buffer::critical_probability_bisection(plants[i]);
+    const auto sdp = buffer::critical_probability_sdp(plants[i]);
+    ASSERT_TRUE(std::isfinite(sdp.value)) << "plant " << i;
+    EXPECT_NEAR(sdp.value, bis.value, 1e-4) << "plant " << i << " A =\n" << plants[i].A;
+    EXPECT_GE(bis.value, bis.lower_bound - 1e-12);
+  }
+  EXPECT_NEAR(buffer::critical_probability_sdp(d).value, 0.9375, 1e-4);
+}
+
 TEST(BufferDesign, StableExactlyForNAbove1MotorAndAbove7Pendulum) {
   for (int N = 1; N <= 16; ++N) {
     EXPECT_EQ(buffer::design_static_gains(example(1.0), {paper_lambda(N)}).stable, N > 1) << "motor N=" << N;
