@@ -10,6 +10,7 @@
 
 #include "estimators/design/buffer_design.h"
 #include "sim/campaign.h"
+#include "sim/output.h"
 #include "sim/registries.h"
 #include "test_util.h"
 
@@ -347,6 +348,35 @@ TEST(StaticBuffer, DesignReportAndStatuses) {
   EXPECT_EQ(a->report().extra["buffer"].get<int>(), 12);
   EXPECT_THROW(make("static_buffer", toml::table{{"max_delay", 1}, {"buffer", 2}}, model), sim::ScenarioError);
   EXPECT_THROW(make("static_buffer", toml::table{{"buffer", 0}}, model), sim::ScenarioError);
+}
+
+// design.json of the committed pendulum scenario: the contract fields and the Schenato fields.
+TEST(StaticBuffer, DesignJsonOfThePendulumScenario) {
+  const auto loaded = sim::load_cases(testing::source_path("scenarios/schenato2008_pendulum.toml"), {});
+  const auto j = sim::design_json(loaded);
+  ASSERT_EQ(j["estimators"].size(), 32u);
+  for (const auto& e : j["estimators"]) {
+    for (const char* f : {"name", "kind", "method", "design_seconds", "stored_gains", "predicted_mse",
+                          "predicted_mse_ext", "stable", "critical_probability", "critical_probability_sdp",
+                          "critical_probability_bisection", "buffer"}) {
+      EXPECT_TRUE(e.contains(f)) << f << " missing in " << e["name"];
+    }
+    EXPECT_NEAR(e["critical_probability"].get<double>(), 1.0 - 1.0 / 1.44, 1e-4);
+    EXPECT_EQ(e["critical_probability_method"], "sdp");
+    const int N = e["buffer"].get<int>();
+    if (e["kind"] == "static_buffer") {
+      EXPECT_EQ(e["stable"].get<bool>(), N > 7) << N;
+      EXPECT_EQ(e["predicted_mse"].is_number(), N > 7) << N;
+      EXPECT_EQ(e["trace_V0"].is_number(), N > 7) << N;
+      EXPECT_TRUE(e["fourth_moment_radius"].is_number());
+      EXPECT_EQ(e["gains"].size(), static_cast<std::size_t>(N));
+    } else {
+      EXPECT_EQ(e["kind"], "kalman_buffer");
+      EXPECT_TRUE(e["stable"].is_null());
+      EXPECT_TRUE(e["predicted_mse"].is_null());
+      EXPECT_NEAR(e["lambda_buffer"][0].get<double>(), 0.05 * std::min(N - 1, 15), 1e-12);
+    }
+  }
 }
 
 }  // namespace
