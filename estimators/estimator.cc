@@ -58,6 +58,8 @@ void register_estimators(EstimatorRegistry& registry) {
   register_imm(registry);
   register_mode_io(registry);
   register_mode_ss(registry);
+  register_kalman_buffer(registry);
+  register_static_buffer(registry);
 }
 
 }  // namespace ncosim::est

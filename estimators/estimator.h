@@ -89,6 +89,16 @@ class Estimator {
   virtual std::optional<int> mode() const { return std::nullopt; }
   // "ok" or why the run's estimate cannot be trusted (e.g. "numerical_failure").
   virtual std::string status() const { return "ok"; }
+  // Work and packet bookkeeping of the run so far, for estimators whose cost varies from
+  // period to period (kalman_buffer); nullptr for the others.
+  struct RunCounters {
+    double flops = 0.0;            // FLOPs spent since period 0 (flops_per_period's formula per step)
+    double flops_worst = 0.0;      // the most spent in one period
+    std::int64_t periods = 0;      // updates done
+    std::int64_t late = 0;         // samples that arrived too late for the buffer: discarded
+    std::int64_t duplicates = 0;   // samples that arrived again: ignored
+  };
+  virtual const RunCounters* counters() const { return nullptr; }
 };
 
 // Offline part, reported in design.json.

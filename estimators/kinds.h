@@ -7,6 +7,8 @@ namespace ncosim::est {
 
 void register_jump(EstimatorRegistry& registry);             // estimators/jump_observer.cc
 void register_kalman_extended(EstimatorRegistry& registry);  // estimators/kalman_extended.cc
+void register_kalman_buffer(EstimatorRegistry& registry);    // estimators/kalman_buffer.cc
+void register_static_buffer(EstimatorRegistry& registry);    // estimators/static_buffer.cc
 void register_open_loop(EstimatorRegistry& registry);        // estimators/open_loop.cc
 void register_imm(EstimatorRegistry& registry);              // estimators/imm.cc
 void register_mode_io(EstimatorRegistry& registry);          // estimators/mode_io.cc

@@ -147,6 +147,7 @@ class RunSimulation {
     queue_.run_until((periods - 1) * period_ns_);
     for (std::size_t e = 0; e < estimators_.size(); ++e) {
       metrics_[e].status = estimators_[e]->status();
+      if (const auto* c = estimators_[e]->counters()) metrics_[e].counters = *c;
       if (precision_lost_ && metrics_[e].status == "ok") metrics_[e].status = "precision_lost";
     }
     return std::move(metrics_);

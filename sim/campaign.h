@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -28,6 +29,8 @@ struct EstimatorRunMetrics {
   std::int64_t mode_count = 0;
   std::int64_t mode_errors = 0;
   std::vector<std::int64_t> confusion;
+  // FLOPs spent and packet bookkeeping, for estimators that count them (kalman_buffer).
+  std::optional<est::Estimator::RunCounters> counters;
 };
 
 inline constexpr int kMaxConfusionModes = 64;

@@ -57,12 +57,17 @@ std::vector<SummaryRow> summarise(const Scenario& sc, const CampaignResult& resu
     std::vector<std::vector<double>> root(static_cast<std::size_t>(n));
     std::vector<double> state_sse(static_cast<std::size_t>(n), 0.0);
     std::int64_t count = 0, used = 0, taken = 0, diverged = 0;
+    double flops = 0.0, flop_periods = 0.0;
     const std::string design_status = rep.status == "ok" ? "ok" : "design_" + rep.status;
     std::string run_status = "ok";  // the first non-ok status of a run that did not diverge
     for (const auto& run : result.runs) {
       const EstimatorRunMetrics& m = run[e];
       used += m.samples_used;
       taken += m.samples_taken;
+      if (m.counters) {
+        flops += m.counters->flops;
+        flop_periods += static_cast<double>(m.counters->periods);
+      }
       if (m.diverged) {
         ++diverged;
         continue;
@@ -113,6 +118,8 @@ std::vector<SummaryRow> summarise(const Scenario& sc, const CampaignResult& resu
     row.predicted_mse_ext = rep.predicted_mse_ext;
     if (taken > 0) row.delivered_ratio = static_cast<double>(used) / static_cast<double>(taken);
     row.status = status;
+    row.predicted_mse = rep.predicted_mse;
+    if (flop_periods > 0) row.flops_mean = flops / flop_periods;
     rows.push_back(std::move(row));
   }
   return rows;
@@ -139,7 +146,7 @@ std::vector<std::string> summary_columns(const std::vector<SweepAxis>& sweeps, E
   for (const char* c : {"estimator", "kind", "runs", "mse", "mse_ci95", "mse_ext", "mse_ext_ci95"}) cols.push_back(c);
   for (Eigen::Index i = 0; i < n; ++i) cols.push_back(fmt::format("rmse_x{}", i + 1));
   for (const char* c : {"mde_percent", "flops_per_period", "stored_gains", "ns_per_period", "predicted_mse_ext",
-                        "delivered_ratio", "status", "mde_ci95"}) {
+                        "delivered_ratio", "status", "predicted_mse", "flops_mean", "mde_ci95"}) {
     cols.push_back(c);
   }
   for (Eigen::Index i = 0; i < n; ++i) cols.push_back(fmt::format("ermse_x{}", i + 1));
@@ -166,6 +173,8 @@ std::vector<std::string> row_cells(const SummaryRow& r) {
   cells.push_back(fmt_number(r.predicted_mse_ext));
   cells.push_back(fmt_number(r.delivered_ratio));
   cells.push_back(r.status);
+  cells.push_back(fmt_number(r.predicted_mse));
+  cells.push_back(r.flops_mean ? fmt::format("{:.0f}", *r.flops_mean) : "");
   cells.push_back(fmt_number(r.mde_ci95));
   for (const auto& v : r.ermse) cells.push_back(fmt_number(v));
   for (const auto& v : r.ermse_ci95) cells.push_back(fmt_number(v));
@@ -280,7 +289,8 @@ std::string runs_csv(const std::vector<SweepAxis>& sweeps, const std::vector<std
   std::string out;
   for (const auto& s : sweeps) out += csv_field(s.key) + ",";
   const Eigen::Index n = scenarios.empty() ? 0 : scenarios.front()->model.plant.n();
-  out += "run,estimator,mse,mse_ext,periods,samples_used,samples_taken,diverged,status,mde_percent";
+  out += "run,estimator,mse,mse_ext,periods,samples_used,samples_taken,diverged,status,flops_mean,late_samples,"
+         "duplicate_samples,mde_percent";
   for (Eigen::Index i = 0; i < n; ++i) out += fmt::format(",rmse_x{}", i + 1);
   out += "\n";
   for (std::size_t c = 0; c < scenarios.size(); ++c) {
@@ -291,10 +301,13 @@ std::string runs_csv(const std::vector<SweepAxis>& sweeps, const std::vector<std
         for (const auto& l : labels[c]) out += csv_field(l) + ",";
         const bool has_ext = sc.estimators[e].design->extended_size() > 0;
         const bool ok = !m.diverged && m.count > 0;
-        out += fmt::format("{},{},{},{},{},{},{},{},{}", r, csv_field(sc.estimators[e].name),
+        const auto& cnt = m.counters;
+        out += fmt::format("{},{},{},{},{},{},{},{},{},{},{},{}", r, csv_field(sc.estimators[e].name),
                            ok ? fmt_number(m.sse / static_cast<double>(m.count)) : "",
                            ok && has_ext ? fmt_number(m.sse_ext / static_cast<double>(m.count)) : "", m.count,
-                           m.samples_used, m.samples_taken, m.diverged ? 1 : 0, m.status);
+                           m.samples_used, m.samples_taken, m.diverged ? 1 : 0, m.status,
+                           cnt && cnt->periods > 0 ? fmt::format("{:.0f}", cnt->flops / static_cast<double>(cnt->periods)) : "",
+                           cnt ? std::to_string(cnt->late) : "", cnt ? std::to_string(cnt->duplicates) : "");
         out += "," + (m.mode_count > 0 ? fmt_number(100.0 * static_cast<double>(m.mode_errors) /
                                                      static_cast<double>(m.mode_count))
                                         : std::string());

@@ -33,6 +33,9 @@ struct SummaryRow {
   std::optional<double> mde_run_min, mde_run_max;        // spread of the per-run MDE
   std::vector<std::int64_t> confusion;                   // s x s, summed over runs
   int modes = 0;
+  // After status (appended columns):
+  std::optional<double> predicted_mse;  // the design's analytic mean |x - xhat|^2, where one exists
+  std::optional<double> flops_mean;     // FLOPs per period averaged over every run (kalman_buffer)
 };
 
 // Half-width of the 95% confidence interval of the mean of `values` (Student t, n-1

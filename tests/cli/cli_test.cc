@@ -249,7 +249,7 @@ TEST_F(Cli, UnknownLinkKindListsTheValidKinds) {
 TEST_F(Cli, UnknownEstimatorKindListsTheValidKinds) {
   expect_edit_rejected(
       "kind = \"kalman_extended\"", "kind = \"kalman\"", "estimator[1].kind",
-      {"expected one of \"jump\", \"kalman_extended\", \"open_loop\", \"imm\", \"mode_io\", \"mode_ss\", got \"kalman\""});
+      {"expected one of \"jump\", \"kalman_extended\", \"open_loop\", \"imm\", \"mode_io\", \"mode_ss\", \"kalman_buffer\", \"static_buffer\", got \"kalman\""});
 }
 
 TEST_F(Cli, UnknownInputKindListsTheValidKinds) {
@@ -700,6 +700,8 @@ TEST_F(Cli, RunWritesTheContractFilesAndNothingElse) {
                                          "predicted_mse_ext",
                                          "delivered_ratio",
                                          "status",
+                                         "predicted_mse",
+                                         "flops_mean",
                                          "mde_ci95",
                                          "ermse_x1",
                                          "ermse_x2",

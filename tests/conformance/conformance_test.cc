@@ -23,6 +23,8 @@ const std::map<std::string, std::string> kEstimators{
     {"imm", "mode_prior = \"stationary\""},
     {"mode_io", "mode_prior = \"uniform\"\nstartup = \"prior_mean\""},
     {"mode_ss", "mode_prior = \"uniform\""},
+    {"kalman_buffer", "buffer = 2"},
+    {"static_buffer", "buffer = 2"},
 };
 
 // Mode estimators need modes: their scenarios get an [[actuator]] on the same link kind.

@@ -1,0 +1,100 @@
+// estimators/buffer_common.h — what kalman_buffer and static_buffer share: the `buffer` key,
+// the arrival probabilities lambda_h = P[delay <= h] of each sensor, the plant in the form of
+// estimators/design/buffer_design.h, and the critical probability fields of design.json.
+#pragma once
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <map>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "estimators/design/buffer_design.h"
+#include "estimators/estimator.h"
+
+namespace ncosim::est {
+
+// `buffer` = N >= 1: samples with delay 0 .. N-1 are used, older ones discarded. `max_delay`
+// = N - 1 is accepted instead (the key of the delay-extended estimators); not both.
+inline int read_buffer(const sim::Table& t) {
+  t.allow("buffer");
+  t.allow("max_delay");
+  if (t.has("max_delay")) {
+    if (t.has("buffer")) t.fail("max_delay", "expected either buffer or max_delay (= buffer - 1), got both");
+    const auto d = t.integer_or("max_delay", 0);
+    if (d < 0 || d > 999) t.fail("max_delay", fmt::format("expected an integer in 0..999, got {}", d));
+    return static_cast<int>(d) + 1;
+  }
+  const auto n = t.integer_or("buffer", 1);
+  if (n < 1 || n > 1000) t.fail("buffer", fmt::format("expected an integer in 1..1000, got {}", n));
+  return static_cast<int>(n);
+}
+
+// lambda[i][h] = P[a sample of sensor i arrives with delay <= h], h = 0 .. N-1.
+inline std::vector<std::vector<double>> arrival_probabilities(const Model& model, int N) {
+  std::vector<std::vector<double>> out;
+  for (const auto& s : model.sensors) {
+    const auto pmf = s.delay_pmf(N - 1);
+    std::vector<double> cdf(pmf.size());
+    double acc = 0.0;
+    for (std::size_t h = 0; h < pmf.size(); ++h) cdf[h] = std::min(1.0, acc += pmf[h]);
+    out.push_back(std::move(cdf));
+  }
+  return out;
+}
+
+inline buffer::Plant buffer_plant(const Model& model) {
+  buffer::Plant p;
+  p.A = model.plant.A;
+  p.Q = model.plant.Bw * model.plant.W * model.plant.Bw.transpose();
+  for (const auto& s : model.sensors) {
+    p.C.push_back(s.spec.C);
+    p.R.push_back(s.spec.R);
+  }
+  return p;
+}
+
+// design.json fields of the critical probability (lambda_c of the sensors arriving together), by
+// the SDP of eq. (37) and by bisection on the fixed point of Phi_lambda. `critical_probability`
+// is the SDP value (the bisection value if the SDP failed). Both are cached per plant for the
+// process: a sweep over N designs the same plant many times.
+inline void report_critical_probability(const buffer::Plant& p, nlohmann::json& extra) {
+  struct Both {
+    buffer::CriticalProbability sdp, bisection;
+  };
+  static std::mutex mutex;
+  static std::map<std::string, Both> cache;
+  std::string key;
+  auto add = [&key](const Eigen::MatrixXd& m) {
+    key += std::to_string(m.rows()) + "x" + std::to_string(m.cols()) + ":";
+    key.append(reinterpret_cast<const char*>(m.data()), static_cast<std::size_t>(m.size()) * sizeof(double));
+  };
+  add(p.A);
+  for (std::size_t i = 0; i < p.C.size(); ++i) {
+    add(p.C[i]);
+    add(p.R[i]);
+  }
+  Both both;
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    auto it = cache.find(key);
+    if (it == cache.end()) {
+      it = cache.emplace(key, Both{buffer::critical_probability_sdp(p), buffer::critical_probability_bisection(p)}).first;
+    }
+    both = it->second;
+  }
+  const bool sdp_ok = std::isfinite(both.sdp.value);
+  extra["critical_probability"] = sdp_ok ? both.sdp.value : both.bisection.value;
+  extra["critical_probability_method"] = sdp_ok ? "sdp" : "bisection";
+  extra["critical_probability_sdp"] = sdp_ok ? nlohmann::json(both.sdp.value) : nlohmann::json(nullptr);
+  extra["critical_probability_sdp_seconds"] = both.sdp.seconds;
+  extra["critical_probability_bisection"] = both.bisection.value;
+  extra["critical_probability_bisection_seconds"] = both.bisection.seconds;
+  extra["critical_probability_bounds"] = {both.bisection.lower_bound, both.bisection.upper_bound};
+  extra["detectable"] = both.bisection.detectable;
+}
+
+}  // namespace ncosim::est
