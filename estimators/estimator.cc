@@ -49,6 +49,7 @@ void register_estimators(EstimatorRegistry& registry) {
   register_jump(registry);
   register_kalman_extended(registry);
   register_open_loop(registry);
+  register_sod_kalman(registry);
 }
 
 }  // namespace ncosim::est

@@ -8,5 +8,6 @@ namespace ncosim::est {
 void register_jump(EstimatorRegistry& registry);             // estimators/jump_observer.cc
 void register_kalman_extended(EstimatorRegistry& registry);  // estimators/kalman_extended.cc
 void register_open_loop(EstimatorRegistry& registry);        // estimators/open_loop.cc
+void register_sod_kalman(EstimatorRegistry& registry);       // estimators/sod_kalman.cc
 
 }  // namespace ncosim::est

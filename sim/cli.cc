@@ -107,6 +107,7 @@ int cmd_run(const CommonArgs& a, int threads, bool trace, bool quiet, const std:
       {"summary.csv", summary_csv(loaded.sweeps, rows, n)},
       {"summary.md", md},
       {"runs.csv", runs_csv(loaded.sweeps, labels, scs, res)},
+      {"transmissions.csv", transmissions_csv(loaded.sweeps, labels, scs, res)},
       {"design.json", design_json(loaded).dump(2) + "\n"},
       {"manifest.json", manifest(loaded, command_line, used_threads, wall).dump(2) + "\n"},
   };

@@ -27,6 +27,7 @@ struct SummaryRow {
   std::optional<double> predicted_mse_ext;
   std::optional<double> delivered_ratio;
   std::string status;
+  std::optional<double> sent_per_period;  // packets sent by all sensors per period (k >= warmup)
 };
 
 // Half-width of the 95% confidence interval of the mean of `values` (Student t, n-1
@@ -43,6 +44,11 @@ std::string summary_markdown(const std::string& title, const std::vector<SweepAx
 std::string runs_csv(const std::vector<SweepAxis>& sweeps, const std::vector<std::vector<std::string>>& labels,
                      const std::vector<const Scenario*>& scenarios, const std::vector<const CampaignResult*>& results);
 nlohmann::json design_json(const LoadedScenario& loaded);
+// Per case and sensor: samples taken and sent, the send ratio (beta) and per output the RMS of
+// the virtual noise m - y (send-on-delta). Averaged over the runs.
+std::string transmissions_csv(const std::vector<SweepAxis>& sweeps, const std::vector<std::vector<std::string>>& labels,
+                              const std::vector<const Scenario*>& scenarios,
+                              const std::vector<const CampaignResult*>& results);
 std::string trajectory_csv(const Scenario& sc, const std::vector<TraceRow>& trace);
 
 // Writes every (name, content) into `dir` atomically: all to temporary files first, then
