@@ -3,7 +3,11 @@
 // comparison of the send-on-delta co-design paper (example 5.1): every period it updates with
 // the held measurement vector m; an output whose sensor did not send this period gets the
 // extra "virtual noise" variance factor * delta_i^2 (factor 1/3: delta uniform on
-// [-delta_i, delta_i]) on top of its noise variance R. Outputs never received are skipped.
+// [-delta_i, delta_i]) on top of its noise variance R. Outputs never received are skipped, and
+// so are the held values of periodic sensors (no threshold) that did not deliver this period:
+// with periodic sensors the filter is the Kalman filter with intermittent observations. A
+// send-on-delta sensor's silence is read as "within delta": the filter assumes its link
+// delivers every sent sample in the period it is sent.
 #include <Eigen/Cholesky>
 #include <fmt/format.h>
 
@@ -17,6 +21,7 @@ namespace {
 struct SodKalmanParams {
   Eigen::MatrixXd A, Q, C, R;  // Q = Bw W Bw' (the filter's W)
   Eigen::VectorXd virtual_var;  // factor * delta^2 per stacked output
+  std::vector<bool> send_on_delta;  // per sensor
   InitialEstimate init;
 };
 
@@ -35,7 +40,7 @@ class SodKalman final : public Estimator {
     hold_.clear_pattern();
     rows_.clear();
     for (std::size_t s = 0; s < hold_.sensors(); ++s) {
-      if (!hold_.ever(s)) continue;
+      if (!use(s, fresh)) continue;
       for (Eigen::Index i = 0; i < hold_.ny(s); ++i) rows_.push_back(hold_.offset(s) + i);
     }
     const auto m = static_cast<Eigen::Index>(rows_.size());
@@ -51,7 +56,7 @@ class SodKalman final : public Estimator {
     // Virtual noise on the outputs of the sensors that did not send this period.
     Eigen::Index row = 0;
     for (std::size_t s = 0; s < hold_.sensors(); ++s) {
-      if (!hold_.ever(s)) continue;
+      if (!use(s, fresh)) continue;
       const bool sent = (fresh >> s) & 1U;
       for (Eigen::Index i = 0; i < hold_.ny(s); ++i, ++row) {
         if (!sent) Rs(row, row) += p_.virtual_var(hold_.offset(s) + i);
@@ -78,6 +83,13 @@ class SodKalman final : public Estimator {
   std::string status() const override { return failed_ ? "numerical_failure" : "ok"; }
 
  private:
+  // Sensor s takes part in this period's update: a fresh sample, or a held value of a
+  // send-on-delta sensor.
+  bool use(std::size_t s, std::uint64_t fresh) const {
+    if ((fresh >> s) & 1U) return true;
+    return hold_.ever(s) && p_.send_on_delta[s];
+  }
+
   const SodKalmanParams& p_;
   SodHold hold_;
   Eigen::VectorXd x_;
@@ -145,6 +157,7 @@ std::unique_ptr<EstimatorDesign> read_sod_kalman(const sim::Table& t, const Mode
   }
   p.virtual_var = factor * delta.cwiseProduct(delta);
   p.init = read_initial(t, model);
+  for (const auto& sm : model.sensors) p.send_on_delta.push_back(sm.spec.policy == models::SensorSpec::Policy::kSendOnDelta);
   return std::make_unique<SodKalmanDesign>(std::move(p), model, factor);
 }
 

@@ -72,16 +72,29 @@ class RelayDesign final : public ControllerDesign {
  public:
   RelayDesign(RelayParams p, Eigen::Index nu) : p_(std::move(p)), nu_(nu) {}
   void bind(const sim::Table& t, const std::vector<SensorSpec>& sensors) override {
-    p_.channels.clear();
+    std::vector<std::pair<std::size_t, Eigen::Index>> all;  // stacked outputs
     for (std::size_t s = 0; s < sensors.size(); ++s) {
-      for (Eigen::Index i = 0; i < sensors[s].ny(); ++i) p_.channels.emplace_back(s, i);
+      for (Eigen::Index i = 0; i < sensors[s].ny(); ++i) all.emplace_back(s, i);
     }
-    if (static_cast<Eigen::Index>(p_.channels.size()) != nu_) {
-      t.fail("kind", fmt::format("expected as many sensor outputs as plant inputs for a relay (output i drives "
-                                 "input i), got {} outputs and {} inputs",
-                                 p_.channels.size(), nu_));
+    p_.channels.clear();
+    if (outputs_.empty()) {
+      if (static_cast<Eigen::Index>(all.size()) != nu_) {
+        t.fail("kind", fmt::format("expected as many sensor outputs as plant inputs for a relay (output i drives "
+                                   "input i; or set outputs), got {} outputs and {} inputs",
+                                   all.size(), nu_));
+      }
+      p_.channels = all;
+      return;
+    }
+    for (const auto o : outputs_) {
+      if (o < 0 || o >= static_cast<std::int64_t>(all.size())) {
+        t.fail("outputs", fmt::format("expected output indices in 0..{} (the sensors' outputs stacked), got {}",
+                                      all.size() - 1, o));
+      }
+      p_.channels.push_back(all[static_cast<std::size_t>(o)]);
     }
   }
+  std::vector<std::int64_t> outputs_;
   std::unique_ptr<Controller> instantiate() const override { return std::make_unique<Relay>(p_); }
 
  private:
@@ -189,7 +202,17 @@ std::shared_ptr<ControllerDesign> read_relay(const sim::Table& t, Eigen::Index n
   if (p.dead_zone < 0.0) t.fail("dead_zone", fmt::format("expected a dead zone >= 0, got {}", p.dead_zone));
   std::string unused;
   p.sees = read_signal(t, "sees", "measured", false, &unused);
-  return std::make_shared<RelayDesign>(std::move(p), nu);
+  auto design = std::make_shared<RelayDesign>(std::move(p), nu);
+  if (t.has("outputs")) {
+    for (const double v : t.numbers("outputs")) {
+      if (v != std::floor(v)) t.fail("outputs", fmt::format("expected integer output indices, got {}", v));
+      design->outputs_.push_back(static_cast<std::int64_t>(v));
+    }
+    if (static_cast<Eigen::Index>(design->outputs_.size()) != nu) {
+      t.fail("outputs", fmt::format("expected {} output indices (one per plant input), got {}", nu, design->outputs_.size()));
+    }
+  }
+  return design;
 }
 
 std::shared_ptr<ControllerDesign> read_pi(const sim::Table& t, Eigen::Index nu) {

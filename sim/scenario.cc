@@ -318,10 +318,19 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
   const bool unstable = sc->model.plant.spectral_radius() >= 1.0;
   const bool feedback = sc->input.kind == models::InputSpec::Kind::kStateFeedback ||
                         sc->input.kind == models::InputSpec::Kind::kController;
+  // Send-on-delta sensors decide on the output itself: re-centring would change what they send.
+  bool send_on_delta = false;
+  for (const auto& sm : sc->model.sensors) {
+    send_on_delta = send_on_delta || sm.spec.policy == models::SensorSpec::Policy::kSendOnDelta;
+  }
   if (sc->run.recentre == "always") {
     sc->recentre = true;
+    if (send_on_delta) {
+      root.table("run").fail("recentre", "expected \"auto\" or \"never\" with send-on-delta sensors (they would "
+                                         "decide on re-centred outputs), got \"always\"");
+    }
   } else if (sc->run.recentre == "auto") {
-    sc->recentre = unstable && !feedback;
+    sc->recentre = unstable && !feedback && !send_on_delta;
   }
   if (sc->recentre && feedback && sc->input.source_index >= 0) {
     root.table("run").fail(

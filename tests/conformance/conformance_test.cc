@@ -20,6 +20,12 @@ const std::map<std::string, std::string> kEstimators{
     {"jump", "grouping = \"S3\"\nhistory = 2\nmax_delay = 1"},
     {"kalman_extended", "max_delay = 1"},
     {"open_loop", "max_delay = 1"},
+    {"sod_kalman", "W = 0.01\nvirtual_variance_factor = 0.3333"},
+};
+
+// Kinds without max_delay: the misspelt key of the unknown-key test, and its correct spelling.
+const std::map<std::string, std::pair<std::string, std::string>> kMisspelt{
+    {"sod_kalman", {"virtual_variance_factr = 0.3", "virtual_variance_factor"}},
 };
 
 const std::map<std::string, std::string> kLinks{
@@ -35,12 +41,15 @@ const std::map<std::string, std::string> kLinks{
 const std::map<std::string, std::string> kPlants{
     {"lti", "A = [[0.8821, -0.0351], [-0.0351, 0.7347]]\nBu = [[-0.3359], [0.3466]]\nW = [[0.01, 0], [0, 0.01]]"},
     {"lti_continuous", "Ac = [[-0.1, 1.0], [0.0, -0.3]]\nBc = [[0.0], [1.0]]\nWc = [[0.01, 0], [0, 0.01]]"},
+    {"transfer_function", "num = [1.0]\nden = [1.0, 0.5, 0.1]\nW = 0.01"},
 };
 
 const std::map<std::string, std::string> kInputs{
     {"none", ""},
     {"white", "std = 1.0"},
     {"state_feedback", "K = [[0.1, 0.1]]\nsource = \"plant\""},
+    {"relay", "level = 0.5\ndead_zone = 0.2\noutputs = [0]\nsees = \"measured\""},
+    {"pi", "kp = 0.1\nki = 0.05\nb = 0.7\nu_min = -1.0\nu_max = 1.0\nreference = {kind = \"square\", low = 0.0, high = 1.0, period = 50.0}"},
 };
 
 struct TempDir {
@@ -142,12 +151,13 @@ TEST(Conformance, EveryEstimatorRunsFiniteDeterministicAndBeatsNothingWithoutDat
 TEST(Conformance, EveryKindRejectsAnUnknownKeyWithADidYouMean) {
   TempDir dir;
   for (const auto& k : all_estimators()) {
-    const auto file = write_scenario(dir, scenario_text("lti", "none", "delay", {k}, "max_delayy = 1"));
+    const auto bad = kMisspelt.count(k) ? kMisspelt.at(k) : std::make_pair(std::string("max_delayy = 1"), std::string("max_delay"));
+    const auto file = write_scenario(dir, scenario_text("lti", "none", "delay", {k}, bad.first));
     try {
       testing::load_one(file);
       ADD_FAILURE() << k << " accepted an unknown key";
     } catch (const ScenarioError& e) {
-      EXPECT_NE(std::string(e.what()).find("did you mean 'max_delay'"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("did you mean '" + bad.second + "'"), std::string::npos) << e.what();
     }
   }
   for (const auto& l : link_registry().entries()) {
