@@ -50,6 +50,7 @@ void register_estimators(EstimatorRegistry& registry) {
   register_kalman_extended(registry);
   register_open_loop(registry);
   register_sod_kalman(registry);
+  register_sod_jump(registry);
 }
 
 }  // namespace ncosim::est

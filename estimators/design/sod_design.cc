@@ -1,6 +1,6 @@
 // estimators/design/sod_design.cc — LMIs (11) and (20) of the send-on-delta paper, z~0 and
 // the greedy co-design.
-#include "sod_design.h"
+#include "estimators/design/sod_design.h"
 
 #include <chrono>
 #include <cmath>
