@@ -142,7 +142,12 @@ std::unique_ptr<EstimatorDesign> read_sod_jump(const sim::Table& t, const Model&
   if (model.sensors.size() > 6) {
     t.fail("kind", fmt::format("expected at most 6 sensors (2^ns gains and (2^ns)^2 LMIs), got {}", model.sensors.size()));
   }
-  sys.Cz = t.has("Cz") ? t.matrix("Cz") : MatrixXd::Identity(n, n);
+  if (t.is_string("Cz")) {
+    t.choice_or("Cz", "output", {"output"});
+    sys.Cz = sys.C;  // the signal of interest is the measured output (the paper's example 5.2)
+  } else {
+    sys.Cz = t.has("Cz") ? t.matrix("Cz") : MatrixXd::Identity(n, n);
+  }
   if (sys.Cz.cols() != n) t.fail("Cz", fmt::format("expected {} columns (the state size), got {}", n, sys.Cz.cols()));
   sys.w_rms = t.number("w_rms");
   if (!(sys.w_rms >= 0.0) || !std::isfinite(sys.w_rms)) t.fail("w_rms", "expected ||w||_RMS >= 0");

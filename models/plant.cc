@@ -91,6 +91,21 @@ LinearPlant discretise_transfer_function(const std::vector<double>& num, const s
   Eigen::RowVectorXd Cc = Eigen::RowVectorXd::Zero(m);
   const auto nn = static_cast<Eigen::Index>(num.size());
   for (Eigen::Index j = 0; j < nn; ++j) Cc(j) = num[static_cast<std::size_t>(nn - 1 - j)] / a0;
+  // Scaling (x~_j = x_j omega^j / k, omega the geometric mean of the pole magnitudes): the
+  // canonical states are successive derivatives and differ by powers of omega; scaled, the
+  // largest output coefficient is 1 and the model is well conditioned for the LMI designs.
+  const double omega = std::pow(std::abs(den.back() / a0), 1.0 / static_cast<double>(m));
+  if (std::isfinite(omega) && omega > 0.0) {
+    Eigen::VectorXd s(m);
+    for (Eigen::Index j = 0; j < m; ++j) s(j) = std::pow(omega, -static_cast<double>(j));
+    const double k = (Cc.transpose().array() / s.array()).abs().maxCoeff();
+    if (k > 0.0 && std::isfinite(k)) {
+      s *= k;  // x~ = S x, S = diag(s)
+      Ac = s.asDiagonal() * Ac * s.cwiseInverse().asDiagonal();
+      Bc = s.asDiagonal() * Bc;
+      Cc = Cc * s.cwiseInverse().asDiagonal();
+    }
+  }
   // int_0^s e^{Ac r} dr Bc and e^{Ac s} from one block exponential.
   auto zoh = [&](double s, Eigen::MatrixXd& Phi, Eigen::VectorXd& Gamma) {
     Eigen::MatrixXd M = Eigen::MatrixXd::Zero(m + 1, m + 1);

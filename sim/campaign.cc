@@ -381,6 +381,10 @@ class RunSimulation {
       }
       row.arrivals = arrivals_;
       row.u.assign(u_.data(), u_.data() + u_.size());
+      for (const auto& sm : sc_.model.sensors) {
+        const Eigen::VectorXd y = sm.spec.C * x_;
+        row.y.insert(row.y.end(), y.data(), y.data() + y.size());
+      }
       row.reference = reference_;
       trace_->push_back(std::move(row));
     }

@@ -39,6 +39,7 @@ struct TraceRow {
   std::vector<std::vector<double>> xhat;    // per estimator
   std::vector<int> arrivals;                // packets delivered this period, per sensor
   std::vector<double> u;                    // input computed at this period (nu)
+  std::vector<double> y;                    // true sensor outputs C x, stacked over the sensors
   double reference = 0.0;                   // controller reference (NaN when none)
 };
 

@@ -328,6 +328,11 @@ std::string trajectory_csv(const Scenario& sc, const std::vector<TraceRow>& trac
   }
   for (const auto& s : sc.model.sensors) out += "," + csv_field(fmt::format("arrived:{}", s.spec.name));
   for (Eigen::Index j = 0; j < sc.model.plant.nu(); ++j) out += fmt::format(",u{}", j + 1);
+  for (const auto& s : sc.model.sensors) {
+    for (Eigen::Index i = 0; i < s.spec.ny(); ++i) {
+      out += "," + csv_field(s.spec.ny() == 1 ? fmt::format("y:{}", s.spec.name) : fmt::format("y:{}:{}", s.spec.name, i + 1));
+    }
+  }
   const bool has_reference = sc.input.kind == models::InputSpec::Kind::kController;
   if (has_reference) out += ",reference";
   out += "\n";
@@ -339,6 +344,7 @@ std::string trajectory_csv(const Scenario& sc, const std::vector<TraceRow>& trac
     }
     for (int a : r.arrivals) out += fmt::format(",{}", a);
     for (double v : r.u) out += fmt::format(",{:.9g}", v);
+    for (double v : r.y) out += fmt::format(",{:.9g}", v);
     if (has_reference) out += "," + fmt_number(r.reference);
     out += "\n";
   }
