@@ -1,4 +1,6 @@
-// estimators/sod_jump.cc — the send-on-delta jump observer and its reader.
+// estimators/sod_jump.cc — the send-on-delta jump observer and its reader. Periodic sensors are
+// allowed (jump gain, deterministic design): in the patterns where they did not deliver, their
+// gain columns are 0, so a stale held value is never used.
 #include "estimators/sod_jump.h"
 
 #include <fmt/format.h>
@@ -137,7 +139,13 @@ std::unique_ptr<EstimatorDesign> read_sod_jump(const sim::Table& t, const Model&
   sys.A = model.plant.A;
   sys.Bw = model.plant.Bw;
   sys.sensor_rows.push_back(0);
-  for (const auto& s : model.sensors) sys.sensor_rows.push_back(sys.sensor_rows.back() + s.spec.ny());
+  bool all_sod = true;
+  for (const auto& s : model.sensors) {
+    sys.sensor_rows.push_back(sys.sensor_rows.back() + s.spec.ny());
+    const bool sod = s.spec.policy == models::SensorSpec::Policy::kSendOnDelta;
+    sys.send_on_delta.push_back(sod);
+    all_sod = all_sod && sod;
+  }
   const Eigen::Index ny = sys.ny(), n = sys.A.rows();
   if (model.sensors.size() > 6) {
     t.fail("kind", fmt::format("expected at most 6 sensors (2^ns gains and (2^ns)^2 LMIs), got {}", model.sensors.size()));
@@ -157,6 +165,10 @@ std::unique_ptr<EstimatorDesign> read_sod_jump(const sim::Table& t, const Model&
   const std::string approach = t.choice_or("design", "deterministic", {"deterministic", "stochastic"});
   spec.approach = approach == "deterministic" ? sod::Approach::kDeterministic : sod::Approach::kStochastic;
   spec.jump = t.choice_or("gain", "jump", {"jump", "constant"}) == "jump";
+  if (!spec.jump && !all_sod) {
+    t.fail("gain", "expected gain = \"jump\" with periodic sensors (a constant gain would use their stale held "
+                   "values), got \"constant\"");
+  }
   VectorXd delta = t.has("delta") ? per_output(t, "delta", ny) : stacked_delta(model);
 
   CodesignKeys cd;
@@ -172,6 +184,7 @@ std::unique_ptr<EstimatorDesign> read_sod_jump(const sim::Table& t, const Model&
     // The deterministic co-design weights g_i = r_i (35) when given.
     cd.r = t.has("r") ? per_output(t, "r", ny) : VectorXd::Ones(ny);
   } else {
+    if (!all_sod) t.fail("design", "expected send_on_delta sensors only for the stochastic design");
     if (static_cast<Eigen::Index>(model.sensors.size()) != ny) {
       t.fail("design", "expected one output per sensor for the stochastic design (beta is per output)");
     }

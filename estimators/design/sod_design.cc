@@ -62,20 +62,42 @@ lmi::Expr symmetric_from_lower(const std::vector<std::vector<lmi::Expr>>& lower)
 }
 
 struct Vars {
-  std::vector<lmi::Var> Q, X, P;
+  std::vector<lmi::Var> Q, P;
+  std::vector<lmi::Expr> X;
   lmi::Var gw;
   std::vector<lmi::Var> gv, gd;
 };
 
 Vars make_vars(lmi::Problem& prob, const SodSystem& sys, std::size_t patterns, bool jump, std::size_t nP,
-               bool with_delta) {
+               bool with_delta, bool all_delivered = false) {
   const int n = static_cast<int>(sys.A.rows());
   const int ny = static_cast<int>(sys.ny());
   Vars v;
   for (std::size_t j = 0; j < patterns; ++j) {
     if (jump || j == 0) {
       v.Q.push_back(prob.full(n, n, "Q" + std::to_string(j)));
-      v.X.push_back(prob.full(n, ny, "X" + std::to_string(j)));
+      // Gain columns of a periodic sensor that did not deliver in pattern j are 0.
+      const Eigen::VectorXd eta = sys.eta(static_cast<unsigned>(j));
+      std::vector<bool> live(static_cast<std::size_t>(ny), true);
+      bool all = true;
+      for (Eigen::Index s = 0; s < sys.ns(); ++s) {
+        const bool sod = sys.send_on_delta.empty() || sys.send_on_delta[static_cast<std::size_t>(s)];
+        for (Eigen::Index i = sys.sensor_rows[static_cast<std::size_t>(s)]; i < sys.sensor_rows[static_cast<std::size_t>(s) + 1]; ++i) {
+          live[static_cast<std::size_t>(i)] = sod || eta(i) > 0.5;
+          all = all && live[static_cast<std::size_t>(i)];
+        }
+      }
+      if (all || !jump || all_delivered) {
+        v.X.emplace_back(prob.full(n, ny, "X" + std::to_string(j)));
+      } else {
+        lmi::Expr X = MatrixXd::Zero(n, ny);
+        for (int i = 0; i < ny; ++i) {
+          if (!live[static_cast<std::size_t>(i)]) continue;
+          const MatrixXd ei = MatrixXd::Identity(ny, ny).row(i);
+          X += prob.full(n, 1, "X" + std::to_string(j) + "_" + std::to_string(i)) * ei;
+        }
+        v.X.push_back(X);
+      }
     } else {
       v.Q.push_back(v.Q.front());
       v.X.push_back(v.X.front());
@@ -144,9 +166,9 @@ SodDesignResult design_sod(const SodSystem& sys, const SodDesignSpec& spec) {
     const lmi::Expr qxc = lmi::Expr(v.Q[j]) - v.X[j] * sys.C;
     Abar.push_back(qxc * sys.A);
     Bbar.push_back(qxc * sys.Bw);
-    Xt.push_back(-lmi::Expr(v.X[j]).transpose());
+    Xt.push_back(-v.X[j].transpose());
     const MatrixXd Ieta = I - MatrixXd(sys.eta(static_cast<unsigned>(j)).asDiagonal());
-    Xeta.push_back(-(Ieta * lmi::Expr(v.X[j]).transpose()));
+    Xeta.push_back(-(Ieta * v.X[j].transpose()));
     QQ.push_back(lmi::Expr(v.Q[j]) + lmi::Expr(v.Q[j]).transpose());
   }
   if (det) {
@@ -220,14 +242,14 @@ SodDesignResult design_sod(const SodSystem& sys, const SodDesignSpec& spec) {
 SodDesignResult design_all_measurements(const SodSystem& sys) {
   const Eigen::Index n = sys.A.rows(), nw = sys.Bw.cols(), ny = sys.ny();
   lmi::Problem prob;
-  const Vars v = make_vars(prob, sys, 1, true, 1, false);
+  const Vars v = make_vars(prob, sys, 1, true, 1, false, /*all_delivered=*/true);
   const lmi::Expr Gv = diag_of(v.gv);
   const lmi::Expr Gw = diag_of(std::vector<lmi::Var>(static_cast<std::size_t>(nw), v.gw));
-  const lmi::Expr qxc = lmi::Expr(v.Q[0]) - v.X[0] * sys.C;
+  const lmi::Expr qxc = lmi::Expr(v.Q[0]) - v.X[0] * sys.C;  // X[0]: all sensors delivered
   prob.add(lmi::lmi(symmetric_from_lower({{lmi::Expr(v.Q[0]) + lmi::Expr(v.Q[0]).transpose() - v.P[0]},
                                           {(qxc * sys.A).transpose(), lmi::Expr(v.P[0]) - sys.Cz.transpose() * sys.Cz},
                                           {(qxc * sys.Bw).transpose(), zeros(nw, n), Gw},
-                                          {-lmi::Expr(v.X[0]).transpose(), zeros(ny, n), zeros(ny, nw), Gv}}) > 0,
+                                          {-v.X[0].transpose(), zeros(ny, n), zeros(ny, nw), Gv}}) > 0,
                     1e-7));
   const lmi::LinearForm f = bound_form(sys, v, VectorXd());
   prob.minimize(f);

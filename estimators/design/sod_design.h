@@ -25,6 +25,10 @@ struct SodSystem {
   std::vector<Eigen::Index> sensor_rows;  // first stacked row of each sensor, and the end
   double w_rms = 0.0;                     // ||w||_RMS (the whole vector)
   Eigen::VectorXd v_rms;                  // ||v_i||_RMS per output
+  // Per sensor: send-on-delta (its held value is a measurement with virtual noise) or periodic
+  // (a held value is stale: in the patterns where it did not deliver, its gain columns are 0).
+  // Empty: every sensor is send-on-delta.
+  std::vector<bool> send_on_delta;
   Eigen::Index ns() const { return static_cast<Eigen::Index>(sensor_rows.size()) - 1; }
   Eigen::Index ny() const { return C.rows(); }
   // eta_j: diag with 1 on the outputs of the sensors in pattern j (bit s = sensor s sent).

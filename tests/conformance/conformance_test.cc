@@ -21,11 +21,13 @@ const std::map<std::string, std::string> kEstimators{
     {"kalman_extended", "max_delay = 1"},
     {"open_loop", "max_delay = 1"},
     {"sod_kalman", "W = 0.01\nvirtual_variance_factor = 0.3333"},
+    {"sod_jump", "w_rms = 0.1"},
 };
 
 // Kinds without max_delay: the misspelt key of the unknown-key test, and its correct spelling.
 const std::map<std::string, std::pair<std::string, std::string>> kMisspelt{
     {"sod_kalman", {"virtual_variance_factr = 0.3", "virtual_variance_factor"}},
+    {"sod_jump", {"virtual_nois = \"delta2\"", "virtual_noise"}},
 };
 
 const std::map<std::string, std::string> kLinks{
