@@ -172,6 +172,32 @@ TEST(Pi, ReferenceWeightingAndIntegral) {
                ScenarioError);
 }
 
+TEST(Pi, InferentialFeedbackOnAnExactEstimateEqualsTrueFeedback) {
+  // No noise and an exact initial estimate: the open-loop estimate equals x, so the PI fed
+  // with it (inferential control) drives the same trajectory as the PI on the true output.
+  const std::string pi = "input={kind = \"pi\", kp = 0.3, ki = 1.0, b = 0.7, feedback = \"FB\", "
+                         "reference = {kind = \"square\", low = 0.0, high = 1.0, period = 0.4}}";
+  auto with = [&](const std::string& fb) {
+    std::string set = pi;
+    set.replace(set.find("FB"), 2, fb);
+    std::vector<TraceRow> t;
+    simulate_run(*from_text(kLoop, {set, "run.period=0.1", "plant.A=0.9", "estimator[0].name=\"ol\""}), 0, &t);
+    return t;
+  };
+  const auto a = with("true"), b = with("ol");
+  for (std::size_t k = 0; k < a.size(); ++k) {
+    EXPECT_EQ(a[k].x[0], b[k].x[0]) << k;
+    EXPECT_EQ(a[k].u[0], b[k].u[0]) << k;
+  }
+}
+
+TEST(SendOnDelta, RecentringIsRejectedAndNotAutomatic) {
+  // A = 1 without feedback would be re-centred under "auto", but not with a send-on-delta
+  // sensor (it would decide on re-centred outputs); "always" is an error.
+  EXPECT_FALSE(from_text(kRamp, {"run.recentre=\"auto\""})->recentre);
+  EXPECT_THROW(from_text(kRamp, {"run.recentre=\"always\""}), ScenarioError);
+}
+
 TEST(Pi, SaturationHoldsTheIntegral) {
   auto sc = from_text(kLoop, {"input={kind = \"pi\", kp = 0.0, ki = 1.0, feedback = \"true\", u_max = 0.05, "
                               "reference = {value = 10.0}}",
