@@ -60,6 +60,8 @@ void register_estimators(EstimatorRegistry& registry) {
   register_mode_ss(registry);
   register_kalman_buffer(registry);
   register_static_buffer(registry);
+  register_sod_kalman(registry);
+  register_sod_jump(registry);
 }
 
 }  // namespace ncosim::est

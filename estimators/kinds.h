@@ -13,5 +13,7 @@ void register_open_loop(EstimatorRegistry& registry);        // estimators/open_
 void register_imm(EstimatorRegistry& registry);              // estimators/imm.cc
 void register_mode_io(EstimatorRegistry& registry);          // estimators/mode_io.cc
 void register_mode_ss(EstimatorRegistry& registry);          // estimators/mode_ss.cc
+void register_sod_kalman(EstimatorRegistry& registry);       // estimators/sod_kalman.cc
+void register_sod_jump(EstimatorRegistry& registry);         // estimators/sod_jump.cc
 
 }  // namespace ncosim::est

@@ -41,6 +41,16 @@ InputSpec read_state_feedback(const sim::Table& t, const LinearPlant& plant) {
   return s;
 }
 
+InputSpec read_controller(const sim::Table& t, const LinearPlant& plant,
+                          std::shared_ptr<ControllerDesign> (*reader)(const sim::Table&, Eigen::Index)) {
+  require_input_channel(t, plant);
+  InputSpec s;
+  s.kind = InputSpec::Kind::kController;
+  s.controller = reader(t, plant.nu());
+  s.source = s.controller->estimate_source();
+  return s;
+}
+
 }  // namespace
 
 void register_inputs(InputRegistry& registry) {
@@ -50,6 +60,15 @@ void register_inputs(InputRegistry& registry) {
                "u = -K x on the true state (source = \"plant\") or on an estimator's estimate "
                "(source = its name): K, source",
                read_state_feedback);
+  registry.add("relay",
+               "relay with dead zone, output i drives input i: u_i = -level if y_i > dead_zone, +level if "
+               "y_i < -dead_zone, else 0; sees = \"true\" | \"measured\" | \"received\"",
+               [](const sim::Table& t, const LinearPlant& p) { return read_controller(t, p, read_relay); });
+  registry.add("pi",
+               "discrete PI with reference weighting on one sensor output: u = kp (b r - y) + ki T sum(r - y); "
+               "kp, ki, b, reference = {kind = \"square\", low, high, period} or {value}, feedback = "
+               "\"received\" | \"measured\" | \"true\" | an estimator name, sensor, output, u_min, u_max",
+               [](const sim::Table& t, const LinearPlant& p) { return read_controller(t, p, read_pi); });
 }
 
 }  // namespace ncosim::models

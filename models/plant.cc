@@ -44,6 +44,116 @@ LinearPlant discretise(const Eigen::MatrixXd& Ac, const Eigen::MatrixXd& Bc,
   return p;
 }
 
+void Disturbance::at(std::int64_t k, Eigen::VectorXd& out) const {
+  if (empty()) return;
+  out += offset;
+  const double kk = static_cast<double>(k);
+  for (const auto& s : sines) out += s.amplitude * std::sin(s.omega * kk + s.phase);
+}
+
+Disturbance read_disturbance(const sim::Table& plant_table, Eigen::Index nw) {
+  Disturbance d;
+  const auto t = plant_table.opt_table("disturbance");
+  if (!t) return d;
+  auto read_channels = [&](const sim::Table& tt, std::string_view key) {
+    Eigen::VectorXd v = tt.vector(key);
+    if (v.size() == 1 && nw > 1) v = Eigen::VectorXd::Constant(nw, v(0));
+    if (v.size() != nw) {
+      tt.fail(key, fmt::format("expected 1 or {} entries (the disturbance size nw), got {}", nw, v.size()));
+    }
+    if (!v.allFinite()) tt.fail(key, "expected finite values");
+    return v;
+  };
+  d.offset = t->has("offset") ? read_channels(*t, "offset") : Eigen::VectorXd::Zero(nw);
+  for (const sim::Table& st : t->tables("sine")) {
+    Disturbance::Sine s;
+    s.amplitude = read_channels(st, "amplitude");
+    s.omega = st.number("omega");
+    s.phase = st.number_or("phase", 0.0);
+    if (!std::isfinite(s.omega) || !std::isfinite(s.phase)) st.fail_here("expected a finite omega and phase");
+    st.finish();
+    d.sines.push_back(std::move(s));
+  }
+  t->finish();
+  return d;
+}
+
+LinearPlant discretise_transfer_function(const std::vector<double>& num, const std::vector<double>& den,
+                                         double dead_time, double period) {
+  const auto m = static_cast<Eigen::Index>(den.size()) - 1;
+  // Controllable canonical form of num/den (den monic after scaling).
+  Eigen::MatrixXd Ac = Eigen::MatrixXd::Zero(m, m);
+  const double a0 = den[0];
+  for (Eigen::Index i = 0; i + 1 < m; ++i) Ac(i, i + 1) = 1.0;
+  for (Eigen::Index j = 0; j < m; ++j) Ac(m - 1, j) = -den[static_cast<std::size_t>(m - j)] / a0;
+  Eigen::VectorXd Bc = Eigen::VectorXd::Zero(m);
+  Bc(m - 1) = 1.0;
+  Eigen::RowVectorXd Cc = Eigen::RowVectorXd::Zero(m);
+  const auto nn = static_cast<Eigen::Index>(num.size());
+  for (Eigen::Index j = 0; j < nn; ++j) Cc(j) = num[static_cast<std::size_t>(nn - 1 - j)] / a0;
+  // Scaling (x~_j = x_j omega^j / k, omega the geometric mean of the pole magnitudes): the
+  // canonical states are successive derivatives and differ by powers of omega; scaled, the
+  // largest output coefficient is 1 and the model is well conditioned for the LMI designs.
+  const double omega = std::pow(std::abs(den.back() / a0), 1.0 / static_cast<double>(m));
+  if (std::isfinite(omega) && omega > 0.0) {
+    Eigen::VectorXd s(m);
+    for (Eigen::Index j = 0; j < m; ++j) s(j) = std::pow(omega, -static_cast<double>(j));
+    const double k = (Cc.transpose().array() / s.array()).abs().maxCoeff();
+    if (k > 0.0 && std::isfinite(k)) {
+      s *= k;  // x~ = S x, S = diag(s)
+      Ac = s.asDiagonal() * Ac * s.cwiseInverse().asDiagonal();
+      Bc = s.asDiagonal() * Bc;
+      Cc = Cc * s.cwiseInverse().asDiagonal();
+    }
+  }
+  // int_0^s e^{Ac r} dr Bc and e^{Ac s} from one block exponential.
+  auto zoh = [&](double s, Eigen::MatrixXd& Phi, Eigen::VectorXd& Gamma) {
+    Eigen::MatrixXd M = Eigen::MatrixXd::Zero(m + 1, m + 1);
+    M.topLeftCorner(m, m) = Ac * s;
+    M.topRightCorner(m, 1) = Bc * s;
+    const Eigen::MatrixXd E = M.exp();
+    Phi = E.topLeftCorner(m, m);
+    Gamma = E.topRightCorner(m, 1);
+  };
+  Eigen::MatrixXd A, Phi_a, Phi_b;
+  Eigen::VectorXd Gamma, G_a, G_b;
+  zoh(period, A, Gamma);
+  // dead_time = d T + f, 0 <= f < T: x[k+1] = A x[k] + G0 u[k-d] + G1 u[k-d-1].
+  auto d = static_cast<Eigen::Index>(std::floor(dead_time / period + 1e-9));
+  double f = dead_time - static_cast<double>(d) * period;
+  if (f < 1e-9 * period) f = 0.0;
+  zoh(period - f, Phi_a, G_a);  // G0 = int_0^{T-f} e^{As} ds B
+  zoh(f, Phi_b, G_b);
+  const Eigen::VectorXd G0 = G_a;
+  const Eigen::VectorXd G1 = Phi_a * G_b;  // e^{A(T-f)} int_0^f e^{As} ds B
+  const Eigen::Index D = f > 0.0 ? d + 1 : d;  // held past inputs u[k-1] .. u[k-D]
+  const Eigen::Index n = m + D;
+  LinearPlant p;
+  p.A = Eigen::MatrixXd::Zero(n, n);
+  p.Bu = Eigen::MatrixXd::Zero(n, 1);
+  p.A.topLeftCorner(m, m) = A;
+  auto input_column = [&](Eigen::Index lag, const Eigen::VectorXd& g) {  // coefficient of u[k-lag]
+    if (lag == 0) {
+      p.Bu.topRows(m) += g;
+    } else {
+      p.A.block(0, m + lag - 1, m, 1) += g;
+    }
+  };
+  input_column(d, G0);
+  if (f > 0.0) input_column(d + 1, G1);
+  if (D > 0) {
+    p.Bu(m) = 1.0;  // u[k-1] <- u[k]
+    for (Eigen::Index j = 1; j < D; ++j) p.A(m + j, m + j - 1) = 1.0;
+  }
+  p.Bw = Eigen::MatrixXd::Zero(n, 1);
+  p.Bw.topRows(m) = Gamma;
+  p.W = Eigen::MatrixXd::Zero(1, 1);
+  p.x0 = Eigen::VectorXd::Zero(n);
+  p.C_out = Eigen::MatrixXd::Zero(1, n);
+  p.C_out.leftCols(m) = Cc;
+  return p;
+}
+
 namespace {
 
 Eigen::MatrixXd read_square(const sim::Table& t, std::string_view key) {
@@ -141,6 +251,30 @@ LinearPlant read_jump_linear(const sim::Table& t, double period) {
   return p;
 }
 
+LinearPlant read_transfer_function(const sim::Table& t, double period) {
+  const std::vector<double> num = t.numbers("num");
+  const std::vector<double> den = t.numbers("den");
+  if (den.size() < 2 || den[0] == 0.0) {
+    t.fail("den", "expected the denominator's coefficients in descending powers of s, of degree >= 1 with a "
+                  "non-zero leading coefficient");
+  }
+  if (num.empty() || num.size() >= den.size()) {
+    t.fail("num", fmt::format("expected a strictly proper transfer function (1..{} numerator coefficients), got {}",
+                              den.size() - 1, num.size()));
+  }
+  for (double v : num) if (!std::isfinite(v)) t.fail("num", "expected finite coefficients");
+  for (double v : den) if (!std::isfinite(v)) t.fail("den", "expected finite coefficients");
+  const double dead_time = t.number_or("dead_time", 0.0);
+  if (!(dead_time >= 0.0) || dead_time > 1000.0 * period) {
+    t.fail("dead_time", fmt::format("expected a dead time in [0, 1000 periods] seconds, got {}", dead_time));
+  }
+  LinearPlant p = discretise_transfer_function(num, den, dead_time, period);
+  // The input disturbance: variance of the held disturbance on the input channel.
+  p.W = Eigen::MatrixXd::Constant(1, 1, t.number_or("W", 0.0));
+  if (!(p.W(0, 0) >= 0.0) || !std::isfinite(p.W(0, 0))) t.fail("W", fmt::format("expected a variance >= 0, got {}", p.W(0, 0)));
+  return p;
+}
+
 }  // namespace
 
 Eigen::VectorXd stationary_law(const Eigen::MatrixXd& transition) {
@@ -164,6 +298,10 @@ void register_plants(PlantRegistry& registry) {
                "Markov jump linear plant: the lti keys as base, [[plant.mode]] tables overriding A, Bu, "
                "Bw, W, transition (mode chain), initial_mode (default: stationary)",
                read_jump_linear);
+  registry.add("transfer_function",
+               "continuous SISO transfer function with dead time, ZOH at the period: num, den (descending "
+               "powers of s), dead_time (s), W (variance of the input disturbance); sensors use C = \"output\"",
+               read_transfer_function);
 }
 
 }  // namespace ncosim::models

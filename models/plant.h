@@ -5,6 +5,7 @@
 #pragma once
 
 #include <Eigen/Dense>
+#include <cstdint>
 #include <vector>
 
 #include "sim/config.h"
@@ -29,6 +30,9 @@ struct LinearPlant {
   std::vector<PlantMode> modes;
   Eigen::MatrixXd mode_transition;
   Eigen::VectorXd mode_initial;
+  // The plant's own output matrix when its kind defines one (transfer_function: y = C x),
+  // which sensors use with C = "output"; empty otherwise.
+  Eigen::MatrixXd C_out;
   Eigen::Index n() const { return A.rows(); }
   Eigen::Index nu() const { return Bu.cols(); }
   Eigen::Index nw() const { return Bw.cols(); }
@@ -40,6 +44,29 @@ struct LinearPlant {
 // (Van Loan's block exponential), returned with Bw = I.
 LinearPlant discretise(const Eigen::MatrixXd& Ac, const Eigen::MatrixXd& Bc,
                        const Eigen::MatrixXd& Gc, const Eigen::MatrixXd& Wc, double period);
+
+// A deterministic disturbance added to the Gaussian w (per channel, nw entries):
+// w_det[k] = offset + sum_j amplitude_j sin(omega_j k + phase_j), k the period index.
+struct Disturbance {
+  struct Sine {
+    Eigen::VectorXd amplitude;
+    double omega = 0.0;  // rad per period
+    double phase = 0.0;  // rad
+  };
+  Eigen::VectorXd offset;  // empty: no deterministic part
+  std::vector<Sine> sines;
+  bool empty() const { return offset.size() == 0; }
+  void at(std::int64_t k, Eigen::VectorXd& out) const;  // out += w_det[k]
+};
+// Reads the optional `disturbance` sub-table of [plant] (offset, [[sine]] amplitude, omega, phase).
+Disturbance read_disturbance(const sim::Table& plant_table, Eigen::Index nw);
+
+// Continuous transfer function num(s)/den(s) e^{-dead_time s} (descending powers, strictly
+// proper), realised in controllable canonical form and discretised by zero-order hold at
+// `period`, the dead time as extra input-delay states (a fractional part split between two
+// held inputs). Input disturbance: Bw = the undelayed ZOH input matrix (one channel).
+LinearPlant discretise_transfer_function(const std::vector<double>& num, const std::vector<double>& den,
+                                         double dead_time, double period);
 
 // Symmetric square root S (S S' = M) of a PSD matrix by eigen-decomposition.
 Eigen::MatrixXd psd_sqrt(const Eigen::MatrixXd& M);

@@ -11,7 +11,15 @@ SensorSpec read_sensor(const sim::Table& t, const LinearPlant& plant,
                        const std::vector<std::string>& links, int index) {
   SensorSpec s;
   s.name = t.string_or("name", fmt::format("y{}", index + 1));
-  s.C = t.matrix("C");
+  if (t.is_string("C")) {
+    const std::string which = t.choice_or("C", "output", {"output"});
+    if (plant.C_out.size() == 0) {
+      t.fail("C", fmt::format("expected a matrix: C = \"{}\" needs a plant kind with an output (transfer_function)", which));
+    }
+    s.C = plant.C_out;
+  } else {
+    s.C = t.matrix("C");
+  }
   if (s.C.cols() != plant.n()) {
     t.fail("C", fmt::format("expected {} columns (the state size), got a {}x{} matrix", plant.n(),
                             s.C.rows(), s.C.cols()));
@@ -39,6 +47,30 @@ SensorSpec read_sensor(const sim::Table& t, const LinearPlant& plant,
   if (buffer < 0 || buffer > 62) t.fail("buffer", fmt::format("expected an integer in 0..62, got {}", buffer));
   s.buffer = static_cast<int>(buffer);
   s.fresh_resend_noise = t.choice_or("resend_noise", "same", {"same", "fresh"}) == "fresh";
+  const std::string noise = t.choice_or("noise", "gaussian", {"gaussian", "uniform"});
+  if (noise == "uniform") {
+    s.noise = SensorSpec::Noise::kUniform;
+    const Eigen::MatrixXd off = s.R - Eigen::MatrixXd(s.R.diagonal().asDiagonal());
+    if (off.cwiseAbs().maxCoeff() > 0.0) {
+      t.fail("R", "expected a diagonal R with noise = \"uniform\" (independent bounded noises)");
+    }
+  }
+  const std::string policy = t.choice_or("policy", "periodic", {"periodic", "send_on_delta"});
+  if (policy == "send_on_delta") {
+    s.policy = SensorSpec::Policy::kSendOnDelta;
+    s.delta = t.vector("delta");
+    if (s.delta.size() == 1 && s.ny() > 1) s.delta = Eigen::VectorXd::Constant(s.ny(), s.delta(0));
+    if (s.delta.size() != s.ny()) {
+      t.fail("delta", fmt::format("expected 1 or {} entries (one threshold per output), got {}", s.ny(),
+                                  s.delta.size()));
+    }
+    if (!s.delta.allFinite() || s.delta.minCoeff() < 0.0) {
+      t.fail("delta", "expected finite thresholds >= 0");
+    }
+    if (s.buffer > 0) t.fail("buffer", fmt::format("expected buffer = 0 with policy = \"send_on_delta\", got {}", s.buffer));
+  } else if (t.has("delta")) {
+    t.fail("delta", "expected no threshold with policy = \"periodic\" (set policy = \"send_on_delta\")");
+  }
   return s;
 }
 

@@ -1,5 +1,8 @@
-// models/sensor.h — sensors: y = C x + v, v ~ N(0, R), sampled every `every` periods; each
-// packet carries the newest sample and the `buffer` previous ones, with their time stamps.
+// models/sensor.h — sensors: y = C x + v, v ~ N(0, R) (or bounded: uniform with covariance
+// R), sampled every `every` periods; each packet carries the newest sample and the `buffer`
+// previous ones, with their time stamps. Policy "periodic" sends every sample; policy
+// "send_on_delta" sends a sample only when |y_i - y_i(last sent)| >= delta_i for some
+// output i (the first sample is always sent).
 #pragma once
 
 #include <Eigen/Dense>
@@ -22,6 +25,11 @@ struct SensorSpec {
   // draw (the jump observer's design model for buffered packets); "same" (default): the
   // physical case, the sample's own noise every time.
   bool fresh_resend_noise = false;
+  enum class Policy { kPeriodic, kSendOnDelta };
+  Policy policy = Policy::kPeriodic;
+  Eigen::VectorXd delta;  // send_on_delta: threshold per output (ny), >= 0
+  enum class Noise { kGaussian, kUniform };
+  Noise noise = Noise::kGaussian;  // uniform: v_i ~ U(-sqrt(3 R_ii), sqrt(3 R_ii)), R diagonal
   Eigen::Index ny() const { return C.rows(); }
 };
 

@@ -8,6 +8,7 @@
 #include <atomic>
 #include <boost/random/normal_distribution.hpp>
 #include <boost/random/uniform_01.hpp>
+#include <boost/random/uniform_real_distribution.hpp>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -39,6 +40,16 @@ class MemberHandler final : public EventHandler {
 void draw_normal(Rng& rng, Eigen::VectorXd& out) {
   boost::random::normal_distribution<double> normal(0.0, 1.0);
   for (Eigen::Index i = 0; i < out.size(); ++i) out(i) = normal(rng);
+}
+
+// Unit-variance noise of a sensor: standard normal, or uniform on [-sqrt 3, sqrt 3].
+void draw_sensor_noise(Rng& rng, models::SensorSpec::Noise kind, Eigen::VectorXd& out) {
+  if (kind == models::SensorSpec::Noise::kGaussian) {
+    draw_normal(rng, out);
+    return;
+  }
+  boost::random::uniform_real_distribution<double> uni(-std::sqrt(3.0), std::sqrt(3.0));
+  for (Eigen::Index i = 0; i < out.size(); ++i) out(i) = uni(rng);
 }
 
 constexpr double kDivergence = 1e150;
@@ -92,8 +103,15 @@ class RunSimulation {
       st.stamps.assign(static_cast<std::size_t>(spec.buffer) + 1, 0);
       st.values = Eigen::MatrixXd::Zero(spec.ny(), spec.buffer + 1);
       if (spec.fresh_resend_noise) st.clean = Eigen::MatrixXd::Zero(spec.ny(), spec.buffer + 1);
+      st.last_sent = Eigen::VectorXd::Zero(spec.ny());
       sensors_.push_back(std::move(st));
+      true_output_.push_back(Eigen::VectorXd::Zero(spec.ny()));
+      measured_.push_back(Eigen::VectorXd::Zero(spec.ny()));
+      received_.push_back(Eigen::VectorXd::Zero(spec.ny()));
+      received_stamp_.push_back(-1);
     }
+    if (sc.input.controller) controller_ = sc.input.controller->instantiate();
+    u_queue_.assign(static_cast<std::size_t>(sc.input.actuation_delay), Eigen::VectorXd::Zero(plant_.nu()));
     // Links: one fresh instance per run.
     for (std::size_t l = 0; l < sc.links.size(); ++l) {
       LinkState ls;
@@ -127,6 +145,9 @@ class RunSimulation {
       if (mode_count_ > 0 && mode_count_ <= kMaxConfusionModes) {
         m.confusion.assign(static_cast<std::size_t>(mode_count_ * mode_count_), 0);
       }
+      m.sensor_taken.assign(sc.model.sensors.size(), 0);
+      m.sensor_sent.assign(sc.model.sensors.size(), 0);
+      for (const auto& sm : sc.model.sensors) m.sensor_virtual_sse.emplace_back(static_cast<std::size_t>(sm.spec.ny()), 0.0);
       metrics_.push_back(std::move(m));
     }
     // True history x[k], x[k-1], ... (x[-j] = x0: the plant rests at x0 before t = 0).
@@ -163,6 +184,8 @@ class RunSimulation {
     Eigen::MatrixXd clean;             // C x of each slot (resend_noise = "fresh" only)
     int head = -1;
     int filled = 0;
+    Eigen::VectorXd last_sent;  // send_on_delta: the value last sent
+    bool has_sent = false;
   };
   struct LinkState {
     std::unique_ptr<models::Link> link;
@@ -186,11 +209,13 @@ class RunSimulation {
       if (!plant_.modes.empty()) {
         step_jump_plant(k);
       } else {
+        w_ = w_sqrt_ * w_;
+        sc_.disturbance.at(k - 1, w_);  // deterministic part of w[k-1]
         drive_.noalias() = plant_.Bu * u_applied_;
         drive_ += recentre_;
         next_x_.noalias() = plant_.A * x_;
         next_x_ += drive_;
-        next_x_.noalias() += plant_.Bw * (w_sqrt_ * w_);
+        next_x_.noalias() += plant_.Bw * w_;
       }
       if (actuators_ || !plant_.modes.empty()) {
         // The estimators know what was sent (nominal Bu), not what was applied.
@@ -225,24 +250,47 @@ class RunSimulation {
     drive_ += recentre_;
     next_x_.noalias() = pm.A * x_;
     next_x_ += drive_;
-    next_x_.noalias() += pm.Bw * (mode_w_sqrt_[static_cast<std::size_t>(m)] * w_);
+    w_ = mode_w_sqrt_[static_cast<std::size_t>(m)] * w_;
+    sc_.disturbance.at(k - 1, w_);  // deterministic part of w[k-1]
+    next_x_.noalias() += pm.Bw * w_;
   }
 
   void on_sample(SimTime now, std::uint64_t s) {
     const std::int64_t k = now / period_ns_;
     const auto& spec = sc_.model.sensors[s].spec;
     SensorState& st = sensors_[s];
-    draw_normal(st.rng, st.noise);
+    draw_sensor_noise(st.rng, spec.noise, st.noise);
     st.head = (st.head + 1) % (spec.buffer + 1);
     st.filled = std::min(st.filled + 1, spec.buffer + 1);
     st.stamps[static_cast<std::size_t>(st.head)] = k;
     st.values.col(st.head).noalias() = spec.C * x_;
     if (spec.fresh_resend_noise) st.clean.col(st.head) = st.values.col(st.head);
     st.values.col(st.head).noalias() += st.r_sqrt * st.noise;
-    if (k >= sc_.run.warmup) {
-      for (auto& m : metrics_) ++m.samples_taken;
+    const auto sample = st.values.col(st.head);
+    measured_[s] = sample;
+    bool send = true;
+    if (spec.policy == models::SensorSpec::Policy::kSendOnDelta) {
+      // |y_i - y_i(last sent)| >= delta_i for some output i; the first sample is always sent.
+      send = !st.has_sent || ((sample - st.last_sent).cwiseAbs().array() >= spec.delta.array()).any();
+      if (send) {
+        st.last_sent = sample;
+        st.has_sent = true;
+      }
     }
-    queue_.schedule(now, Phase::kSend, &send_handler_, s);
+    if (k >= sc_.run.warmup) {
+      for (auto& m : metrics_) {
+        ++m.samples_taken;
+        ++m.sensor_taken[s];
+        if (send) ++m.sensor_sent[s];
+        if (!send) {
+          for (Eigen::Index i = 0; i < spec.ny(); ++i) {
+            const double d = st.last_sent(i) - sample(i);
+            m.sensor_virtual_sse[s][static_cast<std::size_t>(i)] += d * d;
+          }
+        }
+      }
+    }
+    if (send) queue_.schedule(now, Phase::kSend, &send_handler_, s);
     reschedule(now, spec.every, Phase::kSample, &sample_handler_, s);
   }
 
@@ -259,7 +307,7 @@ class RunSimulation {
     for (std::size_t c = 0; c < delays_.size(); ++c) {
       if (independent && c > 0) {  // the design model: every copy has its own noise
         SensorState& st = sensors_[s];
-        draw_normal(st.rng, st.noise);
+        draw_sensor_noise(st.rng, spec.noise, st.noise);
         st.values.col(st.head).noalias() = spec.C * x_;
         st.values.col(st.head).noalias() += st.r_sqrt * st.noise;
       }
@@ -310,6 +358,11 @@ class RunSimulation {
       if (k >= sc_.run.warmup) metrics_[e].samples_used += used;
     }
     ++arrivals_[static_cast<std::size_t>(p.sensor)];
+    const auto ps = static_cast<std::size_t>(p.sensor);
+    if (p.count > 0 && p.stamps[0] > received_stamp_[ps]) {  // the newest sample seen at the controller node
+      received_stamp_[ps] = p.stamps[0];
+      received_[ps] = p.values.head(received_[ps].size());
+    }
     if (log_ != nullptr) {
       log_->packets.push_back(p);
       log_->packet_period.push_back(k);
@@ -345,18 +398,43 @@ class RunSimulation {
         }
         break;
       }
+      case Kind::kController: {
+        for (std::size_t s = 0; s < sensors_.size(); ++s) true_output_[s].noalias() = sc_.model.sensors[s].spec.C * x_;
+        models::ControlContext ctx;
+        ctx.k = now / period_ns_;
+        ctx.period = sc_.run.period;
+        ctx.t = static_cast<double>(ctx.k) * sc_.run.period;
+        ctx.x = &x_;
+        ctx.true_output = &true_output_;
+        ctx.measured = &measured_;
+        ctx.received = &received_;
+        if (sc_.input.source_index >= 0) {
+          estimate_ = estimators_[static_cast<std::size_t>(sc_.input.source_index)]->state();
+          ctx.estimate = &estimate_;
+        }
+        controller_->compute(ctx, u_);
+        reference_ = controller_->reference(ctx);
+        break;
+      }
     }
     reschedule(now, 1, Phase::kControl, &control_handler_, 0);
   }
 
   void on_actuate(SimTime now, std::uint64_t) {
+    // After `actuation_delay` periods: x[k+1] uses u[k - actuation_delay] (zero before the first).
+    Eigen::VectorXd& u_acting = u_queue_.empty() ? u_ : u_delayed_;
+    if (!u_queue_.empty()) {
+      u_delayed_ = u_queue_[u_head_];
+      u_queue_[u_head_] = u_;
+      u_head_ = (u_head_ + 1) % u_queue_.size();
+    }
     if (actuators_) {
-      actuated_mode_ = actuators_->actuate(u_);  // the plant applies what arrives
+      actuated_mode_ = actuators_->actuate(u_acting);  // the plant applies what arrives
       u_applied_ = actuators_->applied();
     } else {
-      u_applied_ = u_;
+      u_applied_ = u_acting;
     }
-    u_prev_ = u_;  // what the estimators know at the next update: what was sent
+    u_prev_ = u_acting;  // what the estimators know at the next update: what was sent to act now
     reschedule(now, 1, Phase::kActuate, &actuate_handler_, 0);
   }
 
@@ -374,6 +452,12 @@ class RunSimulation {
       row.arrivals = arrivals_;
       row.mode = true_mode_;
       for (auto& e : estimators_) row.mode_hat.push_back(e->mode().value_or(-1));
+      row.u.assign(u_.data(), u_.data() + u_.size());
+      for (const auto& sm : sc_.model.sensors) {
+        const Eigen::VectorXd y = sm.spec.C * x_;
+        row.y.insert(row.y.end(), y.data(), y.data() + y.size());
+      }
+      row.reference = reference_;
       trace_->push_back(std::move(row));
     }
     std::fill(arrivals_.begin(), arrivals_.end(), 0);
@@ -453,6 +537,14 @@ class RunSimulation {
   std::vector<est::Packet> pool_;
   std::vector<std::size_t> free_;
   std::vector<int> arrivals_;
+  std::vector<Eigen::VectorXd> true_output_, measured_, received_;
+  std::vector<std::int64_t> received_stamp_;
+  std::unique_ptr<models::Controller> controller_;
+  Eigen::VectorXd estimate_;
+  double reference_ = std::nan("");
+  std::vector<Eigen::VectorXd> u_queue_;  // ring of the last actuation_delay inputs
+  std::size_t u_head_ = 0;
+  Eigen::VectorXd u_delayed_;             // the input that acts now when actuation_delay > 0
   std::vector<std::unique_ptr<est::Estimator>> estimators_;
   RunMetrics metrics_;
   bool precision_lost_ = false;

@@ -22,6 +22,11 @@ struct EstimatorRunMetrics {
   std::int64_t count = 0;           // periods counted
   std::int64_t samples_used = 0;    // samples the estimator used (in time, not duplicates)
   std::int64_t samples_taken = 0;   // samples taken by the sensors
+  // Per sensor (the same in every estimator's record): samples taken and sent (k >= warmup),
+  // and per sensor output the sum of the squared virtual noise m - y (held minus sampled;
+  // 0 when sent) over the samples taken.
+  std::vector<std::int64_t> sensor_taken, sensor_sent;
+  std::vector<std::vector<double>> sensor_virtual_sse;
   bool diverged = false;            // a non-finite or > 1e150 error occurred
   std::string status = "ok";        // the estimator's own status at the end of the run
   // Mode estimators (scenarios with modes): periods k >= max(warmup, 1) scored, wrong estimates,
@@ -45,6 +50,9 @@ struct TraceRow {
   std::vector<int> arrivals;                // packets delivered this period, per sensor
   int mode = -1;                            // true mode of the transition into this period
   std::vector<int> mode_hat;                // per estimator (-1: none)
+  std::vector<double> u;                    // input computed at this period (nu)
+  std::vector<double> y;                    // true sensor outputs C x, stacked over the sensors
+  double reference = 0.0;                   // controller reference (NaN when none)
 };
 
 struct CampaignOptions {

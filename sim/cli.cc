@@ -17,6 +17,7 @@
 #include "estimators/export_c.h"
 #include "sim/campaign.h"
 #include "sim/find.h"
+#include "sim/codesign.h"
 #include "sim/output.h"
 #include "sim/registries.h"
 #include "sim/scenario.h"
@@ -109,6 +110,7 @@ int cmd_run(const CommonArgs& a, int threads, bool trace, bool quiet, const std:
       {"summary.csv", summary_csv(loaded.sweeps, rows, n)},
       {"summary.md", md},
       {"runs.csv", runs_csv(loaded.sweeps, labels, scs, res)},
+      {"transmissions.csv", transmissions_csv(loaded.sweeps, labels, scs, res)},
       {"design.json", design_json(loaded).dump(2) + "\n"},
       {"manifest.json", manifest(loaded, command_line, used_threads, wall).dump(2) + "\n"},
   };
@@ -217,6 +219,31 @@ int cmd_find(const CommonArgs& a, const FindOptions& opt, const std::string& tar
   return 0;
 }
 
+int cmd_codesign(const CommonArgs& a, const CodesignOptions& opt, const std::string& command_line) {
+  LoadedScenario loaded = load_cases(a.file, a.sets, a.overrides);
+  if (loaded.cases.size() != 1) {
+    throw ScenarioError(format_error(a.file, 0, "sweep", "expected a scenario without [[sweep]] for codesign"));
+  }
+  const std::string out = a.out.empty() ? default_out(a.file) : a.out;
+  prepare_output_dir(out);
+  const Scenario& sc = *loaded.cases.front().scenario;
+  const nlohmann::json j = run_codesign(sc, opt);
+  write_files_atomically(out, {{"codesign.json", j.dump(2) + "\n"},
+                               {"manifest.json", manifest(loaded, command_line, 1, 0.0).dump(2) + "\n"}});
+  for (const auto& e : j) {
+    std::cout << fmt::format("{}: {} {} mu = {} (z0 = {:.5g}, target {:.5g}): delta = {} cost {:.5g} bound {} "
+                             "[{} LMI problems, {:.2f} s solving, {:.2f} s total; epsilon {} {}, delta0 {}]\n  apply: {}\n",
+                             e["estimator"].get<std::string>(), e["design"].get<std::string>(),
+                             e["gain"].get<std::string>(), e["mu"].get<double>(), e["z0"].get<double>(),
+                             e["target"].get<double>(), e["delta"].dump(), e["cost"].get<double>(), e["bound"].dump(),
+                             e["lmi_problems"].get<int>(), e["lmi_seconds"].get<double>(), e["seconds"].get<double>(),
+                             e["epsilon"].get<double>(), e["step"].get<std::string>(), e["delta0"].dump(),
+                             e["apply"].get<std::string>());
+  }
+  std::cout << fmt::format("codesign.json written to {}/\n", out);
+  return 0;
+}
+
 int cmd_check(const CommonArgs& a) {
   LoadedScenario loaded = load_cases(a.file, a.sets, a.overrides);
   std::cout << fmt::format("{}: ok ({} case(s), {} estimator(s))\n", a.file, loaded.cases.size(),
@@ -290,6 +317,14 @@ int run_cli(int argc, char** argv) {
   find->add_option("--scan", find_opt.scan,
                    "equal intervals scanned before the bisection, to bracket and check monotonicity (default 8)")
       ->check(CLI::Range(1, 100000));
+  CodesignOptions cd_opt;
+  CLI::App* codesign = app.add_subcommand(
+      "codesign", "send-on-delta threshold co-design (greedy, section 4) of the sod_jump estimators: codesign.json");
+  add_common(codesign, true);
+  codesign->add_option("--estimator", cd_opt.estimator, "only this sod_jump estimator");
+  codesign->add_option("--mu", cd_opt.mu, "prescribed bound mu * z~0 (overrides [codesign] mu)")
+      ->check(CLI::Range(1.0, 1e6));
+  codesign->add_flag("--quiet", quiet, "no progress lines");
   CLI::App* check = app.add_subcommand("check", "parse and validate only");
   add_common(check, false);
   app.add_subcommand("list", "list every registered kind with a one-line help");
@@ -301,7 +336,7 @@ int run_cli(int argc, char** argv) {
     if (std::find(commands.begin(), commands.end(), argv[1]) == commands.end()) {
       const std::string hint = did_you_mean(argv[1], commands);
       std::cerr << fmt::format(
-          "ncosim: expected a command (run, design, find, check or list), got '{}'{}\n", argv[1],
+          "ncosim: expected a command (run, design, find, codesign, check or list), got '{}'{}\n", argv[1],
           hint.empty() ? "" : fmt::format(" (did you mean '{}'?)", hint));
       return 2;
     }
@@ -325,6 +360,10 @@ int run_cli(int argc, char** argv) {
     if (design->parsed()) return cmd_design(a, command_line, export_dir);
     if (find->parsed()) return cmd_find(a, find_opt, target_text, command_line);
     if (check->parsed()) return cmd_check(a);
+    if (codesign->parsed()) {
+      cd_opt.progress = !quiet;
+      return cmd_codesign(a, cd_opt, command_line);
+    }
     return cmd_list();
   } catch (const ScenarioError& e) {
     std::cerr << "ncosim: " << e.what() << "\n";

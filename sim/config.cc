@@ -194,6 +194,11 @@ std::string Table::string(std::string_view key) const {
   type_error(key, "a string");
 }
 
+bool Table::is_string(std::string_view key) const {
+  const toml::node* n = get(key);
+  return n != nullptr && n->is_string();
+}
+
 std::string Table::string_or(std::string_view key, std::string_view fallback) const {
   return has(key) ? string(key) : std::string(fallback);
 }

@@ -63,6 +63,7 @@ class Table {
 
   std::string string(std::string_view key) const;
   std::string string_or(std::string_view key, std::string_view fallback) const;
+  bool is_string(std::string_view key) const;  // the key holds a string
   // A string that must be one of `choices` (the error lists them).
   std::string choice_or(std::string_view key, std::string_view fallback,
                         const std::vector<std::string>& choices) const;

@@ -120,6 +120,12 @@ std::vector<SummaryRow> summarise(const Scenario& sc, const CampaignResult& resu
     row.status = status;
     row.predicted_mse = rep.predicted_mse;
     if (flop_periods > 0) row.flops_mean = flops / flop_periods;
+    std::int64_t sent = 0;
+    for (const auto& run : result.runs) {
+      for (const auto v : run[e].sensor_sent) sent += v;
+    }
+    const double periods = static_cast<double>(sc.run.periods - sc.run.warmup) * static_cast<double>(result.runs.size());
+    if (periods > 0) row.sent_per_period = static_cast<double>(sent) / periods;
     rows.push_back(std::move(row));
   }
   return rows;
@@ -146,7 +152,7 @@ std::vector<std::string> summary_columns(const std::vector<SweepAxis>& sweeps, E
   for (const char* c : {"estimator", "kind", "runs", "mse", "mse_ci95", "mse_ext", "mse_ext_ci95"}) cols.push_back(c);
   for (Eigen::Index i = 0; i < n; ++i) cols.push_back(fmt::format("rmse_x{}", i + 1));
   for (const char* c : {"mde_percent", "flops_per_period", "stored_gains", "ns_per_period", "predicted_mse_ext",
-                        "delivered_ratio", "status", "predicted_mse", "flops_mean", "mde_ci95"}) {
+                        "delivered_ratio", "status", "predicted_mse", "flops_mean", "mde_ci95", "sent_per_period"}) {
     cols.push_back(c);
   }
   for (Eigen::Index i = 0; i < n; ++i) cols.push_back(fmt::format("ermse_x{}", i + 1));
@@ -176,6 +182,7 @@ std::vector<std::string> row_cells(const SummaryRow& r) {
   cells.push_back(fmt_number(r.predicted_mse));
   cells.push_back(r.flops_mean ? fmt::format("{:.0f}", *r.flops_mean) : "");
   cells.push_back(fmt_number(r.mde_ci95));
+  cells.push_back(fmt_number(r.sent_per_period));
   for (const auto& v : r.ermse) cells.push_back(fmt_number(v));
   for (const auto& v : r.ermse_ci95) cells.push_back(fmt_number(v));
   return cells;
@@ -397,6 +404,41 @@ std::string design_csv(const LoadedScenario& loaded) {
   return out;
 }
 
+std::string transmissions_csv(const std::vector<SweepAxis>& sweeps, const std::vector<std::vector<std::string>>& labels,
+                              const std::vector<const Scenario*>& scenarios,
+                              const std::vector<const CampaignResult*>& results) {
+  std::string out;
+  for (const auto& s : sweeps) out += csv_field(s.key) + ",";
+  out += "sensor,output,policy,delta,samples_taken,samples_sent,sent_ratio,virtual_noise_rms\n";
+  for (std::size_t c = 0; c < scenarios.size(); ++c) {
+    const Scenario& sc = *scenarios[c];
+    const CampaignResult& res = *results[c];
+    for (std::size_t s = 0; s < sc.model.sensors.size(); ++s) {
+      const auto& spec = sc.model.sensors[s].spec;
+      std::int64_t taken = 0, sent = 0;
+      std::vector<double> sse(static_cast<std::size_t>(spec.ny()), 0.0);
+      for (const auto& run : res.runs) {
+        if (run.empty()) continue;
+        taken += run[0].sensor_taken[s];
+        sent += run[0].sensor_sent[s];
+        for (std::size_t i = 0; i < sse.size(); ++i) sse[i] += run[0].sensor_virtual_sse[s][i];
+      }
+      const bool sod = spec.policy == models::SensorSpec::Policy::kSendOnDelta;
+      for (Eigen::Index i = 0; i < spec.ny(); ++i) {
+        for (const auto& l : labels[c]) out += csv_field(l) + ",";
+        out += fmt::format("{},{},{},{},{},{},{},{}\n", csv_field(spec.name), i + 1, sod ? "send_on_delta" : "periodic",
+                           sod ? fmt::format("{:.6g}", spec.delta(i)) : "", taken, sent,
+                           fmt_number(taken > 0 ? std::optional<double>(static_cast<double>(sent) / static_cast<double>(taken))
+                                                : std::nullopt),
+                           fmt_number(taken > 0 ? std::optional<double>(std::sqrt(sse[static_cast<std::size_t>(i)] /
+                                                                                  static_cast<double>(taken)))
+                                                : std::nullopt));
+      }
+    }
+  }
+  return out;
+}
+
 std::string trajectory_csv(const Scenario& sc, const std::vector<TraceRow>& trace) {
   const Eigen::Index n = sc.model.plant.n();
   std::string out = "period";
@@ -405,6 +447,14 @@ std::string trajectory_csv(const Scenario& sc, const std::vector<TraceRow>& trac
     for (Eigen::Index i = 0; i < n; ++i) out += "," + csv_field(fmt::format("{}:xhat{}", e.name, i + 1));
   }
   for (const auto& s : sc.model.sensors) out += "," + csv_field(fmt::format("arrived:{}", s.spec.name));
+  for (Eigen::Index j = 0; j < sc.model.plant.nu(); ++j) out += fmt::format(",u{}", j + 1);
+  for (const auto& s : sc.model.sensors) {
+    for (Eigen::Index i = 0; i < s.spec.ny(); ++i) {
+      out += "," + csv_field(s.spec.ny() == 1 ? fmt::format("y:{}", s.spec.name) : fmt::format("y:{}:{}", s.spec.name, i + 1));
+    }
+  }
+  const bool has_reference = sc.input.kind == models::InputSpec::Kind::kController;
+  if (has_reference) out += ",reference";
   const bool modes = sc.model.mode_count() > 0;
   if (modes) {
     out += ",mode";
@@ -418,6 +468,9 @@ std::string trajectory_csv(const Scenario& sc, const std::vector<TraceRow>& trac
       for (double v : xh) out += fmt::format(",{:.9g}", v);
     }
     for (int a : r.arrivals) out += fmt::format(",{}", a);
+    for (double v : r.u) out += fmt::format(",{:.9g}", v);
+    for (double v : r.y) out += fmt::format(",{:.9g}", v);
+    if (has_reference) out += "," + fmt_number(r.reference);
     if (modes) {
       out += r.mode >= 0 ? fmt::format(",{}", r.mode) : ",";
       for (int m : r.mode_hat) out += m >= 0 ? fmt::format(",{}", m) : ",";

@@ -36,6 +36,7 @@ struct SummaryRow {
   // After status (appended columns):
   std::optional<double> predicted_mse;  // the design's analytic mean |x - xhat|^2, where one exists
   std::optional<double> flops_mean;     // FLOPs per period averaged over every run (kalman_buffer)
+  std::optional<double> sent_per_period;  // packets sent by all sensors per period (k >= warmup)
 };
 
 // Half-width of the 95% confidence interval of the mean of `values` (Student t, n-1
@@ -57,6 +58,11 @@ std::string runs_csv(const std::vector<SweepAxis>& sweeps, const std::vector<std
 nlohmann::json design_json(const LoadedScenario& loaded);
 // design.csv: one row per case and estimator (swept keys first), the design's predictions.
 std::string design_csv(const LoadedScenario& loaded);
+// Per case and sensor: samples taken and sent, the send ratio (beta) and per output the RMS of
+// the virtual noise m - y (send-on-delta). Averaged over the runs.
+std::string transmissions_csv(const std::vector<SweepAxis>& sweeps, const std::vector<std::vector<std::string>>& labels,
+                              const std::vector<const Scenario*>& scenarios,
+                              const std::vector<const CampaignResult*>& results);
 std::string trajectory_csv(const Scenario& sc, const std::vector<TraceRow>& trace);
 
 // Writes every (name, content) into `dir` atomically: all to temporary files first, then

@@ -200,6 +200,7 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
   sc->plant_kind = pk.name;
   sc->model.plant = pk.factory(plant, sc->run.period);
   sc->model.period = sc->run.period;
+  sc->disturbance = models::read_disturbance(plant, sc->model.plant.nw());
   plant.finish();
 
   // Links.
@@ -292,6 +293,16 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
   if (input) {
     const auto& ik = input_registry().lookup(*input, "kind", "none");
     sc->input = ik.factory(*input, sc->model.plant);
+    const auto delay = input->integer_or("actuation_delay", 0);
+    if (delay < 0 || delay > 1000) {
+      input->fail("actuation_delay", fmt::format("expected an integer in 0..1000 (periods), got {}", delay));
+    }
+    sc->input.actuation_delay = static_cast<int>(delay);
+    if (sc->input.controller) {
+      std::vector<models::SensorSpec> specs;
+      for (const auto& s : sc->model.sensors) specs.push_back(s.spec);
+      sc->input.controller->bind(*input, specs);
+    }
     input->finish();
   }
 
@@ -315,7 +326,10 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
   }
 
   // The state-feedback source.
-  if (sc->input.kind == models::InputSpec::Kind::kStateFeedback && sc->input.source != "plant") {
+  const bool reads_estimate =
+      (sc->input.kind == models::InputSpec::Kind::kStateFeedback && sc->input.source != "plant") ||
+      (sc->input.kind == models::InputSpec::Kind::kController && !sc->input.source.empty());
+  if (reads_estimate) {
     for (std::size_t i = 0; i < sc->estimators.size(); ++i) {
       if (sc->estimators[i].name == sc->input.source) sc->input.source_index = static_cast<int>(i);
     }
@@ -325,7 +339,7 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
       std::string list;
       for (const auto& n : names) list += (list.empty() ? "" : ", ") + fmt::format("\"{}\"", n);
       const std::string hint = did_you_mean(sc->input.source, names);
-      input->fail("source",
+      input->fail(sc->input.kind == models::InputSpec::Kind::kController ? "feedback" : "source",
                   fmt::format("expected \"plant\" or an estimator name ({}), got \"{}\"{}", list,
                               sc->input.source,
                               hint.empty() ? "" : fmt::format(" (did you mean \"{}\"?)", hint)));
@@ -335,11 +349,21 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
   // Re-centring: an open-loop unstable plant is simulated in coordinates that the known
   // input keeps bounded; the estimation error is unchanged (scenarios/README.md).
   const bool unstable = sc->model.plant.spectral_radius() >= 1.0;
-  const bool feedback = sc->input.kind == models::InputSpec::Kind::kStateFeedback;
+  const bool feedback = sc->input.kind == models::InputSpec::Kind::kStateFeedback ||
+                        sc->input.kind == models::InputSpec::Kind::kController;
+  // Send-on-delta sensors decide on the output itself: re-centring would change what they send.
+  bool send_on_delta = false;
+  for (const auto& sm : sc->model.sensors) {
+    send_on_delta = send_on_delta || sm.spec.policy == models::SensorSpec::Policy::kSendOnDelta;
+  }
   if (sc->run.recentre == "always") {
     sc->recentre = true;
+    if (send_on_delta) {
+      root.table("run").fail("recentre", "expected \"auto\" or \"never\" with send-on-delta sensors (they would "
+                                         "decide on re-centred outputs), got \"always\"");
+    }
   } else if (sc->run.recentre == "auto") {
-    sc->recentre = unstable && !feedback;
+    sc->recentre = unstable && !feedback && !send_on_delta;
   }
   if (sc->recentre && feedback && sc->input.source_index >= 0) {
     root.table("run").fail(
@@ -347,6 +371,10 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
                                 "(input.source = \"{}\"), got \"always\" (the controller "
                                 "would see re-centred estimates)",
                                 sc->input.source));
+  }
+  if (sc->recentre && sc->input.kind == models::InputSpec::Kind::kController) {
+    root.table("run").fail("recentre", "expected \"auto\" or \"never\" with a controller input (it would see "
+                                       "re-centred outputs), got \"always\"");
   }
   root.finish();
   return sc;

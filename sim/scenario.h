@@ -47,6 +47,7 @@ struct Scenario {
   std::string plant_kind;
   est::Model model;  // plant, sensors (with pointers into links)
   models::InputSpec input;
+  models::Disturbance disturbance;  // deterministic part of w ([plant.disturbance])
   std::vector<LinkEntry> links;
   std::vector<EstimatorEntry> estimators;
   bool recentre = false;  // simulate in re-centred coordinates (see scenarios/README.md)

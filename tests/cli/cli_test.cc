@@ -235,7 +235,7 @@ TEST_F(Cli, MisspeltTopLevelTableIsAnUnknownKeyNotAMissingTable) {
 TEST_F(Cli, UnknownPlantKindListsTheValidKinds) {
   expect_edit_rejected(
       "kind = \"lti\"", "kind = \"ltx\"", "plant.kind",
-      {"expected one of \"lti\", \"lti_continuous\", \"jump_linear\", got \"ltx\"", "(did you mean \"lti\"?)"});
+      {"expected one of \"lti\", \"lti_continuous\", \"jump_linear\", \"transfer_function\", got \"ltx\"", "(did you mean \"lti\"?)"});
 }
 
 TEST_F(Cli, UnknownLinkKindListsTheValidKinds) {
@@ -249,12 +249,12 @@ TEST_F(Cli, UnknownLinkKindListsTheValidKinds) {
 TEST_F(Cli, UnknownEstimatorKindListsTheValidKinds) {
   expect_edit_rejected(
       "kind = \"kalman_extended\"", "kind = \"kalman\"", "estimator[1].kind",
-      {"expected one of \"jump\", \"kalman_extended\", \"open_loop\", \"imm\", \"mode_io\", \"mode_ss\", \"kalman_buffer\", \"static_buffer\", got \"kalman\""});
+      {"expected one of \"jump\", \"kalman_extended\", \"open_loop\", \"imm\", \"mode_io\", \"mode_ss\", \"kalman_buffer\", \"static_buffer\", \"sod_kalman\", \"sod_jump\", got \"kalman\""});
 }
 
 TEST_F(Cli, UnknownInputKindListsTheValidKinds) {
   expect_edit_rejected("kind = \"white\"", "kind = \"whte\"", "input.kind",
-                       {"expected one of \"none\", \"white\", \"state_feedback\", got \"whte\"",
+                       {"expected one of \"none\", \"white\", \"state_feedback\", \"relay\", \"pi\", got \"whte\"",
                         "(did you mean \"white\"?)"});
 }
 
@@ -471,7 +471,7 @@ TEST_F(Cli, UnknownCommandSuggestsTheClosest) {
   const Outcome o = ncosim({"chek", scenario(base_)});
   EXPECT_EQ(o.code, 2) << o.output;
   EXPECT_NE(
-      o.output.find("expected a command (run, design, find, check or list), got 'chek' (did you mean "
+      o.output.find("expected a command (run, design, find, codesign, check or list), got 'chek' (did you mean "
                     "'check'?)"),
       std::string::npos)
       << o.output;
@@ -681,7 +681,7 @@ TEST_F(Cli, RunWritesTheContractFilesAndNothingElse) {
   ASSERT_EQ(o.code, 0) << o.output;
   // No temporary file left behind.
   EXPECT_EQ(listing(out_), (std::set<std::string>{"summary.csv", "summary.md", "runs.csv",
-                                                  "design.json", "manifest.json"}));
+                                                  "design.json", "manifest.json", "transmissions.csv"}));
 
   const Csv s = read_csv(out_ / "summary.csv");
   const std::vector<std::string> columns{"estimator",
@@ -703,6 +703,7 @@ TEST_F(Cli, RunWritesTheContractFilesAndNothingElse) {
                                          "predicted_mse",
                                          "flops_mean",
                                          "mde_ci95",
+                                         "sent_per_period",
                                          "ermse_x1",
                                          "ermse_x2",
                                          "ermse_x1_ci95",
@@ -750,11 +751,44 @@ TEST_F(Cli, RunWithTraceWritesTrajectoryOfRunZero) {
   const Csv t = read_csv(out_ / "trajectory.csv");
   const std::vector<std::string> header{
       "period",       "x1",           "x2",         "jump S2:xhat1", "jump S2:xhat2",
-      "Kalman:xhat1", "Kalman:xhat2", "arrived:y1", "arrived:y2"};
+      "Kalman:xhat1", "Kalman:xhat2", "arrived:y1", "arrived:y2", "u1", "y:y1", "y:y2"};
   EXPECT_EQ(t.header, header);
   ASSERT_EQ(t.rows.size(), 300u);  // one row per period
   EXPECT_EQ(t.rows.front()[0], "0");
   EXPECT_EQ(t.rows.back()[0], "299");
+}
+
+TEST_F(Cli, TransmissionsCsvCountsEverySampleOfPeriodicSensors) {
+  const Outcome o = ncosim({"run", scenario(base_), "--out", out_.string(), "--periods", "300", "--runs", "2", "--quiet"});
+  ASSERT_EQ(o.code, 0) << o.output;
+  const Csv t = read_csv(out_ / "transmissions.csv");
+  const std::vector<std::string> header{"sensor", "output", "policy", "delta", "samples_taken",
+                                        "samples_sent", "sent_ratio", "virtual_noise_rms"};
+  EXPECT_EQ(t.header, header);
+  ASSERT_EQ(t.rows.size(), 2u);
+  EXPECT_EQ(t.at(0, "policy"), "periodic");
+  EXPECT_EQ(t.at(0, "samples_taken"), t.at(0, "samples_sent"));
+  EXPECT_EQ(t.at(0, "sent_ratio"), "1");
+  EXPECT_EQ(t.at(0, "virtual_noise_rms"), "0");
+}
+
+TEST_F(Cli, CodesignWritesThresholdsUnderTheTarget) {
+  const std::string file = std::string(NCOSIM_SOURCE_DIR) + "/scenarios/sod_example51.toml";
+  const Outcome o = ncosim({"codesign", file, "--out", out_.string(), "--estimator", "C4", "--mu", "1.4", "--quiet"});
+  ASSERT_EQ(o.code, 0) << o.output;
+  const auto j = nlohmann::json::parse(read_file(out_ / "codesign.json"));
+  ASSERT_EQ(j.size(), 1u);
+  EXPECT_EQ(j[0]["estimator"], "C4");
+  EXPECT_EQ(j[0]["status"], "ok");
+  EXPECT_LT(j[0]["bound"].get<double>(), j[0]["target"].get<double>());
+  EXPECT_NEAR(j[0]["target"].get<double>(), 1.4 * j[0]["z0"].get<double>(), 1e-12);
+  EXPECT_GT(j[0]["lmi_problems"].get<int>(), 1);
+  EXPECT_EQ(j[0]["epsilon"], 0.005);
+  EXPECT_NE(o.output.find("apply: --set sensor[0].delta="), std::string::npos) << o.output;
+  // Not a sod_jump estimator: bad input.
+  const Outcome bad = ncosim({"codesign", file, "--out", out_.string(), "--estimator", "suh_w0.02", "--quiet"});
+  EXPECT_EQ(bad.code, 2) << bad.output;
+  EXPECT_NE(bad.output.find("expected a sod_jump estimator named \"suh_w0.02\""), std::string::npos) << bad.output;
 }
 
 }  // namespace

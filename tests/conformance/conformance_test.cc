@@ -25,6 +25,17 @@ const std::map<std::string, std::string> kEstimators{
     {"mode_ss", "mode_prior = \"uniform\""},
     {"kalman_buffer", "buffer = 2"},
     {"static_buffer", "buffer = 2"},
+    {"sod_kalman", "W = 0.01\nvirtual_variance_factor = 0.3333"},
+    {"sod_jump", "w_rms = 0.1"},
+};
+
+// Kinds without max_delay: the misspelt key of the unknown-key test, and its correct spelling.
+const std::map<std::string, std::pair<std::string, std::string>> kMisspelt{
+    {"imm", {"mode_priorr = \"uniform\"", "mode_prior"}},
+    {"mode_io", {"mode_priorr = \"uniform\"", "mode_prior"}},
+    {"mode_ss", {"mode_priorr = \"uniform\"", "mode_prior"}},
+    {"sod_kalman", {"virtual_variance_factr = 0.3", "virtual_variance_factor"}},
+    {"sod_jump", {"virtual_nois = \"delta2\"", "virtual_noise"}},
 };
 
 // Mode estimators need modes: their scenarios get an [[actuator]] on the same link kind.
@@ -47,12 +58,15 @@ const std::map<std::string, std::string> kPlants{
      "A = [[0.8821, -0.0351], [-0.0351, 0.7347]]\nBu = [[-0.3359], [0.3466]]\nW = [[0.01, 0], [0, 0.01]]\n"
      "transition = [[0.9, 0.1], [0.3, 0.7]]\n[[plant.mode]]\n[[plant.mode]]\nA = [[0.5, 0.0], [0.1, 0.6]]\n"
      "W = [[0.05, 0], [0, 0.05]]"},
+    {"transfer_function", "num = [1.0]\nden = [1.0, 0.5, 0.1]\nW = 0.01"},
 };
 
 const std::map<std::string, std::string> kInputs{
     {"none", ""},
     {"white", "std = 1.0"},
     {"state_feedback", "K = [[0.1, 0.1]]\nsource = \"plant\""},
+    {"relay", "level = 0.5\ndead_zone = 0.2\noutputs = [0]\nsees = \"measured\""},
+    {"pi", "kp = 0.1\nki = 0.05\nb = 0.7\nu_min = -1.0\nu_max = 1.0\nreference = {kind = \"square\", low = 0.0, high = 1.0, period = 50.0}"},
 };
 
 struct TempDir {
@@ -157,16 +171,13 @@ TEST(Conformance, EveryEstimatorRunsFiniteDeterministicAndBeatsNothingWithoutDat
 TEST(Conformance, EveryKindRejectsAnUnknownKeyWithADidYouMean) {
   TempDir dir;
   for (const auto& k : all_estimators()) {
-    const bool mode = is_mode_kind(k);
-    const auto file = write_scenario(
-        dir, scenario_text("lti", "none", "delay", {k}, mode ? "mode_priorr = \"uniform\"" : "max_delayy = 1"));
+    const auto bad = kMisspelt.count(k) ? kMisspelt.at(k) : std::make_pair(std::string("max_delayy = 1"), std::string("max_delay"));
+    const auto file = write_scenario(dir, scenario_text("lti", "none", "delay", {k}, bad.first));
     try {
       testing::load_one(file);
       ADD_FAILURE() << k << " accepted an unknown key";
     } catch (const ScenarioError& e) {
-      EXPECT_NE(std::string(e.what()).find(mode ? "did you mean 'mode_prior'" : "did you mean 'max_delay'"),
-                std::string::npos)
-          << e.what();
+      EXPECT_NE(std::string(e.what()).find("did you mean '" + bad.second + "'"), std::string::npos) << e.what();
     }
   }
   for (const auto& l : link_registry().entries()) {

@@ -1,0 +1,245 @@
+// estimators/sod_jump.cc — the send-on-delta jump observer and its reader. Periodic sensors are
+// allowed (jump gain, deterministic design): in the patterns where they did not deliver, their
+// gain columns are 0, so a stale held value is never used.
+#include "estimators/sod_jump.h"
+
+#include <fmt/format.h>
+
+#include <chrono>
+
+#include "estimators/design/sod_bounds.h"
+#include "estimators/kinds.h"
+#include "estimators/sod_hold.h"
+
+namespace ncosim::est {
+
+namespace {
+
+using Eigen::MatrixXd;
+using Eigen::VectorXd;
+
+class SodJump final : public Estimator {
+ public:
+  SodJump(const MatrixXd& A, const MatrixXd& C, const std::vector<MatrixXd>& gains, const Model& model,
+          const VectorXd& xhat0)
+      : A_(A), C_(C), gains_(gains), hold_(model), x_(xhat0), innov_(C.rows()) {}
+
+  int on_packet(const Packet& p, std::int64_t k) override { return hold_.accept(p, k); }
+
+  void on_period(std::int64_t k, const PeriodInput& in) override {
+    if (k > 0) x_ = A_ * x_ + in.drive;
+    const std::uint64_t j = hold_.pattern();
+    hold_.clear_pattern();
+    innov_.noalias() = hold_.m() - C_ * x_;
+    x_.noalias() += gains_[j] * innov_;
+  }
+  StateView state() const override { return StateView(x_.data(), x_.size()); }
+
+ private:
+  const MatrixXd& A_;
+  const MatrixXd& C_;
+  const std::vector<MatrixXd>& gains_;
+  SodHold hold_;
+  VectorXd x_, innov_;
+};
+
+struct CodesignKeys {
+  double mu = 0.0;
+  double epsilon = 0.0;
+  bool relative = false;
+  VectorXd delta0;
+  double sigma2_factor = 1.0;
+  sod::Assumption assumption = sod::Assumption::kUniform;
+  VectorXd r;
+};
+
+class SodJumpDesignImpl final : public SodJumpDesign {
+ public:
+  SodJumpDesignImpl(const Model& model, sod::SodSystem sys, sod::SodDesignSpec spec, CodesignKeys cd,
+                    VectorXd xhat0, nlohmann::json extra)
+      : model_(model), sys_(std::move(sys)), spec_(std::move(spec)), cd_(std::move(cd)), xhat0_(std::move(xhat0)) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const sod::SodDesignResult r = sod::design_sod(sys_, spec_);
+    report_.design_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    report_.method = spec_.approach == sod::Approach::kDeterministic ? "lmi_deterministic" : "lmi_stochastic";
+    report_.extra = std::move(extra);
+    report_.extra["lmis"] = r.lmis;
+    report_.extra["sdp_variables"] = r.size.variables;
+    report_.extra["sdp_dimension"] = r.size.total_dimension;
+    report_.extra["solver_seconds"] = r.seconds;
+    if (!r.ok) {
+      report_.status = "lmi_" + r.status;
+      gains_.assign(std::size_t{1} << sys_.ns(), MatrixXd::Zero(sys_.A.rows(), sys_.ny()));
+    } else {
+      gains_ = r.gains;
+      report_.extra["guaranteed_bound"] = r.bound;  // >= ||z~||^2_RMS under the design's assumptions
+      report_.extra["gamma_w"] = r.gamma_w;
+      report_.extra["gamma_v"] = std::vector<double>(r.gamma_v.data(), r.gamma_v.data() + r.gamma_v.size());
+      report_.extra["gamma_delta"] =
+          std::vector<double>(r.gamma_delta.data(), r.gamma_delta.data() + r.gamma_delta.size());
+      // Spectral radius of the constant-gain / pattern-all error dynamics (I - L C) A.
+      const MatrixXd Aall = (MatrixXd::Identity(sys_.A.rows(), sys_.A.rows()) - gains_.back() * sys_.C) * sys_.A;
+      report_.stable = Aall.eigenvalues().cwiseAbs().maxCoeff() < 1.0;
+    }
+    report_.stored_gains = spec_.jump ? static_cast<long>(gains_.size()) : 1L;
+  }
+  std::unique_ptr<Estimator> instantiate() const override {
+    return std::make_unique<SodJump>(sys_.A, sys_.C, gains_, model_, xhat0_);
+  }
+  const DesignReport& report() const override { return report_; }
+  std::optional<double> flops_per_period() const override {
+    // A x (2n^2 - n) + drive (n) + innovation (2 n ny) + gain (2 n ny).
+    const double n = static_cast<double>(sys_.A.rows()), ny = static_cast<double>(sys_.ny());
+    return 2 * n * n + 4 * n * ny;
+  }
+  const sod::SodSystem& system() const override { return sys_; }
+  const sod::SodDesignSpec& spec() const override { return spec_; }
+  double mu() const override { return cd_.mu; }
+  std::optional<sod::CodesignSpec> codesign_spec(double mu, double z0) const override {
+    if (sys_.ns() != sys_.ny()) return std::nullopt;  // one output per sensor
+    sod::CodesignSpec c;
+    c.approach = spec_.approach;
+    c.jump = spec_.jump;
+    c.vertices = spec_.vertices;
+    c.assumption = cd_.assumption;
+    c.r = cd_.r;
+    c.g = cd_.r;
+    c.sigma2_factor = cd_.sigma2_factor;
+    c.target = mu * z0;
+    const bool det = spec_.approach == sod::Approach::kDeterministic;
+    c.relative_step = cd_.epsilon > 0.0 ? cd_.relative : det;
+    c.epsilon = cd_.epsilon > 0.0 ? cd_.epsilon : (det ? 0.02 : 0.005);
+    c.delta0 = cd_.delta0.size() ? cd_.delta0 : VectorXd(0.01 * cd_.r);
+    return c;
+  }
+
+ private:
+  const Model& model_;
+  sod::SodSystem sys_;
+  sod::SodDesignSpec spec_;
+  CodesignKeys cd_;
+  VectorXd xhat0_;
+  std::vector<MatrixXd> gains_;
+  DesignReport report_;
+};
+
+VectorXd per_output(const sim::Table& t, std::string_view key, Eigen::Index ny) {
+  VectorXd v = t.vector(key);
+  if (v.size() == 1 && ny > 1) v = VectorXd::Constant(ny, v(0));
+  if (v.size() != ny || !v.allFinite() || v.minCoeff() < 0.0) {
+    t.fail(key, fmt::format("expected 1 or {} non-negative values (one per output), got {}", ny, v.size()));
+  }
+  return v;
+}
+
+std::unique_ptr<EstimatorDesign> read_sod_jump(const sim::Table& t, const Model& model) {
+  sod::SodSystem sys;
+  MatrixXd R;
+  stacked_outputs(model, sys.C, R);
+  sys.A = model.plant.A;
+  sys.Bw = model.plant.Bw;
+  sys.sensor_rows.push_back(0);
+  bool all_sod = true;
+  for (const auto& s : model.sensors) {
+    sys.sensor_rows.push_back(sys.sensor_rows.back() + s.spec.ny());
+    const bool sod = s.spec.policy == models::SensorSpec::Policy::kSendOnDelta;
+    sys.send_on_delta.push_back(sod);
+    all_sod = all_sod && sod;
+  }
+  const Eigen::Index ny = sys.ny(), n = sys.A.rows();
+  if (model.sensors.size() > 6) {
+    t.fail("kind", fmt::format("expected at most 6 sensors (2^ns gains and (2^ns)^2 LMIs), got {}", model.sensors.size()));
+  }
+  if (t.is_string("Cz")) {
+    t.choice_or("Cz", "output", {"output"});
+    sys.Cz = sys.C;  // the signal of interest is the measured output (the paper's example 5.2)
+  } else {
+    sys.Cz = t.has("Cz") ? t.matrix("Cz") : MatrixXd::Identity(n, n);
+  }
+  if (sys.Cz.cols() != n) t.fail("Cz", fmt::format("expected {} columns (the state size), got {}", n, sys.Cz.cols()));
+  sys.w_rms = t.number("w_rms");
+  if (!(sys.w_rms >= 0.0) || !std::isfinite(sys.w_rms)) t.fail("w_rms", "expected ||w||_RMS >= 0");
+  sys.v_rms = t.has("v_rms") ? per_output(t, "v_rms", ny) : VectorXd(R.diagonal().cwiseSqrt());
+
+  sod::SodDesignSpec spec;
+  const std::string approach = t.choice_or("design", "deterministic", {"deterministic", "stochastic"});
+  spec.approach = approach == "deterministic" ? sod::Approach::kDeterministic : sod::Approach::kStochastic;
+  spec.jump = t.choice_or("gain", "jump", {"jump", "constant"}) == "jump";
+  if (!spec.jump && !all_sod) {
+    t.fail("gain", "expected gain = \"jump\" with periodic sensors (a constant gain would use their stale held "
+                   "values), got \"constant\"");
+  }
+  VectorXd delta = t.has("delta") ? per_output(t, "delta", ny) : stacked_delta(model);
+
+  CodesignKeys cd;
+  nlohmann::json extra;
+  extra["design"] = approach;
+  extra["gain"] = spec.jump ? "jump" : "constant";
+  extra["delta"] = std::vector<double>(delta.data(), delta.data() + delta.size());
+  if (spec.approach == sod::Approach::kDeterministic) {
+    const std::string vn = t.choice_or("virtual_noise", "delta2", {"delta2", "delta2_over_3"});
+    cd.sigma2_factor = vn == "delta2" ? 1.0 : 1.0 / 3.0;
+    spec.sigma2_delta = cd.sigma2_factor * delta.cwiseProduct(delta);
+    extra["virtual_noise"] = vn;
+    // The deterministic co-design weights g_i = r_i (35) when given.
+    cd.r = t.has("r") ? per_output(t, "r", ny) : VectorXd::Ones(ny);
+  } else {
+    if (!all_sod) t.fail("design", "expected send_on_delta sensors only for the stochastic design");
+    if (static_cast<Eigen::Index>(model.sensors.size()) != ny) {
+      t.fail("design", "expected one output per sensor for the stochastic design (beta is per output)");
+    }
+    const std::string vert = t.choice_or("vertices", "all", {"all", "lower"});
+    spec.vertices = vert == "all" ? sod::Vertices::kAll : sod::Vertices::kLower;
+    const std::string as = t.choice_or("assumption", "uniform", {"uniform", "gaussian"});
+    cd.assumption = as == "uniform" ? sod::Assumption::kUniform : sod::Assumption::kGaussian;
+    if (cd.assumption == sod::Assumption::kUniform) {
+      if (t.has("r")) {
+        cd.r = per_output(t, "r", ny);
+      } else if (t.has("w_inf")) {  // (28)
+        const VectorXd w_inf = per_output(t, "w_inf", sys.Bw.cols());
+        const VectorXd v_inf = per_output(t, "v_inf", ny);
+        cd.r = sod::uniform_range(sys.C, sys.Bw, w_inf, v_inf);
+      } else {
+        t.fail("r", "expected the uniform range r (one per output) or w_inf and v_inf to compute it by (28)");
+      }
+    } else {
+      cd.r = per_output(t, "sigma", ny);
+    }
+    if (cd.r.minCoeff() <= 0.0) t.fail(cd.assumption == sod::Assumption::kUniform ? "r" : "sigma", "expected values > 0");
+    sod::CodesignSpec tmp;
+    tmp.approach = spec.approach;
+    tmp.assumption = cd.assumption;
+    tmp.r = cd.r;
+    sod::codesign_bounds(tmp, delta, spec.sigma2_delta, spec.beta_lower);
+    extra["vertices"] = vert == "all" ? "all (robust over the probability box)" : "lower (beta = beta' only)";
+    extra["assumption"] = as;
+    extra[cd.assumption == sod::Assumption::kUniform ? "r" : "sigma"] = std::vector<double>(cd.r.data(), cd.r.data() + ny);
+    extra["beta_lower"] = std::vector<double>(spec.beta_lower.data(), spec.beta_lower.data() + ny);
+  }
+  extra["sigma2_delta"] = std::vector<double>(spec.sigma2_delta.data(), spec.sigma2_delta.data() + ny);
+  if (const auto c = t.opt_table("codesign")) {
+    cd.mu = c->number("mu");
+    if (!(cd.mu >= 1.0) || !std::isfinite(cd.mu)) c->fail("mu", fmt::format("expected mu >= 1, got {}", cd.mu));
+    cd.epsilon = c->number_or("epsilon", 0.0);
+    if (!(cd.epsilon >= 0.0) || cd.epsilon >= 1.0) c->fail("epsilon", "expected a step in (0, 1) (0: the default)");
+    cd.relative = c->choice_or("step", spec.approach == sod::Approach::kDeterministic ? "relative" : "absolute",
+                               {"relative", "absolute"}) == "relative";
+    if (c->has("delta0")) cd.delta0 = per_output(*c, "delta0", ny);
+    c->finish();
+  }
+  InitialEstimate init = read_initial(t, model);
+  return std::make_unique<SodJumpDesignImpl>(model, std::move(sys), std::move(spec), std::move(cd),
+                                             std::move(init.xhat0), std::move(extra));
+}
+
+}  // namespace
+
+void register_sod_jump(EstimatorRegistry& registry) {
+  registry.add("sod_jump",
+               "send-on-delta jump observer, H-infinity LMI design (send-on-delta co-design paper): design = "
+               "\"deterministic\" (LMI 11) | \"stochastic\" (LMI 20 at the vertices), gain = \"jump\" | \"constant\", "
+               "w_rms, v_rms, virtual_noise, r | w_inf + v_inf | sigma, assumption, vertices, delta, Cz, [codesign]",
+               read_sod_jump);
+}
+
+}  // namespace ncosim::est
