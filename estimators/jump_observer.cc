@@ -146,8 +146,8 @@ class JumpObserverDesign final : public EstimatorDesign, public JumpDesignAccess
                               {"solves", info.sdp_solves},
                               {"bisections", info.bisections},
                               {"ccl_iterations", info.ccl_iterations},
-                              {"lower_bound_trP", info.lower_bound},
-                              {"upper_bound_trP", info.upper_bound}};
+                              {"bisection_low_trP", info.lower_bound},
+                              {"bisection_high_trP", info.upper_bound}};
     }
     if (iterative && ccl) report_.extra["chosen"] = report_.method;
     // A failed iterative design keeps its historical row status; a failed LMI design is

@@ -192,6 +192,7 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
 
   lmi::Options lo;
   lo.verbose = opt.verbose;
+  lo.max_iterations = opt.sdp_max_iterations;
   JumpDesign best = failed;
   double best_trP = std::numeric_limits<double>::infinity();
   auto solve = [&](Built& b) {

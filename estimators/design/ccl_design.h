@@ -26,7 +26,8 @@ struct CclOptions {
   int max_ccl_iterations = 20;       // k_max of the paper's step 4
   double relative_gap = 1e-3;        // bisection stops when gamma_u - gamma_l < gap gamma_u
   int max_bisections = 40;
-  bool verbose = false;              // CSDP log to stderr
+  int sdp_max_iterations = 100;      // CSDP's iteration limit per SDP
+  bool verbose = false;              // CSDP log and the bisection trace on stderr
 };
 
 struct CclInfo {
@@ -34,7 +35,7 @@ struct CclInfo {
   int sdp_solves = 0;
   int bisections = 0;
   int ccl_iterations = 0;   // total over the bisection
-  double lower_bound = 0.0; // final gamma_l (tr P)
+  double lower_bound = 0.0; // final gamma_l: CCL failed there (not a certified bound; the relaxation is)
   double upper_bound = 0.0; // final gamma_u (tr P of the returned gains)
   std::string lmi_status = "optimal";  // status of the first SDP that failed, if the design failed
 };

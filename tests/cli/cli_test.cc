@@ -252,6 +252,12 @@ TEST_F(Cli, UnknownEstimatorKindListsTheValidKinds) {
       {"expected one of \"jump\", \"kalman_extended\", \"open_loop\", \"imm\", \"mode_io\", \"mode_ss\", \"kalman_buffer\", \"static_buffer\", \"sod_kalman\", \"sod_jump\", got \"kalman\""});
 }
 
+TEST_F(Cli, UnknownJumpDesignMethodSuggestsTheNearestOne) {
+  expect_edit_rejected("grouping = \"S2\"", "design = \"cll\"\ngrouping = \"S2\"", "estimator[0].design",
+                       {"expected one of \"iterative\", \"ccl\", \"both\", got \"cll\"",
+                        "(did you mean \"ccl\"?)"});
+}
+
 TEST_F(Cli, UnknownInputKindListsTheValidKinds) {
   expect_edit_rejected("kind = \"white\"", "kind = \"whte\"", "input.kind",
                        {"expected one of \"none\", \"white\", \"state_feedback\", \"relay\", \"pi\", got \"whte\"",

@@ -92,5 +92,21 @@ TEST(CclDesign, AnUnstableNetworkIsAStatusNotACrash) {
   EXPECT_EQ(ccl.status.rfind("unstable", 0), 0U) << ccl.status;
 }
 
+TEST(CclDesign, AFailedSdpIsTheDesignStatus) {
+  // CSDP stopped after one iteration: numerical_trouble becomes the design's status (the
+  // estimator row then reads design_numerical_trouble), with no gains and no prediction.
+  auto d = dolz_model();
+  const ExtendedModel ext = build_extended(d.model, 0);
+  const std::vector<double> prob = {0.04, 0.16, 0.16, 0.64};
+  CclOptions o;
+  o.sdp_max_iterations = 1;
+  CclInfo info;
+  const JumpDesign ccl = design_jump_ccl(ext, prob, 1, Grouping::kS4, o, &info);
+  EXPECT_FALSE(ccl.stable);
+  EXPECT_EQ(ccl.status, "numerical_trouble");
+  EXPECT_EQ(info.lmi_status, "numerical_trouble");
+  EXPECT_EQ(info.sdp_solves, 1);
+}
+
 }  // namespace
 }  // namespace ncosim::est
