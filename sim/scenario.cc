@@ -189,10 +189,13 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
   sc->title = root.string_or("title", std::filesystem::path(file).stem().string());
   // Unknown top-level keys first (a misspelt [[sensor]] is reported as such, not as a missing
   // table). Every top-level key read below must be listed here.
-  for (const char* key : {"run", "sweep", "plant", "link", "sensor", "input", "estimator"})
+  for (const char* key : {"run", "sweep", "plant", "link", "sensor", "input", "estimator", "sumo"})
     root.allow(key);
   root.finish();
   sc->run = read_run(root);
+  // [sumo]: vehicle mobility (sumo/); the readers below name the vehicles they need, and the
+  // realisations are recorded (or reused) once every reader has run, before the designs.
+  if (const auto sumo = root.opt_table("sumo")) sc->mobility = make_mobility(*sumo, sc->run, dir);
 
   // Plant.
   const Table plant = root.table("plant");
@@ -200,11 +203,15 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
   sc->plant_kind = pk.name;
   sc->model.plant = pk.factory(plant, sc->run.period);
   sc->model.period = sc->run.period;
+  if (pk.name.starts_with("sumo_")) {
+    if (!sc->mobility) plant.fail("kind", fmt::format("expected a [sumo] table for plant kind \"{}\"", pk.name));
+    sc->plant_vehicle = sc->mobility->vehicle(plant, "vehicle");
+  }
   plant.finish();
 
   // Links.
   std::vector<std::string> link_names;
-  const models::LinkContext ctx{dir};
+  const models::LinkContext ctx{dir, sc->run.period, sc->mobility};
   for (const Table& t : root.tables("link")) {
     LinkEntry e;
     e.name = t.string("name");
@@ -253,6 +260,8 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
                                  packets, packets, trace->size()));
     }
   }
+
+  if (sc->mobility) sc->mobility->prepare();
 
   // Input.
   const std::optional<Table> input = root.opt_table("input");
@@ -303,7 +312,12 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
   // input keeps bounded; the estimation error is unchanged (scenarios/README.md).
   const bool unstable = sc->model.plant.spectral_radius() >= 1.0;
   const bool feedback = sc->input.kind == models::InputSpec::Kind::kStateFeedback;
-  if (sc->run.recentre == "always") {
+  if (sc->plant_vehicle >= 0) {
+    // The true state comes from SUMO: nothing to re-centre.
+    if (sc->run.recentre == "always") {
+      root.table("run").fail("recentre", "expected \"auto\" or \"never\" with a SUMO vehicle as the plant");
+    }
+  } else if (sc->run.recentre == "always") {
     sc->recentre = true;
   } else if (sc->run.recentre == "auto") {
     sc->recentre = unstable && !feedback;
