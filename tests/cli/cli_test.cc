@@ -232,17 +232,26 @@ TEST_F(Cli, MisspeltTopLevelTableIsAnUnknownKeyNotAMissingTable) {
                           "unknown key (did you mean 'sensor'?)"});
 }
 
+// The SUMO component (NCOSIM_SUMO) adds its kinds at the end of the lists.
+#if NCOSIM_HAVE_SUMO
+#define SUMO_PLANT_KINDS ", \"sumo_vehicle\""
+#define SUMO_LINK_KINDS ", \"sumo_distance\""
+#else
+#define SUMO_PLANT_KINDS ""
+#define SUMO_LINK_KINDS ""
+#endif
+
 TEST_F(Cli, UnknownPlantKindListsTheValidKinds) {
   expect_edit_rejected(
       "kind = \"lti\"", "kind = \"ltx\"", "plant.kind",
-      {"expected one of \"lti\", \"lti_continuous\", got \"ltx\"", "(did you mean \"lti\"?)"});
+      {"expected one of \"lti\", \"lti_continuous\"" SUMO_PLANT_KINDS ", got \"ltx\"", "(did you mean \"lti\"?)"});
 }
 
 TEST_F(Cli, UnknownLinkKindListsTheValidKinds) {
   expect_edit_rejected(
       "kind = \"delay\"", "kind = \"dealy\"", "link[0].kind",
       {"expected one of \"delay\", \"bernoulli\", \"negative_binomial\", "
-       "\"arrival_cdf\", \"gilbert_elliott\", \"markov\", \"trace\", got \"dealy\"",
+       "\"arrival_cdf\", \"gilbert_elliott\", \"markov\", \"trace\"" SUMO_LINK_KINDS ", got \"dealy\"",
        "(did you mean \"delay\"?)"});
 }
 

@@ -270,6 +270,11 @@ TEST(SumoCampaign, SumoErrorsExitTwoWithAClearMessage) {
       {"sumo.routes='missing.rou.xml'", "missing.rou.xml' (not found)"},
       {"plant.vehicle='nobody'", "key 'plant.vehicle': vehicle \"nobody\" never drives"},
       {"sumo.routes='bad.rou.xml'", "SUMO failed (seed 1): The route 'nowhere' for vehicle 'x' is not known"},
+      {"link[0].tx_powr=10", "did you mean 'tx_power'"},
+      {"link[0].preset='ns3'", "key 'link[0].preset': expected one of"},
+      {"link[0].receiver='leader'", "expected a receiver other than the sender"},
+      {"sumo.mode='online'", "key 'sumo.mode'"},
+      {"run.recentre='always'", "with a SUMO vehicle as the plant"},
   };
   for (const auto& c : cases) {
     const Output o = run_ncosim("run s.toml --out bad --quiet --set \"" + c.set + "\" --set 'sumo.cache=\"cache_bad\"'");
@@ -278,6 +283,35 @@ TEST(SumoCampaign, SumoErrorsExitTwoWithAClearMessage) {
     EXPECT_TRUE(o.out.empty()) << o.out;
     EXPECT_FALSE(fs::exists(road().dir / "bad")) << "results written on failure";
   }
+}
+
+TEST(SumoCli, ChannelCommandPrintsThePresetsCurve) {
+  ASSERT_TRUE(road().ok);
+  const Output o = run_ncosim("channel ns3_vanet --csv --max-distance 1000 --step 50");
+  ASSERT_EQ(o.code, 0) << o.err;
+  std::stringstream ss(o.out);
+  std::string line;
+  std::getline(ss, line);
+  EXPECT_EQ(line, "distance_m,mean_rx_dbm,p_reception");
+  const Channel ch = make_preset("ns3_vanet");
+  int rows = 0;
+  while (std::getline(ss, line)) {
+    double d = 0, rx = 0, p = 0;
+    ASSERT_EQ(std::sscanf(line.c_str(), "%lf,%lf,%lf", &d, &rx, &p), 3) << line;
+    EXPECT_NEAR(p, ch.reception_probability(d), 1e-8) << line;
+    ++rows;
+  }
+  EXPECT_EQ(rows, 21);
+  const Output text = run_ncosim("channel cheng2007");
+  EXPECT_EQ(text.code, 0);
+  EXPECT_NE(text.out.find("no interference model"), std::string::npos);
+  EXPECT_NE(text.out.find("802.11p"), std::string::npos);
+  const Output bad = run_ncosim("channel nope");
+  EXPECT_EQ(bad.code, 2);
+  EXPECT_NE(bad.err.find("expected a channel preset"), std::string::npos) << bad.err;
+  const Output list = run_ncosim("list");
+  EXPECT_NE(list.out.find("sumo_distance"), std::string::npos);
+  EXPECT_NE(list.out.find("veins_nakagami3"), std::string::npos);
 }
 
 TEST(SumoDistanceLink, DeliveryPerDistanceBinMatchesPd) {
