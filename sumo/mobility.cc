@@ -1,6 +1,7 @@
 // sumo/mobility.cc — the [sumo] table, the recording cache, worker processes, replay.
 #include "sumo/mobility.h"
 
+#include <dlfcn.h>
 #include <fcntl.h>
 #include <fmt/format.h>
 #include <spawn.h>
@@ -81,7 +82,52 @@ class ReplayRun final : public sim::MobilityRun {
   std::int64_t frame_ = 0;
 };
 
+// The libsumo module (sumo/session.cc), opened on first use: $NCOSIM_SUMO_MODULE, else the
+// build's module (NCOSIM_SUMO_MODULE_PATH), else libncosim_sumo_session.so beside the executable.
+struct SessionApi {
+  void (*record)(const SumoInputs*, std::uint64_t, std::int64_t, const std::vector<std::string>*, Recording*);
+  sim::MobilityRun* (*start_live)(const SumoInputs*, std::uint64_t, const std::vector<std::string>*);
+};
+
+const SessionApi& session_api() {
+  static const SessionApi api = [] {
+    std::vector<std::string> candidates;
+    if (const char* e = std::getenv("NCOSIM_SUMO_MODULE"); e != nullptr && *e != '\0') candidates.emplace_back(e);
+    candidates.emplace_back(NCOSIM_SUMO_MODULE_PATH);
+    std::error_code ec;
+    const auto self = fs::read_symlink("/proc/self/exe", ec);
+    if (!ec) candidates.push_back((self.parent_path() / "libncosim_sumo_session.so").string());
+    std::string errors;
+    for (const auto& c : candidates) {
+      void* h = ::dlopen(c.c_str(), RTLD_NOW | RTLD_LOCAL);
+      if (h == nullptr) {
+        errors += fmt::format("\n  {}", ::dlerror());
+        continue;
+      }
+      SessionApi a{};
+      a.record = reinterpret_cast<decltype(a.record)>(::dlsym(h, "ncosim_sumo_record"));
+      a.start_live = reinterpret_cast<decltype(a.start_live)>(::dlsym(h, "ncosim_sumo_start_live"));
+      if (a.record != nullptr && a.start_live != nullptr) return a;
+      errors += fmt::format("\n  {}: entry points missing", c);
+    }
+    throw std::runtime_error("cannot load the libsumo module (set NCOSIM_SUMO_MODULE):" + errors);
+  }();
+  return api;
+}
+
 }  // namespace
+
+Recording record(const SumoInputs& in, std::uint64_t seed, std::int64_t frames,
+                 const std::vector<std::string>& vehicles) {
+  Recording r;
+  session_api().record(&in, seed, frames, &vehicles, &r);
+  return r;
+}
+
+std::unique_ptr<sim::MobilityRun> start_live(const SumoInputs& in, std::uint64_t seed,
+                                             const std::vector<std::string>& vehicles) {
+  return std::unique_ptr<sim::MobilityRun>(session_api().start_live(&in, seed, &vehicles));
+}
 
 void set_worker_executable(const std::string& path) { g_worker = path; }
 
