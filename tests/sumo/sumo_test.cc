@@ -390,5 +390,27 @@ TEST(SumoVehiclePlant, TrueStateIsTheVehiclesMotionAndDesignIsConstantVelocity) 
   EXPECT_LE(v.speed, 30.0 + 1e-9);
 }
 
+TEST(SumoVehiclePlant, ConstantAccelerationModelTracksPositionSpeedAndAcceleration) {
+  ASSERT_TRUE(road().ok);
+  fs::create_directories(road().dir / "unit");
+  auto sc = testing::load_one(road().scenario(),
+                              {"sumo.cache=\"unit\"", "plant.model=\"constant_acceleration\"", "plant.q=0.5",
+                               "sensor[0].C=[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]", "run.runs=2"});
+  const auto& p = sc->model.plant;
+  ASSERT_EQ(p.n(), 3);
+  EXPECT_NEAR(p.A(0, 2), 0.005, 1e-15);            // T^2 / 2
+  EXPECT_NEAR(p.W(2, 2), 0.5 * 0.1, 1e-15);        // q T
+  EXPECT_NEAR(p.W(0, 0), 0.5 * 1e-5 / 20.0, 1e-18);  // q T^5 / 20
+  sim::CampaignOptions opt;
+  opt.time_estimators = false;
+  const auto result = sim::run_campaign(*sc, opt);
+  for (const auto& run : result.runs) {
+    for (const auto& m : run) {
+      EXPECT_FALSE(m.diverged);
+      EXPECT_GT(m.count, 0);
+    }
+  }
+}
+
 }  // namespace
 }  // namespace ncosim::sumo
