@@ -82,8 +82,8 @@ class ReplayRun final : public sim::MobilityRun {
   std::int64_t frame_ = 0;
 };
 
-// The libsumo module (sumo/session.cc), opened on first use: $NCOSIM_SUMO_MODULE, else the
-// build's module (NCOSIM_SUMO_MODULE_PATH), else libncosim_sumo_session.so beside the executable.
+// The libsumo module (sumo/session.cc), opened on first use: $NCOSIM_SUMO_MODULE (only it,
+// when set), else the build's module (NCOSIM_SUMO_MODULE_PATH), else libncosim_sumo_session.so beside the executable.
 struct SessionApi {
   void (*record)(const SumoInputs*, std::uint64_t, std::int64_t, const std::vector<std::string>*, Recording*);
   sim::MobilityRun* (*start_live)(const SumoInputs*, std::uint64_t, const std::vector<std::string>*);
@@ -92,11 +92,14 @@ struct SessionApi {
 const SessionApi& session_api() {
   static const SessionApi api = [] {
     std::vector<std::string> candidates;
-    if (const char* e = std::getenv("NCOSIM_SUMO_MODULE"); e != nullptr && *e != '\0') candidates.emplace_back(e);
-    candidates.emplace_back(NCOSIM_SUMO_MODULE_PATH);
-    std::error_code ec;
-    const auto self = fs::read_symlink("/proc/self/exe", ec);
-    if (!ec) candidates.push_back((self.parent_path() / "libncosim_sumo_session.so").string());
+    if (const char* e = std::getenv("NCOSIM_SUMO_MODULE"); e != nullptr && *e != '\0') {
+      candidates.emplace_back(e);  // only this one
+    } else {
+      candidates.emplace_back(NCOSIM_SUMO_MODULE_PATH);
+      std::error_code ec;
+      const auto self = fs::read_symlink("/proc/self/exe", ec);
+      if (!ec) candidates.push_back((self.parent_path() / "libncosim_sumo_session.so").string());
+    }
     std::string errors;
     for (const auto& c : candidates) {
       void* h = ::dlopen(c.c_str(), RTLD_NOW | RTLD_LOCAL);

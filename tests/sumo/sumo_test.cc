@@ -206,9 +206,10 @@ struct Output {
   std::string out, err;
 };
 
-Output run_ncosim(const std::string& args) {
+Output run_ncosim(const std::string& args, const std::string& env = "") {
   const fs::path dir = road().dir;
-  const std::string cmd = "cd '" + dir.string() + "' && '" + NCOSIM_BINARY + "' " + args + " >stdout.txt 2>stderr.txt";
+  const std::string cmd =
+      "cd '" + dir.string() + "' && " + env + "'" + NCOSIM_BINARY + "' " + args + " >stdout.txt 2>stderr.txt";
   const int status = std::system(cmd.c_str());
   return Output{WIFEXITED(status) ? WEXITSTATUS(status) : -1, testing::read_text((dir / "stdout.txt").string()),
                 testing::read_text((dir / "stderr.txt").string())};
@@ -246,11 +247,18 @@ TEST(SumoCampaign, RecordsOnceReusesAndLiveEqualsReplay) {
   for (const char* noise : {"Loading", "Success", "Warning", "Step #", "sumo:"}) {
     EXPECT_EQ(first.out.find(noise), std::string::npos) << noise << " in stdout:\n" << first.out;
   }
-  const Output second = run_ncosim("run s.toml --out r2 --quiet");
+  // The second campaign cannot start SUMO: the libsumo module is pointed at nothing.
+  const Output second = run_ncosim("run s.toml --out r2 --quiet", "NCOSIM_SUMO_MODULE=/nonexistent/libsumo.so ");
   ASSERT_EQ(second.code, 0) << second.err;
   EXPECT_NE(second.err.find("sumo: 0 realisation(s) recorded, 2 reused"), std::string::npos) << second.err;
   const Output live = run_ncosim("run s.toml --out r3 --quiet --set 'sumo.mode=\"live\"'");
   ASSERT_EQ(live.code, 0) << live.err;
+  // The guard is real: live mode needs the module and fails without it (exit 1, a
+  // run-time failure, not bad input).
+  const Output no_module = run_ncosim("run s.toml --out r4 --quiet --set 'sumo.mode=\"live\"'",
+                                      "NCOSIM_SUMO_MODULE=/nonexistent/libsumo.so ");
+  EXPECT_NE(no_module.code, 0);
+  EXPECT_NE(no_module.err.find("cannot load the libsumo module"), std::string::npos) << no_module.err;
   const std::string a = summary_without_timing("r1");
   EXPECT_GT(a.size(), 100u);
   EXPECT_EQ(a, summary_without_timing("r2"));
