@@ -15,6 +15,7 @@
 #include <utility>
 #include <vector>
 
+#include "sim/mobility.h"
 #include "sim/rng.h"
 
 namespace ncosim::models {
@@ -29,6 +30,12 @@ class Link {
   // Called once before period 0 of every run: a Markov link draws its initial state
   // from its stationary law here; a trace link rewinds.
   virtual void reset(sim::Rng& rng) { (void)rng; }
+  // Called once per run before reset() with the run's mobility (null without [sumo]) and the
+  // campaign seed and run index: a mobility-driven link reads positions at send time and
+  // keys its draws by (seed, run, ...) (sumo/).
+  virtual void bind_run(const sim::MobilityRun* mobility, std::uint64_t seed, std::uint64_t run) {
+    (void)mobility, (void)seed, (void)run;
+  }
   // The fate of the next packet sent on this link: its delay in periods, or kLost.
   virtual std::int64_t transmit(sim::Rng& rng) = 0;
   // Delays of every copy of the next packet that is delivered (empty: lost). Physical

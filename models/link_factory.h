@@ -5,12 +5,15 @@
 #include <string>
 
 #include "models/link.h"
+#include "sim/mobility.h"
 #include "sim/registry.h"
 
 namespace ncosim::models {
 
 struct LinkContext {
   std::string scenario_dir;  // relative trace paths are resolved from here
+  double period = 1.0;       // the control period (s)
+  std::shared_ptr<sim::MobilitySource> mobility;  // the [sumo] mobility, null without it
 };
 
 using LinkRegistry = sim::Registry<std::unique_ptr<Link>, const LinkContext&>;

@@ -82,6 +82,7 @@ class RunSimulation {
     const Eigen::Index n = plant_.n();
     plant_rng_ = make_stream(seed, run, stream_id(StreamKind::kPlant, 0));
     input_rng_ = make_stream(seed, run, stream_id(StreamKind::kInput, 0));
+    if (sc.mobility) mobility_ = sc.mobility->start(run);
     w_sqrt_ = models::psd_sqrt(plant_.W);
     w_.resize(plant_.nw());
     x_ = plant_.x0;
@@ -117,6 +118,7 @@ class RunSimulation {
       LinkState ls;
       ls.link = sc.links[l].link->clone();
       ls.rng = make_stream(seed, run, stream_id(StreamKind::kLink, l));
+      ls.link->bind_run(mobility_.get(), seed, run);
       ls.link->reset(ls.rng);
       links_.push_back(std::move(ls));
     }
@@ -203,7 +205,19 @@ class RunSimulation {
   // Plant step: x[k] = A x[k-1] + Bu u_applied[k-1] + Bw w[k-1] (+ re-centring, known).
   void on_plant(SimTime now, std::uint64_t) {
     const std::int64_t k = now / period_ns_;
-    if (k > 0) {
+    if (mobility_) mobility_->advance(now);  // the kernel's clock drives the mobility (SUMO)
+    if (sc_.plant_vehicle >= 0) {
+      // The true state is the vehicle's longitudinal motion (position, speed[, acceleration]).
+      const VehicleState& v = mobility_->vehicle(sc_.plant_vehicle);
+      const double s[3] = {v.pos, v.speed, v.accel};
+      for (Eigen::Index i = 0; i < x_.size() && i < 3; ++i) x_(i) = s[i];
+      if (k > 0) {
+        std::rotate(history_.rbegin(), history_.rbegin() + 1, history_.rend());
+        history_.front() = x_;
+      } else {
+        std::fill(history_.begin(), history_.end(), x_);
+      }
+    } else if (k > 0) {
       draw_normal(plant_rng_, w_);
       if (sc_.recentre) recentre_.noalias() = -plant_.A * x_;  // deadbeat: known to every estimator
       if (!plant_.modes.empty()) {
@@ -507,6 +521,7 @@ class RunSimulation {
   }
 
   const Scenario& sc_;
+  std::unique_ptr<MobilityRun> mobility_;  // before links_: links hold a pointer to it
   const models::LinearPlant& plant_;
   SimTime period_ns_;
   std::vector<TraceRow>* trace_;
@@ -597,6 +612,7 @@ CampaignResult run_campaign(const Scenario& sc, const CampaignOptions& options) 
   result.runs.resize(runs);
   int threads = options.threads > 0 ? options.threads : static_cast<int>(std::thread::hardware_concurrency());
   threads = std::max(1, std::min<int>(threads, static_cast<int>(runs)));
+  if (sc.mobility && sc.mobility->single_threaded()) threads = 1;  // one libsumo per process
   result.threads = threads;
   const auto start = std::chrono::steady_clock::now();
 

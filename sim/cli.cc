@@ -22,6 +22,12 @@
 #include "sim/registries.h"
 #include "sim/scenario.h"
 
+#if NCOSIM_HAVE_SUMO
+#include "sumo/channel.h"
+#include "sumo/mobility.h"
+#include "sumo/sumo.h"
+#endif
+
 namespace ncosim::sim {
 
 namespace {
@@ -262,12 +268,27 @@ int cmd_list() {
   list_registry("link kinds ([[link]] kind)", link_registry());
   list_registry("input kinds ([input] kind)", input_registry());
   list_registry("estimator kinds ([[estimator]] kind)", estimator_registry());
+#if NCOSIM_HAVE_SUMO
+  std::cout << "channel presets (sumo_distance preset; see `ncosim channel PRESET`):\n";
+  for (const auto& n : sumo::preset_names()) std::cout << fmt::format("  {:<18} {}\n", n, sumo::preset_help(n));
+#endif
   return 0;
 }
 
 }  // namespace
 
 int run_cli(int argc, char** argv) {
+#if NCOSIM_HAVE_SUMO
+  // Hidden: one SUMO realisation recorded in this process (started by the [sumo] reader).
+  if (argc > 1 && std::string_view(argv[1]) == "sumo-record") {
+    return sumo::worker_main(std::vector<std::string>(argv + 2, argv + argc));
+  }
+  {
+    std::error_code ec;
+    const auto self = std::filesystem::read_symlink("/proc/self/exe", ec);
+    if (!ec) sumo::set_worker_executable(self.string());
+  }
+#endif
   CLI::App app{"ncosim: discrete-event co-simulator for state estimation over networks"};
   app.set_version_flag("--version", fmt::format("ncosim {} ({})", NCOSIM_VERSION, NCOSIM_GIT_COMMIT));
   app.require_subcommand(1);
@@ -328,6 +349,18 @@ int run_cli(int argc, char** argv) {
   CLI::App* check = app.add_subcommand("check", "parse and validate only");
   add_common(check, false);
   app.add_subcommand("list", "list every registered kind with a one-line help");
+  std::string preset;
+  bool csv = false, gnuplot = false;
+  double max_distance = 1000.0, step = 10.0;
+  CLI::App* channel = nullptr;
+  if (have_sumo()) {
+    channel = app.add_subcommand("channel", "print p(d) and the delay law of a sumo_distance channel preset");
+    channel->add_option("PRESET", preset, "channel preset (see `ncosim list`)")->required();
+    channel->add_flag("--csv", csv, "CSV: distance_m,mean_rx_dbm,p_reception");
+    channel->add_flag("--gnuplot", gnuplot, "print a gnuplot script plotting the CSV");
+    channel->add_option("--max-distance", max_distance, "largest distance (m, default 1000)");
+    channel->add_option("--step", step, "distance step (m, default 10)");
+  }
 
   // An unknown command: CLI11 would only say "A subcommand is required".
   if (argc > 1 && argv[1][0] != '-') {
@@ -364,6 +397,9 @@ int run_cli(int argc, char** argv) {
       cd_opt.progress = !quiet;
       return cmd_codesign(a, cd_opt, command_line);
     }
+#if NCOSIM_HAVE_SUMO
+    if (channel != nullptr && channel->parsed()) return sumo::channel_command(preset, csv, gnuplot, max_distance, step);
+#endif
     return cmd_list();
   } catch (const ScenarioError& e) {
     std::cerr << "ncosim: " << e.what() << "\n";

@@ -2,12 +2,19 @@
 // self-registration can be dropped by the linker from static libraries).
 #include "sim/registries.h"
 
+#if NCOSIM_HAVE_SUMO
+#include "sumo/sumo.h"
+#endif
+
 namespace ncosim::sim {
 
 const models::PlantRegistry& plant_registry() {
   static const models::PlantRegistry r = [] {
     models::PlantRegistry reg;
     models::register_plants(reg);
+#if NCOSIM_HAVE_SUMO
+    sumo::register_plants(reg);
+#endif
     return reg;
   }();
   return r;
@@ -17,6 +24,9 @@ const models::LinkRegistry& link_registry() {
   static const models::LinkRegistry r = [] {
     models::LinkRegistry reg;
     models::register_links(reg);
+#if NCOSIM_HAVE_SUMO
+    sumo::register_links(reg);
+#endif
     return reg;
   }();
   return r;
@@ -38,6 +48,17 @@ const est::EstimatorRegistry& estimator_registry() {
     return reg;
   }();
   return r;
+}
+
+bool have_sumo() { return NCOSIM_HAVE_SUMO != 0; }
+
+std::shared_ptr<MobilitySource> make_mobility(const Table& t, const RunSettings& run, const std::string& dir) {
+#if NCOSIM_HAVE_SUMO
+  return sumo::make_mobility(t, run, dir);
+#else
+  (void)run, (void)dir;
+  t.fail_here("this ncosim was built without SUMO (configure with -DNCOSIM_SUMO=ON and libsumo installed)");
+#endif
 }
 
 }  // namespace ncosim::sim

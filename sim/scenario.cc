@@ -189,10 +189,13 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
   sc->title = root.string_or("title", std::filesystem::path(file).stem().string());
   // Unknown top-level keys first (a misspelt [[sensor]] is reported as such, not as a missing
   // table). Every top-level key read below must be listed here.
-  for (const char* key : {"run", "sweep", "plant", "link", "sensor", "input", "estimator", "actuator"})
+  for (const char* key : {"run", "sweep", "plant", "link", "sensor", "input", "estimator", "actuator", "sumo"})
     root.allow(key);
   root.finish();
   sc->run = read_run(root);
+  // [sumo]: vehicle mobility (sumo/); the readers below name the vehicles they need, and the
+  // realisations are recorded (or reused) once every reader has run, before the designs.
+  if (const auto sumo = root.opt_table("sumo")) sc->mobility = make_mobility(*sumo, sc->run, dir);
 
   // Plant.
   const Table plant = root.table("plant");
@@ -201,11 +204,15 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
   sc->model.plant = pk.factory(plant, sc->run.period);
   sc->model.period = sc->run.period;
   sc->disturbance = models::read_disturbance(plant, sc->model.plant.nw());
+  if (pk.name.starts_with("sumo_")) {
+    if (!sc->mobility) plant.fail("kind", fmt::format("expected a [sumo] table for plant kind \"{}\"", pk.name));
+    sc->plant_vehicle = sc->mobility->vehicle(plant, "vehicle");
+  }
   plant.finish();
 
   // Links.
   std::vector<std::string> link_names;
-  const models::LinkContext ctx{dir};
+  const models::LinkContext ctx{dir, sc->run.period, sc->mobility};
   for (const Table& t : root.tables("link")) {
     LinkEntry e;
     e.name = t.string("name");
@@ -287,6 +294,7 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
       sc->model.actuators.push_back(std::move(am));
     }
   }
+  if (sc->mobility) sc->mobility->prepare();
 
   // Input.
   const std::optional<Table> input = root.opt_table("input");
@@ -356,7 +364,12 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
   for (const auto& sm : sc->model.sensors) {
     send_on_delta = send_on_delta || sm.spec.policy == models::SensorSpec::Policy::kSendOnDelta;
   }
-  if (sc->run.recentre == "always") {
+  if (sc->plant_vehicle >= 0) {
+    // The true state comes from SUMO: nothing to re-centre.
+    if (sc->run.recentre == "always") {
+      root.table("run").fail("recentre", "expected \"auto\" or \"never\" with a SUMO vehicle as the plant");
+    }
+  } else if (sc->run.recentre == "always") {
     sc->recentre = true;
     if (send_on_delta) {
       root.table("run").fail("recentre", "expected \"auto\" or \"never\" with send-on-delta sensors (they would "

@@ -16,6 +16,7 @@
 #include "models/link.h"
 #include "models/plant.h"
 #include "sim/config.h"
+#include "sim/mobility.h"
 
 namespace ncosim::sim {
 
@@ -51,6 +52,10 @@ struct Scenario {
   std::vector<LinkEntry> links;
   std::vector<EstimatorEntry> estimators;
   bool recentre = false;  // simulate in re-centred coordinates (see scenarios/README.md)
+  // [sumo]: the mobility source (null without it) and the vehicle whose longitudinal motion is
+  // the true plant state (-1: the plant is simulated from its model).
+  std::shared_ptr<MobilitySource> mobility;
+  int plant_vehicle = -1;
 };
 
 struct SweepAxis {

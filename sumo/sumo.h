@@ -1,0 +1,24 @@
+// sumo/sumo.h — the SUMO component's entry points for the rest of ncosim (registry.cc, cli.cc).
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "models/link_factory.h"
+#include "models/plant.h"
+#include "sim/mobility.h"
+#include "sim/scenario.h"
+
+namespace ncosim::sumo {
+
+// `sumo_distance` link and `sumo_vehicle` plant.
+void register_links(models::LinkRegistry& registry);
+void register_plants(models::PlantRegistry& registry);
+// The [sumo] table read (files checked); recording happens in MobilitySource::prepare().
+std::shared_ptr<sim::MobilitySource> make_mobility(const sim::Table& t, const sim::RunSettings& run,
+                                                   const std::string& dir);
+// `ncosim channel PRESET [--csv] [--gnuplot] [--max-distance M] [--step S]`.
+int channel_command(const std::string& preset, bool csv, bool gnuplot, double max_distance, double step);
+
+}  // namespace ncosim::sumo

@@ -1,0 +1,424 @@
+// tests/sumo/sumo_test.cc — the SUMO component: channel presets against independent formulas,
+// delivery per distance bin against p(d) on a scripted two-vehicle road, replay == live,
+// reuse of recordings, clean stdout and exit 2 on SUMO errors. The SUMO inputs are generated
+// here (plain XML + netconvert), in a temporary folder.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <boost/math/distributions/gamma.hpp>
+#include <boost/math/distributions/normal.hpp>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <numbers>
+
+#include "sim/campaign.h"
+#include "sumo/channel.h"
+#include "sumo/mobility.h"
+#include "test_util.h"
+
+namespace ncosim::sumo {
+namespace {
+
+namespace fs = std::filesystem;
+
+// ---------------------------------------------------------------- channel formulas
+
+double killat(double d, double range) {  // Killat & Hartenstein 2009, m = 3, free space
+  const double x = (d / range) * (d / range);
+  return std::exp(-3.0 * x) * (1.0 + 3.0 * x + 4.5 * x * x);
+}
+
+TEST(Channel, VeinsPresetIsKillatHartensteinClosedForm) {
+  const Channel ch = make_preset("veins_nakagami3");
+  // Range R: the distance at which the mean free-space power equals the threshold.
+  const double lambda = kSpeedOfLight / 5.89e9;
+  const double pt_dbm = 10.0 * std::log10(20.0);
+  const double range = lambda / (4.0 * std::numbers::pi) * std::pow(10.0, (pt_dbm - (-89.0)) / 20.0);
+  EXPECT_NEAR(range, 510.5, 0.1);  // by hand: 0.0509 m / 4 pi x 10^(102.01 / 20)
+  for (double d = 1.5; d < 1500.0; d += 7.3) {
+    EXPECT_NEAR(ch.reception_probability(d), killat(d, range), 1e-9) << d;
+  }
+}
+
+double gamma_tail(double m, double mean_mw, double threshold_mw) {
+  boost::math::gamma_distribution<double> g(m, mean_mw / m);
+  return boost::math::cdf(boost::math::complement(g, threshold_mw));
+}
+
+TEST(Channel, Ns3PresetIsThreeLogDistanceWithNakagami) {
+  const Channel ch = make_preset("ns3_vanet");
+  for (double d = 1.5; d < 1500.0; d += 3.1) {
+    double loss = 46.6777;
+    if (d <= 200.0) {
+      loss += 19.0 * std::log10(d);
+    } else if (d <= 500.0) {
+      loss += 19.0 * std::log10(200.0) + 38.0 * std::log10(d / 200.0);
+    } else {
+      loss += 19.0 * std::log10(200.0) + 38.0 * std::log10(500.0 / 200.0) + 38.0 * std::log10(d / 500.0);
+    }
+    const double mean_mw = std::pow(10.0, (20.0 - loss) / 10.0);
+    const double m = d < 80.0 ? 1.5 : 0.75;
+    EXPECT_NEAR(ch.reception_probability(d), gamma_tail(m, mean_mw, std::pow(10.0, -96.0 / 10.0)), 1e-9) << d;
+  }
+}
+
+TEST(Channel, ChengPresetIsDualSlopeWithBinnedNakagami) {
+  const Channel ch = make_preset("cheng2007");
+  const double pl0 = 20.0 * std::log10(4.0 * std::numbers::pi * 5.9e9 / kSpeedOfLight);
+  const double edges[] = {5.5, 13.9, 35.5, 90.5, 230.7};
+  const double ms[] = {4.07, 2.44, 3.08, 1.52, 0.74, 0.84};
+  for (double d = 1.2; d < 1200.0; d += 1.7) {
+    const double loss = d <= 100.0 ? pl0 + 21.0 * std::log10(d) : pl0 + 42.0 + 38.0 * std::log10(d / 100.0);
+    int bin = 0;
+    while (bin < 5 && d >= edges[bin]) ++bin;
+    const double mean_mw = std::pow(10.0, (20.0 - loss) / 10.0);
+    EXPECT_NEAR(ch.reception_probability(d), gamma_tail(ms[bin], mean_mw, std::pow(10.0, -8.9)), 1e-9) << d;
+  }
+}
+
+TEST(Channel, IntegerAndRealNakagamiAgreeAndLognormalIsTheNormalTail) {
+  for (double z : {0.01, 0.3, 1.0, 2.5, 7.0}) {
+    for (int m = 1; m <= 6; ++m) {
+      EXPECT_NEAR(nakagami_exceedance(m, z), boost::math::gamma_q(static_cast<double>(m), m * z), 1e-12);
+    }
+  }
+  Channel ch = make_preset("ns3_vanet");
+  ch.fading.kind = Fading::Kind::kLognormal;
+  ch.fading.sigma_db = 4.0;
+  boost::math::normal_distribution<double> n(0.0, 4.0);
+  for (double d = 10.0; d < 1500.0; d += 37.0) {
+    const double margin = ch.threshold_dbm - ch.mean_rx_dbm(d);
+    EXPECT_NEAR(ch.reception_probability(d), boost::math::cdf(boost::math::complement(n, margin)), 1e-9);
+  }
+}
+
+TEST(Channel, DelayLaws) {
+  DelayLaw p;  // 300 bytes at 6 Mbit/s: ceil((16 + 2400 + 6) / 48) = 51 symbols
+  EXPECT_NEAR(p.frame_time(), 40e-6 + 51 * 8e-6, 1e-15);
+  EXPECT_NEAR(p.sample(0.7), 32e-6 + 6 * 13e-6 + 448e-6, 1e-15);
+  p.backoff = true;
+  EXPECT_NEAR(p.sample(0.999), 558e-6 + 15 * 13e-6, 1e-12);
+  EXPECT_NEAR(p.cdf(558e-6 + 3 * 13e-6 + 1e-9), 4.0 / 16.0, 1e-12);
+  DelayLaw c;
+  c.kind = DelayLaw::Kind::kCv2xMode4;
+  EXPECT_NEAR(c.sample(0.5), 0.0505, 1e-15);
+  Channel ch = make_preset("veins_nakagami3");
+  ch.delay = c;
+  double sum = 0.0;
+  for (int j = 0; j < 10; ++j) sum += ch.delay_period_probability(100.0, 0.02, j);
+  EXPECT_NEAR(sum, 1.0, 1e-12);
+  EXPECT_NEAR(ch.delay_period_probability(100.0, 0.02, 0), (0.02 - 1e-3 - 100.0 / kSpeedOfLight) / 0.099, 1e-9);
+}
+
+TEST(Channel, KeyedDrawsAreDeterministicAndDistinct) {
+  const auto k = stream_key(1, 2, name_hash("a"), name_hash("b"));
+  EXPECT_EQ(keyed_uniform(k, 5, 0), keyed_uniform(k, 5, 0));
+  EXPECT_NE(keyed_uniform(k, 5, 0), keyed_uniform(k, 6, 0));
+  EXPECT_NE(keyed_uniform(k, 5, 0), keyed_uniform(k, 5, 1));
+  EXPECT_NE(k, stream_key(1, 2, name_hash("b"), name_hash("a")));
+  double mean = 0.0;
+  for (int i = 0; i < 100000; ++i) mean += keyed_uniform(k, static_cast<std::uint64_t>(i), 0);
+  EXPECT_NEAR(mean / 100000.0, 0.5, 4.5 * std::sqrt(1.0 / 12.0 / 100000.0));
+}
+
+// ---------------------------------------------------------------- scripted SUMO road
+
+// A 5 km two-lane road; "leader" departs 100 m ahead at 30 m/s, "follower" at 15 m/s: their
+// distance grows from 100 m to ~1000 m in 60 s.
+struct Road {
+  fs::path dir;
+  Road() {
+    dir = fs::temp_directory_path() / ("ncosim_sumo_test_" + std::to_string(::getpid()));
+    fs::create_directories(dir);
+    std::ofstream(dir / "n.nod.xml") << R"(<nodes><node id="a" x="0" y="0"/><node id="b" x="5000" y="0"/></nodes>)";
+    std::ofstream(dir / "e.edg.xml") << R"(<edges><edge id="ab" from="a" to="b" numLanes="2" speed="40"/></edges>)";
+    std::ofstream(dir / "r.rou.xml") << R"(<routes>
+  <vType id="fast" maxSpeed="30" sigma="0.5"/>
+  <vType id="slow" maxSpeed="15" sigma="0.5"/>
+  <route id="r" edges="ab"/>
+  <vehicle id="leader" type="fast" route="r" depart="0" departPos="100" departSpeed="max"/>
+  <vehicle id="follower" type="slow" route="r" depart="0" departPos="0" departSpeed="max"/>
+</routes>)";
+    const std::string cmd = "cd '" + dir.string() +
+                            "' && SUMO_HOME=/usr/share/sumo netconvert -n n.nod.xml -e e.edg.xml -o net.net.xml "
+                            ">/dev/null 2>&1";
+    ok = std::system(cmd.c_str()) == 0;
+    std::ofstream(dir / "s.toml") << R"([run]
+periods = 600
+warmup = 10
+runs = 6
+period = 0.1
+
+[sumo]
+net = "net.net.xml"
+routes = "r.rou.xml"
+step = 0.1
+seeds = 2
+cache = "cache"
+
+[plant]
+kind = "sumo_vehicle"
+vehicle = "leader"
+model = "constant_velocity"
+q = 1.0
+
+[[link]]
+name = "v2v"
+kind = "sumo_distance"
+sender = "leader"
+receiver = "follower"
+preset = "ns3_vanet"
+
+[[sensor]]
+C = [[1.0, 0.0], [0.0, 1.0]]
+R = [[1.0, 0.0], [0.0, 0.01]]
+link = "v2v"
+
+[[estimator]]
+kind = "kalman_extended"
+max_delay = 1
+
+[[estimator]]
+kind = "jump"
+grouping = "S3"
+history = 1
+max_delay = 1
+
+[[estimator]]
+kind = "open_loop"
+max_delay = 1
+)";
+  }
+  ~Road() { fs::remove_all(dir); }
+  std::string scenario() const { return (dir / "s.toml").string(); }
+  bool ok = false;
+};
+
+const Road& road() {
+  static const Road r;
+  return r;
+}
+
+struct Output {
+  int code;
+  std::string out, err;
+};
+
+Output run_ncosim(const std::string& args, const std::string& env = "") {
+  const fs::path dir = road().dir;
+  const std::string cmd =
+      "cd '" + dir.string() + "' && " + env + "'" + NCOSIM_BINARY + "' " + args + " >stdout.txt 2>stderr.txt";
+  const int status = std::system(cmd.c_str());
+  return Output{WIFEXITED(status) ? WEXITSTATUS(status) : -1, testing::read_text((dir / "stdout.txt").string()),
+                testing::read_text((dir / "stderr.txt").string())};
+}
+
+// summary.csv without the measured ns_per_period column (wall-clock timing).
+std::string summary_without_timing(const std::string& folder) {
+  std::ifstream in(road().dir / folder / "summary.csv");
+  std::string out, line;
+  int timing = -1;
+  while (std::getline(in, line)) {
+    std::vector<std::string> cells;
+    std::stringstream ss(line);
+    for (std::string c; std::getline(ss, c, ',');) cells.push_back(c);
+    if (timing < 0) {
+      for (std::size_t i = 0; i < cells.size(); ++i) {
+        if (cells[i] == "ns_per_period") timing = static_cast<int>(i);
+      }
+    }
+    for (std::size_t i = 0; i < cells.size(); ++i) {
+      if (static_cast<int>(i) != timing) out += cells[i] + ",";
+    }
+    out += "\n";
+  }
+  return out;
+}
+
+TEST(SumoCampaign, RecordsOnceReusesAndLiveEqualsReplay) {
+  ASSERT_TRUE(road().ok) << "netconvert failed";
+  const Output first = run_ncosim("run s.toml --out r1 --quiet");
+  ASSERT_EQ(first.code, 0) << first.err;
+  EXPECT_NE(first.err.find("sumo: 2 realisation(s) recorded, 0 reused"), std::string::npos) << first.err;
+  // Nothing from SUMO on stdout: it is exactly the summary table and the closing line.
+  EXPECT_EQ(first.out.rfind("# s\n", 0), 0u) << first.out;
+  for (const char* noise : {"Loading", "Success", "Warning", "Step #", "sumo:"}) {
+    EXPECT_EQ(first.out.find(noise), std::string::npos) << noise << " in stdout:\n" << first.out;
+  }
+  // The second campaign cannot start SUMO: the libsumo module is pointed at nothing.
+  const Output second = run_ncosim("run s.toml --out r2 --quiet", "NCOSIM_SUMO_MODULE=/nonexistent/libsumo.so ");
+  ASSERT_EQ(second.code, 0) << second.err;
+  EXPECT_NE(second.err.find("sumo: 0 realisation(s) recorded, 2 reused"), std::string::npos) << second.err;
+  const Output live = run_ncosim("run s.toml --out r3 --quiet --set 'sumo.mode=\"live\"'");
+  ASSERT_EQ(live.code, 0) << live.err;
+  // The guard is real: live mode needs the module and fails without it (exit 1, a
+  // run-time failure, not bad input).
+  const Output no_module = run_ncosim("run s.toml --out r4 --quiet --set 'sumo.mode=\"live\"'",
+                                      "NCOSIM_SUMO_MODULE=/nonexistent/libsumo.so ");
+  EXPECT_NE(no_module.code, 0);
+  EXPECT_NE(no_module.err.find("cannot load the libsumo module"), std::string::npos) << no_module.err;
+  const std::string a = summary_without_timing("r1");
+  EXPECT_GT(a.size(), 100u);
+  EXPECT_EQ(a, summary_without_timing("r2"));
+  EXPECT_EQ(a, summary_without_timing("r3"));
+  // Estimation actually uses the beacons: the filters beat open loop by orders of magnitude.
+  EXPECT_NE(a.find("kalman_extended"), std::string::npos);
+}
+
+TEST(SumoCampaign, SumoErrorsExitTwoWithAClearMessage) {
+  ASSERT_TRUE(road().ok);
+  struct Case {
+    std::string set, expect;
+  };
+  std::ofstream(road().dir / "bad.rou.xml") << R"(<routes><vehicle id="x" route="nowhere" depart="0"/></routes>)";
+  const std::vector<Case> cases{
+      {"sumo.step=0.0005", "whole number of milliseconds"},
+      {"sumo.routes='missing.rou.xml'", "missing.rou.xml' (not found)"},
+      {"plant.vehicle='nobody'", "key 'plant.vehicle': vehicle \"nobody\" never drives"},
+      {"sumo.routes='bad.rou.xml'", "SUMO failed (seed 1): The route 'nowhere' for vehicle 'x' is not known"},
+      {"link[0].tx_powr=10", "did you mean 'tx_power'"},
+      {"link[0].preset='ns3'", "key 'link[0].preset': expected one of"},
+      {"link[0].receiver='leader'", "expected a receiver other than the sender"},
+      {"sumo.mode='online'", "key 'sumo.mode'"},
+      {"run.recentre='always'", "with a SUMO vehicle as the plant"},
+  };
+  for (const auto& c : cases) {
+    const Output o = run_ncosim("run s.toml --out bad --quiet --set \"" + c.set + "\" --set 'sumo.cache=\"cache_bad\"'");
+    EXPECT_EQ(o.code, 2) << c.set << "\n" << o.err;
+    EXPECT_NE(o.err.find(c.expect), std::string::npos) << c.set << "\n" << o.err;
+    EXPECT_TRUE(o.out.empty()) << o.out;
+    EXPECT_FALSE(fs::exists(road().dir / "bad")) << "results written on failure";
+  }
+}
+
+TEST(SumoCli, ChannelCommandPrintsThePresetsCurve) {
+  ASSERT_TRUE(road().ok);
+  const Output o = run_ncosim("channel ns3_vanet --csv --max-distance 1000 --step 50");
+  ASSERT_EQ(o.code, 0) << o.err;
+  std::stringstream ss(o.out);
+  std::string line;
+  std::getline(ss, line);
+  EXPECT_EQ(line, "distance_m,mean_rx_dbm,p_reception");
+  const Channel ch = make_preset("ns3_vanet");
+  int rows = 0;
+  while (std::getline(ss, line)) {
+    double d = 0, rx = 0, p = 0;
+    ASSERT_EQ(std::sscanf(line.c_str(), "%lf,%lf,%lf", &d, &rx, &p), 3) << line;
+    EXPECT_NEAR(p, ch.reception_probability(d), 1e-8) << line;
+    ++rows;
+  }
+  EXPECT_EQ(rows, 21);
+  const Output text = run_ncosim("channel cheng2007");
+  EXPECT_EQ(text.code, 0);
+  EXPECT_NE(text.out.find("no interference model"), std::string::npos);
+  EXPECT_NE(text.out.find("802.11p"), std::string::npos);
+  const Output bad = run_ncosim("channel nope");
+  EXPECT_EQ(bad.code, 2);
+  EXPECT_NE(bad.err.find("expected a channel preset"), std::string::npos) << bad.err;
+  const Output list = run_ncosim("list");
+  EXPECT_NE(list.out.find("sumo_distance"), std::string::npos);
+  EXPECT_NE(list.out.find("veins_nakagami3"), std::string::npos);
+}
+
+TEST(SumoDistanceLink, DeliveryPerDistanceBinMatchesPd) {
+  // Every packet of 40 runs over the scripted road, binned by distance (100 m bins): the
+  // delivered count is within 4.5 binomial sigmas of sum p(d) in every bin.
+  ASSERT_TRUE(road().ok);
+  fs::create_directories(road().dir / "unit");
+  auto sc = testing::load_one(road().scenario(), {"sumo.cache=\"unit\"", "run.runs=40"});
+  const auto* mobility = dynamic_cast<const Mobility*>(sc->mobility.get());
+  ASSERT_NE(mobility, nullptr);
+  const Channel ch = make_preset("ns3_vanet");
+  const int bins = 12;
+  std::vector<double> n(bins), delivered(bins), expected(bins), var(bins);
+  const auto period = sim::seconds_to_time(sc->run.period);
+  for (std::uint64_t run = 0; run < 40; ++run) {
+    auto m = sc->mobility->start(run);
+    auto link = sc->links.front().link->clone();
+    sim::Rng rng = sim::make_stream(1, run, 0);
+    link->bind_run(m.get(), sc->run.seed, run);
+    link->reset(rng);
+    for (std::int64_t k = 0; k < sc->run.periods; ++k) {
+      m->advance(k * period);
+      const auto& s = m->vehicle(0);
+      const auto& r = m->vehicle(1);
+      const std::int64_t outcome = link->transmit(rng);
+      if (!s.present || !r.present) {
+        EXPECT_EQ(outcome, models::kLost);
+        continue;
+      }
+      const double d = std::hypot(s.x - r.x, s.y - r.y);
+      const int b = std::min(bins - 1, static_cast<int>(d / 100.0));
+      const double p = ch.reception_probability(d);
+      n[b] += 1;
+      delivered[b] += outcome != models::kLost;
+      expected[b] += p;
+      var[b] += p * (1 - p);
+      if (outcome != models::kLost) {
+        EXPECT_EQ(outcome, 0);  // 802.11p: well under one 100 ms period
+      }
+    }
+  }
+  int informative = 0;
+  for (int b = 0; b < bins; ++b) {
+    if (n[b] == 0) continue;
+    SCOPED_TRACE(b);
+    EXPECT_LE(std::abs(delivered[b] - expected[b]), 4.5 * std::sqrt(var[b]) + 1.0)
+        << delivered[b] << " delivered of " << n[b] << ", expected " << expected[b];
+    if (expected[b] / n[b] > 0.05 && expected[b] / n[b] < 0.95 && n[b] > 500) ++informative;
+  }
+  EXPECT_GE(informative, 3) << "the road does not span the transition of p(d)";
+  // The design law is the mean of p(d) over the recorded control instants.
+  const double loss = sc->links.front().link->loss_probability();
+  EXPECT_GT(loss, 0.05);
+  EXPECT_LT(loss, 0.95);
+  const auto pmf = sc->links.front().link->delay_pmf(2);
+  EXPECT_NEAR(pmf[0], 1.0 - loss, 1e-12);
+  EXPECT_EQ(pmf[1], 0.0);
+}
+
+TEST(SumoVehiclePlant, TrueStateIsTheVehiclesMotionAndDesignIsConstantVelocity) {
+  ASSERT_TRUE(road().ok);
+  fs::create_directories(road().dir / "unit");
+  auto sc = testing::load_one(road().scenario(), {"sumo.cache=\"unit\""});
+  const auto& p = sc->model.plant;
+  ASSERT_EQ(p.n(), 2);
+  EXPECT_NEAR(p.A(0, 1), 0.1, 1e-15);
+  EXPECT_NEAR(p.W(0, 0), 0.1 * 0.1 * 0.1 / 3.0, 1e-15);  // q T^3 / 3
+  EXPECT_NEAR(p.W(1, 1), 0.1, 1e-15);
+  EXPECT_FALSE(sc->recentre);
+  auto m = sc->mobility->start(0);
+  m->advance(30 * sim::kSecond);
+  const auto& v = m->vehicle(0);
+  EXPECT_TRUE(v.present);
+  EXPECT_GT(v.pos, 500.0);  // ~30 m/s for 30 s
+  EXPECT_GT(v.speed, 20.0);
+  EXPECT_LE(v.speed, 30.0 + 1e-9);
+}
+
+TEST(SumoVehiclePlant, ConstantAccelerationModelTracksPositionSpeedAndAcceleration) {
+  ASSERT_TRUE(road().ok);
+  fs::create_directories(road().dir / "unit");
+  auto sc = testing::load_one(road().scenario(),
+                              {"sumo.cache=\"unit\"", "plant.model=\"constant_acceleration\"", "plant.q=0.5",
+                               "sensor[0].C=[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]", "run.runs=2"});
+  const auto& p = sc->model.plant;
+  ASSERT_EQ(p.n(), 3);
+  EXPECT_NEAR(p.A(0, 2), 0.005, 1e-15);            // T^2 / 2
+  EXPECT_NEAR(p.W(2, 2), 0.5 * 0.1, 1e-15);        // q T
+  EXPECT_NEAR(p.W(0, 0), 0.5 * 1e-5 / 20.0, 1e-18);  // q T^5 / 20
+  sim::CampaignOptions opt;
+  opt.time_estimators = false;
+  const auto result = sim::run_campaign(*sc, opt);
+  for (const auto& run : result.runs) {
+    for (const auto& m : run) {
+      EXPECT_FALSE(m.diverged);
+      EXPECT_GT(m.count, 0);
+    }
+  }
+}
+
+}  // namespace
+}  // namespace ncosim::sumo
