@@ -171,13 +171,8 @@ Model peer_model() {
   return model;
 }
 
-std::string peer_file() {
-  for (const char* rel : {"../shared/peers/kf_intermittent_filterpy.csv", "../../shared/peers/kf_intermittent_filterpy.csv"}) {
-    const auto p = testing::source_path(rel);
-    if (std::filesystem::exists(p)) return p;
-  }
-  return testing::source_path("../shared/peers/kf_intermittent_filterpy.csv");
-}
+// The peer vectors are kept in the repository (tests/data/peers/README.md says where from).
+std::string peer_file() { return testing::source_path("tests/data/peers/kf_intermittent_filterpy.csv"); }
 
 // Peer vectors (filterpy 1.4.5): row k is the posterior after predict + (update if gamma) of step
 // k from xhat0 = 0, P0 = I; here the initial estimate is period 0, so row k is period k + 1.
