@@ -1,5 +1,6 @@
 // models/link.cc — the link kinds of models/link.h and the trace reader.
 #include "models/link.h"
+#include "models/plant.h"  // stationary_law
 
 #include <algorithm>
 #include <boost/math/distributions/negative_binomial.hpp>
@@ -221,13 +222,11 @@ Eigen::Matrix2d Link::on_time_chain() const {
 // ---------------------------------------------------------------------------------------
 // MarkovLink
 
-namespace {
-
 // Solves pi' T = pi', sum(pi) = 1 as the stacked least-squares system
 // [T' - I; 1'] pi = [0; 1]. For an irreducible chain the system has full column rank and
 // the solution is exact; for a reducible one the minimum-norm solution weights the
 // stationary laws of the closed classes by 1/|pi_c|^2, so it is still a stationary law.
-Eigen::VectorXd solve_stationary(const Eigen::MatrixXd& transition) {
+Eigen::VectorXd stationary_law(const Eigen::MatrixXd& transition) {
   const Eigen::Index n = transition.rows();
   Eigen::MatrixXd m(n + 1, n);
   m.topRows(n) = transition.transpose() - Eigen::MatrixXd::Identity(n, n);
@@ -243,8 +242,6 @@ Eigen::VectorXd solve_stationary(const Eigen::MatrixXd& transition) {
   NCOSIM_CHECK((transition.transpose() * pi - pi).cwiseAbs().maxCoeff() < 1e-9);
   return pi;
 }
-
-}  // namespace
 
 MarkovLink::MarkovLink(Eigen::MatrixXd transition, std::vector<double> loss,
                        std::vector<std::vector<double>> delay_pmf, std::vector<double> initial)
@@ -278,7 +275,7 @@ MarkovLink::MarkovLink(Eigen::MatrixXd transition, std::vector<double> loss,
     delay_cdf_[s] = cumulative(delay_pmf_[s]);
   }
 
-  stationary_ = solve_stationary(transition_);
+  stationary_ = stationary_law(transition_);
   if (initial_.empty()) {
     initial_cdf_ = cumulative_law(std::vector<double>(stationary_.data(), stationary_.data() + n));
   } else {

@@ -277,17 +277,6 @@ LinearPlant read_transfer_function(const sim::Table& t, double period) {
 
 }  // namespace
 
-Eigen::VectorXd stationary_law(const Eigen::MatrixXd& transition) {
-  const Eigen::Index n = transition.rows();
-  Eigen::MatrixXd m(n + 1, n);
-  m.topRows(n) = transition.transpose() - Eigen::MatrixXd::Identity(n, n);
-  m.row(n).setOnes();
-  Eigen::VectorXd rhs = Eigen::VectorXd::Zero(n + 1);
-  rhs(n) = 1.0;
-  Eigen::VectorXd pi = m.completeOrthogonalDecomposition().solve(rhs).cwiseMax(0.0);
-  return pi / pi.sum();
-}
-
 void register_plants(PlantRegistry& registry) {
   registry.add("lti", "discrete LTI plant: A, Bu (optional), Bw (default I), W, x0", read_lti);
   registry.add("lti_continuous",

@@ -71,7 +71,8 @@ LinearPlant discretise_transfer_function(const std::vector<double>& num, const s
 // Symmetric square root S (S S' = M) of a PSD matrix by eigen-decomposition.
 Eigen::MatrixXd psd_sqrt(const Eigen::MatrixXd& M);
 
-// Stationary law of a row-stochastic matrix (least squares on [T' - I; 1'] pi = [0; 1]).
+// Stationary law of a row-stochastic matrix (least squares on [T' - I; 1'] pi = [0; 1]);
+// defined in link.cc beside the Markov links that also use it.
 Eigen::VectorXd stationary_law(const Eigen::MatrixXd& transition);
 
 using PlantRegistry = sim::Registry<LinearPlant, double /*period seconds*/>;
