@@ -160,11 +160,15 @@ Channel cheng() {
   c.threshold_dbm = -89.0;
   c.path_loss.ref_distance = 1.0;
   c.path_loss.ref_loss = free_space_db(1.0, c.frequency);
+  // Defaults of Artery's VanetNakagamiFading (riebl/artery, src/artery/inet/VanetNakagamiFading.ned
+  // and .cc): gamma1 = 2, gamma2 = 4, criticalDistance = 100 m, free-space reference loss at 1 m,
+  // shape factors per distance bin. Its lognormal terms (sigma1 5.6 dB, sigma2 8.1 dB) are not
+  // modelled here. See scenarios/README.md.
   c.path_loss.breakpoints = {100.0};
-  c.path_loss.exponents = {2.1, 3.8};
+  c.path_loss.exponents = {2.0, 4.0};
   c.fading.kind = Fading::Kind::kNakagami;
-  c.fading.m = {4.07, 2.44, 3.08, 1.52, 0.74, 0.84};
-  c.fading.m_bounds = {5.5, 13.9, 35.5, 90.5, 230.7};
+  c.fading.m = {3.01, 1.18, 1.94, 1.86, 0.45, 0.32};
+  c.fading.m_bounds = {4.7, 11.7, 28.9, 71.6, 177.3};
   return c;
 }
 
@@ -182,8 +186,8 @@ std::string preset_help(const std::string& name) {
            "(< 80 m) / 0.75, 20 dBm, -96 dBm";
   }
   if (name == "cheng2007") {
-    return "Cheng et al. 2007 dual slope (2.1 / 3.8, break 100 m) + Nakagami m binned by "
-           "distance (as in Artery), 20 dBm, -89 dBm";
+    return "Cheng et al. 2007 dual slope (2 / 4, break 100 m) + Nakagami m binned by distance "
+           "(Artery VanetNakagamiFading defaults, without its lognormal term), 20 dBm, -89 dBm";
   }
   return "";
 }

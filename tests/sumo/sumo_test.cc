@@ -66,11 +66,13 @@ TEST(Channel, Ns3PresetIsThreeLogDistanceWithNakagami) {
 
 TEST(Channel, ChengPresetIsDualSlopeWithBinnedNakagami) {
   const Channel ch = make_preset("cheng2007");
+  // Artery's VanetNakagamiFading defaults (riebl/artery src/artery/inet/VanetNakagamiFading.ned):
+  // free space at 1 m, gamma1 = 2 up to 100 m, gamma2 = 4 beyond, shapes per distance bin.
   const double pl0 = 20.0 * std::log10(4.0 * std::numbers::pi * 5.9e9 / kSpeedOfLight);
-  const double edges[] = {5.5, 13.9, 35.5, 90.5, 230.7};
-  const double ms[] = {4.07, 2.44, 3.08, 1.52, 0.74, 0.84};
+  const double edges[] = {4.7, 11.7, 28.9, 71.6, 177.3};
+  const double ms[] = {3.01, 1.18, 1.94, 1.86, 0.45, 0.32};
   for (double d = 1.2; d < 1200.0; d += 1.7) {
-    const double loss = d <= 100.0 ? pl0 + 21.0 * std::log10(d) : pl0 + 42.0 + 38.0 * std::log10(d / 100.0);
+    const double loss = d <= 100.0 ? pl0 + 20.0 * std::log10(d) : pl0 + 40.0 + 40.0 * std::log10(d / 100.0);
     int bin = 0;
     while (bin < 5 && d >= edges[bin]) ++bin;
     const double mean_mw = std::pow(10.0, (20.0 - loss) / 10.0);
