@@ -228,7 +228,9 @@ Channel read_channel(const sim::Table& t) {
   if (c.fading.kind == Fading::Kind::kNakagami) {
     if (c.fading.m.empty()) t.fail("m", "expected at least one Nakagami shape");
     for (double m : c.fading.m) {
-      if (!(m >= 0.5 && m <= 1000.0)) t.fail("m", fmt::format("expected Nakagami shapes in [0.5, 1000], got {}", m));
+      // The received power is Gamma(m, mean/m) for any m > 0. The textbook Nakagami-m model has
+      // m >= 0.5, but measured fits go below it (Artery's defaults for Cheng et al.: 0.45, 0.32).
+      if (!(m > 0.0 && m <= 1000.0)) t.fail("m", fmt::format("expected Nakagami shapes in (0, 1000], got {}", m));
     }
     if (c.fading.m_bounds.size() + 1 != c.fading.m.size()) {
       t.fail("m_bounds", fmt::format("expected {} bin edges for {} shapes, got {}", c.fading.m.size() - 1,
