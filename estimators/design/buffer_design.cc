@@ -168,9 +168,8 @@ Plant stacked(const Plant& p) {
   return s;
 }
 
-CriticalProbability critical_probability_bisection(const Plant& plant, double tolerance) {
-  const auto t0 = std::chrono::steady_clock::now();
-  const Plant p = plant.sensors() == 1 ? plant : stacked(plant);
+CriticalProbability critical_probability_start(const Plant& plant, Plant& p) {
+  p = plant.sensors() == 1 ? plant : stacked(plant);
   CriticalProbability cp;
   const Eigen::VectorXcd eig = p.A.eigenvalues();
   double rho = 0.0, prod = 1.0;
@@ -181,11 +180,19 @@ CriticalProbability critical_probability_bisection(const Plant& plant, double to
   }
   cp.lower_bound = rho < 1.0 ? 0.0 : 1.0 - 1.0 / (rho * rho);
   cp.upper_bound = 1.0 - 1.0 / prod;
+  cp.spectral_radius = rho;
+  return cp;
+}
+
+CriticalProbability critical_probability_bisection(const Plant& plant, double tolerance) {
+  const auto t0 = std::chrono::steady_clock::now();
+  Plant p;
+  CriticalProbability cp = critical_probability_start(plant, p);
   auto exists = [&](double lambda) {
     ++cp.evaluations;
     return riccati_fixed_point(p, {lambda}, 20000).exists;
   };
-  if (rho < 1.0) {
+  if (cp.spectral_radius < 1.0) {
     cp.value = 0.0;  // Phi_0 (open loop) already has a fixed point
   } else if (!exists(1.0)) {
     cp.value = 1.0;

@@ -68,6 +68,7 @@ struct CriticalProbability {
   double lower_bound = 0.0;  // 1 - 1/rho(A)^2 (0 for a stable A), always a lower bound
   double upper_bound = 0.0;  // 1 - 1/prod |unstable eigenvalues|^2 (exact when C is invertible
                              // or for one unstable mode; not a bound in general)
+  double spectral_radius = 0.0;  // rho(A)
   bool detectable = true;
   int evaluations = 0;       // fixed-point existence checks
   double seconds = 0.0;
@@ -108,5 +109,9 @@ CriticalProbability critical_probability_sdp(const Plant& p, double tolerance = 
 
 // The sensors' rows stacked into one sensor (for the critical probability).
 Plant stacked(const Plant& p);
+
+// The start of both lambda_c computations: p with its sensors stacked, and a result holding
+// the eigenvalue bounds (lower_bound, upper_bound) of A.
+CriticalProbability critical_probability_start(const Plant& plant, Plant& stacked_plant);
 
 }  // namespace ncosim::est::buffer

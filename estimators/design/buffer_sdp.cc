@@ -63,17 +63,8 @@ int psi_feasible(const Eigen::MatrixXd& A, const Eigen::MatrixXd& C, double lamb
 
 CriticalProbability critical_probability_sdp(const Plant& plant, double tolerance) {
   const auto t0 = std::chrono::steady_clock::now();
-  const Plant p = plant.sensors() == 1 ? plant : stacked(plant);
-  CriticalProbability cp;
-  const Eigen::VectorXcd eig = p.A.eigenvalues();
-  double rho = 0.0, prod = 1.0;
-  for (Eigen::Index i = 0; i < eig.size(); ++i) {
-    const double x = std::abs(eig(i));
-    rho = std::max(rho, x);
-    if (x >= 1.0) prod *= x * x;
-  }
-  cp.lower_bound = rho < 1.0 ? 0.0 : 1.0 - 1.0 / (rho * rho);
-  cp.upper_bound = 1.0 - 1.0 / prod;
+  Plant p;
+  CriticalProbability cp = critical_probability_start(plant, p);
   bool failed = false;
   auto feasible = [&](double lambda) {
     ++cp.evaluations;
@@ -81,7 +72,7 @@ CriticalProbability critical_probability_sdp(const Plant& plant, double toleranc
     if (f < 0) failed = true;
     return f == 1;
   };
-  if (rho < 1.0) {
+  if (cp.spectral_radius < 1.0) {
     cp.value = 0.0;
   } else if (!feasible(1.0)) {
     cp.value = 1.0;
