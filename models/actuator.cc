@@ -1,5 +1,6 @@
 // models/actuator.cc — [[actuator]] reader and the per-run actuator stage.
 #include "models/actuator.h"
+#include "models/sensor.h"  // read_link_ref
 
 #include <fmt/format.h>
 
@@ -10,19 +11,7 @@ namespace ncosim::models {
 ActuatorSpec read_actuator(const sim::Table& t, const std::vector<std::string>& links, int index) {
   ActuatorSpec a;
   a.name = t.string_or("name", fmt::format("u{}", index + 1));
-  if (t.has("link")) {
-    const std::string name = t.string("link");
-    auto it = std::find(links.begin(), links.end(), name);
-    if (it == links.end()) {
-      std::string list;
-      for (const auto& l : links) list += (list.empty() ? "" : ", ") + fmt::format("\"{}\"", l);
-      const std::string hint = sim::did_you_mean(name, links);
-      t.fail("link", fmt::format("expected the name of a [[link]] ({}), got \"{}\"{}",
-                                 list.empty() ? "none defined" : list, name,
-                                 hint.empty() ? "" : fmt::format(" (did you mean \"{}\"?)", hint)));
-    }
-    a.link = static_cast<int>(it - links.begin());
-  }
+  a.link = read_link_ref(t, links);
   a.on_loss = t.choice_or("on_loss", "hold", {"hold", "zero"}) == "hold"
                   ? ActuatorSpec::OnLoss::kHold
                   : ActuatorSpec::OnLoss::kZero;

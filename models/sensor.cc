@@ -7,6 +7,21 @@
 
 namespace ncosim::models {
 
+int read_link_ref(const sim::Table& t, const std::vector<std::string>& links) {
+  if (!t.has("link")) return -1;
+  const std::string name = t.string("link");
+  auto it = std::find(links.begin(), links.end(), name);
+  if (it == links.end()) {
+    std::string list;
+    for (const auto& l : links) list += (list.empty() ? "" : ", ") + fmt::format("\"{}\"", l);
+    const std::string hint = sim::did_you_mean(name, links);
+    t.fail("link", fmt::format("expected the name of a [[link]] ({}), got \"{}\"{}",
+                               list.empty() ? "none defined" : list, name,
+                               hint.empty() ? "" : fmt::format(" (did you mean \"{}\"?)", hint)));
+  }
+  return static_cast<int>(it - links.begin());
+}
+
 SensorSpec read_sensor(const sim::Table& t, const LinearPlant& plant,
                        const std::vector<std::string>& links, int index) {
   SensorSpec s;
@@ -27,19 +42,7 @@ SensorSpec read_sensor(const sim::Table& t, const LinearPlant& plant,
   s.R = t.matrix("R");
   sim::require_shape(t, "R", s.R, s.C.rows(), s.C.rows());
   sim::require_psd(t, "R", s.R);
-  if (t.has("link")) {
-    const std::string name = t.string("link");
-    auto it = std::find(links.begin(), links.end(), name);
-    if (it == links.end()) {
-      std::string list;
-      for (const auto& l : links) list += (list.empty() ? "" : ", ") + fmt::format("\"{}\"", l);
-      const std::string hint = sim::did_you_mean(name, links);
-      t.fail("link", fmt::format("expected the name of a [[link]] ({}), got \"{}\"{}",
-                                 list.empty() ? "none defined" : list, name,
-                                 hint.empty() ? "" : fmt::format(" (did you mean \"{}\"?)", hint)));
-    }
-    s.link = static_cast<int>(it - links.begin());
-  }
+  s.link = read_link_ref(t, links);
   const auto every = t.integer_or("every", 1);
   if (every < 1 || every > 1'000'000) t.fail("every", fmt::format("expected an integer >= 1, got {}", every));
   s.every = static_cast<int>(every);

@@ -34,6 +34,10 @@ struct SensorSpec {
 };
 
 // Reads one [[sensor]] table; `links` are the scenario's link names (for `link`).
+// The optional `link` key of a sensor or actuator table: the index of the named [[link]] in
+// `links`, -1 when absent (ideal link); an unknown name fails with the list and a suggestion.
+int read_link_ref(const sim::Table& t, const std::vector<std::string>& links);
+
 SensorSpec read_sensor(const sim::Table& t, const LinearPlant& plant,
                        const std::vector<std::string>& links, int index);
 

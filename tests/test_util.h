@@ -3,6 +3,9 @@
 #pragma once
 
 #include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <limits>
 #include <fstream>
 #include <memory>
 #include <sstream>
@@ -74,6 +77,78 @@ inline DolzModel dolz_model(const std::vector<std::vector<double>>& pmfs = {{0.3
 inline std::unique_ptr<sim::Scenario> load_one(const std::string& file, const std::vector<std::string>& sets = {}) {
   auto loaded = sim::load_cases(file, sets);
   return std::move(loaded.cases.front().scenario);
+}
+
+// The peer system of kf_intermittent_filterpy.csv (tests/data/peers/README.md): A = [[1.25, 1],
+// [0, 1.1]], Q = 0.2 I, C = [1 0], R = 0.5, no input.
+inline est::Model kf_peer_model() {
+  est::Model model;
+  model.plant.A.resize(2, 2);
+  model.plant.A << 1.25, 1, 0, 1.1;
+  model.plant.Bu = Eigen::MatrixXd::Zero(2, 0);
+  model.plant.Bw = Eigen::MatrixXd::Identity(2, 2);
+  model.plant.W = 0.2 * Eigen::MatrixXd::Identity(2, 2);
+  model.plant.x0 = Eigen::VectorXd::Zero(2);
+  est::SensorModel s;
+  s.spec.C = Eigen::MatrixXd(1, 2);
+  s.spec.C << 1, 0;
+  s.spec.R = Eigen::MatrixXd::Constant(1, 1, 0.5);
+  model.sensors.push_back(s);
+  return model;
+}
+
+// Replays the peer vectors into `kf` (built on kf_peer_model() with P0 = I): row k (filterpy
+// 1.4.5: the posterior after predict + (update if gamma) of step k from xhat0 = 0, P0 = I) is
+// our period k + 1. Each of x0, x1, P00, P01, P11 is compared relative to its vector's largest
+// entry (the unstable peer run reaches 1e48, and x1's update uses the innovation z - x0, whose
+// rounding error is eps |x0|). Returns the rows read (-1: file missing or malformed) and the
+// worst relative deviation with where it occurred.
+struct PeerReplay {
+  int rows = -1;
+  double worst = 0.0;
+  std::string where;
+};
+inline PeerReplay replay_kf_peer(est::Estimator& kf) {
+  PeerReplay r;
+  std::ifstream in(source_path("tests/data/peers/kf_intermittent_filterpy.csv"));
+  if (!in) return r;
+  const Eigen::VectorXd u0(0), drive = Eigen::VectorXd::Zero(2);
+  kf.on_period(0, est::PeriodInput{u0, drive});
+  std::string line;
+  std::getline(in, line);  // header
+  r.rows = 0;
+  while (std::getline(in, line)) {
+    std::stringstream ss(line);
+    std::vector<double> v;
+    for (std::string cell; std::getline(ss, cell, ',');) v.push_back(std::stod(cell));
+    if (v.size() != 8U) return PeerReplay{};
+    const std::int64_t k = static_cast<std::int64_t>(v[0]) + 1;
+    if (v[1] == 1.0) {
+      est::Packet p;
+      p.sensor = 0;
+      p.send_period = k;
+      p.count = 1;
+      p.stamps = {k};
+      p.values = Eigen::VectorXd::Constant(1, v[2]);
+      kf.on_packet(p, k);
+    }
+    kf.on_period(k, est::PeriodInput{u0, drive});
+    const Eigen::VectorXd x = kf.state();
+    const Eigen::MatrixXd& P = *kf.covariance();
+    const double xs = std::max({1.0, std::abs(v[3]), std::abs(v[4])});
+    const double ps = std::max({1.0, std::abs(v[5]), std::abs(v[6]), std::abs(v[7])});
+    const double got[5] = {x(0), x(1), P(0, 0), P(0, 1), P(1, 1)};
+    for (int q = 0; q < 5; ++q) {
+      const double err = std::abs(got[q] - v[3 + q]) / (q < 2 ? xs : ps);
+      if (!(err <= r.worst)) {  // NaN counts as worst
+        r.worst = std::isnan(err) ? std::numeric_limits<double>::infinity() : err;
+        r.where = "step " + std::to_string(static_cast<long long>(v[0])) + " quantity " + std::to_string(q) + ": " +
+                  std::to_string(got[q]) + " vs " + std::to_string(v[3 + q]);
+      }
+    }
+    ++r.rows;
+  }
+  return r;
 }
 
 }  // namespace ncosim::testing

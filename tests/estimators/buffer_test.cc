@@ -155,67 +155,23 @@ TEST(BufferDesign, FourthMomentRadiusMarksHeavyTailsOfThePendulum) {
 // ------------------------------------------------------------------------------------------
 // kalman_buffer
 
-Model peer_model() {
-  Model model;
-  model.plant.A.resize(2, 2);
-  model.plant.A << 1.25, 1, 0, 1.1;
-  model.plant.Bu = Eigen::MatrixXd::Zero(2, 0);
-  model.plant.Bw = Eigen::MatrixXd::Identity(2, 2);
-  model.plant.W = 0.2 * Eigen::MatrixXd::Identity(2, 2);
-  model.plant.x0 = Eigen::VectorXd::Zero(2);
-  SensorModel s;
-  s.spec.C = Eigen::MatrixXd(1, 2);
-  s.spec.C << 1, 0;
-  s.spec.R = Eigen::MatrixXd::Constant(1, 1, 0.5);
-  model.sensors.push_back(s);
-  return model;
-}
 
-// The peer vectors are kept in the repository (tests/data/peers/README.md says where from).
-std::string peer_file() { return testing::source_path("tests/data/peers/kf_intermittent_filterpy.csv"); }
-
-// Peer vectors (filterpy 1.4.5): row k is the posterior after predict + (update if gamma) of step
-// k from xhat0 = 0, P0 = I; here the initial estimate is period 0, so row k is period k + 1.
+// The filterpy peer vectors (tests/data/peers), replayed for buffer 1 and 4.
 TEST(KalmanBuffer, MatchesFilterpyIntermittentObservationsStepByStepForBuffer1And4) {
   for (int N : {1, 4}) {
-    std::ifstream in(peer_file());
-    ASSERT_TRUE(in) << "peer vectors not found";
-    const Model model = peer_model();
     toml::table t{{"buffer", N}, {"P0", toml::array{toml::array{1.0, 0.0}, toml::array{0.0, 1.0}}}};
-    const auto design = make("kalman_buffer", t, model);
+    const auto design = make("kalman_buffer", t, testing::kf_peer_model());
     auto kf = design->instantiate();
-    const Eigen::VectorXd u0(0), drive = Eigen::VectorXd::Zero(2);
-    kf->on_period(0, PeriodInput{u0, drive});
-    std::string line;
-    std::getline(in, line);
-    int rows = 0;
-    while (std::getline(in, line)) {
-      std::stringstream ss(line);
-      std::vector<double> v;
-      for (std::string cell; std::getline(ss, cell, ',');) v.push_back(std::stod(cell));
-      ASSERT_EQ(v.size(), 8U);
-      const std::int64_t k = static_cast<std::int64_t>(v[0]) + 1;
-      if (v[1] == 1.0) kf->on_packet(packet(0, k, Eigen::VectorXd::Constant(1, v[2])), k);
-      kf->on_period(k, PeriodInput{u0, drive});
-      const Eigen::VectorXd x = kf->state();
-      const Eigen::MatrixXd& P = *kf->covariance();
-      // Relative to each vector's largest entry: the unstable peer run reaches 1e48.
-      const double xs = std::max({1.0, std::abs(v[3]), std::abs(v[4])});
-      const double ps = std::max({1.0, std::abs(v[5]), std::abs(v[6]), std::abs(v[7])});
-      const double got[5] = {x(0), x(1), P(0, 0), P(0, 1), P(1, 1)};
-      for (int q = 0; q < 5; ++q) {
-        ASSERT_LT(std::abs(got[q] - v[3 + q]) / (q < 2 ? xs : ps), 1e-9) << "N=" << N << " step " << v[0] << " q " << q;
-      }
-      ++rows;
-    }
-    EXPECT_EQ(rows, 500);
+    const testing::PeerReplay r = testing::replay_kf_peer(*kf);
+    ASSERT_EQ(r.rows, 500) << "peer vectors not found or malformed";
+    EXPECT_LT(r.worst, 1e-9) << "N=" << N << " " << r.where;
   }
 }
 
 TEST(KalmanBuffer, OutOfOrderLateDuplicateAndCounted) {
   // On a static plant (A = I, Q = 0) the posterior depends only on the set of samples used,
   // not on their order.
-  Model model = peer_model();
+  Model model = testing::kf_peer_model();
   model.plant.A = Eigen::MatrixXd::Identity(2, 2);
   model.plant.W = Eigen::MatrixXd::Zero(2, 2);
   toml::table t{{"buffer", 3}, {"P0", toml::array{toml::array{1.0, 0.0}, toml::array{0.0, 1.0}}}};

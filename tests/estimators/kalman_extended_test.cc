@@ -30,54 +30,13 @@ Packet packet(int sensor, std::int64_t stamp, const Eigen::VectorXd& y) {
 // step k; here the initial estimate is period 0, so row k is our period k + 1. With
 // max_delay = 0 kalman_extended is exactly that filter.
 TEST(KalmanExtended, MatchesFilterpyIntermittentObservationsStepByStep) {
-  std::ifstream in(testing::source_path("tests/data/peers/kf_intermittent_filterpy.csv"));
-  ASSERT_TRUE(in) << "peer vectors not found";
-  Model model;
-  model.plant.A.resize(2, 2);
-  model.plant.A << 1.25, 1, 0, 1.1;
-  model.plant.Bu = Eigen::MatrixXd::Zero(2, 0);
-  model.plant.Bw = Eigen::MatrixXd::Identity(2, 2);
-  model.plant.W = 0.2 * Eigen::MatrixXd::Identity(2, 2);
-  model.plant.x0 = Eigen::VectorXd::Zero(2);
-  SensorModel s;
-  s.spec.C = Eigen::MatrixXd(1, 2);
-  s.spec.C << 1, 0;
-  s.spec.R = Eigen::MatrixXd::Constant(1, 1, 0.5);
-  model.sensors.push_back(s);
   toml::table t{{"max_delay", 0}, {"P0", toml::array{toml::array{1.0, 0.0}, toml::array{0.0, 1.0}}}};
-  const auto design = make("kalman_extended", t, model);
+  const auto design = make("kalman_extended", t, testing::kf_peer_model());
   auto kf = design->instantiate();
-  const Eigen::VectorXd u0(0), drive = Eigen::VectorXd::Zero(2);
-  kf->on_period(0, PeriodInput{u0, drive});
-  std::string line;
-  std::getline(in, line);  // header
-  int rows = 0;
-  double worst = 0.0;
-  while (std::getline(in, line)) {
-    std::stringstream ss(line);
-    std::vector<double> v;
-    for (std::string cell; std::getline(ss, cell, ',');) v.push_back(std::stod(cell));
-    ASSERT_EQ(v.size(), 8U);
-    const std::int64_t k = static_cast<std::int64_t>(v[0]) + 1;
-    if (v[1] == 1.0) kf->on_packet(packet(0, k, Eigen::VectorXd::Constant(1, v[2])), k);
-    kf->on_period(k, PeriodInput{u0, drive});
-    const Eigen::VectorXd x = kf->state();
-    const Eigen::MatrixXd& P = *kf->covariance();
-    // Norm-wise relative error, 1e-9: the plant is unstable and left without feedback in the
-    // peer run (x reaches 1e48), and x1's update uses the innovation z - x0, whose rounding
-    // error is eps |x0|; so each vector is compared relative to its own largest entry.
-    const double xs = std::max({1.0, std::abs(v[3]), std::abs(v[4])});
-    const double ps = std::max({1.0, std::abs(v[5]), std::abs(v[6]), std::abs(v[7])});
-    const double got[5] = {x(0), x(1), P(0, 0), P(0, 1), P(1, 1)};
-    for (int q = 0; q < 5; ++q) {
-      const double err = std::abs(got[q] - v[3 + q]) / (q < 2 ? xs : ps);
-      worst = std::max(worst, err);
-      ASSERT_LT(err, 1e-9) << "step " << v[0] << " quantity " << q << ": " << got[q] << " vs " << v[3 + q];
-    }
-    ++rows;
-  }
-  EXPECT_EQ(rows, 500);
-  std::printf("worst relative deviation over %d steps: %.3g\n", rows, worst);
+  const testing::PeerReplay r = testing::replay_kf_peer(*kf);
+  ASSERT_EQ(r.rows, 500) << "peer vectors not found or malformed";
+  EXPECT_LT(r.worst, 1e-9) << r.where;
+  std::printf("worst relative deviation over %d steps: %.3g\n", r.rows, r.worst);
 }
 
 // A static scalar plant (A = I, Q = 0) seen directly (C = 1, R = 1) by one sensor.
