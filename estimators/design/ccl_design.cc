@@ -25,11 +25,21 @@ MatrixXd psd_factor(const MatrixXd& M) {
   return Z;
 }
 
-struct CclTerm {
+// One Schur column group of LMI (25): coef (delta I - L E T Cbar) [A^N, Z_W] and, when Zv has
+// columns, coef L Zv. A term of (18) for pattern eta is one piece with delta = 1, T = eta and
+// coef = sqrt(w). A group of patterns sharing a gain can instead be written with the moments of
+// its availability vector (exact): sum_m w_m F_m X F_m' = W [Fbar X Fbar' + sum_k H_k X H_k'] with
+// Fbar = I - L E diag(mean) Cbar, H_k = L E diag(s_k) Cbar, Cov = sum_k s_k s_k', and the noise
+// terms sum to W L E (Pi o V) E' L' (Pi = second moment): 1 + rank(Cov) pieces instead of one per
+// pattern. The smaller form is used per group.
+struct Piece {
   int N;
-  std::uint64_t pattern;
-  double w;
   int group;
+  double coef;          // sqrt(weight) of the noise parts
+  double coef_A;        // of the A^N part (the tail's extra (1 - p0) included)
+  double delta;         // 1 for F-like pieces, 0 for the covariance pieces
+  Eigen::VectorXd T;    // diagonal over the nmb fictitious sensors
+  MatrixXd Zv;          // factor of the measurement-noise part (k columns) or empty
 };
 
 struct Setup {
@@ -39,7 +49,7 @@ struct Setup {
   Grouping grouping;
   double p0;
   std::vector<MatrixXd> Apow, noise_factor;  // noise_factor[N]: factor of S_W,N (tail: of the tail noise)
-  std::vector<CclTerm> terms;
+  std::vector<Piece> pieces;                 // ordered by N
   std::vector<MatrixXd> select;  // per group: rows of the gain that are variables (|U| x nmb), empty: none
   std::size_t groups = 0;
 };
@@ -86,16 +96,13 @@ Built build(const Setup& s, double gamma) {
     }
     b.prob.add(lmi::lmi(lmi::block(rows) >= 0, -1.0, "(25) N=" + std::to_string(chunk_N) + " part " + std::to_string(c)));
   };
-  for (const CclTerm& term : s.terms) {
-    const CclTerm* t = &term;
-    const int N = t->N;
+  for (const Piece& pc : s.pieces) {
+    const int N = pc.N;
     const bool tail = N == s.Nbar;
     const MatrixXd& AN = s.Apow[N];
     const MatrixXd& Zw = s.noise_factor[N];
-    const MatrixXd mask = ext.row_mask(t->pattern).asDiagonal();
-    const MatrixXd& E = s.select[t->group];
-    const MatrixXd Zv = psd_factor(E * mask * ext.V * mask * E.transpose());
-    const Eigen::Index size = nb + Zw.cols() + Zv.cols();
+    const MatrixXd& E = s.select[pc.group];
+    const Eigen::Index size = nb + Zw.cols() + pc.Zv.cols();
     if (B.empty() || N != chunk_N || chunk_size.back() + size > kMaxBlock) {
       flush();
       B.emplace_back();
@@ -104,18 +111,17 @@ Built build(const Setup& s, double gamma) {
       chunk_N = N;
     }
     chunk_size.back() += size;
-    const lmi::Expr G = b.L[t->group] * MatrixXd(E * mask);  // L eta (nb x nmb)
-    const lmi::Expr F = lmi::Expr(I) - G * ext.C;
-    const double sw = std::sqrt(t->w);
-    B.back().push_back(tail ? std::sqrt(t->w * (1.0 - s.p0)) * (F * AN) : sw * (F * AN));
+    const lmi::Expr G = b.L[pc.group] * MatrixXd(E * pc.T.asDiagonal());  // L E T (nb x nmb)
+    const lmi::Expr F = pc.delta * lmi::Expr(I) - G * ext.C;
+    B.back().push_back(pc.coef_A * (F * AN));
     D.back().push_back(tail ? lmi::Expr(b.R) : lmi::Expr(b.Q));
     if (Zw.cols() > 0) {
-      B.back().push_back(sw * (F * Zw));
+      B.back().push_back(pc.coef * (F * Zw));
       D.back().push_back(MatrixXd(MatrixXd::Identity(Zw.cols(), Zw.cols())));
     }
-    if (Zv.cols() > 0) {
-      B.back().push_back(sw * (b.L[t->group] * Zv));
-      D.back().push_back(MatrixXd(MatrixXd::Identity(Zv.cols(), Zv.cols())));
+    if (pc.Zv.cols() > 0) {
+      B.back().push_back(pc.coef * (b.L[pc.group] * pc.Zv));
+      D.back().push_back(MatrixXd(MatrixXd::Identity(pc.Zv.cols(), pc.Zv.cols())));
     }
   }
   flush();
@@ -172,13 +178,15 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
   for (int N = 1; N < Nbar; ++N) s.noise_factor[N] = psd_factor(SW[N]);
   s.noise_factor[Nbar] = psd_factor(SW[Nbar] + p0 * s.Apow[Nbar] * SWinf * s.Apow[Nbar].transpose());
   s.groups = static_cast<std::size_t>(per_N) * Nbar;
+  // Patterns of positive probability per group (the same for every N) and the rows they use.
+  std::vector<std::vector<std::uint64_t>> members(static_cast<std::size_t>(per_N));
   std::vector<Eigen::VectorXd> used(s.groups, Eigen::VectorXd::Zero(nm));
-  for (int N = 1; N <= Nbar; ++N) {
-    const double wN = N < Nbar ? std::pow(p0, N - 1) : std::pow(p0, Nbar - 1) / (1.0 - p0);
-    for (std::size_t m = 1; m < prob.size(); ++m) {
-      if (prob[m] <= 0.0) continue;
-      const int g = (N - 1) * per_N + group_of(grouping, ext, m);
-      s.terms.push_back({N, m, wN * prob[m], g});
+  for (std::size_t m = 1; m < prob.size(); ++m) {
+    if (prob[m] <= 0.0) continue;
+    const int k = group_of(grouping, ext, m);
+    members[static_cast<std::size_t>(k)].push_back(m);
+    for (int N = 1; N <= Nbar; ++N) {
+      const std::size_t g = static_cast<std::size_t>((N - 1) * per_N + k);
       used[g] = used[g].cwiseMax(ext.row_mask(m));
     }
   }
@@ -189,10 +197,53 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
     for (Eigen::Index r = 0, i = 0; r < nm; ++r)
       if (used[g](r) > 0.0) s.select[g](i++, r) = 1.0;
   }
+  for (int N = 1; N <= Nbar; ++N) {
+    const double wN = N < Nbar ? std::pow(p0, N - 1) : std::pow(p0, Nbar - 1) / (1.0 - p0);
+    const double tailA = N < Nbar ? 1.0 : 1.0 - p0;  // the tail's A^N part is weighted by (1 - p0)
+    const Eigen::Index zw = s.noise_factor[N].cols();
+    for (int k = 0; k < per_N; ++k) {
+      const auto& pats = members[static_cast<std::size_t>(k)];
+      if (pats.empty()) continue;
+      const int g = (N - 1) * per_N + k;
+      const MatrixXd& E = s.select[static_cast<std::size_t>(g)];
+      // One piece per pattern ...
+      std::vector<Piece> each;
+      Eigen::Index each_size = 0;
+      double W = 0.0;
+      Eigen::VectorXd mean = Eigen::VectorXd::Zero(nm);
+      MatrixXd second = MatrixXd::Zero(nm, nm);
+      for (std::uint64_t m : pats) {
+        const double w = wN * prob[m];
+        const Eigen::VectorXd eta = ext.row_mask(m);
+        const MatrixXd mask = eta.asDiagonal();
+        Piece pc{N, g, std::sqrt(w), std::sqrt(w * tailA), 1.0, eta, psd_factor(E * mask * ext.V * mask * E.transpose())};
+        each_size += nb + zw + pc.Zv.cols();
+        each.push_back(std::move(pc));
+        W += w;
+        mean += w * eta;
+        second += w * eta * eta.transpose();
+      }
+      // ... or the moment form.
+      mean /= W;
+      second /= W;
+      const MatrixXd cov = second - mean * mean.transpose();
+      const MatrixXd Sk = cov.isZero(0.0) ? MatrixXd(nm, 0) : psd_factor(cov);
+      std::vector<Piece> moments;
+      moments.push_back({N, g, std::sqrt(W), std::sqrt(W * tailA), 1.0, mean,
+                         psd_factor(E * second.cwiseProduct(ext.V) * E.transpose())});
+      for (Eigen::Index c = 0; c < Sk.cols(); ++c)
+        moments.push_back({N, g, std::sqrt(W), std::sqrt(W * tailA), 0.0, Sk.col(c), MatrixXd(E.rows(), 0)});
+      Eigen::Index moment_size = 0;
+      for (const auto& pc : moments) moment_size += nb + zw + pc.Zv.cols();
+      auto& chosen = moment_size < each_size ? moments : each;
+      for (auto& pc : chosen) s.pieces.push_back(std::move(pc));
+    }
+  }
 
   lmi::Options lo;
   lo.verbose = opt.verbose;
   lo.max_iterations = opt.sdp_max_iterations;
+  lo.tolerance = opt.sdp_tolerance;
   JumpDesign best = failed;
   double best_trP = std::numeric_limits<double>::infinity();
   auto solve = [&](Built& b) {
@@ -201,8 +252,8 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
     ++info.sdp_solves;
     if (opt.verbose) std::fputs(sol.log.c_str(), stderr);
     if (opt.verbose)
-      std::fprintf(stderr, "sdp %d: %s obj %.6g %.3fs k=%d blocks=%d\n", info.sdp_solves, lmi::to_string(sol.status),
-                   sol.objective, sol.seconds, sol.size.variables, sol.size.blocks);
+      std::fprintf(stderr, "sdp %d: %s obj %.6g %.3fs k=%d blocks=%d best %.8g\n", info.sdp_solves,
+                   lmi::to_string(sol.status), sol.objective, sol.seconds, sol.size.variables, sol.size.blocks, best_trP);
     return sol;
   };
   // Gains of a solution: keep the best exact fixed point.
@@ -220,15 +271,26 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
   // CCL at gamma from a feasible point: true when gains with tr(P) <= gamma were found.
   auto ccl = [&](double gamma) {
     Built b = build(s, gamma);
-    lmi::Solution sol = solve(b);  // step 2: a feasible point (no objective)
-    if (!sol.ok()) {
-      if (sol.status != lmi::Status::kInfeasible && fail_status.empty()) fail_status = lmi::to_string(sol.status);
-      return false;
+    lmi::Solution sol;
+    MatrixXd Pk, Qk, Sk, Rk;
+    if (opt.start == CclStart::kBestExact && std::isfinite(best_trP)) {
+      // Step 2 from the best exact fixed point so far: (25) holds there with Q = P^-1, R = S_P^-1.
+      Pk = best.P;
+      Sk = stein_sum(stein, best.P);  // eq. (19): S_P = sum_k p0^k Abar^k P Abar^k'
+      Qk = Pk.inverse();
+      Rk = Sk.inverse();
+    } else {
+      sol = solve(b);  // step 2: a feasible point (no objective)
+      if (!sol.ok()) {
+        if (sol.status != lmi::Status::kInfeasible && fail_status.empty()) fail_status = lmi::to_string(sol.status);
+        return false;
+      }
+      if (consider(b, sol) <= gamma) return true;
+      Pk = sol.value(b.P), Qk = sol.value(b.Q), Sk = sol.value(b.S), Rk = sol.value(b.R);
     }
-    if (consider(b, sol) <= gamma) return true;
-    double previous = std::numeric_limits<double>::infinity();
+    int idle = 0;
     for (int k = 0; k < opt.max_ccl_iterations; ++k) {
-      const MatrixXd Pk = sol.value(b.P), Qk = sol.value(b.Q), Sk = sol.value(b.S), Rk = sol.value(b.R);
+      if (k > 0) Pk = sol.value(b.P), Qk = sol.value(b.Q), Sk = sol.value(b.S), Rk = sol.value(b.R);
       b.prob.minimize(lmi::trace(Pk * lmi::Expr(b.Q)) + lmi::trace(Qk * b.P) + lmi::trace(Sk * lmi::Expr(b.R)) +
                       lmi::trace(Rk * lmi::Expr(b.S)));
       sol = solve(b);
@@ -237,9 +299,13 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
         if (fail_status.empty()) fail_status = lmi::to_string(sol.status);
         return false;
       }
+      const double before = best_trP;
       if (consider(b, sol) <= gamma * (1.0 + 1e-12)) return true;
-      if (std::abs(previous - sol.objective) <= 1e-9 * std::abs(sol.objective)) return false;  // stalled
-      previous = sol.objective;
+      // Stalled: neither the linearised objective nor the best exact tr(P) moved for
+      // `patience` iterations (k_max of step 4 bounds the loop in any case).
+      const bool moved = best_trP < before * (1.0 - opt.stall_tolerance);
+      idle = moved ? 0 : idle + 1;
+      if (idle >= opt.patience) return false;
     }
     return false;
   };

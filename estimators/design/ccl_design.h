@@ -3,14 +3,18 @@
 // (25) with Q = P^-1, R = S_P^-1) by the cone-complementarity linearisation (CCL) of El Ghaoui
 // et al. inside a bisection on gamma >= tr(P), on the LMI layer (lmi/lmi.h).
 //
-// The LMI is (25) split by N: P - sum_N Y_N >= 0 and, for each N, one block
-//   [[Y_N, sqrt(w) F A^N, sqrt(w) F S_W^1/2, sqrt(w) L eta V^1/2, ...], [.., Q (R for the tail), I, I, ...]]
-// (Schur complement of Y_N >= sum over the patterns of N of w (F X_N F' + L eta V eta L')), with S_P
+// The LMI is (25) split by N: P - sum_c Y_c >= 0 and, per chunk c of the terms of one N, one block
+//   [[Y_c, coef F A^N, coef F S_W^1/2, coef L eta V^1/2, ...], [.., Q (R for the tail), I, I, ...]]
+// (Schur complement of Y_c >= sum over its terms of w (F X_N F' + L eta V eta L')), with S_P
 // the variable and P = S_P - p0 Abar S_P Abar' (eq. 19) an expression. S1–S3 share one gain
 // variable per group (the paper's equalities L_{N,i} = L_{N,j}); a gain has only the columns of
-// the fictitious sensors its patterns deliver. A bisection step gamma is accepted when the gains
-// of a CCL iterate have an exact fixed point (evaluate_jump_gains) with tr(P) <= gamma; the
-// relaxation (Q, R free) gives the initial lower bound. The result is reported through
+// the fictitious sensors its patterns deliver, and a group's patterns enter through the mean and
+// covariance of their availability vector when that is smaller than one term per pattern
+// (exact; see Piece in the source). A bisection step gamma is accepted when the gains of a CCL
+// iterate have an exact fixed point (evaluate_jump_gains) with tr(P) <= gamma; the relaxation
+// (Q, R free) gives the initial gains and lower bound. Each step linearises at the best exact
+// fixed point so far (CclStart) and ends, as a failure at gamma, when an iterate no longer
+// improves it (patience) or after k_max iterations. The result is reported through
 // evaluate_jump_gains, like the iterative design.
 #pragma once
 
@@ -22,11 +26,24 @@
 
 namespace ncosim::est {
 
+// Step 2 of section 4 ("find a feasible solution") at each bisection step: kFeasible solves a
+// feasibility SDP (the paper's text); kBestExact linearises at the best exact fixed point found
+// so far (P, S_P of those gains, Q = P^-1, R = S_P^-1), which satisfies (25) at gamma_u.
+enum class CclStart { kFeasible, kBestExact };
+
 struct CclOptions {
+  CclStart start = CclStart::kBestExact;
   int max_ccl_iterations = 20;       // k_max of the paper's step 4
+  // A bisection step ends early (as a failure at this gamma) after `patience` consecutive CCL
+  // iterations that lowered the best exact tr(P) by less than stall_tolerance (relative).
+  int patience = 1;
+  double stall_tolerance = 1e-4;
   double relative_gap = 1e-3;        // bisection stops when gamma_u - gamma_l < gap gamma_u
   int max_bisections = 40;
   int sdp_max_iterations = 100;      // CSDP's iteration limit per SDP
+  // CSDP's tolerances (axtol, atytol, objtol) for every SDP of the design. The SDPs only steer
+  // the search: every candidate gain set is evaluated exactly (evaluate_jump_gains).
+  double sdp_tolerance = 1e-6;
   bool verbose = false;              // CSDP log and the bisection trace on stderr
 };
 
