@@ -235,7 +235,7 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
         moments.push_back({N, g, std::sqrt(W), std::sqrt(W * tailA), 0.0, Sk.col(c), MatrixXd(E.rows(), 0)});
       Eigen::Index moment_size = 0;
       for (const auto& pc : moments) moment_size += nb + zw + pc.Zv.cols();
-      auto& chosen = moment_size < each_size ? moments : each;
+      auto& chosen = opt.group_moments && moment_size < each_size ? moments : each;
       for (auto& pc : chosen) s.pieces.push_back(std::move(pc));
     }
   }
@@ -324,6 +324,7 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
       return failed;
     }
     lower = std::max(0.0, sol.objective);
+    info.relaxation_bound = lower;
     consider(b, sol);
   }
   if (!std::isfinite(best_trP)) ccl(std::numeric_limits<double>::infinity());

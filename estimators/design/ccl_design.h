@@ -44,6 +44,9 @@ struct CclOptions {
   // CSDP's tolerances (axtol, atytol, objtol) for every SDP of the design. The SDPs only steer
   // the search: every candidate gain set is evaluated exactly (evaluate_jump_gains).
   double sdp_tolerance = 1e-6;
+  // Write a group of patterns sharing a gain through the moments of its availability vector
+  // when that is smaller (exact); false: one LMI term per pattern, as printed in the paper.
+  bool group_moments = true;
   bool verbose = false;              // CSDP log and the bisection trace on stderr
 };
 
@@ -52,6 +55,7 @@ struct CclInfo {
   int sdp_solves = 0;
   int bisections = 0;
   int ccl_iterations = 0;   // total over the bisection
+  double relaxation_bound = 0.0;  // min tr(P) with Q, R free: a certified lower bound
   double lower_bound = 0.0; // final gamma_l: CCL failed there (not a certified bound; the relaxation is)
   double upper_bound = 0.0; // final gamma_u (tr P of the returned gains)
   std::string lmi_status = "optimal";  // status of the first SDP that failed, if the design failed

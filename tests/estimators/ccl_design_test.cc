@@ -83,6 +83,34 @@ TEST(CclDesign, SharedGainsHonourTheGroupingEqualities) {
   }
 }
 
+TEST(CclDesign, MomentFormOfSharedGainsIsExactAndSmaller) {
+  // A group of patterns sharing a gain enters through the mean and covariance of its
+  // availability vector instead of one LMI term per pattern. The two SDPs have the same
+  // feasible set: the relaxation optimum (min tr P) must agree, on A3 with dbar = 1 (15
+  // patterns), and the moment form must be the smaller SDP. Both CCL designs of S2 then land
+  // on the same tr(Pt).
+  auto d = dolz_model();
+  const ExtendedModel ext = build_extended(d.model, 1);
+  const auto prob = pattern_probabilities(d.model, ext);
+  for (auto [g, Nbar] : {std::pair{Grouping::kS1, 2}, {Grouping::kS2, 1}, {Grouping::kS3, 1}}) {
+    CclOptions moments, per_pattern;
+    moments.max_bisections = per_pattern.max_bisections = 0;  // relaxation and first gains only
+    per_pattern.group_moments = false;
+    CclInfo a, b;
+    const JumpDesign dm = design_jump_ccl(ext, prob, Nbar, g, moments, &a);
+    const JumpDesign dp = design_jump_ccl(ext, prob, Nbar, g, per_pattern, &b);
+    ASSERT_TRUE(dm.stable && dp.stable) << dm.status << " " << dp.status;
+    EXPECT_NEAR(a.relaxation_bound, b.relaxation_bound, 1e-5 * b.relaxation_bound) << "grouping " << static_cast<int>(g);
+    EXPECT_LT(a.size.total_dimension, b.size.total_dimension);
+  }
+  CclOptions per_pattern;
+  per_pattern.group_moments = false;
+  const JumpDesign dm = design_jump_ccl(ext, prob, 1, Grouping::kS2);
+  const JumpDesign dp = design_jump_ccl(ext, prob, 1, Grouping::kS2, per_pattern);
+  ASSERT_TRUE(dm.stable && dp.stable);
+  EXPECT_NEAR(dm.Pt.trace(), dp.Pt.trace(), 1e-4 * dp.Pt.trace());
+}
+
 TEST(CclDesign, AnUnstableNetworkIsAStatusNotACrash) {
   auto d = dolz_model();
   const ExtendedModel ext = build_extended(d.model, 0);
