@@ -163,17 +163,28 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
   failed.P.setConstant(std::nan(""));
   failed.Pt.setConstant(std::nan(""));
 
-  Setup s{ext, prob, Nbar, grouping, p0, {}, {}, {}, {}, 0};
+  // The SDPs are built on the model with its noise covariances divided by `scale` (then P, S_P
+  // scale by 1/scale, Q, R by scale and the gains are unchanged), so that their variables are
+  // of order one; every gain set is evaluated on the original model.
+  double scale = 1.0;
+  if (opt.normalise) {
+    const double t = (ext.Q.trace() + ext.V.trace()) / static_cast<double>(nb + nm);
+    if (t > 0.0 && std::isfinite(t)) scale = t;
+  }
+  ExtendedModel sext = ext;
+  sext.Q /= scale;
+  sext.V /= scale;
+  Setup s{sext, prob, Nbar, grouping, p0, {}, {}, {}, {}, 0};
   s.Apow.resize(Nbar + 1);
   std::vector<MatrixXd> SW(Nbar + 1);
   s.Apow[0] = MatrixXd::Identity(nb, nb);
   SW[0] = MatrixXd::Zero(nb, nb);
   for (int N = 1; N <= Nbar; ++N) {
     s.Apow[N] = ext.A * s.Apow[N - 1];
-    SW[N] = SW[N - 1] + s.Apow[N - 1] * ext.Q * s.Apow[N - 1].transpose();
+    SW[N] = SW[N - 1] + s.Apow[N - 1] * sext.Q * s.Apow[N - 1].transpose();
   }
   const MatrixXd stein = stein_operator(ext.A, p0);
-  const MatrixXd SWinf = stein_sum(stein, ext.Q);
+  const MatrixXd SWinf = stein_sum(stein, sext.Q);
   s.noise_factor.resize(Nbar + 1);
   for (int N = 1; N < Nbar; ++N) s.noise_factor[N] = psd_factor(SW[N]);
   s.noise_factor[Nbar] = psd_factor(SW[Nbar] + p0 * s.Apow[Nbar] * SWinf * s.Apow[Nbar].transpose());
@@ -216,7 +227,7 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
         const double w = wN * prob[m];
         const Eigen::VectorXd eta = ext.row_mask(m);
         const MatrixXd mask = eta.asDiagonal();
-        Piece pc{N, g, std::sqrt(w), std::sqrt(w * tailA), 1.0, eta, psd_factor(E * mask * ext.V * mask * E.transpose())};
+        Piece pc{N, g, std::sqrt(w), std::sqrt(w * tailA), 1.0, eta, psd_factor(E * mask * sext.V * mask * E.transpose())};
         each_size += nb + zw + pc.Zv.cols();
         each.push_back(std::move(pc));
         W += w;
@@ -230,7 +241,7 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
       const MatrixXd Sk = cov.isZero(0.0) ? MatrixXd(nm, 0) : psd_factor(cov);
       std::vector<Piece> moments;
       moments.push_back({N, g, std::sqrt(W), std::sqrt(W * tailA), 1.0, mean,
-                         psd_factor(E * second.cwiseProduct(ext.V) * E.transpose())});
+                         psd_factor(E * second.cwiseProduct(sext.V) * E.transpose())});
       for (Eigen::Index c = 0; c < Sk.cols(); ++c)
         moments.push_back({N, g, std::sqrt(W), std::sqrt(W * tailA), 0.0, Sk.col(c), MatrixXd(E.rows(), 0)});
       Eigen::Index moment_size = 0;
@@ -259,7 +270,7 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
   // Gains of a solution: keep the best exact fixed point.
   auto consider = [&](const Built& b, const lmi::Solution& sol) {
     JumpDesign d = evaluate_jump_gains(ext, prob, Nbar, grouping, gains_of(s, b, sol));
-    if (!d.stable) return std::numeric_limits<double>::infinity();
+    if (!d.stable) { if (opt.verbose) std::fprintf(stderr, "gains: %s\n", d.status.c_str()); return std::numeric_limits<double>::infinity(); }
     const double tr = d.P.trace();
     if (tr < best_trP) {
       best_trP = tr;
@@ -270,13 +281,13 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
   std::string fail_status;
   // CCL at gamma from a feasible point: true when gains with tr(P) <= gamma were found.
   auto ccl = [&](double gamma) {
-    Built b = build(s, gamma);
+    Built b = build(s, gamma / scale);
     lmi::Solution sol;
     MatrixXd Pk, Qk, Sk, Rk;
     if (opt.start == CclStart::kBestExact && std::isfinite(best_trP)) {
       // Step 2 from the best exact fixed point so far: (25) holds there with Q = P^-1, R = S_P^-1.
-      Pk = best.P;
-      Sk = stein_sum(stein, best.P);  // eq. (19): S_P = sum_k p0^k Abar^k P Abar^k'
+      Pk = best.P / scale;
+      Sk = stein_sum(stein, best.P) / scale;  // eq. (19): S_P = sum_k p0^k Abar^k P Abar^k'
       Qk = Pk.inverse();
       Rk = Sk.inverse();
     } else {
@@ -285,7 +296,7 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
         if (sol.status != lmi::Status::kInfeasible && fail_status.empty()) fail_status = lmi::to_string(sol.status);
         return false;
       }
-      if (consider(b, sol) <= gamma) return true;
+      if (const double tr = consider(b, sol); std::isfinite(tr) && tr <= gamma) return true;
       Pk = sol.value(b.P), Qk = sol.value(b.Q), Sk = sol.value(b.S), Rk = sol.value(b.R);
     }
     int idle = 0;
@@ -300,10 +311,11 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
         return false;
       }
       const double before = best_trP;
-      if (consider(b, sol) <= gamma * (1.0 + 1e-12)) return true;
+      if (const double tr = consider(b, sol); std::isfinite(tr) && tr <= gamma * (1.0 + 1e-12)) return true;
       // Stalled: neither the linearised objective nor the best exact tr(P) moved for
       // `patience` iterations (k_max of step 4 bounds the loop in any case).
-      const bool moved = best_trP < before * (1.0 - opt.stall_tolerance);
+      // Until some iterate has stable gains, only k_max ends the loop.
+      const bool moved = !std::isfinite(best_trP) || best_trP < before * (1.0 - opt.stall_tolerance);
       idle = moved ? 0 : idle + 1;
       if (idle >= opt.patience) return false;
     }
@@ -323,7 +335,7 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
       if (info_out) *info_out = info;
       return failed;
     }
-    lower = std::max(0.0, sol.objective);
+    lower = std::max(0.0, sol.objective * scale);
     info.relaxation_bound = lower;
     consider(b, sol);
   }

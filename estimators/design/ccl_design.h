@@ -47,6 +47,8 @@ struct CclOptions {
   // Write a group of patterns sharing a gain through the moments of its availability vector
   // when that is smaller (exact); false: one LMI term per pattern, as printed in the paper.
   bool group_moments = true;
+  // Solve the SDPs on the model with its noise scaled so that the variables are of order one.
+  bool normalise = true;
   bool verbose = false;              // CSDP log and the bisection trace on stderr
 };
 

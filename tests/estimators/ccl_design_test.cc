@@ -102,6 +102,13 @@ TEST(CclDesign, MomentFormOfSharedGainsIsExactAndSmaller) {
     ASSERT_TRUE(dm.stable && dp.stable) << dm.status << " " << dp.status;
     EXPECT_NEAR(a.relaxation_bound, b.relaxation_bound, 1e-5 * b.relaxation_bound) << "grouping " << static_cast<int>(g);
     EXPECT_LT(a.size.total_dimension, b.size.total_dimension);
+    // The SDPs are solved on the model with its noise normalised (P scales, the gains do not):
+    // the relaxation bound, mapped back, is the unnormalised one.
+    CclOptions raw = moments;
+    raw.normalise = false;
+    CclInfo c;
+    design_jump_ccl(ext, prob, Nbar, g, raw, &c);
+    EXPECT_NEAR(a.relaxation_bound, c.relaxation_bound, 1e-5 * c.relaxation_bound);
   }
   CclOptions per_pattern;
   per_pattern.group_moments = false;
