@@ -146,6 +146,8 @@ class JumpObserverDesign final : public EstimatorDesign, public JumpDesignAccess
                               {"solves", info.sdp_solves},
                               {"bisections", info.bisections},
                               {"ccl_iterations", info.ccl_iterations},
+                              {"relaxation_trP", info.relaxation_bound},
+                              {"s4_bound_trP", info.s4_bound},
                               {"bisection_low_trP", info.lower_bound},
                               {"bisection_high_trP", info.upper_bound}};
     }

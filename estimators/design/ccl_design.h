@@ -49,6 +49,10 @@ struct CclOptions {
   bool group_moments = true;
   // Solve the SDPs on the model with its noise scaled so that the variables are of order one.
   bool normalise = true;
+  // Start the bisection's lower end at tr(P) of the exact S4 design (a certified bound for
+  // every grouping; the paper starts at 0). false: at the LMI relaxation's min tr(P) (Q, R
+  // free), solved as the first SDP.
+  bool s4_bound = true;
   bool verbose = false;              // CSDP log and the bisection trace on stderr
 };
 
@@ -57,7 +61,8 @@ struct CclInfo {
   int sdp_solves = 0;
   int bisections = 0;
   int ccl_iterations = 0;   // total over the bisection
-  double relaxation_bound = 0.0;  // min tr(P) with Q, R free: a certified lower bound
+  double relaxation_bound = 0.0;  // min tr(P) with Q, R free: a certified lower bound (0 when not solved)
+  double s4_bound = 0.0;          // tr(P) of the exact S4 design (0 when not used)
   double lower_bound = 0.0; // final gamma_l: CCL failed there (not a certified bound; the relaxation is)
   double upper_bound = 0.0; // final gamma_u (tr P of the returned gains)
   std::string lmi_status = "optimal";  // status of the first SDP that failed, if the design failed

@@ -58,6 +58,8 @@ TEST(CclDesign, IterativeS4IsNeverWorseThanCclS4AndCclIsAboveItsLowerBound) {
     // tr(P) of the CCL gains lies between the relaxation bound and the bisection's upper end,
     // and the bisection closed its gap.
     EXPECT_LE(info.lower_bound, ccl.P.trace() * (1.0 + 1e-9));
+    EXPECT_GT(info.s4_bound, 0.0);
+    EXPECT_LE(info.s4_bound, ccl.P.trace() * (1.0 + 1e-9));
     EXPECT_NEAR(info.upper_bound, ccl.P.trace(), 1e-12);
     EXPECT_LT(info.upper_bound - info.lower_bound, 1e-3 * info.upper_bound + 1e-12);
     EXPECT_GT(info.sdp_solves, 2);
@@ -73,8 +75,12 @@ TEST(CclDesign, SharedGainsHonourTheGroupingEqualities) {
   const ExtendedModel ext = build_extended(d.model, 0);
   // dbar = 0 (3 patterns); each sensor delivers with probability 0.8, independently.
   const std::vector<double> prob = {0.04, 0.16, 0.16, 0.64};
-  const JumpDesign ccl = design_jump_ccl(ext, prob, 2, Grouping::kS1);
+  CclInfo info;
+  const JumpDesign ccl = design_jump_ccl(ext, prob, 2, Grouping::kS1, {}, &info);
   ASSERT_TRUE(ccl.stable) << ccl.status;
+  // The exact S4 design bounds every grouping from below.
+  EXPECT_GT(info.s4_bound, 0.0);
+  EXPECT_LT(info.s4_bound, ccl.P.trace());
   EXPECT_EQ(ccl.gains.size(), 2U);
   EXPECT_EQ(ccl.stored_gains, 2);
   for (std::size_t m = 1; m < prob.size(); ++m) {
@@ -95,6 +101,7 @@ TEST(CclDesign, MomentFormOfSharedGainsIsExactAndSmaller) {
   for (auto [g, Nbar] : {std::pair{Grouping::kS1, 2}, {Grouping::kS2, 1}, {Grouping::kS3, 1}}) {
     CclOptions moments, per_pattern;
     moments.max_bisections = per_pattern.max_bisections = 0;  // relaxation and first gains only
+    moments.s4_bound = per_pattern.s4_bound = false;           // solve the relaxation
     per_pattern.group_moments = false;
     CclInfo a, b;
     const JumpDesign dm = design_jump_ccl(ext, prob, Nbar, g, moments, &a);
@@ -135,6 +142,7 @@ TEST(CclDesign, AFailedSdpIsTheDesignStatus) {
   const std::vector<double> prob = {0.04, 0.16, 0.16, 0.64};
   CclOptions o;
   o.sdp_max_iterations = 1;
+  o.s4_bound = false;  // the first SDP is then the relaxation, which needs more than one iteration
   CclInfo info;
   const JumpDesign ccl = design_jump_ccl(ext, prob, 1, Grouping::kS4, o, &info);
   EXPECT_FALSE(ccl.stable);
