@@ -10,7 +10,7 @@
 // with a small binary protocol; the main process never loads libsumo. Live gives the same
 // numbers as replay: the FCD text round-trips every value bit for bit (checked by the tests)
 // except values whose magnitude is below ~1e-23, which 40 fixed decimals cannot carry to 17
-// significant digits (none occur in the test or benchmark scenarios).
+// significant digits (none occurred in the test road or the benchmark grid: bench/README.md).
 #pragma once
 
 #include <cstdint>
