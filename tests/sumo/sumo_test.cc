@@ -515,6 +515,12 @@ TEST(SumoCampaign, SumoErrorsExitTwoWithAClearMessage) {
     EXPECT_TRUE(o.out.empty()) << o.out;
     EXPECT_FALSE(fs::exists(road().dir / "bad")) << "results written on failure";
   }
+  // No `sumo` binary anywhere: exit 2 saying so, and no recording left behind.
+  const Output nobin =
+      run_ncosim("run s.toml --out bad --quiet --set 'sumo.cache=\"cache_nobin\"'", "PATH=/nonexistent SUMO_HOME= ");
+  EXPECT_EQ(nobin.code, 2) << nobin.err;
+  EXPECT_NE(nobin.err.find("cannot find the `sumo` binary on PATH or in $SUMO_HOME/bin"), std::string::npos) << nobin.err;
+  EXPECT_TRUE(fs::is_empty(road().dir / "cache_nobin"));
 }
 
 TEST(SumoCli, ChannelCommandPrintsThePresetsCurve) {
