@@ -279,9 +279,9 @@ int cmd_list() {
 
 int run_cli(int argc, char** argv) {
 #if NCOSIM_HAVE_SUMO
-  // Hidden: one SUMO realisation recorded in this process (started by the [sumo] reader).
-  if (argc > 1 && std::string_view(argv[1]) == "sumo-record") {
-    return sumo::worker_main(std::vector<std::string>(argv + 2, argv + argc));
+  // Hidden: one live SUMO run stepped in this process (started by a [sumo] mode = "live" run).
+  if (argc > 1 && std::string_view(argv[1]) == "sumo-live") {
+    return sumo::live_worker_main(std::vector<std::string>(argv + 2, argv + argc));
   }
   {
     std::error_code ec;

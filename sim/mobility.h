@@ -1,7 +1,7 @@
 // sim/mobility.h — the kernel's view of an external mobility source (SUMO, see sumo/): the
 // state of the vehicles a scenario names, advanced by the kernel's clock. Header only, so the
 // kernel builds without SUMO; the sumo/ component implements it (replay of recorded
-// trajectories, or libsumo stepped in-process).
+// trajectories, or libsumo stepped live in a worker process).
 #pragma once
 
 #include <cstdint>

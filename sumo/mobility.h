@@ -1,11 +1,16 @@
 // sumo/mobility.h — SUMO as the mobility source of a scenario ([sumo] table).
-// Record and replay: every mobility realisation (SUMO seed) is simulated once, in its own
-// worker process (`ncosim sumo-record`, one libsumo simulation per process), and stored as a
-// binary trajectory of the vehicles the scenario names, keyed by the content hash of every
-// SUMO input file, the step, the horizon, the vehicle list and the seed. Monte Carlo runs
-// replay the recordings on every thread (run r uses realisation r mod seeds); no SUMO runs in
-// the hot loop. `mode = "live"` steps libsumo in-process instead (one run at a time) and gives
-// the same numbers.
+// Record and replay: every mobility realisation (SUMO seed) is simulated once by the `sumo`
+// binary itself, one process per realisation (at most one per core at a time), writing FCD
+// output (x, y, speed, acceleration, odometer at 40 decimals) for the named vehicles only; the
+// FCD file is read by a strict reader (parse_fcd) into a binary trajectory, keyed by the content
+// hash of every SUMO input file, the step, the horizon, the vehicle list and the seed, and the
+// FCD file is deleted. Monte Carlo runs replay the recordings on every thread (run r uses
+// realisation r mod seeds); no SUMO runs in the hot loop. `mode = "live"` steps libsumo in a
+// worker process per run (`ncosim sumo-live`, which dlopens the libsumo module) over a socket
+// with a small binary protocol; the main process never loads libsumo. Live gives the same
+// numbers as replay: the FCD text round-trips every value bit for bit (checked by the tests)
+// except values whose magnitude is below ~1e-23, which 40 fixed decimals cannot carry to 17
+// significant digits (none occurred in the test road or the benchmark grid: bench/README.md).
 #pragma once
 
 #include <cstdint>
@@ -37,15 +42,42 @@ struct Recording {
   }
 };
 
+// The SUMO options of every simulation (recording and live): the inputs, quiet, no XML schema
+// validation, the seed, the step and begin 0. Header-only: the libsumo module uses it too.
+inline std::vector<std::string> sumo_arguments(const SumoInputs& in, std::uint64_t seed) {
+  std::vector<std::string> a = in.args;
+  for (const char* o : {"--no-step-log", "--no-warnings", "--duration-log.disable"}) a.insert(a.end(), {o, "true"});
+  for (const char* o : {"--xml-validation", "--xml-validation.net", "--xml-validation.routes"}) {
+    a.insert(a.end(), {o, "never"});
+  }
+  std::string ms = std::to_string(in.step_ms % 1000);
+  ms.insert(0, 3 - ms.size(), '0');
+  a.insert(a.end(), {"--seed", std::to_string(seed), "--step-length", std::to_string(in.step_ms / 1000) + "." + ms,
+                     "--begin", "0"});
+  return a;
+}
+
 void write_recording(const std::string& path, const Recording& r);
 Recording read_recording(const std::string& path);  // throws std::runtime_error
 
-// Simulates one realisation in this process with libsumo (throws std::runtime_error with
-// SUMO's message on failure). The worker subcommand calls this.
+// Simulates one realisation with the `sumo` binary (FCD output, parsed by parse_fcd; throws
+// std::runtime_error with SUMO's message on failure).
 Recording record(const SumoInputs& in, std::uint64_t seed, std::int64_t frames,
                  const std::vector<std::string>& vehicles);
 
-// libsumo stepped live for one run (one at a time per process).
+// Reads SUMO FCD output (the elements and attributes record() asks for, nothing else: any
+// other content is an error naming the byte offset). Frame f (state after f steps) is
+// <timestep time="(f-1)*step">; a vehicle absent from a timestep is present = false and keeps
+// its last state (zeros before departure). Timesteps past the horizon are ignored.
+Recording parse_fcd(const std::string& path, std::int64_t step_ms, std::int64_t frames,
+                    const std::vector<std::string>& vehicles);
+
+// The `sumo` binary: $NCOSIM_SUMO_BINARY (only it, when set), else `sumo` on PATH, else
+// $SUMO_HOME/bin/sumo; throws std::runtime_error when none is executable.
+std::string sumo_binary();
+
+// libsumo stepped live for one run in a worker process (`ncosim sumo-live`, the executable set
+// by set_worker_executable; throws std::runtime_error without one).
 std::unique_ptr<sim::MobilityRun> start_live(const SumoInputs& in, std::uint64_t seed,
                                              const std::vector<std::string>& vehicles);
 
@@ -85,11 +117,11 @@ class Mobility final : public sim::MobilitySource {
   int recorded_ = 0, reused_ = 0;
 };
 
-// Where the worker processes come from: the ncosim executable (set by the CLI). When empty
-// (library use, tests), realisations are simulated in this process, one after the other.
+// The live worker executable: the ncosim executable (set by the CLI; tests set it too).
 void set_worker_executable(const std::string& path);
-// `ncosim sumo-record` (hidden): argv after the subcommand name. Returns the exit code.
-int worker_main(const std::vector<std::string>& args);
+// `ncosim sumo-live` (hidden): argv after the subcommand name; talks on file descriptor 3.
+// Returns the exit code.
+int live_worker_main(const std::vector<std::string>& args);
 
 // Cache folder: [sumo] cache, else $NCOSIM_SUMO_CACHE, else $XDG_CACHE_HOME/ncosim/sumo,
 // else $HOME/.cache/ncosim/sumo.

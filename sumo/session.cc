@@ -1,8 +1,9 @@
-// sumo/session.cc — the only file that calls libsumo: one simulation loaded, stepped and read.
-// libsumo holds one simulation per process: a Session must not overlap another in time.
-// Built as a loadable module (libncosim_sumo_session.so), opened with dlopen only by the
-// processes that run SUMO (workers, live mode): libsumocpp pulls ~220 shared libraries, which
-// would otherwise add ~0.4 s to the start of every ncosim command.
+// sumo/session.cc — the only file that calls libsumo: one simulation loaded, stepped and read
+// (live mode). libsumo holds one simulation per process: a Session must not overlap another.
+// Built as a loadable module (libncosim_sumo_session.so), opened with dlopen only by the live
+// worker process (`ncosim sumo-live`): libsumocpp pulls ~220 shared libraries, which would
+// otherwise add ~0.1-0.4 s to the start of every ncosim command. Recording uses the `sumo`
+// binary's FCD output instead (mobility.cc), which reads the same values.
 #include <fmt/format.h>
 #include <libsumo/libsumo.h>
 
@@ -16,25 +17,13 @@ namespace ncosim::sumo {
 
 namespace {
 
-std::string ms_to_seconds(std::int64_t ms) { return fmt::format("{}.{:03}", ms / 1000, ms % 1000); }
-
 class Session {
  public:
   Session(const SumoInputs& in, std::uint64_t seed, const std::vector<std::string>& vehicles)
       : states_(vehicles.size()) {
     // Without SUMO_HOME, SUMO fetches XML schemas and rejects files written by its own tools.
     ::setenv("SUMO_HOME", "/usr/share/sumo", 0);
-    std::vector<std::string> args = in.args;
-    for (const char* a : {"--no-step-log", "--no-warnings", "--duration-log.disable"}) {
-      args.emplace_back(a);
-      args.emplace_back("true");
-    }
-    for (const char* a : {"--xml-validation", "--xml-validation.net", "--xml-validation.routes"}) {
-      args.emplace_back(a);
-      args.emplace_back("never");
-    }
-    args.insert(args.end(), {"--seed", std::to_string(seed), "--step-length", ms_to_seconds(in.step_ms),
-                             "--begin", "0"});
+    const std::vector<std::string> args = sumo_arguments(in, seed);
     for (std::size_t i = 0; i < vehicles.size(); ++i) index_[vehicles[i]] = static_cast<int>(i);
     try {
       libsumo::Simulation::load(args);
@@ -112,27 +101,8 @@ class LiveRun final : public sim::MobilityRun {
 // The module's entry points (looked up by name with dlsym; C++ exceptions cross the boundary:
 // same compiler and runtime).
 extern "C" {
-void ncosim_sumo_record(const ncosim::sumo::SumoInputs* in, std::uint64_t seed, std::int64_t frames,
-                        const std::vector<std::string>* vehicles, ncosim::sumo::Recording* out);
 ncosim::sim::MobilityRun* ncosim_sumo_start_live(const ncosim::sumo::SumoInputs* in, std::uint64_t seed,
                                                 const std::vector<std::string>* vehicles);
-}
-
-void ncosim_sumo_record(const ncosim::sumo::SumoInputs* in_ptr, std::uint64_t seed, std::int64_t frames,
-                        const std::vector<std::string>* vehicles_ptr, ncosim::sumo::Recording* out) {
-  using namespace ncosim::sumo;
-  const SumoInputs& in = *in_ptr;
-  const std::vector<std::string>& vehicles = *vehicles_ptr;
-  Recording& r = *out;
-  r.step_ms = in.step_ms;
-  r.frames = frames;
-  r.vehicles = vehicles;
-  r.states.reserve(static_cast<std::size_t>(frames) * vehicles.size());
-  Session s(in, seed, vehicles);
-  for (std::int64_t j = 0; j < frames; ++j) {
-    if (j > 0) s.step();
-    r.states.insert(r.states.end(), s.states().begin(), s.states().end());
-  }
 }
 
 ncosim::sim::MobilityRun* ncosim_sumo_start_live(const ncosim::sumo::SumoInputs* in, std::uint64_t seed,

@@ -4,6 +4,13 @@
 // here (plain XML + netconvert), in a temporary folder.
 #include <gtest/gtest.h>
 #include <sys/wait.h>
+#include <unistd.h>
+
+#include <csignal>
+#include <cstring>
+#include <iomanip>
+#include <random>
+#include <sstream>
 
 #include <boost/math/distributions/gamma.hpp>
 #include <boost/math/distributions/normal.hpp>
@@ -249,13 +256,17 @@ TEST(SumoCampaign, RecordsOnceReusesAndLiveEqualsReplay) {
   for (const char* noise : {"Loading", "Success", "Warning", "Step #", "sumo:"}) {
     EXPECT_EQ(first.out.find(noise), std::string::npos) << noise << " in stdout:\n" << first.out;
   }
-  // The second campaign cannot start SUMO: the libsumo module is pointed at nothing.
-  const Output second = run_ncosim("run s.toml --out r2 --quiet", "NCOSIM_SUMO_MODULE=/nonexistent/libsumo.so ");
+  // The second campaign cannot start SUMO: the `sumo` binary and the libsumo module are
+  // pointed at nothing.
+  const Output second = run_ncosim("run s.toml --out r2 --quiet",
+                                   "NCOSIM_SUMO_BINARY=/nonexistent/sumo NCOSIM_SUMO_MODULE=/nonexistent/libsumo.so ");
   ASSERT_EQ(second.code, 0) << second.err;
   EXPECT_NE(second.err.find("sumo: 0 realisation(s) recorded, 2 reused"), std::string::npos) << second.err;
-  const Output live = run_ncosim("run s.toml --out r3 --quiet --set 'sumo.mode=\"live\"'");
+  // Live: libsumo in worker processes; the recordings exist, so the `sumo` binary is not needed.
+  const Output live =
+      run_ncosim("run s.toml --out r3 --quiet --set 'sumo.mode=\"live\"'", "NCOSIM_SUMO_BINARY=/nonexistent/sumo ");
   ASSERT_EQ(live.code, 0) << live.err;
-  // The guard is real: live mode needs the module and fails without it (exit 1, a
+  // The guard is real: live mode needs the module (in its worker) and fails without it (a
   // run-time failure, not bad input).
   const Output no_module = run_ncosim("run s.toml --out r4 --quiet --set 'sumo.mode=\"live\"'",
                                       "NCOSIM_SUMO_MODULE=/nonexistent/libsumo.so ");
@@ -267,6 +278,217 @@ TEST(SumoCampaign, RecordsOnceReusesAndLiveEqualsReplay) {
   EXPECT_EQ(a, summary_without_timing("r3"));
   // Estimation actually uses the beacons: the filters beat open loop by orders of magnitude.
   EXPECT_NE(a.find("kalman_extended"), std::string::npos);
+}
+
+// ---------------------------------------------------------------- recording (FCD) and live workers
+
+SumoInputs road_inputs() {
+  SumoInputs in;
+  in.args = {"-n", (road().dir / "net.net.xml").string(), "-r", (road().dir / "r.rou.xml").string()};
+  in.step_ms = 100;
+  return in;
+}
+
+// The processes whose parent is this one (zombies included).
+std::vector<pid_t> children() {
+  std::vector<pid_t> out;
+  for (const auto& e : fs::directory_iterator("/proc")) {
+    const std::string name = e.path().filename().string();
+    if (name.find_first_not_of("0123456789") != std::string::npos) continue;
+    std::ifstream stat(e.path() / "stat");
+    std::string line;
+    if (!std::getline(stat, line)) continue;
+    const auto close = line.rfind(')');
+    if (close == std::string::npos) continue;
+    std::stringstream rest(line.substr(close + 2));
+    char state = 0;
+    pid_t ppid = 0;
+    rest >> state >> ppid;
+    if (ppid == ::getpid()) out.push_back(std::stoi(name));
+  }
+  return out;
+}
+
+bool libsumo_loaded() {
+  return testing::read_text("/proc/self/maps").find("libsumocpp") != std::string::npos;
+}
+
+TEST(SumoRecording, FcdRecordingEqualsLiveLibsumoBitForBit) {
+  // Recording: the `sumo` binary's FCD text; live: libsumo's doubles in a worker process. Every
+  // value of every frame must be the same double (the text carries 40 decimals).
+  ASSERT_TRUE(road().ok);
+  set_worker_executable(NCOSIM_BINARY);
+  const std::vector<std::string> vehicles{"follower", "leader", "nobody"};
+  const SumoInputs in = road_inputs();
+  const Recording r = record(in, 3, 600, vehicles);
+  ASSERT_EQ(r.frames, 600);
+  ASSERT_EQ(r.vehicles, vehicles);
+  auto live = start_live(in, 3, vehicles);
+  int compared = 0, tiny = 0;
+  for (std::int64_t f = 0; f < r.frames; ++f) {
+    live->advance(f * (sim::kSecond / 10));
+    for (int v = 0; v < 3; ++v) {
+      const auto& a = r.at(f, v);
+      const auto& b = live->vehicle(v);
+      ASSERT_EQ(a.present, b.present) << f << " " << v;
+      const double ra[] = {a.x, a.y, a.pos, a.speed, a.accel};
+      const double rb[] = {b.x, b.y, b.pos, b.speed, b.accel};
+      for (int k = 0; k < 5; ++k) {
+        ASSERT_EQ(std::memcmp(&ra[k], &rb[k], sizeof(double)), 0) << "frame " << f << " vehicle " << v << " field "
+                                                                 << k << ": " << ra[k] << " vs " << rb[k];
+        tiny += rb[k] != 0.0 && std::abs(rb[k]) < 1e-23;
+      }
+      compared += a.present;
+    }
+  }
+  EXPECT_GT(compared, 1000);
+  EXPECT_EQ(tiny, 0);  // no value the 40-decimal text could not carry (see the next test)
+  EXPECT_FALSE(r.at(0, 0).present);     // frame 0: before the first step
+  EXPECT_TRUE(r.at(1, 0).present);      // departed at t = 0
+  EXPECT_FALSE(r.at(599, 2).present);   // "nobody" never drives
+  // This process never loaded libsumo: only the worker did.
+  EXPECT_FALSE(libsumo_loaded());
+  live.reset();
+  EXPECT_TRUE(children().empty()) << "worker not reaped";
+}
+
+TEST(SumoRecording, FortyDecimalsCarryEveryDoubleDownToAbout1e23) {
+  // SUMO prints with std::fixed and setprecision(40): 17 significant digits (enough for any
+  // double) down to ~1e-23; smaller magnitudes lose bits.
+  auto round_trips = [](double x) {
+    std::ostringstream o;
+    o << std::fixed << std::setprecision(40) << x;
+    return std::strtod(o.str().c_str(), nullptr) == x;
+  };
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> mantissa(1.0, 10.0);
+  std::uniform_int_distribution<int> exponent(-23, 4);
+  for (int i = 0; i < 20000; ++i) {
+    const double x = mantissa(rng) * std::pow(10.0, exponent(rng));
+    ASSERT_TRUE(round_trips(x)) << x;
+    ASSERT_TRUE(round_trips(-x)) << -x;
+  }
+  int lost = 0;
+  for (int i = 0; i < 1000; ++i) lost += !round_trips(mantissa(rng) * 1e-30);
+  EXPECT_GT(lost, 900);
+}
+
+TEST(SumoRecording, SumoErrorsAndMissingBinaryAreClear) {
+  ASSERT_TRUE(road().ok);
+  SumoInputs in = road_inputs();
+  in.args[1] = (road().dir / "missing.net.xml").string();
+  try {
+    record(in, 1, 10, {"leader"});
+    ADD_FAILURE() << "no error";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("missing.net.xml' is not accessible"), std::string::npos) << e.what();
+    EXPECT_EQ(std::string(e.what()).find("Quitting"), std::string::npos) << e.what();
+  }
+  ::setenv("NCOSIM_SUMO_BINARY", "/nonexistent/sumo", 1);
+  EXPECT_THROW(sumo_binary(), std::runtime_error);
+  ::unsetenv("NCOSIM_SUMO_BINARY");
+  EXPECT_TRUE(fs::exists(sumo_binary()));
+}
+
+struct FcdCase {
+  std::string body, expect;
+};
+
+TEST(SumoRecording, FcdReaderIsStrict) {
+  const std::string head = R"(<?xml version="1.0" encoding="UTF-8"?>
+<!-- generated by sumo <configuration> ... -->
+<fcd-export xmlns:xsi="http://www.w3.org/2001/XMLSchema-instance">
+)";
+  const std::string a = R"(<vehicle id="a" x="1.5" y="2" speed="3" acceleration="-0.25" odometer="7"/>)";
+  const fs::path file = fs::temp_directory_path() / ("ncosim_fcd_test_" + std::to_string(::getpid()) + ".xml");
+  auto parse = [&](const std::string& body) {
+    std::ofstream(file) << head << body;
+    return parse_fcd(file.string(), 100, 5, {"a", "b"});
+  };
+  // Good: a at t = 0 and 0.1, absent at 0.2 (keeps its last state), SUMO stopped after 0.2.
+  const Recording r = parse("<timestep time=\"0.000\">\n  " + a + "\n</timestep>\n<timestep time=\"0.100\">" + a +
+                            "</timestep>\n<timestep time=\"0.200\"/>\n</fcd-export>\n");
+  EXPECT_FALSE(r.at(0, 0).present);
+  EXPECT_EQ(r.at(0, 0).x, 0.0);
+  EXPECT_TRUE(r.at(1, 0).present);
+  EXPECT_TRUE(r.at(2, 0).present);
+  EXPECT_EQ(r.at(2, 0).x, 1.5);
+  EXPECT_EQ(r.at(2, 0).pos, 7.0);
+  EXPECT_EQ(r.at(2, 0).accel, -0.25);
+  EXPECT_FALSE(r.at(3, 0).present);
+  EXPECT_EQ(r.at(3, 0).speed, 3.0);
+  EXPECT_FALSE(r.at(4, 0).present);
+  for (int f = 0; f < 5; ++f) EXPECT_FALSE(r.at(f, 1).present);
+  const std::vector<FcdCase> bad{
+      {"<timestep time=\"0.100\"/></fcd-export>", "timestep time=\"0.100\" where 0.000 s"},
+      {"<timestep time=\"0.000\"/><timestep time=\"0.000\"/></fcd-export>", "where 0.100 s"},
+      {"<timestep time=\"0.000\"><person id=\"p\"/></timestep></fcd-export>", "expected '<vehicle'"},
+      {"<timestep time=\"0.000\"><vehicle id=\"c\" x=\"1\" y=\"2\" speed=\"3\" acceleration=\"0\" odometer=\"0\"/>"
+       "</timestep></fcd-export>",
+       "vehicle \"c\" was not asked for"},
+      {"<timestep time=\"0.000\"><vehicle id=\"a\" x=\"1\" y=\"2\" speed=\"fast\" acceleration=\"0\" odometer=\"0\"/>"
+       "</timestep></fcd-export>",
+       "expected a finite number, got \"fast\""},
+      {"<timestep time=\"0.000\"><vehicle id=\"a\" x=\"1\" y=\"2\" speed=\"3\" odometer=\"0\"/></timestep></fcd-export>",
+       "expected <vehicle id x y"},
+      {"<timestep time=\"0.000\">" + a + a + "</timestep></fcd-export>", "\"a\" twice in one timestep"},
+      {"<timestep time=\"0.000\"/>", "expected '<timestep'"},
+      {"<timestep time=\"0.000\"/></fcd-export>junk", "unexpected content after </fcd-export>"},
+      {"<timestep time=\"0.000\" lane=\"x\"/></fcd-export>", "expected <timestep time="},
+  };
+  for (const auto& c : bad) {
+    try {
+      parse(c.body);
+      ADD_FAILURE() << "accepted: " << c.body;
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find(c.expect), std::string::npos) << c.body << "\n" << e.what();
+      EXPECT_NE(std::string(e.what()).find("byte "), std::string::npos) << e.what();
+    }
+  }
+  fs::remove(file);
+}
+
+TEST(SumoLive, WorkerDeathIsAClearErrorAndNoZombieRemains) {
+  ASSERT_TRUE(road().ok);
+  set_worker_executable(NCOSIM_BINARY);
+  const std::vector<std::string> vehicles{"leader"};
+  auto live = start_live(road_inputs(), 1, vehicles);
+  live->advance(10 * sim::kSecond);
+  EXPECT_TRUE(live->vehicle(0).present);
+  const auto kids = children();
+  ASSERT_EQ(kids.size(), 1u);
+  ::kill(kids[0], SIGKILL);
+  try {
+    live->advance(20 * sim::kSecond);
+    ADD_FAILURE() << "no error after the worker died";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("SUMO live worker (seed 1)"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("killed by signal 9"), std::string::npos) << e.what();
+  }
+  EXPECT_TRUE(children().empty());
+  live.reset();
+  // A worker that exits without a word, and one whose load fails with SUMO's message.
+  set_worker_executable("/bin/false");
+  try {
+    start_live(road_inputs(), 1, vehicles);
+    ADD_FAILURE() << "no error";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("closed the connection (exit status 1)"), std::string::npos) << e.what();
+  }
+  set_worker_executable(NCOSIM_BINARY);
+  SumoInputs bad = road_inputs();
+  bad.args[3] = (road().dir / "missing.rou.xml").string();
+  try {
+    start_live(bad, 1, vehicles);
+    ADD_FAILURE() << "no error";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("SUMO (live, seed 1): "), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("missing.rou.xml"), std::string::npos) << e.what();
+  }
+  EXPECT_TRUE(children().empty());
+  set_worker_executable("");
+  EXPECT_THROW(start_live(road_inputs(), 1, vehicles), std::runtime_error);
+  EXPECT_FALSE(libsumo_loaded());
 }
 
 TEST(SumoCampaign, SumoErrorsExitTwoWithAClearMessage) {
@@ -293,6 +515,12 @@ TEST(SumoCampaign, SumoErrorsExitTwoWithAClearMessage) {
     EXPECT_TRUE(o.out.empty()) << o.out;
     EXPECT_FALSE(fs::exists(road().dir / "bad")) << "results written on failure";
   }
+  // No `sumo` binary anywhere: exit 2 saying so, and no recording left behind.
+  const Output nobin =
+      run_ncosim("run s.toml --out bad --quiet --set 'sumo.cache=\"cache_nobin\"'", "PATH=/nonexistent SUMO_HOME= ");
+  EXPECT_EQ(nobin.code, 2) << nobin.err;
+  EXPECT_NE(nobin.err.find("cannot find the `sumo` binary on PATH or in $SUMO_HOME/bin"), std::string::npos) << nobin.err;
+  EXPECT_TRUE(fs::is_empty(road().dir / "cache_nobin"));
 }
 
 TEST(SumoCli, ChannelCommandPrintsThePresetsCurve) {
