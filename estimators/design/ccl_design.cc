@@ -279,16 +279,29 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
     }
     return tr;
   };
+  // The exact S4 design (value iteration, paper-notes §1). Every grouping's feasible set lies in
+  // S4's (S1-S3 only add equalities): its tr(P) is a certified lower bound for the bisection,
+  // far tighter than the LMI relaxation's (the paper starts at 0), and its (P, S_P) is where
+  // the first CCL iterate is linearised.
+  JumpDesign s4;
+  bool s4_ok = false;
+  if (opt.s4_bound) {
+    s4 = design_jump_iterative(ext, prob, Nbar, Grouping::kS4);
+    s4_ok = s4.stable && s4.status == "ok";
+  }
   std::string fail_status;
   // CCL at gamma from a feasible point: true when gains with tr(P) <= gamma were found.
   auto ccl = [&](double gamma) {
     Built b = build(s, gamma / scale);
     lmi::Solution sol;
     MatrixXd Pk, Qk, Sk, Rk;
-    if (opt.start == CclStart::kBestExact && std::isfinite(best_trP)) {
-      // Step 2 from the best exact fixed point so far: (25) holds there with Q = P^-1, R = S_P^-1.
-      Pk = best.P / scale;
-      Sk = stein_sum(stein, best.P) / scale;  // eq. (19): S_P = sum_k p0^k Abar^k P Abar^k'
+    const JumpDesign* from = nullptr;
+    if (opt.start == CclStart::kBestExact) from = std::isfinite(best_trP) ? &best : s4_ok ? &s4 : nullptr;
+    if (from != nullptr) {
+      // Step 2 from the best exact fixed point so far (before any, the S4 optimum): (25) holds
+      // there with Q = P^-1, R = S_P^-1.
+      Pk = from->P / scale;
+      Sk = stein_sum(stein, from->P) / scale;  // eq. (19): S_P = sum_k p0^k Abar^k P Abar^k'
       Qk = Pk.inverse();
       Rk = Sk.inverse();
     } else {
@@ -323,25 +336,19 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
     return false;
   };
 
-  // Lower end of the bisection. Every grouping's feasible set lies in S4's (S1-S3 only add
-  // equalities) and the S4 value iteration is exact (paper-notes §1): its tr(P) is a certified
-  // lower bound, far tighter than the LMI relaxation's (the paper starts at 0).
   double lower = 0.0;
-  if (opt.s4_bound) {
-    const JumpDesign s4 = design_jump_iterative(ext, prob, Nbar, Grouping::kS4);
-    if (s4.stable && s4.status == "ok") {
-      info.s4_bound = s4.P.trace();
-      lower = info.s4_bound * (1.0 - 1e-9);
-    }
+  if (s4_ok) {
+    info.s4_bound = s4.P.trace();
+    lower = info.s4_bound * (1.0 - 1e-9);
   }
-  // Step 2's first feasible point (no objective), or, without the S4 bound, the relaxation
-  // (Q, R free: min tr(P), a certified lower bound); either gives the first gains.
-  {
-    Built b = build(s, std::numeric_limits<double>::infinity());
-    info.size = b.prob.size();
-    const bool relax = info.s4_bound == 0.0;
-    if (relax) b.prob.minimize(lmi::trace(b.P));
-    const lmi::Solution sol = solve(b);
+  // The first gains: from CCL linearised at the S4 optimum (below), or, without it, from the
+  // relaxation (Q, R free: min tr(P), a certified lower bound) or the paper's feasible point.
+  Built first = build(s, std::numeric_limits<double>::infinity());
+  info.size = first.prob.size();
+  if (!s4_ok || opt.start != CclStart::kBestExact) {
+    const bool relax = !s4_ok;
+    if (relax) first.prob.minimize(lmi::trace(first.P));
+    const lmi::Solution sol = solve(first);
     if (!sol.ok()) {
       failed.status = lmi::to_string(sol.status);
       info.lmi_status = failed.status;
@@ -352,7 +359,7 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
       lower = std::max(0.0, sol.objective * scale);
       info.relaxation_bound = lower;
     }
-    consider(b, sol);
+    consider(first, sol);
   }
   if (!std::isfinite(best_trP)) ccl(std::numeric_limits<double>::infinity());
   if (!std::isfinite(best_trP)) {

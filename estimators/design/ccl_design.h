@@ -11,11 +11,13 @@
 // the fictitious sensors its patterns deliver, and a group's patterns enter through the mean and
 // covariance of their availability vector when that is smaller than one term per pattern
 // (exact; see Piece in the source). A bisection step gamma is accepted when the gains of a CCL
-// iterate have an exact fixed point (evaluate_jump_gains) with tr(P) <= gamma; the relaxation
-// (Q, R free) gives the initial gains and lower bound. Each step linearises at the best exact
-// fixed point so far (CclStart) and ends, as a failure at gamma, when an iterate no longer
-// improves it (patience) or after k_max iterations. The result is reported through
-// evaluate_jump_gains, like the iterative design.
+// iterate have an exact fixed point (evaluate_jump_gains) with tr(P) <= gamma. The bisection's
+// lower end is tr(P) of the exact S4 design (value iteration; a certified bound for every
+// grouping), and the first CCL iterate is linearised at that design (s4_bound; without it the
+// LMI relaxation with Q, R free gives the first gains and the lower end). Each step linearises
+// at the best exact fixed point so far (CclStart) and ends, as a failure at gamma, when an
+// iterate no longer improves it (patience) or after k_max iterations. The result is reported
+// through evaluate_jump_gains, like the iterative design.
 #pragma once
 
 #include <string>
@@ -50,8 +52,8 @@ struct CclOptions {
   // Solve the SDPs on the model with its noise scaled so that the variables are of order one.
   bool normalise = true;
   // Start the bisection's lower end at tr(P) of the exact S4 design (a certified bound for
-  // every grouping; the paper starts at 0). false: at the LMI relaxation's min tr(P) (Q, R
-  // free), solved as the first SDP.
+  // every grouping; the paper starts at 0) and linearise the first CCL iterate at it. false:
+  // the LMI relaxation's min tr(P) (Q, R free), solved as the first SDP, gives both.
   bool s4_bound = true;
   bool verbose = false;              // CSDP log and the bisection trace on stderr
 };

@@ -42,30 +42,44 @@ TEST(CclDesign, UnstableGainsAreReportedNotEvaluated) {
 }
 
 TEST(CclDesign, IterativeS4IsNeverWorseThanCclS4AndCclIsAboveItsLowerBound) {
-  // The iterative S4 design is the exact optimum; the CCL bisection can only approach it.
+  // The iterative S4 design is the exact optimum; the CCL bisection can only approach it. By
+  // default CCL starts its first linearisation and its lower end at that optimum; without it
+  // (s4_bound = false) CCL starts from the LMI relaxation alone and must still get there.
   auto d = dolz_model();
   const ExtendedModel ext = build_extended(d.model, 0);
   // dbar = 0 (3 patterns); each sensor delivers with probability 0.8, independently.
   const std::vector<double> prob = {0.04, 0.16, 0.16, 0.64};
-  for (int Nbar : {1, 2}) {
-    CclInfo info;
-    const JumpDesign ccl = design_jump_ccl(ext, prob, Nbar, Grouping::kS4, {}, &info);
-    ASSERT_TRUE(ccl.stable) << ccl.status;
-    const JumpDesign it =
-        evaluate_jump_gains(ext, prob, Nbar, Grouping::kS4, design_jump_iterative(ext, prob, Nbar, Grouping::kS4).gains);
-    EXPECT_LE(it.Pt.trace(), ccl.Pt.trace() * (1.0 + 1e-9)) << "Nbar " << Nbar;
-    EXPECT_LE(it.P.trace(), ccl.P.trace() * (1.0 + 1e-9));
-    // tr(P) of the CCL gains lies between the relaxation bound and the bisection's upper end,
-    // and the bisection closed its gap.
-    EXPECT_LE(info.lower_bound, ccl.P.trace() * (1.0 + 1e-9));
-    EXPECT_GT(info.s4_bound, 0.0);
-    EXPECT_LE(info.s4_bound, ccl.P.trace() * (1.0 + 1e-9));
-    EXPECT_NEAR(info.upper_bound, ccl.P.trace(), 1e-12);
-    EXPECT_LT(info.upper_bound - info.lower_bound, 1e-3 * info.upper_bound + 1e-12);
-    EXPECT_GT(info.sdp_solves, 2);
-    EXPECT_GT(info.size.variables, 0);
-    // On this small case CCL reaches the exact optimum closely (measured: within 1 %).
-    EXPECT_LT(ccl.Pt.trace(), 1.01 * it.Pt.trace()) << "Nbar " << Nbar;
+  for (bool anchored : {true, false}) {
+    for (int Nbar : {1, 2}) {
+      CclOptions o;
+      o.s4_bound = anchored;
+      CclInfo info;
+      const JumpDesign ccl = design_jump_ccl(ext, prob, Nbar, Grouping::kS4, o, &info);
+      ASSERT_TRUE(ccl.stable) << ccl.status;
+      const JumpDesign it = evaluate_jump_gains(ext, prob, Nbar, Grouping::kS4,
+                                                design_jump_iterative(ext, prob, Nbar, Grouping::kS4).gains);
+      SCOPED_TRACE(::testing::Message() << "Nbar " << Nbar << (anchored ? " anchored" : " from the relaxation"));
+      EXPECT_LE(it.Pt.trace(), ccl.Pt.trace() * (1.0 + 1e-9));
+      EXPECT_LE(it.P.trace(), ccl.P.trace() * (1.0 + 1e-9));
+      // tr(P) of the CCL gains lies between the bisection's certified lower end and its upper
+      // end, and the bisection closed its gap.
+      EXPECT_LE(info.lower_bound, ccl.P.trace() * (1.0 + 1e-9));
+      if (anchored) {
+        EXPECT_NEAR(info.s4_bound, it.P.trace(), 1e-9 * it.P.trace());
+        EXPECT_EQ(info.relaxation_bound, 0.0);
+      } else {
+        EXPECT_EQ(info.s4_bound, 0.0);
+        EXPECT_GT(info.relaxation_bound, 0.0);
+        EXPECT_LE(info.relaxation_bound, it.P.trace());
+        EXPECT_GT(info.sdp_solves, 2);
+      }
+      EXPECT_NEAR(info.upper_bound, ccl.P.trace(), 1e-12);
+      EXPECT_LT(info.upper_bound - info.lower_bound, 1e-3 * info.upper_bound + 1e-12);
+      EXPECT_GE(info.sdp_solves, 1);
+      EXPECT_GT(info.size.variables, 0);
+      // On this small case CCL reaches the exact optimum closely (measured: within 0.1 %).
+      EXPECT_LT(ccl.Pt.trace(), 1.01 * it.Pt.trace());
+    }
   }
 }
 
@@ -123,6 +137,26 @@ TEST(CclDesign, MomentFormOfSharedGainsIsExactAndSmaller) {
   const JumpDesign dp = design_jump_ccl(ext, prob, 1, Grouping::kS2, per_pattern);
   ASSERT_TRUE(dm.stable && dp.stable);
   EXPECT_NEAR(dm.Pt.trace(), dp.Pt.trace(), 1e-4 * dp.Pt.trace());
+}
+
+TEST(CclDesign, SharedGainCclReachesTheIterationWithOrWithoutTheS4Anchor) {
+  // Table 2's shared-gain cases (A3, dbar = 1, Nbar = 1): CCL's designs, anchored at the exact
+  // S4 optimum (default) or started from the LMI relaxation alone, land within 0.1 % of the
+  // shared-gain iteration's tr(Pt) (measured: 1e-6), i.e. two independent methods agree.
+  auto d = dolz_model();
+  const ExtendedModel ext = build_extended(d.model, 1);
+  const auto prob = pattern_probabilities(d.model, ext);
+  for (Grouping g : {Grouping::kS1, Grouping::kS2, Grouping::kS3}) {
+    const JumpDesign it = evaluate_jump_gains(ext, prob, 1, g, design_jump_iterative(ext, prob, 1, g).gains);
+    for (bool anchored : {true, false}) {
+      CclOptions o;
+      o.s4_bound = anchored;
+      const JumpDesign ccl = design_jump_ccl(ext, prob, 1, g, o);
+      ASSERT_TRUE(ccl.stable) << ccl.status;
+      EXPECT_NEAR(ccl.Pt.trace(), it.Pt.trace(), 1e-3 * it.Pt.trace())
+          << "S" << static_cast<int>(g) + 1 << (anchored ? " anchored" : " from the relaxation");
+    }
+  }
 }
 
 TEST(CclDesign, AnUnstableNetworkIsAStatusNotACrash) {
