@@ -148,6 +148,7 @@ class JumpObserverDesign final : public EstimatorDesign, public JumpDesignAccess
                               {"ccl_iterations", info.ccl_iterations},
                               {"relaxation_trP", info.relaxation_bound},
                               {"s4_bound_trP", info.s4_bound},
+                              {"bisection_stop", info.stopped_fruitless ? "no_improvement" : "gap"},
                               {"bisection_low_trP", info.lower_bound},
                               {"bisection_high_trP", info.upper_bound}};
     }

@@ -78,7 +78,7 @@ Built build(const Setup& s, double gamma) {
   lmi::Expr sumY = lmi::Expr(MatrixXd::Zero(nb, nb));
   // Terms in chunks of bounded LMI size, each with its own Y (CSDP's cost grows with the
   // cube of a block's size; a slack Y per chunk keeps the problem exact).
-  constexpr Eigen::Index kMaxBlock = 40;
+  constexpr Eigen::Index kMaxBlock = 30;  // measured best over the A3 grid (20-100 tried)
   std::vector<std::vector<lmi::Expr>> B, D;  // per chunk
   std::vector<Eigen::Index> chunk_size;
   int chunk_N = 0;
@@ -371,9 +371,16 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
   }
   // Bisection (section 4, steps 1-5).
   double upper = best_trP;
+  int fruitless = 0;  // consecutive steps that found nothing better
   for (; info.bisections < opt.max_bisections && upper - lower >= opt.relative_gap * upper; ++info.bisections) {
+    if (s4_ok && opt.max_fruitless_steps > 0 && fruitless >= opt.max_fruitless_steps) {
+      info.stopped_fruitless = true;
+      break;
+    }
     const double gamma = 0.5 * (lower + upper);
+    const double before = best_trP;
     if (!ccl(gamma)) lower = gamma;
+    fruitless = best_trP < before * (1.0 - opt.stall_tolerance) ? 0 : fruitless + 1;
     upper = std::min(upper, best_trP);  // the best exact fixed point so far bounds the optimum
     if (opt.verbose) std::fprintf(stderr, "gamma %.6g -> [%.6g, %.6g] best %.6g\n", gamma, lower, upper, best_trP);
   }

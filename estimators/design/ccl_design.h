@@ -39,13 +39,18 @@ struct CclOptions {
   // A bisection step ends early (as a failure at this gamma) after `patience` consecutive CCL
   // iterations that lowered the best exact tr(P) by less than stall_tolerance (relative).
   int patience = 1;
-  double stall_tolerance = 1e-4;
+  double stall_tolerance = 1e-3;
   double relative_gap = 1e-3;        // bisection stops when gamma_u - gamma_l < gap gamma_u
+  // ... or, when the lower end is the exact S4 design's (s4_bound), after this many consecutive
+  // steps that did not improve the best design by stall_tolerance (0: never; the paper's step 5
+  // has only the gap). From the relaxation's loose lower end, failed steps are expected (gamma
+  // below anything reachable) and only the gap ends the bisection.
+  int max_fruitless_steps = 2;
   int max_bisections = 40;
   int sdp_max_iterations = 100;      // CSDP's iteration limit per SDP
   // CSDP's tolerances (axtol, atytol, objtol) for every SDP of the design. The SDPs only steer
   // the search: every candidate gain set is evaluated exactly (evaluate_jump_gains).
-  double sdp_tolerance = 1e-6;
+  double sdp_tolerance = 1e-5;
   // Write a group of patterns sharing a gain through the moments of its availability vector
   // when that is smaller (exact); false: one LMI term per pattern, as printed in the paper.
   bool group_moments = true;
@@ -63,6 +68,7 @@ struct CclInfo {
   int sdp_solves = 0;
   int bisections = 0;
   int ccl_iterations = 0;   // total over the bisection
+  bool stopped_fruitless = false;  // the bisection ended on max_fruitless_steps, not on the gap
   double relaxation_bound = 0.0;  // min tr(P) with Q, R free: a certified lower bound (0 when not solved)
   double s4_bound = 0.0;          // tr(P) of the exact S4 design (0 when not used)
   double lower_bound = 0.0; // final gamma_l: CCL failed there (not a certified bound; the relaxation is)

@@ -74,7 +74,14 @@ TEST(CclDesign, IterativeS4IsNeverWorseThanCclS4AndCclIsAboveItsLowerBound) {
         EXPECT_GT(info.sdp_solves, 2);
       }
       EXPECT_NEAR(info.upper_bound, ccl.P.trace(), 1e-12);
-      EXPECT_LT(info.upper_bound - info.lower_bound, 1e-3 * info.upper_bound + 1e-12);
+      // The bisection closed its gap, or (anchored only) stopped after two steps that found
+      // nothing better.
+      if (anchored && info.stopped_fruitless) {
+        EXPECT_GE(info.bisections, 2);
+      } else {
+        EXPECT_FALSE(info.stopped_fruitless);
+        EXPECT_LT(info.upper_bound - info.lower_bound, 1e-3 * info.upper_bound + 1e-12);
+      }
       EXPECT_GE(info.sdp_solves, 1);
       EXPECT_GT(info.size.variables, 0);
       // On this small case CCL reaches the exact optimum closely (measured: within 0.1 %).
@@ -116,6 +123,7 @@ TEST(CclDesign, MomentFormOfSharedGainsIsExactAndSmaller) {
     CclOptions moments, per_pattern;
     moments.max_bisections = per_pattern.max_bisections = 0;  // relaxation and first gains only
     moments.s4_bound = per_pattern.s4_bound = false;           // solve the relaxation
+    moments.sdp_tolerance = per_pattern.sdp_tolerance = 1e-8;  // accurate optima to compare
     per_pattern.group_moments = false;
     CclInfo a, b;
     const JumpDesign dm = design_jump_ccl(ext, prob, Nbar, g, moments, &a);
@@ -142,7 +150,7 @@ TEST(CclDesign, MomentFormOfSharedGainsIsExactAndSmaller) {
 TEST(CclDesign, SharedGainCclReachesTheIterationWithOrWithoutTheS4Anchor) {
   // Table 2's shared-gain cases (A3, dbar = 1, Nbar = 1): CCL's designs, anchored at the exact
   // S4 optimum (default) or started from the LMI relaxation alone, land within 0.1 % of the
-  // shared-gain iteration's tr(Pt) (measured: 1e-6), i.e. two independent methods agree.
+  // shared-gain iteration's tr(Pt) (measured: at most 0.024 %), i.e. two independent methods agree.
   auto d = dolz_model();
   const ExtendedModel ext = build_extended(d.model, 1);
   const auto prob = pattern_probabilities(d.model, ext);
