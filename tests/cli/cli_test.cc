@@ -697,6 +697,40 @@ TEST_F(Cli, DesignWritesDesignJsonWithTheContractFields) {
   EXPECT_TRUE(kalman["predicted_mse_ext"].is_null()) << kalman.dump();
 }
 
+TEST_F(Cli, DesignBothReportsEachMethodAndTheCclStartIsAKey) {
+  // design = "both": each method's prediction, the one kept, the SDP work; ccl_start = "paper"
+  // runs section 4 as printed (more SDPs, never below the exact-S4 lower end's rules).
+  std::string text = base_;
+  const std::string line = "max_delay = 1\n\n[[estimator]]\nname = \"Kalman\"";
+  ASSERT_NE(text.find(line), std::string::npos);
+  nlohmann::json runs[2];
+  int i = 0;
+  for (const char* start : {"s4", "paper"}) {
+    std::string v = text;
+    v.replace(v.find(line), std::string("max_delay = 1").size(),
+              fmt::format("max_delay = 1\ndesign = \"both\"\nccl_start = \"{}\"", start));
+    const fs::path out = dir_ / fmt::format("out_{}", start);
+    const Outcome o = ncosim({"design", scenario(v), "--out", out.string()});
+    ASSERT_EQ(o.code, 0) << o.output;
+    runs[i] = nlohmann::json::parse(read_file(out / "design.json"))["estimators"][0];
+    const auto& e = runs[i++];
+    EXPECT_EQ(e["design"], "both");
+    EXPECT_EQ(e["ccl_start"], start);
+    const double it = e["predicted_mse_ext_iterative"], ccl = e["predicted_mse_ext_ccl"];
+    EXPECT_EQ(e["chosen"], ccl < it ? "ccl" : "iterative");
+    EXPECT_EQ(e["method"], e["chosen"]);
+    EXPECT_DOUBLE_EQ(e["predicted_mse_ext"].get<double>(), std::min(it, ccl));
+    EXPECT_NEAR(ccl, it, 1e-2 * it);  // S2, Nbar = 2: both methods within 1 %
+    EXPECT_GE(e["sdp"]["solves"].get<int>(), 1);
+    EXPECT_TRUE(e["sdp"]["bisection_stop"] == "gap" || e["sdp"]["bisection_stop"] == "no_improvement");
+  }
+  EXPECT_GT(runs[0]["sdp"]["s4_bound_trP"].get<double>(), 0.0);
+  EXPECT_EQ(runs[1]["sdp"]["s4_bound_trP"].get<double>(), 0.0);
+  EXPECT_GT(runs[1]["sdp"]["relaxation_trP"].get<double>(), 0.0);
+  EXPECT_EQ(runs[1]["sdp"]["bisection_stop"], "gap");
+  EXPECT_GT(runs[1]["sdp"]["solves"].get<int>(), runs[0]["sdp"]["solves"].get<int>());
+}
+
 // ---------------------------------------------------------------------------------------------
 // run: the result files.
 
