@@ -4,7 +4,6 @@
 #include <Eigen/Eigenvalues>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <limits>
 
 namespace ncosim::est {
@@ -271,7 +270,10 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
   // Gains of a solution: keep the best exact fixed point.
   auto consider = [&](const Built& b, const lmi::Solution& sol) {
     JumpDesign d = evaluate_jump_gains(ext, prob, Nbar, grouping, gains_of(s, b, sol));
-    if (!d.stable) { if (opt.verbose) std::fprintf(stderr, "gains: %s\n", d.status.c_str()); return std::numeric_limits<double>::infinity(); }
+    if (!d.stable) {
+      if (opt.verbose) std::fprintf(stderr, "gains: %s\n", d.status.c_str());
+      return std::numeric_limits<double>::infinity();
+    }
     const double tr = d.P.trace();
     if (tr < best_trP) {
       best_trP = tr;
