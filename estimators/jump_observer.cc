@@ -115,7 +115,7 @@ class JumpObserverDesign final : public EstimatorDesign, public JumpDesignAccess
       const auto start = clock();
       CclOptions o;
       o.verbose = params_.verbose;
-      if (params_.ccl_start == "paper") {  // section 4 as printed (bench: BM_DesignCclLiteral)
+      if (params_.ccl_start == "paper") {  // section 4's steps (bench: BM_DesignCclLiteral)
         o.start = CclStart::kFeasible;
         o.patience = o.max_ccl_iterations;
         o.s4_bound = false;
@@ -155,7 +155,7 @@ class JumpObserverDesign final : public EstimatorDesign, public JumpDesignAccess
                               {"ccl_iterations", info.ccl_iterations},
                               {"relaxation_trP", info.relaxation_bound},
                               {"s4_bound_trP", info.s4_bound},
-                              {"bisection_stop", info.stopped_fruitless ? "no_improvement" : "gap"},
+                              {"bisection_stop", info.stop.empty() ? "none" : info.stop},
                               {"bisection_low_trP", info.lower_bound},
                               {"bisection_high_trP", info.upper_bound}};
     }

@@ -120,7 +120,7 @@ awk -F, -v I="$out/independent/summary.csv" -v C="$out/ccl/summary.csv" '
   }
   NR > 1 { field($0); if (!(F[1] in paper)) next
     it = F[14]; cc = cpred[F[1]]; lower = "–"
-    if (it != "" && cc != "") lower = (it < cc * (1 - 1e-6)) ? "iterative" : ((cc < it * (1 - 1e-6)) ? "CCL" : "equal (1e-6)")
+    if (it != "" && cc != "") lower = (it + 0 < (cc + 0) * (1 - 1e-6)) ? "iterative" : ((cc + 0 < (it + 0) * (1 - 1e-6)) ? "CCL" : "equal (1e-6)")
     printf "| %s | %s | %.4f | %s | %s | %s | %.4f ± %.4f | %s | %s | %s |\n", F[1], (F[12] == "" ? "–" : F[12]), paper[F[1]],
       (it == "" ? "–" : sprintf("%.6f", it)), (cc == "" ? "–" : sprintf("%.6f", cc)), lower, F[6], F[7],
       (F[1] in csim && cc != "" ? csim[F[1]] : "–"), ind[F[1]], F[11] }' "$out/summary.csv" > "$out/table2.md"

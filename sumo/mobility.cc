@@ -214,7 +214,13 @@ SumoProcess start_sumo(const std::string& exe, char* const* envp, const SumoInpu
     argv.insert(argv.end(), {"--fcd-output", p.fcd, "--device.fcd.explicit", ids, "--fcd-output.attributes",
                              "x,y,speed,acceleration,odometer", "--precision", "40"});
   }
-  p.pid = spawn(exe, argv, envp, p.log);
+  try {
+    p.pid = spawn(exe, argv, envp, p.log);
+  } catch (...) {
+    std::error_code ec;
+    fs::remove(p.log, ec);  // the child may have opened it before its exec failed
+    throw;
+  }
   return p;
 }
 
@@ -476,6 +482,8 @@ class WorkerRun final : public sim::MobilityRun {
     } catch (...) {
       ::close(sv[1]);
       ::close(fd_);
+      std::error_code ec;
+      fs::remove(log_, ec);
       throw;
     }
     ::close(sv[1]);  // only the worker holds its end: its death is end-of-file here
@@ -611,6 +619,14 @@ std::string default_cache_dir() {
 
 void write_recording(const std::string& path, const Recording& r) {
   const std::string tmp = fmt::format("{}.tmp.{}", path, ::getpid());
+  struct RemoveOnFailure {
+    const std::string& file;
+    bool done = false;
+    ~RemoveOnFailure() {
+      std::error_code ec;
+      if (!done) fs::remove(file, ec);
+    }
+  } guard{tmp};
   {
     std::ofstream o(tmp, std::ios::binary | std::ios::trunc);
     if (!o) throw std::runtime_error(fmt::format("cannot write '{}'", tmp));
@@ -629,6 +645,7 @@ void write_recording(const std::string& path, const Recording& r) {
     if (!o) throw std::runtime_error(fmt::format("cannot write '{}'", tmp));
   }
   fs::rename(tmp, path);
+  guard.done = true;
 }
 
 Recording read_recording(const std::string& path) {

@@ -49,6 +49,15 @@ class Session {
       for (const auto& id : libsumo::Simulation::getDepartedIDList()) {
         if (auto it = index_.find(id); it != index_.end()) states_[static_cast<std::size_t>(it->second)].present = true;
       }
+      // A teleporting vehicle is off the road: absent (keeping its last state) until the
+      // teleport ends, exactly as SUMO's FCD output, which the recordings are made from, leaves
+      // it out.
+      for (const auto& id : libsumo::Simulation::getStartingTeleportIDList()) {
+        if (auto it = index_.find(id); it != index_.end()) states_[static_cast<std::size_t>(it->second)].present = false;
+      }
+      for (const auto& id : libsumo::Simulation::getEndingTeleportIDList()) {
+        if (auto it = index_.find(id); it != index_.end()) states_[static_cast<std::size_t>(it->second)].present = true;
+      }
       for (const auto& id : libsumo::Simulation::getArrivedIDList()) {
         if (auto it = index_.find(id); it != index_.end()) states_[static_cast<std::size_t>(it->second)].present = false;
       }

@@ -77,7 +77,7 @@ Built build(const Setup& s, double gamma) {
   lmi::Expr sumY = lmi::Expr(MatrixXd::Zero(nb, nb));
   // Terms in chunks of bounded LMI size, each with its own Y (CSDP's cost grows with the
   // cube of a block's size; a slack Y per chunk keeps the problem exact).
-  constexpr Eigen::Index kMaxBlock = 30;  // measured best over the A3 grid (20-100 tried)
+  constexpr Eigen::Index kMaxBlock = 30;  // measured best over the A3 grid (12-100 tried)
   std::vector<std::vector<lmi::Expr>> B, D;  // per chunk
   std::vector<Eigen::Index> chunk_size;
   int chunk_N = 0;
@@ -189,6 +189,8 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
   for (int N = 1; N < Nbar; ++N) s.noise_factor[N] = psd_factor(SW[N]);
   s.noise_factor[Nbar] = psd_factor(SW[Nbar] + p0 * s.Apow[Nbar] * SWinf * s.Apow[Nbar].transpose());
   s.groups = static_cast<std::size_t>(per_N) * Nbar;
+  // Weight of the terms of N in (18): p0^(N-1), the tail N = Nbar summing N >= Nbar.
+  auto weight_of = [&](int N) { return N < Nbar ? std::pow(p0, N - 1) : std::pow(p0, Nbar - 1) / (1.0 - p0); };
   // Patterns of positive probability per group (the same for every N) and the rows they use.
   std::vector<std::vector<std::uint64_t>> members(static_cast<std::size_t>(per_N));
   std::vector<Eigen::VectorXd> used(s.groups, Eigen::VectorXd::Zero(nm));
@@ -197,6 +199,7 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
     const int k = group_of(grouping, ext, m);
     members[static_cast<std::size_t>(k)].push_back(m);
     for (int N = 1; N <= Nbar; ++N) {
+      if (weight_of(N) <= 0.0) continue;  // p0 = 0: no update ever waits N >= 2 periods
       const std::size_t g = static_cast<std::size_t>((N - 1) * per_N + k);
       used[g] = used[g].cwiseMax(ext.row_mask(m));
     }
@@ -209,7 +212,8 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
       if (used[g](r) > 0.0) s.select[g](i++, r) = 1.0;
   }
   for (int N = 1; N <= Nbar; ++N) {
-    const double wN = N < Nbar ? std::pow(p0, N - 1) : std::pow(p0, Nbar - 1) / (1.0 - p0);
+    const double wN = weight_of(N);
+    if (wN <= 0.0) continue;  // its gains are never used: no variables, no terms
     const double tailA = N < Nbar ? 1.0 : 1.0 - p0;  // the tail's A^N part is weighted by (1 - p0)
     const Eigen::Index zw = s.noise_factor[N].cols();
     for (int k = 0; k < per_N; ++k) {
@@ -301,12 +305,18 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
     if (opt.start == CclStart::kBestExact) from = std::isfinite(best_trP) ? &best : s4_ok ? &s4 : nullptr;
     if (from != nullptr) {
       // Step 2 from the best exact fixed point so far (before any, the S4 optimum): (25) holds
-      // there with Q = P^-1, R = S_P^-1.
+      // there with Q = P^-1, R = S_P^-1. A singular P (e.g. a noise-free measured direction)
+      // has no such point: then the paper's feasible point below.
       Pk = from->P / scale;
       Sk = stein_sum(stein, from->P) / scale;  // eq. (19): S_P = sum_k p0^k Abar^k P Abar^k'
-      Qk = Pk.inverse();
-      Rk = Sk.inverse();
-    } else {
+      const Eigen::LLT<MatrixXd> lp(Pk), ls(Sk);
+      if (lp.info() == Eigen::Success && ls.info() == Eigen::Success) {
+        Qk = lp.solve(MatrixXd::Identity(nb, nb));
+        Rk = ls.solve(MatrixXd::Identity(nb, nb));
+      }
+      if (Qk.size() == 0 || !Qk.allFinite() || !Rk.allFinite()) from = nullptr;
+    }
+    if (from == nullptr) {
       sol = solve(b);  // step 2: a feasible point (no objective)
       if (!sol.ok()) {
         if (sol.status != lmi::Status::kInfeasible && fail_status.empty()) fail_status = lmi::to_string(sol.status);
@@ -328,8 +338,8 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
       }
       const double before = best_trP;
       if (const double tr = consider(b, sol); std::isfinite(tr) && tr <= gamma * (1.0 + 1e-12)) return true;
-      // Stalled: neither the linearised objective nor the best exact tr(P) moved for
-      // `patience` iterations (k_max of step 4 bounds the loop in any case).
+      // Stalled: the best exact tr(P) did not move for `patience` iterations (k_max of step 4
+      // bounds the loop in any case).
       // Until some iterate has stable gains, only k_max ends the loop.
       const bool moved = !std::isfinite(best_trP) || best_trP < before * (1.0 - opt.stall_tolerance);
       idle = moved ? 0 : idle + 1;
@@ -346,7 +356,7 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
   // The first gains: from CCL linearised at the S4 optimum (below), or, without it, from the
   // relaxation (Q, R free: min tr(P), a certified lower bound) or the paper's feasible point.
   Built first = build(s, std::numeric_limits<double>::infinity());
-  info.size = first.prob.size();
+  info.size = build(s, 1.0).prob.size();  // a bisection step's SDP (with its tr(P) <= gamma block)
   if (!s4_ok || opt.start != CclStart::kBestExact) {
     const bool relax = !s4_ok;
     if (relax) first.prob.minimize(lmi::trace(first.P));
@@ -377,6 +387,7 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
   for (; info.bisections < opt.max_bisections && upper - lower >= opt.relative_gap * upper; ++info.bisections) {
     if (s4_ok && opt.max_fruitless_steps > 0 && fruitless >= opt.max_fruitless_steps) {
       info.stopped_fruitless = true;
+      info.stop = "no_improvement";
       break;
     }
     const double gamma = 0.5 * (lower + upper);
@@ -386,6 +397,7 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
     upper = std::min(upper, best_trP);  // the best exact fixed point so far bounds the optimum
     if (opt.verbose) std::fprintf(stderr, "gamma %.6g -> [%.6g, %.6g] best %.6g\n", gamma, lower, upper, best_trP);
   }
+  if (info.stop.empty()) info.stop = upper - lower < opt.relative_gap * upper ? "gap" : "max_bisections";
   info.lower_bound = lower;
   info.upper_bound = best_trP;
   if (info_out) *info_out = info;

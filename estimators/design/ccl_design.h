@@ -64,11 +64,14 @@ struct CclOptions {
 };
 
 struct CclInfo {
-  lmi::SdpSize size;        // of the CCL step SDP
+  lmi::SdpSize size;        // of a bisection step's SDP
   int sdp_solves = 0;
   int bisections = 0;
   int ccl_iterations = 0;   // total over the bisection
   bool stopped_fruitless = false;  // the bisection ended on max_fruitless_steps, not on the gap
+  // Why the bisection ended: "gap", "no_improvement" (max_fruitless_steps), "max_bisections";
+  // empty when the design failed before it.
+  std::string stop;
   double relaxation_bound = 0.0;  // min tr(P) with Q, R free: a certified lower bound (0 when not solved)
   double s4_bound = 0.0;          // tr(P) of the exact S4 design (0 when not used)
   double lower_bound = 0.0; // final gamma_l: CCL failed there (not a certified bound; the relaxation is)

@@ -62,8 +62,8 @@ TEST(DolzTable2, EveryRowReproducesThePaper) {
 }
 
 // The paper's shared-gain rows (S1, S2, S3) are higher than ours. Cause pinned here: they are
-// not optimal designs of the paper's own problem (27)/(31). Two independent methods reach the
-// same optimum (the paper's CCL + bisection on CSDP and the exact shared-gain iteration agree
+// not optimal designs of the paper's own problem (27)/(31). Two independent methods land on the
+// same designs (the paper's CCL + bisection on CSDP and the shared-gain iteration agree
 // to 0.1 % in predicted tr(Pt)), and the CCL gains, simulated with physical packets as in the
 // paper, are below its rows by many confidence intervals, while the same simulation reproduces
 // the paper's S4 and Kalman rows (EveryRowReproducesThePaper) — so the model, the links and the

@@ -373,6 +373,58 @@ TEST(SumoRecording, FortyDecimalsCarryEveryDoubleDownToAbout1e23) {
   EXPECT_GT(lost, 900);
 }
 
+TEST(SumoRecording, ATeleportingVehicleIsAbsentInTheRecordingAndLiveAlike) {
+  // SUMO's FCD output leaves out a vehicle while it teleports; the live worker must too (and
+  // keep its last state), else live and replay differ. One-lane road a-b-c-d: a blocker stops
+  // for 200 s on ab, a second one fills the 7 m edge bc; "stuck", behind the first, waits 2 s
+  // (--time-to-teleport 2) and teleports for several seconds until it reaches cd.
+  ASSERT_TRUE(road().ok);
+  set_worker_executable(NCOSIM_BINARY);
+  const fs::path dir = road().dir / "teleport";
+  fs::create_directories(dir);
+  std::ofstream(dir / "n.nod.xml") << R"(<nodes><node id="a" x="0" y="0"/><node id="b" x="1000" y="0"/>
+<node id="c" x="1007" y="0"/><node id="d" x="3000" y="0"/></nodes>)";
+  std::ofstream(dir / "e.edg.xml") << R"(<edges><edge id="ab" from="a" to="b" numLanes="1" speed="20"/>
+<edge id="bc" from="b" to="c" numLanes="1" speed="20"/><edge id="cd" from="c" to="d" numLanes="1" speed="20"/></edges>)";
+  std::ofstream(dir / "t.rou.xml") << R"(<routes>
+  <vType id="car" maxSpeed="20" sigma="0"/>
+  <route id="r" edges="ab bc cd"/>
+  <route id="r2" edges="bc cd"/>
+  <vehicle id="blocker" type="car" route="r" depart="0" departPos="300"><stop lane="ab_0" endPos="320" duration="200"/></vehicle>
+  <vehicle id="blocker2" type="car" route="r2" depart="0" departPos="0"><stop lane="bc_0" endPos="6" duration="200"/></vehicle>
+  <vehicle id="stuck" type="car" route="r" depart="0" departPos="0"/>
+</routes>)";
+  const std::string cmd = "cd '" + dir.string() +
+                          "' && SUMO_HOME=/usr/share/sumo netconvert -n n.nod.xml -e e.edg.xml -o net.net.xml >/dev/null 2>&1";
+  ASSERT_EQ(std::system(cmd.c_str()), 0);
+  SumoInputs in;
+  in.args = {"-n", (dir / "net.net.xml").string(), "-r", (dir / "t.rou.xml").string(), "--time-to-teleport", "2"};
+  in.step_ms = 100;
+  const std::vector<std::string> vehicles{"stuck"};
+  const Recording r = record(in, 1, 1200, vehicles);
+  auto live = start_live(in, 1, vehicles);
+  int absent_after_departure = 0, back_after_absence = 0;
+  bool departed = false;
+  for (std::int64_t f = 0; f < r.frames; ++f) {
+    live->advance(f * (sim::kSecond / 10));
+    const auto& a = r.at(f, 0);
+    const auto& b = live->vehicle(0);
+    ASSERT_EQ(a.present, b.present) << "frame " << f;
+    const double ra[] = {a.x, a.y, a.pos, a.speed, a.accel};
+    const double rb[] = {b.x, b.y, b.pos, b.speed, b.accel};
+    for (int k = 0; k < 5; ++k) ASSERT_EQ(std::memcmp(&ra[k], &rb[k], sizeof(double)), 0) << "frame " << f << " field " << k;
+    back_after_absence += absent_after_departure > 0 && a.present;
+    departed = departed || a.present;
+    absent_after_departure += departed && !a.present;
+  }
+  EXPECT_TRUE(departed);
+  // Absent while teleporting (27.6 s to 34.8 s measured), then present again on cd.
+  EXPECT_GT(absent_after_departure, 10) << "the vehicle never teleported: the test does not test anything";
+  EXPECT_GT(back_after_absence, 10);
+  live.reset();
+  EXPECT_TRUE(children().empty());
+}
+
 TEST(SumoRecording, SumoErrorsAndMissingBinaryAreClear) {
   ASSERT_TRUE(road().ok);
   SumoInputs in = road_inputs();
