@@ -175,22 +175,13 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
   sext.Q /= scale;
   sext.V /= scale;
   Setup s{sext, prob, Nbar, grouping, p0, {}, {}, {}, {}, 0};
-  s.Apow.resize(Nbar + 1);
-  std::vector<MatrixXd> SW(Nbar + 1);
-  s.Apow[0] = MatrixXd::Identity(nb, nb);
-  SW[0] = MatrixXd::Zero(nb, nb);
-  for (int N = 1; N <= Nbar; ++N) {
-    s.Apow[N] = ext.A * s.Apow[N - 1];
-    SW[N] = SW[N - 1] + s.Apow[N - 1] * sext.Q * s.Apow[N - 1].transpose();
-  }
-  const MatrixXd stein = stein_operator(ext.A, p0);
-  const MatrixXd SWinf = stein_sum(stein, sext.Q);
+  HistoryTerms h = history_terms(sext, p0, Nbar);  // noise terms on the normalised model
+  const MatrixXd& stein = h.stein;
   s.noise_factor.resize(Nbar + 1);
-  for (int N = 1; N < Nbar; ++N) s.noise_factor[N] = psd_factor(SW[N]);
-  s.noise_factor[Nbar] = psd_factor(SW[Nbar] + p0 * s.Apow[Nbar] * SWinf * s.Apow[Nbar].transpose());
+  for (int N = 1; N < Nbar; ++N) s.noise_factor[N] = psd_factor(h.SW[N]);
+  s.noise_factor[Nbar] = psd_factor(h.tail_noise);
+  s.Apow = std::move(h.Apow);
   s.groups = static_cast<std::size_t>(per_N) * Nbar;
-  // Weight of the terms of N in (18): p0^(N-1), the tail N = Nbar summing N >= Nbar.
-  auto weight_of = [&](int N) { return N < Nbar ? std::pow(p0, N - 1) : std::pow(p0, Nbar - 1) / (1.0 - p0); };
   // Patterns of positive probability per group (the same for every N) and the rows they use.
   std::vector<std::vector<std::uint64_t>> members(static_cast<std::size_t>(per_N));
   std::vector<Eigen::VectorXd> used(s.groups, Eigen::VectorXd::Zero(nm));
@@ -199,7 +190,7 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
     const int k = group_of(grouping, ext, m);
     members[static_cast<std::size_t>(k)].push_back(m);
     for (int N = 1; N <= Nbar; ++N) {
-      if (weight_of(N) <= 0.0) continue;  // p0 = 0: no update ever waits N >= 2 periods
+      if (history_weight(p0, N, Nbar) <= 0.0) continue;  // p0 = 0: no update ever waits N >= 2 periods
       const std::size_t g = static_cast<std::size_t>((N - 1) * per_N + k);
       used[g] = used[g].cwiseMax(ext.row_mask(m));
     }
@@ -212,7 +203,7 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
       if (used[g](r) > 0.0) s.select[g](i++, r) = 1.0;
   }
   for (int N = 1; N <= Nbar; ++N) {
-    const double wN = weight_of(N);
+    const double wN = history_weight(p0, N, Nbar);
     if (wN <= 0.0) continue;  // its gains are never used: no variables, no terms
     const double tailA = N < Nbar ? 1.0 : 1.0 - p0;  // the tail's A^N part is weighted by (1 - p0)
     const Eigen::Index zw = s.noise_factor[N].cols();

@@ -51,6 +51,35 @@ struct Term {
 
 }  // namespace
 
+HistoryTerms history_terms(const ExtendedModel& ext, double p0, int Nbar) {
+  const Eigen::Index nb = ext.nb;
+  HistoryTerms h;
+  h.Apow.resize(Nbar + 1);
+  h.SW.resize(Nbar + 1);
+  h.Apow[0] = Eigen::MatrixXd::Identity(nb, nb);
+  h.SW[0] = Eigen::MatrixXd::Zero(nb, nb);
+  for (int N = 1; N <= Nbar; ++N) {
+    h.Apow[N] = ext.A * h.Apow[N - 1];
+    h.SW[N] = h.SW[N - 1] + h.Apow[N - 1] * ext.Q * h.Apow[N - 1].transpose();
+  }
+  h.stein = stein_operator(ext.A, p0);
+  h.SWinf = stein_sum(h.stein, ext.Q);  // S'_W,inf (eq. 23)
+  const Eigen::MatrixXd& AN = h.Apow[Nbar];
+  h.tail_noise = h.SW[Nbar] + p0 * AN * h.SWinf * AN.transpose();
+  return h;
+}
+
+double history_weight(double p0, int N, int Nbar) {
+  return N < Nbar ? std::pow(p0, N - 1) : std::pow(p0, Nbar - 1) / (1.0 - p0);
+}
+
+std::string design_precheck(const ExtendedModel& ext, double p0) {
+  if (p0 >= 1.0) return "no_measurements";
+  const double rho = ext.A.eigenvalues().cwiseAbs().maxCoeff();
+  if (p0 * rho * rho >= 1.0) return fmt::format("unstable: p0 rho(A)^2 = {:.4g} >= 1", p0 * rho * rho);
+  return "";
+}
+
 JumpDesign design_jump_iterative(const ExtendedModel& ext, const std::vector<double>& prob, int Nbar,
                                  Grouping grouping, int max_iterations, double tolerance) {
   JumpDesign d;
@@ -74,32 +103,18 @@ JumpDesign design_jump_iterative(const ExtendedModel& ext, const std::vector<dou
   d.P = Eigen::MatrixXd::Zero(nb, nb);
   d.Pt = Eigen::MatrixXd::Constant(nb, nb, std::nan(""));
 
-  const double rho = ext.A.eigenvalues().cwiseAbs().maxCoeff();
-  if (p0 >= 1.0) {
-    d.status = "no_measurements";
-    return d;
-  }
-  if (p0 * rho * rho >= 1.0) {
-    d.status = fmt::format("unstable: p0 rho(A)^2 = {:.4g} >= 1", p0 * rho * rho);
+  if (std::string why = design_precheck(ext, p0); !why.empty()) {
+    d.status = std::move(why);
     return d;
   }
 
-  // Precomputed powers and noise sums: Apow[N] = Abar^N, SW[N] = sum_{j<N} A^j Q A^j'.
-  std::vector<Eigen::MatrixXd> Apow(Nbar + 1), SW(Nbar + 1);
-  Apow[0] = Eigen::MatrixXd::Identity(nb, nb);
-  SW[0] = Eigen::MatrixXd::Zero(nb, nb);
-  for (int N = 1; N <= Nbar; ++N) {
-    Apow[N] = ext.A * Apow[N - 1];
-    SW[N] = SW[N - 1] + Apow[N - 1] * ext.Q * Apow[N - 1].transpose();
-  }
-  const Eigen::MatrixXd stein = stein_operator(ext.A, p0);
-  const Eigen::MatrixXd SWinf = stein_sum(stein, ext.Q);  // S'_W,inf (eq. 23)
+  const HistoryTerms h = history_terms(ext, p0, Nbar);
+  const auto& [Apow, SW, stein, SWinf, tail_noise] = h;
   const Eigen::MatrixXd& AN = Apow[Nbar];
-  const Eigen::MatrixXd tail_noise = SW[Nbar] + p0 * AN * SWinf * AN.transpose();
 
   std::vector<Term> terms;
   for (int N = 1; N <= Nbar; ++N) {
-    const double wN = N < Nbar ? std::pow(p0, N - 1) : std::pow(p0, Nbar - 1) / (1.0 - p0);
+    const double wN = history_weight(p0, N, Nbar);
     for (std::size_t m = 1; m < patterns; ++m) {
       if (prob[m] <= 0.0) continue;
       terms.push_back({N, m, wN * prob[m], d.masks[m], d.gain_of[N - 1][m]});
@@ -206,26 +221,13 @@ JumpDesign evaluate_jump_gains(const ExtendedModel& ext, const std::vector<doubl
     d.status = "wrong_gain_count";
     return d;
   }
-  if (p0 >= 1.0) {
-    d.status = "no_measurements";
+  if (std::string why = design_precheck(ext, p0); !why.empty()) {
+    d.status = std::move(why);
     return d;
   }
-  const double rho = ext.A.eigenvalues().cwiseAbs().maxCoeff();
-  if (p0 * rho * rho >= 1.0) {
-    d.status = fmt::format("unstable: p0 rho(A)^2 = {:.4g} >= 1", p0 * rho * rho);
-    return d;
-  }
-  std::vector<Eigen::MatrixXd> Apow(Nbar + 1), SW(Nbar + 1);
-  Apow[0] = Eigen::MatrixXd::Identity(nb, nb);
-  SW[0] = Eigen::MatrixXd::Zero(nb, nb);
-  for (int N = 1; N <= Nbar; ++N) {
-    Apow[N] = ext.A * Apow[N - 1];
-    SW[N] = SW[N - 1] + Apow[N - 1] * ext.Q * Apow[N - 1].transpose();
-  }
-  const Eigen::MatrixXd stein = stein_operator(ext.A, p0);
-  const Eigen::MatrixXd SWinf = stein_sum(stein, ext.Q);
+  const HistoryTerms h = history_terms(ext, p0, Nbar);
+  const auto& [Apow, SW, stein, SWinf, tail_noise] = h;
   const Eigen::MatrixXd& AN = Apow[Nbar];
-  const Eigen::MatrixXd tail_noise = SW[Nbar] + p0 * AN * SWinf * AN.transpose();
   // vec(P) = T vec(P) + vec(U): T = sum w (F A^N (x) F A^N), the tail through the Stein sum.
   const Eigen::Index n2 = nb * nb;
   Eigen::MatrixXd T = Eigen::MatrixXd::Zero(n2, n2);
@@ -239,7 +241,7 @@ JumpDesign evaluate_jump_gains(const ExtendedModel& ext, const std::vector<doubl
   };
   Eigen::MatrixXd tailT = Eigen::MatrixXd::Zero(n2, n2);
   for (int N = 1; N <= Nbar; ++N) {
-    const double wN = N < Nbar ? std::pow(p0, N - 1) : std::pow(p0, Nbar - 1) / (1.0 - p0);
+    const double wN = history_weight(p0, N, Nbar);
     for (std::size_t m = 1; m < patterns; ++m) {
       if (prob[m] <= 0.0) continue;
       const double w = wN * prob[m];

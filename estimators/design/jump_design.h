@@ -38,6 +38,22 @@ struct JumpDesign {
 int group_of(Grouping g, const ExtendedModel& ext, std::uint64_t pattern);
 int groups_per_N(Grouping g, const ExtendedModel& ext);
 
+// The history terms of (18) shared by every design method: Apow[N] = Abar^N and
+// SW[N] = sum_{j<N} Abar^j Q Abar^j' for N = 0..Nbar, the Stein operator of p0, S'_W,inf
+// (eq. 23) and the tail's noise SW[Nbar] + p0 Abar^Nbar S'_W,inf Abar^Nbar'.
+struct HistoryTerms {
+  std::vector<Eigen::MatrixXd> Apow, SW;
+  Eigen::MatrixXd stein, SWinf, tail_noise;
+};
+HistoryTerms history_terms(const ExtendedModel& ext, double p0, int Nbar);
+
+// Weight of the terms of N in (18): p0^(N-1); the tail N = Nbar sums every N >= Nbar.
+double history_weight(double p0, int N, int Nbar);
+
+// Why no design can exist ("no_measurements" for p0 >= 1, "unstable: p0 rho(A)^2 = X >= 1"),
+// or "" when one can.
+std::string design_precheck(const ExtendedModel& ext, double p0);
+
 JumpDesign design_jump_iterative(const ExtendedModel& ext, const std::vector<double>& pattern_prob,
                                  int Nbar, Grouping grouping, int max_iterations = 200000,
                                  double tolerance = 1e-13);
