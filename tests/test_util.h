@@ -3,7 +3,11 @@
 #pragma once
 
 #include <Eigen/Dense>
+#include <sys/wait.h>
+
 #include <algorithm>
+#include <array>
+#include <cstdio>
 #include <cmath>
 #include <limits>
 #include <fstream>
@@ -25,6 +29,24 @@ inline std::string read_text(const std::string& path) {
   std::stringstream ss;
   ss << in.rdbuf();
   return ss.str();
+}
+
+// A shell command's exit status (-1 when it did not exit normally) and its stdout and stderr,
+// interleaved.
+struct CommandOutcome {
+  int code = -1;
+  std::string output;
+};
+inline CommandOutcome run_shell(const std::string& cmd) {
+  CommandOutcome o;
+  FILE* pipe = ::popen((cmd + " 2>&1").c_str(), "r");
+  if (pipe == nullptr) return o;
+  std::array<char, 4096> buf{};
+  std::size_t n = 0;
+  while ((n = std::fread(buf.data(), 1, buf.size(), pipe)) > 0) o.output.append(buf.data(), n);
+  const int status = ::pclose(pipe);
+  o.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return o;
 }
 
 // Dolz et al. 2014, example 1: A3, Bu, Bw, W and the two sensors.

@@ -24,6 +24,8 @@
 #include <string>
 #include <vector>
 
+#include "test_util.h"
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -33,10 +35,7 @@ const fs::path kSource = NCOSIM_SOURCE_DIR;
 const fs::path kData = kSource / "tests" / "cli" / "data";
 const fs::path kFlagship = kSource / "scenarios" / "dolz2014_table2.toml";
 
-struct Outcome {
-  int code = -1;
-  std::string output;  // stdout and stderr, interleaved
-};
+using Outcome = ncosim::testing::CommandOutcome;
 
 std::string shell_quote(const std::string& s) {
   std::string out = "'";
@@ -48,24 +47,10 @@ std::string shell_quote(const std::string& s) {
 Outcome ncosim(const std::vector<std::string>& args) {
   std::string cmd = shell_quote(kBinary);
   for (const auto& a : args) cmd += " " + shell_quote(a);
-  cmd += " 2>&1";
-  Outcome o;
-  FILE* pipe = ::popen(cmd.c_str(), "r");
-  if (pipe == nullptr) return o;
-  std::array<char, 4096> buf{};
-  std::size_t n = 0;
-  while ((n = std::fread(buf.data(), 1, buf.size(), pipe)) > 0) o.output.append(buf.data(), n);
-  const int status = ::pclose(pipe);
-  o.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return o;
+  return ncosim::testing::run_shell(cmd);
 }
 
-std::string read_file(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
+std::string read_file(const fs::path& p) { return ncosim::testing::read_text(p.string()); }
 
 void write_file(const fs::path& p, const std::string& text) {
   std::ofstream out(p, std::ios::binary | std::ios::trunc);

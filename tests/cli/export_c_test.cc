@@ -28,22 +28,9 @@ using namespace ncosim;
 const std::string kBinary = NCOSIM_BINARY;
 const fs::path kFixture = fs::path(NCOSIM_SOURCE_DIR) / "tests" / "cli" / "data" / "export.toml";
 
-struct Outcome {
-  int code = -1;
-  std::string output;
-};
+using Outcome = ncosim::testing::CommandOutcome;
 
-Outcome shell(const std::string& cmd) {
-  Outcome o;
-  FILE* pipe = ::popen((cmd + " 2>&1").c_str(), "r");
-  if (pipe == nullptr) return o;
-  std::array<char, 4096> buf{};
-  std::size_t n = 0;
-  while ((n = std::fread(buf.data(), 1, buf.size(), pipe)) > 0) o.output.append(buf.data(), n);
-  const int status = ::pclose(pipe);
-  o.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return o;
-}
+Outcome shell(const std::string& cmd) { return ncosim::testing::run_shell(cmd); }
 
 fs::path fresh_dir(const std::string& name) {
   const fs::path d = fs::temp_directory_path() / fmt::format("ncosim_export_{}_{}", name, ::getpid());

@@ -13,6 +13,7 @@
 #include <string>
 
 #include "sim/find.h"
+#include "test_util.h"
 
 namespace {
 
@@ -21,29 +22,11 @@ namespace fs = std::filesystem;
 const std::string kBinary = NCOSIM_BINARY;
 const fs::path kFig5 = fs::path(NCOSIM_SOURCE_DIR) / "scenarios" / "dolz2014_fig5.toml";
 
-struct Outcome {
-  int code = -1;
-  std::string output;
-};
+using Outcome = ncosim::testing::CommandOutcome;
 
-Outcome ncosim(const std::string& args) {
-  Outcome o;
-  FILE* pipe = ::popen(fmt::format("'{}' {} 2>&1", kBinary, args).c_str(), "r");
-  if (pipe == nullptr) return o;
-  std::array<char, 4096> buf{};
-  std::size_t n = 0;
-  while ((n = std::fread(buf.data(), 1, buf.size(), pipe)) > 0) o.output.append(buf.data(), n);
-  const int status = ::pclose(pipe);
-  o.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return o;
-}
+Outcome ncosim(const std::string& args) { return ncosim::testing::run_shell(fmt::format("'{}' {}", kBinary, args)); }
 
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
+std::string slurp(const fs::path& p) { return ncosim::testing::read_text(p.string()); }
 
 fs::path fresh_dir(const std::string& name) {
   const fs::path d = fs::temp_directory_path() / fmt::format("ncosim_find_{}_{}", name, ::getpid());
