@@ -1,6 +1,8 @@
 // sim/output.cc — summary statistics and the result files.
 #include "sim/output.h"
 
+#include "sim/validity.h"
+
 #include <fmt/format.h>
 
 #include <boost/math/distributions/students_t.hpp>
@@ -126,8 +128,16 @@ std::vector<SummaryRow> summarise(const Scenario& sc, const CampaignResult& resu
     }
     const double periods = static_cast<double>(sc.run.periods - sc.run.warmup) * static_cast<double>(result.runs.size());
     if (periods > 0) row.sent_per_period = static_cast<double>(sent) / periods;
+    if (diverged == 0) {
+      row.per_run.mse = mse;
+      if (row.mse_ext) row.per_run.mse_ext = mse_ext;
+      if (row.mde_percent) row.per_run.mde = mde;
+    }
+    row.per_run.seed = sc.run.seed;
+    row.model_check = model_check_note(sc, e, row);
     rows.push_back(std::move(row));
   }
+  add_paired_within(rows, reference_estimator_index(sc));
   return rows;
 }
 
@@ -157,6 +167,8 @@ std::vector<std::string> summary_columns(const std::vector<SweepAxis>& sweeps, E
   }
   for (Eigen::Index i = 0; i < n; ++i) cols.push_back(fmt::format("ermse_x{}", i + 1));
   for (Eigen::Index i = 0; i < n; ++i) cols.push_back(fmt::format("ermse_x{}_ci95", i + 1));
+  for (auto& c : paired_column_names(!sweeps.empty())) cols.push_back(std::move(c));
+  cols.emplace_back("model_check");
   return cols;
 }
 
@@ -185,6 +197,8 @@ std::vector<std::string> row_cells(const SummaryRow& r) {
   cells.push_back(fmt_number(r.sent_per_period));
   for (const auto& v : r.ermse) cells.push_back(fmt_number(v));
   for (const auto& v : r.ermse_ci95) cells.push_back(fmt_number(v));
+  for (auto& c : paired_cells(r.paired, !r.sweep_labels.empty())) cells.push_back(std::move(c));
+  cells.push_back(r.model_check);
   return cells;
 }
 
@@ -238,6 +252,16 @@ std::string summary_markdown(const std::string& title, const std::vector<SweepAx
     for (Eigen::Index i = 0; i < n; ++i) head.push_back(fmt::format("E{{RMSE{}}} ± 95% CI", i + 1));
   }
   for (const char* c : {"FLOPs", "gains", "ns/period", "delivered", "status"}) head.push_back(c);
+  // Paired columns (sim/paired.h): against the reference estimator, and with sweeps against the
+  // same estimator in the reference case.
+  const bool swept = !sweeps.empty();
+  head.push_back("Δmse vs ref. (paired) ± 95% CI");
+  head.push_back("mse ratio ± 95% CI");
+  if (modes) head.push_back("ΔMDE pp vs ref. ± 95% CI");
+  if (swept) head.push_back("Δmse vs ref. case ± 95% CI");
+  bool checks = false;
+  for (const auto& r : rows) checks = checks || !r.model_check.empty();
+  if (checks) head.push_back("model check");
   auto pm = [](std::optional<double> v, std::optional<double> ci) {
     if (!v) return std::string("–");
     return ci ? fmt::format("{:.4g} ± {:.2g}", *v, *ci) : fmt::format("{:.4g}", *v);
@@ -262,6 +286,11 @@ std::string summary_markdown(const std::string& title, const std::vector<SweepAx
     c.push_back(num(r.ns_per_period, "{:.0f}"));
     c.push_back(num(r.delivered_ratio, "{:.3f}"));
     c.push_back(r.status);
+    c.push_back(pm(r.paired.mse.diff, r.paired.mse.diff_ci95));
+    c.push_back(pm(r.paired.mse.ratio, r.paired.mse.ratio_ci95));
+    if (modes) c.push_back(pm(r.paired.mde.diff, r.paired.mde.diff_ci95));
+    if (swept) c.push_back(pm(r.paired.case_mse.diff, r.paired.case_mse.diff_ci95));
+    if (checks) c.push_back(r.model_check.empty() ? "–" : r.model_check);
     body.push_back(std::move(c));
   }
   // Pad for alignment (width in code points, so "±" and "–" count once).
@@ -288,6 +317,20 @@ std::string summary_markdown(const std::string& title, const std::vector<SweepAx
   for (std::size_t i = 0; i < head.size(); ++i) sep += std::string(wid[i] + 2, '-') + "|";
   out += sep + "\n";
   for (const auto& r : body) out += line(r);
+  // Name the references under the table (one line; the reference may differ between cases).
+  std::vector<std::string> refs;
+  for (const auto& r : rows) {
+    if (std::find(refs.begin(), refs.end(), r.paired.reference) == refs.end()) refs.push_back(r.paired.reference);
+  }
+  std::string names;
+  for (const auto& ref : refs) names += (names.empty() ? "" : ", ") + fmt::format("\"{}\"", ref);
+  if (!rows.empty()) {
+    out += fmt::format("\nPaired columns: each row minus the reference estimator {} of its case, per run on the same "
+                       "realisation (common random numbers); ratio = row / reference.",
+                       names);
+    if (swept) out += fmt::format(" Δ vs ref. case: against the same estimator in the case {}.", rows.front().paired.reference_case);
+    out += " Columns mse_diff.. in summary.csv.\n";
+  }
   return out;
 }
 

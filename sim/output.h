@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "sim/campaign.h"
+#include "sim/paired.h"
 #include "sim/scenario.h"
 
 namespace ncosim::sim {
@@ -37,6 +38,10 @@ struct SummaryRow {
   std::optional<double> predicted_mse;  // the design's analytic mean |x - xhat|^2, where one exists
   std::optional<double> flops_mean;     // FLOPs per period averaged over every run (kalman_buffer)
   std::optional<double> sent_per_period;  // packets sent by all sensors per period (k >= warmup)
+  // After the ermse columns: paired differences against the reference (sim/paired.h).
+  PairedColumns paired;
+  PerRunValues per_run;  // the per-run values the paired columns use (not written)
+  std::string model_check;  // last column: the prediction against the simulation (sim/validity.h)
 };
 
 // Half-width of the 95% confidence interval of the mean of `values` (Student t, n-1

@@ -189,7 +189,7 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
   sc->title = root.string_or("title", std::filesystem::path(file).stem().string());
   // Unknown top-level keys first (a misspelt [[sensor]] is reported as such, not as a missing
   // table). Every top-level key read below must be listed here.
-  for (const char* key : {"run", "sweep", "plant", "link", "sensor", "input", "estimator", "actuator", "sumo"})
+  for (const char* key : {"run", "sweep", "plant", "link", "sensor", "input", "estimator", "actuator", "sumo", "paired"})
     root.allow(key);
   root.finish();
   sc->run = read_run(root);
@@ -389,6 +389,7 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
     root.table("run").fail("recentre", "expected \"auto\" or \"never\" with a controller input (it would see "
                                        "re-centred outputs), got \"always\"");
   }
+  sc->paired = read_paired(root, doc, *sc);
   root.finish();
   return sc;
 }

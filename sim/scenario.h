@@ -17,6 +17,7 @@
 #include "models/plant.h"
 #include "sim/config.h"
 #include "sim/mobility.h"
+#include "sim/paired.h"
 
 namespace ncosim::sim {
 
@@ -56,6 +57,7 @@ struct Scenario {
   // the true plant state (-1: the plant is simulated from its model).
   std::shared_ptr<MobilitySource> mobility;
   int plant_vehicle = -1;
+  PairedSettings paired;  // [paired]: the reference of the paired columns (sim/paired.h)
 };
 
 struct SweepAxis {

@@ -471,7 +471,7 @@ TEST_F(Cli, UnknownCommandSuggestsTheClosest) {
   const Outcome o = ncosim({"chek", scenario(base_)});
   EXPECT_EQ(o.code, 2) << o.output;
   EXPECT_NE(
-      o.output.find("expected a command (run, design, find, codesign, check or list), got 'chek' (did you mean "
+      o.output.find("expected a command (run, design, find, codesign, compare, check or list), got 'chek' (did you mean "
                     "'check'?)"),
       std::string::npos)
       << o.output;
@@ -752,8 +752,33 @@ TEST_F(Cli, RunWritesTheContractFilesAndNothingElse) {
                                          "ermse_x1",
                                          "ermse_x2",
                                          "ermse_x1_ci95",
-                                         "ermse_x2_ci95"};
+                                         "ermse_x2_ci95",
+                                         "paired_reference",
+                                         "mse_diff",
+                                         "mse_diff_ci95",
+                                         "mse_ratio",
+                                         "mse_ratio_ci95",
+                                         "mse_ext_diff",
+                                         "mse_ext_diff_ci95",
+                                         "mse_ext_ratio",
+                                         "mse_ext_ratio_ci95",
+                                         "mde_diff",
+                                         "mde_diff_ci95",
+                                         "mde_ratio",
+                                         "mde_ratio_ci95",
+                                         "model_check"};
   EXPECT_EQ(s.header, columns);
+  // Paired against the default reference, the Kalman row; its own paired cells are empty.
+  EXPECT_EQ(s.at(0, "paired_reference"), "Kalman");
+  EXPECT_EQ(s.at(1, "paired_reference"), "Kalman");
+  EXPECT_EQ(s.at(1, "mse_diff"), "");
+  EXPECT_GT(std::stod(s.at(0, "mse_diff")), 0.0);  // S2 is worse than the Kalman filter
+  EXPECT_NEAR(std::stod(s.at(0, "mse_ratio")), std::stod(s.at(0, "mse")) / std::stod(s.at(1, "mse")), 1e-4);
+  EXPECT_EQ(s.at(0, "mde_diff"), "");  // no modes
+  // The jump observer's prediction assumes independent copies; net1 is a physical delay link.
+  EXPECT_EQ(s.at(0, "model_check").rfind("design model not followed (physical packets on delay link 'net1':", 0), 0u)
+      << s.at(0, "model_check");
+  EXPECT_EQ(s.at(1, "model_check"), "");  // no prediction for the Kalman filter
   ASSERT_EQ(s.rows.size(), 2u);  // one per estimator, in scenario order
   EXPECT_EQ(s.at(0, "estimator"), "jump S2");
   EXPECT_EQ(s.at(1, "estimator"), "Kalman");
