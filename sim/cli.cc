@@ -18,7 +18,9 @@
 #include "sim/campaign.h"
 #include "sim/find.h"
 #include "sim/codesign.h"
+#include "sim/compare.h"
 #include "sim/output.h"
+#include "sim/paired.h"
 #include "sim/registries.h"
 #include "sim/scenario.h"
 
@@ -76,11 +78,17 @@ struct CommonArgs {
   std::int64_t seed = -1;
 };
 
-int cmd_run(const CommonArgs& a, int threads, bool trace, bool quiet, const std::string& command_line) {
+// Exit status of a command that completed but whose result is flagged (`run --fail-on-status`
+// with a row not ok, `codesign` with a status not ok).
+constexpr int kExitFlagged = 3;
+
+int cmd_run(const CommonArgs& a, int threads, bool trace, bool quiet, bool fail_on_status,
+            const std::string& command_line) {
   RunOverrides ov = a.overrides;
   if (a.seed >= 0) ov.seed = static_cast<std::uint64_t>(a.seed);
   LoadedScenario loaded = load_cases(a.file, a.sets, ov);
   const std::string out = a.out.empty() ? default_out(a.file) : a.out;
+  const std::size_t reference_case = reference_case_index(loaded);  // [paired]: bad input before t = 0
   prepare_output_dir(out);  // fail before the campaign, not after it
   const bool tty = ::isatty(2) != 0 && !quiet;
   std::vector<SummaryRow> rows;
@@ -101,6 +109,7 @@ int cmd_run(const CommonArgs& a, int threads, bool trace, bool quiet, const std:
     auto case_rows = summarise(*cs.scenario, results.back(), cs.labels);
     rows.insert(rows.end(), case_rows.begin(), case_rows.end());
   }
+  add_paired_across_cases(rows, loaded, reference_case);
   const Scenario& first = *loaded.cases.front().scenario;
   const Eigen::Index n = first.model.plant.n();
   std::vector<std::vector<std::string>> labels;
@@ -126,6 +135,24 @@ int cmd_run(const CommonArgs& a, int threads, bool trace, bool quiet, const std:
   write_files_atomically(out, files, {"trajectory.csv", "confusion.csv"});
   std::cout << md << fmt::format("\n{} runs x {} periods x {} case(s) in {:.2f} s on {} thread(s); results in {}/\n",
                                  first.run.runs, first.run.periods, loaded.cases.size(), wall, used_threads, out);
+  if (fail_on_status) {
+    std::string bad;
+    std::size_t count = 0;
+    for (const auto& r : rows) {
+      if (r.status == "ok") continue;
+      ++count;
+      std::string where;
+      for (std::size_t i = 0; i < r.sweep_labels.size(); ++i) {
+        where += fmt::format("{}{} = {}", i ? ", " : "", loaded.sweeps[i].key, r.sweep_labels[i]);
+      }
+      bad += fmt::format("  {}{}\"{}\": {}\n", where, where.empty() ? "" : ", ", r.estimator, r.status);
+    }
+    if (count > 0) {
+      std::cerr << fmt::format("ncosim: --fail-on-status: {} row(s) not ok (results written to {}/):\n{}", count, out,
+                               bad);
+      return kExitFlagged;
+    }
+  }
   return 0;
 }
 
@@ -236,7 +263,20 @@ int cmd_codesign(const CommonArgs& a, const CodesignOptions& opt, const std::str
   const nlohmann::json j = run_codesign(sc, opt);
   write_files_atomically(out, {{"codesign.json", j.dump(2) + "\n"},
                                {"manifest.json", manifest(loaded, command_line, 1, 0.0).dump(2) + "\n"}});
+  bool all_ok = true;
   for (const auto& e : j) {
+    if (e["status"] != "ok") {
+      // Nothing to apply: say why instead of printing thresholds that miss the target.
+      all_ok = false;
+      std::cout << fmt::format("{}: {} {} mu = {} (z0 = {:.5g}, target {:.5g}): status {}: the bound at delta0 = {} "
+                               "is {} (must be below the target); no thresholds to apply (raise --mu or lower delta0)\n",
+                               e["estimator"].get<std::string>(), e["design"].get<std::string>(),
+                               e["gain"].get<std::string>(), e["mu"].get<double>(), e["z0"].get<double>(),
+                               e["target"].get<double>(), e["status"].get<std::string>(), e["delta0"].dump(),
+                               e["bound"].is_number() ? fmt::format("{:.5g}", e["bound"].get<double>())
+                                                      : std::string("not found (the LMI is infeasible)"));
+      continue;
+    }
     std::cout << fmt::format("{}: {} {} mu = {} (z0 = {:.5g}, target {:.5g}): delta = {} cost {:.5g} bound {} "
                              "[{} LMI problems, {:.2f} s solving, {:.2f} s total; epsilon {} {}, delta0 {}]\n  apply: {}\n",
                              e["estimator"].get<std::string>(), e["design"].get<std::string>(),
@@ -247,6 +287,10 @@ int cmd_codesign(const CommonArgs& a, const CodesignOptions& opt, const std::str
                              e["apply"].get<std::string>());
   }
   std::cout << fmt::format("codesign.json written to {}/\n", out);
+  if (!all_ok) {
+    std::cerr << "ncosim: codesign: a status is not ok (see above and codesign.json)\n";
+    return kExitFlagged;
+  }
   return 0;
 }
 
@@ -315,6 +359,9 @@ int run_cli(int argc, char** argv) {
       ->check(CLI::Range(0, 4096));
   run->add_flag("--trace", trace, "also write trajectory.csv (x, xhat, arrivals of run 0)");
   run->add_flag("--quiet", quiet, "no progress line");
+  bool fail_on_status = false;
+  run->add_flag("--fail-on-status", fail_on_status,
+                "exit 3 (after writing the results) when any row's status is not ok, listing those rows");
   CLI::App* design = app.add_subcommand("design", "offline design only: write design.json and design.csv");
   add_common(design, true);
   std::string export_dir;
@@ -346,6 +393,20 @@ int run_cli(int argc, char** argv) {
   codesign->add_option("--mu", cd_opt.mu, "prescribed bound mu * z~0 (overrides [codesign] mu)")
       ->check(CLI::Range(1.0, 1e6));
   codesign->add_flag("--quiet", quiet, "no progress lines");
+  CompareCommand cmp;
+  CLI::App* compare = app.add_subcommand(
+      "compare", "compare two `run` output folders row by row (paired where the seeds match): exit 1 on a regression");
+  compare->add_option("BASE", cmp.base, "the baseline output folder")->required();
+  compare->add_option("NEW", cmp.fresh, "the output folder to check")->required();
+  compare->add_option("--metric", cmp.options.metric, "per-run column of runs.csv (default mse; mse_ext, mde_percent, rmse_xI)");
+  compare->add_option("--tolerance", cmp.options.tolerance,
+                      "relative change never reported as worse or better (default 0; 0.01 = 1 %)");
+  compare->add_option("--alpha", cmp.options.alpha, "significance level of the one-sided tests (default 0.05)");
+  compare->add_option("--correction", cmp.correction, "multiple-testing correction over the rows (default holm)")
+      ->check(CLI::IsMember({"holm", "none"}));
+  compare->add_flag("--allow-scenario-change", cmp.options.allow_scenario_change,
+                    "compare folders of different scenarios or overrides; rows in one folder only are not comparable");
+  compare->add_option("--out", cmp.out, "also write compare.csv and compare.md into this directory");
   CLI::App* check = app.add_subcommand("check", "parse and validate only");
   add_common(check, false);
   app.add_subcommand("list", "list every registered kind with a one-line help");
@@ -369,7 +430,7 @@ int run_cli(int argc, char** argv) {
     if (std::find(commands.begin(), commands.end(), argv[1]) == commands.end()) {
       const std::string hint = did_you_mean(argv[1], commands);
       std::cerr << fmt::format(
-          "ncosim: expected a command (run, design, find, codesign, check or list), got '{}'{}\n", argv[1],
+          "ncosim: expected a command (run, design, find, codesign, compare, check or list), got '{}'{}\n", argv[1],
           hint.empty() ? "" : fmt::format(" (did you mean '{}'?)", hint));
       return 2;
     }
@@ -389,10 +450,11 @@ int run_cli(int argc, char** argv) {
   std::string command_line;
   for (int i = 0; i < argc; ++i) command_line += (i ? " " : "") + std::string(argv[i]);
   try {
-    if (run->parsed()) return cmd_run(a, threads, trace, quiet, command_line);
+    if (run->parsed()) return cmd_run(a, threads, trace, quiet, fail_on_status, command_line);
     if (design->parsed()) return cmd_design(a, command_line, export_dir);
     if (find->parsed()) return cmd_find(a, find_opt, target_text, command_line);
     if (check->parsed()) return cmd_check(a);
+    if (compare->parsed()) return run_compare_command(cmp);
     if (codesign->parsed()) {
       cd_opt.progress = !quiet;
       return cmd_codesign(a, cd_opt, command_line);

@@ -76,7 +76,8 @@ nlohmann::json run_codesign(const Scenario& sc, const CodesignOptions& options) 
     for (std::size_t s = 0; s < sc.model.sensors.size(); ++s, ++row) {
       sets += fmt::format("{}--set sensor[{}].delta={:.6g}", s ? " " : "", s, r.delta(row));
     }
-    j["apply"] = sets;
+    // Only thresholds that meet the target are worth applying.
+    j["apply"] = r.status == "ok" ? nlohmann::json(sets) : nlohmann::json(nullptr);
     out.push_back(j);
   }
   if (!found) {

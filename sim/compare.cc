@@ -1,0 +1,481 @@
+// sim/compare.cc — `ncosim compare`: reading two output folders, matching and testing rows.
+#include "sim/compare.h"
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include <algorithm>
+#include <charconv>
+#include <cstdio>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "sim/output.h"
+#include "sim/paired.h"
+
+namespace ncosim::sim {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  if (!in) throw CompareInputError(fmt::format("{}: cannot open the file", p.string()));
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// RFC 4180 records with the line each starts on. Throws on an unterminated quote.
+struct Record {
+  std::vector<std::string> fields;
+  int line = 0;
+};
+
+std::vector<Record> parse_csv(const std::string& text, const std::string& file) {
+  std::vector<Record> out;
+  Record rec;
+  std::string field;
+  bool quoted = false, any = false;
+  int line = 1;
+  rec.line = 1;
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    if (quoted) {
+      if (c == '"') {
+        if (i + 1 < text.size() && text[i + 1] == '"') {
+          field += '"';
+          ++i;
+        } else {
+          quoted = false;
+        }
+      } else {
+        if (c == '\n') ++line;
+        field += c;
+      }
+      continue;
+    }
+    if (c == '"') {
+      quoted = true;
+      any = true;
+    } else if (c == ',') {
+      rec.fields.push_back(std::move(field));
+      field.clear();
+      any = true;
+    } else if (c == '\n' || c == '\r') {
+      if (c == '\r' && i + 1 < text.size() && text[i + 1] == '\n') ++i;
+      if (any || !field.empty()) {
+        rec.fields.push_back(std::move(field));
+        out.push_back(std::move(rec));
+      }
+      field.clear();
+      rec = Record{};
+      any = false;
+      ++line;
+      rec.line = line;
+    } else {
+      field += c;
+      any = true;
+    }
+  }
+  if (quoted) throw CompareInputError(fmt::format("{}:{}: unterminated quoted field", file, rec.line));
+  if (any || !field.empty()) {
+    rec.fields.push_back(std::move(field));
+    out.push_back(std::move(rec));
+  }
+  return out;
+}
+
+std::optional<double> parse_number(const std::string& s) {
+  if (s.empty()) return std::nullopt;
+  double v = 0.0;
+  const auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+  if (ec != std::errc() || p != s.data() + s.size()) throw std::invalid_argument(s);
+  return v;
+}
+
+std::string case_text(const std::vector<std::string>& keys, const std::vector<std::string>& labels) {
+  std::string out;
+  for (std::size_t a = 0; a < keys.size(); ++a) out += fmt::format("{}{} = {}", a ? ", " : "", keys[a], labels[a]);
+  return out;
+}
+
+std::string row_text(const std::vector<std::string>& keys, const RunFolder::Row& r) {
+  return keys.empty() ? fmt::format("estimator \"{}\"", r.estimator)
+                      : fmt::format("case {}, estimator \"{}\"", case_text(keys, r.labels), r.estimator);
+}
+
+}  // namespace
+
+RunFolder read_run_folder(const std::string& dir, const std::string& metric) {
+  RunFolder f;
+  f.dir = dir;
+  const fs::path d(dir);
+  if (!fs::is_directory(d)) throw CompareInputError(fmt::format("{}: not a directory (expected an ncosim run output folder)", dir));
+  const fs::path man = d / "manifest.json";
+  nlohmann::json m;
+  try {
+    m = nlohmann::json::parse(slurp(man));
+  } catch (const nlohmann::json::exception& e) {
+    throw CompareInputError(fmt::format("{}: not valid JSON: {}", man.string(), e.what()));
+  }
+  try {
+    f.scenario = m.at("scenario").get<std::string>();
+    f.title = m.value("title", std::string());
+    f.scenario_hash = m.at("scenario_hash").get<std::string>();
+    f.seed = m.at("seed").get<std::uint64_t>();
+  } catch (const nlohmann::json::exception& e) {
+    throw CompareInputError(fmt::format("{}: expected the fields scenario, scenario_hash and seed of `ncosim run` ({})",
+                                        man.string(), e.what()));
+  }
+  const fs::path runs = d / "runs.csv";
+  const std::string file = runs.string();
+  const auto records = parse_csv(slurp(runs), file);
+  if (records.empty()) throw CompareInputError(fmt::format("{}: empty file (expected the runs.csv of `ncosim run`)", file));
+  const auto& head = records.front().fields;
+  auto col = [&](const std::string& name) -> std::size_t {
+    const auto it = std::find(head.begin(), head.end(), name);
+    return it == head.end() ? head.size() : static_cast<std::size_t>(it - head.begin());
+  };
+  const std::size_t c_run = col("run"), c_est = col("estimator"), c_div = col("diverged"), c_metric = col(metric);
+  if (c_run == head.size() || c_est != c_run + 1 || c_div == head.size()) {
+    throw CompareInputError(fmt::format("{}:1: expected the header of `ncosim run`'s runs.csv ([sweep keys,] run, "
+                                        "estimator, ..., diverged, ...)",
+                                        file));
+  }
+  if (c_metric == head.size() || metric == "run" || metric == "estimator" || metric == "status" ||
+      metric == "diverged") {
+    std::string list;
+    for (std::size_t i = c_est + 1; i < head.size(); ++i) {
+      if (head[i] != "status" && head[i] != "diverged") list += (list.empty() ? "" : ", ") + head[i];
+    }
+    throw CompareInputError(fmt::format("--metric: expected a per-run column of {} ({}), got \"{}\"", file, list, metric));
+  }
+  f.sweep_keys.assign(head.begin(), head.begin() + static_cast<std::ptrdiff_t>(c_run));
+  std::map<std::pair<std::vector<std::string>, std::string>, std::size_t> index;
+  for (std::size_t i = 1; i < records.size(); ++i) {
+    const auto& r = records[i];
+    if (r.fields.size() != head.size()) {
+      throw CompareInputError(
+          fmt::format("{}:{}: expected {} fields (the header's), got {}", file, r.line, head.size(), r.fields.size()));
+    }
+    std::vector<std::string> labels(r.fields.begin(), r.fields.begin() + static_cast<std::ptrdiff_t>(c_run));
+    const auto key = std::make_pair(labels, r.fields[c_est]);
+    auto it = index.find(key);
+    if (it == index.end()) {
+      it = index.emplace(key, f.rows.size()).first;
+      f.rows.push_back({labels, r.fields[c_est], {}, {}, {}});
+    }
+    RunFolder::Row& row = f.rows[it->second];
+    try {
+      const auto run = parse_number(r.fields[c_run]);
+      if (!run || *run < 0 || *run != std::floor(*run)) throw std::invalid_argument(r.fields[c_run]);
+      const std::int64_t ri = static_cast<std::int64_t>(*run);
+      if (std::find(row.run.begin(), row.run.end(), ri) != row.run.end()) {
+        throw CompareInputError(fmt::format("{}:{}: run {} of {} appears twice", file, r.line, ri, row_text(f.sweep_keys, row)));
+      }
+      row.run.push_back(ri);
+      row.value.push_back(parse_number(r.fields[c_metric]));
+      row.diverged.push_back(r.fields[c_div] == "1");
+    } catch (const std::invalid_argument& e) {
+      throw CompareInputError(fmt::format("{}:{}: expected a number, got \"{}\"", file, r.line, e.what()));
+    }
+  }
+  if (f.rows.empty()) throw CompareInputError(fmt::format("{}: no runs (expected the runs.csv of `ncosim run`)", file));
+  return f;
+}
+
+namespace {
+
+// The seed of one case: a swept run.seed, else the manifest's.
+std::uint64_t case_seed(const RunFolder& f, const RunFolder::Row& r) {
+  for (std::size_t a = 0; a < f.sweep_keys.size(); ++a) {
+    if (f.sweep_keys[a] == "run.seed") {
+      try {
+        return std::stoull(r.labels[a]);
+      } catch (const std::exception&) {
+        return f.seed;
+      }
+    }
+  }
+  return f.seed;
+}
+
+void test_row(const RunFolder& bf, const RunFolder::Row& b, const RunFolder& nf, const RunFolder::Row& n,
+              const CompareOptions& o, CompareRow& out) {
+  out.runs_base = b.run.size();
+  out.runs_new = n.run.size();
+  const auto div_b = std::count(b.diverged.begin(), b.diverged.end(), true);
+  const auto div_n = std::count(n.diverged.begin(), n.diverged.end(), true);
+  if (div_n > 0 && div_b == 0) {
+    out.verdict = "worse";
+    out.note = fmt::format("diverged in {} of {} NEW runs, none in BASE", div_n, n.run.size());
+    return;
+  }
+  if (div_b > 0 && div_n == 0) {
+    out.verdict = "better";
+    out.note = fmt::format("diverged in {} of {} BASE runs, none in NEW", div_b, b.run.size());
+    return;
+  }
+  if (div_b > 0 && div_n > 0) {
+    out.note = "diverged in both";
+    return;
+  }
+  std::map<std::int64_t, double> vb, vn;
+  for (std::size_t i = 0; i < b.run.size(); ++i) {
+    if (b.value[i] && std::isfinite(*b.value[i])) vb[b.run[i]] = *b.value[i];
+  }
+  for (std::size_t i = 0; i < n.run.size(); ++i) {
+    if (n.value[i] && std::isfinite(*n.value[i])) vn[n.run[i]] = *n.value[i];
+  }
+  if (vb.empty() && vn.empty()) {
+    out.note = fmt::format("no {} values", o.metric);
+    return;
+  }
+  if (vb.empty() || vn.empty()) {
+    out.note = fmt::format("{} only in {}", o.metric, vb.empty() ? "NEW" : "BASE");
+    return;
+  }
+  std::vector<double> a, c;
+  const bool same_seed = case_seed(bf, b) == case_seed(nf, n);
+  if (same_seed) {
+    for (const auto& [run, v] : vb) {
+      const auto it = vn.find(run);
+      if (it == vn.end()) continue;
+      a.push_back(v);
+      c.push_back(it->second);
+    }
+  }
+  std::optional<Difference> d;
+  const double level = 1.0 - o.alpha;
+  if (a.size() >= 2) {
+    d = paired_difference(a, c, level);
+    out.test = "paired";
+    out.pairs = a.size();
+    if (a.size() < vb.size() || a.size() < vn.size()) {
+      out.note = fmt::format("paired on the {} runs both have", a.size());
+    }
+  } else {
+    a.clear();
+    c.clear();
+    for (const auto& [run, v] : vb) a.push_back(v);
+    for (const auto& [run, v] : vn) c.push_back(v);
+    if (a.size() < 2 || c.size() < 2) {
+      out.note = "fewer than 2 runs";
+      return;
+    }
+    d = welch_difference(a, c, level);
+    out.test = "welch";
+    out.note = same_seed ? "no common runs" : "different seeds: unpaired";
+  }
+  if (!d) {
+    out.test = "none";
+    out.note = "no interval";
+    return;
+  }
+  out.base_mean = d->base_mean;
+  out.new_mean = d->new_mean;
+  out.diff = d->diff;
+  if (d->diff_half) {
+    out.diff_low = d->diff - *d->diff_half;
+    out.diff_high = d->diff + *d->diff_half;
+  }
+  if (d->ratio) {
+    out.relative = *d->ratio - 1.0;
+    if (d->ratio_half) {
+      out.relative_low = *out.relative - *d->ratio_half;
+      out.relative_high = *out.relative + *d->ratio_half;
+    }
+  }
+  const RelativeTest t = relative_test(a, c, out.test == "paired", o.tolerance);
+  out.p_worse = t.p_worse;
+  out.p_better = t.p_better;
+}
+
+}  // namespace
+
+CompareResult compare_folders(const RunFolder& base, const RunFolder& fresh, const CompareOptions& options) {
+  CompareResult res;
+  res.options = options;
+  res.base = base;
+  res.fresh = fresh;
+  const std::string base_runs = (fs::path(base.dir) / "runs.csv").string();
+  const std::string new_runs = (fs::path(fresh.dir) / "runs.csv").string();
+  if (base.scenario_hash != fresh.scenario_hash) {
+    const std::string what = fmt::format("BASE {} (scenario_hash {}) and NEW {} (scenario_hash {})", base.scenario,
+                                         base.scenario_hash, fresh.scenario, fresh.scenario_hash);
+    if (!options.allow_scenario_change) {
+      throw CompareInputError(fmt::format("{}: a different scenario or different overrides than {}: {}; pass "
+                                          "--allow-scenario-change to compare them anyway",
+                                          (fs::path(fresh.dir) / "manifest.json").string(),
+                                          (fs::path(base.dir) / "manifest.json").string(), what));
+    }
+    res.warnings.push_back(fmt::format("scenarios differ (--allow-scenario-change): {}", what));
+  }
+  if (base.sweep_keys != fresh.sweep_keys) {
+    throw CompareInputError(fmt::format("{}: sweep axes [{}] differ from {}'s [{}]", new_runs,
+                                        fmt::join(fresh.sweep_keys, ", "), base_runs, fmt::join(base.sweep_keys, ", ")));
+  }
+  std::map<std::pair<std::vector<std::string>, std::string>, std::size_t> in_new;
+  for (std::size_t i = 0; i < fresh.rows.size(); ++i) in_new[{fresh.rows[i].labels, fresh.rows[i].estimator}] = i;
+  std::vector<bool> used(fresh.rows.size(), false);
+  for (const auto& b : base.rows) {
+    CompareRow row;
+    row.labels = b.labels;
+    row.estimator = b.estimator;
+    const auto it = in_new.find({b.labels, b.estimator});
+    if (it == in_new.end()) {
+      if (!options.allow_scenario_change) {
+        throw CompareInputError(fmt::format("{}: missing row {} (present in {})", new_runs,
+                                            row_text(base.sweep_keys, b), base_runs));
+      }
+      row.runs_base = b.run.size();
+      row.note = "only in BASE";
+    } else {
+      used[it->second] = true;
+      test_row(base, b, fresh, fresh.rows[it->second], options, row);
+    }
+    res.rows.push_back(std::move(row));
+  }
+  for (std::size_t i = 0; i < fresh.rows.size(); ++i) {
+    if (used[i]) continue;
+    if (!options.allow_scenario_change) {
+      throw CompareInputError(fmt::format("{}: missing row {} (present in {})", base_runs,
+                                          row_text(fresh.sweep_keys, fresh.rows[i]), new_runs));
+    }
+    CompareRow row;
+    row.labels = fresh.rows[i].labels;
+    row.estimator = fresh.rows[i].estimator;
+    row.runs_new = fresh.rows[i].run.size();
+    row.note = "only in NEW";
+    res.rows.push_back(std::move(row));
+  }
+  // Holm over every tested row, for each direction.
+  std::vector<std::size_t> tested;
+  std::vector<double> pw, pb;
+  for (std::size_t i = 0; i < res.rows.size(); ++i) {
+    if (res.rows[i].p_worse) {
+      tested.push_back(i);
+      pw.push_back(*res.rows[i].p_worse);
+      pb.push_back(*res.rows[i].p_better);
+    }
+  }
+  res.tested = tested.size();
+  if (options.holm) {
+    pw = holm_adjust(pw);
+    pb = holm_adjust(pb);
+  }
+  for (std::size_t j = 0; j < tested.size(); ++j) {
+    CompareRow& r = res.rows[tested[j]];
+    r.p_worse = pw[j];
+    r.p_better = pb[j];
+    r.verdict = pw[j] <= options.alpha ? "worse" : pb[j] <= options.alpha ? "better" : "unchanged";
+  }
+  for (const auto& r : res.rows) {
+    if (r.verdict == "worse") ++res.worse;
+    else if (r.verdict == "better") ++res.better;
+    else if (r.verdict == "unchanged") ++res.unchanged;
+    else ++res.not_comparable;
+  }
+  return res;
+}
+
+std::string compare_csv(const CompareResult& r) {
+  std::string out;
+  for (const auto& k : r.base.sweep_keys) out += csv_field(k) + ",";
+  out += "estimator,metric,verdict,test,runs_base,runs_new,pairs,base_mean,new_mean,diff,diff_ci_low,diff_ci_high,"
+         "relative_change,relative_ci_low,relative_ci_high,p_worse,p_better,note\n";
+  auto num = [](std::optional<double> v) { return v && std::isfinite(*v) ? fmt::format("{:.6g}", *v) : std::string(); };
+  for (const auto& row : r.rows) {
+    for (const auto& l : row.labels) out += csv_field(l) + ",";
+    out += fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n", csv_field(row.estimator),
+                       csv_field(r.options.metric), row.verdict, row.test,
+                       row.runs_base, row.runs_new, row.pairs,
+                       num(row.base_mean), num(row.new_mean), num(row.diff), num(row.diff_low), num(row.diff_high),
+                       num(row.relative), num(row.relative_low), num(row.relative_high), num(row.p_worse),
+                       num(row.p_better), csv_field(row.note));
+  }
+  return out;
+}
+
+namespace {
+
+// A Markdown table cell: '|' escaped.
+std::string md_cell(const std::string& s) {
+  std::string out;
+  for (char ch : s) {
+    if (ch == '|') out += '\\';
+    out += ch;
+  }
+  return out;
+}
+
+}  // namespace
+
+std::string compare_markdown(const CompareResult& r) {
+  const auto& o = r.options;
+  std::string out = fmt::format("# ncosim compare: {}\n\n", o.metric);
+  out += fmt::format("- BASE `{}`: {} (seed {}, scenario_hash {})\n", r.base.dir, r.base.scenario, r.base.seed,
+                     r.base.scenario_hash);
+  out += fmt::format("- NEW `{}`: {} (seed {}, scenario_hash {})\n", r.fresh.dir, r.fresh.scenario, r.fresh.seed,
+                     r.fresh.scenario_hash);
+  out += fmt::format("- worse: mean {} significantly above (1 + {:g}) x BASE; one-sided tests at alpha = {:g}, {} over "
+                     "{} tested row(s); CI: two-sided {:g} %\n",
+                     o.metric, o.tolerance, o.alpha, o.holm ? "Holm-corrected" : "no correction", r.tested,
+                     100.0 * (1.0 - o.alpha));
+  for (const auto& w : r.warnings) out += fmt::format("- warning: {}\n", w);
+  out += "\n|";
+  for (const auto& k : r.base.sweep_keys) out += fmt::format(" {} |", md_cell(k));
+  out += " estimator | verdict | test | runs | BASE | NEW | change % [CI] | p worse | p better | note |\n|";
+  for (std::size_t i = 0; i < r.base.sweep_keys.size() + 10; ++i) out += "---|";
+  out += "\n";
+  auto g = [](std::optional<double> v, const char* f) {
+    return v && std::isfinite(*v) ? fmt::format(fmt::runtime(f), *v) : std::string("–");
+  };
+  for (const auto& row : r.rows) {
+    out += "|";
+    for (const auto& l : row.labels) out += fmt::format(" {} |", md_cell(l));
+    std::string change = "–";
+    if (row.relative) {
+      change = fmt::format("{:+.3f}", 100.0 * *row.relative);
+      if (row.relative_low && row.relative_high) {
+        change += fmt::format(" [{:+.3f}, {:+.3f}]", 100.0 * *row.relative_low, 100.0 * *row.relative_high);
+      }
+    }
+    const std::string verdict = row.verdict == "worse" ? "**worse**" : row.verdict;
+    out += fmt::format(" {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n", md_cell(row.estimator), verdict, row.test,
+                       row.test == "paired" ? std::to_string(row.pairs)
+                                            : fmt::format("{} / {}", row.runs_base, row.runs_new),
+                       g(row.base_mean, "{:.6g}"), g(row.new_mean, "{:.6g}"), change, g(row.p_worse, "{:.3g}"),
+                       g(row.p_better, "{:.3g}"), md_cell(row.note));
+  }
+  out += fmt::format("\n{} worse, {} better, {} unchanged, {} not comparable: exit {}\n", r.worse, r.better, r.unchanged,
+                     r.not_comparable, r.exit_code());
+  return out;
+}
+
+int run_compare_command(const CompareCommand& c) {
+  CompareOptions o = c.options;
+  if (!(o.alpha > 0.0 && o.alpha < 1.0)) {
+    throw CompareInputError(fmt::format("--alpha: expected a level in (0, 1), got {}", o.alpha));
+  }
+  if (!(o.tolerance >= 0.0 && o.tolerance < 1.0)) {
+    throw CompareInputError(fmt::format("--tolerance: expected a relative tolerance in [0, 1), got {}", o.tolerance));
+  }
+  o.holm = c.correction == "holm";
+  if (!c.out.empty()) prepare_output_dir(c.out);
+  const RunFolder base = read_run_folder(c.base, o.metric);
+  const RunFolder fresh = read_run_folder(c.fresh, o.metric);
+  const CompareResult r = compare_folders(base, fresh, o);
+  const std::string md = compare_markdown(r);
+  if (!c.out.empty()) write_files_atomically(c.out, {{"compare.csv", compare_csv(r)}, {"compare.md", md}});
+  std::fputs(md.c_str(), stdout);
+  return r.exit_code();
+}
+
+}  // namespace ncosim::sim

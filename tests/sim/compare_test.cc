@@ -1,0 +1,190 @@
+// tests/sim/compare_test.cc — `ncosim compare` in process: reading folders, matching rows and
+// runs, the paired and Welch tests, tolerance, verdicts and bad input.
+#include "sim/compare.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <functional>
+#include <fstream>
+#include <random>
+
+namespace ncosim::sim {
+namespace {
+
+namespace fs = std::filesystem;
+
+// A folder with manifest.json and runs.csv: estimators "A, x" and "B" (A's name needs quoting),
+// `runs` runs each with mse = level * (1 + 0.1 z_run) + 0.001 z (a shared run effect, as the
+// common random numbers give), scaled by `scale_b` for B.
+struct Folder {
+  fs::path dir;
+  explicit Folder(const std::string& name) : dir(fs::temp_directory_path() / ("ncosim_compare_" + name)) {
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+  }
+  ~Folder() {
+    std::error_code ec;
+    fs::remove_all(dir, ec);
+  }
+  void write(const std::string& hash, std::uint64_t seed, int runs, double scale_b, int diverged_b = -1,
+             const std::string& drop = "", std::uint64_t noise_seed = 0) const {
+    std::ofstream(dir / "manifest.json") << "{\"scenario\": \"x.toml\", \"scenario_hash\": \"" << hash
+                                         << "\", \"seed\": " << seed << ", \"title\": \"t\"}\n";
+    std::mt19937_64 g(noise_seed == 0 ? seed : noise_seed);
+    std::normal_distribution<double> z;
+    std::ofstream out(dir / "runs.csv");
+    out << "run,estimator,mse,mse_ext,periods,samples_used,samples_taken,diverged,status,flops_mean,late_samples,"
+           "duplicate_samples,mde_percent,rmse_x1\n";
+    for (int r = 0; r < runs; ++r) {
+      const double shared = 1.0 + 0.1 * z(g);
+      const double a = shared + 0.001 * z(g);
+      const double b = scale_b * (shared + 0.001 * z(g));
+      if (drop != "A, x") out << r << ",\"A, x\"," << a << ",," << "100,1,1,0,ok,,,,,1\n";
+      if (drop != "B") {
+        if (r == diverged_b) {
+          out << r << ",B,,,50,1,1,1,ok,,,,,\n";
+        } else {
+          out << r << ",B," << b << ",,100,1,1,0,ok,,,,,1\n";
+        }
+      }
+    }
+  }
+  std::string str() const { return dir.string(); }
+};
+
+CompareResult run(const Folder& b, const Folder& n, CompareOptions o = {}) {
+  return compare_folders(read_run_folder(b.str(), o.metric), read_run_folder(n.str(), o.metric), o);
+}
+
+const CompareRow& row(const CompareResult& r, const std::string& name) {
+  for (const auto& x : r.rows) {
+    if (x.estimator == name) return x;
+  }
+  throw std::runtime_error("no row " + name);
+}
+
+TEST(Compare, IdenticalFoldersAreUnchangedAndExitZero) {
+  Folder b("id_b"), n("id_n");
+  b.write("h", 7, 20, 1.0);
+  n.write("h", 7, 20, 1.0);
+  const auto r = run(b, n);
+  ASSERT_EQ(r.rows.size(), 2u);
+  EXPECT_EQ(row(r, "A, x").verdict, "unchanged");
+  EXPECT_EQ(row(r, "A, x").test, "paired");
+  EXPECT_EQ(row(r, "A, x").pairs, 20u);
+  EXPECT_EQ(*row(r, "A, x").diff, 0.0);
+  EXPECT_EQ(r.exit_code(), 0);
+}
+
+TEST(Compare, PairedTestFlagsAOnePercentRegressionThatWelchMisses) {
+  // B is 1 % worse on every run; the run-to-run spread (10 %) hides it from an unpaired test
+  // (Welch SE ~ 0.1 sqrt(2/20) = 3.2 %) but the per-run differences have spread ~0.14 %.
+  Folder b("reg_b"), n("reg_n"), w("reg_w");
+  b.write("h", 7, 20, 1.0);
+  n.write("h", 7, 20, 1.01);
+  const auto r = run(b, n);
+  EXPECT_EQ(row(r, "B").verdict, "worse");
+  EXPECT_EQ(row(r, "B").test, "paired");
+  EXPECT_NEAR(*row(r, "B").relative, 0.01, 0.002);
+  EXPECT_LT(*row(r, "B").relative_low, 0.01);
+  EXPECT_GT(*row(r, "B").relative_high, 0.01);
+  EXPECT_EQ(row(r, "A, x").verdict, "unchanged");
+  EXPECT_EQ(r.exit_code(), 1);
+  // A different seed in NEW: no common runs, Welch, not significant.
+  w.write("h", 8, 20, 1.01);
+  const auto u = run(b, w);
+  EXPECT_EQ(row(u, "B").test, "welch");
+  EXPECT_EQ(row(u, "B").note, "different seeds: unpaired");
+  EXPECT_EQ(row(u, "B").verdict, "unchanged");
+  // Beyond a 2 % tolerance the same +1 % is not worse (and not better).
+  CompareOptions tol;
+  tol.tolerance = 0.02;
+  EXPECT_EQ(row(run(b, n, tol), "B").verdict, "unchanged");
+}
+
+TEST(Compare, ImprovementIsBetterAndDivergenceIsWorse) {
+  Folder b("div_b"), n("div_n");
+  b.write("h", 7, 10, 1.0);
+  n.write("h", 7, 10, 0.97);
+  EXPECT_EQ(row(run(b, n), "B").verdict, "better");
+  n.write("h", 7, 10, 1.0, 3);
+  const auto r = run(b, n);
+  EXPECT_EQ(row(r, "B").verdict, "worse");
+  EXPECT_EQ(row(r, "B").note, "diverged in 1 of 10 NEW runs, none in BASE");
+  EXPECT_EQ(r.exit_code(), 1);
+  EXPECT_EQ(row(run(n, b), "B").verdict, "better");
+}
+
+TEST(Compare, MetricWithoutValuesIsNotComparable) {
+  Folder b("nc_b"), n("nc_n");
+  b.write("h", 7, 10, 1.0);
+  n.write("h", 7, 10, 1.0);
+  CompareOptions o;
+  o.metric = "mse_ext";
+  const auto r = run(b, n, o);
+  EXPECT_EQ(row(r, "B").verdict, "not comparable");
+  EXPECT_EQ(row(r, "B").note, "no mse_ext values");
+  EXPECT_EQ(r.exit_code(), 0);
+}
+
+std::string error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const CompareInputError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+TEST(Compare, BadInputNamesTheFileOrOption) {
+  Folder b("bad_b"), n("bad_n");
+  b.write("h", 7, 5, 1.0);
+  n.write("other", 7, 5, 1.0);
+  std::string e = error_of([&] { run(b, n); });
+  EXPECT_NE(e.find((n.dir / "manifest.json").string() + ": a different scenario"), std::string::npos) << e;
+  EXPECT_NE(e.find("--allow-scenario-change"), std::string::npos) << e;
+  CompareOptions allow;
+  allow.allow_scenario_change = true;
+  EXPECT_EQ(run(b, n, allow).warnings.size(), 1u);
+
+  n.write("h", 7, 5, 1.0, -1, "B");
+  e = error_of([&] { run(b, n); });
+  EXPECT_NE(e.find((n.dir / "runs.csv").string() + ": missing row estimator \"B\""), std::string::npos) << e;
+  const auto r = run(b, n, allow);
+  EXPECT_EQ(row(r, "B").verdict, "not comparable");
+  EXPECT_EQ(row(r, "B").note, "only in BASE");
+
+  CompareOptions metric;
+  metric.metric = "msee";
+  e = error_of([&] { run(b, b, metric); });
+  EXPECT_NE(e.find("--metric: expected a per-run column"), std::string::npos) << e;
+
+  std::ofstream(n.dir / "runs.csv", std::ios::app) << "3,B,0.1\n";
+  e = error_of([&] { read_run_folder(n.str(), "mse"); });
+  EXPECT_NE(e.find((n.dir / "runs.csv").string() + ":7: expected 14 fields"), std::string::npos) << e;
+  fs::remove(n.dir / "manifest.json");
+  e = error_of([&] { read_run_folder(n.str(), "mse"); });
+  EXPECT_NE(e.find((n.dir / "manifest.json").string() + ": cannot open"), std::string::npos) << e;
+  e = error_of([&] { read_run_folder((n.dir / "nope").string(), "mse"); });
+  EXPECT_NE(e.find("not a directory"), std::string::npos) << e;
+}
+
+TEST(Compare, CsvAndMarkdownCarryEveryRow) {
+  Folder b("out_b"), n("out_n");
+  b.write("h", 7, 10, 1.0);
+  n.write("h", 7, 10, 1.05);
+  const auto r = run(b, n);
+  const std::string csv = compare_csv(r);
+  EXPECT_EQ(csv.substr(0, csv.find('\n')),
+            "estimator,metric,verdict,test,runs_base,runs_new,pairs,base_mean,new_mean,diff,diff_ci_low,diff_ci_high,"
+            "relative_change,relative_ci_low,relative_ci_high,p_worse,p_better,note");
+  EXPECT_NE(csv.find("\"A, x\",mse,unchanged,paired,10,10,10,"), std::string::npos) << csv;
+  EXPECT_NE(csv.find("B,mse,worse,paired,10,10,10,"), std::string::npos) << csv;
+  const std::string md = compare_markdown(r);
+  EXPECT_NE(md.find("| B | **worse** | paired | 10 |"), std::string::npos) << md;
+  EXPECT_NE(md.find("1 worse, 0 better, 1 unchanged, 0 not comparable: exit 1"), std::string::npos) << md;
+}
+
+}  // namespace
+}  // namespace ncosim::sim
