@@ -100,12 +100,12 @@ TEST(CompareStatistics, InjectedRegressionIsFlaggedAndAnUnchangedBuildIsNotOver2
   // strongly the two rows' per-run errors are correlated.
   std::vector<double> gain_ext, gain_mse, gain_close;
   for (const auto& res : results) {
-    std::vector<double> s4, h3;
+    std::vector<double> h4_mse, h3_mse;
     for (const auto& run : res.runs) {
-      s4.push_back(run[4].sse / static_cast<double>(run[4].count));
-      h3.push_back(run[8].sse / static_cast<double>(run[8].count));
+      h4_mse.push_back(run[4].sse / static_cast<double>(run[4].count));
+      h3_mse.push_back(run[8].sse / static_cast<double>(run[8].count));
     }
-    gain_close.push_back(*welch_difference(s4, h3)->diff_half / *paired_difference(s4, h3)->diff_half);
+    gain_close.push_back(*welch_difference(h4_mse, h3_mse)->diff_half / *paired_difference(h4_mse, h3_mse)->diff_half);
     for (const bool ext : {true, false}) {
       std::vector<double> kf, s4;
       for (const auto& run : res.runs) {
