@@ -7,6 +7,7 @@
 #include <boost/math/distributions/students_t.hpp>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <numeric>
 
 #include "sim/output.h"
@@ -250,11 +251,25 @@ std::size_t reference_case_index(const LoadedScenario& loaded) {
 
 namespace {
 
-PairedMetric metric(const std::vector<double>& ref, const std::vector<double>& row, std::size_t n) {
+// The paired metric over the runs both rows have (matched by run index).
+PairedMetric metric(const std::vector<double>& ref, const std::vector<std::uint64_t>& ref_run,
+                    const std::vector<double>& row, const std::vector<std::uint64_t>& row_run) {
   PairedMetric m;
-  if (ref.size() < n || row.size() < n) return m;
-  const std::vector<double> a(ref.begin(), ref.begin() + static_cast<std::ptrdiff_t>(n));
-  const std::vector<double> b(row.begin(), row.begin() + static_cast<std::ptrdiff_t>(n));
+  if (ref.size() != ref_run.size() || row.size() != row_run.size()) return m;
+  std::vector<double> a, b;
+  if (ref_run == row_run) {
+    a = ref;
+    b = row;
+  } else {
+    std::map<std::uint64_t, double> by_run;
+    for (std::size_t i = 0; i < row.size(); ++i) by_run[row_run[i]] = row[i];
+    for (std::size_t i = 0; i < ref.size(); ++i) {
+      const auto it = by_run.find(ref_run[i]);
+      if (it == by_run.end()) continue;
+      a.push_back(ref[i]);
+      b.push_back(it->second);
+    }
+  }
   const auto d = paired_difference(a, b, 0.95);
   if (!d) return m;
   m.diff = d->diff;
@@ -262,10 +277,6 @@ PairedMetric metric(const std::vector<double>& ref, const std::vector<double>& r
   m.ratio = d->ratio;
   m.ratio_ci95 = d->ratio_half;
   return m;
-}
-
-std::size_t common_runs(const SummaryRow& a, const SummaryRow& b) {
-  return static_cast<std::size_t>(std::min(a.runs, b.runs));
 }
 
 }  // namespace
@@ -277,10 +288,11 @@ void add_paired_within(std::vector<SummaryRow>& case_rows, std::size_t reference
     SummaryRow& row = case_rows[i];
     row.paired.reference = ref.estimator;
     if (i == reference) continue;
-    const std::size_t n = common_runs(ref, row);
-    row.paired.mse = metric(ref.per_run.mse, row.per_run.mse, n);
-    row.paired.mse_ext = metric(ref.per_run.mse_ext, row.per_run.mse_ext, n);
-    row.paired.mde = metric(ref.per_run.mde, row.per_run.mde, n);
+    const auto& ra = ref.per_run.run;
+    const auto& rb = row.per_run.run;
+    row.paired.mse = metric(ref.per_run.mse, ra, row.per_run.mse, rb);
+    row.paired.mse_ext = metric(ref.per_run.mse_ext, ra, row.per_run.mse_ext, rb);
+    row.paired.mde = metric(ref.per_run.mde, ra, row.per_run.mde, rb);
   }
 }
 
@@ -308,10 +320,11 @@ void add_paired_across_cases(std::vector<SummaryRow>& rows, const LoadedScenario
       for (std::size_t f = 0; f < ref_sc.estimators.size(); ++f) {
         if (ref_sc.estimators[f].name != row.estimator) continue;
         const SummaryRow& ref = rows[start[reference_case] + f];
-        const std::size_t n = common_runs(ref, row);
-        row.paired.case_mse = metric(ref.per_run.mse, row.per_run.mse, n);
-        row.paired.case_mse_ext = metric(ref.per_run.mse_ext, row.per_run.mse_ext, n);
-        row.paired.case_mde = metric(ref.per_run.mde, row.per_run.mde, n);
+        const auto& ra = ref.per_run.run;
+        const auto& rb = row.per_run.run;
+        row.paired.case_mse = metric(ref.per_run.mse, ra, row.per_run.mse, rb);
+        row.paired.case_mse_ext = metric(ref.per_run.mse_ext, ra, row.per_run.mse_ext, rb);
+        row.paired.case_mde = metric(ref.per_run.mde, ra, row.per_run.mde, rb);
       }
     }
   }

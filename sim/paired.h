@@ -104,7 +104,8 @@ struct PairedColumns {
 
 // The per-run values summarise() uses (empty when any run diverged, as the summary columns).
 struct PerRunValues {
-  std::vector<double> mse, mse_ext, mde;
+  std::vector<double> mse, mse_ext, mde;  // in the order of `run`
+  std::vector<std::uint64_t> run;         // the run index of each value (runs are paired by it)
   std::uint64_t seed = 0;
 };
 
