@@ -133,8 +133,15 @@ RunFolder read_run_folder(const std::string& dir, const std::string& metric) {
     throw CompareInputError(fmt::format("{}: expected the fields scenario, scenario_hash and seed of `ncosim run` ({})",
                                         man.string(), e.what()));
   }
+  if (m.contains("complete") && m["complete"].is_boolean() && !m["complete"].get<bool>()) {
+    f.partial = fmt::format("{} of {} runs (a partial campaign: stopped, or one shard)", m.value("runs_done", 0),
+                            m.value("runs_expected", 0));
+  }
   const fs::path runs = d / "runs.csv";
   const std::string file = runs.string();
+  if (!fs::exists(runs) && fs::exists(d / "runs.sqlite")) {
+    throw CompareInputError(fmt::format("{}: missing; the folder holds a run store: `ncosim export {}` writes it", file, dir));
+  }
   const auto records = parse_csv(slurp(runs), file);
   if (records.empty()) throw CompareInputError(fmt::format("{}: empty file (expected the runs.csv of `ncosim run`)", file));
   const auto& head = records.front().fields;
@@ -317,6 +324,8 @@ CompareResult compare_folders(const RunFolder& base, const RunFolder& fresh, con
     }
     res.warnings.push_back(fmt::format("scenarios differ (--allow-scenario-change): {}", what));
   }
+  if (!base.partial.empty()) res.warnings.push_back(fmt::format("BASE holds {}", base.partial));
+  if (!fresh.partial.empty()) res.warnings.push_back(fmt::format("NEW holds {}", fresh.partial));
   if (base.sweep_keys != fresh.sweep_keys) {
     throw CompareInputError(fmt::format("{}: sweep axes [{}] differ from {}'s [{}]", new_runs,
                                         fmt::join(fresh.sweep_keys, ", "), base_runs, fmt::join(base.sweep_keys, ", ")));

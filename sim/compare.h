@@ -37,6 +37,7 @@ struct RunFolder {
   std::string dir;
   std::string scenario, title, scenario_hash;
   std::uint64_t seed = 0;
+  std::string partial;  // "K of N runs ..." when manifest.json says the campaign is not complete
   std::vector<std::string> sweep_keys;
   struct Row {
     std::vector<std::string> labels;  // per sweep key
