@@ -14,6 +14,7 @@
 #include <cstdio>
 #include <exception>
 #include <mutex>
+#include <system_error>
 #include <thread>
 
 #include "models/actuator.h"
@@ -638,7 +639,15 @@ CampaignResult run_campaign(const Scenario& sc, const CampaignOptions& options) 
     }
   };
   std::vector<std::thread> pool;
-  for (int t = 1; t < threads; ++t) pool.emplace_back(worker);
+  try {
+    for (int t = 1; t < threads; ++t) pool.emplace_back(worker);
+  } catch (const std::system_error& e) {
+    // Not an abort (a joinable std::thread destroyed): stop the workers started so far, then fail.
+    next = runs;
+    for (auto& t : pool) t.join();
+    throw std::runtime_error(fmt::format("cannot start worker thread {} of {} ({}); retry with a smaller --threads",
+                                         pool.size() + 2, threads, e.what()));
+  }
   if (options.progress) {
     std::thread progress([&] {
       while (done.load() < runs && !failed.load()) {

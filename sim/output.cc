@@ -10,6 +10,8 @@
 #include <fstream>
 #include <unistd.h>
 
+#include "sim/output_set.h"
+
 namespace ncosim::sim {
 
 std::optional<double> ci95_half_width(const std::vector<double>& values) {
@@ -482,48 +484,24 @@ std::string trajectory_csv(const Scenario& sc, const std::vector<TraceRow>& trac
 
 void prepare_output_dir(const std::string& dir) {
   namespace fs = std::filesystem;
+  const fs::path folder = output_set_folder(dir);  // refuses "", "/", the current folder
   std::error_code ec;
-  fs::create_directories(dir, ec);
+  fs::create_directories(folder, ec);
   if (ec) throw std::runtime_error(fmt::format("cannot create the output directory '{}': {}", dir, ec.message()));
-  const fs::path probe = fs::path(dir) / fmt::format(".probe.tmp{}", static_cast<long>(::getpid()));
-  std::ofstream(probe) << "";
-  if (!fs::exists(probe, ec)) throw std::runtime_error(fmt::format("cannot write into the output directory '{}'", dir));
+  // The result set is written into a sibling folder and swapped in: the parent must be writable.
+  const fs::path probe = folder.parent_path() / fmt::format(".{}.probe.tmp{}", folder.filename().string(),
+                                                            static_cast<long>(::getpid()));
+  fs::create_directory(probe, ec);
+  if (ec) {
+    throw std::runtime_error(fmt::format("cannot write next to the output directory '{}' (in '{}'): {}", dir,
+                                         folder.parent_path().string(), ec.message()));
+  }
   fs::remove(probe, ec);
 }
 
 void write_files_atomically(const std::string& dir, const std::vector<std::pair<std::string, std::string>>& files,
                             const std::vector<std::string>& stale) {
-  namespace fs = std::filesystem;
-  std::error_code ec;
-  fs::create_directories(dir, ec);
-  if (ec) throw std::runtime_error(fmt::format("cannot create the output directory '{}': {}", dir, ec.message()));
-  std::vector<fs::path> temps;
-  auto cleanup = [&] {
-    for (const auto& t : temps) fs::remove(t, ec);
-  };
-  for (const auto& [name, content] : files) {
-    const fs::path tmp = fs::path(dir) / fmt::format(".{}.tmp{}", name, static_cast<long>(::getpid()));
-    temps.push_back(tmp);
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    out << content;
-    out.close();
-    if (!out) {
-      cleanup();
-      throw std::runtime_error(fmt::format("cannot write '{}'", tmp.string()));
-    }
-  }
-  for (std::size_t i = 0; i < files.size(); ++i) {
-    fs::rename(temps[i], fs::path(dir) / files[i].first, ec);
-    if (ec) {
-      cleanup();
-      throw std::runtime_error(fmt::format("cannot rename into '{}': {}", dir, ec.message()));
-    }
-  }
-  for (const auto& name : stale) {
-    bool written = false;
-    for (const auto& f : files) written = written || f.first == name;
-    if (!written) fs::remove(fs::path(dir) / name, ec);
-  }
+  write_output_set(dir, files, stale);  // sim/output_set.h
 }
 
 }  // namespace ncosim::sim
