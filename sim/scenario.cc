@@ -487,8 +487,6 @@ toml::array& sweep_values(toml::table& doc, std::size_t axis) {
 
 LoadedScenario load_cases(const std::string& file, const std::vector<std::string>& sets,
                           const RunOverrides& overrides, std::optional<std::size_t> only_case) {
-  LoadedScenario out;
-  out.file = file;
   {
     // A regular file of bounded size: a FIFO or device would block or never end.
     std::error_code ec;
@@ -506,7 +504,14 @@ LoadedScenario load_cases(const std::string& file, const std::vector<std::string
   if (!in) throw ScenarioError(format_error(file, 0, "", "cannot open the scenario file"));
   std::stringstream ss;
   ss << in.rdbuf();
-  out.text = ss.str();
+  return load_cases_text(file, ss.str(), sets, overrides, only_case);
+}
+
+LoadedScenario load_cases_text(const std::string& file, const std::string& text, const std::vector<std::string>& sets,
+                               const RunOverrides& overrides, std::optional<std::size_t> only_case) {
+  LoadedScenario out;
+  out.file = file;
+  out.text = text;
   out.overrides = sets;
   std::string hashed = out.text;
   for (const auto& s : sets) hashed += "\n--set " + s;
