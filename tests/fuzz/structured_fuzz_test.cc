@@ -273,6 +273,7 @@ TEST(StructuredFuzz, ShippedScenarioMutantsLoadOrFailWithFileLine) {
   const long budget = env_long("NCOSIM_FUZZ_SECONDS", 60);
   const long seed = env_long("NCOSIM_FUZZ_SEED", 18);
   const long run_every = env_long("NCOSIM_FUZZ_RUN_EVERY", 25);
+  const long progress_every = env_long("NCOSIM_FUZZ_PROGRESS", 0);  // a progress line every N mutants
   {
     rlimit rl{};
     rl.rlim_cur = rl.rlim_max = static_cast<rlim_t>(kMemoryCapBytes);
@@ -328,6 +329,12 @@ TEST(StructuredFuzz, ShippedScenarioMutantsLoadOrFailWithFileLine) {
     if (s > kMutantSeconds) {
       ++st.failures;
       keep(text, fmt::format("took {:.1f} s (cap {} s)", s, kMutantSeconds), m);
+    }
+    if (progress_every > 0 && st.mutants % progress_every == 0) {
+      std::printf("structured fuzz: %ld mutants (%ld loaded, %ld runs), %.0f s, failures %ld\n", st.mutants, st.loaded,
+                  st.runs, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
+                  st.failures);
+      std::fflush(stdout);
     }
     if (!loaded) continue;
     ++st.loaded;
