@@ -107,7 +107,7 @@ TEST(DesignCsv, OneRowPerCaseAndEstimator) {
   std::string line;
   ASSERT_TRUE(std::getline(lines, line));
   EXPECT_EQ(line, "link[0].delivery,estimator,kind,method,predicted_mse,predicted_mse_ext,stored_gains,"
-                  "flops_per_period,p0,design_seconds,status");
+                  "flops_per_period,p0,design_seconds,status,predicted_mse_paper_eq28_erroneous");
   int rows = 0;
   while (std::getline(lines, line)) {
     ++rows;
