@@ -20,6 +20,7 @@
 #include "lmi/limits.h"
 #include "sim/find.h"
 #include "sim/codesign.h"
+#include "sim/figure_cli.h"
 #include "sim/limits.h"
 #include "sim/output.h"
 #include "sim/output_set.h"
@@ -347,6 +348,8 @@ int run_cli(int argc, char** argv) {
   CLI::App* check = app.add_subcommand("check", "parse and validate only");
   add_common(check, false);
   app.add_subcommand("list", "list every registered kind with a one-line help");
+  FigureCommands figure_commands;
+  add_figure_commands(app, figure_commands);
   std::string preset;
   bool csv = false, gnuplot = false;
   double max_distance = 1000.0, step = 10.0;
@@ -367,7 +370,7 @@ int run_cli(int argc, char** argv) {
     if (std::find(commands.begin(), commands.end(), argv[1]) == commands.end()) {
       const std::string hint = did_you_mean(argv[1], commands);
       std::cerr << fmt::format(
-          "ncosim: expected a command (run, export, merge, design, find, codesign, check or list), got '{}'{}\n", argv[1],
+          "ncosim: expected a command (run, export, merge, design, find, codesign, check, plot, report or list), got '{}'{}\n", argv[1],
           hint.empty() ? "" : fmt::format(" (did you mean '{}'?)", hint));
       return 2;
     }
@@ -406,6 +409,7 @@ int run_cli(int argc, char** argv) {
     if (design->parsed()) return cmd_design(a, command_line, export_c_dir);
     if (find->parsed()) return cmd_find(a, find_opt, target_text, command_line);
     if (check->parsed()) return cmd_check(a);
+    if (const auto status = run_figure_commands(figure_commands)) return *status;
     if (codesign->parsed()) {
       cd_opt.progress = !quiet;
       return cmd_codesign(a, cd_opt, command_line);

@@ -1,5 +1,6 @@
 // sim/output.cc — summary statistics and the result files.
 #include "sim/output.h"
+#include "sim/physical.h"
 
 #include <fmt/format.h>
 
@@ -379,7 +380,8 @@ std::string design_csv(const LoadedScenario& loaded) {
   std::vector<std::string> cols;
   for (const auto& s : loaded.sweeps) cols.push_back(s.key);
   for (const char* c : {"estimator", "kind", "method", "predicted_mse", "predicted_mse_ext", "stored_gains",
-                        "flops_per_period", "p0", "design_seconds", "status"}) {
+                        "flops_per_period", "p0", "design_seconds", "status",
+                        "predicted_mse_paper_eq28_erroneous"}) {
     cols.push_back(c);
   }
   for (std::size_t i = 0; i < cols.size(); ++i) out += (i ? "," : "") + csv_field(cols[i]);
@@ -403,6 +405,8 @@ std::string design_csv(const LoadedScenario& loaded) {
       cells.push_back(p0 != r.extra.end() && p0->is_number() ? fmt_number(p0->get<double>()) : "");
       cells.push_back(fmt::format("{:.6g}", r.design_seconds));
       cells.push_back(r.status);
+      const auto eq28 = r.extra.find("predicted_mse_paper_eq28_erroneous");  // jump only (results/README.md)
+      cells.push_back(eq28 != r.extra.end() && eq28->is_number() ? precise(eq28->get<double>()) : "");
       for (std::size_t i = 0; i < cells.size(); ++i) out += (i ? "," : "") + csv_field(cells[i]);
       out += "\n";
     }
@@ -466,8 +470,13 @@ std::string trajectory_csv(const Scenario& sc, const std::vector<TraceRow>& trac
     out += ",mode";
     for (const auto& e : sc.estimators) out += "," + csv_field(fmt::format("{}:mode", e.name));
   }
+  const auto offsets = recentring_offsets(sc, trace);  // re-centred runs: the physical state (sim/physical.h)
+  if (sc.recentre) {
+    for (Eigen::Index i = 0; i < n; ++i) out += fmt::format(",x{}_physical", i + 1);
+  }
   out += "\n";
-  for (const auto& r : trace) {
+  for (std::size_t t = 0; t < trace.size(); ++t) {
+    const auto& r = trace[t];
     out += std::to_string(r.period);
     for (double v : r.x) out += fmt::format(",{:.9g}", v);
     for (const auto& xh : r.xhat) {
@@ -480,6 +489,11 @@ std::string trajectory_csv(const Scenario& sc, const std::vector<TraceRow>& trac
     if (modes) {
       out += r.mode >= 0 ? fmt::format(",{}", r.mode) : ",";
       for (int m : r.mode_hat) out += m >= 0 ? fmt::format(",{}", m) : ",";
+    }
+    if (sc.recentre) {
+      for (Eigen::Index i = 0; i < n; ++i) {
+        out += offsets[t] ? fmt::format(",{:.9g}", r.x[static_cast<std::size_t>(i)] + (*offsets[t])[static_cast<std::size_t>(i)]) : ",";
+      }
     }
     out += "\n";
   }
