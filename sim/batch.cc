@@ -8,6 +8,7 @@
 #include <cerrno>
 #include <charconv>
 #include <chrono>
+#include <cstdlib>
 #include <condition_variable>
 #include <csignal>
 #include <cstring>
@@ -82,7 +83,7 @@ std::string signal_name(int sig) {
 // completed since the last commit. The store is used by one thread at a time (`with_store`).
 class StoreSink {
  public:
-  explicit StoreSink(RunStore& store) : store_(store), thread_([this] { loop(); }) {}
+  explicit StoreSink(RunStore& store) : store_(store), interval_(commit_interval()), thread_([this] { loop(); }) {}
   ~StoreSink() {
     try {
       finish();
@@ -122,7 +123,7 @@ class StoreSink {
   void loop() {
     std::unique_lock<std::mutex> lock(mutex_);
     while (!done_) {
-      cv_.wait_for(lock, std::chrono::milliseconds(250), [&] { return done_; });
+      cv_.wait_for(lock, interval_, [&] { return done_; });
       lock.unlock();
       commit_pending();
       lock.lock();
@@ -149,7 +150,19 @@ class StoreSink {
     if (error_) std::rethrow_exception(error_);
   }
 
+  // 250 ms; NCOSIM_TEST_COMMIT_MS (tests only: 1..1000) shortens it so that a kill test finds
+  // committed batches inside a short campaign on a fast machine.
+  static std::chrono::milliseconds commit_interval() {
+    if (const char* v = std::getenv("NCOSIM_TEST_COMMIT_MS")) {
+      char* end = nullptr;
+      const long ms = std::strtol(v, &end, 10);
+      if (end != v && *end == '\0' && ms >= 1 && ms <= 1000) return std::chrono::milliseconds(ms);
+    }
+    return std::chrono::milliseconds(250);
+  }
+
   RunStore& store_;
+  std::chrono::milliseconds interval_;
   std::mutex mutex_, db_mutex_;
   std::condition_variable cv_;
   std::vector<StoredRun> pending_;
