@@ -172,6 +172,8 @@ SodDesignResult design_sod(const SodSystem& sys, const SodDesignSpec& spec) {
   const bool det = spec.approach == Approach::kDeterministic;
   // Stochastic design: the patterns with positive probability at some vertex of the box (with
   // delta = 0 every sensor always sends, and only the all-delivered pattern occurs).
+  // The pattern probabilities at each vertex of the box beta_s in {beta'_s, 1} (or only at beta').
+  std::vector<std::vector<double>> vertex_p;
   std::vector<bool> needed;
   if (!det) {
     needed.assign(patterns, false);
@@ -182,8 +184,8 @@ SodDesignResult design_sod(const SodSystem& sys, const SodDesignSpec& spec) {
       for (unsigned s = 0; s < ns; ++s) {
         if ((c >> s) & 1U) beta(s) = 1.0;
       }
-      const std::vector<double> p = pattern_probabilities(beta);
-      for (std::size_t j = 0; j < patterns; ++j) needed[j] = needed[j] || p[j] > 0.0;
+      vertex_p.push_back(pattern_probabilities(beta));
+      for (std::size_t j = 0; j < patterns; ++j) needed[j] = needed[j] || vertex_p.back()[j] > 0.0;
     }
   }
   const Vars v = make_vars(prob, sys, patterns, spec.jump, det ? patterns : 1, true, false, needed);
@@ -217,14 +219,7 @@ SodDesignResult design_sod(const SodSystem& sys, const SodDesignSpec& spec) {
   } else {
     // (20) at each vertex of the box beta_s in {beta'_s, 1} (or only at beta'), zero-probability
     // pattern blocks dropped.
-    const auto ns = static_cast<unsigned>(sys.ns());
-    const unsigned vertices = spec.vertices == Vertices::kAll ? 1U << ns : 1U;
-    for (unsigned c = 0; c < vertices; ++c) {
-      VectorXd beta = spec.beta_lower;
-      for (unsigned s = 0; s < ns; ++s) {
-        if ((c >> s) & 1U) beta(s) = 1.0;
-      }
-      const std::vector<double> p = pattern_probabilities(beta);
+    for (const std::vector<double>& p : vertex_p) {
       std::vector<std::size_t> live;
       for (std::size_t j = 0; j < patterns; ++j) {
         if (p[j] > 0.0) live.push_back(j);
