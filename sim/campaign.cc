@@ -13,6 +13,7 @@
 #include <cmath>
 #include <cstdio>
 #include <exception>
+#include <condition_variable>
 #include <mutex>
 #include <thread>
 
@@ -55,11 +56,14 @@ void draw_sensor_noise(Rng& rng, models::SensorSpec::Noise kind, Eigen::VectorXd
 constexpr double kDivergence = 1e150;
 constexpr double kPrecisionLimit = 1e10;
 
-// Log of run 0 as the estimators saw it, replayed to time each estimator alone.
+// The first periods of one run as the estimators saw them, replayed to time each estimator
+// alone. Bounded: the replay's memory and time do not grow with the periods of a run.
+constexpr std::size_t kReplayPeriods = 10000;
 struct ReplayLog {
   std::vector<est::Packet> packets;
   std::vector<std::int64_t> packet_period;
   std::vector<Eigen::VectorXd> u, drive;  // per period
+  std::size_t limit = kReplayPeriods;     // periods logged
 };
 
 class RunSimulation {
@@ -377,7 +381,7 @@ class RunSimulation {
       received_stamp_[ps] = p.stamps[0];
       received_[ps] = p.values.head(received_[ps].size());
     }
-    if (log_ != nullptr) {
+    if (log_ != nullptr && static_cast<std::size_t>(k) < log_->limit) {
       log_->packets.push_back(p);
       log_->packet_period.push_back(k);
     }
@@ -388,7 +392,7 @@ class RunSimulation {
     const std::int64_t k = now / period_ns_;
     const est::PeriodInput in{u_prev_, actuators_ || !plant_.modes.empty() ? known_drive_ : drive_};
     for (auto& e : estimators_) e->on_period(k, in);
-    if (log_ != nullptr) {
+    if (log_ != nullptr && log_->u.size() < log_->limit) {
       log_->u.push_back(u_prev_);
       log_->drive.push_back(in.drive);
     }
@@ -565,16 +569,16 @@ class RunSimulation {
   bool precision_lost_ = false;
 };
 
-// Replays run 0's inputs into a fresh instance of each estimator and times it alone:
-// the median over repetitions of (wall time / periods).
-std::vector<double> time_estimators(const Scenario& sc, const ReplayLog& log) {
+// Replays a logged run into a fresh instance of each estimator and times it alone: the median
+// over repetitions of (wall time / periods). At least one repetition, at most 15, more only
+// while the estimator's `budget` lasts.
+std::vector<double> time_estimators(const Scenario& sc, const ReplayLog& log, std::chrono::nanoseconds budget) {
   std::vector<double> out;
   const std::size_t periods = log.u.size();
   for (const auto& entry : sc.estimators) {
     std::vector<double> samples;
-    const auto budget = std::chrono::milliseconds(200);
     const auto begin = std::chrono::steady_clock::now();
-    for (int rep = 0; rep < 15 && (rep < 3 || std::chrono::steady_clock::now() - begin < budget); ++rep) {
+    for (int rep = 0; rep < 15 && (rep < 1 || std::chrono::steady_clock::now() - begin < budget); ++rep) {
       auto est = entry.design->instantiate();
       std::size_t next = 0;
       const auto t0 = std::chrono::steady_clock::now();
@@ -587,12 +591,21 @@ std::vector<double> time_estimators(const Scenario& sc, const ReplayLog& log) {
         est->on_period(kk, est::PeriodInput{log.u[k], log.drive[k]});
       }
       const auto t1 = std::chrono::steady_clock::now();
-      samples.push_back(std::chrono::duration<double, std::nano>(t1 - t0).count() / static_cast<double>(periods));
+      samples.push_back(std::chrono::duration<double, std::nano>(t1 - t0).count() /
+                        static_cast<double>(std::max<std::size_t>(periods, 1)));
     }
     std::sort(samples.begin(), samples.end());
     out.push_back(samples[samples.size() / 2]);
   }
   return out;
+}
+
+std::string format_duration(double s) {
+  if (!std::isfinite(s) || s < 0) return "?";
+  const auto t = static_cast<long>(s + 0.5);
+  if (t >= 3600) return fmt::format("{}h{:02}m", t / 3600, (t / 60) % 60);
+  if (t >= 60) return fmt::format("{}m{:02}s", t / 60, t % 60);
+  return fmt::format("{}s", t);
 }
 
 }  // namespace
@@ -602,31 +615,57 @@ RunMetrics simulate_run(const Scenario& sc, std::uint64_t run, std::vector<Trace
   ReplayLog log;
   RunSimulation sim(sc, run, trace, ns_per_period != nullptr ? &log : nullptr);
   RunMetrics m = sim.execute();
-  if (ns_per_period != nullptr) *ns_per_period = time_estimators(sc, log);
+  if (ns_per_period != nullptr) *ns_per_period = time_estimators(sc, log, std::chrono::milliseconds(200));
   return m;
 }
 
 CampaignResult run_campaign(const Scenario& sc, const CampaignOptions& options) {
   CampaignResult result;
-  const auto runs = static_cast<std::size_t>(sc.run.runs);
-  result.runs.resize(runs);
+  std::vector<std::uint64_t> todo;
+  if (options.only_runs) {
+    todo = *options.only_runs;
+  } else {
+    todo.resize(static_cast<std::size_t>(sc.run.runs));
+    for (std::size_t r = 0; r < todo.size(); ++r) todo[r] = r;
+  }
+  const std::size_t runs = todo.size();
+  const bool keep = !options.on_run;
+  if (keep) {
+    result.runs.resize(runs);
+    if (options.only_runs) result.run_ids = todo;
+  }
   int threads = options.threads > 0 ? options.threads : static_cast<int>(std::thread::hardware_concurrency());
-  threads = std::max(1, std::min<int>(threads, static_cast<int>(runs)));
+  threads = std::max(1, std::min<int>(threads, static_cast<int>(std::max<std::size_t>(runs, 1))));
   if (sc.mobility && sc.mobility->single_threaded()) threads = 1;  // one libsumo per process
   result.threads = threads;
   const auto start = std::chrono::steady_clock::now();
 
+  // The first run simulated here is logged (its first kReplayPeriods periods) for the timing.
+  ReplayLog log;
   std::atomic<std::size_t> next{0};
   std::atomic<std::size_t> done{0};
   std::exception_ptr error;
-  std::mutex error_mutex;
+  std::mutex error_mutex, sink_mutex;
   std::atomic<bool> failed{false};
+  std::vector<char> completed(keep ? runs : 0, 0);
+  auto stop_requested = [&] { return options.stop != nullptr && options.stop->load() != 0; };
   auto worker = [&] {
     while (true) {
-      const std::size_t r = next.fetch_add(1);
-      if (r >= runs) return;
+      if (stop_requested()) return;
+      const std::size_t i = next.fetch_add(1);
+      if (i >= runs) return;
+      const std::uint64_t r = todo[i];
       try {
-        result.runs[r] = simulate_run(sc, r, r == 0 && options.trace ? &result.trace : nullptr);
+        ReplayLog* lg = i == 0 && options.time_estimators ? &log : nullptr;
+        RunSimulation sim(sc, r, r == 0 && options.trace ? &result.trace : nullptr, lg);
+        RunMetrics m = sim.execute();
+        if (keep) {
+          result.runs[i] = std::move(m);
+          completed[i] = 1;
+        } else {
+          std::lock_guard<std::mutex> lock(sink_mutex);
+          options.on_run(r, std::move(m));
+        }
       } catch (...) {
         std::lock_guard<std::mutex> lock(error_mutex);
         if (!error) error = std::current_exception();
@@ -639,31 +678,69 @@ CampaignResult run_campaign(const Scenario& sc, const CampaignOptions& options) 
   };
   std::vector<std::thread> pool;
   for (int t = 1; t < threads; ++t) pool.emplace_back(worker);
-  if (options.progress) {
-    std::thread progress([&] {
-      while (done.load() < runs && !failed.load()) {
+  const bool any_progress = options.progress || options.progress_log;
+  std::atomic<bool> finished{false};
+  std::mutex progress_mutex;
+  std::condition_variable progress_cv;
+  std::thread progress;
+  if (any_progress) {
+    progress = std::thread([&] {
+      const auto interval = options.progress ? std::chrono::milliseconds(200) : std::chrono::milliseconds(5000);
+      std::unique_lock<std::mutex> lock(progress_mutex);
+      while (!progress_cv.wait_for(lock, interval, [&] { return finished.load(); })) {
         const double el = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-        std::fprintf(stderr, "\r%s run %zu/%zu  %.1f s ", options.progress_label.c_str(), done.load(), runs, el);
+        const std::size_t d = done.load();
+        const double rate = el > 0 ? static_cast<double>(d) / el : 0.0;
+        const std::string eta = d > 0 ? format_duration(static_cast<double>(runs - d) / rate) : "?";
+        if (options.progress) {
+          std::fprintf(stderr, "\r%s run %zu/%zu  %.1f s  ETA %s   ", options.progress_label.c_str(), d, runs, el,
+                       eta.c_str());
+        } else {
+          std::fprintf(stderr, "ncosim: %s%s%zu/%zu runs, %.2f runs/s, %.0f s elapsed, ETA %s\n",
+                       options.progress_label.c_str(), options.progress_label.empty() ? "" : " ", d, runs, rate, el,
+                       eta.c_str());
+        }
         std::fflush(stderr);
-        std::this_thread::sleep_for(std::chrono::milliseconds(200));
       }
     });
-    worker();
-    for (auto& t : pool) t.join();
+  }
+  worker();
+  for (auto& t : pool) t.join();
+  if (any_progress) {
+    {
+      std::lock_guard<std::mutex> lock(progress_mutex);
+      finished = true;
+    }
+    progress_cv.notify_all();
     progress.join();
-    std::fprintf(stderr, "\r%s %zu runs done in %.1f s      \n", options.progress_label.c_str(), runs,
-                 std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
-  } else {
-    worker();
-    for (auto& t : pool) t.join();
+    if (options.progress) {
+      std::fprintf(stderr, "\r%s %zu runs done in %.1f s      \n", options.progress_label.c_str(), done.load(),
+                   std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+    }
   }
   if (error) std::rethrow_exception(error);
+  result.runs_done = done.load();
+  result.stopped = result.runs_done < runs;
+  if (keep && result.stopped) {  // keep the completed runs only
+    std::vector<RunMetrics> kept;
+    std::vector<std::uint64_t> ids;
+    for (std::size_t i = 0; i < runs; ++i) {
+      if (completed[i] != 0) {
+        kept.push_back(std::move(result.runs[i]));
+        ids.push_back(todo[i]);
+      }
+    }
+    result.runs = std::move(kept);
+    result.run_ids = std::move(ids);
+  }
   result.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  if (options.time_estimators) {
-    // Timed alone, after the campaign, on a replay of run 0 (not part of the results' identity).
-    std::vector<double> ns;
-    simulate_run(sc, 0, nullptr, &ns);
-    result.ns_per_period = std::move(ns);
+  if (options.time_estimators && !log.u.empty() && !stop_requested()) {
+    // Timed alone, after the campaign, on a replay of the first run simulated (at most
+    // kReplayPeriods periods; not part of the results' identity). Budget per estimator: 2 %
+    // of the campaign's time, between 5 ms and 200 ms.
+    const double share = 0.02 * result.wall_seconds / static_cast<double>(std::max<std::size_t>(sc.estimators.size(), 1));
+    const auto budget = std::chrono::nanoseconds(static_cast<std::int64_t>(std::clamp(share, 0.005, 0.2) * 1e9));
+    result.ns_per_period = time_estimators(sc, log, budget);
   } else {
     result.ns_per_period.assign(sc.estimators.size(), std::nan(""));
   }

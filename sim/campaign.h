@@ -4,6 +4,7 @@
 // identical for any thread count (per-run streams; aggregation in run order).
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <functional>
 #include <optional>
@@ -57,14 +58,25 @@ struct TraceRow {
 
 struct CampaignOptions {
   int threads = 0;           // 0: all cores
-  bool progress = false;     // progress line on stderr
+  bool progress = false;     // progress line on stderr, redrawn in place (a terminal), with ETA
+  bool progress_log = false; // a progress line every few seconds (stderr not a terminal: CI logs)
   bool trace = false;        // record run 0 period by period
-  bool time_estimators = true;  // measure ns_per_period by replaying run 0
+  bool time_estimators = true;  // measure ns_per_period by replaying the first run simulated
   std::string progress_label;
+  // The run indices to simulate, ascending (nullopt: 0 .. runs-1). Resume and shards.
+  std::optional<std::vector<std::uint64_t>> only_runs;
+  // Receives each completed run (called from the worker threads, one at a time); when set,
+  // CampaignResult::runs stays empty, so a campaign's memory does not grow with its runs.
+  std::function<void(std::uint64_t run, RunMetrics&& metrics)> on_run;
+  // Set (e.g. by a signal handler): no new run is started; runs in progress finish.
+  const std::atomic<int>* stop = nullptr;
 };
 
 struct CampaignResult {
   std::vector<RunMetrics> runs;          // [run][estimator]
+  std::vector<std::uint64_t> run_ids;    // the run index of each entry of `runs` (empty: 0, 1, ...)
+  std::size_t runs_done = 0;             // runs completed by this call
+  bool stopped = false;                  // `stop` was set before every run was done
   std::vector<double> ns_per_period;     // per estimator (measured), NaN when not measured
   std::vector<TraceRow> trace;           // run 0 when requested
   double wall_seconds = 0.0;

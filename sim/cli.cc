@@ -15,6 +15,7 @@
 
 #include "ncosim_version.h"
 #include "estimators/export_c.h"
+#include "sim/batch.h"
 #include "sim/campaign.h"
 #include "sim/find.h"
 #include "sim/codesign.h"
@@ -41,8 +42,10 @@ std::string utc_now() {
   return buf;
 }
 
+// out/<stem>: git-ignored, so a user's first `ncosim run scenarios/X.toml` never modifies the
+// committed reference results/X/ (references are made with an explicit --out).
 std::string default_out(const std::string& file) {
-  return (std::filesystem::path("results") / std::filesystem::path(file).stem()).string();
+  return (std::filesystem::path("out") / std::filesystem::path(file).stem()).string();
 }
 
 nlohmann::json manifest(const LoadedScenario& loaded, const std::string& command_line, int threads,
@@ -76,57 +79,13 @@ struct CommonArgs {
   std::int64_t seed = -1;
 };
 
-int cmd_run(const CommonArgs& a, int threads, bool trace, bool quiet, const std::string& command_line) {
-  RunOverrides ov = a.overrides;
-  if (a.seed >= 0) ov.seed = static_cast<std::uint64_t>(a.seed);
-  LoadedScenario loaded = load_cases(a.file, a.sets, ov);
-  const std::string out = a.out.empty() ? default_out(a.file) : a.out;
-  prepare_output_dir(out);  // fail before the campaign, not after it
-  const bool tty = ::isatty(2) != 0 && !quiet;
-  std::vector<SummaryRow> rows;
-  std::vector<CampaignResult> results;
-  results.reserve(loaded.cases.size());
-  double wall = 0.0;
-  int used_threads = 1;
-  for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
-    const Case& cs = loaded.cases[c];
-    CampaignOptions opt;
-    opt.threads = threads;
-    opt.progress = tty;
-    opt.trace = trace && c == 0;
-    opt.progress_label = loaded.cases.size() > 1 ? fmt::format("case {}/{}:", c + 1, loaded.cases.size()) : "";
-    results.push_back(run_campaign(*cs.scenario, opt));
-    wall += results.back().wall_seconds;
-    used_threads = results.back().threads;
-    auto case_rows = summarise(*cs.scenario, results.back(), cs.labels);
-    rows.insert(rows.end(), case_rows.begin(), case_rows.end());
-  }
-  const Scenario& first = *loaded.cases.front().scenario;
-  const Eigen::Index n = first.model.plant.n();
-  std::vector<std::vector<std::string>> labels;
-  std::vector<const Scenario*> scs;
-  std::vector<const CampaignResult*> res;
-  for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
-    labels.push_back(loaded.cases[c].labels);
-    scs.push_back(loaded.cases[c].scenario.get());
-    res.push_back(&results[c]);
-  }
-  const std::string md = summary_markdown(first.title, loaded.sweeps, rows, n);
-  std::vector<std::pair<std::string, std::string>> files{
-      {"summary.csv", summary_csv(loaded.sweeps, rows, n)},
-      {"summary.md", md},
-      {"runs.csv", runs_csv(loaded.sweeps, labels, scs, res)},
-      {"transmissions.csv", transmissions_csv(loaded.sweeps, labels, scs, res)},
-      {"design.json", design_json(loaded).dump(2) + "\n"},
-      {"manifest.json", manifest(loaded, command_line, used_threads, wall).dump(2) + "\n"},
-  };
-  if (trace) files.emplace_back("trajectory.csv", trajectory_csv(first, results.front().trace));
-  const std::string confusion = confusion_csv(loaded.sweeps, rows);
-  if (confusion.find('\n') + 1 < confusion.size()) files.emplace_back("confusion.csv", confusion);
-  write_files_atomically(out, files, {"trajectory.csv", "confusion.csv"});
-  std::cout << md << fmt::format("\n{} runs x {} periods x {} case(s) in {:.2f} s on {} thread(s); results in {}/\n",
-                                 first.run.runs, first.run.periods, loaded.cases.size(), wall, used_threads, out);
-  return 0;
+int cmd_run(const CommonArgs& a, RunCommand cmd) {
+  cmd.file = a.file;
+  cmd.out = a.out.empty() ? default_out(a.file) : a.out;
+  cmd.sets = a.sets;
+  cmd.overrides = a.overrides;
+  if (a.seed >= 0) cmd.overrides.seed = static_cast<std::uint64_t>(a.seed);
+  return cmd_run_campaign(cmd);  // sim/batch.cc: run store, signals, resume, shards
 }
 
 // The C export of every jump estimator of every case (`--export-c`); other kinds are listed
@@ -277,6 +236,11 @@ int cmd_list() {
 
 }  // namespace
 
+nlohmann::json campaign_manifest(const LoadedScenario& loaded, const std::string& command_line, int threads,
+                                 double wall_seconds) {
+  return manifest(loaded, command_line, threads, wall_seconds);
+}
+
 int run_cli(int argc, char** argv) {
 #if NCOSIM_HAVE_SUMO
   // Hidden: one live SUMO run stepped in this process (started by a [sumo] mode = "live" run).
@@ -300,7 +264,7 @@ int run_cli(int argc, char** argv) {
   auto add_common = [&](CLI::App* sub, bool with_out) {
     sub->add_option("FILE", a.file, "scenario file (TOML)")->required();
     sub->add_option("--set", a.sets, "override one key before validation: KEY=VALUE (VALUE in TOML)");
-    if (with_out) sub->add_option("--out", a.out, "output directory (default: results/<file stem>)");
+    if (with_out) sub->add_option("--out", a.out, "output directory (default: out/<file stem>)");
   };
   CLI::App* run = app.add_subcommand("run", "run the Monte Carlo campaign and write the results");
   add_common(run, true);
@@ -315,10 +279,28 @@ int run_cli(int argc, char** argv) {
       ->check(CLI::Range(0, 4096));
   run->add_flag("--trace", trace, "also write trajectory.csv (x, xhat, arrivals of run 0)");
   run->add_flag("--quiet", quiet, "no progress line");
+  RunCommand run_cmd;
+  run->add_flag("--resume", run_cmd.resume,
+                "continue the campaign whose run store (runs.sqlite) is in --out: only the missing runs");
+  run->add_flag("!--no-timing", run_cmd.timing, "do not measure ns_per_period (no replay after the campaign)");
+  run->add_option("--shard", run_cmd.shard, "run the shard I of N (1-based): the runs r with r % N == I-1");
+  run->add_option("--target-ci", run_cmd.target_ci,
+                  "run batches of run.runs until every row's 95% CI half-width of mse is within REL of its mean");
+  run->add_option("--max-runs", run_cmd.max_runs, "with --target-ci: the most runs per case")
+      ->check(CLI::Range(std::int64_t{1}, std::int64_t{10'000'000}));
+  std::string export_dir, export_out;
+  CLI::App* export_cmd = app.add_subcommand("export", "re-derive every export of a campaign from its run store");
+  export_cmd->add_option("DIR", export_dir, "output folder holding runs.sqlite")->required();
+  export_cmd->add_option("--out", export_out, "write the exports here instead of DIR");
+  std::string merge_out;
+  std::vector<std::string> merge_dirs;
+  CLI::App* merge = app.add_subcommand("merge", "combine the run stores of a campaign's shards and export");
+  merge->add_option("OUT", merge_out, "output folder of the merged campaign")->required();
+  merge->add_option("DIR", merge_dirs, "output folders of the shards (each with runs.sqlite)")->required();
   CLI::App* design = app.add_subcommand("design", "offline design only: write design.json and design.csv");
   add_common(design, true);
-  std::string export_dir;
-  design->add_option("--export-c", export_dir,
+  std::string export_c_dir;
+  design->add_option("--export-c", export_c_dir,
                      "also write a C99 header and source per jump estimator into this directory");
   CLI::App* find = app.add_subcommand(
       "find", "the value of one key at which a design quantity reaches a target (scan + bisection)");
@@ -369,7 +351,7 @@ int run_cli(int argc, char** argv) {
     if (std::find(commands.begin(), commands.end(), argv[1]) == commands.end()) {
       const std::string hint = did_you_mean(argv[1], commands);
       std::cerr << fmt::format(
-          "ncosim: expected a command (run, design, find, codesign, check or list), got '{}'{}\n", argv[1],
+          "ncosim: expected a command (run, export, merge, design, find, codesign, check or list), got '{}'{}\n", argv[1],
           hint.empty() ? "" : fmt::format(" (did you mean '{}'?)", hint));
       return 2;
     }
@@ -389,8 +371,16 @@ int run_cli(int argc, char** argv) {
   std::string command_line;
   for (int i = 0; i < argc; ++i) command_line += (i ? " " : "") + std::string(argv[i]);
   try {
-    if (run->parsed()) return cmd_run(a, threads, trace, quiet, command_line);
-    if (design->parsed()) return cmd_design(a, command_line, export_dir);
+    if (run->parsed()) {
+      run_cmd.threads = threads;
+      run_cmd.trace = trace;
+      run_cmd.quiet = quiet;
+      run_cmd.command_line = command_line;
+      return cmd_run(a, run_cmd);
+    }
+    if (export_cmd->parsed()) return cmd_export(export_dir, export_out, command_line);
+    if (merge->parsed()) return cmd_merge(merge_out, merge_dirs, command_line);
+    if (design->parsed()) return cmd_design(a, command_line, export_c_dir);
     if (find->parsed()) return cmd_find(a, find_opt, target_text, command_line);
     if (check->parsed()) return cmd_check(a);
     if (codesign->parsed()) {

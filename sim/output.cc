@@ -192,11 +192,14 @@ std::vector<std::string> row_cells(const SummaryRow& r) {
 
 std::string summary_csv(const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows, Eigen::Index n) {
   std::string out;
-  const auto cols = summary_columns(sweeps, n);
+  auto cols = summary_columns(sweeps, n);
+  const bool stop = std::any_of(rows.begin(), rows.end(), [](const SummaryRow& r) { return !r.stop.empty(); });
+  if (stop) cols.push_back("stop");  // --target-ci campaigns only
   for (std::size_t i = 0; i < cols.size(); ++i) out += (i ? "," : "") + csv_field(cols[i]);
   out += "\n";
   for (const auto& r : rows) {
-    const auto cells = row_cells(r);
+    auto cells = row_cells(r);
+    if (stop) cells.push_back(r.stop);
     for (std::size_t i = 0; i < cells.size(); ++i) out += (i ? "," : "") + csv_field(cells[i]);
     out += "\n";
   }
@@ -309,7 +312,8 @@ std::string runs_csv(const std::vector<SweepAxis>& sweeps, const std::vector<std
         const bool has_ext = sc.estimators[e].design->extended_size() > 0;
         const bool ok = !m.diverged && m.count > 0;
         const auto& cnt = m.counters;
-        out += fmt::format("{},{},{},{},{},{},{},{},{},{},{},{}", r, csv_field(sc.estimators[e].name),
+        const std::uint64_t run_id = results[c]->run_ids.empty() ? r : results[c]->run_ids[r];
+        out += fmt::format("{},{},{},{},{},{},{},{},{},{},{},{}", run_id, csv_field(sc.estimators[e].name),
                            ok ? fmt_number(m.sse / static_cast<double>(m.count)) : "",
                            ok && has_ext ? fmt_number(m.sse_ext / static_cast<double>(m.count)) : "", m.count,
                            m.samples_used, m.samples_taken, m.diverged ? 1 : 0, m.status,

@@ -37,6 +37,8 @@ struct SummaryRow {
   std::optional<double> predicted_mse;  // the design's analytic mean |x - xhat|^2, where one exists
   std::optional<double> flops_mean;     // FLOPs per period averaged over every run (kalman_buffer)
   std::optional<double> sent_per_period;  // packets sent by all sensors per period (k >= warmup)
+  // With --target-ci only (the column exists only then): why the campaign stopped.
+  std::string stop;
 };
 
 // Half-width of the 95% confidence interval of the mean of `values` (Student t, n-1

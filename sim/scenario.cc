@@ -433,13 +433,18 @@ toml::array& sweep_values(toml::table& doc, std::size_t axis) {
 
 LoadedScenario load_cases(const std::string& file, const std::vector<std::string>& sets,
                           const RunOverrides& overrides, std::optional<std::size_t> only_case) {
-  LoadedScenario out;
-  out.file = file;
   std::ifstream in(file, std::ios::binary);
   if (!in) throw ScenarioError(format_error(file, 0, "", "cannot open the scenario file"));
   std::stringstream ss;
   ss << in.rdbuf();
-  out.text = ss.str();
+  return load_cases_text(file, ss.str(), sets, overrides, only_case);
+}
+
+LoadedScenario load_cases_text(const std::string& file, const std::string& text, const std::vector<std::string>& sets,
+                               const RunOverrides& overrides, std::optional<std::size_t> only_case) {
+  LoadedScenario out;
+  out.file = file;
+  out.text = text;
   out.overrides = sets;
   std::string hashed = out.text;
   for (const auto& s : sets) hashed += "\n--set " + s;

@@ -91,6 +91,12 @@ LoadedScenario load_cases(const std::string& file, const std::vector<std::string
                           const RunOverrides& overrides = {},
                           std::optional<std::size_t> only_case = std::nullopt);
 
+// The same from the scenario's text (e.g. kept in a run store); `file` names it in messages
+// and its folder resolves relative paths.
+LoadedScenario load_cases_text(const std::string& file, const std::string& text, const std::vector<std::string>& sets,
+                               const RunOverrides& overrides = {},
+                               std::optional<std::size_t> only_case = std::nullopt);
+
 // Parses and validates one scenario table (no sweep expansion).
 std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::string& file,
                                          const std::string& dir);

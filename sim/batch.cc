@@ -1,0 +1,832 @@
+// sim/batch.cc — campaigns on the command line (see batch.h).
+#include "sim/batch.h"
+
+#include <fmt/format.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cerrno>
+#include <charconv>
+#include <chrono>
+#include <condition_variable>
+#include <csignal>
+#include <cstring>
+#include <filesystem>
+#include <iostream>
+#include <limits>
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <thread>
+
+#include "ncosim_version.h"
+#include "sim/campaign.h"
+#include "sim/cli.h"
+#include "sim/mpi_campaign.h"
+#include "sim/output.h"
+#include "sim/store.h"
+
+namespace ncosim::sim {
+
+namespace {
+
+// Set by SIGINT/SIGTERM (the signal number) or by a failing store writer (-1): no new run starts.
+std::atomic<int> g_stop{0};
+static_assert(std::atomic<int>::is_always_lock_free, "the stop flag is written from a signal handler");
+
+extern "C" void on_stop_signal(int sig) {
+  g_stop.store(sig);
+  static const char msg[] = "\nncosim: stopping: finishing the runs in progress, committing them and writing "
+                            "partial results (a second signal aborts at once)\n";
+  const ssize_t ignored = ::write(2, msg, sizeof msg - 1);
+  (void)ignored;
+}
+
+// SIGINT/SIGTERM handlers for the duration of a campaign; the first signal restores the
+// default action (SA_RESETHAND), so a second one ends the process at once.
+class StopSignals {
+ public:
+  StopSignals() {
+    g_stop.store(0);
+    struct sigaction sa {};
+    sa.sa_handler = on_stop_signal;
+    sigemptyset(&sa.sa_mask);
+    sa.sa_flags = SA_RESETHAND;
+    sigaction(SIGINT, &sa, &old_int_);
+    sigaction(SIGTERM, &sa, &old_term_);
+  }
+  ~StopSignals() {
+    sigaction(SIGINT, &old_int_, nullptr);
+    sigaction(SIGTERM, &old_term_, nullptr);
+  }
+  StopSignals(const StopSignals&) = delete;
+  StopSignals& operator=(const StopSignals&) = delete;
+
+ private:
+  struct sigaction old_int_ {};
+  struct sigaction old_term_ {};
+};
+
+std::string signal_name(int sig) {
+  if (sig == SIGINT) return "SIGINT";
+  if (sig == SIGTERM) return "SIGTERM";
+  return fmt::format("signal {}", sig);
+}
+
+// Commits completed runs from a writer thread: every 250 ms, one transaction for all runs
+// completed since the last commit. The store is used by one thread at a time (`with_store`).
+class StoreSink {
+ public:
+  explicit StoreSink(RunStore& store) : store_(store), thread_([this] { loop(); }) {}
+  ~StoreSink() {
+    try {
+      finish();
+    } catch (...) {  // reported by the explicit finish() of a normal exit
+    }
+  }
+  StoreSink(const StoreSink&) = delete;
+  StoreSink& operator=(const StoreSink&) = delete;
+
+  void push(std::size_t case_index, std::uint64_t run, RunMetrics&& m) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    pending_.push_back(StoredRun{case_index, run, std::move(m)});
+  }
+  // Commits everything pushed so far; rethrows a writer failure.
+  void flush() {
+    commit_pending();
+    rethrow();
+  }
+  template <class F>
+  void with_store(F f) {
+    std::lock_guard<std::mutex> lock(db_mutex_);
+    f(store_);
+  }
+  void finish() {
+    if (thread_.joinable()) {
+      {
+        std::lock_guard<std::mutex> lock(mutex_);
+        done_ = true;
+      }
+      cv_.notify_all();
+      thread_.join();
+    }
+    flush();
+  }
+
+ private:
+  void loop() {
+    std::unique_lock<std::mutex> lock(mutex_);
+    while (!done_) {
+      cv_.wait_for(lock, std::chrono::milliseconds(250), [&] { return done_; });
+      lock.unlock();
+      commit_pending();
+      lock.lock();
+    }
+  }
+  void commit_pending() {
+    std::lock_guard<std::mutex> db(db_mutex_);
+    std::vector<StoredRun> batch;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      batch.swap(pending_);
+    }
+    if (batch.empty() || error_) return;
+    try {
+      store_.put_runs(batch);
+    } catch (...) {
+      error_ = std::current_exception();
+      int expected = 0;
+      g_stop.compare_exchange_strong(expected, -1);
+    }
+  }
+  void rethrow() {
+    std::lock_guard<std::mutex> db(db_mutex_);
+    if (error_) std::rethrow_exception(error_);
+  }
+
+  RunStore& store_;
+  std::mutex mutex_, db_mutex_;
+  std::condition_variable cv_;
+  std::vector<StoredRun> pending_;
+  bool done_ = false;
+  std::exception_ptr error_;
+  std::thread thread_;
+};
+
+std::string json_text(const nlohmann::json& j) { return j.dump(); }
+
+// The campaign table of a new store.
+std::map<std::string, std::string> campaign_meta(const LoadedScenario& loaded, const RunOverrides& ov,
+                                                 const std::string& shard) {
+  std::error_code ec;
+  const auto abs = std::filesystem::absolute(loaded.file, ec);
+  const Scenario& sc = *loaded.cases.front().scenario;
+  return {
+      {"format", "1"},
+      {"scenario_file", loaded.file},
+      {"scenario_path", ec ? loaded.file : abs.lexically_normal().string()},
+      {"scenario_text", loaded.text},
+      {"scenario_hash", loaded.hash},
+      {"overrides", json_text(loaded.overrides)},
+      {"override_runs", ov.runs > 0 ? std::to_string(ov.runs) : ""},
+      {"override_periods", ov.periods > 0 ? std::to_string(ov.periods) : ""},
+      {"override_seed", ov.seed ? std::to_string(*ov.seed) : ""},
+      {"seed", std::to_string(sc.run.seed)},
+      {"runs", std::to_string(sc.run.runs)},
+      {"periods", std::to_string(sc.run.periods)},
+      {"cases", std::to_string(loaded.cases.size())},
+      {"ncosim_version", NCOSIM_VERSION},
+      {"git_commit", NCOSIM_GIT_COMMIT},
+      {"shard", shard},
+      {"target_ci", ""},
+      {"max_runs", ""},
+      {"wall_seconds", "0"},
+      {"threads", "1"},
+  };
+}
+
+// The keys that define a campaign's identity, with how to name them in a refusal.
+const std::vector<std::pair<std::string, std::string>>& identity_keys() {
+  static const std::vector<std::pair<std::string, std::string>> keys{
+      {"scenario_text", "the scenario text"},
+      {"overrides", "the --set overrides"},
+      {"override_runs", "--runs"},
+      {"override_periods", "--periods"},
+      {"override_seed", "--seed"},
+      {"ncosim_version", "the ncosim version"},
+      {"git_commit", "the ncosim binary (git commit)"},
+      {"target_ci", "--target-ci"},
+      {"max_runs", "--max-runs"},
+  };
+  return keys;
+}
+
+// Empty when `a` and `b` are the same campaign; else what differs.
+std::string identity_difference(const std::map<std::string, std::string>& a, const std::map<std::string, std::string>& b,
+                                bool with_shard) {
+  auto get = [](const std::map<std::string, std::string>& m, const std::string& k) {
+    const auto it = m.find(k);
+    return it == m.end() ? std::string() : it->second;
+  };
+  std::vector<std::string> diffs;
+  auto keys = identity_keys();
+  if (with_shard) keys.emplace_back("shard", "--shard");
+  for (const auto& [key, name] : keys) {
+    const std::string va = get(a, key), vb = get(b, key);
+    if (va == vb) continue;
+    if (key == "scenario_text") {
+      diffs.push_back(fmt::format("{} (hash {} vs {})", name, get(a, "scenario_hash"), get(b, "scenario_hash")));
+    } else {
+      diffs.push_back(fmt::format("{} ('{}' vs '{}')", name, va, vb));
+    }
+  }
+  std::string out;
+  for (std::size_t i = 0; i < diffs.size(); ++i) out += (i ? ", " : "") + diffs[i];
+  return out;
+}
+
+RunOverrides overrides_of(const std::map<std::string, std::string>& meta) {
+  RunOverrides ov;
+  auto num = [&](const char* key) -> std::optional<std::uint64_t> {
+    const auto it = meta.find(key);
+    if (it == meta.end() || it->second.empty()) return std::nullopt;
+    return std::stoull(it->second);
+  };
+  if (auto v = num("override_runs")) ov.runs = static_cast<std::int64_t>(*v);
+  if (auto v = num("override_periods")) ov.periods = static_cast<std::int64_t>(*v);
+  ov.seed = num("override_seed");
+  return ov;
+}
+
+// The scenario of a store, rebuilt from its text (designs included).
+LoadedScenario reload(const std::map<std::string, std::string>& meta) {
+  const auto sets = nlohmann::json::parse(meta.at("overrides")).get<std::vector<std::string>>();
+  LoadedScenario loaded = load_cases_text(meta.at("scenario_path"), meta.at("scenario_text"), sets, overrides_of(meta));
+  loaded.file = meta.at("scenario_file");
+  return loaded;
+}
+
+Shard shard_of(const std::map<std::string, std::string>& meta) {
+  const auto it = meta.find("shard");
+  return it == meta.end() || it->second.empty() ? Shard{} : parse_shard(it->second);
+}
+
+std::uint64_t owned_runs(const Scenario& sc, const Shard& shard) {
+  const auto runs = static_cast<std::uint64_t>(sc.run.runs);
+  if (shard.count <= 1) return runs;
+  return runs / shard.count + (shard.index < runs % shard.count ? 1 : 0);
+}
+
+// --target-ci: runs in fixed batches of run.runs in run-index order until every row's relative
+// 95 % CI half-width of mse is at most `rel`, or --max-runs. The decision depends on the runs
+// 0 .. n-1 alone, so it is the same for any threads, shards or ranks.
+struct TargetRule {
+  double rel = 0.0;
+  std::uint64_t max_runs = 0;
+  std::uint64_t batch = 0;
+  bool on() const { return rel > 0.0; }
+};
+
+// Fewer runs than this never stop a campaign: a CI from a handful of runs is itself too noisy.
+constexpr std::uint64_t kTargetMinRuns = 20;
+
+TargetRule target_of(const std::map<std::string, std::string>& meta, const LoadedScenario& loaded) {
+  TargetRule t;
+  const auto it = meta.find("target_ci");
+  if (it == meta.end() || it->second.empty()) return t;
+  t.rel = std::stod(it->second);
+  t.max_runs = std::stoull(meta.at("max_runs"));
+  t.batch = static_cast<std::uint64_t>(loaded.cases.front().scenario->run.runs);
+  return t;
+}
+
+struct TargetDecision {
+  bool decided = false;
+  std::uint64_t runs = 0;                 // runs per case the exports use (when decided)
+  std::string reason;                     // "target_ci" or "max_runs"
+  std::vector<std::vector<char>> met;     // [case][estimator]: 1 met, 0 not met, 2 excluded
+};
+
+// Whether each row meets the target on the first n runs of each case.
+std::vector<std::vector<char>> target_met(const LoadedScenario& loaded, const std::vector<CampaignResult>& results,
+                                          std::uint64_t n, double rel) {
+  std::vector<std::vector<char>> met(loaded.cases.size());
+  for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
+    const Scenario& sc = *loaded.cases[c].scenario;
+    for (std::size_t e = 0; e < sc.estimators.size(); ++e) {
+      if (sc.estimators[e].design->report().status != "ok") {
+        met[c].push_back(2);  // a failed design has no mse to wait for
+        continue;
+      }
+      std::vector<double> v;
+      v.reserve(n);
+      bool diverged = false;
+      for (std::uint64_t r = 0; r < n; ++r) {
+        const EstimatorRunMetrics& m = results[c].runs[r][e];
+        if (m.diverged || m.count == 0) {
+          diverged = true;
+          break;
+        }
+        v.push_back(m.sse / static_cast<double>(m.count));
+      }
+      if (diverged) {
+        met[c].push_back(2);  // no finite mse: summary.csv leaves it empty, nothing to wait for
+        continue;
+      }
+      double sum = 0.0, largest = 0.0;
+      for (double x : v) {
+        sum += x;
+        largest = std::max(largest, x);
+      }
+      const double mean = sum / static_cast<double>(v.size());
+      const auto ci = ci95_half_width(v);
+      const bool ci_ok = ci && (mean > 0.0 ? *ci / mean <= rel : *ci == 0.0);
+      // Heavy-tail guard: no single run may carry more than `rel` of the sum, i.e. leaving out
+      // any one run moves the mean by at most the target. A heavy-tailed row whose rare large
+      // runs have not shown up yet has a deceptively small sample variance; this keeps it
+      // running until one run can no longer dominate.
+      const bool share_ok = sum > 0.0 ? largest / sum <= rel : true;
+      met[c].push_back(n >= kTargetMinRuns && ci_ok && share_ok ? 1 : 0);
+    }
+  }
+  return met;
+}
+
+TargetDecision decide_target(const LoadedScenario& loaded, const std::vector<CampaignResult>& results,
+                             const TargetRule& rule) {
+  std::uint64_t avail = std::numeric_limits<std::uint64_t>::max();
+  for (const auto& res : results) {
+    std::uint64_t i = 0;
+    while (i < res.run_ids.size() && res.run_ids[i] == i) ++i;
+    avail = std::min(avail, i);
+  }
+  TargetDecision d;
+  for (std::uint64_t n = std::min(rule.batch, rule.max_runs);; n = std::min(n + rule.batch, rule.max_runs)) {
+    if (n > avail) return d;
+    d.met = target_met(loaded, results, n, rule.rel);
+    bool all = true;
+    for (const auto& row : d.met) {
+      for (char m : row) all = all && m != 0;
+    }
+    if (all || n == rule.max_runs) {
+      d.decided = true;
+      d.runs = n;
+      d.reason = all ? "target_ci" : "max_runs";
+      return d;
+    }
+  }
+}
+
+struct ExportInfo {
+  std::string command_line;
+  std::string stopped;  // why the campaign stopped early ("" when it did not)
+};
+
+// Every export of the store, built by the functions of sim/output.h from the stored runs.
+std::vector<std::pair<std::string, std::string>> derive_exports(const LoadedScenario& loaded, const RunStore& store,
+                                                                const ExportInfo& info, std::string* markdown) {
+  const auto meta = store.meta();
+  const Shard shard = shard_of(meta);
+  const TargetRule rule = target_of(meta, loaded);
+  std::vector<CampaignResult> results(loaded.cases.size());
+  std::vector<SummaryRow> rows;
+  std::uint64_t done = 0, expected = 0;
+  for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
+    CampaignResult& res = results[c];
+    for (auto& [run, m] : store.load_case(c)) {
+      res.run_ids.push_back(run);
+      res.runs.push_back(std::move(m));
+    }
+  }
+  TargetDecision decision;
+  if (rule.on() && shard.count <= 1) {
+    decision = decide_target(loaded, results, rule);
+    if (decision.decided) {  // runs beyond the stopping point (e.g. of shards) are not used
+      for (auto& res : results) {
+        res.runs.resize(decision.runs);
+        res.run_ids.resize(decision.runs);
+      }
+    }
+  }
+  for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
+    const Scenario& sc = *loaded.cases[c].scenario;
+    CampaignResult& res = results[c];
+    res.ns_per_period = store.timing(c, sc.estimators.size());
+    done += res.runs.size();
+    if (decision.decided) {
+      expected += decision.runs;
+    } else if (rule.on()) {
+      expected += shard.count <= 1 ? rule.max_runs
+                                   : rule.max_runs / shard.count + (shard.index < rule.max_runs % shard.count ? 1 : 0);
+    } else {
+      expected += owned_runs(sc, shard);
+    }
+    auto case_rows = summarise(sc, res, loaded.cases[c].labels);
+    for (std::size_t e = 0; e < case_rows.size(); ++e) {
+      if (!decision.decided) continue;
+      case_rows[e].stop = decision.reason;
+      if (decision.met[c][e] == 0 && case_rows[e].status == "ok") case_rows[e].status = "ci_target_not_met";
+    }
+    rows.insert(rows.end(), case_rows.begin(), case_rows.end());
+  }
+  const Scenario& first = *loaded.cases.front().scenario;
+  const Eigen::Index n = first.model.plant.n();
+  std::vector<std::vector<std::string>> labels;
+  std::vector<const Scenario*> scs;
+  std::vector<const CampaignResult*> res;
+  for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
+    labels.push_back(loaded.cases[c].labels);
+    scs.push_back(loaded.cases[c].scenario.get());
+    res.push_back(&results[c]);
+  }
+  const bool complete = decision.decided || (!rule.on() && done == expected);
+  std::string md = summary_markdown(first.title, loaded.sweeps, rows, n);
+  if (decision.decided) {
+    md += decision.reason == "target_ci"
+              ? fmt::format("\nStopped at {} runs per case: every row's 95 % CI half-width of mse is within {:g} % of "
+                            "its mean (`--target-ci {:g}`, batches of {}).\n",
+                            decision.runs, 100.0 * rule.rel, rule.rel, rule.batch)
+              : fmt::format("\nStopped at `--max-runs {}`: the rows with status `ci_target_not_met` did not reach "
+                            "the 95 % CI half-width target of {:g} % of mse (`--target-ci {:g}`).\n",
+                            decision.runs, 100.0 * rule.rel, rule.rel);
+  }
+  if (!complete || shard.count > 1) {
+    md += fmt::format("\n**Partial results**: {} of {} runs{}{}.\n", done, expected,
+                      shard.count > 1 ? fmt::format(" of shard {}/{}", shard.index + 1, shard.count) : "",
+                      info.stopped.empty() ? "" : fmt::format(" (stopped by {})", info.stopped));
+    if (!complete) md += "`ncosim run FILE --out DIR --resume` (same options) runs the missing ones.\n";
+    if (shard.count > 1) md += "`ncosim merge OUT DIR...` combines the shards' stores into the whole campaign.\n";
+  }
+  double wall = 0.0;
+  int threads = 1;
+  try {
+    wall = std::stod(meta.at("wall_seconds"));
+    threads = std::stoi(meta.at("threads"));
+  } catch (...) {
+  }
+  nlohmann::json man = campaign_manifest(loaded, info.command_line, threads, wall);
+  man["store"] = "runs.sqlite";
+  man["ranks"] = meta.count("ranks") != 0 ? std::stoi(meta.at("ranks")) : 1;
+  man["runs_done"] = done;
+  man["runs_expected"] = expected;
+  man["complete"] = complete;
+  man["stopped"] = info.stopped.empty() ? nlohmann::json(nullptr) : nlohmann::json(info.stopped);
+  man["shard"] = shard.count > 1 ? nlohmann::json(meta.at("shard")) : nlohmann::json(nullptr);
+  if (rule.on()) {
+    man["target_ci"] = {{"rel", rule.rel},
+                        {"max_runs", rule.max_runs},
+                        {"batch", rule.batch},
+                        {"runs", decision.decided ? nlohmann::json(decision.runs) : nlohmann::json(nullptr)},
+                        {"stop", decision.decided ? nlohmann::json(decision.reason) : nlohmann::json(nullptr)}};
+  }
+  std::vector<std::pair<std::string, std::string>> files{
+      {"summary.csv", summary_csv(loaded.sweeps, rows, n)},
+      {"summary.md", md},
+      {"runs.csv", runs_csv(loaded.sweeps, labels, scs, res)},
+      {"transmissions.csv", transmissions_csv(loaded.sweeps, labels, scs, res)},
+      {"design.json", design_json(loaded).dump(2) + "\n"},
+      {"manifest.json", man.dump(2) + "\n"},
+  };
+  const auto art = store.artifacts();
+  if (const auto it = art.find("trajectory.csv"); it != art.end()) files.emplace_back("trajectory.csv", it->second);
+  const std::string confusion = confusion_csv(loaded.sweeps, rows);
+  if (confusion.find('\n') + 1 < confusion.size()) files.emplace_back("confusion.csv", confusion);
+  if (markdown != nullptr) *markdown = std::move(md);
+  return files;
+}
+
+const std::vector<std::string> kStale{"trajectory.csv", "confusion.csv"};
+
+// Derives the exports, closes the store (checkpoint: the folder then holds runs.sqlite alone,
+// no -wal), then writes the exports atomically.
+std::string export_and_close(const LoadedScenario& loaded, RunStore& store, const std::string& out,
+                             const ExportInfo& info) {
+  std::string md;
+  auto files = derive_exports(loaded, store, info, &md);
+  store.close();
+  write_files_atomically(out, files, kStale);
+  return md;
+}
+
+}  // namespace
+
+Shard parse_shard(const std::string& text) {
+  const auto bad = [&] {
+    return ScenarioError(fmt::format("--shard: expected I/N with 1 <= I <= N (e.g. 2/4), got '{}'", text));
+  };
+  const auto slash = text.find('/');
+  if (slash == std::string::npos) throw bad();
+  std::uint64_t i = 0, n = 0;
+  const char* b = text.data();
+  const char* e = text.data() + text.size();
+  auto r1 = std::from_chars(b, b + slash, i);
+  auto r2 = std::from_chars(b + slash + 1, e, n);
+  if (r1.ec != std::errc() || r1.ptr != b + slash || r2.ec != std::errc() || r2.ptr != e || i < 1 || n < 1 || i > n ||
+      n > 1'000'000) {
+    throw bad();
+  }
+  return Shard{i - 1, n};
+}
+
+int cmd_run_campaign(const RunCommand& cmd) {
+  const Shard shard = cmd.shard.empty() ? Shard{} : parse_shard(cmd.shard);
+  if (!cmd.target_ci && cmd.max_runs > 0) throw ScenarioError("--max-runs: only with --target-ci");
+  if (cmd.target_ci && (!std::isfinite(*cmd.target_ci) || *cmd.target_ci <= 0.0 || *cmd.target_ci >= 1.0)) {
+    throw ScenarioError(fmt::format("--target-ci: expected a relative half-width in (0, 1), e.g. 0.01, got {}",
+                                    *cmd.target_ci));
+  }
+  if (cmd.target_ci && cmd.max_runs <= 0) {
+    throw ScenarioError("--target-ci: --max-runs N is required (the most runs per case before giving up)");
+  }
+  LoadedScenario loaded = load_cases(cmd.file, cmd.sets, cmd.overrides);
+  const std::string& out = cmd.out;
+  auto meta = campaign_meta(loaded, cmd.overrides, cmd.shard.empty() ? "" : fmt::format("{}/{}", shard.index + 1, shard.count));
+  TargetRule rule;
+  if (cmd.target_ci) {
+    const auto batch = loaded.cases.front().scenario->run.runs;
+    for (const auto& c : loaded.cases) {
+      if (c.scenario->run.runs != batch) {
+        throw ScenarioError("--target-ci: every sweep case must have the same run.runs (the batch size)");
+      }
+    }
+    if (cmd.max_runs < batch) {
+      throw ScenarioError(fmt::format("--max-runs: expected at least run.runs = {} (one batch), got {}", batch,
+                                      cmd.max_runs));
+    }
+    bool reachable = false;
+    for (const auto& c : loaded.cases) {
+      for (const auto& e : c.scenario->estimators) reachable = reachable || e.design->report().status == "ok";
+    }
+    if (!reachable) throw ScenarioError("--target-ci: no estimator has a working design, so no row has an mse to reach the target");
+    meta["target_ci"] = fmt::format("{:.17g}", *cmd.target_ci);
+    meta["max_runs"] = std::to_string(cmd.max_runs);
+    rule = target_of(meta, loaded);
+  }
+  // Under mpirun: ranks > 0 simulate what rank 0 hands out; rank 0 goes on alone from here.
+  std::unique_ptr<MpiSession> mpi;
+  if (mpi_launched()) {
+    if (!mpi_available()) {
+      throw ScenarioError("started by mpirun with several ranks, but this ncosim was built without MPI "
+                          "(CMake option NCOSIM_MPI; Debian libboost-mpi-dev libopenmpi-dev)");
+    }
+    mpi = std::make_unique<MpiSession>();
+    if (mpi->rank() > 0) {
+      std::vector<const Scenario*> cases;
+      for (const auto& c : loaded.cases) cases.push_back(c.scenario.get());
+      mpi->serve(cases);
+      return 0;
+    }
+  }
+  prepare_output_dir(out);  // fail before the campaign, not after it
+  const std::string path = store_path(out);
+  RunStore store;
+  if (cmd.resume) {
+    std::error_code ec;
+    if (!std::filesystem::exists(path, ec)) {
+      throw ScenarioError(fmt::format("--resume: no run store to resume in '{}' (expected {})", out, path));
+    }
+    try {
+      store = RunStore::open(path, true);
+    } catch (const StoreError& e) {
+      throw ScenarioError(fmt::format("--resume: {}", e.what()));
+    }
+    const std::string diff = identity_difference(store.meta(), meta, true);
+    if (!diff.empty()) {
+      throw ScenarioError(fmt::format("--resume: {} holds a different campaign: {} differ(s) (stored vs now); run "
+                                      "without --resume to start afresh, or choose another --out",
+                                      path, diff));
+    }
+  } else {
+    store = RunStore::create(path, meta);
+  }
+  std::vector<std::vector<std::uint64_t>> stored(loaded.cases.size());
+  for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
+    std::vector<std::string> names;
+    for (const auto& e : loaded.cases[c].scenario->estimators) names.push_back(e.name);
+    store.put_estimators(c, names);
+    if (cmd.resume) stored[c] = store.done_runs(c);
+  }
+
+  const bool tty = ::isatty(2) != 0;
+  StopSignals signals;
+  double wall = 0.0;
+  int used_threads = 1;
+  std::uint64_t simulated = 0, skipped = 0;
+  std::vector<char> timed(loaded.cases.size(), 0), ran(loaded.cases.size(), 0);
+  std::vector<TraceRow> trace;
+  {
+    StoreSink sink(store);
+    // Batches: the whole campaign at once, or with --target-ci fixed batches of run.runs.
+    for (std::uint64_t lo = 0; g_stop.load() == 0;) {
+      const std::uint64_t hi = rule.on() ? std::min(lo + rule.batch, rule.max_runs) : 0;
+      for (std::size_t c = 0; c < loaded.cases.size() && g_stop.load() == 0; ++c) {
+        const Scenario& sc = *loaded.cases[c].scenario;
+        const std::uint64_t limit = rule.on() ? hi : static_cast<std::uint64_t>(sc.run.runs);
+        const auto& done = stored[c];
+        std::vector<std::uint64_t> todo;
+        auto d = std::lower_bound(done.begin(), done.end(), lo);
+        for (std::uint64_t r = lo; r < limit; ++r) {
+          if (!shard.owns(r)) continue;
+          while (d != done.end() && *d < r) ++d;
+          if (d != done.end() && *d == r) {
+            ++skipped;
+            continue;
+          }
+          todo.push_back(r);
+        }
+        if (todo.empty()) continue;
+        CampaignOptions opt;
+        opt.threads = mpi && cmd.threads == 0 ? 1 : cmd.threads;  // one thread per rank unless asked
+        opt.progress = tty && !cmd.quiet;
+        opt.progress_log = !tty && !cmd.quiet;
+        opt.trace = cmd.trace && c == 0;
+        opt.time_estimators = cmd.timing && timed[c] == 0;
+        std::string label = loaded.cases.size() > 1 ? fmt::format("case {}/{}", c + 1, loaded.cases.size()) : "";
+        if (rule.on()) label += fmt::format("{}runs {}..{}", label.empty() ? "" : ", ", lo, limit - 1);
+        opt.progress_label = label.empty() ? "" : label + ":";
+        opt.only_runs = std::move(todo);
+        opt.stop = &g_stop;
+        opt.on_run = [&sink, c](std::uint64_t run, RunMetrics&& m) { sink.push(c, run, std::move(m)); };
+        CampaignResult res = mpi ? mpi->run(sc, c, opt) : run_campaign(sc, opt);
+        sink.flush();
+        wall += res.wall_seconds;
+        used_threads = res.threads;
+        simulated += res.runs_done;
+        ran[c] = 1;
+        if (!res.trace.empty()) trace = std::move(res.trace);
+        if (opt.time_estimators && !res.stopped) {
+          timed[c] = 1;
+          sink.with_store([&](RunStore& s) { s.put_timing(c, res.ns_per_period); });
+        }
+      }
+      if (!rule.on() || hi >= rule.max_runs || g_stop.load() != 0) break;
+      if (shard.count <= 1) {  // a shard cannot decide: it runs to --max-runs, merge decides
+        std::vector<CampaignResult> results(loaded.cases.size());
+        sink.with_store([&](RunStore& s) {
+          for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
+            for (auto& [run, m] : s.load_case(c)) {
+              results[c].run_ids.push_back(run);
+              results[c].runs.push_back(std::move(m));
+            }
+          }
+        });
+        if (decide_target(loaded, results, rule).decided) break;
+      }
+      lo = hi;
+    }
+    for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
+      if (!cmd.timing && ran[c] != 0) {
+        const std::size_t ne = loaded.cases[c].scenario->estimators.size();
+        sink.with_store([&](RunStore& s) { s.put_timing(c, std::vector<double>(ne, std::nan(""))); });
+      }
+    }
+    if (cmd.trace && trace.empty() && g_stop.load() == 0) {  // run 0 was done by an earlier session
+      simulate_run(*loaded.cases.front().scenario, 0, &trace);
+    }
+    if (cmd.trace && !trace.empty()) {
+      const std::string csv = trajectory_csv(*loaded.cases.front().scenario, trace);
+      sink.with_store([&](RunStore& s) { s.put_artifact("trajectory.csv", csv); });
+    }
+    sink.finish();
+  }
+  const int sig = g_stop.load();
+  {
+    const auto m = store.meta();
+    double total = wall;
+    try {
+      total += std::stod(m.at("wall_seconds"));
+    } catch (...) {
+    }
+    store.set_meta("wall_seconds", fmt::format("{:.17g}", total));
+    store.set_meta("threads", std::to_string(used_threads));
+    store.set_meta("ranks", std::to_string(mpi ? mpi->size() : 1));
+    store.set_meta("stopped", sig > 0 ? signal_name(sig) : "");
+  }
+  ExportInfo info;
+  info.command_line = cmd.command_line;
+  info.stopped = sig > 0 ? signal_name(sig) : "";
+  const std::string md = export_and_close(loaded, store, out, info);
+  const Scenario& first = *loaded.cases.front().scenario;
+  std::cout << md
+            << fmt::format("\n{} runs x {} periods x {} case(s){} in {:.2f} s on {} thread(s){}; results in {}/\n",
+                           simulated, first.run.periods, loaded.cases.size(),
+                           skipped > 0 ? fmt::format(" ({} earlier runs resumed)", skipped) : "", wall, used_threads,
+                           cmd.shard.empty() ? "" : fmt::format(", shard {}", cmd.shard), out);
+  if (sig > 0) {
+    std::cerr << fmt::format("ncosim: stopped by {}: {} run(s) committed to {}; partial results written; "
+                             "`--resume` continues\n",
+                             signal_name(sig), simulated, path);
+    return 128 + sig;
+  }
+  return 0;
+}
+
+int cmd_export(const std::string& dir, const std::string& out, const std::string& command_line) {
+  const std::string path = store_path(dir);
+  RunStore store;
+  try {
+    store = RunStore::open(path, true);
+  } catch (const StoreError& e) {
+    throw ScenarioError(fmt::format("export: {}", e.what()));
+  }
+  const auto meta = store.meta();
+  LoadedScenario loaded = reload(meta);
+  ExportInfo info;
+  info.command_line = command_line;
+  info.stopped = meta.count("stopped") != 0 ? meta.at("stopped") : "";
+  const std::string target = out.empty() ? dir : out;
+  export_and_close(loaded, store, target, info);
+  std::cout << fmt::format("exports of {} written to {}/\n", path, target);
+  return 0;
+}
+
+int cmd_merge(const std::string& out, const std::vector<std::string>& dirs, const std::string& command_line) {
+  namespace fs = std::filesystem;
+  if (dirs.empty()) throw ScenarioError("merge: expected at least one shard folder");
+  std::error_code ec;
+  for (const auto& d : dirs) {
+    if (fs::exists(out, ec) && fs::exists(d, ec) && fs::equivalent(out, d, ec)) {
+      throw ScenarioError(fmt::format("merge: the output folder '{}' is also an input", out));
+    }
+  }
+  std::vector<RunStore> stores;
+  std::vector<std::map<std::string, std::string>> metas;
+  for (const auto& d : dirs) {
+    try {
+      stores.push_back(RunStore::open(store_path(d), false));
+    } catch (const StoreError& e) {
+      throw ScenarioError(fmt::format("merge: {}", e.what()));
+    }
+    metas.push_back(stores.back().meta());
+    const std::string diff = identity_difference(metas.front(), metas.back(), false);
+    if (!diff.empty()) {
+      throw ScenarioError(fmt::format("merge: {} and {} are shards of different campaigns: {} differ(s)",
+                                      store_path(dirs.front()), store_path(d), diff));
+    }
+  }
+  LoadedScenario loaded = reload(metas.front());
+  // Every (case, run) exactly once.
+  std::map<std::pair<std::size_t, std::uint64_t>, std::size_t> owner;
+  for (std::size_t s = 0; s < stores.size(); ++s) {
+    for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
+      for (std::uint64_t r : stores[s].done_runs(c)) {
+        const auto [it, fresh] = owner.emplace(std::make_pair(c, r), s);
+        if (!fresh) {
+          throw ScenarioError(fmt::format("merge: run {} of case {} is in both {} and {} (overlapping shards)", r,
+                                          c + 1, store_path(dirs[it->second]), store_path(dirs[s])));
+        }
+      }
+    }
+  }
+  std::vector<std::string> missing;
+  std::size_t missing_count = 0;
+  const TargetRule rule = target_of(metas.front(), loaded);  // shards of a --target-ci campaign run to --max-runs
+  for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
+    const auto runs = rule.on() ? rule.max_runs : static_cast<std::uint64_t>(loaded.cases[c].scenario->run.runs);
+    for (std::uint64_t r = 0; r < runs; ++r) {
+      if (owner.count({c, r}) != 0) continue;
+      ++missing_count;
+      if (missing.size() < 5) missing.push_back(loaded.cases.size() > 1 ? fmt::format("case {} run {}", c + 1, r) : fmt::format("run {}", r));
+    }
+  }
+  if (missing_count > 0) {
+    std::string list;
+    for (std::size_t i = 0; i < missing.size(); ++i) list += (i ? ", " : "") + missing[i];
+    throw ScenarioError(fmt::format("merge: {} run(s) missing from the given stores (first: {}); merge every shard, "
+                                    "each complete (`ncosim run ... --shard I/N --resume` finishes one)",
+                                    missing_count, list));
+  }
+  prepare_output_dir(out);
+  auto meta = metas.front();
+  meta["shard"] = "";
+  meta.erase("store");
+  double wall = 0.0;
+  for (const auto& m : metas) {
+    try {
+      wall += std::stod(m.at("wall_seconds"));
+    } catch (...) {
+    }
+  }
+  meta["wall_seconds"] = fmt::format("{:.17g}", wall);
+  meta["merged_from"] = json_text(dirs);
+  meta["stopped"] = "";
+  RunStore merged = RunStore::create(store_path(out), meta);
+  for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
+    const Scenario& sc = *loaded.cases[c].scenario;
+    std::vector<std::string> names;
+    for (const auto& e : sc.estimators) names.push_back(e.name);
+    merged.put_estimators(c, names);
+    std::vector<StoredRun> batch;
+    for (auto& store : stores) {
+      for (auto& [run, m] : store.load_case(c)) batch.push_back(StoredRun{c, run, std::move(m)});
+    }
+    merged.put_runs(batch);
+    // Timing: the first shard that measured it.
+    std::vector<double> ns(sc.estimators.size(), std::nan(""));
+    for (auto& store : stores) {
+      const auto t = store.timing(c, sc.estimators.size());
+      bool any = false;
+      for (double v : t) any = any || std::isfinite(v);
+      if (any) {
+        ns = t;
+        break;
+      }
+    }
+    merged.put_timing(c, ns);
+  }
+  for (auto& store : stores) {
+    for (const auto& [name, content] : store.artifacts()) merged.put_artifact(name, content);
+  }
+  for (auto& store : stores) store.close();
+  ExportInfo info;
+  info.command_line = command_line;
+  export_and_close(loaded, merged, out, info);
+  std::cout << fmt::format("{} store(s) merged: {} runs x {} case(s); results in {}/\n", dirs.size(), owner.size(),
+                           loaded.cases.size(), out);
+  return 0;
+}
+
+}  // namespace ncosim::sim

@@ -1,0 +1,208 @@
+// sim/mpi_campaign.cc — runs over MPI ranks (see mpi_campaign.h).
+#include "sim/mpi_campaign.h"
+
+#include <fmt/format.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <mutex>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "sim/store.h"
+
+#if NCOSIM_HAVE_MPI
+#include <boost/mpi/communicator.hpp>
+#include <boost/mpi/environment.hpp>
+#include <boost/serialization/string.hpp>
+#include <boost/serialization/vector.hpp>
+#endif
+
+namespace ncosim::sim {
+
+bool mpi_launched() {
+  for (const char* var : {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_SIZE", "MPI_LOCALNRANKS"}) {
+    const char* v = std::getenv(var);
+    if (v != nullptr && std::atoi(v) > 1) return true;
+  }
+  return false;
+}
+
+#if NCOSIM_HAVE_MPI
+
+bool mpi_available() { return true; }
+
+namespace {
+
+constexpr int kWork = 1;    // rank 0 -> worker: {case, run}
+constexpr int kResult = 2;  // worker -> rank 0: 8 bytes case, 8 bytes run, the serialized metrics
+constexpr int kError = 3;   // worker -> rank 0: what failed
+constexpr int kStop = 4;    // rank 0 -> worker: no more work
+
+void put_u64(std::string& s, std::uint64_t v) {
+  for (int i = 0; i < 8; ++i) s.push_back(static_cast<char>((v >> (8 * i)) & 0xFF));
+}
+std::uint64_t get_u64(const std::string& s, std::size_t at) {
+  std::uint64_t v = 0;
+  for (int i = 0; i < 8; ++i) v |= static_cast<std::uint64_t>(static_cast<unsigned char>(s[at + i])) << (8 * i);
+  return v;
+}
+
+}  // namespace
+
+struct MpiSession::Impl {
+  boost::mpi::environment env{boost::mpi::threading::serialized};
+  boost::mpi::communicator world;
+};
+
+MpiSession::MpiSession() : impl_(std::make_unique<Impl>()) {
+  if (impl_->env.thread_level() < boost::mpi::threading::serialized) {
+    throw std::runtime_error("MPI: the MPI library does not provide MPI_THREAD_SERIALIZED");
+  }
+}
+
+MpiSession::~MpiSession() {
+  if (impl_->world.rank() == 0) {
+    for (int w = 1; w < impl_->world.size(); ++w) impl_->world.send(w, kStop);
+  }
+}
+
+int MpiSession::rank() const { return impl_->world.rank(); }
+int MpiSession::size() const { return impl_->world.size(); }
+
+CampaignResult MpiSession::run(const Scenario& sc, std::size_t case_index, const CampaignOptions& options) {
+  auto& world = impl_->world;
+  CampaignResult result;
+  std::vector<std::uint64_t> todo;
+  if (options.only_runs) {
+    todo = *options.only_runs;
+  } else {
+    for (std::int64_t r = 0; r < sc.run.runs; ++r) todo.push_back(static_cast<std::uint64_t>(r));
+  }
+  const std::size_t n = todo.size();
+  const int threads = std::max(1, options.threads);
+  result.threads = threads;
+  const auto start = std::chrono::steady_clock::now();
+  std::atomic<std::size_t> next{0}, done{0};
+  std::mutex sink_mutex, error_mutex;
+  std::exception_ptr error;
+  std::atomic<bool> failed{false};
+  auto stop_requested = [&] { return (options.stop != nullptr && options.stop->load() != 0) || failed.load(); };
+  auto deliver = [&](std::uint64_t run, RunMetrics&& m) {
+    std::lock_guard<std::mutex> lock(sink_mutex);
+    options.on_run(run, std::move(m));
+    done.fetch_add(1);
+  };
+  auto local = [&] {
+    while (!stop_requested()) {
+      const std::size_t i = next.fetch_add(1);
+      if (i >= n) return;
+      try {
+        deliver(todo[i], simulate_run(sc, todo[i]));
+      } catch (...) {
+        std::lock_guard<std::mutex> lock(error_mutex);
+        if (!error) error = std::current_exception();
+        failed = true;
+        return;
+      }
+    }
+  };
+  std::vector<std::thread> pool;
+  for (int t = 0; t < threads; ++t) pool.emplace_back(local);
+  // The service: this thread alone talks MPI. Two runs outstanding per worker rank, so a
+  // worker never waits for its next run; polled, so that waiting costs no core.
+  int outstanding = 0;
+  auto give = [&](int w) {
+    if (stop_requested()) return;
+    const std::size_t i = next.fetch_add(1);
+    if (i >= n) return;
+    world.send(w, kWork, std::vector<std::uint64_t>{case_index, todo[i]});
+    ++outstanding;
+  };
+  for (int w = 1; w < world.size(); ++w) {
+    give(w);
+    give(w);
+  }
+  auto last_log = start;
+  while (outstanding > 0) {
+    if (auto st = world.iprobe(boost::mpi::any_source, boost::mpi::any_tag)) {
+      std::string msg;
+      world.recv(st->source(), st->tag(), msg);
+      --outstanding;
+      if (st->tag() == kError) {
+        std::lock_guard<std::mutex> lock(error_mutex);
+        if (!error) error = std::make_exception_ptr(std::runtime_error(fmt::format("MPI rank {}: {}", st->source(), msg)));
+        failed = true;
+        continue;
+      }
+      deliver(get_u64(msg, 8), deserialize_run(msg.substr(16)));
+      give(st->source());
+    } else {
+      std::this_thread::sleep_for(std::chrono::microseconds(200));
+    }
+    if (options.progress_log && std::chrono::steady_clock::now() - last_log > std::chrono::seconds(5)) {
+      last_log = std::chrono::steady_clock::now();
+      const double el = std::chrono::duration<double>(last_log - start).count();
+      std::fprintf(stderr, "ncosim: %s%s%zu/%zu runs on %d ranks, %.1f s elapsed\n", options.progress_label.c_str(),
+                   options.progress_label.empty() ? "" : " ", done.load(), n, world.size(), el);
+    }
+  }
+  for (auto& t : pool) t.join();
+  if (error) std::rethrow_exception(error);
+  result.runs_done = done.load();
+  result.stopped = result.runs_done < n;
+  result.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  result.ns_per_period.assign(sc.estimators.size(), std::nan(""));
+  if (options.time_estimators && !result.stopped && n > 0) simulate_run(sc, todo[0], nullptr, &result.ns_per_period);
+  return result;
+}
+
+void MpiSession::serve(const std::vector<const Scenario*>& cases) {
+  auto& world = impl_->world;
+  while (true) {
+    auto st = world.iprobe(0, boost::mpi::any_tag);
+    if (!st) {
+      std::this_thread::sleep_for(std::chrono::microseconds(100));
+      continue;
+    }
+    if (st->tag() == kStop) {
+      world.recv(0, kStop);
+      return;
+    }
+    std::vector<std::uint64_t> work;
+    world.recv(0, kWork, work);
+    try {
+      if (work.size() != 2 || work[0] >= cases.size()) throw std::runtime_error("malformed work message");
+      const RunMetrics m = simulate_run(*cases[work[0]], work[1]);
+      std::string msg;
+      put_u64(msg, work[0]);
+      put_u64(msg, work[1]);
+      msg += serialize_run(m);
+      world.send(0, kResult, msg);
+    } catch (const std::exception& e) {
+      world.send(0, kError, std::string(e.what()));
+    }
+  }
+}
+
+#else  // no MPI support in this build
+
+bool mpi_available() { return false; }
+struct MpiSession::Impl {};
+MpiSession::MpiSession() {
+  throw std::runtime_error("this ncosim was built without MPI support (CMake option NCOSIM_MPI)");
+}
+MpiSession::~MpiSession() = default;
+int MpiSession::rank() const { return 0; }
+int MpiSession::size() const { return 1; }
+CampaignResult MpiSession::run(const Scenario&, std::size_t, const CampaignOptions&) { return {}; }
+void MpiSession::serve(const std::vector<const Scenario*>&) {}
+
+#endif
+
+}  // namespace ncosim::sim

@@ -1,0 +1,467 @@
+// sim/store.cc — the SQLite run store (see store.h).
+#include "sim/store.h"
+
+#include <fmt/format.h>
+#include <sqlite3.h>
+
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+
+namespace ncosim::sim {
+
+// Whoever adds a field to EstimatorRunMetrics must add it to serialize_run/deserialize_run
+// (and bump kFormat), or stored campaigns would silently lose it on export, resume and merge.
+static_assert(sizeof(EstimatorRunMetrics) == 264 || sizeof(void*) != 8,
+              "EstimatorRunMetrics changed: update serialize_run/deserialize_run in sim/store.cc");
+
+namespace {
+
+constexpr std::uint32_t kFormat = 1;  // version of the run blob
+
+class Writer {
+ public:
+  void u8(std::uint8_t v) { out_.push_back(static_cast<char>(v)); }
+  void i64(std::int64_t v) { raw(static_cast<std::uint64_t>(v)); }
+  void f64(double v) { raw(std::bit_cast<std::uint64_t>(v)); }
+  void size(std::size_t v) { raw(static_cast<std::uint64_t>(v)); }
+  void str(const std::string& s) {
+    size(s.size());
+    out_ += s;
+  }
+  void f64s(const std::vector<double>& v) {
+    size(v.size());
+    for (double x : v) f64(x);
+  }
+  void i64s(const std::vector<std::int64_t>& v) {
+    size(v.size());
+    for (auto x : v) i64(x);
+  }
+  std::string take() { return std::move(out_); }
+
+ private:
+  void raw(std::uint64_t v) {  // little-endian, whatever the host
+    for (int i = 0; i < 8; ++i) out_.push_back(static_cast<char>((v >> (8 * i)) & 0xFF));
+  }
+  std::string out_;
+};
+
+class Reader {
+ public:
+  explicit Reader(const std::string& in) : in_(in) {}
+  std::uint8_t u8() {
+    need(1);
+    return static_cast<std::uint8_t>(in_[pos_++]);
+  }
+  std::int64_t i64() { return static_cast<std::int64_t>(raw()); }
+  double f64() { return std::bit_cast<double>(raw()); }
+  std::size_t size() {
+    const std::uint64_t v = raw();
+    if (v > in_.size() - pos_) throw StoreError("run store: corrupt run record (length beyond the record)");
+    return static_cast<std::size_t>(v);
+  }
+  std::string str() {
+    const std::size_t n = size();
+    need(n);
+    std::string s = in_.substr(pos_, n);
+    pos_ += n;
+    return s;
+  }
+  std::vector<double> f64s() {
+    std::vector<double> v(size());
+    for (auto& x : v) x = f64();
+    return v;
+  }
+  std::vector<std::int64_t> i64s() {
+    std::vector<std::int64_t> v(size());
+    for (auto& x : v) x = i64();
+    return v;
+  }
+  bool at_end() const { return pos_ == in_.size(); }
+
+ private:
+  void need(std::size_t n) const {
+    if (in_.size() - pos_ < n) throw StoreError("run store: corrupt run record (truncated)");
+  }
+  std::uint64_t raw() {
+    need(8);
+    std::uint64_t v = 0;
+    for (int i = 0; i < 8; ++i) v |= static_cast<std::uint64_t>(static_cast<unsigned char>(in_[pos_ + i])) << (8 * i);
+    pos_ += 8;
+    return v;
+  }
+  const std::string& in_;
+  std::size_t pos_ = 0;
+};
+
+// A prepared statement, finalized on scope exit.
+class Stmt {
+ public:
+  Stmt(sqlite3* db, const char* sql) : db_(db) {
+    if (sqlite3_prepare_v2(db, sql, -1, &st_, nullptr) != SQLITE_OK) fail("prepare");
+  }
+  ~Stmt() { sqlite3_finalize(st_); }
+  Stmt(const Stmt&) = delete;
+  Stmt& operator=(const Stmt&) = delete;
+  Stmt& bind(int i, std::int64_t v) {
+    check(sqlite3_bind_int64(st_, i, v));
+    return *this;
+  }
+  Stmt& bind(int i, double v) {
+    check(std::isfinite(v) ? sqlite3_bind_double(st_, i, v) : sqlite3_bind_null(st_, i));
+    return *this;
+  }
+  Stmt& bind(int i, const std::string& v) {
+    check(sqlite3_bind_text(st_, i, v.data(), static_cast<int>(v.size()), SQLITE_TRANSIENT));
+    return *this;
+  }
+  Stmt& bind_blob(int i, const std::string& v) {
+    check(sqlite3_bind_blob(st_, i, v.data(), static_cast<int>(v.size()), SQLITE_TRANSIENT));
+    return *this;
+  }
+  bool step() {
+    const int rc = sqlite3_step(st_);
+    if (rc == SQLITE_ROW) return true;
+    if (rc == SQLITE_DONE) return false;
+    fail("step");
+    return false;
+  }
+  void reset() {
+    sqlite3_reset(st_);
+    sqlite3_clear_bindings(st_);
+  }
+  std::int64_t i64(int c) const { return sqlite3_column_int64(st_, c); }
+  double f64(int c) const { return sqlite3_column_type(st_, c) == SQLITE_NULL ? std::nan("") : sqlite3_column_double(st_, c); }
+  std::string text(int c) const {
+    const auto* p = reinterpret_cast<const char*>(sqlite3_column_blob(st_, c));
+    return p == nullptr ? std::string() : std::string(p, static_cast<std::size_t>(sqlite3_column_bytes(st_, c)));
+  }
+
+ private:
+  void check(int rc) const {
+    if (rc != SQLITE_OK) fail("bind");
+  }
+  [[noreturn]] void fail(const char* what) const {
+    throw StoreError(fmt::format("run store: {}: {}", what, sqlite3_errmsg(db_)));
+  }
+  sqlite3* db_;
+  sqlite3_stmt* st_ = nullptr;
+};
+
+constexpr const char* kSchema = R"sql(
+CREATE TABLE campaign (key TEXT PRIMARY KEY, value TEXT NOT NULL) WITHOUT ROWID;
+CREATE TABLE estimators (case_index INTEGER NOT NULL, estimator INTEGER NOT NULL, name TEXT NOT NULL,
+                         PRIMARY KEY (case_index, estimator)) WITHOUT ROWID;
+CREATE TABLE runs (case_index INTEGER NOT NULL, run INTEGER NOT NULL, metrics BLOB NOT NULL,
+                   PRIMARY KEY (case_index, run)) WITHOUT ROWID;
+CREATE TABLE estimator_runs (case_index INTEGER NOT NULL, run INTEGER NOT NULL, estimator INTEGER NOT NULL,
+                             mse REAL, mse_ext REAL, periods INTEGER NOT NULL, samples_used INTEGER NOT NULL,
+                             samples_taken INTEGER NOT NULL, diverged INTEGER NOT NULL, status TEXT NOT NULL,
+                             PRIMARY KEY (case_index, run, estimator)) WITHOUT ROWID;
+CREATE TABLE timing (case_index INTEGER NOT NULL, estimator INTEGER NOT NULL, ns_per_period REAL,
+                     PRIMARY KEY (case_index, estimator)) WITHOUT ROWID;
+CREATE TABLE artifacts (name TEXT PRIMARY KEY, content BLOB NOT NULL) WITHOUT ROWID;
+CREATE VIEW estimator_runs_named AS
+  SELECT r.case_index, r.run, e.name AS estimator, r.mse, r.mse_ext, r.periods, r.samples_used,
+         r.samples_taken, r.diverged, r.status
+  FROM estimator_runs r JOIN estimators e USING (case_index, estimator);
+)sql";
+
+constexpr const char* kApplicationId = "ncosim run store";
+
+}  // namespace
+
+std::string serialize_run(const RunMetrics& run) {
+  Writer w;
+  w.i64(kFormat);
+  w.size(run.size());
+  for (const EstimatorRunMetrics& m : run) {
+    w.f64(m.sse);
+    w.f64(m.sse_ext);
+    w.f64s(m.sse_state);
+    w.i64(m.count);
+    w.i64(m.samples_used);
+    w.i64(m.samples_taken);
+    w.i64s(m.sensor_taken);
+    w.i64s(m.sensor_sent);
+    w.size(m.sensor_virtual_sse.size());
+    for (const auto& v : m.sensor_virtual_sse) w.f64s(v);
+    w.u8(m.diverged ? 1 : 0);
+    w.str(m.status);
+    w.i64(m.mode_count);
+    w.i64(m.mode_errors);
+    w.i64s(m.confusion);
+    w.u8(m.counters ? 1 : 0);
+    if (m.counters) {
+      w.f64(m.counters->flops);
+      w.f64(m.counters->flops_worst);
+      w.i64(m.counters->periods);
+      w.i64(m.counters->late);
+      w.i64(m.counters->duplicates);
+    }
+  }
+  return w.take();
+}
+
+RunMetrics deserialize_run(const std::string& blob) {
+  Reader r(blob);
+  const std::int64_t format = r.i64();
+  if (format != kFormat) {
+    throw StoreError(fmt::format("run store: run record format {} (this ncosim reads format {})", format, kFormat));
+  }
+  RunMetrics run(r.size());
+  for (EstimatorRunMetrics& m : run) {
+    m.sse = r.f64();
+    m.sse_ext = r.f64();
+    m.sse_state = r.f64s();
+    m.count = r.i64();
+    m.samples_used = r.i64();
+    m.samples_taken = r.i64();
+    m.sensor_taken = r.i64s();
+    m.sensor_sent = r.i64s();
+    m.sensor_virtual_sse.resize(r.size());
+    for (auto& v : m.sensor_virtual_sse) v = r.f64s();
+    m.diverged = r.u8() != 0;
+    m.status = r.str();
+    m.mode_count = r.i64();
+    m.mode_errors = r.i64();
+    m.confusion = r.i64s();
+    if (r.u8() != 0) {
+      est::Estimator::RunCounters c;
+      c.flops = r.f64();
+      c.flops_worst = r.f64();
+      c.periods = r.i64();
+      c.late = r.i64();
+      c.duplicates = r.i64();
+      m.counters = c;
+    }
+  }
+  if (!r.at_end()) throw StoreError("run store: corrupt run record (trailing bytes)");
+  return run;
+}
+
+std::string store_path(const std::string& dir) { return (std::filesystem::path(dir) / "runs.sqlite").string(); }
+
+RunStore& RunStore::operator=(RunStore&& o) noexcept {
+  if (this != &o) {
+    if (db_ != nullptr) sqlite3_close(db_);
+    db_ = o.db_;
+    path_ = std::move(o.path_);
+    o.db_ = nullptr;
+  }
+  return *this;
+}
+
+RunStore::~RunStore() {
+  if (db_ != nullptr) sqlite3_close(db_);
+}
+
+void RunStore::exec(const char* sql) const {
+  char* err = nullptr;
+  if (sqlite3_exec(db_, sql, nullptr, nullptr, &err) != SQLITE_OK) {
+    const std::string msg = err != nullptr ? err : sqlite3_errmsg(db_);
+    sqlite3_free(err);
+    throw StoreError(fmt::format("run store {}: {}", path_, msg));
+  }
+}
+
+namespace {
+
+sqlite3* open_db(const std::string& path, int flags) {
+  sqlite3* db = nullptr;
+  const int rc = sqlite3_open_v2(path.c_str(), &db, flags, nullptr);
+  if (rc != SQLITE_OK) {
+    const std::string msg = db != nullptr ? sqlite3_errmsg(db) : sqlite3_errstr(rc);
+    sqlite3_close(db);
+    throw StoreError(fmt::format("cannot open the run store '{}': {}", path, msg));
+  }
+  sqlite3_busy_timeout(db, 5000);
+  sqlite3_extended_result_codes(db, 1);
+  return db;
+}
+
+}  // namespace
+
+RunStore RunStore::create(const std::string& path, const std::map<std::string, std::string>& meta) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  for (const char* suffix : {"", "-wal", "-shm", "-journal"}) fs::remove(path + suffix, ec);
+  RunStore s;
+  s.path_ = path;
+  s.db_ = open_db(path, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE);
+  // WAL: readers never block the writer and a crash leaves the last committed state;
+  // synchronous=FULL: a commit is on disk (power loss included) before it returns.
+  s.exec("PRAGMA journal_mode=WAL; PRAGMA synchronous=FULL;");
+  s.exec("BEGIN");
+  s.exec(kSchema);
+  {
+    Stmt st(s.db_, "INSERT INTO campaign (key, value) VALUES (?, ?)");
+    st.bind(1, std::string("store")).bind(2, std::string(kApplicationId));
+    st.step();
+    for (const auto& [k, v] : meta) {
+      st.reset();
+      st.bind(1, k).bind(2, v);
+      st.step();
+    }
+  }
+  s.exec("COMMIT");
+  return s;
+}
+
+RunStore RunStore::open(const std::string& path, bool writable) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) throw StoreError(fmt::format("no run store at '{}'", path));
+  RunStore s;
+  s.path_ = path;
+  s.db_ = open_db(path, writable ? SQLITE_OPEN_READWRITE : SQLITE_OPEN_READONLY);
+  try {
+    if (writable) s.exec("PRAGMA journal_mode=WAL; PRAGMA synchronous=FULL;");
+    Stmt st(s.db_, "SELECT value FROM campaign WHERE key = 'store'");
+    if (!st.step() || st.text(0) != kApplicationId) throw StoreError("");
+  } catch (const StoreError&) {
+    throw StoreError(fmt::format("'{}' is not an ncosim run store", path));
+  }
+  return s;
+}
+
+std::map<std::string, std::string> RunStore::meta() const {
+  std::map<std::string, std::string> out;
+  Stmt st(db_, "SELECT key, value FROM campaign");
+  while (st.step()) out[st.text(0)] = st.text(1);
+  return out;
+}
+
+void RunStore::set_meta(const std::string& key, const std::string& value) {
+  Stmt st(db_, "INSERT OR REPLACE INTO campaign (key, value) VALUES (?, ?)");
+  st.bind(1, key).bind(2, value);
+  st.step();
+}
+
+void RunStore::put_estimators(std::size_t case_index, const std::vector<std::string>& names) {
+  exec("BEGIN");
+  try {
+    Stmt st(db_, "INSERT OR REPLACE INTO estimators (case_index, estimator, name) VALUES (?, ?, ?)");
+    for (std::size_t e = 0; e < names.size(); ++e) {
+      st.reset();
+      st.bind(1, static_cast<std::int64_t>(case_index)).bind(2, static_cast<std::int64_t>(e)).bind(3, names[e]);
+      st.step();
+    }
+  } catch (...) {
+    exec("ROLLBACK");
+    throw;
+  }
+  exec("COMMIT");
+}
+
+void RunStore::put_runs(const std::vector<StoredRun>& batch) {
+  if (batch.empty()) return;
+  exec("BEGIN");
+  try {
+    Stmt run(db_, "INSERT INTO runs (case_index, run, metrics) VALUES (?, ?, ?)");
+    Stmt est(db_,
+             "INSERT INTO estimator_runs (case_index, run, estimator, mse, mse_ext, periods, samples_used, "
+             "samples_taken, diverged, status) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
+    for (const StoredRun& r : batch) {
+      const auto c = static_cast<std::int64_t>(r.case_index);
+      const auto k = static_cast<std::int64_t>(r.run);
+      run.reset();
+      run.bind(1, c).bind(2, k).bind_blob(3, serialize_run(r.metrics));
+      run.step();
+      for (std::size_t e = 0; e < r.metrics.size(); ++e) {
+        const EstimatorRunMetrics& m = r.metrics[e];
+        const bool ok = !m.diverged && m.count > 0;
+        const double n = static_cast<double>(m.count);
+        est.reset();
+        est.bind(1, c).bind(2, k).bind(3, static_cast<std::int64_t>(e));
+        est.bind(4, ok ? m.sse / n : std::nan("")).bind(5, ok ? m.sse_ext / n : std::nan(""));
+        est.bind(6, m.count).bind(7, m.samples_used).bind(8, m.samples_taken);
+        est.bind(9, std::int64_t{m.diverged ? 1 : 0}).bind(10, m.status);
+        est.step();
+      }
+    }
+  } catch (...) {
+    exec("ROLLBACK");
+    throw;
+  }
+  exec("COMMIT");
+}
+
+std::vector<std::uint64_t> RunStore::done_runs(std::size_t case_index) const {
+  std::vector<std::uint64_t> out;
+  Stmt st(db_, "SELECT run FROM runs WHERE case_index = ? ORDER BY run");
+  st.bind(1, static_cast<std::int64_t>(case_index));
+  while (st.step()) out.push_back(static_cast<std::uint64_t>(st.i64(0)));
+  return out;
+}
+
+std::int64_t RunStore::count_runs() const {
+  Stmt st(db_, "SELECT count(*) FROM runs");
+  st.step();
+  return st.i64(0);
+}
+
+std::vector<std::pair<std::uint64_t, RunMetrics>> RunStore::load_case(std::size_t case_index) const {
+  std::vector<std::pair<std::uint64_t, RunMetrics>> out;
+  Stmt st(db_, "SELECT run, metrics FROM runs WHERE case_index = ? ORDER BY run");
+  st.bind(1, static_cast<std::int64_t>(case_index));
+  while (st.step()) out.emplace_back(static_cast<std::uint64_t>(st.i64(0)), deserialize_run(st.text(1)));
+  return out;
+}
+
+void RunStore::put_timing(std::size_t case_index, const std::vector<double>& ns) {
+  exec("BEGIN");
+  try {
+    Stmt st(db_, "INSERT OR REPLACE INTO timing (case_index, estimator, ns_per_period) VALUES (?, ?, ?)");
+    for (std::size_t e = 0; e < ns.size(); ++e) {
+      st.reset();
+      st.bind(1, static_cast<std::int64_t>(case_index)).bind(2, static_cast<std::int64_t>(e)).bind(3, ns[e]);
+      st.step();
+    }
+  } catch (...) {
+    exec("ROLLBACK");
+    throw;
+  }
+  exec("COMMIT");
+}
+
+std::vector<double> RunStore::timing(std::size_t case_index, std::size_t estimators) const {
+  std::vector<double> out(estimators, std::nan(""));
+  Stmt st(db_, "SELECT estimator, ns_per_period FROM timing WHERE case_index = ?");
+  st.bind(1, static_cast<std::int64_t>(case_index));
+  while (st.step()) {
+    const auto e = static_cast<std::size_t>(st.i64(0));
+    if (e < out.size()) out[e] = st.f64(1);
+  }
+  return out;
+}
+
+void RunStore::put_artifact(const std::string& name, const std::string& content) {
+  Stmt st(db_, "INSERT OR REPLACE INTO artifacts (name, content) VALUES (?, ?)");
+  st.bind(1, name).bind_blob(2, content);
+  st.step();
+}
+
+std::map<std::string, std::string> RunStore::artifacts() const {
+  std::map<std::string, std::string> out;
+  Stmt st(db_, "SELECT name, content FROM artifacts");
+  while (st.step()) out[st.text(0)] = st.text(1);
+  return out;
+}
+
+std::string RunStore::integrity_check() const {
+  std::string out;
+  Stmt st(db_, "PRAGMA integrity_check");
+  while (st.step()) out += (out.empty() ? "" : "; ") + st.text(0);
+  return out;
+}
+
+void RunStore::close() {
+  if (db_ == nullptr) return;
+  sqlite3_wal_checkpoint_v2(db_, nullptr, SQLITE_CHECKPOINT_TRUNCATE, nullptr, nullptr);
+  const int rc = sqlite3_close(db_);
+  db_ = nullptr;
+  if (rc != SQLITE_OK) throw StoreError(fmt::format("run store {}: close failed ({})", path_, sqlite3_errstr(rc)));
+}
+
+}  // namespace ncosim::sim

@@ -1,0 +1,91 @@
+// sim/store.h — the run store: runs.sqlite in the output folder. Every completed run of a
+// campaign is committed to it as it finishes (SQLite, WAL journal, one transaction per batch
+// of runs), with everything needed to re-derive every export bit-identically: per (case, run)
+// a complete binary serialization of every estimator's per-run metrics, readable scalar
+// columns per (case, run, estimator), the estimators' measured time per period, and a
+// campaign table (scenario text, hash, commit, seed and the options that define the
+// campaign's identity). Schema: results/README.md, "runs.sqlite".
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "sim/campaign.h"
+
+struct sqlite3;
+
+namespace ncosim::sim {
+
+class StoreError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// Binary form of one run's metrics (every estimator): exact (doubles by their bits), versioned.
+std::string serialize_run(const RunMetrics& m);
+// Throws StoreError on a malformed or truncated blob.
+RunMetrics deserialize_run(const std::string& blob);
+
+// One completed run, ready to commit.
+struct StoredRun {
+  std::size_t case_index = 0;
+  std::uint64_t run = 0;
+  RunMetrics metrics;
+};
+
+class RunStore {
+ public:
+  RunStore() = default;
+  RunStore(const RunStore&) = delete;
+  RunStore& operator=(const RunStore&) = delete;
+  RunStore(RunStore&& o) noexcept : db_(o.db_), path_(std::move(o.path_)) { o.db_ = nullptr; }
+  RunStore& operator=(RunStore&& o) noexcept;
+  ~RunStore();
+
+  // A new, empty store at `path` (an existing file and its -wal/-shm are removed first),
+  // with the campaign table filled from `meta`. Throws StoreError.
+  static RunStore create(const std::string& path, const std::map<std::string, std::string>& meta);
+  // An existing store. Throws StoreError when it is missing or not a run store.
+  static RunStore open(const std::string& path, bool writable);
+
+  const std::string& path() const { return path_; }
+  bool is_open() const { return db_ != nullptr; }
+
+  std::map<std::string, std::string> meta() const;
+  void set_meta(const std::string& key, const std::string& value);
+
+  // Estimator names of a case (readable columns), set once per case.
+  void put_estimators(std::size_t case_index, const std::vector<std::string>& names);
+  // Commits the batch in one transaction. A (case, run) already stored is an error.
+  void put_runs(const std::vector<StoredRun>& batch);
+  // Run indices stored for a case, ascending.
+  std::vector<std::uint64_t> done_runs(std::size_t case_index) const;
+  std::int64_t count_runs() const;
+  // Every stored run of a case in run order.
+  std::vector<std::pair<std::uint64_t, RunMetrics>> load_case(std::size_t case_index) const;
+  // Measured ns per period per estimator (NaN: not measured); empty when never stored.
+  void put_timing(std::size_t case_index, const std::vector<double>& ns);
+  std::vector<double> timing(std::size_t case_index, std::size_t estimators) const;
+  // Named text artefacts (e.g. trajectory.csv of a --trace run).
+  void put_artifact(const std::string& name, const std::string& content);
+  std::map<std::string, std::string> artifacts() const;
+
+  // "ok" or SQLite's integrity_check report.
+  std::string integrity_check() const;
+  // Checkpoints the WAL into the database file and closes (the -wal file is removed).
+  void close();
+
+ private:
+  void exec(const char* sql) const;
+  sqlite3* db_ = nullptr;
+  std::string path_;
+};
+
+// The store of an output folder.
+std::string store_path(const std::string& dir);
+
+}  // namespace ncosim::sim
