@@ -640,8 +640,12 @@ CampaignResult run_campaign(const Scenario& sc, const CampaignOptions& options) 
   result.threads = threads;
   const auto start = std::chrono::steady_clock::now();
 
-  // The first run simulated here is logged (its first kReplayPeriods periods) for the timing.
+  // The first run simulated here is logged for the timing: at most kReplayPeriods periods and
+  // at most 2 % of the periods this call simulates (at least 200), so that one replay of every
+  // estimator costs about 2 % of the campaign.
   ReplayLog log;
+  log.limit = std::min<std::size_t>(
+      kReplayPeriods, std::max<std::size_t>(200, static_cast<std::size_t>(sc.run.periods) * runs / 50));
   std::atomic<std::size_t> next{0};
   std::atomic<std::size_t> done{0};
   std::exception_ptr error;
@@ -737,9 +741,9 @@ CampaignResult run_campaign(const Scenario& sc, const CampaignOptions& options) 
   if (options.time_estimators && !log.u.empty() && !stop_requested()) {
     // Timed alone, after the campaign, on a replay of the first run simulated (at most
     // kReplayPeriods periods; not part of the results' identity). Budget per estimator: 2 %
-    // of the campaign's time, between 5 ms and 200 ms.
+    // of the campaign's time, between 1 ms and 200 ms.
     const double share = 0.02 * result.wall_seconds / static_cast<double>(std::max<std::size_t>(sc.estimators.size(), 1));
-    const auto budget = std::chrono::nanoseconds(static_cast<std::int64_t>(std::clamp(share, 0.005, 0.2) * 1e9));
+    const auto budget = std::chrono::nanoseconds(static_cast<std::int64_t>(std::clamp(share, 0.001, 0.2) * 1e9));
     result.ns_per_period = time_estimators(sc, log, budget);
   } else {
     result.ns_per_period.assign(sc.estimators.size(), std::nan(""));
