@@ -134,6 +134,10 @@ class JumpObserverDesign final : public EstimatorDesign, public JumpDesignAccess
     if (design_.stable) {
       report_.predicted_mse_ext = design_.Pt.trace();
       report_.predicted_mse = design_.Pt.topLeftCorner(ext_.n, ext_.n).trace();
+      // The paper's printed eq. (28), which is wrong: only to reproduce its Fig. 3 (results/README.md).
+      report_.extra["predicted_mse_paper_eq28_erroneous"] =
+          design_.Pt_paper_eq28_erroneous.topLeftCorner(ext_.n, ext_.n).trace();
+      report_.extra["predicted_mse_ext_paper_eq28_erroneous"] = design_.Pt_paper_eq28_erroneous.trace();
     }
     report_.extra["design"] = params_.design;
     if (ccl) report_.extra["ccl_start"] = params_.ccl_start;

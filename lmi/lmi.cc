@@ -1,6 +1,8 @@
 // lmi/lmi.cc — expression algebra, validation, and the translation to CSDP (see lmi.h).
 #include "lmi/lmi.h"
 
+#include "lmi/limits.h"
+
 #include <sys/mman.h>
 #include <unistd.h>
 
@@ -265,6 +267,13 @@ struct Problem::Impl {
   double objective_sign = 1.0;
   Eigen::VectorXd c;  // raw objective coefficients (of the minimised form)
   double c0 = 0.0;
+  double coef_bytes = 0.0;  // estimated memory of the expanded coefficients (resource limits)
+  double block_bytes = 0.0; // sum over LMIs of 8 m^2
+  double block_flops = 0.0; // sum over LMIs of m^3
+  int largest_block = 0;
+
+  // Throws ResourceLimitError when the estimate of a solve exceeds the process-wide limits.
+  void check_resources() const;
 
   bool owns(const Var& v) const {
     return v.problem == serial && v.id >= 0 && v.id < static_cast<int>(vars.size());
@@ -418,6 +427,24 @@ int Problem::add(Constraint c) {
     s << "lmi: an LMI needs a square expression, got " << e.rows() << "x" << e.cols();
     throw Error(s.str());
   }
+  {
+    // Resource estimate before expanding: the coefficient of V(i, j) in L V R is the outer
+    // product of L's column i and R's row j, so a term expands to at most nnz(L) nnz(R) entries
+    // (twice for a transposed or symmetric use), each stored about three times (expansion,
+    // translation, CSDP's sparse blocks) at ~16 bytes.
+    double entries = 0.0;
+    for (const auto& t : e.terms()) {
+      const auto nl = static_cast<double>((t.L.array() != 0.0).count());
+      const auto nr = static_cast<double>((t.R.array() != 0.0).count());
+      entries += 2.0 * nl * nr;
+    }
+    const double m = e.rows();
+    impl_->coef_bytes += 48.0 * entries + 8.0 * m * m;
+    impl_->block_bytes += 8.0 * m * m;
+    impl_->block_flops += m * m * m;
+    impl_->largest_block = std::max(impl_->largest_block, e.rows());
+    impl_->check_resources();
+  }
   Expanded x;
   x.name = c.name.empty() ? "LMI " + std::to_string(impl_->cons.size()) : c.name;
   x.strict = c.strict;
@@ -451,6 +478,55 @@ void Problem::minimize(const LinearForm& f) {
 void Problem::maximize(const LinearForm& f) {
   impl_->objective_raw(f, -1.0);
   impl_->objective_sign = -1.0;
+}
+
+namespace {
+std::mutex& limits_mutex() {
+  static std::mutex m;
+  return m;
+}
+ResourceLimits& limits_storage() {
+  static ResourceLimits l;
+  return l;
+}
+std::string human(double bytes) {
+  char buf[64];
+  if (bytes >= 1e9) std::snprintf(buf, sizeof buf, "%.1f GB", bytes / 1e9);
+  else std::snprintf(buf, sizeof buf, "%.0f MB", bytes / 1e6);
+  return buf;
+}
+}  // namespace
+
+void set_resource_limits(const ResourceLimits& limits) {
+  std::lock_guard<std::mutex> g(limits_mutex());
+  limits_storage() = limits;
+}
+
+ResourceLimits resource_limits() {
+  std::lock_guard<std::mutex> g(limits_mutex());
+  return limits_storage();
+}
+
+void Problem::Impl::check_resources() const {
+  const ResourceLimits lim = resource_limits();
+  const double k = nraw;
+  // CSDP: the Schur complement O (k x k) and its factor, k-vectors, and about 11 copies of the
+  // block-diagonal X (X, Z, dX, dZ, work matrices); the expanded coefficients.
+  const double bytes = 16.0 * k * k + 11.0 * block_bytes + coef_bytes;
+  // 50 iterations of: Schur complement k^2 * (largest block), Cholesky k^3 / 3, block work.
+  const double flops = 50.0 * (k * k * std::max(1, largest_block) + k * k * k / 3.0 + 10.0 * block_flops);
+  const bool over_memory = lim.memory_bytes > 0.0 && bytes > lim.memory_bytes;
+  const bool over_work = lim.work_flops > 0.0 && flops > lim.work_flops;
+  if (!over_memory && !over_work) return;
+  std::string what = over_memory ? "an LMI problem of " + std::to_string(nraw) + " scalar variables (largest block " +
+                                       std::to_string(largest_block) + ") needs an estimated " + human(bytes) +
+                                       ", above the memory limit of " + human(lim.memory_bytes)
+                                 : "an LMI problem of " + std::to_string(nraw) + " scalar variables (largest block " +
+                                       std::to_string(largest_block) + ") needs an estimated " +
+                                       std::to_string(static_cast<long long>(flops / 1e9)) +
+                                       " GFLOP, above the work limit of " +
+                                       std::to_string(static_cast<long long>(lim.work_flops / 1e9)) + " GFLOP";
+  throw ResourceLimitError(what, bytes, flops, nraw, largest_block);
 }
 
 // ---------------------------------------------------------------- translation
@@ -599,6 +675,7 @@ SdpSize Problem::size() const { return translate(*impl_).size; }
 
 Solution Problem::solve() const {
   Impl& p = *impl_;
+  p.check_resources();
   Solution sol;
   sol.vars_ = p.vars;
   sol.var_offset_ = p.offset;

@@ -9,6 +9,12 @@
 #include <charconv>
 #include <cmath>
 #include <cstddef>
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
 #include <fstream>
 #include <string_view>
 
@@ -435,16 +441,107 @@ std::optional<std::int64_t> parse_count(std::string_view field) {
 
 }  // namespace
 
+namespace {
+
+// Input limits of a trace (models/link.h load_trace; documented in scenarios/README.md).
+constexpr std::int64_t kMaxTraceBytes = 1'000'000'000;
+constexpr std::size_t kMaxTraceLineBytes = 4096;
+constexpr std::int64_t kMaxTracePackets = 50'000'000;
+
+// Lines of a regular file read through a bounded buffer (a line longer than the limit is an
+// error at its line, never an allocation of the whole file).
+class TraceReader {
+ public:
+  explicit TraceReader(const std::string& path) : path_(path) {
+    fd_ = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);  // a FIFO must not block the open
+    if (fd_ < 0) throw TraceError(path, 0, "cannot open trace file '" + path + "': " + std::strerror(errno));
+    struct stat st {};
+    if (::fstat(fd_, &st) != 0 || !S_ISREG(st.st_mode)) {
+      const char* what = S_ISFIFO(st.st_mode)  ? "a FIFO"
+                         : S_ISCHR(st.st_mode) ? "a character device"
+                         : S_ISBLK(st.st_mode) ? "a block device"
+                         : S_ISDIR(st.st_mode) ? "a folder"
+                         : S_ISSOCK(st.st_mode) ? "a socket"
+                                                : "not a regular file";
+      ::close(fd_);
+      fd_ = -1;
+      throw TraceError(path, 0, "expected a regular file, got " + std::string(what) + " '" + path + "'");
+    }
+    if (st.st_size > kMaxTraceBytes) {
+      ::close(fd_);
+      fd_ = -1;
+      throw TraceError(path, 0, "trace file '" + path + "' holds " + std::to_string(st.st_size) +
+                                    " bytes; at most " + std::to_string(kMaxTraceBytes) + " are read");
+    }
+    ::fcntl(fd_, F_SETFL, 0);
+  }
+  ~TraceReader() {
+    if (fd_ >= 0) ::close(fd_);
+  }
+  TraceReader(const TraceReader&) = delete;
+  TraceReader& operator=(const TraceReader&) = delete;
+
+  // The next line (without its '\n') into `line`; false at the end of the file.
+  bool next(std::string& line, int line_number) {
+    line.clear();
+    while (true) {
+      if (pos_ == len_) {
+        if (eof_) return !line.empty();
+        const ssize_t n = ::read(fd_, buf_, sizeof buf_);
+        if (n < 0) {
+          if (errno == EINTR) continue;
+          throw TraceError(path_, line_number, "cannot read trace file '" + path_ + "': " + std::strerror(errno));
+        }
+        if (n == 0) {
+          eof_ = true;
+          return !line.empty();
+        }
+        pos_ = 0;
+        len_ = static_cast<std::size_t>(n);
+        total_ += n;
+        if (total_ > kMaxTraceBytes) {
+          throw TraceError(path_, line_number, "trace file '" + path_ + "' grew beyond " +
+                                                   std::to_string(kMaxTraceBytes) + " bytes while it was read");
+        }
+      }
+      const char* start = buf_ + pos_;
+      const void* nl = std::memchr(start, '\n', len_ - pos_);
+      const std::size_t take = nl ? static_cast<std::size_t>(static_cast<const char*>(nl) - start) : len_ - pos_;
+      if (line.size() + take > kMaxTraceLineBytes) {
+        throw TraceError(path_, line_number, "line longer than " + std::to_string(kMaxTraceLineBytes) + " bytes");
+      }
+      line.append(start, take);
+      pos_ += take;
+      if (nl) {
+        ++pos_;
+        return true;
+      }
+    }
+  }
+
+ private:
+  std::string path_;
+  int fd_ = -1;
+  char buf_[65536];
+  std::size_t pos_ = 0, len_ = 0;
+  std::int64_t total_ = 0;
+  bool eof_ = false;
+};
+
+}  // namespace
+
 std::vector<std::optional<std::int64_t>> load_trace(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw TraceError(path, 0, "cannot open trace file '" + path + "'");
+  TraceReader in(path);
 
   std::vector<std::optional<std::int64_t>> delays;
   std::string raw;
   int line = 0;
   int first_blank = 0;  // first blank line seen; only trailing blank lines are allowed
-  while (std::getline(in, raw)) {
+  while (in.next(raw, line + 1)) {
     ++line;
+    if (static_cast<std::int64_t>(delays.size()) >= kMaxTracePackets) {
+      throw TraceError(path, line, "more than " + std::to_string(kMaxTracePackets) + " packets (the limit of a trace)");
+    }
     std::string_view text = raw;
     if (line == 1 && text.starts_with("\xEF\xBB\xBF")) text.remove_prefix(3);  // UTF-8 BOM
     if (!text.empty() && text.back() == '\r') text.remove_suffix(1);           // CRLF
@@ -490,7 +587,6 @@ std::vector<std::optional<std::int64_t>> load_trace(const std::string& path) {
     }
     delays.push_back(delay);
   }
-  if (in.bad()) throw TraceError(path, line, "cannot read trace file '" + path + "'");
   return delays;
 }
 

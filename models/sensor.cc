@@ -44,7 +44,7 @@ SensorSpec read_sensor(const sim::Table& t, const LinearPlant& plant,
   sim::require_psd(t, "R", s.R);
   s.link = read_link_ref(t, links);
   const auto every = t.integer_or("every", 1);
-  if (every < 1 || every > 1'000'000) t.fail("every", fmt::format("expected an integer >= 1, got {}", every));
+  if (every < 1 || every > 1'000'000) t.fail("every", fmt::format("expected an integer in 1..1000000 (1e6), got {}", every));
   s.every = static_cast<int>(every);
   const auto buffer = t.integer_or("buffer", 0);
   if (buffer < 0 || buffer > 62) t.fail("buffer", fmt::format("expected an integer in 0..62, got {}", buffer));

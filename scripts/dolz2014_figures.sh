@@ -21,7 +21,7 @@ for s in a b c; do
     --set 'link[0].independent=true' --set 'link[1].independent=true'
   # plot data, one file per design method (column 1): per grouping, gains, predicted ratio,
   # simulated ratios and CIs (extended state).
-  rm -f "$out"/plot_*.dat
+  rm -f "$out"/plot_*.dat "$out"/plant_block_*.dat
   for m in $(methods "$out/design.csv"); do
   awk -F, -v M="$m" -v D="$out/design.csv" -v P="$out/physical/summary.csv" -v I="$out/independent/summary.csv" '
     BEGIN {
@@ -34,10 +34,23 @@ for s in a b c; do
         if (i > 1 && a[1] != prev) print "\n"; prev = a[1];
         printf "%s %s %s %.6g %.6g %.6g %.6g %.6g\n", a[1], a[2], g[k], pr[k] / ref, ps[k] / ref, pc[k] / ref, is[k] / ref, ic[k] / ref }
     }' > "$out/plot_$m.dat"
+  # Current-state block (the paper's "1.7 %" of Fig. 1(a) is on it): per grouping, gains, the
+  # corrected prediction and the paper's printed eq. (28) (wrong, design.csv column 14), each
+  # over its own reference (S4, Nbar = 40).
+  awk -F, -v M="$m" '
+    $4 == "reference" && $1 == M { ref = $7; ref28 = $14 }
+    $4 == "jump" && $1 == M { k = $2 " " $3; g[k] = $9; c[k] = $7; e[k] = $14; keys[++n] = k }
+    END {
+      print "# grouping history gains corrected/ref printed-eq28/ref   (x[k] block; ref = " ref ", printed-eq28 ref = " ref28 ")"
+      for (i = 1; i <= n; i++) { k = keys[i]; split(k, a, " ");
+        if (i > 1 && a[1] != prev) print "\n"; prev = a[1];
+        printf "%s %s %s %.6g %.6g\n", a[1], a[2], g[k], c[k] / ref, e[k] / ref28 } }' "$out/design.csv" > "$out/plant_block_$m.dat"
   done
 done
 
-# Figs. 2-3: A1, sensor 1, negative-binomial delay, dbar = 0..6.
+# Figs. 2-3: A1, sensor 1, negative-binomial delay, dbar = 0..6 (and 9, the reference).
+# Beside our corrected prediction: the paper's printed eq. (28) (wrong; design.csv column 13) and
+# the FLOPs as the paper counted them for Fig. 3 (nbar_m = 2 whatever dbar, see results/README.md).
 out=results/dolz2014_fig3
 run "$NCOSIM" design scenarios/dolz2014_fig3.toml --out "$out"
 run "$NCOSIM" run scenarios/dolz2014_fig3.toml --out "$out/physical" --quiet
@@ -46,13 +59,15 @@ rm -f "$out"/plot_*.dat
 for m in $(methods "$out/design.csv"); do
 awk -F, -v M="$m" -v D="$out/design.csv" -v P="$out/physical/summary.csv" -v I="$out/independent/summary.csv" '
   BEGIN {
-    while ((getline l < D) > 0) { split(l, f, ","); if (f[3] != "jump" || f[1] != M) continue; if (f[2] == 9) { ref = f[6]; continue }
-      k = f[2]; pr[k] = f[6]; fl[k] = f[9]; p0[k] = f[10]; keys[++n] = k }
+    while ((getline l < D) > 0) { split(l, f, ","); if (f[3] != "jump" || f[1] != M) continue; if (f[2] == 9) { ref = f[6]; ref28 = f[13]; continue }
+      k = f[2]; pr[k] = f[6]; fl[k] = f[9]; p0[k] = f[10]; e28[k] = f[13]; keys[++n] = k }
     while ((getline l < P) > 0) { split(l, f, ","); if (f[3] == "jump" && f[1] == M) { ps[f[2]] = f[6]; pc[f[2]] = f[7] } }
     while ((getline l < I) > 0) { split(l, f, ","); if (f[3] == "jump" && f[1] == M) { is[f[2]] = f[6]; ic[f[2]] = f[7] } }
-    print "# dbar predicted/ref flops p0 physical/ref ci independent/ref ci   (plant block; ref = dbar 9: " ref ")"
-    for (i = 1; i <= n; i++) { k = keys[i];
-      printf "%s %.6g %s %s %.6g %.6g %.6g %.6g\n", k, pr[k] / ref, fl[k], p0[k], ps[k] / ref, pc[k] / ref, is[k] / ref, ic[k] / ref }
+    print "# dbar predicted/ref flops p0 physical/ref ci independent/ref ci printed-eq28/ref28 flops-as-paper(nbar_m=2)"
+    print "#   (plant block; ref = dbar 9: " ref "; printed-eq28 ref28 = dbar 9: " ref28 ")"
+    for (i = 1; i <= n; i++) { k = keys[i]; nb = 2 * (k + 1)
+      printf "%s %.6g %s %s %.6g %.6g %.6g %.6g %.6g %d\n", k, pr[k] / ref, fl[k], p0[k], ps[k] / ref, pc[k] / ref, is[k] / ref, ic[k] / ref,
+        e28[k] / ref28, nb * nb + nb * 1 + 2 * nb * 2 + 2 * nb + 2 }
   }' > "$out/plot_$m.dat"
 done
 

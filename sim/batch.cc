@@ -8,6 +8,7 @@
 #include <cerrno>
 #include <charconv>
 #include <chrono>
+#include <cstdlib>
 #include <condition_variable>
 #include <csignal>
 #include <cstring>
@@ -26,7 +27,9 @@
 #include "sim/campaign.h"
 #include "sim/cli.h"
 #include "sim/mpi_campaign.h"
+#include "sim/limits.h"
 #include "sim/output.h"
+#include "sim/output_set.h"
 #include "sim/store.h"
 
 namespace ncosim::sim {
@@ -80,7 +83,7 @@ std::string signal_name(int sig) {
 // completed since the last commit. The store is used by one thread at a time (`with_store`).
 class StoreSink {
  public:
-  explicit StoreSink(RunStore& store) : store_(store), thread_([this] { loop(); }) {}
+  explicit StoreSink(RunStore& store) : store_(store), interval_(commit_interval()), thread_([this] { loop(); }) {}
   ~StoreSink() {
     try {
       finish();
@@ -120,7 +123,7 @@ class StoreSink {
   void loop() {
     std::unique_lock<std::mutex> lock(mutex_);
     while (!done_) {
-      cv_.wait_for(lock, std::chrono::milliseconds(250), [&] { return done_; });
+      cv_.wait_for(lock, interval_, [&] { return done_; });
       lock.unlock();
       commit_pending();
       lock.lock();
@@ -147,7 +150,19 @@ class StoreSink {
     if (error_) std::rethrow_exception(error_);
   }
 
+  // 250 ms; NCOSIM_TEST_COMMIT_MS (tests only: 1..1000) shortens it so that a kill test finds
+  // committed batches inside a short campaign on a fast machine.
+  static std::chrono::milliseconds commit_interval() {
+    if (const char* v = std::getenv("NCOSIM_TEST_COMMIT_MS")) {
+      char* end = nullptr;
+      const long ms = std::strtol(v, &end, 10);
+      if (end != v && *end == '\0' && ms >= 1 && ms <= 1000) return std::chrono::milliseconds(ms);
+    }
+    return std::chrono::milliseconds(250);
+  }
+
   RunStore& store_;
+  std::chrono::milliseconds interval_;
   std::mutex mutex_, db_mutex_;
   std::condition_variable cv_;
   std::vector<StoredRun> pending_;
@@ -561,6 +576,12 @@ int cmd_run_campaign(const RunCommand& cmd) {
     }
   }
   prepare_output_dir(out);  // fail before the campaign, not after it
+  const OutputFolderLock folder_lock(out);  // sim/output_set.h: one writer per folder for the whole campaign
+  {
+    const Scenario& sc0 = *loaded.cases.front().scenario;  // sim/limits.h: the exports hold every run
+    check_campaign_resources(loaded.file, 0, sc0.run.runs, loaded.cases.size(), sc0.estimators.size(),
+                             sc0.model.plant.n(), sc0.model.sensors.size());
+  }
   const std::string path = store_path(out);
   RunStore store;
   if (cmd.resume) {
@@ -780,6 +801,7 @@ int cmd_merge(const std::string& out, const std::vector<std::string>& dirs, cons
                                     missing_count, list));
   }
   prepare_output_dir(out);
+  const OutputFolderLock folder_lock(out);  // sim/output_set.h
   auto meta = metas.front();
   meta["shard"] = "";
   meta.erase("store");

@@ -15,6 +15,7 @@
 #include <exception>
 #include <condition_variable>
 #include <mutex>
+#include <system_error>
 #include <thread>
 
 #include "models/actuator.h"
@@ -681,7 +682,15 @@ CampaignResult run_campaign(const Scenario& sc, const CampaignOptions& options) 
     }
   };
   std::vector<std::thread> pool;
-  for (int t = 1; t < threads; ++t) pool.emplace_back(worker);
+  try {
+    for (int t = 1; t < threads; ++t) pool.emplace_back(worker);
+  } catch (const std::system_error& e) {
+    // Not an abort (a joinable std::thread destroyed): stop the workers started so far, then fail.
+    next = runs;
+    for (auto& t : pool) t.join();
+    throw std::runtime_error(fmt::format("cannot start worker thread {} of {} ({}); retry with a smaller --threads",
+                                         pool.size() + 2, threads, e.what()));
+  }
   const bool any_progress = options.progress || options.progress_log;
   std::atomic<bool> finished{false};
   std::mutex progress_mutex;

@@ -17,9 +17,13 @@
 #include "estimators/export_c.h"
 #include "sim/batch.h"
 #include "sim/campaign.h"
+#include "lmi/limits.h"
 #include "sim/find.h"
 #include "sim/codesign.h"
+#include "sim/figure_cli.h"
+#include "sim/limits.h"
 #include "sim/output.h"
+#include "sim/output_set.h"
 #include "sim/registries.h"
 #include "sim/scenario.h"
 
@@ -121,6 +125,7 @@ std::vector<std::pair<std::string, std::string>> export_c_files(const LoadedScen
 int cmd_design(const CommonArgs& a, const std::string& command_line, const std::string& export_dir) {
   LoadedScenario loaded = load_cases(a.file, a.sets, a.overrides);
   const std::string out = a.out.empty() ? default_out(a.file) : a.out;
+  const OutputFolderLock lock(out);
   const auto dj = design_json(loaded);
   std::vector<std::pair<std::string, std::string>> c_files;
   if (!export_dir.empty()) {
@@ -191,6 +196,7 @@ int cmd_codesign(const CommonArgs& a, const CodesignOptions& opt, const std::str
   }
   const std::string out = a.out.empty() ? default_out(a.file) : a.out;
   prepare_output_dir(out);
+  const OutputFolderLock lock(out);
   const Scenario& sc = *loaded.cases.front().scenario;
   const nlohmann::json j = run_codesign(sc, opt);
   write_files_atomically(out, {{"codesign.json", j.dump(2) + "\n"},
@@ -260,11 +266,22 @@ int run_cli(int argc, char** argv) {
   int threads = 0;
   bool trace = false;
   bool quiet = false;
+  double max_memory_mb = resource_limits().memory_bytes / 1e6;
+  double max_work_gflop = resource_limits().work_flops / 1e9;
+  std::vector<CLI::Option*> out_options;
 
   auto add_common = [&](CLI::App* sub, bool with_out) {
     sub->add_option("FILE", a.file, "scenario file (TOML)")->required();
     sub->add_option("--set", a.sets, "override one key before validation: KEY=VALUE (VALUE in TOML)");
-    if (with_out) sub->add_option("--out", a.out, "output directory (default: out/<file stem>)");
+    if (with_out) out_options.push_back(sub->add_option("--out", a.out, "output directory (default: out/<file stem>)"));
+    sub->add_option("--max-memory", max_memory_mb,
+                    fmt::format("memory limit in MB of a design or campaign, estimated before it starts (default {:.0f})",
+                                max_memory_mb))
+        ->check(CLI::Range(1.0, 1e9));
+    sub->add_option("--max-work", max_work_gflop,
+                    fmt::format("work limit in GFLOP of one design, estimated before it starts (default {:.0f})",
+                                max_work_gflop))
+        ->check(CLI::Range(1e-9, 1e12));
   };
   CLI::App* run = app.add_subcommand("run", "run the Monte Carlo campaign and write the results");
   add_common(run, true);
@@ -305,7 +322,7 @@ int run_cli(int argc, char** argv) {
   CLI::App* find = app.add_subcommand(
       "find", "the value of one key at which a design quantity reaches a target (scan + bisection)");
   add_common(find, false);
-  find->add_option("--out", a.out, "also write find.csv and manifest.json into this directory");
+  out_options.push_back(find->add_option("--out", a.out, "also write find.csv and manifest.json into this directory"));
   FindOptions find_opt;
   std::string target_text;
   find->add_option("--key", find_opt.key, "scenario key path to vary, set as a float (e.g. link[0].delivery)")
@@ -331,6 +348,8 @@ int run_cli(int argc, char** argv) {
   CLI::App* check = app.add_subcommand("check", "parse and validate only");
   add_common(check, false);
   app.add_subcommand("list", "list every registered kind with a one-line help");
+  FigureCommands figure_commands;
+  add_figure_commands(app, figure_commands);
   std::string preset;
   bool csv = false, gnuplot = false;
   double max_distance = 1000.0, step = 10.0;
@@ -351,7 +370,7 @@ int run_cli(int argc, char** argv) {
     if (std::find(commands.begin(), commands.end(), argv[1]) == commands.end()) {
       const std::string hint = did_you_mean(argv[1], commands);
       std::cerr << fmt::format(
-          "ncosim: expected a command (run, export, merge, design, find, codesign, check or list), got '{}'{}\n", argv[1],
+          "ncosim: expected a command (run, export, merge, design, find, codesign, check, plot, report or list), got '{}'{}\n", argv[1],
           hint.empty() ? "" : fmt::format(" (did you mean '{}'?)", hint));
       return 2;
     }
@@ -370,6 +389,13 @@ int run_cli(int argc, char** argv) {
   }
   std::string command_line;
   for (int i = 0; i < argc; ++i) command_line += (i ? " " : "") + std::string(argv[i]);
+  for (const CLI::Option* o : out_options) {
+    if (o->count() > 0 && a.out.empty()) {
+      std::cerr << "ncosim: --out: expected a folder name, got an empty string\n";
+      return 2;
+    }
+  }
+  set_resource_limits({max_memory_mb * 1e6, max_work_gflop * 1e9});
   try {
     if (run->parsed()) {
       run_cmd.threads = threads;
@@ -383,6 +409,7 @@ int run_cli(int argc, char** argv) {
     if (design->parsed()) return cmd_design(a, command_line, export_c_dir);
     if (find->parsed()) return cmd_find(a, find_opt, target_text, command_line);
     if (check->parsed()) return cmd_check(a);
+    if (const auto status = run_figure_commands(figure_commands)) return *status;
     if (codesign->parsed()) {
       cd_opt.progress = !quiet;
       return cmd_codesign(a, cd_opt, command_line);
@@ -394,6 +421,13 @@ int run_cli(int argc, char** argv) {
   } catch (const ScenarioError& e) {
     std::cerr << "ncosim: " << e.what() << "\n";
     return 2;
+  } catch (const lmi::ResourceLimitError& e) {
+    std::cerr << "ncosim: " << e.what() << " (--max-memory / --max-work raise the limits)\n";
+    return 2;
+  } catch (const std::bad_alloc&) {
+    std::cerr << "ncosim: error: out of memory (std::bad_alloc) beyond what the resource estimates foresaw; "
+                 "lower run.runs, run.periods or the model size, or free memory\n";
+    return 1;
   } catch (const std::exception& e) {
     std::cerr << "ncosim: error: " << e.what() << "\n";
     return 1;

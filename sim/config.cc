@@ -9,13 +9,55 @@
 
 namespace ncosim::sim {
 
+namespace {
+
+// `text` safe to print: control characters, DEL and bytes that are not well-formed UTF-8 become
+// \xNN, so a key or value holding NUL or any other byte cannot cut or garble a message.
+std::string escape_text(std::string_view text, bool keep_newlines = false) {
+  std::string out;
+  out.reserve(text.size());
+  std::size_t i = 0;
+  while (i < text.size()) {
+    const auto c = static_cast<unsigned char>(text[i]);
+    if ((c >= 0x20 && c < 0x7F) || (keep_newlines && (c == '\n' || c == '\t'))) {
+      out += static_cast<char>(c);
+      ++i;
+      continue;
+    }
+    // A well-formed UTF-8 sequence (no overlongs, no surrogates) stays as it is.
+    std::size_t len = 0;
+    if (c >= 0xC2 && c <= 0xDF) len = 2;
+    else if (c >= 0xE0 && c <= 0xEF) len = 3;
+    else if (c >= 0xF0 && c <= 0xF4) len = 4;
+    bool ok = len > 0 && i + len <= text.size();
+    for (std::size_t k = 1; ok && k < len; ++k) ok = (static_cast<unsigned char>(text[i + k]) & 0xC0) == 0x80;
+    if (ok && len >= 3) {
+      const auto c1 = static_cast<unsigned char>(text[i + 1]);
+      if (c == 0xE0 && c1 < 0xA0) ok = false;
+      if (c == 0xED && c1 >= 0xA0) ok = false;
+      if (c == 0xF0 && c1 < 0x90) ok = false;
+      if (c == 0xF4 && c1 >= 0x90) ok = false;
+    }
+    if (ok) {
+      out.append(text.substr(i, len));
+      i += len;
+      continue;
+    }
+    out += fmt::format("\\x{:02x}", c);
+    ++i;
+  }
+  return out;
+}
+
+}  // namespace
+
 std::string format_error(const std::string& file, int line, const std::string& path,
                          const std::string& message) {
   std::string out;
-  if (!file.empty()) out += line > 0 ? fmt::format("{}:{}: ", file, line) : file + ": ";
-  if (!path.empty()) out += fmt::format("key '{}': ", path);
+  if (!file.empty()) out += line > 0 ? fmt::format("{}:{}: ", escape_text(file), line) : escape_text(file) + ": ";
+  if (!path.empty()) out += fmt::format("key '{}': ", escape_text(path));
   out += message;
-  return out;
+  return escape_text(out, true);  // any byte of a key, value or file name survives
 }
 
 namespace {
@@ -76,7 +118,7 @@ std::string compact_toml(const toml::node& node) {
 }
 
 std::string describe(const toml::node& node) {
-  if (auto s = node.value_exact<std::string>()) return fmt::format("a string \"{}\"", *s);
+  if (auto s = node.value_exact<std::string>()) return fmt::format("a string \"{}\"", escape_text(*s));
   if (node.is_boolean() || node.is_integer() || node.is_floating_point()) return compact_toml(node);
   if (node.is_table()) return "a table";
   if (node.is_array()) {
@@ -210,7 +252,7 @@ std::string Table::choice_or(std::string_view key, std::string_view fallback,
   std::string list;
   for (const auto& c : choices) list += (list.empty() ? "" : ", ") + fmt::format("\"{}\"", c);
   std::string hint = did_you_mean(v, choices);
-  fail(key, fmt::format("expected one of {}, got \"{}\"{}", list, v,
+  fail(key, fmt::format("expected one of {}, got \"{}\"{}", list, escape_text(v),
                         hint.empty() ? "" : fmt::format(" (did you mean \"{}\"?)", hint)));
 }
 
@@ -328,11 +370,11 @@ void Table::finish() const {
     std::string hint = did_you_mean(k.str(), known);
     const auto [file, l] = location(v);
     std::string list;
-    for (const auto& c : known) list += (list.empty() ? "" : ", ") + c;
+    for (const auto& c : known) list += (list.empty() ? "" : ", ") + escape_text(c);
     throw ScenarioError(format_error(file, l, key_path(k.str()),
                                      hint.empty()
                                          ? fmt::format("unknown key (valid keys here: {})", list)
-                                         : fmt::format("unknown key (did you mean '{}'?)", hint)));
+                                         : fmt::format("unknown key (did you mean '{}'?)", escape_text(hint))));
   }
 }
 

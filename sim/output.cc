@@ -1,5 +1,6 @@
 // sim/output.cc — summary statistics and the result files.
 #include "sim/output.h"
+#include "sim/physical.h"
 
 #include <fmt/format.h>
 
@@ -9,6 +10,8 @@
 #include <filesystem>
 #include <fstream>
 #include <unistd.h>
+
+#include "sim/output_set.h"
 
 namespace ncosim::sim {
 
@@ -377,7 +380,8 @@ std::string design_csv(const LoadedScenario& loaded) {
   std::vector<std::string> cols;
   for (const auto& s : loaded.sweeps) cols.push_back(s.key);
   for (const char* c : {"estimator", "kind", "method", "predicted_mse", "predicted_mse_ext", "stored_gains",
-                        "flops_per_period", "p0", "design_seconds", "status"}) {
+                        "flops_per_period", "p0", "design_seconds", "status",
+                        "predicted_mse_paper_eq28_erroneous"}) {
     cols.push_back(c);
   }
   for (std::size_t i = 0; i < cols.size(); ++i) out += (i ? "," : "") + csv_field(cols[i]);
@@ -401,6 +405,8 @@ std::string design_csv(const LoadedScenario& loaded) {
       cells.push_back(p0 != r.extra.end() && p0->is_number() ? fmt_number(p0->get<double>()) : "");
       cells.push_back(fmt::format("{:.6g}", r.design_seconds));
       cells.push_back(r.status);
+      const auto eq28 = r.extra.find("predicted_mse_paper_eq28_erroneous");  // jump only (results/README.md)
+      cells.push_back(eq28 != r.extra.end() && eq28->is_number() ? precise(eq28->get<double>()) : "");
       for (std::size_t i = 0; i < cells.size(); ++i) out += (i ? "," : "") + csv_field(cells[i]);
       out += "\n";
     }
@@ -464,8 +470,13 @@ std::string trajectory_csv(const Scenario& sc, const std::vector<TraceRow>& trac
     out += ",mode";
     for (const auto& e : sc.estimators) out += "," + csv_field(fmt::format("{}:mode", e.name));
   }
+  const auto offsets = recentring_offsets(sc, trace);  // re-centred runs: the physical state (sim/physical.h)
+  if (sc.recentre) {
+    for (Eigen::Index i = 0; i < n; ++i) out += fmt::format(",x{}_physical", i + 1);
+  }
   out += "\n";
-  for (const auto& r : trace) {
+  for (std::size_t t = 0; t < trace.size(); ++t) {
+    const auto& r = trace[t];
     out += std::to_string(r.period);
     for (double v : r.x) out += fmt::format(",{:.9g}", v);
     for (const auto& xh : r.xhat) {
@@ -479,6 +490,11 @@ std::string trajectory_csv(const Scenario& sc, const std::vector<TraceRow>& trac
       out += r.mode >= 0 ? fmt::format(",{}", r.mode) : ",";
       for (int m : r.mode_hat) out += m >= 0 ? fmt::format(",{}", m) : ",";
     }
+    if (sc.recentre) {
+      for (Eigen::Index i = 0; i < n; ++i) {
+        out += offsets[t] ? fmt::format(",{:.9g}", r.x[static_cast<std::size_t>(i)] + (*offsets[t])[static_cast<std::size_t>(i)]) : ",";
+      }
+    }
     out += "\n";
   }
   return out;
@@ -486,48 +502,24 @@ std::string trajectory_csv(const Scenario& sc, const std::vector<TraceRow>& trac
 
 void prepare_output_dir(const std::string& dir) {
   namespace fs = std::filesystem;
+  const fs::path folder = output_set_folder(dir);  // refuses "", "/", the current folder
   std::error_code ec;
-  fs::create_directories(dir, ec);
+  fs::create_directories(folder, ec);
   if (ec) throw std::runtime_error(fmt::format("cannot create the output directory '{}': {}", dir, ec.message()));
-  const fs::path probe = fs::path(dir) / fmt::format(".probe.tmp{}", static_cast<long>(::getpid()));
-  std::ofstream(probe) << "";
-  if (!fs::exists(probe, ec)) throw std::runtime_error(fmt::format("cannot write into the output directory '{}'", dir));
+  // The result set is written into a sibling folder and swapped in: the parent must be writable.
+  const fs::path probe = folder.parent_path() / fmt::format(".{}.probe.tmp{}", folder.filename().string(),
+                                                            static_cast<long>(::getpid()));
+  fs::create_directory(probe, ec);
+  if (ec) {
+    throw std::runtime_error(fmt::format("cannot write next to the output directory '{}' (in '{}'): {}", dir,
+                                         folder.parent_path().string(), ec.message()));
+  }
   fs::remove(probe, ec);
 }
 
 void write_files_atomically(const std::string& dir, const std::vector<std::pair<std::string, std::string>>& files,
                             const std::vector<std::string>& stale) {
-  namespace fs = std::filesystem;
-  std::error_code ec;
-  fs::create_directories(dir, ec);
-  if (ec) throw std::runtime_error(fmt::format("cannot create the output directory '{}': {}", dir, ec.message()));
-  std::vector<fs::path> temps;
-  auto cleanup = [&] {
-    for (const auto& t : temps) fs::remove(t, ec);
-  };
-  for (const auto& [name, content] : files) {
-    const fs::path tmp = fs::path(dir) / fmt::format(".{}.tmp{}", name, static_cast<long>(::getpid()));
-    temps.push_back(tmp);
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    out << content;
-    out.close();
-    if (!out) {
-      cleanup();
-      throw std::runtime_error(fmt::format("cannot write '{}'", tmp.string()));
-    }
-  }
-  for (std::size_t i = 0; i < files.size(); ++i) {
-    fs::rename(temps[i], fs::path(dir) / files[i].first, ec);
-    if (ec) {
-      cleanup();
-      throw std::runtime_error(fmt::format("cannot rename into '{}': {}", dir, ec.message()));
-    }
-  }
-  for (const auto& name : stale) {
-    bool written = false;
-    for (const auto& f : files) written = written || f.first == name;
-    if (!written) fs::remove(fs::path(dir) / name, ec);
-  }
+  write_output_set(dir, files, stale);  // sim/output_set.h
 }
 
 }  // namespace ncosim::sim

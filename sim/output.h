@@ -67,14 +67,18 @@ std::string transmissions_csv(const std::vector<SweepAxis>& sweeps, const std::v
                               const std::vector<const CampaignResult*>& results);
 std::string trajectory_csv(const Scenario& sc, const std::vector<TraceRow>& trace);
 
-// Writes every (name, content) into `dir` atomically: all to temporary files first, then
-// renames. Creates `dir` if needed. Throws std::runtime_error on failure (temporaries removed).
-// `stale` names earlier outputs to remove when they are not part of this set (e.g. a
-// trajectory.csv of an earlier --trace run), so the folder never mixes two runs.
+// Writes every (name, content) as the new result set of `dir`, atomically as a whole (a sibling
+// folder fsynced and swapped in; see sim/output_set.h). Creates `dir` if needed. Throws
+// std::runtime_error on failure (the previous set stays) and ScenarioError when another process
+// holds the folder's lock. `stale` names earlier outputs to drop when they are not part of this
+// set (e.g. a trajectory.csv of an earlier --trace run); every other existing entry is carried
+// over, so the folder never mixes two result sets.
 void write_files_atomically(const std::string& dir, const std::vector<std::pair<std::string, std::string>>& files,
                             const std::vector<std::string>& stale = {});
 
-// Creates `dir` and checks it is writable, before any work: throws std::runtime_error.
+// Creates `dir` and checks that its parent is writable (the set is swapped in from a sibling),
+// before any work: throws std::runtime_error (ScenarioError for an empty folder name, the root or
+// the current directory).
 void prepare_output_dir(const std::string& dir);
 
 // CSV field quoting (RFC 4180) and number formatting (empty for nullopt / non-finite).

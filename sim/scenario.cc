@@ -8,6 +8,9 @@
 #include <set>
 #include <sstream>
 
+#include "lmi/limits.h"
+#include "lmi/lmi.h"
+#include "sim/limits.h"
 #include "sim/registries.h"
 #include "sim/time.h"
 
@@ -23,6 +26,9 @@ std::string fnv1a_hex(const std::string& text) {
 }
 
 namespace {
+
+// The largest scenario file read (bytes; documented in scenarios/README.md).
+constexpr std::uintmax_t kMaxScenarioBytes = 64'000'000;
 
 struct PathSegment {
   std::string key;
@@ -155,14 +161,16 @@ RunSettings read_run(const Table& root) {
   if (!t) return r;
   r.periods = t->integer_or("periods", r.periods);
   if (r.periods < 1 || r.periods > 1'000'000'000) {
-    t->fail("periods", fmt::format("expected an integer in 1..1e9, got {}", r.periods));
+    t->fail("periods", fmt::format("expected an integer in 1..1000000000 (1e9), got {}", r.periods));
   }
   r.warmup = t->integer_or("warmup", std::min<std::int64_t>(r.warmup, r.periods / 10));
   if (r.warmup < 0 || r.warmup >= r.periods) {
     t->fail("warmup", fmt::format("expected an integer in 0..periods-1 ({}), got {}", r.periods - 1, r.warmup));
   }
   r.runs = t->integer_or("runs", r.runs);
-  if (r.runs < 1 || r.runs > 10'000'000) t->fail("runs", fmt::format("expected an integer >= 1, got {}", r.runs));
+  if (r.runs < 1 || r.runs > 10'000'000) {
+    t->fail("runs", fmt::format("expected an integer in 1..10000000 (1e7), got {}", r.runs));
+  }
   const auto seed = t->integer_or("seed", 1);
   if (seed < 0) t->fail("seed", fmt::format("expected a non-negative integer, got {}", seed));
   r.seed = static_cast<std::uint64_t>(seed);
@@ -198,6 +206,9 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
   if (const auto sumo = root.opt_table("sumo")) sc->mobility = make_mobility(*sumo, sc->run, dir);
 
   // Plant.
+  if (!root.has("plant")) {
+    throw ScenarioError(format_error(file, 1, "plant", "expected a [plant] table (required: the plant model), got none"));
+  }
   const Table plant = root.table("plant");
   const auto& pk = plant_registry().lookup(plant, "kind", "lti");
   sc->plant_kind = pk.name;
@@ -208,6 +219,7 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
     if (!sc->mobility) plant.fail("kind", fmt::format("expected a [sumo] table for plant kind \"{}\"", pk.name));
     sc->plant_vehicle = sc->mobility->vehicle(plant, "vehicle");
   }
+  const std::string state_size_driver = state_driver(plant, *doc.get("plant")->as_table(), sc->model);
   plant.finish();
 
   // Links.
@@ -328,7 +340,20 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
     if (!est_names.insert(e.name).second) {
       t.fail("name", fmt::format("expected a unique estimator name, got \"{}\" twice", e.name));
     }
-    e.design = k.factory(t, sc->model);
+    check_estimator_resources(t, *doc.get("estimator")->as_array()->get(i)->as_table(), k.name, sc->model,
+                              state_size_driver);  // sim/limits.h
+    try {
+      e.design = k.factory(t, sc->model);
+    } catch (const lmi::ResourceLimitError& err) {
+      t.fail("kind", fmt::format("the {} design: {} (--max-memory / --max-work raise the limits); its size is "
+                                 "driven by {}",
+                                 k.name, err.what(), state_size_driver));
+    } catch (const lmi::Error& err) {
+      // The model's numbers make the LMIs meaningless (e.g. an overflow to inf): bad input.
+      t.fail("kind", fmt::format("the {} design cannot be posed for this model: {} (check the magnitudes of the "
+                                 "plant, sensor and noise values)",
+                                 k.name, err.what()));
+    }
     t.finish();
     sc->estimators.push_back(std::move(e));
   }
@@ -389,6 +414,11 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
     root.table("run").fail("recentre", "expected \"auto\" or \"never\" with a controller input (it would see "
                                        "re-centred outputs), got \"always\"");
   }
+  {
+    const auto rt = root.opt_table("run");
+    check_campaign_resources(file, rt ? rt->line_of("runs") : 1, sc->run.runs, 1, sc->estimators.size(),
+                             sc->model.plant.n(), sc->model.sensors.size());  // sim/limits.h
+  }
   root.finish();
   return sc;
 }
@@ -424,6 +454,30 @@ std::string sweep_label(const toml::node& v) {
   return compact_toml(v);
 }
 
+// The value at a key path ("estimator[0].history"), or nullptr.
+const toml::node* find_path(const toml::table& doc, const std::string& path) {
+  std::vector<PathSegment> segs;
+  try {
+    segs = parse_path(path, "", 0);
+  } catch (const ScenarioError&) {
+    return nullptr;
+  }
+  const toml::table* cur = &doc;
+  for (std::size_t s = 0; s < segs.size(); ++s) {
+    const toml::node* n = cur->get(segs[s].key);
+    if (n == nullptr) return nullptr;
+    if (segs[s].index) {
+      const toml::array* arr = n->as_array();
+      if (arr == nullptr || *segs[s].index >= arr->size()) return nullptr;
+      n = arr->get(*segs[s].index);
+    }
+    if (s + 1 == segs.size()) return n;
+    cur = n->as_table();
+    if (cur == nullptr) return nullptr;
+  }
+  return nullptr;
+}
+
 // The `values` array of [[sweep]] number `axis`.
 toml::array& sweep_values(toml::table& doc, std::size_t axis) {
   return *doc.get("sweep")->as_array()->get(axis)->as_table()->get("values")->as_array();
@@ -433,6 +487,19 @@ toml::array& sweep_values(toml::table& doc, std::size_t axis) {
 
 LoadedScenario load_cases(const std::string& file, const std::vector<std::string>& sets,
                           const RunOverrides& overrides, std::optional<std::size_t> only_case) {
+  {
+    // A regular file of bounded size: a FIFO or device would block or never end.
+    std::error_code ec;
+    const auto st = std::filesystem::status(file, ec);
+    if (!ec && std::filesystem::exists(st) && !std::filesystem::is_regular_file(st)) {
+      throw ScenarioError(format_error(file, 0, "", "expected a regular scenario file (not a FIFO, device or folder)"));
+    }
+    const auto size = std::filesystem::file_size(file, ec);
+    if (!ec && size > kMaxScenarioBytes) {
+      throw ScenarioError(format_error(file, 0, "", fmt::format("the scenario file holds {} bytes; at most {} are read",
+                                                                size, kMaxScenarioBytes)));
+    }
+  }
   std::ifstream in(file, std::ios::binary);
   if (!in) throw ScenarioError(format_error(file, 0, "", "cannot open the scenario file"));
   std::stringstream ss;
@@ -457,6 +524,7 @@ LoadedScenario load_cases_text(const std::string& file, const std::string& text,
 
   // Sweeps: cartesian product, the first axis varying slowest.
   std::vector<std::size_t> axis_sizes;
+  int last_sweep_line = 1;
   {
     Table root(doc, "", file);
     const auto sweep_tables = root.tables("sweep");
@@ -488,6 +556,7 @@ LoadedScenario load_cases_text(const std::string& file, const std::string& text,
       toml::table scratch = doc;
       set_path(scratch, axis.key, *vals->as_array()->get(0), file, key_line);
       axis_sizes.push_back(vals->as_array()->size());
+      last_sweep_line = std::max(1, t.line_of("values"));
       out.sweeps.push_back(std::move(axis));
     }
   }
@@ -495,11 +564,42 @@ LoadedScenario load_cases_text(const std::string& file, const std::string& text,
   for (const std::size_t n : axis_sizes) {
     total *= n;
     if (total > 100000) {
-      throw ScenarioError(
-          format_error(file, 0, "sweep", "expected at most 100000 cases, got more"));
+      throw ScenarioError(format_error(file, last_sweep_line, "sweep",
+                                       "expected at most 100000 cases (the product of the [[sweep]] value counts), "
+                                       "got more"));
     }
   }
+  check_sweep_resources(file, last_sweep_line, total, out.text.size());  // sim/limits.h
   const std::string dir = std::filesystem::path(file).parent_path().string();
+  // The base values of swept keys are validated too (as one whole scenario) when one of them is
+  // not among its swept values: a value in the file must be valid even when a sweep replaces it.
+  if (!out.sweeps.empty() && !only_case) {
+    std::vector<std::size_t> missing;  // axes without a base value: they take their first value
+    bool unchecked = false;
+    for (std::size_t a = 0; a < out.sweeps.size(); ++a) {
+      const toml::node* base = find_path(doc, out.sweeps[a].key);
+      if (base == nullptr) {
+        missing.push_back(a);
+        continue;
+      }
+      const auto& labels = out.sweeps[a].labels;
+      unchecked = unchecked || std::find(labels.begin(), labels.end(), sweep_label(*base)) == labels.end();
+    }
+    if (unchecked) {
+      toml::table base_doc = parse_document(out.text, file, sets, overrides);
+      for (const std::size_t a : missing) {
+        toml::node& value = *sweep_values(base_doc, a).get(0);
+        set_path(base_doc, out.sweeps[a].key, std::move(value), file, 0);
+      }
+      try {
+        (void)build_scenario(base_doc, file, dir);
+      } catch (const ScenarioError& e) {
+        throw ScenarioError(fmt::format("{} (in the base scenario: the values written outside [[sweep]] must be "
+                                        "valid too, even where a sweep replaces them)",
+                                        e.what()));
+      }
+    }
+  }
   if (only_case && *only_case >= total) {
     throw ScenarioError(format_error(file, 0, "sweep",
                                      fmt::format("expected a case index below {}, got {}", total, *only_case)));

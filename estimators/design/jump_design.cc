@@ -41,6 +41,14 @@ Eigen::MatrixXd optimal_gain(const ExtendedModel& ext, const Eigen::MatrixXd& X,
   return S.ldlt().solve(CX).transpose();
 }
 
+// Eq. (28) of Dolz et al. (2014) as printed (see JumpDesign::Pt_paper_eq28_erroneous).
+Eigen::MatrixXd paper_eq28_erroneous(const ExtendedModel& ext, double p0, const Eigen::MatrixXd& stein,
+                                     const Eigen::MatrixXd& P) {
+  const Eigen::MatrixXd Sc = ext.A * P * ext.A.transpose() + ext.Q / (1.0 - p0);
+  Eigen::MatrixXd Pt = (1.0 - p0) * P + p0 * stein_sum(stein, Sc);
+  return 0.5 * (Pt + Pt.transpose());
+}
+
 struct Term {
   int N;                 // 1..Nbar (Nbar = the tail N >= Nbar)
   std::uint64_t pattern;
@@ -195,6 +203,7 @@ JumpDesign design_jump_iterative(const ExtendedModel& ext, const std::vector<dou
   const Eigen::MatrixXd SP = stein_sum(stein, d.P);
   d.Pt = (1.0 - p0) * d.P + p0 * ((1.0 - p0) * ext.A * SP * ext.A.transpose() + SWinf);
   d.Pt = 0.5 * (d.Pt + d.Pt.transpose());
+  d.Pt_paper_eq28_erroneous = paper_eq28_erroneous(ext, p0, stein, d.P);
   d.stable = true;
   return d;
 }
@@ -289,6 +298,7 @@ JumpDesign evaluate_jump_gains(const ExtendedModel& ext, const std::vector<doubl
   const Eigen::MatrixXd SP = stein_sum(stein, d.P);
   d.Pt = (1.0 - p0) * d.P + p0 * ((1.0 - p0) * ext.A * SP * ext.A.transpose() + SWinf);
   d.Pt = 0.5 * (d.Pt + d.Pt.transpose());
+  d.Pt_paper_eq28_erroneous = paper_eq28_erroneous(ext, p0, stein, d.P);
   d.stable = true;
   d.status = "ok";
   return d;

@@ -29,6 +29,10 @@ struct JumpDesign {
   double p0 = 0.0;                             // P[no measurement in a period]
   Eigen::MatrixXd P;                           // covariance at update instants
   Eigen::MatrixXd Pt;                          // covariance at every period (corrected eq. 28)
+  // Eq. (28) exactly as printed, which weights the N >= 1 terms by p0^N instead of (1-p0) p0^N:
+  // (1-p0) P + p0 sum_k p0^k Abar^k (Abar P Abar' + Bw W Bw' / (1-p0)) Abar^k'. Wrong (simulation
+  // follows Pt); kept only to reproduce the paper's Fig. 3 and Fig. 1(a) text (results/README.md).
+  Eigen::MatrixXd Pt_paper_eq28_erroneous;
   int iterations = 0;
   bool stable = false;
   std::string status = "ok";

@@ -68,13 +68,20 @@ struct Vars {
   std::vector<lmi::Var> gv, gd;
 };
 
+// `needed` (jump gains, empty: all): patterns that occur with positive probability somewhere.
+// A pattern that never occurs gets no variables of its own (they would appear in no LMI, an
+// ill-posed problem): it shares the gain of the first pattern that occurs.
 Vars make_vars(lmi::Problem& prob, const SodSystem& sys, std::size_t patterns, bool jump, std::size_t nP,
-               bool with_delta, bool all_delivered = false) {
+               bool with_delta, bool all_delivered = false, const std::vector<bool>& needed = {}) {
   const int n = static_cast<int>(sys.A.rows());
   const int ny = static_cast<int>(sys.ny());
   Vars v;
+  std::size_t first = 0;
+  while (!needed.empty() && first < patterns && !needed[first]) ++first;
+  if (first == patterns) first = 0;
+  auto own = [&](std::size_t j) { return jump ? needed.empty() || needed[j] || j == first : j == 0; };
   for (std::size_t j = 0; j < patterns; ++j) {
-    if (jump || j == 0) {
+    if (own(j)) {
       v.Q.push_back(prob.full(n, n, "Q" + std::to_string(j)));
       // Gain columns of a periodic sensor that did not deliver in pattern j are 0.
       const Eigen::VectorXd eta = sys.eta(static_cast<unsigned>(j));
@@ -99,8 +106,15 @@ Vars make_vars(lmi::Problem& prob, const SodSystem& sys, std::size_t patterns, b
         v.X.push_back(X);
       }
     } else {
-      v.Q.push_back(v.Q.front());
-      v.X.push_back(v.X.front());
+      // Shares pattern 0's (constant gain) or, below, the first occurring pattern's.
+      v.Q.push_back(v.Q.empty() ? lmi::Var{} : v.Q.front());
+      v.X.push_back(v.X.empty() ? lmi::Expr{} : v.X.front());
+    }
+  }
+  for (std::size_t j = 0; j < patterns; ++j) {
+    if (!own(j) && jump) {
+      v.Q[j] = v.Q[first];
+      v.X[j] = v.X[first];
     }
   }
   for (std::size_t j = 0; j < nP; ++j) v.P.push_back(prob.symmetric(n, "P" + std::to_string(j)));
@@ -156,7 +170,25 @@ SodDesignResult design_sod(const SodSystem& sys, const SodDesignSpec& spec) {
   const MatrixXd I = MatrixXd::Identity(ny, ny);
   lmi::Problem prob;
   const bool det = spec.approach == Approach::kDeterministic;
-  const Vars v = make_vars(prob, sys, patterns, spec.jump, det ? patterns : 1, true);
+  // Stochastic design: the patterns with positive probability at some vertex of the box (with
+  // delta = 0 every sensor always sends, and only the all-delivered pattern occurs).
+  // The pattern probabilities at each vertex of the box beta_s in {beta'_s, 1} (or only at beta').
+  std::vector<std::vector<double>> vertex_p;
+  std::vector<bool> needed;
+  if (!det) {
+    needed.assign(patterns, false);
+    const auto ns = static_cast<unsigned>(sys.ns());
+    const unsigned vertices = spec.vertices == Vertices::kAll ? 1U << ns : 1U;
+    for (unsigned c = 0; c < vertices; ++c) {
+      VectorXd beta = spec.beta_lower;
+      for (unsigned s = 0; s < ns; ++s) {
+        if ((c >> s) & 1U) beta(s) = 1.0;
+      }
+      vertex_p.push_back(pattern_probabilities(beta));
+      for (std::size_t j = 0; j < patterns; ++j) needed[j] = needed[j] || vertex_p.back()[j] > 0.0;
+    }
+  }
+  const Vars v = make_vars(prob, sys, patterns, spec.jump, det ? patterns : 1, true, false, needed);
   const lmi::Expr Gv = diag_of(v.gv), Gd = diag_of(v.gd);
   const lmi::Expr Gw = diag_of(std::vector<lmi::Var>(static_cast<std::size_t>(nw), v.gw));
   const MatrixXd CzCz = sys.Cz.transpose() * sys.Cz;
@@ -187,14 +219,7 @@ SodDesignResult design_sod(const SodSystem& sys, const SodDesignSpec& spec) {
   } else {
     // (20) at each vertex of the box beta_s in {beta'_s, 1} (or only at beta'), zero-probability
     // pattern blocks dropped.
-    const auto ns = static_cast<unsigned>(sys.ns());
-    const unsigned vertices = spec.vertices == Vertices::kAll ? 1U << ns : 1U;
-    for (unsigned c = 0; c < vertices; ++c) {
-      VectorXd beta = spec.beta_lower;
-      for (unsigned s = 0; s < ns; ++s) {
-        if ((c >> s) & 1U) beta(s) = 1.0;
-      }
-      const std::vector<double> p = pattern_probabilities(beta);
+    for (const std::vector<double>& p : vertex_p) {
       std::vector<std::size_t> live;
       for (std::size_t j = 0; j < patterns; ++j) {
         if (p[j] > 0.0) live.push_back(j);

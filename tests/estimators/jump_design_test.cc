@@ -154,5 +154,31 @@ TEST(JumpDesign, FlopsAreThePaperFormulaForA3) {
   EXPECT_EQ(jump->report().stored_gains.value(), 60);
 }
 
+
+TEST(JumpDesign, PaperEq28AsPrintedIsKeptApartFromTheCorrectedForm) {
+  // Printed (28): (1-p0) P + p0 sum_k p0^k Abar^k (Abar P Abar' + Q/(1-p0)) Abar^k'; corrected:
+  // (1-p0) P + p0 ((1-p0) Abar S_P Abar' + S'_W,inf). Summed here term by term (k < 4000,
+  // p0 rho(Abar)^2 < 1 so the tail is below 1e-12), then the printed form must exceed the
+  // corrected one (its N >= 1 terms lack the factor 1-p0 < 1).
+  auto d = dolz_model();
+  const ExtendedModel ext = build_extended(d.model, 1);
+  const auto prob = pattern_probabilities(d.model, ext);
+  const JumpDesign jd = design_jump_iterative(ext, prob, 4, Grouping::kS4);
+  ASSERT_TRUE(jd.stable);
+  const double p0 = jd.p0;
+  // term_k = p0^k Abar^k Sc Abar^k', built as term_{k+1} = p0 Abar term_k Abar' (no overflow).
+  Eigen::MatrixXd sum = Eigen::MatrixXd::Zero(ext.nb, ext.nb);
+  Eigen::MatrixXd term = ext.A * jd.P * ext.A.transpose() + ext.Q / (1.0 - p0);
+  for (int k = 0; k < 4000; ++k) {
+    sum += term;
+    term = p0 * ext.A * term * ext.A.transpose();
+  }
+  const Eigen::MatrixXd printed = (1.0 - p0) * jd.P + p0 * sum;
+  EXPECT_LT((printed - jd.Pt_paper_eq28_erroneous).cwiseAbs().maxCoeff(), 1e-10 * printed.cwiseAbs().maxCoeff());
+  EXPECT_GT(jd.Pt_paper_eq28_erroneous.trace(), 1.01 * jd.Pt.trace());
+  std::printf("A3, S4, Nbar = 4: tr Pt corrected %.6f, printed (28) %.6f\n", jd.Pt.trace(),
+              jd.Pt_paper_eq28_erroneous.trace());
+}
+
 }  // namespace
 }  // namespace ncosim::est

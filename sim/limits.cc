@@ -1,0 +1,135 @@
+// sim/limits.cc — resource estimates and limits (see limits.h).
+#include "sim/limits.h"
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <mutex>
+
+#include "lmi/limits.h"
+
+namespace ncosim::sim {
+
+namespace {
+ResourceLimits& storage() {
+  static ResourceLimits l;
+  return l;
+}
+
+// Memory of one built case: a designed scenario and its share of the parsed documents
+// (measured on the shipped scenarios, see tests/cli/reliability_test.cc).
+constexpr double kCaseBytes = 200e3;
+constexpr double kCaseBytesPerTextByte = 20.0;
+
+std::string gflop(double flops) { return fmt::format("{:.0f} GFLOP", flops / 1e9); }
+
+// An integer key read without marking it known (the estimator's own reader validates it).
+std::int64_t peek_integer(const toml::table& t, std::string_view key, std::int64_t fallback) {
+  const toml::node* n = t.get(key);
+  if (n == nullptr) return fallback;
+  if (auto i = n->value_exact<std::int64_t>()) return *i;
+  if (auto d = n->value_exact<double>()) {
+    if (std::isfinite(*d) && std::floor(*d) == *d && std::fabs(*d) < 1e9) return static_cast<std::int64_t>(*d);
+  }
+  return fallback;
+}
+}  // namespace
+
+const ResourceLimits& resource_limits() { return storage(); }
+
+void set_resource_limits(const ResourceLimits& limits) {
+  storage() = limits;
+  lmi::set_resource_limits({limits.memory_bytes, limits.work_flops});
+}
+
+std::string human_bytes(double bytes) {
+  if (bytes >= 1e12) return fmt::format("{:.1f} TB", bytes / 1e12);
+  if (bytes >= 1e9) return fmt::format("{:.1f} GB", bytes / 1e9);
+  return fmt::format("{:.0f} MB", std::ceil(bytes / 1e6));
+}
+
+std::string state_driver(const Table& plant, const toml::table& raw, const est::Model& model) {
+  const auto n = model.plant.n();
+  if (const toml::node* dt = raw.get("dead_time")) {
+    const auto v = dt->value<double>();
+    if (v && *v > 0.0) {
+      return fmt::format("{} ({} s at run.period = {} s gives {} plant states)", plant.key_path("dead_time"), *v,
+                         model.period, n);
+    }
+  }
+  for (const char* key : {"A", "den", "modes"}) {
+    if (raw.get(key) != nullptr) return fmt::format("{} ({} plant states)", plant.key_path(key), n);
+  }
+  return fmt::format("{} ({} plant states)", plant.path().empty() ? "plant" : plant.path(), n);
+}
+
+void check_estimator_resources(const Table& t, const toml::table& raw, const std::string& kind,
+                               const est::Model& model, const std::string& driver) {
+  const ResourceLimits& lim = resource_limits();
+  const double n = static_cast<double>(model.plant.n());
+  const double ny = static_cast<double>(model.total_outputs());
+  const double sensors = static_cast<double>(model.sensors.size());
+  const std::int64_t dbar = std::max<std::int64_t>(0, std::min<std::int64_t>(peek_integer(raw, "max_delay", 0), 62));
+  const std::int64_t history = std::max<std::int64_t>(1, std::min<std::int64_t>(peek_integer(raw, "history", 1), 1000));
+  // The state the design iterates on: the plant, or the plant with its delay line.
+  double dim = n;
+  std::string key = driver;
+  if (kind == "kalman_extended" || kind == "static_buffer" || kind == "kalman_buffer") {
+    dim = n * static_cast<double>(dbar + 1) + ny * static_cast<double>(dbar);
+    if (dbar > 0) key = fmt::format("{} (with {})", t.key_path("max_delay"), driver);
+  }
+  // Riccati / Lyapunov iterations on dim x dim matrices: ~16 matrices, ~200 products.
+  double bytes = 16.0 * 8.0 * dim * dim;
+  double flops = 200.0 * 2.0 * dim * dim * dim;
+  if (kind == "jump") {
+    // history x 2^(fictitious sensors) terms, each with gains n x (fictitious outputs) and an
+    // update of the n x n covariance, over ~50 iterations.
+    const double nf = sensors * static_cast<double>(dbar + 1);
+    const double terms = static_cast<double>(history) * std::ldexp(1.0, static_cast<int>(std::min(nf, 60.0)));
+    const double nyf = ny * static_cast<double>(dbar + 1);
+    bytes += terms * 8.0 * (n * nyf + n * n);
+    flops += 50.0 * terms * (2.0 * n * n * n + 2.0 * n * nyf * nyf + nyf * nyf * nyf);
+    key = fmt::format("{} and {} ({} x 2^{} terms, {})", t.key_path("history"), t.key_path("max_delay"), history,
+                      nf, driver);
+  }
+  if (lim.memory_bytes > 0.0 && bytes > lim.memory_bytes) {
+    t.fail("kind", fmt::format("the {} design needs an estimated {}, above the memory limit of {} "
+                               "(--max-memory); its size is driven by {}",
+                               kind, human_bytes(bytes), human_bytes(lim.memory_bytes), key));
+  }
+  if (lim.work_flops > 0.0 && flops > lim.work_flops) {
+    t.fail("kind", fmt::format("the {} design needs an estimated {}, above the work limit of {} "
+                               "(--max-work); its size is driven by {}",
+                               kind, gflop(flops), gflop(lim.work_flops), key));
+  }
+}
+
+void check_campaign_resources(const std::string& file, int line, std::int64_t runs, std::size_t cases,
+                              std::size_t estimators, std::int64_t states, std::size_t sensors) {
+  const ResourceLimits& lim = resource_limits();
+  // Per run and estimator: EstimatorRunMetrics (~300 bytes with its vectors) + per-state sums +
+  // per-sensor counters; kept for every run until the tables are written.
+  const double per = 300.0 + 32.0 * static_cast<double>(states) + 96.0 * static_cast<double>(sensors);
+  const double bytes = static_cast<double>(runs) * static_cast<double>(cases) * static_cast<double>(estimators) * per;
+  if (lim.memory_bytes > 0.0 && bytes > lim.memory_bytes) {
+    throw ScenarioError(format_error(
+        file, line, "run.runs",
+        fmt::format("the campaign keeps per-run results of {} runs x {} case(s) x {} estimator(s): an estimated {}, "
+                    "above the memory limit of {} (--max-memory)",
+                    runs, cases, estimators, human_bytes(bytes), human_bytes(lim.memory_bytes))));
+  }
+}
+
+void check_sweep_resources(const std::string& file, int line, std::size_t cases, std::size_t text_bytes) {
+  const ResourceLimits& lim = resource_limits();
+  const double bytes = static_cast<double>(cases) * (kCaseBytes + kCaseBytesPerTextByte * static_cast<double>(text_bytes));
+  if (lim.memory_bytes > 0.0 && bytes > lim.memory_bytes) {
+    throw ScenarioError(format_error(
+        file, line, "sweep",
+        fmt::format("{} sweep cases need an estimated {} (each case is designed and kept), above the memory limit "
+                    "of {} (--max-memory)",
+                    cases, human_bytes(bytes), human_bytes(lim.memory_bytes))));
+  }
+}
+
+}  // namespace ncosim::sim

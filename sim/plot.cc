@@ -1,0 +1,740 @@
+// sim/plot.cc — `ncosim plot`: summary and trace figures through gnuplot (.dat + .gp + images).
+#include "sim/plot.h"
+
+#include <fcntl.h>
+#include <fmt/format.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <sstream>
+
+#include "sim/config.h"
+#include "sim/output.h"
+
+namespace ncosim::sim {
+
+namespace fs = std::filesystem;
+
+int CsvTable::column(const std::string& name) const {
+  for (std::size_t i = 0; i < header.size(); ++i) {
+    if (header[i] == name) return static_cast<int>(i);
+  }
+  return -1;
+}
+
+CsvTable parse_csv(const std::string& text, const std::string& what) {
+  CsvTable t;
+  std::vector<std::string> row;
+  std::string field;
+  bool quoted = false, any = false;
+  int line = 1, row_line = 1;
+  auto end_row = [&] {
+    row.push_back(std::move(field));
+    field.clear();
+    if (t.header.empty()) {
+      t.header = std::move(row);
+    } else if (!(row.size() == 1 && row[0].empty())) {
+      if (row.size() != t.header.size()) {
+        throw ScenarioError(format_error(what, row_line, "",
+                                         fmt::format("expected {} fields (as the header), got {}",
+                                                     t.header.size(), row.size())));
+      }
+      t.rows.push_back(std::move(row));
+    }
+    row.clear();
+    any = false;
+  };
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    if (quoted) {
+      if (c == '"') {
+        if (i + 1 < text.size() && text[i + 1] == '"') {
+          field += '"';
+          ++i;
+        } else {
+          quoted = false;
+        }
+      } else {
+        if (c == '\n') ++line;
+        field += c;
+      }
+      continue;
+    }
+    if (c == '"') {
+      quoted = true;
+      any = true;
+    } else if (c == ',') {
+      row.push_back(std::move(field));
+      field.clear();
+      any = true;
+    } else if (c == '\n') {
+      end_row();
+      ++line;
+      row_line = line;
+    } else if (c != '\r') {
+      field += c;
+      any = true;
+    }
+  }
+  if (quoted) throw ScenarioError(format_error(what, row_line, "", "unterminated quoted field"));
+  if (any || !field.empty()) end_row();
+  if (t.header.empty()) throw ScenarioError(format_error(what, 0, "", "empty file (expected a header line)"));
+  return t;
+}
+
+const char* figure_kind_name(FigureKind k) {
+  switch (k) {
+    case FigureKind::kPerEstimator: return "per_estimator";
+    case FigureKind::kAgainstKey: return "against_key";
+    case FigureKind::kPanels: return "panels";
+    case FigureKind::kTrace: return "trace";
+  }
+  return "?";
+}
+
+std::string gnuplot_quote(const std::string& s) {
+  std::string out = "'";
+  for (char c : s) {
+    if (c == '\'') {
+      out += "''";
+    } else if (c == '\n' || c == '\r' || c == '\t') {
+      out += ' ';
+    } else {
+      out += c;
+    }
+  }
+  return out + "'";
+}
+
+namespace {
+
+std::string read_file(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  if (!in) throw ScenarioError(fmt::format("{}: cannot read (is this an ncosim output folder?)", p.string()));
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+std::optional<double> number(const std::string& s) {
+  if (s.empty()) return std::nullopt;
+  char* end = nullptr;
+  errno = 0;
+  const double v = std::strtod(s.c_str(), &end);
+  if (end != s.c_str() + s.size() || !std::isfinite(v)) return std::nullopt;
+  return v;
+}
+
+// The field as written in the CSV, or '?' (gnuplot's missing value) when it is not a number.
+std::string dat_field(const std::string& s) { return number(s) ? s : std::string("?"); }
+
+// One-line comment text for a .dat file.
+std::string comment(const std::string& s) {
+  std::string out;
+  for (char c : s) out += (c == '\n' || c == '\r') ? ' ' : c;
+  return out;
+}
+
+std::string scenario_title(const std::string& dir) {
+  std::ifstream in(fs::path(dir) / "manifest.json");
+  if (!in) return "";
+  try {
+    const auto j = nlohmann::json::parse(in);
+    if (j.contains("title") && j["title"].is_string()) return j["title"].get<std::string>();
+  } catch (const std::exception&) {
+  }
+  return "";
+}
+
+// The summary as the figures see it: sweep keys, cases in file order, estimators in order.
+struct Summary {
+  CsvTable t;
+  std::vector<std::string> keys;        // sweep key columns (before `estimator`)
+  std::vector<std::string> estimators;  // in order of first appearance
+  int est_col = -1;
+};
+
+Summary read_summary(const std::string& dir) {
+  const fs::path p = fs::path(dir) / "summary.csv";
+  Summary s;
+  s.t = parse_csv(read_file(p), p.string());
+  s.est_col = s.t.column("estimator");
+  if (s.est_col < 0) throw ScenarioError(format_error(p.string(), 1, "", "expected an `estimator` column"));
+  for (int i = 0; i < s.est_col; ++i) s.keys.push_back(s.t.header[static_cast<std::size_t>(i)]);
+  for (const auto& r : s.t.rows) {
+    const auto& e = r[static_cast<std::size_t>(s.est_col)];
+    if (std::find(s.estimators.begin(), s.estimators.end(), e) == s.estimators.end()) s.estimators.push_back(e);
+  }
+  return s;
+}
+
+// Distinct values of a column, in order of first appearance.
+std::vector<std::string> distinct(const CsvTable& t, int col) {
+  std::vector<std::string> out;
+  for (const auto& r : t.rows) {
+    const auto& v = r[static_cast<std::size_t>(col)];
+    if (std::find(out.begin(), out.end(), v) == out.end()) out.push_back(v);
+  }
+  return out;
+}
+
+bool all_numeric(const std::vector<std::string>& values) {
+  return std::all_of(values.begin(), values.end(), [](const std::string& v) { return number(v).has_value(); });
+}
+
+std::string prediction_column(const CsvTable& t, const std::string& metric) {
+  const std::string p = metric == "mse" ? "predicted_mse" : "predicted_" + metric;
+  return t.column(p) >= 0 ? p : "";
+}
+
+struct Choice {
+  FigureKind kind = FigureKind::kPerEstimator;
+  std::string x_key;
+  std::vector<std::string> panel_keys;
+};
+
+Choice choose(const Summary& s, const PlotOptions& opt, const std::string& what) {
+  Choice c;
+  auto check_key = [&](const std::string& k, const char* option) {
+    if (std::find(s.keys.begin(), s.keys.end(), k) == s.keys.end()) {
+      std::string valid;
+      for (const auto& v : s.keys) valid += (valid.empty() ? "" : ", ") + v;
+      throw ScenarioError(fmt::format("{} '{}': not a sweep key of {} (sweep keys: {})", option, k, what,
+                                      valid.empty() ? "none, the campaign has one case" : valid));
+    }
+  };
+  if (!opt.x_key.empty()) check_key(opt.x_key, "--x");
+  if (!opt.panel_key.empty()) check_key(opt.panel_key, "--panel");
+  if (!opt.x_key.empty() && opt.x_key == opt.panel_key) {
+    throw ScenarioError(fmt::format("--panel '{}': expected a key other than the x key", opt.panel_key));
+  }
+  if (s.keys.empty()) return c;
+  c.x_key = opt.x_key;
+  if (c.x_key.empty()) {
+    for (const auto& k : s.keys) {
+      if (k != opt.panel_key && all_numeric(distinct(s.t, s.t.column(k)))) {
+        c.x_key = k;
+        break;
+      }
+    }
+    if (c.x_key.empty()) {
+      for (const auto& k : s.keys) {
+        if (k != opt.panel_key) {
+          c.x_key = k;
+          break;
+        }
+      }
+    }
+  }
+  if (!opt.panel_key.empty()) {
+    c.panel_keys = {opt.panel_key};
+  } else {
+    for (const auto& k : s.keys) {
+      if (k != c.x_key) c.panel_keys.push_back(k);
+    }
+  }
+  c.kind = c.panel_keys.empty() ? FigureKind::kAgainstKey : FigureKind::kPanels;
+  return c;
+}
+
+struct Range {
+  double lo = INFINITY, hi = -INFINITY, min_positive = INFINITY;
+  bool any_nonpositive = false;
+  void add(double v) {
+    lo = std::min(lo, v);
+    hi = std::max(hi, v);
+    if (v > 0) {
+      min_positive = std::min(min_positive, v);
+    } else {
+      any_nonpositive = true;
+    }
+  }
+  bool empty() const { return !(lo <= hi); }
+};
+
+bool want_log(const std::string& mode, const Range& r, const char* option) {
+  if (mode == "on") return true;
+  if (mode == "off") return false;
+  if (mode != "auto") throw ScenarioError(fmt::format("{} '{}': expected auto, on or off", option, mode));
+  return !r.empty() && !r.any_nonpositive && r.hi / r.lo >= 100.0;
+}
+
+std::string colour_of(std::size_t e) {
+  static const char* colours[] = {"#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e",
+                                  "#17becf", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22"};
+  return fmt::format("lc rgb '{}'", colours[e % 10]);
+}
+
+std::string palette_style(std::size_t e) {
+  static const char* colours[] = {"#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e",
+                                  "#17becf", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22"};
+  return fmt::format("lc rgb '{}' pt {}", colours[e % 10], 1 + static_cast<int>(e % 13));
+}
+
+// The gnuplot script around a body: one pass per output format, images named <name>.<format>.
+std::string script(const std::string& name, const std::string& what, int width, int height, const std::string& body) {
+  return fmt::format(
+      "# {0}.gp — {1}, written by `ncosim plot`.\n"
+      "# Run in this folder: gnuplot {0}.gp   (one format: gnuplot -e \"formats='svg'\" {0}.gp)\n"
+      "set encoding utf8\n"
+      "if (!exists(\"formats\")) formats = 'png svg'\n"
+      "set datafile missing '?'\n"
+      "do for [fmt in formats] {{\n"
+      "  if (fmt eq 'png') {{ set terminal pngcairo size {2},{3} noenhanced font 'Sans,10'; set output '{0}.png' }}\n"
+      "  if (fmt eq 'svg') {{ set terminal svg size {2},{3} noenhanced font 'Sans,10' background '#ffffff'; "
+      "set output '{0}.svg' }}\n"
+      "  reset\n"
+      "  set datafile missing '?'\n"
+      "{4}"
+      "  unset multiplot\n"
+      "  set output\n"
+      "}}\n",
+      name, comment(what), width, height, body);
+}
+
+// Lower end of an error bar on a log axis: a CI reaching below zero is drawn to y/1000.
+std::string errorbar_using(const std::string& x, bool ci, bool log) {
+  if (!ci) return fmt::format("{}:2", x);
+  if (log) return fmt::format("{}:2:($2-$3 > 0 ? $2-$3 : $2*1e-3):($2+$3)", x);
+  return fmt::format("{}:2:($2-$3):($2+$3)", x);
+}
+
+std::string tics(const std::vector<std::string>& labels) {
+  std::string out = "(";
+  for (std::size_t i = 0; i < labels.size(); ++i) out += fmt::format("{}{} {}", i ? ", " : "", gnuplot_quote(labels[i]), i);
+  return out + ")";
+}
+
+Figure summary_figure(const std::string& dir, const Summary& s, const PlotOptions& opt) {
+  const std::string what = (fs::path(dir) / "summary.csv").string();
+  const int m = s.t.column(opt.metric);
+  if (m < 0 || m <= s.est_col + 1) {
+    std::string valid;
+    for (std::size_t i = static_cast<std::size_t>(s.est_col) + 2; i < s.t.header.size(); ++i) {
+      const auto& h = s.t.header[i];
+      if (h != "status" && h.find("_ci95") == std::string::npos) valid += (valid.empty() ? "" : ", ") + h;
+    }
+    throw ScenarioError(fmt::format("--metric '{}': not a column of {} (columns: {})", opt.metric, what, valid));
+  }
+  const int ci = s.t.column(opt.metric + "_ci95");
+  const std::string pred_name = prediction_column(s.t, opt.metric);
+  const int pred = pred_name.empty() ? -1 : s.t.column(pred_name);
+  const Choice c = choose(s, opt, what);
+  const std::string title0 = scenario_title(dir);
+
+  Figure f;
+  f.name = "plot_" + opt.metric;
+  f.kind = c.kind;
+  const int runs = s.t.column("runs");
+  std::string runs_text;
+  if (runs >= 0 && !s.t.rows.empty()) runs_text = fmt::format(", {} runs", s.t.rows.front()[static_cast<std::size_t>(runs)]);
+  f.title = fmt::format("{}{}{}{}", opt.metric, ci >= 0 ? " with 95 % CI" : "", runs_text,
+                        title0.empty() ? "" : " — " + title0);
+  Range yr;
+  auto add_y = [&](const std::vector<std::string>& r) {
+    const auto v = number(r[static_cast<std::size_t>(m)]);
+    if (!v) return;
+    yr.add(*v);
+    if (ci >= 0) {
+      if (const auto h = number(r[static_cast<std::size_t>(ci)])) {
+        yr.add(*v + *h);
+        if (*v - *h > 0) yr.add(*v - *h);
+      }
+    }
+    if (pred >= 0) {
+      if (const auto p = number(r[static_cast<std::size_t>(pred)])) yr.add(*p);
+    }
+  };
+  for (const auto& r : s.t.rows) add_y(r);
+  const bool logy = want_log(opt.logy, yr, "--logy");
+  bool any_pred = false;
+  for (const auto& r : s.t.rows) any_pred = any_pred || (pred >= 0 && number(r[static_cast<std::size_t>(pred)]));
+
+  std::string dat = fmt::format("# {} — numbers copied from summary.csv as written ('?' = empty)\n", comment(f.title));
+  std::string body;
+  body += fmt::format("  set title {}\n  set ylabel {}\n  set grid\n", gnuplot_quote(f.title),
+                      gnuplot_quote(opt.metric + (ci >= 0 ? "  (bars: 95 % CI)" : "")));
+  if (logy) body += "  set logscale y\n";
+  int width = 900, height = 560;
+
+  if (c.kind == FigureKind::kPerEstimator) {
+    dat += fmt::format("# index {} {} {}   (index: estimator, named in the comment above its row)\n",
+                       opt.metric, ci >= 0 ? opt.metric + "_ci95" : "-", pred >= 0 ? pred_name : "-");
+    for (std::size_t e = 0; e < s.t.rows.size(); ++e) {
+      const auto& r = s.t.rows[e];
+      dat += fmt::format("# {}\n{} {} {} {}\n", comment(r[static_cast<std::size_t>(s.est_col)]), e,
+                         dat_field(r[static_cast<std::size_t>(m)]), ci >= 0 ? dat_field(r[static_cast<std::size_t>(ci)]) : "?",
+                         pred >= 0 ? dat_field(r[static_cast<std::size_t>(pred)]) : "?");
+    }
+    width = std::max(700, 110 * static_cast<int>(s.t.rows.size()) + 250);
+    std::vector<std::string> labels;
+    for (const auto& r : s.t.rows) {
+      labels.push_back(r[static_cast<std::size_t>(s.est_col)] +
+                       (number(r[static_cast<std::size_t>(m)]) ? "" : " (no " + opt.metric + ")"));
+    }
+    body += fmt::format("  set xtics rotate by -25 {}\n  set xrange [-0.6:{}]\n  set bmargin 9\n",
+                        tics(labels), static_cast<double>(s.t.rows.size()) - 0.4);
+    body += "  set key outside bottom center horizontal\n";
+    body += fmt::format("  plot '{}.dat' using {} with {} pt 7 ps 1.2 lc rgb '#1f77b4' title {}", f.name,
+                        errorbar_using("1", ci >= 0, logy), ci >= 0 ? "yerrorbars" : "points",
+                        gnuplot_quote(ci >= 0 ? "simulated, 95 % CI" : "simulated"));
+    if (any_pred) {
+      body += fmt::format(", \\\n       '' using ($1+0.2):4 with points pt 4 ps 1.5 lc rgb '#d62728' title {}",
+                          gnuplot_quote("predicted (" + pred_name + ")"));
+    }
+    body += "\n";
+    f.dat = dat;
+    f.gp = script(f.name, f.title, width, height, body);
+    return f;
+  }
+
+  // Against a key, optionally in panels.
+  const int xc = s.t.column(c.x_key);
+  const std::vector<std::string> xs = distinct(s.t, xc);
+  const bool numeric_x = all_numeric(xs);
+  Range xr;
+  if (numeric_x) {
+    for (const auto& v : xs) xr.add(*number(v));
+  }
+  const bool logx = numeric_x && want_log(opt.logx, xr, "--logx");
+  std::vector<int> pcols;
+  for (const auto& k : c.panel_keys) pcols.push_back(s.t.column(k));
+  auto panel_of = [&](const std::vector<std::string>& r) {
+    std::string label;
+    for (std::size_t i = 0; i < pcols.size(); ++i) {
+      label += fmt::format("{}{} = {}", i ? ", " : "", c.panel_keys[i], r[static_cast<std::size_t>(pcols[i])]);
+    }
+    return label;
+  };
+  std::vector<std::string> panels;
+  for (const auto& r : s.t.rows) {
+    const std::string p = panel_of(r);
+    if (std::find(panels.begin(), panels.end(), p) == panels.end()) panels.push_back(p);
+  }
+  const std::size_t E = s.estimators.size();
+  std::vector<bool> est_pred(E, false);
+  for (const auto& r : s.t.rows) {
+    if (pred < 0 || !number(r[static_cast<std::size_t>(pred)])) continue;
+    const auto& name = r[static_cast<std::size_t>(s.est_col)];
+    est_pred[static_cast<std::size_t>(std::find(s.estimators.begin(), s.estimators.end(), name) - s.estimators.begin())] = true;
+  }
+  dat += fmt::format("# x {} {} {}   (one block per {}estimator; x = {}{})\n", opt.metric,
+                     ci >= 0 ? opt.metric + "_ci95" : "-", pred >= 0 ? pred_name : "-",
+                     panels.size() > 1 ? "panel and " : "", comment(c.x_key),
+                     numeric_x ? "" : ", as the index of its value in the figure's x tics");
+  std::size_t block = 0;
+  for (const auto& p : panels) {
+    for (const auto& e : s.estimators) {
+      if (block++ > 0) dat += "\n\n";
+      dat += fmt::format("# block {}: {}{}\n", block - 1, p.empty() ? "" : comment(p) + ", ", comment(e));
+      bool wrote = false;
+      for (const auto& r : s.t.rows) {
+        if (r[static_cast<std::size_t>(s.est_col)] != e || panel_of(r) != p) continue;
+        const auto& xv = r[static_cast<std::size_t>(xc)];
+        const std::string x =
+            numeric_x ? xv : std::to_string(std::find(xs.begin(), xs.end(), xv) - xs.begin());
+        dat += fmt::format("{} {} {} {}\n", x, dat_field(r[static_cast<std::size_t>(m)]),
+                           ci >= 0 ? dat_field(r[static_cast<std::size_t>(ci)]) : "?",
+                           pred >= 0 ? dat_field(r[static_cast<std::size_t>(pred)]) : "?");
+        wrote = true;
+      }
+      if (!wrote) dat += "? ? ? ?\n";
+    }
+  }
+  const std::size_t P = panels.size();
+  const std::size_t cols = P == 1 ? 1 : std::min<std::size_t>(3, static_cast<std::size_t>(std::ceil(std::sqrt(P))));
+  const std::size_t rows = (P + cols - 1) / cols;
+  width = P == 1 ? 900 : static_cast<int>(cols) * 520;
+  height = P == 1 ? 560 : static_cast<int>(rows) * 400 + 60;
+  body += fmt::format("  set xlabel {}\n", gnuplot_quote(c.x_key));
+  if (logx) body += "  set logscale x\n";
+  if (numeric_x) body += "  set offsets graph 0.03, graph 0.03, 0, 0\n";  // end points' bars inside the frame
+  if (!numeric_x) {
+    body += fmt::format("  set xtics {}\n  set xrange [-0.5:{}]\n", tics(xs), static_cast<double>(xs.size()) - 0.5);
+  }
+  if (P > 1 && !yr.empty()) {  // one y range for every panel, so that panels compare
+    const double lo = logy ? yr.min_positive / 1.5 : yr.lo - 0.05 * (yr.hi - yr.lo);
+    const double hi = logy ? yr.hi * 1.5 : yr.hi + 0.05 * (yr.hi - yr.lo);
+    if (hi > lo) body += fmt::format("  set yrange [{:.6g}:{:.6g}]\n", lo, hi);
+  }
+  if (P > 1) {
+    body += fmt::format("  set multiplot layout {},{} title {}\n", rows, cols, gnuplot_quote(f.title));
+    body += "  set key top left font ',8' box opaque\n";
+  } else {
+    body += "  set key outside right top\n";
+  }
+  for (std::size_t p = 0; p < P; ++p) {
+    if (P > 1) {
+      body += fmt::format("  set title {}\n", gnuplot_quote(panels[p]));
+      if (p == 1) body += "  unset key\n";
+    }
+    std::string plot;
+    for (std::size_t e = 0; e < E; ++e) {
+      const std::size_t b = p * E + e;
+      // Categorical x: estimators side by side around each tic so their bars do not overlap.
+      const std::string x = numeric_x ? "1" : fmt::format("($1{:+.3f})", (static_cast<double>(e) - (E - 1) / 2.0) * 0.06);
+      plot += fmt::format("{}'{}.dat' index {} using {} with {} {} ps 1.0 title {}", plot.empty() ? "" : ", \\\n       ",
+                          f.name, b, errorbar_using(x, ci >= 0, logy), ci >= 0 ? "yerrorlines" : "linespoints",
+                          palette_style(e), gnuplot_quote(s.estimators[e]));
+      if (est_pred[e]) {
+        plot += fmt::format(", \\\n       '' index {} using {}:4 with lines dt 2 {} title {}", b, x, colour_of(e),
+                            gnuplot_quote(s.estimators[e] + ", predicted"));
+      }
+    }
+    body += "  plot " + plot + "\n";
+  }
+  f.dat = dat;
+  f.gp = script(f.name, f.title, width, height, body);
+  return f;
+}
+
+// The trace figure from trajectory.csv: true state and estimates against time, arrivals marked.
+Figure trace_figure(const std::string& dir, const PlotOptions& opt) {
+  const fs::path p = fs::path(dir) / "trajectory.csv";
+  if (!fs::exists(p)) {
+    throw ScenarioError(fmt::format("--trace: {} does not exist (run the campaign with `ncosim run --trace`)", p.string()));
+  }
+  const CsvTable t = parse_csv(read_file(p), p.string());
+  std::vector<int> x, xphys;
+  for (int i = 1;; ++i) {
+    const int c = t.column(fmt::format("x{}", i));
+    if (c < 0) break;
+    x.push_back(c);
+    xphys.push_back(t.column(fmt::format("x{}_physical", i)));
+  }
+  if (x.empty()) throw ScenarioError(format_error(p.string(), 1, "", "expected columns x1 .. xn"));
+  const std::size_t n = x.size();
+  std::vector<std::string> est;
+  std::vector<std::vector<int>> xh;
+  std::vector<std::string> sensors;
+  std::vector<int> arrived;
+  for (std::size_t c = 0; c < t.header.size(); ++c) {
+    const std::string& h = t.header[c];
+    if (h.rfind("arrived:", 0) == 0) {
+      sensors.push_back(h.substr(8));
+      arrived.push_back(static_cast<int>(c));
+      continue;
+    }
+    const auto pos = h.rfind(":xhat");
+    if (pos == std::string::npos || h.size() == pos + 5) continue;
+    const std::string name = h.substr(0, pos);
+    if (h.substr(pos + 5) == "1") {
+      est.push_back(name);
+      xh.emplace_back();
+    }
+    if (!xh.empty() && est.back() == name) xh.back().push_back(static_cast<int>(c));
+  }
+  const int period = t.column("period");
+  std::vector<const std::vector<std::string>*> window;
+  for (const auto& r : t.rows) {
+    const auto k = number(r[static_cast<std::size_t>(period)]);
+    if (k && *k >= static_cast<double>(opt.trace_from) &&
+        *k < static_cast<double>(opt.trace_from) + static_cast<double>(opt.trace_periods)) {
+      window.push_back(&r);
+    }
+  }
+  if (window.empty()) {
+    throw ScenarioError(fmt::format("--from {}: no period of {} in the window of {} periods", opt.trace_from,
+                                    p.string(), opt.trace_periods));
+  }
+  // Physical coordinates where the re-centred run has them over the whole window.
+  bool physical = std::all_of(xphys.begin(), xphys.end(), [](int c) { return c >= 0; });
+  const bool recentred = physical;
+  for (const auto* r : window) {
+    for (int c : xphys) physical = physical && c >= 0 && number((*r)[static_cast<std::size_t>(c)]).has_value();
+  }
+  const std::size_t shown = std::min<std::size_t>(n, 6);
+  Figure f;
+  f.name = "trace";
+  f.kind = FigureKind::kTrace;
+  const std::string title0 = scenario_title(dir);
+  f.title = fmt::format("run 0, periods {}..{}{}{}", (*window.front())[static_cast<std::size_t>(period)],
+                        (*window.back())[static_cast<std::size_t>(period)],
+                        recentred ? (physical ? ", physical coordinates (re-centring added back)"
+                                              : ", re-centred coordinates (the physical state exceeds 1e10 here)")
+                                  : "",
+                        title0.empty() ? "" : " — " + title0);
+  std::string dat = fmt::format("# {}\n# period", comment(f.title));
+  for (std::size_t i = 0; i < n; ++i) dat += fmt::format(" x{}", i + 1);
+  for (const auto& e : est) {
+    for (std::size_t i = 0; i < xh[&e - est.data()].size(); ++i) dat += fmt::format(" [{}]:xhat{}", comment(e), i + 1);
+  }
+  for (const auto& s : sensors) dat += fmt::format(" arrived:[{}]", comment(s));
+  dat += physical ? "\n# x and xhat in physical coordinates: xhat + (x_physical - x) from trajectory.csv\n"
+                  : "\n# numbers copied from trajectory.csv as written\n";
+  for (const auto* rp : window) {
+    const auto& r = *rp;
+    dat += r[static_cast<std::size_t>(period)];
+    std::vector<double> offset(n, 0.0);
+    for (std::size_t i = 0; i < n; ++i) {
+      if (physical) {
+        offset[i] = *number(r[static_cast<std::size_t>(xphys[i])]) - number(r[static_cast<std::size_t>(x[i])]).value_or(0.0);
+        dat += " " + r[static_cast<std::size_t>(xphys[i])];
+      } else {
+        dat += " " + dat_field(r[static_cast<std::size_t>(x[i])]);
+      }
+    }
+    for (const auto& cols : xh) {
+      for (std::size_t i = 0; i < cols.size(); ++i) {
+        const std::string& v = r[static_cast<std::size_t>(cols[i])];
+        if (physical && i < n && number(v)) {
+          dat += fmt::format(" {:.9g}", *number(v) + offset[i]);
+        } else {
+          dat += " " + dat_field(v);
+        }
+      }
+    }
+    for (int a : arrived) dat += " " + dat_field(r[static_cast<std::size_t>(a)]);
+    dat += "\n";
+  }
+  std::string body = fmt::format("  set multiplot layout {},1 title {}\n", shown + (sensors.empty() ? 0 : 1),
+                                 gnuplot_quote(f.title));
+  body += "  set lmargin 12\n  set rmargin 30\n  set grid\n  set key outside right top font ',8'\n";
+  std::size_t col = 2 + n;
+  std::vector<std::size_t> first_col;
+  for (const auto& cols : xh) {
+    first_col.push_back(col);
+    col += cols.size();
+  }
+  for (std::size_t i = 0; i < shown; ++i) {
+    body += fmt::format("  set ylabel {}\n", gnuplot_quote(fmt::format("x{}", i + 1)));
+    std::string plot = fmt::format("'trace.dat' using 1:{} with lines lw 2 lc rgb 'black' title 'true x{}'", 2 + i, i + 1);
+    for (std::size_t e = 0; e < est.size(); ++e) {
+      if (i >= xh[e].size()) continue;
+      plot += fmt::format(", \\\n       '' using 1:{} with lines {} title {}", first_col[e] + i,
+                          colour_of(e), gnuplot_quote(est[e]));
+    }
+    body += "  plot " + plot + "\n";
+  }
+  if (!sensors.empty()) {
+    body += "  set ylabel 'packets'\n  set xlabel 'period'\n";
+    body += fmt::format("  set yrange [-0.5:{}]\n  set ytics {}\n", static_cast<double>(sensors.size()) - 0.5, tics(sensors));
+    std::string plot;
+    for (std::size_t s = 0; s < sensors.size(); ++s) {
+      const std::size_t c = col + s;
+      plot += fmt::format("{}'trace.dat' using 1:(${} > 0 ? {} : 1/0) with points pt 7 ps 0.5 lc rgb '#2ca02c' title {}",
+                          plot.empty() ? "" : ", \\\n       ", c, s, s == 0 ? "'packet(s) arrived'" : "''");
+      plot += fmt::format(", \\\n       '' using 1:(${} == 0 ? {} : 1/0) with points pt 2 ps 0.6 lc rgb '#d62728' title {}", c,
+                          s, s == 0 ? "'nothing arrived'" : "''");
+    }
+    body += "  plot " + plot + "\n";
+  }
+  if (n > shown) dat += fmt::format("# the figure shows x1..x{} of {} states\n", shown, n);
+  f.dat = dat;
+  f.gp = script(f.name, f.title, 1000, static_cast<int>(260 * (shown + 1) + 60), body);
+  return f;
+}
+
+}  // namespace
+
+FigureKind summary_figure_kind(const CsvTable& summary, const PlotOptions& opt) {
+  Summary s;
+  s.t = summary;
+  s.est_col = s.t.column("estimator");
+  for (int i = 0; i < s.est_col; ++i) s.keys.push_back(s.t.header[static_cast<std::size_t>(i)]);
+  return choose(s, opt, "summary.csv").kind;
+}
+
+std::vector<Figure> build_figures(const std::string& dir, const PlotOptions& opt) {
+  if (!fs::is_directory(dir)) throw ScenarioError(fmt::format("{}: not a directory", dir));
+  std::vector<Figure> out;
+  out.push_back(summary_figure(dir, read_summary(dir), opt));
+  if (opt.trace) out.push_back(trace_figure(dir, opt));
+  return out;
+}
+
+namespace {
+
+// Runs `gnuplot -e "formats='...'" NAME.gp` in `dir`; throws with gnuplot's messages on failure
+// and passes its warnings on to stderr.
+void run_gnuplot(const std::string& dir, const std::string& gp, const std::string& formats) {
+  int pipefd[2];
+  if (::pipe(pipefd) != 0) throw std::runtime_error(fmt::format("pipe: {}", std::strerror(errno)));
+  const std::string expr = fmt::format("formats='{}'", formats);
+  const pid_t pid = ::fork();
+  if (pid < 0) throw std::runtime_error(fmt::format("fork: {}", std::strerror(errno)));
+  if (pid == 0) {
+    ::close(pipefd[0]);
+    ::dup2(pipefd[1], 2);
+    const int devnull = ::open("/dev/null", O_RDWR);
+    if (devnull >= 0) {
+      ::dup2(devnull, 0);
+      ::dup2(devnull, 1);
+    }
+    if (::chdir(dir.c_str()) != 0) ::_exit(126);
+    ::execlp("gnuplot", "gnuplot", "-e", expr.c_str(), gp.c_str(), static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  ::close(pipefd[1]);
+  std::string messages;
+  char buf[4096];
+  for (;;) {
+    const ssize_t r = ::read(pipefd[0], buf, sizeof buf);
+    if (r > 0) {
+      messages.append(buf, static_cast<std::size_t>(r));
+    } else if (r == 0 || errno != EINTR) {
+      break;
+    }
+  }
+  ::close(pipefd[0]);
+  int status = 0;
+  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+    if (WIFEXITED(status) && WEXITSTATUS(status) == 127) {
+      throw std::runtime_error("gnuplot not found on PATH (Debian package gnuplot-nox)");
+    }
+    throw std::runtime_error(fmt::format("gnuplot {} failed in {}:\n{}", gp, dir, messages));
+  }
+  if (!messages.empty()) std::cerr << fmt::format("gnuplot {}: {}", gp, messages);
+}
+
+}  // namespace
+
+std::vector<std::string> render_figures(const std::string& dir, const std::vector<Figure>& figures,
+                                        const std::vector<std::string>& formats) {
+  std::vector<std::pair<std::string, std::string>> files;
+  for (const auto& f : figures) {
+    files.emplace_back(f.name + ".dat", f.dat);
+    files.emplace_back(f.name + ".gp", f.gp);
+  }
+  write_files_atomically(dir, files);
+  std::string fmts;
+  for (const auto& f : formats) {
+    if (f != "png" && f != "svg") throw ScenarioError(fmt::format("--format '{}': expected png or svg", f));
+    fmts += (fmts.empty() ? "" : " ") + f;
+  }
+  std::vector<std::string> images;
+  for (const auto& f : figures) {
+    run_gnuplot(dir, f.name + ".gp", fmts);
+    for (const auto& x : formats) images.push_back((fs::path(dir) / (f.name + "." + x)).string());
+  }
+  return images;
+}
+
+int plot_command(const std::string& dir, const PlotOptions& opt) {
+  for (const auto& f : opt.formats) {
+    if (f != "png" && f != "svg") throw ScenarioError(fmt::format("--format '{}': expected png or svg", f));
+  }
+  const auto figures = build_figures(dir, opt);
+  const auto images = render_figures(dir, figures, opt.formats);
+  for (const auto& f : figures) {
+    std::cout << fmt::format("{:<14} {}: {}.dat, {}.gp", figure_kind_name(f.kind), f.title, f.name, f.name);
+    for (const auto& x : opt.formats) std::cout << fmt::format(", {}.{}", f.name, x);
+    std::cout << "\n";
+  }
+  std::cout << fmt::format("written to {}/\n", dir);
+  return 0;
+}
+
+}  // namespace ncosim::sim

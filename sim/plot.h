@@ -1,0 +1,69 @@
+// sim/plot.h — `ncosim plot DIR`: gnuplot figures of any output folder, shaped by the campaign
+// (one case: the metric per estimator; one sweep key: the metric against it; two or more keys:
+// one panel per value of the others), and `--trace`: run 0's state and estimates against time.
+// Each figure is a .dat file (numbers copied from summary.csv / trajectory.csv as written) and a
+// .gp script beside the images, so that a user can restyle it. Bad input (no summary.csv, an
+// unknown metric or key) is a ScenarioError; a failing gnuplot is a std::runtime_error.
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace ncosim::sim {
+
+// A CSV file read per RFC 4180 (quoted fields may hold commas, quotes and line breaks).
+struct CsvTable {
+  std::vector<std::string> header;
+  std::vector<std::vector<std::string>> rows;  // every row has header.size() fields
+  int column(const std::string& name) const;   // -1 when absent
+};
+// Throws ScenarioError naming `what` and the line on malformed input (unterminated quote,
+// a row with a different number of fields).
+CsvTable parse_csv(const std::string& text, const std::string& what);
+
+enum class FigureKind {
+  kPerEstimator,  // one case: metric per estimator, CI bars, prediction beside
+  kAgainstKey,    // one sweep key (or all but the panel key fixed): metric against the key
+  kPanels,        // two or more keys: one panel per value of the panel key(s)
+  kTrace,         // --trace: run 0's state and estimates against time
+};
+const char* figure_kind_name(FigureKind k);
+
+struct PlotOptions {
+  std::string metric = "mse";  // a numeric column of summary.csv
+  std::string x_key;           // sweep key on the x axis (default: the first numeric key, else the first)
+  std::string panel_key;       // sweep key of the panels (default: every other key together)
+  std::string logx = "auto";   // auto | on | off
+  std::string logy = "auto";
+  std::vector<std::string> formats{"png", "svg"};
+  bool trace = false;          // also the trace figure from trajectory.csv
+  long trace_from = 0;         // first period of the trace window
+  long trace_periods = 200;    // periods in the trace window
+};
+
+// One figure: its base name (files <name>.dat, <name>.gp, <name>.<format>) and content.
+struct Figure {
+  std::string name;
+  FigureKind kind = FigureKind::kPerEstimator;
+  std::string title;
+  std::string dat, gp;
+};
+
+// The kind of the summary figure for this summary.csv and these options.
+FigureKind summary_figure_kind(const CsvTable& summary, const PlotOptions& opt);
+
+// Builds the figures of `dir` (reads summary.csv, and trajectory.csv when opt.trace).
+std::vector<Figure> build_figures(const std::string& dir, const PlotOptions& opt);
+
+// Writes the .dat and .gp files into `dir` and runs gnuplot there for `formats`.
+// Returns the image paths written.
+std::vector<std::string> render_figures(const std::string& dir, const std::vector<Figure>& figures,
+                                        const std::vector<std::string>& formats);
+
+// Quoted gnuplot string literal (single quotes, '' for a quote; line breaks become spaces).
+std::string gnuplot_quote(const std::string& s);
+
+// `ncosim plot`: builds, writes and renders; prints what was written. Returns the exit status.
+int plot_command(const std::string& dir, const PlotOptions& opt);
+
+}  // namespace ncosim::sim

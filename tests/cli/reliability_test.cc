@@ -1,0 +1,339 @@
+// tests/cli/reliability_test.cc — hostile input, resource limits and kills, as a user meets
+// them through the ncosim executable: each test is a regression test of one finding of the
+// reliability probe (exit 2 with FILE:LINE for bad input, exit 1 with a message for a failure that
+// is not bad input, never an abort, a silent status or a mixed result set).
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <regex>
+#include <string>
+#include <vector>
+
+#include "test_util.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+using Outcome = ncosim::testing::CommandOutcome;
+
+const std::string kBinary = NCOSIM_BINARY;
+const fs::path kSource = NCOSIM_SOURCE_DIR;
+
+std::string quote(const std::string& s) {
+  std::string out = "'";
+  for (char c : s) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return out + "'";
+}
+
+std::string command(const std::vector<std::string>& args) {
+  std::string cmd = quote(kBinary);
+  for (const auto& a : args) cmd += " " + quote(a);
+  return cmd;
+}
+
+Outcome ncosim(const std::vector<std::string>& args, const std::string& prefix = "") {
+  return ncosim::testing::run_shell(prefix + command(args));
+}
+
+class Reliability : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           fmt::format("ncosim_reliability_{}_{}", ::getpid(),
+                       ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  std::string write(const std::string& name, const std::string& text) {
+    const fs::path p = dir_ / name;
+    std::ofstream(p, std::ios::binary) << text;
+    return p.string();
+  }
+  fs::path dir_;
+};
+
+const std::string kSmall = R"(title = "small"
+[run]
+periods = 200
+warmup = 10
+runs = 2
+seed = 3
+[plant]
+kind = "lti"
+A = [[0.9, 0.1], [0.0, 0.8]]
+Bw = [[1.0, 0.0], [0.0, 1.0]]
+W = [[0.1, 0.0], [0.0, 0.1]]
+[[sensor]]
+name = "y1"
+C = [[1.0, 0.0]]
+R = [[0.01]]
+link = "net"
+[[link]]
+name = "net"
+kind = "trace"
+file = "trace.csv"
+[[estimator]]
+name = "kf"
+kind = "kalman_extended"
+max_delay = 1
+)";
+
+std::string trace_csv(int packets) {
+  std::string t = "seq,delay\n";
+  for (int i = 0; i < packets; ++i) t += fmt::format("{},{}\n", i, i % 3 == 0 ? "" : "1");
+  return t;
+}
+
+// Finding 1: a transfer function with a long dead time made `check` exit 205 with nothing on
+// stderr after 3.7 GB (CSDP's malloc failure exits the process). Now the design is estimated
+// first and refused with exit 2 naming the key, the estimate and the limit, within seconds.
+TEST_F(Reliability, DeadTimeDesignIsRefusedBeforeItStarts) {
+  const std::string text = R"([run]
+period = 0.005
+[plant]
+kind = "transfer_function"
+num = [1.0]
+den = [1.0, 1.0]
+dead_time = 1.01
+[[sensor]]
+C = "output"
+R = 0.25
+[[estimator]]
+kind = "sod_jump"
+w_rms = 0.1
+)";
+  const std::string file = write("dead_time.toml", text);
+  const auto t0 = std::chrono::steady_clock::now();
+  const Outcome o = ncosim({"check", file});
+  const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  EXPECT_EQ(o.code, 2) << o.output;
+  EXPECT_NE(o.output.find(file + ":12: key 'estimator[0].kind'"), std::string::npos) << o.output;
+  EXPECT_NE(o.output.find("plant.dead_time"), std::string::npos) << o.output;
+  EXPECT_NE(o.output.find("limit"), std::string::npos) << o.output;
+  EXPECT_LT(s, 20.0);
+}
+
+// Finding 6: valid but large inputs are refused with the key that drives the size; the
+// option raises the limit.
+TEST_F(Reliability, LargeDesignsNameTheKeyTheEstimateAndTheLimit) {
+  const int n = 300;
+  std::string a = "[", bw = "[", c = "[[";
+  for (int i = 0; i < n; ++i) {
+    a += i ? ", [" : "[";
+    for (int j = 0; j < n; ++j) a += fmt::format("{}{}", j ? ", " : "", i == j ? 0.5 : 0.0);
+    a += "]";
+    bw += i ? ", [1.0]" : "[1.0]";
+    c += i ? ", 0.0" : "1.0";
+  }
+  a += "]";
+  bw += "]";
+  c += "]]";
+  const std::string file = write("big.toml", fmt::format(R"([plant]
+kind = "lti"
+A = {}
+Bw = {}
+W = 1.0
+[[sensor]]
+C = {}
+R = 1.0
+[[estimator]]
+kind = "kalman_extended"
+max_delay = 62
+)",
+                                                         a, bw, c));
+  const Outcome o = ncosim({"check", file});
+  EXPECT_EQ(o.code, 2) << o.output.substr(0, 2000);
+  EXPECT_NE(o.output.find(file + ":10: key 'estimator[0].kind': the kalman_extended design needs an estimated"),
+            std::string::npos)
+      << o.output.substr(0, 2000);
+  EXPECT_NE(o.output.find("above the memory limit of 4.0 GB (--max-memory); its size is driven by "
+                          "estimator[0].max_delay (with plant.A (300 plant states))"),
+            std::string::npos)
+      << o.output.substr(0, 2000);
+  // A small work limit refuses a small design; the default passes it.
+  write("trace.csv", trace_csv(400));
+  const std::string small = write("small.toml", kSmall);
+  const Outcome refused = ncosim({"check", small, "--max-work", "0.00000001"});
+  EXPECT_EQ(refused.code, 2) << refused.output;
+  EXPECT_NE(refused.output.find("work limit"), std::string::npos) << refused.output;
+  const Outcome passes = ncosim({"check", small});
+  EXPECT_EQ(passes.code, 0) << passes.output;
+}
+
+// Finding 2: threads that cannot be created gave `terminate called without an active
+// exception` (SIGABRT); now exit 1 with a message.
+TEST_F(Reliability, ThreadCreationFailureIsExitOneWithAMessage) {
+  write("trace.csv", trace_csv(400));
+  const std::string file = write("small.toml", kSmall);
+  const Outcome o = ncosim({"run", file, "--threads", "300", "--runs", "300", "--periods", "20", "--quiet", "--out",
+                            (dir_ / "out").string()},
+                           "ulimit -v 2000000; ");
+  EXPECT_EQ(o.code, 1) << o.output;
+  EXPECT_NE(o.output.find("cannot start worker thread"), std::string::npos) << o.output;
+  EXPECT_EQ(o.output.find("terminate called"), std::string::npos) << o.output;
+}
+
+// Finding 3: a trace link on /dev/zero grew to 4 GB and a FIFO blocked `check` forever.
+TEST_F(Reliability, TraceFilesMustBeRegularAndBounded) {
+  std::string text = kSmall;
+  const std::string file = write("small.toml", text);
+  fs::create_symlink("/dev/zero", dir_ / "trace.csv");
+  Outcome o = ncosim({"check", file}, "timeout 20 ");
+  EXPECT_EQ(o.code, 2) << o.output;
+  EXPECT_NE(o.output.find("regular file"), std::string::npos) << o.output;
+  EXPECT_NE(o.output.find(file + ":20: key 'link[0].file'"), std::string::npos) << o.output;
+  fs::remove(dir_ / "trace.csv");
+  ASSERT_EQ(::mkfifo((dir_ / "trace.csv").c_str(), 0600), 0);
+  o = ncosim({"check", file}, "timeout 20 ");
+  EXPECT_EQ(o.code, 2) << o.output;
+  EXPECT_NE(o.output.find("FIFO"), std::string::npos) << o.output;
+  fs::remove(dir_ / "trace.csv");
+  write("trace.csv", "seq,delay\n0,1\n1," + std::string(5000, '1') + "\n");
+  o = ncosim({"check", file});
+  EXPECT_EQ(o.code, 2) << o.output;
+  EXPECT_NE(o.output.find("trace.csv:3: line longer than 4096 bytes"), std::string::npos) << o.output;
+  // The scenario file itself.
+  o = ncosim({"check", "/dev/zero"}, "timeout 20 ");
+  EXPECT_EQ(o.code, 2) << o.output;
+  EXPECT_NE(o.output.find("regular scenario file"), std::string::npos) << o.output;
+}
+
+// Finding 7: base values overridden by a sweep were never validated; the message names the
+// base scenario.
+TEST_F(Reliability, BaseValuesOverriddenByASweepAreValidated) {
+  write("trace.csv", trace_csv(400));
+  std::string text = kSmall;
+  text.replace(text.find("max_delay = 1"), 13, "max_delay = inf");
+  text += "[[sweep]]\nkey = \"estimator[0].max_delay\"\nvalues = [0, 1]\n";
+  const std::string file = write("sweep.toml", text);
+  const Outcome o = ncosim({"check", file});
+  EXPECT_EQ(o.code, 2) << o.output;
+  EXPECT_NE(o.output.find(file + ":24: key 'estimator[0].max_delay'"), std::string::npos) << o.output;
+  EXPECT_NE(o.output.find("base scenario"), std::string::npos) << o.output;
+  // A valid base value is not a failure.
+  std::string ok = kSmall + "[[sweep]]\nkey = \"estimator[0].max_delay\"\nvalues = [0, 2]\n";
+  EXPECT_EQ(ncosim({"check", write("ok.toml", ok)}).code, 0);
+}
+
+// Finding 7: --out "" silently wrote to the default folder.
+TEST_F(Reliability, EmptyOutIsRefused) {
+  write("trace.csv", trace_csv(400));
+  const Outcome o = ncosim({"run", write("small.toml", kSmall), "--out", ""});
+  EXPECT_EQ(o.code, 2) << o.output;
+  EXPECT_NE(o.output.find("--out: expected a folder name"), std::string::npos) << o.output;
+}
+
+// Finding 7: a key holding NUL cut the message; any byte survives (escaped).
+TEST_F(Reliability, MessagesSurviveAnyByteInAKey) {
+  write("trace.csv", trace_csv(400));
+  std::string text = kSmall;
+  text.replace(text.find("seed = 3"), 8, "seed = 3\n\"a\\u0000b\\u0007c\" = 1");
+  const std::string file = write("nul.toml", text);
+  const Outcome o = ncosim({"check", file});
+  EXPECT_EQ(o.code, 2) << o.output;
+  EXPECT_NE(o.output.find(file + ":7: key 'run.a\\x00b\\x07c': unknown key"), std::string::npos) << o.output;
+  EXPECT_EQ(o.output.find('\0'), std::string::npos);
+}
+
+// Finding 7: ranges stated correctly.
+TEST_F(Reliability, RangesAreStatedCorrectly) {
+  write("trace.csv", trace_csv(400));
+  std::string text = kSmall;
+  text.replace(text.find("runs = 2"), 8, "runs = 1e8");
+  Outcome o = ncosim({"check", write("runs.toml", text)});
+  EXPECT_EQ(o.code, 2) << o.output;
+  EXPECT_NE(o.output.find("expected an integer in 1..10000000 (1e7), got 100000000"), std::string::npos) << o.output;
+  text = kSmall;
+  text.replace(text.find("R = [[0.01]]"), 12, "R = [[0.01]]\nevery = 1e9");
+  o = ncosim({"check", write("every.toml", text)});
+  EXPECT_EQ(o.code, 2) << o.output;
+  EXPECT_NE(o.output.find("expected an integer in 1..1000000 (1e6), got 1000000000"), std::string::npos) << o.output;
+}
+
+// Finding 7: a missing [plant] named neither the line nor the table.
+TEST_F(Reliability, AMissingRequiredTableNamesTheFileAndTheTable) {
+  write("trace.csv", trace_csv(400));
+  std::string text = kSmall;
+  const std::size_t from = text.find("[plant]");
+  text.erase(from, text.find("[[sensor]]") - from);
+  const std::string file = write("noplant.toml", text);
+  const Outcome o = ncosim({"check", file});
+  EXPECT_EQ(o.code, 2) << o.output;
+  EXPECT_NE(o.output.find(file + ":1: key 'plant': expected a [plant] table"), std::string::npos) << o.output;
+}
+
+// Finding 8: R = 0 and delta = 0 in the send-on-delta design gave design_lmi_invalid_problem,
+// a status the docs called a bug.
+TEST_F(Reliability, DegenerateSendOnDeltaDesignsGetAClearStatus) {
+  const std::string file = (kSource / "scenarios" / "sod_example51.toml").string();
+  const Outcome o = ncosim({"design", file, "--set", "sensor[0].R=[[0.0]]", "--set", "sensor[1].R=[[0.0]]", "--set",
+                            "sensor[0].delta=0.0", "--set", "sensor[1].delta=0.0", "--out", (dir_ / "d").string()});
+  EXPECT_EQ(o.code, 0) << o.output;
+  EXPECT_EQ(o.output.find("invalid_problem"), std::string::npos) << o.output;
+  const std::string readme = ncosim::testing::read_text((kSource / "results" / "README.md").string());
+  EXPECT_EQ(readme.find("a bug"), std::string::npos);
+}
+
+// Finding 4: the result set of `run` is atomic as a whole: a kill before any step of the write
+// sequence leaves the previous set or the complete new one, and the next run cleans up.
+TEST_F(Reliability, KilledRunLeavesThePreviousOrTheNewSet) {
+  write("trace.csv", trace_csv(400));
+  const std::string file = write("small.toml", kSmall);
+  const fs::path out = dir_ / "out";
+  auto run = [&](const std::string& seed, const std::string& env) {
+    return ncosim({"run", file, "--seed", seed, "--quiet", "--out", out.string()}, env);
+  };
+  // A set is identified by its files' inodes (every write makes new files; timing columns make
+  // contents differ between identical campaigns) and by runs.csv, which depends on the seed only.
+  struct Set {
+    std::map<std::string, ino_t> inodes;
+    std::string runs;
+  };
+  auto snapshot = [&] {
+    Set s;
+    for (const auto& e : fs::directory_iterator(out)) {
+      struct stat st {};
+      ::stat(e.path().c_str(), &st);
+      s.inodes[e.path().filename().string()] = st.st_ino;
+    }
+    s.runs = ncosim::testing::read_text((out / "runs.csv").string());
+    return s;
+  };
+  ASSERT_EQ(run("2", "").code, 0);
+  const std::string runs_of_seed2 = snapshot().runs;
+  ASSERT_EQ(run("1", "").code, 0);
+  int kills = 0, mixed = 0;
+  for (int k = 1; k < 80; ++k) {
+    const Set before = snapshot();
+    const Outcome o = run("2", fmt::format("NCOSIM_TEST_KILL_AT={} ", k));
+    if (o.code == 0) break;
+    ++kills;
+    const Set now = snapshot();
+    ASSERT_EQ(now.inodes.size(), before.inodes.size()) << "kill before step " << k;
+    int old_files = 0, new_files = 0;
+    for (const auto& [name, inode] : now.inodes) {
+      if (name == "runs.sqlite") continue;  // the run store: each run makes its own (sim/store.h)
+      ASSERT_EQ(before.inodes.count(name), 1u) << name;
+      (before.inodes.at(name) == inode ? old_files : new_files)++;
+    }
+    const bool whole = (new_files == 0 && now.runs == before.runs) || (old_files == 0 && now.runs == runs_of_seed2);
+    if (!whole) ++mixed;
+    EXPECT_TRUE(whole) << "kill before step " << k << ": " << old_files << " old and " << new_files << " new files";
+    ASSERT_EQ(run("1", "").code, 0);  // recovers, cleans, and writes the seed-1 set again
+  }
+  EXPECT_GE(kills, 15);
+  EXPECT_EQ(mixed, 0);
+  for (const auto& e : fs::directory_iterator(dir_)) {
+    const std::string n = e.path().filename().string();
+    EXPECT_TRUE(n == "out" || n == ".out.lock" || n == "small.toml" || n == "trace.csv") << n;
+  }
+}
+
+}  // namespace

@@ -1,0 +1,186 @@
+// tests/sim/plot_test.cc — `ncosim plot` without gnuplot: the CSV reader, the figure kind chosen
+// for each campaign shape, the .dat files holding summary.csv's numbers as written, the quoting
+// of awkward names in the scripts, and the report's escaping and SVG id prefixing.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "sim/config.h"
+#include "sim/plot.h"
+#include "sim/report.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+using ncosim::sim::CsvTable;
+using ncosim::sim::FigureKind;
+using ncosim::sim::PlotOptions;
+
+const char* kHead = "estimator,kind,runs,mse,mse_ci95,predicted_mse,status\n";
+
+fs::path temp_dir(const std::string& name) {
+  const fs::path d = fs::temp_directory_path() / ("ncosim_plot_test_" + name + "_" + std::to_string(::getpid()));
+  fs::remove_all(d);
+  fs::create_directories(d);
+  return d;
+}
+
+void write(const fs::path& p, const std::string& s) {
+  std::ofstream o(p, std::ios::binary);
+  o << s;
+}
+
+TEST(ParseCsv, QuotedFieldsKeepCommasQuotesAndLineBreaks) {
+  const CsvTable t = ncosim::sim::parse_csv("a,b\r\n\"x, \"\"y\"\"\",\"line\nbreak\"\n,\n", "t.csv");
+  ASSERT_EQ(t.rows.size(), 2u);
+  EXPECT_EQ(t.rows[0][0], "x, \"y\"");
+  EXPECT_EQ(t.rows[0][1], "line\nbreak");
+  EXPECT_EQ(t.rows[1][0], "");
+  EXPECT_EQ(t.column("b"), 1);
+  EXPECT_EQ(t.column("c"), -1);
+}
+
+TEST(ParseCsv, MalformedInputNamesFileAndLine) {
+  try {
+    ncosim::sim::parse_csv("a,b\n1,2\n3\n", "t.csv");
+    FAIL() << "no error";
+  } catch (const ncosim::sim::ScenarioError& e) {
+    EXPECT_NE(std::string(e.what()).find("t.csv:3"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(ncosim::sim::parse_csv("a\n\"open\n", "t.csv"), ncosim::sim::ScenarioError);
+}
+
+// One case -> per estimator; one key -> against the key; two keys -> panels (or, with the second
+// key as the x key and the first as panels, still panels); options naming no key are errors.
+TEST(PlotKind, FollowsTheCampaignShape) {
+  PlotOptions o;
+  const auto one = ncosim::sim::parse_csv(std::string(kHead) + "a,jump,2,1,0.1,,ok\n", "s");
+  EXPECT_EQ(ncosim::sim::summary_figure_kind(one, o), FigureKind::kPerEstimator);
+  const auto swept = ncosim::sim::parse_csv(std::string("k,") + kHead + "1,a,jump,2,1,0.1,,ok\n2,a,jump,2,1,0.1,,ok\n", "s");
+  EXPECT_EQ(ncosim::sim::summary_figure_kind(swept, o), FigureKind::kAgainstKey);
+  const auto two = ncosim::sim::parse_csv(std::string("k,m,") + kHead + "1,x,a,jump,2,1,0.1,,ok\n2,y,a,jump,2,1,0.1,,ok\n", "s");
+  EXPECT_EQ(ncosim::sim::summary_figure_kind(two, o), FigureKind::kPanels);
+  o.x_key = "m";
+  o.panel_key = "k";
+  EXPECT_EQ(ncosim::sim::summary_figure_kind(two, o), FigureKind::kPanels);
+  o.panel_key = "m";
+  EXPECT_THROW(ncosim::sim::summary_figure_kind(two, o), ncosim::sim::ScenarioError);  // x = panel
+  o.x_key = "nope";
+  o.panel_key.clear();
+  EXPECT_THROW(ncosim::sim::summary_figure_kind(two, o), ncosim::sim::ScenarioError);
+  o.x_key = "k";
+  EXPECT_THROW(ncosim::sim::summary_figure_kind(one, o), ncosim::sim::ScenarioError);  // no sweep key
+}
+
+// The data rows of a .dat file (comments and blank lines dropped), split on blanks.
+std::vector<std::vector<std::string>> dat_rows(const std::string& dat) {
+  std::vector<std::vector<std::string>> rows;
+  std::istringstream in(dat);
+  for (std::string line; std::getline(in, line);) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream ls(line);
+    std::vector<std::string> f;
+    for (std::string w; ls >> w;) f.push_back(w);
+    rows.push_back(f);
+  }
+  return rows;
+}
+
+// Numbers are copied as written (1.23457e-05 stays 1.23457e-05, 0.100000 stays 0.100000); empty
+// cells become gnuplot's missing value '?'; names with quotes, commas and unicode are quoted for
+// gnuplot (a quote doubled) and never split into words in the data.
+TEST(PlotData, HoldsSummaryNumbersAsWritten) {
+  const fs::path d = temp_dir("one");
+  write(d / "summary.csv", std::string(kHead) +
+                               "\"S1, 1 \"\"gain\"\"\",jump,20,1.23457e-05,0.100000,2.5e-05,ok\n"
+                               "Kalman µ's,kalman_extended,20,0.0289304,,,diverged\n");
+  const auto figs = ncosim::sim::build_figures(d.string(), PlotOptions{});
+  ASSERT_EQ(figs.size(), 1u);
+  EXPECT_EQ(figs[0].kind, FigureKind::kPerEstimator);
+  const auto rows = dat_rows(figs[0].dat);
+  ASSERT_EQ(rows.size(), 2u);
+  EXPECT_EQ(rows[0], (std::vector<std::string>{"0", "1.23457e-05", "0.100000", "2.5e-05"}));
+  EXPECT_EQ(rows[1], (std::vector<std::string>{"1", "0.0289304", "?", "?"}));
+  EXPECT_NE(figs[0].gp.find("'S1, 1 \"gain\"'"), std::string::npos) << figs[0].gp;
+  EXPECT_NE(figs[0].gp.find("'Kalman µ''s'"), std::string::npos) << figs[0].gp;
+  EXPECT_EQ(ncosim::sim::gnuplot_quote("a'b\nc"), "'a''b c'");
+  fs::remove_all(d);
+}
+
+// Two keys: one block per (panel, estimator) in file order; a categorical x key is the index of
+// its value; the metric, CI and prediction columns as written.
+TEST(PlotData, PanelsHoldEveryCaseInBlocks) {
+  const fs::path d = temp_dir("panels");
+  write(d / "summary.csv", std::string("loss,preset,") + kHead +
+                               "0.1,\"a, b\",e1,jump,4,1.5,0.25,1.4,ok\n0.1,\"a, b\",e2,jump,4,2.5,0.5,,ok\n"
+                               "0.3,\"a, b\",e1,jump,4,3.5,0.75,3.4,ok\n0.3,\"a, b\",e2,jump,4,4.5,1.5,,ok\n"
+                               "0.1,c,e1,jump,4,5.5,0.1,,ok\n0.1,c,e2,jump,4,6.5,0.2,,ok\n"
+                               "0.3,c,e1,jump,4,7.5,0.3,,ok\n0.3,c,e2,jump,4,8.5,0.4,,ok\n");
+  const auto figs = ncosim::sim::build_figures(d.string(), PlotOptions{});
+  ASSERT_EQ(figs.size(), 1u);
+  EXPECT_EQ(figs[0].kind, FigureKind::kPanels);
+  EXPECT_NE(figs[0].gp.find("set xlabel 'loss'"), std::string::npos);  // the numeric key is x
+  EXPECT_NE(figs[0].gp.find("'preset = a, b'"), std::string::npos);
+  const auto rows = dat_rows(figs[0].dat);
+  ASSERT_EQ(rows.size(), 8u);
+  EXPECT_EQ(rows[0], (std::vector<std::string>{"0.1", "1.5", "0.25", "1.4"}));  // panel "a, b", e1
+  EXPECT_EQ(rows[1], (std::vector<std::string>{"0.3", "3.5", "0.75", "3.4"}));
+  EXPECT_EQ(rows[2], (std::vector<std::string>{"0.1", "2.5", "0.5", "?"}));     // panel "a, b", e2
+  EXPECT_EQ(rows[7], (std::vector<std::string>{"0.3", "8.5", "0.4", "?"}));     // panel c, e2
+  // Categorical x: the preset on x, panels per loss.
+  PlotOptions o;
+  o.x_key = "preset";
+  const auto f2 = ncosim::sim::build_figures(d.string(), o);
+  const auto r2 = dat_rows(f2[0].dat);
+  EXPECT_EQ(r2[0], (std::vector<std::string>{"0", "1.5", "0.25", "1.4"}));
+  EXPECT_EQ(r2[1], (std::vector<std::string>{"1", "5.5", "0.1", "?"}));
+  EXPECT_NE(f2[0].gp.find("('a, b' 0, 'c' 1)"), std::string::npos) << f2[0].gp;
+  o.metric = "no_such_column";
+  EXPECT_THROW(ncosim::sim::build_figures(d.string(), o), ncosim::sim::ScenarioError);
+  fs::remove_all(d);
+}
+
+TEST(PlotData, LogAxisOnlyWhenTheRangeAsksForIt) {
+  const fs::path d = temp_dir("log");
+  write(d / "summary.csv", std::string(kHead) + "a,jump,2,0.02,0.001,,ok\nb,open_loop,2,1.3e7,2e5,,ok\n");
+  EXPECT_NE(ncosim::sim::build_figures(d.string(), PlotOptions{})[0].gp.find("set logscale y"), std::string::npos);
+  write(d / "summary.csv", std::string(kHead) + "a,jump,2,0.02,0.001,,ok\nb,open_loop,2,0.05,0.002,,ok\n");
+  EXPECT_EQ(ncosim::sim::build_figures(d.string(), PlotOptions{})[0].gp.find("set logscale y"), std::string::npos);
+  PlotOptions on;
+  on.logy = "on";
+  EXPECT_NE(ncosim::sim::build_figures(d.string(), on)[0].gp.find("set logscale y"), std::string::npos);
+  fs::remove_all(d);
+}
+
+TEST(Report, EscapesTextAndPrefixesSvgIds) {
+  EXPECT_EQ(ncosim::sim::html_escape("<b>\"a\" & 'b'</b>"), "&lt;b&gt;&quot;a&quot; &amp; &#39;b&#39;&lt;/b&gt;");
+  const std::string svg =
+      "<?xml version=\"1.0\"?>\n<!DOCTYPE svg>\n<svg><g id=\"gnuplot_canvas\"><path id='gpPt0'/>"
+      "<use xlink:href='#gpPt0'/><rect fill=\"url(#grad)\"/></g></svg>";
+  EXPECT_EQ(ncosim::sim::inline_svg(svg, "f2-"),
+            "<svg><g id=\"f2-gnuplot_canvas\"><path id='f2-gpPt0'/><use xlink:href='#f2-gpPt0'/>"
+            "<rect fill=\"url(#f2-grad)\"/></g></svg>");
+  // Ids repeated inside one SVG (gnuplot's multiplot panels) get a suffix.
+  EXPECT_EQ(ncosim::sim::inline_svg("<svg><g id='p'/><g id='p'/><g id=\"p\"/></svg>", "x-"),
+            "<svg><g id='x-p'/><g id='x-p-1'/><g id=\"x-p-2\"/></svg>");
+}
+
+TEST(Report, SweepGetsCaseSectionsAndHighlightsStatus) {
+  const fs::path d = temp_dir("report");
+  write(d / "summary.csv", std::string("k,") + kHead + "1,<a>,jump,2,1,0.1,,ok\n1,b,jump,2,2,0.1,,diverged\n"
+                                                         "2,<a>,jump,2,3,0.1,,ok\n2,b,jump,2,4,0.1,,ok\n");
+  const std::string h = ncosim::sim::build_report(d.string(), {});
+  EXPECT_NE(h.find("id=\"case-1\""), std::string::npos);
+  EXPECT_NE(h.find("id=\"case-2\""), std::string::npos);
+  EXPECT_NE(h.find("<details"), std::string::npos);
+  EXPECT_NE(h.find("&lt;a&gt;"), std::string::npos);
+  EXPECT_EQ(h.find("<a>"), std::string::npos);
+  EXPECT_NE(h.find("<b>diverged</b>"), std::string::npos);  // listed among the warnings
+  EXPECT_EQ(h.find("<script"), std::string::npos);
+  fs::remove_all(d);
+}
+
+}  // namespace
