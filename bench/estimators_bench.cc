@@ -2,6 +2,7 @@
 // 2014, Table 2 configuration), the S4 design, and the whole flagship scenario.
 #include <benchmark/benchmark.h>
 
+#include <cmath>
 #include <memory>
 #include <vector>
 
@@ -81,6 +82,47 @@ BENCHMARK(BM_PeriodUpdate_OpenLoop);
 BENCHMARK(BM_PeriodUpdate_JumpS1);
 BENCHMARK(BM_PeriodUpdate_JumpS4N4);
 BENCHMARK(BM_PeriodUpdate_KalmanExtended);
+
+// The model of filterpy's KalmanFilter timing (2-state constant velocity, one position sensor,
+// ideal link): kalman_extended with max_delay 0, one packet every period.
+void BM_PeriodUpdate_KalmanCv2(benchmark::State& state) {
+  const std::string text = R"(
+[plant]
+kind = "lti"
+A = [[1.0, 1.0], [0.0, 1.0]]
+W = [[0.0025, 0.005], [0.005, 0.01]]
+[[sensor]]
+name = "pos"
+C = [[1.0, 0.0]]
+R = [[1.0]]
+[[estimator]]
+kind = "kalman_extended"
+max_delay = 0
+)";
+  const auto sc = sim::build_scenario(toml::parse(text, std::string_view("cv2.toml")), "cv2.toml", ".");
+  auto est = sc->estimators.front().design->instantiate();
+  std::vector<double> zs(256);
+  for (std::size_t i = 0; i < zs.size(); ++i) zs[i] = 0.5 * static_cast<double>(i) + std::sin(static_cast<double>(i));
+  const Eigen::VectorXd u = Eigen::VectorXd::Zero(0), drive = Eigen::VectorXd::Zero(2);
+  const est::PeriodInput in{u, drive};
+  est::Packet p;
+  p.sensor = 0;
+  p.count = 1;
+  p.stamps = {0};
+  p.values = Eigen::VectorXd::Zero(1);
+  std::int64_t k = 0;
+  for (auto _ : state) {
+    p.send_period = k;
+    p.stamps[0] = k;
+    p.values(0) = zs[static_cast<std::size_t>(k % 256)];
+    est->on_packet(p, k);
+    est->on_period(k, in);
+    benchmark::DoNotOptimize(est->state().data());
+    ++k;
+  }
+  state.SetItemsProcessed(state.iterations());
+}
+BENCHMARK(BM_PeriodUpdate_KalmanCv2);
 
 void BM_DesignS4N4(benchmark::State& state) {
   const Stream& s = stream();

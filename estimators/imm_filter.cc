@@ -1,11 +1,9 @@
 // estimators/imm_filter.cc — IMM mixing, mode-matched Kalman filters, mode probabilities.
 #include "estimators/imm_filter.h"
 
-#include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <numbers>
 #include <utility>
 
 #include "sim/check.h"
@@ -45,23 +43,6 @@ void mul_add(D&& dst, const A& a, const B& b, bool lazy) {
     dst.noalias() += a * b;
   }
 }
-template <class D, class A, class B>
-void mul_sub(D&& dst, const A& a, const B& b, bool lazy) {
-  if (lazy) {
-    dst.noalias() -= a.lazyProduct(b);
-  } else {
-    dst.noalias() -= a * b;
-  }
-}
-
-// Solves L X = B in place for the lower triangle L of `l` (row by row; small sizes).
-template <class L, class B>
-void forward_substitute(const L& l, B&& b) {
-  for (Eigen::Index r = 0; r < b.rows(); ++r) {
-    for (Eigen::Index c = 0; c < r; ++c) b.row(r) -= l(r, c) * b.row(c);
-    b.row(r) /= l(r, r);
-  }
-}
 
 bool is_distribution(const Eigen::Ref<const Eigen::VectorXd>& p) {
   return p.allFinite() && p.minCoeff() >= 0.0 && std::abs(p.sum() - 1.0) <= 1e-9;
@@ -94,8 +75,7 @@ ImmFilter::ImmFilter(std::vector<ImmMode> modes, const Eigen::MatrixXd& transiti
   x_mix_ = x_;
   P_.assign(ss, Eigen::MatrixXd::Zero(n_, n_));
   P_mix_ = P_;
-  innov_.assign(ss, Eigen::VectorXd::Zero(m_));
-  gain_.assign(ss, Eigen::MatrixXd::Zero(m_, n_));
+  ws_.assign(ss, kalman::Workspace(n_, m_));
   loglik_ = Eigen::VectorXd::Zero(s);
   cbar_ = Eigen::VectorXd::Zero(s);
   mu_ = Eigen::VectorXd::Zero(s);
@@ -105,12 +85,7 @@ ImmFilter::ImmFilter(std::vector<ImmMode> modes, const Eigen::MatrixXd& transiti
   d_ = Eigen::VectorXd::Zero(n_);
   dw_ = Eigen::VectorXd::Zero(n_);
   P_comb_ = Eigen::MatrixXd::Zero(n_, n_);
-  tmp_nn_ = Eigen::MatrixXd::Zero(n_, n_);
   rows_.assign(static_cast<std::size_t>(m_), 0);
-  Hs_ = Eigen::MatrixXd::Zero(m_, n_);
-  Rs_ = Eigen::MatrixXd::Zero(m_, m_);
-  S_ = Eigen::MatrixXd::Zero(m_, m_);
-  zs_ = Eigen::VectorXd::Zero(m_);
   reset(x0, P0, mu0);
 }
 
@@ -207,37 +182,9 @@ void ImmFilter::predict(const Eigen::Ref<const Eigen::VectorXd>& u) {
     const bool lazy = n_ <= kLazyMax;
     mul(x_[j], mode.F, x_mix_[j], lazy);
     if (nu_ > 0) mul_add(x_[j], mode.B, u, lazy);
-    if (lazy) {
-      // P = F Pm F' + Q by plain loops: tmp = F Pm, then the lower triangle of tmp F' mirrored
-      // (exactly symmetric, so no symmetrize pass).
-      const Eigen::Index n = n_;
-      const double* f = mode.F.data();
-      const double* pm = P_mix_[j].data();
-      const double* q = mode.Q.data();
-      double* t = tmp_nn_.data();
-      double* p = P_[j].data();
-      for (Eigen::Index c = 0; c < n; ++c) {
-        for (Eigen::Index r = 0; r < n; ++r) {
-          double acc = 0.0;
-          for (Eigen::Index k = 0; k < n; ++k) acc += f[k * n + r] * pm[c * n + k];
-          t[c * n + r] = acc;
-        }
-      }
-      for (Eigen::Index c = 0; c < n; ++c) {
-        for (Eigen::Index r = c; r < n; ++r) {
-          double acc = 0.0;
-          for (Eigen::Index k = 0; k < n; ++k) acc += t[k * n + r] * f[k * n + c];
-          const double v = acc + 0.5 * (q[c * n + r] + q[r * n + c]);
-          p[c * n + r] = v;
-          p[r * n + c] = v;
-        }
-      }
-    } else {
-      mul(tmp_nn_, mode.F, P_mix_[j], lazy);
-      mul(P_[j], tmp_nn_, mode.F.transpose(), lazy);
-      P_[j] += mode.Q;
-      symmetrize(P_[j]);
-    }
+    // P = F Pm F' + Q (the Kalman kernel: exactly symmetric).
+    P_[j] = P_mix_[j];
+    kalman::predict_covariance(mode.F, mode.Q, P_[j], ws_[j]);
   }
   mu_ = cbar_;
   combine();
@@ -275,47 +222,32 @@ void ImmFilter::fail(ImmStatus why) {
   last_applied_ = false;
 }
 
-// Step 3, second half, and step 4. Pass 1 factors every S_j and keeps w_j = L_j^-1 y_j and
-// U_j = L_j^-1 H_j P_j, so that K_j y_j = U_j' w_j and K_j S_j K_j' = U_j' U_j; pass 2 applies
+// Step 3, second half, and step 4. Pass 1 factors every mode's update (estimators/kalman_update.h:
+// S_j = L_j L_j', w_j = L_j^-1 y_j, U_j = L_j^-1 H_j P_j in mode j's workspace); pass 2 applies
 // them only if every mode succeeded, so a failure leaves all priors untouched.
 void ImmFilter::correct(const Eigen::Ref<const Eigen::VectorXd>& z) {
   const Eigen::Index mr = m_used_;  // rows used
-  const double half_log_2pi = 0.5 * std::log(2.0 * std::numbers::pi);
-  for (Eigen::Index a = 0; a < mr; ++a) zs_(a) = z(rows_[static_cast<std::size_t>(a)]);
-  auto Hs = Hs_.topRows(mr);
-  auto Rs = Rs_.topLeftCorner(mr, mr);
-  auto S = S_.topLeftCorner(mr, mr);
   for (std::size_t j = 0; j < modes_.size(); ++j) {
     const ImmMode& mode = modes_[j];
+    kalman::Workspace& ws = ws_[j];
     for (Eigen::Index a = 0; a < mr; ++a) {
       const Eigen::Index ra = rows_[static_cast<std::size_t>(a)];
-      Hs.row(a) = mode.H.row(ra);
+      ws.C.row(a) = mode.H.row(ra);
+      ws.y(a) = z(ra);
       for (Eigen::Index b = 0; b < mr; ++b)
-        Rs(a, b) = mode.R(ra, rows_[static_cast<std::size_t>(b)]);
+        ws.R(a, b) = mode.R(ra, rows_[static_cast<std::size_t>(b)]);
     }
-    auto w = innov_[j].head(mr);
-    auto U = gain_[j].topRows(mr);
-    w = zs_.head(mr);
-    const bool lazy = n_ <= kLazyMax;
-    mul_sub(w, Hs, x_[j], lazy);
-    mul(U, Hs, P_[j], lazy);
-    mul(S, U, Hs.transpose(), lazy);
-    S += Rs;
-    if (!w.allFinite() || !S.allFinite()) return fail(ImmStatus::kNonFiniteLikelihood);
-    Eigen::Ref<Eigen::MatrixXd> Sref(S);
-    Eigen::LLT<Eigen::Ref<Eigen::MatrixXd>> llt(Sref);  // in place: S_ holds L
-    if (llt.info() != Eigen::Success) return fail(ImmStatus::kInnovationNotPositiveDefinite);
-    if (mr <= kLazyMax) {
-      forward_substitute(S, w);
-      forward_substitute(S, U);
-    } else {
-      llt.matrixL().solveInPlace(w);
-      llt.matrixL().solveInPlace(U);
+    ws.m = mr;
+    switch (kalman::factor(x_[j], P_[j], ws)) {
+      case kalman::Factor::kOk:
+        break;
+      case kalman::Factor::kNotPositiveDefinite:
+        return fail(ImmStatus::kInnovationNotPositiveDefinite);
+      case kalman::Factor::kNonFinite:
+        return fail(ImmStatus::kNonFiniteLikelihood);
     }
-    const double half_log_det = S.diagonal().array().log().sum();
-    loglik_(static_cast<Eigen::Index>(j)) =
-        -0.5 * w.squaredNorm() - half_log_det - static_cast<double>(mr) * half_log_2pi;
-    if (std::isnan(loglik_(static_cast<Eigen::Index>(j))) || !U.allFinite()) {
+    loglik_(static_cast<Eigen::Index>(j)) = ws.log_likelihood();
+    if (std::isnan(loglik_(static_cast<Eigen::Index>(j))) || !ws.U.topRows(mr).allFinite()) {
       return fail(ImmStatus::kNonFiniteLikelihood);
     }
   }
@@ -333,14 +265,7 @@ void ImmFilter::correct(const Eigen::Ref<const Eigen::VectorXd>& z) {
     sum += mu_(j);
   }
   mu_ /= sum;  // sum >= 1: the maximising term is exp(0)
-  for (std::size_t j = 0; j < modes_.size(); ++j) {
-    auto w = innov_[j].head(mr);
-    auto U = gain_[j].topRows(mr);
-    const bool lazy = n_ <= kLazyMax;
-    mul_add(x_[j], U.transpose(), w, lazy);
-    mul_sub(P_[j], U.transpose(), U, lazy);
-    symmetrize(P_[j]);
-  }
+  for (std::size_t j = 0; j < modes_.size(); ++j) kalman::apply(x_[j], P_[j], ws_[j]);
   last_applied_ = true;
   combine();
 }

@@ -4,6 +4,8 @@
 #include <Eigen/Dense>
 #include <vector>
 
+#include "estimators/kalman_update.h"
+
 namespace ncosim::est {
 
 // One mode of a jump linear system: x(k+1) = F x(k) + B u(k) + w, w ~ N(0, Q);
@@ -102,18 +104,15 @@ class ImmFilter {
   // Per-mode state and workspace (index j = mode).
   std::vector<Eigen::VectorXd> x_, x_mix_;
   std::vector<Eigen::MatrixXd> P_, P_mix_;
-  std::vector<Eigen::VectorXd> innov_;  // w_j = L_j^-1 (z - H_j x_j), first m_used_ rows
-  std::vector<Eigen::MatrixXd> gain_;   // U_j = L_j^-1 H_j P_j (m x n), first m_used_ rows
+  std::vector<kalman::Workspace> ws_;  // mode j's prediction scratch and update factors
   Eigen::VectorXd loglik_, cbar_, mu_, x_comb_, log_mu_;
   mutable Eigen::VectorXd d_, dw_;
   mutable Eigen::MatrixXd P_comb_;
   mutable bool p_stale_ = true;
-  Eigen::MatrixXd tmp_nn_, omega_;  // omega_(i, j) = mu_{i|j}
-  // Selected measurement rows and their model blocks for one mode.
+  Eigen::MatrixXd omega_;  // omega_(i, j) = mu_{i|j}
+  // Selected measurement rows.
   std::vector<Eigen::Index> rows_;
   Eigen::Index m_used_ = 0;
-  Eigen::MatrixXd Hs_, Rs_, S_;
-  Eigen::VectorXd zs_;
 
   ImmStatus status_ = ImmStatus::kOk;
   bool last_applied_ = false;

@@ -8,13 +8,13 @@
 // not recomputed. A sample with delay >= N is discarded, a repeated one ignored (both
 // counted). It uses exactly the information of kalman_extended with max_delay = N - 1, so the
 // two give the same estimate; its cost grows as N n^3 instead of (n N)^3.
-#include <Eigen/Cholesky>
 #include <fmt/format.h>
 
 #include <algorithm>
 #include <limits>
 
 #include "estimators/buffer_common.h"
+#include "estimators/kalman_update.h"
 #include "estimators/kinds.h"
 
 namespace ncosim::est {
@@ -58,7 +58,7 @@ class KalmanBuffer final : public Estimator {
       s.values.resize(rows);
       s.sensor.reserve(sh_.ny.size());
     }
-    tmp_.resize(n, n);
+    ws_.reserve(n, rows);
     cur_ = &slots_[0];
     cur_->xpost = init.xhat0;
     cur_->Ppost = init.P0;
@@ -107,11 +107,11 @@ class KalmanBuffer final : public Estimator {
           sl.Pprior = init_.P0;
         } else {
           const Slot& prev = slot(s - 1);
-          sl.xprior.noalias() = sh_.A * prev.xpost;
+          sl.xprior = prev.xpost;
+          kalman::predict_state(sh_.A, sl.xprior, ws_);
           sl.xprior += sl.drive;
-          tmp_.noalias() = sh_.A * prev.Ppost;
-          sl.Pprior.noalias() = tmp_ * sh_.A.transpose();
-          sl.Pprior += sh_.Q;
+          sl.Pprior = prev.Ppost;
+          kalman::predict_covariance(sh_.A, sh_.Q, sl.Pprior, ws_);
           spent += sh_.flops.predict;
         }
       }
@@ -157,31 +157,30 @@ class KalmanBuffer final : public Estimator {
     sl.xpost = sl.xprior;
     sl.Ppost = sl.Pprior;
     if (sl.rows == 0) return;
-    const Eigen::Index m = sl.rows, n = sh_.n;
-    Cs_.resize(m, n);
-    Rs_.setZero(m, m);
+    const Eigen::Index m = sl.rows;
+    if (m > ws_.C.rows()) ws_.reserve(sh_.n, m);  // independent copies beyond one per sensor
+    ws_.R.topLeftCorner(m, m).setZero();
     Eigen::Index r = 0;
     for (int s : sl.sensor) {
       const auto u = static_cast<std::size_t>(s);
       const Eigen::Index ny = sh_.ny[u];
-      Cs_.middleRows(r, ny) = sh_.C[u];
-      Rs_.block(r, r, ny, ny) = sh_.R[u];
+      ws_.C.middleRows(r, ny) = sh_.C[u];
+      ws_.R.block(r, r, ny, ny) = sh_.R[u];
       r += ny;
     }
-    res_ = sl.values.head(m);
-    res_.noalias() -= Cs_ * sl.xprior;
-    PCt_.noalias() = sl.Pprior * Cs_.transpose();
-    S_ = Rs_;
-    S_.noalias() += Cs_ * PCt_;
-    Eigen::LLT<Eigen::MatrixXd> llt(S_);
-    if (llt.info() == Eigen::Success) {
-      K_ = llt.solve(PCt_.transpose()).transpose();
-    } else {
-      K_ = PCt_ * S_.completeOrthogonalDecomposition().pseudoInverse();
+    ws_.y.head(m) = sl.values.head(m);
+    ws_.m = m;
+    switch (kalman::factor(sl.xpost, sl.Ppost, ws_)) {
+      case kalman::Factor::kOk:
+        kalman::apply(sl.xpost, sl.Ppost, ws_);
+        break;
+      case kalman::Factor::kNotPositiveDefinite:
+        kalman::apply_pseudo_inverse(sl.xpost, sl.Ppost, ws_);
+        break;
+      case kalman::Factor::kNonFinite:
+        failed_ = true;
+        break;
     }
-    sl.xpost.noalias() += K_ * res_;
-    sl.Ppost.noalias() -= K_ * PCt_.transpose();
-    sl.Ppost = 0.5 * (sl.Ppost + sl.Ppost.transpose()).eval();
   }
 
   const BufferShape& sh_;
@@ -189,8 +188,7 @@ class KalmanBuffer final : public Estimator {
   std::vector<Slot> slots_;
   Slot* cur_ = nullptr;
   std::int64_t dirty_ = std::numeric_limits<std::int64_t>::max();
-  Eigen::MatrixXd tmp_, Cs_, Rs_, PCt_, S_, K_;
-  Eigen::VectorXd res_;
+  kalman::Workspace ws_;
   RunCounters counters_;
   bool failed_ = false;
 };

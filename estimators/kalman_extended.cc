@@ -1,14 +1,16 @@
 // estimators/kalman_extended.cc
 // Time-varying Kalman filter on the delay-extended model (Dolz et al. 2014, section 2, the
 // comparison "adapted from Schenato (2008)"): predict xbar and P with Abar, then update with the
-// rows of the fictitious sensors delivered this period. An innovation covariance that is only
-// semidefinite uses its pseudo-inverse; a non-finite estimate marks the run "numerical_failure".
+// rows of the fictitious sensors delivered this period (estimators/kalman_update.h). An innovation
+// covariance that is only semidefinite uses its pseudo-inverse; a non-finite innovation or
+// estimate marks the run "numerical_failure".
 #include <Eigen/Cholesky>
 #include <bit>
 #include <fmt/format.h>
 
 #include "estimators/delay_window.h"
 #include "estimators/extended_model.h"
+#include "estimators/kalman_update.h"
 #include "estimators/kinds.h"
 
 namespace ncosim::est {
@@ -22,7 +24,7 @@ class KalmanExtended final : public Estimator {
         window_(ext, /*deduplicate=*/true),
         x_(ext.nb),
         P_(Eigen::MatrixXd::Zero(ext.nb, ext.nb)),
-        tmp_(ext.nb, ext.nb),
+        ws_(ext.nb, ext.nmb),
         rows_(static_cast<std::size_t>(ext.nmb)) {
     // Before t = 0 the plant rests at x0 (x[-j] = x0) and every block starts at xhat0, so all
     // blocks share one error: P = (1 1') ⊗ P0.
@@ -38,12 +40,9 @@ class KalmanExtended final : public Estimator {
     window_.advance(k);
     const Eigen::Index n = ext_.n;
     if (k > 0) {
-      Eigen::VectorXd head = ext_.A.topLeftCorner(n, n) * x_.head(n);
-      for (int b = ext_.dbar; b >= 1; --b) x_.segment(b * n, n) = x_.segment((b - 1) * n, n);
-      x_.head(n) = head + in.drive;
-      tmp_.noalias() = ext_.A * P_;
-      P_.noalias() = tmp_ * ext_.A.transpose();
-      P_ += ext_.Q;
+      kalman::predict_state(ext_.A, x_, ws_);  // Abar: A on the head block, shift below
+      x_.head(n) += in.drive;
+      kalman::predict_covariance(ext_.A, ext_.Q, P_, ws_);
     }
     const std::uint64_t pattern = window_.pattern();
     window_.clear_pattern();
@@ -53,29 +52,20 @@ class KalmanExtended final : public Estimator {
       const auto& f = ext_.fict[std::countr_zero(bits)];
       for (Eigen::Index r = 0; r < f.rows; ++r) rows_[m++] = f.row + r;
     }
-    Eigen::MatrixXd Cs(m, ext_.nb);
-    Eigen::VectorXd r(m);
-    Eigen::MatrixXd Vs(m, m);
-    for (Eigen::Index i = 0; i < m; ++i) {
-      Cs.row(i) = ext_.C.row(rows_[i]);
-      r(i) = window_.values()(rows_[i]);
-      for (Eigen::Index j = 0; j < m; ++j) Vs(i, j) = ext_.V(rows_[i], rows_[j]);
+    kalman::select(ext_.C, ext_.V, window_.values(), rows_.data(), m, ws_);
+    switch (kalman::factor(x_, P_, ws_)) {
+      case kalman::Factor::kOk:
+        kalman::apply(x_, P_, ws_);
+        break;
+      case kalman::Factor::kNotPositiveDefinite:
+        // S is only semidefinite (R singular, or P0 = 0 with R = 0): the minimum-variance gain
+        // is P Cs' S^+ (rows without information get no weight).
+        kalman::apply_pseudo_inverse(x_, P_, ws_);
+        break;
+      case kalman::Factor::kNonFinite:
+        failed_ = true;
+        return;
     }
-    r.noalias() -= Cs * x_;
-    const Eigen::MatrixXd PCt = P_ * Cs.transpose();
-    Eigen::MatrixXd S = Cs * PCt + Vs;
-    Eigen::LLT<Eigen::MatrixXd> llt(S);
-    Eigen::MatrixXd K;
-    if (llt.info() == Eigen::Success) {
-      K = llt.solve(PCt.transpose()).transpose();  // P Cs' S^-1
-    } else {
-      // S is only semidefinite (R singular, or P0 = 0 with R = 0): the minimum-variance gain
-      // is P Cs' S^+ (rows without information get no weight).
-      K = PCt * S.completeOrthogonalDecomposition().pseudoInverse();
-    }
-    x_.noalias() += K * r;
-    P_.noalias() -= K * PCt.transpose();
-    P_ = 0.5 * (P_ + P_.transpose()).eval();
     if (!x_.allFinite()) failed_ = true;
   }
 
@@ -89,7 +79,7 @@ class KalmanExtended final : public Estimator {
   DelayWindow window_;
   Eigen::VectorXd x_;
   Eigen::MatrixXd P_;
-  Eigen::MatrixXd tmp_;
+  kalman::Workspace ws_;
   std::vector<Eigen::Index> rows_;
   bool failed_ = false;
 };

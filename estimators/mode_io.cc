@@ -17,10 +17,10 @@
 // no likelihood (p = E). Needs actuator modes (not a jump_linear plant).
 #include <fmt/format.h>
 
-#include <Eigen/Cholesky>
+#include <algorithm>
 #include <cmath>
-#include <deque>
 
+#include "estimators/kalman_update.h"
 #include "estimators/kinds.h"
 #include "estimators/mode_model.h"
 
@@ -67,6 +67,26 @@ IoModel build_io(const Model& model, const ModeModel& mm) {
   return io;
 }
 
+// The last n vectors, newest first, in preallocated storage (push() overwrites the oldest).
+class Lags {
+ public:
+  void assign(Eigen::Index n, const Eigen::VectorXd& value) {
+    ring_.assign(static_cast<std::size_t>(n), value);
+    head_ = 0;
+  }
+  // Lag i (0: the newest).
+  const Eigen::VectorXd& operator[](std::size_t i) const { return ring_[(head_ + i) % ring_.size()]; }
+  // Makes the oldest the newest and returns it for the caller to overwrite.
+  Eigen::VectorXd& push() {
+    head_ = (head_ + ring_.size() - 1) % ring_.size();
+    return ring_[head_];
+  }
+
+ private:
+  std::vector<Eigen::VectorXd> ring_;
+  std::size_t head_ = 0;
+};
+
 class ModeIo final : public Estimator {
  public:
   ModeIo(const ModeSetup& setup, const IoModel& io)
@@ -77,7 +97,15 @@ class ModeIo final : public Estimator {
         p_(setup.mu0),
         e_(setup.mu0.size()),
         loglik_(setup.mu0.size()),
-        u_ext_(Eigen::VectorXd::Zero(setup.model.nue)) {
+        u_ext_(Eigen::VectorXd::Zero(setup.model.nue)),
+        uhat_(Eigen::VectorXd::Zero(setup.model.nu)),
+        g_(Eigen::VectorXd::Zero(setup.model.n)),
+        ybar_(Eigen::VectorXd::Zero(setup.model.m)),
+        yj_(Eigen::VectorXd::Zero(setup.model.m)),
+        ys_(Eigen::VectorXd::Zero(setup.model.m)),
+        sigma_(0, setup.model.m),
+        x_none_(0),
+        P_none_(0, 0) {
     const ModeModel& mm = setup.model;
     const Eigen::Index n = mm.n;
     // Lags before period 0: the prior mean.
@@ -87,10 +115,8 @@ class ModeIo final : public Estimator {
       uhat_prev_(mm.hold[c]) = setup.x0(n + static_cast<Eigen::Index>(c));
     }
     const Eigen::VectorXd g_prior = mm.Bu * uhat_prev_;
-    for (Eigen::Index i = 0; i < n; ++i) {
-      ylag_.push_back(y_prior);
-      glag_.push_back(g_prior);
-    }
+    ylag_.assign(n, y_prior);
+    glag_.assign(n, g_prior);
   }
 
   int on_packet(const Packet& p, std::int64_t k) override { return meas_.accept(p, k); }
@@ -109,11 +135,11 @@ class ModeIo final : public Estimator {
       e_.noalias() = mm.transition.transpose() * p_;
       // ybar: every term of yhat_j but the one of uhat[k-1] (ylag_[i-1] = y[k-i], glag_[l-1] =
       // g[k-l]).
-      Eigen::VectorXd ybar = Eigen::VectorXd::Zero(mm.m);
+      ybar_.setZero();
       for (Eigen::Index i = 1; i <= n; ++i)
-        ybar -= io_.a(i) * ylag_[static_cast<std::size_t>(i - 1)];
+        ybar_ -= io_.a(i) * ylag_[static_cast<std::size_t>(i - 1)];
       for (Eigen::Index l = 2; l <= n; ++l)
-        ybar += io_.G[static_cast<std::size_t>(l - 1)] * glag_[static_cast<std::size_t>(l - 2)];
+        ybar_.noalias() += io_.G[static_cast<std::size_t>(l - 1)] * glag_[static_cast<std::size_t>(l - 2)];
       const bool lags_known = k >= n;
       const Eigen::Index rows = kf_.rows();
       if (rows > 0 && !lags_known && io_.startup == IoModel::Startup::kState) {
@@ -122,27 +148,22 @@ class ModeIo final : public Estimator {
           loglik_(j) = kf_.predicted_loglik(j, u_ext_, meas_.values());
         bayes_log(e_, loglik_, p_);
       } else if (rows > 0 && (lags_known || io_.startup == IoModel::Startup::kPriorMean)) {
-        const Eigen::VectorXd ys = kf_.selected(meas_.values());
-        const Eigen::VectorXd mask = meas_.mask();
-        Eigen::MatrixXd Ss(rows, rows);
-        std::vector<Eigen::Index> idx;
-        for (Eigen::Index q = 0; q < mask.size(); ++q) {
-          if (mask(q) != 0.0) idx.push_back(q);
-        }
+        // log N(y; yhat_j, Sigma) of the delivered rows: the kernel with an empty state.
+        kf_.selected(meas_.values(), ys_);
+        const auto& idx = kf_.selected_rows();
         for (Eigen::Index a = 0; a < rows; ++a) {
-          for (Eigen::Index b = 0; b < rows; ++b) Ss(a, b) = io_.Sigma(idx[a], idx[b]);
+          for (Eigen::Index b = 0; b < rows; ++b) sigma_.R(a, b) = io_.Sigma(idx[a], idx[b]);
         }
-        Eigen::LLT<Eigen::MatrixXd> llt(Ss);
-        if (llt.info() == Eigen::Success) {
-          const double half_log_det = llt.matrixLLT().diagonal().array().log().sum();
-          for (int j = 0; j < mm.modes(); ++j) {
-            const Eigen::VectorXd yj = ybar + io_.G[0] * applied_drive(j, in.u, d, r);
-            Eigen::VectorXd w(rows);
-            for (Eigen::Index a = 0; a < rows; ++a) w(a) = ys(a) - yj(idx[a]);
-            const Eigen::VectorXd v = llt.matrixL().solve(w);
-            loglik_(j) = -0.5 * v.squaredNorm() - half_log_det -
-                         0.5 * static_cast<double>(rows) * std::log(2.0 * M_PI);
-          }
+        sigma_.m = rows;
+        bool ok = true;
+        for (int j = 0; j < mm.modes() && ok; ++j) {
+          yj_ = ybar_;
+          yj_.noalias() += io_.G[0] * applied_drive(j, in.u, d, r);
+          for (Eigen::Index a = 0; a < rows; ++a) sigma_.y(a) = ys_(a) - yj_(idx[a]);
+          ok = kalman::factor(x_none_, P_none_, sigma_) == kalman::Factor::kOk;
+          loglik_(j) = sigma_.log_likelihood();
+        }
+        if (ok) {
           bayes_log(e_, loglik_, p_);
         } else {
           p_ = e_;
@@ -154,21 +175,19 @@ class ModeIo final : public Estimator {
       p_.maxCoeff(&best);
       mode_ = static_cast<int>(best);
       // uhat[k-1] and g[k-1] implied by the estimate (eq. 22b).
-      const Eigen::VectorXd g = applied_drive(mode_, in.u, d, r);
+      const Eigen::VectorXd& g = applied_drive(mode_, in.u, d, r);
       uhat_prev_ = uhat_;
-      glag_.push_front(g);
-      glag_.pop_back();
+      glag_.push() = g;
       kf_.predict(mode_, u_ext_);
     }
     if (k > 0 || setup_.use_y0) kf_.update(meas_.values());
     // y[k] into the lags: measured rows, the filter's C xhat[k|k] for the rest.
-    Eigen::VectorXd yk = mm.ext0.C * kf_.x().head(n);
+    Eigen::VectorXd& yk = ylag_.push();
+    yk.noalias() = mm.ext0.C * kf_.x().head(n);
     const Eigen::VectorXd& mask = meas_.mask();
     for (Eigen::Index q = 0; q < mask.size(); ++q) {
       if (mask(q) != 0.0) yk(q) = meas_.values()(q);
     }
-    ylag_.push_front(std::move(yk));
-    ylag_.pop_back();
   }
 
   StateView state() const override { return StateView(kf_.x().data(), setup_.model.n); }
@@ -180,11 +199,11 @@ class ModeIo final : public Estimator {
   std::string status() const override { return kf_.failed() ? "numerical_failure" : "ok"; }
 
  private:
-  // Bu uhat_j[k-1] + d under mode j; leaves uhat_j[k-1] in uhat_.
-  Eigen::VectorXd applied_drive(int j, const Eigen::VectorXd& u,
-                                const Eigen::Ref<const Eigen::VectorXd>& d, int r) {
+  // Bu uhat_j[k-1] + d under mode j (in g_); leaves uhat_j[k-1] in uhat_.
+  const Eigen::VectorXd& applied_drive(int j, const Eigen::VectorXd& u,
+                                       const Eigen::Ref<const Eigen::VectorXd>& d, int r) {
     const ModeModel& mm = setup_.model;
-    uhat_ = Eigen::VectorXd::Zero(mm.nu);
+    uhat_.setZero();
     for (int i = 0; i < r; ++i) {
       if (models::channel_delivered(j, i, r)) {
         uhat_(i) = u(i);
@@ -192,9 +211,9 @@ class ModeIo final : public Estimator {
         uhat_(i) = uhat_prev_(i);
       }
     }
-    Eigen::VectorXd g = mm.Bu * uhat_;
-    g += d;
-    return g;
+    g_.noalias() = mm.Bu * uhat_;
+    g_ += d;
+    return g_;
   }
 
   const ModeSetup& setup_;
@@ -202,8 +221,12 @@ class ModeIo final : public Estimator {
   ModeKalman kf_;
   CurrentMeasurement meas_;
   Eigen::VectorXd p_, e_, loglik_, u_ext_;
-  Eigen::VectorXd uhat_, uhat_prev_;         // applied input estimates uhat[k-1], uhat[k-2]
-  std::deque<Eigen::VectorXd> ylag_, glag_;  // y[k-1..k-n]; Bu uhat + d at k-1..k-n
+  Eigen::VectorXd uhat_, uhat_prev_;  // applied input estimates uhat[k-1], uhat[k-2]
+  Eigen::VectorXd g_, ybar_, yj_, ys_;
+  kalman::Workspace sigma_;           // the Sigma factor of the likelihoods (no state)
+  Eigen::VectorXd x_none_;
+  Eigen::MatrixXd P_none_;
+  Lags ylag_, glag_;  // y[k-1..k-n]; Bu uhat + d at k-1..k-n
   int mode_ = -1;
 };
 

@@ -4,7 +4,6 @@
 
 #include <fmt/format.h>
 
-#include <Eigen/Cholesky>
 #include <bit>
 #include <cmath>
 #include <limits>
@@ -204,18 +203,7 @@ Eigen::Index CurrentMeasurement::take(std::int64_t k) {
 }
 
 ModeKalman::ModeKalman(const ModeModel& mm, const Eigen::VectorXd& x0, const Eigen::MatrixXd& P0)
-    : mm_(&mm),
-      x_(x0),
-      xp_(x0),
-      w_(mm.m),
-      P_(P0),
-      Pp_(P0),
-      tmp_(mm.na, mm.na),
-      Cs_(mm.m, mm.na),
-      Rs_(mm.m, mm.m),
-      S_(mm.m, mm.m),
-      U_(mm.m, mm.na),
-      rows_(static_cast<std::size_t>(mm.m)) {}
+    : mm_(&mm), x_(x0), xp_(x0), P_(P0), Pp_(P0), ws_(mm.na, mm.m), rows_(static_cast<std::size_t>(mm.m)) {}
 
 Eigen::Index ModeKalman::select(const Eigen::VectorXd& mask) {
   used_ = 0;
@@ -224,42 +212,33 @@ Eigen::Index ModeKalman::select(const Eigen::VectorXd& mask) {
   }
   for (Eigen::Index a = 0; a < used_; ++a) {
     const Eigen::Index ra = rows_[static_cast<std::size_t>(a)];
-    Cs_.row(a) = mm_->C.row(ra);
+    ws_.C.row(a) = mm_->C.row(ra);
     for (Eigen::Index b = 0; b < used_; ++b)
-      Rs_(a, b) = mm_->R(ra, rows_[static_cast<std::size_t>(b)]);
+      ws_.R(a, b) = mm_->R(ra, rows_[static_cast<std::size_t>(b)]);
   }
+  ws_.m = used_;
   return used_;
 }
 
-Eigen::VectorXd ModeKalman::selected(const Eigen::VectorXd& y) const {
-  Eigen::VectorXd out(used_);
+void ModeKalman::selected(const Eigen::VectorXd& y, Eigen::VectorXd& out) const {
   for (Eigen::Index a = 0; a < used_; ++a) out(a) = y(rows_[static_cast<std::size_t>(a)]);
-  return out;
+}
+
+void ModeKalman::load(const Eigen::VectorXd& y) {
+  for (Eigen::Index a = 0; a < used_; ++a) ws_.y(a) = y(rows_[static_cast<std::size_t>(a)]);
 }
 
 double ModeKalman::predicted_loglik(int j, const Eigen::VectorXd& u, const Eigen::VectorXd& y) {
   const auto uj = static_cast<std::size_t>(j);
-  const Eigen::Index mr = used_;
   xp_.noalias() = mm_->A[uj] * x_;
   xp_.noalias() += mm_->B[uj] * u;
-  tmp_.noalias() = mm_->A[uj] * P_;
-  Pp_.noalias() = tmp_ * mm_->A[uj].transpose();
-  Pp_ += mm_->Q[uj];
-  auto w = w_.head(mr);
-  auto Cs = Cs_.topRows(mr);
-  auto S = S_.topLeftCorner(mr, mr);
-  auto U = U_.topRows(mr);
-  for (Eigen::Index a = 0; a < mr; ++a) w(a) = y(rows_[static_cast<std::size_t>(a)]);
-  w.noalias() -= Cs * xp_;
-  U.noalias() = Cs * Pp_;
-  S.noalias() = U * Cs.transpose();
-  S += Rs_.topLeftCorner(mr, mr);
-  Eigen::LLT<Eigen::MatrixXd> llt(S);
-  if (llt.info() != Eigen::Success) return -std::numeric_limits<double>::infinity();
-  const Eigen::VectorXd v = llt.matrixL().solve(w);
-  const double half_log_det = llt.matrixLLT().diagonal().array().log().sum();
-  return -0.5 * v.squaredNorm() - half_log_det -
-         0.5 * static_cast<double>(mr) * std::log(2.0 * M_PI);
+  Pp_ = P_;
+  kalman::predict_covariance(mm_->A[uj], mm_->Q[uj], Pp_, ws_);
+  load(y);
+  if (kalman::factor(xp_, Pp_, ws_) != kalman::Factor::kOk) {
+    return -std::numeric_limits<double>::infinity();
+  }
+  return ws_.log_likelihood();
 }
 
 void ModeKalman::predict(int j, const Eigen::VectorXd& u) {
@@ -267,34 +246,17 @@ void ModeKalman::predict(int j, const Eigen::VectorXd& u) {
   xp_.noalias() = mm_->A[uj] * x_;
   xp_.noalias() += mm_->B[uj] * u;
   x_.swap(xp_);
-  tmp_.noalias() = mm_->A[uj] * P_;
-  P_.noalias() = tmp_ * mm_->A[uj].transpose();
-  P_ += mm_->Q[uj];
+  kalman::predict_covariance(mm_->A[uj], mm_->Q[uj], P_, ws_);
 }
 
 void ModeKalman::update(const Eigen::VectorXd& y) {
-  const Eigen::Index mr = used_;
-  if (mr == 0) return;
-  auto w = w_.head(mr);
-  auto Cs = Cs_.topRows(mr);
-  auto S = S_.topLeftCorner(mr, mr);
-  auto U = U_.topRows(mr);
-  for (Eigen::Index a = 0; a < mr; ++a) w(a) = y(rows_[static_cast<std::size_t>(a)]);
-  w.noalias() -= Cs * x_;
-  U.noalias() = Cs * P_;
-  S.noalias() = U * Cs.transpose();
-  S += Rs_.topLeftCorner(mr, mr);
-  Eigen::LLT<Eigen::MatrixXd> llt(S);
-  if (llt.info() != Eigen::Success || !w.allFinite()) {
+  if (used_ == 0) return;
+  load(y);
+  if (kalman::factor(x_, P_, ws_) != kalman::Factor::kOk) {
     failed_ = true;
     return;
   }
-  // K w = U' S^-1 w, K S K' = U' S^-1 U.
-  const Eigen::MatrixXd L1U = llt.matrixL().solve(Eigen::MatrixXd(U));
-  const Eigen::VectorXd L1w = llt.matrixL().solve(Eigen::VectorXd(w));
-  x_.noalias() += L1U.transpose() * L1w;
-  P_.noalias() -= L1U.transpose() * L1U;
-  P_ = 0.5 * (P_ + P_.transpose()).eval();
+  kalman::apply(x_, P_, ws_);
   if (!x_.allFinite()) failed_ = true;
 }
 

@@ -19,6 +19,7 @@
 #include "estimators/delay_window.h"
 #include "estimators/estimator.h"
 #include "estimators/extended_model.h"
+#include "estimators/kalman_update.h"
 
 namespace ncosim::est {
 
@@ -84,13 +85,18 @@ class ModeKalman {
   const Eigen::MatrixXd& P() const { return P_; }
   bool failed() const { return failed_; }
   Eigen::Index rows() const { return used_; }
-  // Selected rows of y and of C (valid after select()).
-  Eigen::VectorXd selected(const Eigen::VectorXd& y) const;
+  // The selected rows of y into out(0 .. rows()-1) (valid after select()).
+  void selected(const Eigen::VectorXd& y, Eigen::VectorXd& out) const;
+  // The selected rows, in order.
+  const std::vector<Eigen::Index>& selected_rows() const { return rows_; }
 
  private:
+  void load(const Eigen::VectorXd& y);  // the selected rows of y into the workspace
+
   const ModeModel* mm_;
-  Eigen::VectorXd x_, xp_, w_;
-  Eigen::MatrixXd P_, Pp_, tmp_, Cs_, Rs_, S_, U_;
+  Eigen::VectorXd x_, xp_;
+  Eigen::MatrixXd P_, Pp_;
+  kalman::Workspace ws_;  // selected rows of C and R, the update's factors
   std::vector<Eigen::Index> rows_;
   Eigen::Index used_ = 0;
   bool failed_ = false;

@@ -22,12 +22,15 @@ class SodJump final : public Estimator {
  public:
   SodJump(const MatrixXd& A, const MatrixXd& C, const std::vector<MatrixXd>& gains, const Model& model,
           const VectorXd& xhat0)
-      : A_(A), C_(C), gains_(gains), hold_(model), x_(xhat0), innov_(C.rows()) {}
+      : A_(A), C_(C), gains_(gains), hold_(model), x_(xhat0), innov_(C.rows()), pred_(A.rows()) {}
 
   int on_packet(const Packet& p, std::int64_t k) override { return hold_.accept(p, k); }
 
   void on_period(std::int64_t k, const PeriodInput& in) override {
-    if (k > 0) x_ = A_ * x_ + in.drive;
+    if (k > 0) {
+      pred_.noalias() = A_ * x_;  // no temporary: nothing allocated per period
+      x_ = pred_ + in.drive;
+    }
     const std::uint64_t j = hold_.pattern();
     hold_.clear_pattern();
     innov_.noalias() = hold_.m() - C_ * x_;
@@ -40,7 +43,7 @@ class SodJump final : public Estimator {
   const MatrixXd& C_;
   const std::vector<MatrixXd>& gains_;
   SodHold hold_;
-  VectorXd x_, innov_;
+  VectorXd x_, innov_, pred_;
 };
 
 struct CodesignKeys {

@@ -8,9 +8,9 @@
 // with periodic sensors the filter is the Kalman filter with intermittent observations. A
 // send-on-delta sensor's silence is read as "within delta": the filter assumes its link
 // delivers every sent sample in the period it is sent.
-#include <Eigen/Cholesky>
 #include <fmt/format.h>
 
+#include "estimators/kalman_update.h"
 #include "estimators/kinds.h"
 #include "estimators/sod_hold.h"
 
@@ -27,54 +27,51 @@ struct SodKalmanParams {
 
 class SodKalman final : public Estimator {
  public:
-  SodKalman(const SodKalmanParams& p, const Model& model) : p_(p), hold_(model), x_(p.init.xhat0), P_(p.init.P0) {}
+  SodKalman(const SodKalmanParams& p, const Model& model)
+      : p_(p),
+        hold_(model),
+        x_(p.init.xhat0),
+        P_(p.init.P0),
+        ws_(p.A.rows(), p.C.rows()),
+        rows_(static_cast<std::size_t>(p.C.rows())) {}
 
   int on_packet(const Packet& p, std::int64_t k) override { return hold_.accept(p, k); }
 
   void on_period(std::int64_t k, const PeriodInput& in) override {
     if (k > 0) {
-      x_ = p_.A * x_ + in.drive;
-      P_ = p_.A * P_ * p_.A.transpose() + p_.Q;
+      kalman::predict_state(p_.A, x_, ws_);
+      x_ += in.drive;
+      kalman::predict_covariance(p_.A, p_.Q, P_, ws_);
     }
     const std::uint64_t fresh = hold_.pattern();
     hold_.clear_pattern();
-    rows_.clear();
+    Eigen::Index m = 0;
     for (std::size_t s = 0; s < hold_.sensors(); ++s) {
       if (!use(s, fresh)) continue;
-      for (Eigen::Index i = 0; i < hold_.ny(s); ++i) rows_.push_back(hold_.offset(s) + i);
+      for (Eigen::Index i = 0; i < hold_.ny(s); ++i) rows_[static_cast<std::size_t>(m++)] = hold_.offset(s) + i;
     }
-    const auto m = static_cast<Eigen::Index>(rows_.size());
     if (m == 0) return;
-    Eigen::MatrixXd Cs(m, x_.size());
-    Eigen::MatrixXd Rs(m, m);
-    Eigen::VectorXd r(m);
-    for (Eigen::Index i = 0; i < m; ++i) {
-      Cs.row(i) = p_.C.row(rows_[i]);
-      r(i) = hold_.m()(rows_[i]);
-      for (Eigen::Index j = 0; j < m; ++j) Rs(i, j) = p_.R(rows_[i], rows_[j]);
-    }
+    kalman::select(p_.C, p_.R, hold_.m(), rows_.data(), m, ws_);
     // Virtual noise on the outputs of the sensors that did not send this period.
     Eigen::Index row = 0;
     for (std::size_t s = 0; s < hold_.sensors(); ++s) {
       if (!use(s, fresh)) continue;
       const bool sent = (fresh >> s) & 1U;
       for (Eigen::Index i = 0; i < hold_.ny(s); ++i, ++row) {
-        if (!sent) Rs(row, row) += p_.virtual_var(hold_.offset(s) + i);
+        if (!sent) ws_.R(row, row) += p_.virtual_var(hold_.offset(s) + i);
       }
     }
-    r.noalias() -= Cs * x_;
-    const Eigen::MatrixXd PCt = P_ * Cs.transpose();
-    const Eigen::MatrixXd S = Cs * PCt + Rs;
-    Eigen::LLT<Eigen::MatrixXd> llt(S);
-    Eigen::MatrixXd K;
-    if (llt.info() == Eigen::Success) {
-      K = llt.solve(PCt.transpose()).transpose();
-    } else {
-      K = PCt * S.completeOrthogonalDecomposition().pseudoInverse();
+    switch (kalman::factor(x_, P_, ws_)) {
+      case kalman::Factor::kOk:
+        kalman::apply(x_, P_, ws_);
+        break;
+      case kalman::Factor::kNotPositiveDefinite:
+        kalman::apply_pseudo_inverse(x_, P_, ws_);
+        break;
+      case kalman::Factor::kNonFinite:
+        failed_ = true;
+        return;
     }
-    x_.noalias() += K * r;
-    P_.noalias() -= K * PCt.transpose();
-    P_ = 0.5 * (P_ + P_.transpose()).eval();
     if (!x_.allFinite()) failed_ = true;
   }
 
@@ -94,6 +91,7 @@ class SodKalman final : public Estimator {
   SodHold hold_;
   Eigen::VectorXd x_;
   Eigen::MatrixXd P_;
+  kalman::Workspace ws_;
   std::vector<Eigen::Index> rows_;
   bool failed_ = false;
 };

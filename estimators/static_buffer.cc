@@ -9,6 +9,7 @@
 // state, without covariances.
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -34,6 +35,9 @@ class StaticBuffer final : public Estimator {
  public:
   StaticBuffer(const StaticShape& sh, const InitialEstimate& init)
       : sh_(sh), xhat0_(init.xhat0), base_(init.xhat0), xi_(init.xhat0), pred_(sh.n) {
+    Eigen::Index ny_max = 0;
+    for (auto r : sh.ny) ny_max = std::max(ny_max, r);
+    resid_.resize(ny_max);
     const auto S = sh.ny.size();
     slots_.resize(static_cast<std::size_t>(sh.N));
     for (auto& s : slots_) {
@@ -102,12 +106,15 @@ class StaticBuffer final : public Estimator {
     for (std::size_t i = 0; i < sl.arrived.size(); ++i) {
       if (!sl.arrived[i]) continue;
       const auto& K = sh_.K[static_cast<std::size_t>(k)][i];
-      x.noalias() += K * (sl.y[i] - sh_.C[i] * x);
+      auto r = resid_.head(sh_.ny[i]);  // y - C x without a temporary
+      r = sl.y[i];
+      r.noalias() -= sh_.C[i] * x;
+      x.noalias() += K * r;
     }
   }
 
   const StaticShape& sh_;
-  Eigen::VectorXd xhat0_, base_, xi_, pred_;
+  Eigen::VectorXd xhat0_, base_, xi_, pred_, resid_;
   std::vector<Slot> slots_;
   bool failed_ = false;
 };

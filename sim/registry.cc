@@ -1,6 +1,15 @@
 // sim/registry.cc — the one place where built-in kinds are registered (explicit calls: static
-// self-registration can be dropped by the linker from static libraries).
+// self-registration can be dropped by the linker from static libraries), then the extensions
+// added by add_extension().
 #include "sim/registries.h"
+
+#include <fmt/format.h>
+
+#include <mutex>
+#include <stdexcept>
+#include <vector>
+
+#include "sim/extensions.h"
 
 #if NCOSIM_HAVE_SUMO
 #include "sumo/sumo.h"
@@ -8,47 +17,78 @@
 
 namespace ncosim::sim {
 
-const models::PlantRegistry& plant_registry() {
-  static const models::PlantRegistry r = [] {
-    models::PlantRegistry reg;
-    models::register_plants(reg);
+namespace {
+
+std::mutex& extension_mutex() {
+  static std::mutex m;
+  return m;
+}
+std::vector<Extension>& extensions() {
+  static std::vector<Extension> v;
+  return v;
+}
+bool& registries_built() {
+  static bool built = false;
+  return built;
+}
+
+template <class R>
+void check_unique(const R& registry, const char* what) {
+  const auto names = registry.names();
+  for (std::size_t i = 0; i < names.size(); ++i) {
+    for (std::size_t j = 0; j < i; ++j) {
+      if (names[i] == names[j]) {
+        throw std::logic_error(fmt::format("{} kind \"{}\" is registered twice", what, names[i]));
+      }
+    }
+  }
+}
+
+struct AllRegistries {
+  models::PlantRegistry plants;
+  models::LinkRegistry links;
+  models::InputRegistry inputs;
+  est::EstimatorRegistry estimators;
+};
+
+const AllRegistries& all_registries() {
+  static const AllRegistries r = [] {
+    AllRegistries a;
+    models::register_plants(a.plants);
+    models::register_links(a.links);
+    models::register_inputs(a.inputs);
+    est::register_estimators(a.estimators);
 #if NCOSIM_HAVE_SUMO
-    sumo::register_plants(reg);
+    sumo::register_plants(a.plants);
+    sumo::register_links(a.links);
 #endif
-    return reg;
+    std::lock_guard<std::mutex> lock(extension_mutex());
+    Registries view{a.plants, a.links, a.inputs, a.estimators};
+    for (const auto& e : extensions()) e(view);
+    registries_built() = true;
+    check_unique(a.plants, "plant");
+    check_unique(a.links, "link");
+    check_unique(a.inputs, "input");
+    check_unique(a.estimators, "estimator");
+    return a;
   }();
   return r;
 }
 
-const models::LinkRegistry& link_registry() {
-  static const models::LinkRegistry r = [] {
-    models::LinkRegistry reg;
-    models::register_links(reg);
-#if NCOSIM_HAVE_SUMO
-    sumo::register_links(reg);
-#endif
-    return reg;
-  }();
-  return r;
+}  // namespace
+
+void add_extension(Extension extension) {
+  std::lock_guard<std::mutex> lock(extension_mutex());
+  if (registries_built()) {
+    throw std::logic_error("ncosim::sim::add_extension: called after the registries were first used");
+  }
+  extensions().push_back(std::move(extension));
 }
 
-const models::InputRegistry& input_registry() {
-  static const models::InputRegistry r = [] {
-    models::InputRegistry reg;
-    models::register_inputs(reg);
-    return reg;
-  }();
-  return r;
-}
-
-const est::EstimatorRegistry& estimator_registry() {
-  static const est::EstimatorRegistry r = [] {
-    est::EstimatorRegistry reg;
-    est::register_estimators(reg);
-    return reg;
-  }();
-  return r;
-}
+const models::PlantRegistry& plant_registry() { return all_registries().plants; }
+const models::LinkRegistry& link_registry() { return all_registries().links; }
+const models::InputRegistry& input_registry() { return all_registries().inputs; }
+const est::EstimatorRegistry& estimator_registry() { return all_registries().estimators; }
 
 bool have_sumo() { return NCOSIM_HAVE_SUMO != 0; }
 

@@ -1,0 +1,14 @@
+// main.cc — the ncosim command line with this example's kinds added: one add_extension() call
+// before run_cli(). `my_ncosim list` shows them beside the built-ins; every command works.
+#include "kinds.h"
+#include "sim/cli.h"
+#include "sim/extensions.h"
+
+int main(int argc, char** argv) {
+  ncosim::sim::add_extension([](ncosim::sim::Registries& r) {
+    register_alpha_beta(r.estimators);
+    register_mass_spring_damper(r.plants);
+    register_periodic_outage(r.links);
+  });
+  return ncosim::sim::run_cli(argc, argv);
+}

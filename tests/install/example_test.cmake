@@ -1,0 +1,51 @@
+# tests/install/example_test.cmake — run by CTest: install the build into WORK_DIR/prefix,
+# build examples/custom_estimator against it (find_package(ncosim)), run its scenario and check
+# that the example's kinds are listed and that its estimator has a row in summary.csv.
+foreach(v BUILD_DIR SOURCE_DIR WORK_DIR CXX)
+  if(NOT DEFINED ${v})
+    message(FATAL_ERROR "example_test.cmake: ${v} not set")
+  endif()
+endforeach()
+
+function(run what)
+  execute_process(COMMAND ${ARGN} RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+  if(NOT rc EQUAL 0)
+    message(FATAL_ERROR "${what} failed (${rc}):\n${out}\n${err}")
+  endif()
+  set(last_output "${out}" PARENT_SCOPE)
+endfunction()
+
+file(REMOVE_RECURSE ${WORK_DIR})
+set(prefix ${WORK_DIR}/prefix)
+run("cmake --install" ${CMAKE_COMMAND} --install ${BUILD_DIR} --prefix ${prefix})
+
+set(launcher "")
+if(LAUNCHER)
+  set(launcher -DCMAKE_CXX_COMPILER_LAUNCHER=${LAUNCHER})
+endif()
+run("configuring the example" ${CMAKE_COMMAND} -S ${SOURCE_DIR}/examples/custom_estimator -B ${WORK_DIR}/build
+    -DCMAKE_BUILD_TYPE=Release -DCMAKE_CXX_COMPILER=${CXX} ${launcher} -DCMAKE_PREFIX_PATH=${prefix})
+run("building the example" ${CMAKE_COMMAND} --build ${WORK_DIR}/build -j2)
+
+set(exe ${WORK_DIR}/build/my_ncosim)
+run("my_ncosim list" ${exe} list)
+foreach(kind alpha_beta mass_spring_damper periodic_outage kalman_extended)
+  string(FIND "${last_output}" "${kind}" at)
+  if(at EQUAL -1)
+    message(FATAL_ERROR "my_ncosim list does not show ${kind}:\n${last_output}")
+  endif()
+endforeach()
+
+run("my_ncosim run" ${exe} run ${SOURCE_DIR}/examples/custom_estimator/scenario.toml --out ${WORK_DIR}/out)
+file(STRINGS ${WORK_DIR}/out/summary.csv rows)
+set(found 0)
+foreach(row IN LISTS rows)
+  if(row MATCHES "alpha-beta" AND row MATCHES "alpha_beta")
+    set(found 1)
+  endif()
+endforeach()
+if(NOT found)
+  file(READ ${WORK_DIR}/out/summary.csv text)
+  message(FATAL_ERROR "no alpha_beta row in summary.csv:\n${text}")
+endif()
+message(STATUS "example built against the installed package and ran: ${WORK_DIR}/out/summary.csv")
