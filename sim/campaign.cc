@@ -19,6 +19,7 @@
 #include "models/actuator.h"
 #include "sim/check.h"
 #include "sim/event_queue.h"
+#include "sim/link_stats.h"
 #include "sim/rng.h"
 
 namespace ncosim::sim {
@@ -64,8 +65,10 @@ struct ReplayLog {
 
 class RunSimulation {
  public:
-  RunSimulation(const Scenario& sc, std::uint64_t run, std::vector<TraceRow>* trace, ReplayLog* log)
+  RunSimulation(const Scenario& sc, std::uint64_t run, std::vector<TraceRow>* trace, ReplayLog* log,
+                std::vector<models::LinkCounters>* link_counters = nullptr)
       : sc_(sc),
+        link_out_(link_counters),
         plant_(sc.model.plant),
         period_ns_(seconds_to_time(sc.run.period)),
         trace_(trace),
@@ -131,6 +134,11 @@ class RunSimulation {
       actuators_ = std::make_unique<models::ActuatorStage>(specs, links, seed, run);
       u_applied_ = actuators_->applied();  // u0: held before the first delivery
     }
+    if (link_out_ != nullptr) {
+      flows_ = link_flows(sc);
+      flow_of_ = flow_index(sc, flows_);
+      link_counters_.resize(flows_.size());
+    }
     mode_count_ = sc.model.mode_count();
     if (!plant_.modes.empty()) {
       mode_rng_ = make_stream(seed, run, stream_id(StreamKind::kPlant, 1));
@@ -172,6 +180,16 @@ class RunSimulation {
       metrics_[e].status = estimators_[e]->status();
       if (const auto* c = estimators_[e]->counters()) metrics_[e].counters = *c;
       if (precision_lost_ && metrics_[e].status == "ok") metrics_[e].status = "precision_lost";
+    }
+    if (link_out_ != nullptr) {
+      if (actuators_) {
+        for (std::size_t a = 0; a < flow_of_.actuator.size(); ++a) {
+          const int f = flow_of_.actuator[a];
+          if (f >= 0) link_counters_[static_cast<std::size_t>(f)] = std::move(actuators_->counters()[a]);
+        }
+      }
+      for (auto& c : link_counters_) c.close();
+      *link_out_ = std::move(link_counters_);
     }
     return std::move(metrics_);
   }
@@ -316,7 +334,10 @@ class RunSimulation {
       return;
     }
     LinkState& ls = links_[static_cast<std::size_t>(spec.link)];
+    ls.link->advance(k, ls.rng);
+    const int state = ls.link->state();
     ls.link->transmit_copies(ls.rng, delays_);
+    if (link_out_ != nullptr) link_counters_[static_cast<std::size_t>(flow_of_.sensor[s])].record(delays_, state);
     const bool independent = ls.link->independent_copies();
     for (std::size_t c = 0; c < delays_.size(); ++c) {
       if (independent && c > 0) {  // the design model: every copy has its own noise
@@ -521,6 +542,10 @@ class RunSimulation {
   }
 
   const Scenario& sc_;
+  std::vector<models::LinkCounters>* link_out_;
+  std::vector<LinkFlow> flows_;
+  FlowIndex flow_of_;
+  std::vector<models::LinkCounters> link_counters_;
   std::unique_ptr<MobilityRun> mobility_;  // before links_: links hold a pointer to it
   const models::LinearPlant& plant_;
   SimTime period_ns_;
@@ -598,9 +623,9 @@ std::vector<double> time_estimators(const Scenario& sc, const ReplayLog& log) {
 }  // namespace
 
 RunMetrics simulate_run(const Scenario& sc, std::uint64_t run, std::vector<TraceRow>* trace,
-                        std::vector<double>* ns_per_period) {
+                        std::vector<double>* ns_per_period, std::vector<models::LinkCounters>* links) {
   ReplayLog log;
-  RunSimulation sim(sc, run, trace, ns_per_period != nullptr ? &log : nullptr);
+  RunSimulation sim(sc, run, trace, ns_per_period != nullptr ? &log : nullptr, links);
   RunMetrics m = sim.execute();
   if (ns_per_period != nullptr) *ns_per_period = time_estimators(sc, log);
   return m;
@@ -610,6 +635,7 @@ CampaignResult run_campaign(const Scenario& sc, const CampaignOptions& options) 
   CampaignResult result;
   const auto runs = static_cast<std::size_t>(sc.run.runs);
   result.runs.resize(runs);
+  result.link_runs.resize(runs);
   int threads = options.threads > 0 ? options.threads : static_cast<int>(std::thread::hardware_concurrency());
   threads = std::max(1, std::min<int>(threads, static_cast<int>(runs)));
   if (sc.mobility && sc.mobility->single_threaded()) threads = 1;  // one libsumo per process
@@ -626,7 +652,8 @@ CampaignResult run_campaign(const Scenario& sc, const CampaignOptions& options) 
       const std::size_t r = next.fetch_add(1);
       if (r >= runs) return;
       try {
-        result.runs[r] = simulate_run(sc, r, r == 0 && options.trace ? &result.trace : nullptr);
+        result.runs[r] = simulate_run(sc, r, r == 0 && options.trace ? &result.trace : nullptr, nullptr,
+                                      &result.link_runs[r]);
       } catch (...) {
         std::lock_guard<std::mutex> lock(error_mutex);
         if (!error) error = std::current_exception();

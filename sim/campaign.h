@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "models/link_stats.h"
 #include "sim/scenario.h"
 
 namespace ncosim::sim {
@@ -67,13 +68,17 @@ struct CampaignResult {
   std::vector<RunMetrics> runs;          // [run][estimator]
   std::vector<double> ns_per_period;     // per estimator (measured), NaN when not measured
   std::vector<TraceRow> trace;           // run 0 when requested
+  // [run][flow]: what each link did to each sender's packets (flows: sim/link_stats.h).
+  std::vector<std::vector<models::LinkCounters>> link_runs;
   double wall_seconds = 0.0;
   int threads = 1;
 };
 
 // Simulates run `run` of the scenario. `trace` (optional) receives run 0's rows.
+// `links` (optional) receives the run's link counters, one per flow (sim/link_stats.h).
 RunMetrics simulate_run(const Scenario& sc, std::uint64_t run, std::vector<TraceRow>* trace = nullptr,
-                        std::vector<double>* ns_per_period = nullptr);
+                        std::vector<double>* ns_per_period = nullptr,
+                        std::vector<models::LinkCounters>* links = nullptr);
 
 CampaignResult run_campaign(const Scenario& sc, const CampaignOptions& options);
 

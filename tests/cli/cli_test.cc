@@ -471,7 +471,7 @@ TEST_F(Cli, UnknownCommandSuggestsTheClosest) {
   const Outcome o = ncosim({"chek", scenario(base_)});
   EXPECT_EQ(o.code, 2) << o.output;
   EXPECT_NE(
-      o.output.find("expected a command (run, design, find, codesign, check or list), got 'chek' (did you mean "
+      o.output.find("expected a command (run, design, find, codesign, fit, check or list), got 'chek' (did you mean "
                     "'check'?)"),
       std::string::npos)
       << o.output;
@@ -725,8 +725,8 @@ TEST_F(Cli, RunWritesTheContractFilesAndNothingElse) {
                             "--seed", "11", "--quiet"});
   ASSERT_EQ(o.code, 0) << o.output;
   // No temporary file left behind.
-  EXPECT_EQ(listing(out_), (std::set<std::string>{"summary.csv", "summary.md", "runs.csv",
-                                                  "design.json", "manifest.json", "transmissions.csv"}));
+  EXPECT_EQ(listing(out_), (std::set<std::string>{"summary.csv", "summary.md", "runs.csv", "design.json",
+                                                  "manifest.json", "transmissions.csv", "links.csv"}));
 
   const Csv s = read_csv(out_ / "summary.csv");
   const std::vector<std::string> columns{"estimator",
