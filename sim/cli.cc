@@ -17,6 +17,8 @@
 #include "estimators/export_c.h"
 #include "sim/campaign.h"
 #include "sim/find.h"
+#include "sim/fit_cmd.h"
+#include "sim/link_stats.h"
 #include "sim/codesign.h"
 #include "sim/output.h"
 #include "sim/registries.h"
@@ -117,6 +119,7 @@ int cmd_run(const CommonArgs& a, int threads, bool trace, bool quiet, const std:
       {"summary.md", md},
       {"runs.csv", runs_csv(loaded.sweeps, labels, scs, res)},
       {"transmissions.csv", transmissions_csv(loaded.sweeps, labels, scs, res)},
+      {"links.csv", links_csv(loaded.sweeps, labels, scs, res)},
       {"design.json", design_json(loaded).dump(2) + "\n"},
       {"manifest.json", manifest(loaded, command_line, used_threads, wall).dump(2) + "\n"},
   };
@@ -362,6 +365,18 @@ int run_cli(int argc, char** argv) {
     channel->add_option("--step", step, "distance step (m, default 10)");
   }
 
+  FitArgs fit_args;
+  CLI::App* fit = app.add_subcommand("fit", "fit channel models to a packet trace (seq,delay): a [[link]] table and fit.csv");
+  fit->add_option("TRACE", fit_args.trace, "trace CSV in the `trace` link's format (seq,delay; empty delay = lost)")
+      ->required();
+  fit->add_option("--out", fit_args.out, "output directory (default: results/fit_<trace stem>)");
+  fit->add_option("--family", fit_args.families,
+                  "family to fit (repeatable): bernoulli, delay, gilbert_elliott, markov2 .. markov8 "
+                  "(default: bernoulli, delay, gilbert_elliott, markov2, markov3)");
+  fit->add_option("--criterion", fit_args.criterion, "bic (default) or aic: which family link.toml proposes");
+  fit->add_option("--starts", fit_args.starts, "EM starts per hidden-state family (default 4)")->check(CLI::Range(1, 100));
+  fit->add_option("--name", fit_args.name, "name of the [[link]] table (default: the trace's file stem)");
+
   // An unknown command: CLI11 would only say "A subcommand is required".
   if (argc > 1 && argv[1][0] != '-') {
     std::vector<std::string> commands;
@@ -369,7 +384,7 @@ int run_cli(int argc, char** argv) {
     if (std::find(commands.begin(), commands.end(), argv[1]) == commands.end()) {
       const std::string hint = did_you_mean(argv[1], commands);
       std::cerr << fmt::format(
-          "ncosim: expected a command (run, design, find, codesign, check or list), got '{}'{}\n", argv[1],
+          "ncosim: expected a command (run, design, find, codesign, fit, check or list), got '{}'{}\n", argv[1],
           hint.empty() ? "" : fmt::format(" (did you mean '{}'?)", hint));
       return 2;
     }
@@ -393,6 +408,7 @@ int run_cli(int argc, char** argv) {
     if (design->parsed()) return cmd_design(a, command_line, export_dir);
     if (find->parsed()) return cmd_find(a, find_opt, target_text, command_line);
     if (check->parsed()) return cmd_check(a);
+    if (fit->parsed()) return cmd_fit(fit_args);
     if (codesign->parsed()) {
       cd_opt.progress = !quiet;
       return cmd_codesign(a, cd_opt, command_line);
