@@ -1,6 +1,6 @@
 // bench/store_bench.cc — the run store's cost per run (bench/README.md, "Run store"): the
 // serialization of one flagship run (5 estimators, 2 sensors) and commits of batches of such
-// runs to runs.sqlite (WAL, synchronous=FULL: each commit waits for the disk), against the
+// runs (with their link counters) to runs.sqlite (WAL, synchronous=FULL: each commit waits for the disk), against the
 // simulation of one flagship run.
 #include <benchmark/benchmark.h>
 #include <unistd.h>
@@ -27,6 +27,16 @@ const RunMetrics& flagship_run() {
   return m;
 }
 
+// Its link counters (2 flows), committed with it as a campaign does.
+const RunLinks& flagship_links() {
+  static const RunLinks l = [] {
+    RunLinks links;
+    simulate_run(*flagship().cases.front().scenario, 0, nullptr, nullptr, &links);
+    return links;
+  }();
+  return l;
+}
+
 void BM_SerializeRun(benchmark::State& state) {
   const RunMetrics& m = flagship_run();
   for (auto _ : state) {
@@ -47,7 +57,7 @@ void BM_StoreCommit(benchmark::State& state) {
   std::uint64_t next = 0;
   std::vector<StoredRun> runs(batch);
   for (auto _ : state) {
-    for (auto& r : runs) r = StoredRun{0, next++, flagship_run()};
+    for (auto& r : runs) r = StoredRun{0, next++, flagship_run(), flagship_links()};
     store.put_runs(runs);
   }
   store.close();

@@ -35,6 +35,7 @@ ActuatorStage::ActuatorStage(const std::vector<ActuatorSpec>& specs,
     applied_(static_cast<Eigen::Index>(i)) = specs[i].u0;
     channels_.push_back(std::move(c));
   }
+  counters_.resize(channels_.size());
 }
 
 int ActuatorStage::actuate(const Eigen::VectorXd& sent) {
@@ -42,7 +43,14 @@ int ActuatorStage::actuate(const Eigen::VectorXd& sent) {
   int mode = 0;
   for (int i = 0; i < r; ++i) {
     Channel& c = channels_[static_cast<std::size_t>(i)];
-    const bool delivered = c.link == nullptr || c.link->transmit(c.rng) == 0;  // late = lost
+    bool delivered = true;
+    if (c.link != nullptr) {
+      c.link->advance(period_, c.rng);
+      const int state = c.link->state();
+      const std::int64_t delay = c.link->transmit(c.rng);
+      counters_[static_cast<std::size_t>(i)].record(delay, state);
+      delivered = delay == 0;  // late = lost
+    }
     if (delivered) {
       applied_(i) = sent(i);
     } else {
@@ -50,6 +58,7 @@ int ActuatorStage::actuate(const Eigen::VectorXd& sent) {
       if (c.on_loss == ActuatorSpec::OnLoss::kZero) applied_(i) = 0.0;
     }
   }
+  ++period_;
   return mode;
 }
 

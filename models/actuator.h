@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "models/link.h"
+#include "models/link_stats.h"
 #include "sim/config.h"
 #include "sim/rng.h"
 
@@ -46,6 +47,8 @@ class ActuatorStage {
   // Sends `sent` (one entry per channel) and updates applied(); returns the mode of the period.
   int actuate(const Eigen::VectorXd& sent);
   const Eigen::VectorXd& applied() const { return applied_; }
+  // Per channel: what its link did to the commands so far (ideal channels count nothing).
+  std::vector<LinkCounters>& counters() { return counters_; }
 
  private:
   struct Channel {
@@ -54,6 +57,8 @@ class ActuatorStage {
     ActuatorSpec::OnLoss on_loss;
   };
   std::vector<Channel> channels_;
+  std::vector<LinkCounters> counters_;
+  std::int64_t period_ = 0;  // actuate() is called once per period, from period 0
   Eigen::VectorXd applied_;
 };
 

@@ -218,6 +218,11 @@ std::vector<double> ArrivalCdfLink::delay_pmf(int max_delay) const {
   return out;
 }
 
+std::optional<double> independent_loss_burst(double p) {
+  if (!(p < 1.0)) return std::nullopt;
+  return 1.0 / (1.0 - p);
+}
+
 Eigen::Matrix2d Link::on_time_chain() const {
   const double p = delay_pmf(0)[0];
   Eigen::Matrix2d m;
@@ -250,11 +255,12 @@ Eigen::VectorXd stationary_law(const Eigen::MatrixXd& transition) {
 }
 
 MarkovLink::MarkovLink(Eigen::MatrixXd transition, std::vector<double> loss,
-                       std::vector<std::vector<double>> delay_pmf, std::vector<double> initial)
+                       std::vector<std::vector<double>> delay_pmf, std::vector<double> initial, Step step)
     : transition_(std::move(transition)),
       loss_(std::move(loss)),
       delay_pmf_(std::move(delay_pmf)),
-      initial_(std::move(initial)) {
+      initial_(std::move(initial)),
+      step_(step) {
   const Eigen::Index n = transition_.rows();
   const auto un = static_cast<std::size_t>(n);
   NCOSIM_CHECK(n >= 1 && transition_.cols() == n);
@@ -294,12 +300,23 @@ MarkovLink::MarkovLink(Eigen::MatrixXd transition, std::vector<double> loss,
 std::unique_ptr<Link> MarkovLink::clone() const {
   auto copy = std::make_unique<MarkovLink>(*this);
   copy->state_ = 0;
+  copy->period_ = 0;
   return copy;
 }
 
 void MarkovLink::reset(sim::Rng& rng) {
   state_ = static_cast<int>(
       sample(initial_cdf_.data(), initial_cdf_.data() + initial_cdf_.size(), uniform(rng)));
+  period_ = 0;
+}
+
+void MarkovLink::advance(std::int64_t period, sim::Rng& rng) {
+  if (step_ != Step::kPeriod) return;
+  const std::size_t n = loss_.size();
+  for (; period_ < period; ++period_) {
+    const double* row = transition_cdf_.data() + static_cast<std::size_t>(state_) * n;
+    state_ = static_cast<int>(sample(row, row + n, uniform(rng)));
+  }
 }
 
 std::int64_t MarkovLink::transmit(sim::Rng& rng) {
@@ -315,9 +332,11 @@ std::int64_t MarkovLink::transmit(sim::Rng& rng) {
       if (d < c.size()) delay = static_cast<std::int64_t>(d);
     }
   }
-  const std::size_t n = loss_.size();
-  const double* row = transition_cdf_.data() + s * n;
-  state_ = static_cast<int>(sample(row, row + n, uniform(rng)));
+  if (step_ == Step::kPacket) {
+    const std::size_t n = loss_.size();
+    const double* row = transition_cdf_.data() + s * n;
+    state_ = static_cast<int>(sample(row, row + n, uniform(rng)));
+  }
   return delay;
 }
 
@@ -366,12 +385,73 @@ Eigen::Matrix2d MarkovLink::on_time_chain() const {
   return m;
 }
 
+std::vector<double> MarkovLink::state_law() const {
+  return {stationary_.data(), stationary_.data() + stationary_.size()};
+}
+
+std::optional<double> MarkovLink::mean_loss_burst(std::optional<int> gap) const {
+  if (!gap) return std::nullopt;
+  NCOSIM_CHECK(*gap >= 1);
+  const Eigen::Index n = transition_.rows();
+  Eigen::VectorXd lost(n);
+  for (Eigen::Index s = 0; s < n; ++s) {
+    const auto us = static_cast<std::size_t>(s);
+    const double mass =
+        delay_pmf_.empty() || delay_pmf_[us].empty() ? 1.0 : std::min(1.0, sum(delay_pmf_[us]));
+    lost(s) = 1.0 - (1.0 - loss_[us]) * mass;
+  }
+  Eigen::MatrixXd step = Eigen::MatrixXd::Identity(n, n);
+  for (int i = 0; i < *gap; ++i) step = step * transition_;
+  const double pl = stationary_.dot(lost);
+  const double pll = stationary_.cwiseProduct(lost).dot(step * lost);
+  if (!(pl - pll > 1e-300)) return std::nullopt;  // the losses never end
+  return pl / (pl - pll);
+}
+
 std::unique_ptr<MarkovLink> make_gilbert_elliott(double p_good_to_bad, double p_bad_to_good,
-                                                 double loss_good, double loss_bad) {
+                                                 double loss_good, double loss_bad, MarkovLink::Step step) {
   NCOSIM_CHECK(is_probability(p_good_to_bad) && is_probability(p_bad_to_good));
   Eigen::MatrixXd t(2, 2);
   t << 1.0 - p_good_to_bad, p_good_to_bad, p_bad_to_good, 1.0 - p_bad_to_good;
-  return std::make_unique<MarkovLink>(std::move(t), std::vector<double>{loss_good, loss_bad});
+  return std::make_unique<MarkovLink>(std::move(t), std::vector<double>{loss_good, loss_bad},
+                                      std::vector<std::vector<double>>{}, std::vector<double>{}, step);
+}
+
+GilbertElliottByMean gilbert_elliott_by_mean(double mean_loss, double mean_burst, double loss_good,
+                                             double loss_bad) {
+  GilbertElliottByMean out;
+  const auto fail = [&](const char* key, std::string why) {
+    out.error_key = key;
+    out.error = std::move(why);
+    return out;
+  };
+  const double P = mean_loss, b = mean_burst, lg = loss_good, lb = loss_bad;
+  if (!(lg < lb)) return fail("loss_bad", "expected loss_good < loss_bad with mean_loss and mean_burst");
+  if (!(P > lg && P < lb)) {
+    return fail("mean_loss", "expected loss_good < mean_loss < loss_bad (" + std::to_string(lg) + " < " +
+                                 std::to_string(P) + " < " + std::to_string(lb) + " fails)");
+  }
+  if (!(std::isfinite(b) && b >= 1.0)) return fail("mean_burst", "expected a finite mean burst length >= 1");
+  const double pi_b = (P - lg) / (lb - lg);
+  const double v = pi_b * (1.0 - pi_b) * (lb - lg) * (lb - lg);
+  const double lambda = P * (1.0 - P - 1.0 / b) / v;
+  // lambda < 1 (a chain that moves) and p_gb, p_bg <= 1: lambda >= 1 - 1 / max(pi_B, pi_G).
+  const double lambda_min = 1.0 - 1.0 / std::max(pi_b, 1.0 - pi_b);
+  // The burst lengths that these bounds allow: b = P / (P (1 - P) - lambda V).
+  const auto burst_at = [&](double l) { return P / (P * (1.0 - P) - l * v); };
+  if (!(lambda < 1.0)) {
+    return fail("mean_burst", "expected mean_burst < " + std::to_string(burst_at(1.0)) +
+                                  " (the longest mean burst these loss_good, loss_bad and mean_loss allow), got " +
+                                  std::to_string(b));
+  }
+  if (lambda < lambda_min) {
+    return fail("mean_burst", "expected mean_burst >= " + std::to_string(burst_at(lambda_min)) +
+                                  " (the shortest mean burst these loss_good, loss_bad and mean_loss allow), got " +
+                                  std::to_string(b));
+  }
+  out.p_good_to_bad = std::clamp(pi_b * (1.0 - lambda), 0.0, 1.0);
+  out.p_bad_to_good = std::clamp((1.0 - pi_b) * (1.0 - lambda), 0.0, 1.0);
+  return out;
 }
 
 // ---------------------------------------------------------------------------------------
@@ -415,6 +495,21 @@ double TraceLink::loss_probability() const {
   const auto lost =
       std::count_if(delays_.begin(), delays_.end(), [](const auto& d) { return !d.has_value(); });
   return static_cast<double>(lost) / static_cast<double>(delays_.size());
+}
+
+std::optional<double> TraceLink::mean_loss_burst(std::optional<int> gap) const {
+  if (!gap) return std::nullopt;
+  std::int64_t runs = 0, lost = 0;
+  bool in_run = false;
+  for (const auto& d : delays_) {
+    if (!d) {
+      ++lost;
+      if (!in_run) ++runs;
+    }
+    in_run = !d;
+  }
+  if (runs == 0) return std::nullopt;
+  return static_cast<double>(lost) / static_cast<double>(runs);
 }
 
 // ---------------------------------------------------------------------------------------

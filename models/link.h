@@ -36,6 +36,10 @@ class Link {
   virtual void bind_run(const sim::MobilityRun* mobility, std::uint64_t seed, std::uint64_t run) {
     (void)mobility, (void)seed, (void)run;
   }
+  // Called with the send period k before every packet (periods never decrease within a run): a
+  // time-driven link (Markov kinds with step = "period") moves its channel state to period k
+  // here, one transition per period, so the state a packet meets depends on when it is sent.
+  virtual void advance(std::int64_t period, sim::Rng& rng) { (void)period, (void)rng; }
   // The fate of the next packet sent on this link: its delay in periods, or kLost.
   virtual std::int64_t transmit(sim::Rng& rng) = 0;
   // Delays of every copy of the next packet that is delivered (empty: lost). Physical
@@ -60,7 +64,23 @@ class Link {
   // whose states deliver on time with probability 0 or 1; otherwise the one-step Markov fit
   // of the stationary pair law. Default: independent packets, P(on time) = delay_pmf(0)[0].
   virtual Eigen::Matrix2d on_time_chain() const;
+  // The channel state the next packet meets (Markov kinds; -1: the link has no state) and the
+  // stationary law of that state (empty without states): links.csv's state occupancy.
+  virtual int state() const { return -1; }
+  virtual std::vector<double> state_law() const { return {}; }
+  // Mean length of a run of consecutive lost packets of one sender whose consecutive packets
+  // are `gap` channel steps apart, where the model fixes it (nullopt: it does not, e.g. a
+  // mobility-driven link, or a link with memory whose packets of this sender meet the channel
+  // at irregular steps: gap = nullopt). Independent packets: 1 / (1 - loss_probability()).
+  virtual std::optional<double> mean_loss_burst(std::optional<int> gap) const {
+    (void)gap;
+    return std::nullopt;
+  }
 };
+
+// 1 / (1 - p): the mean length of a run of losses of independent packets lost with probability p
+// (nullopt when p = 1: the run never ends).
+std::optional<double> independent_loss_burst(double p);
 
 // Each packet: delay d with probability pmf[d] (d = 0..size-1); lost otherwise.
 // With independent = true, every d is an independent copy delivered with probability
@@ -75,6 +95,9 @@ class DelayPmfLink final : public Link {
   std::vector<double> delay_pmf(int max_delay) const override;
   double loss_probability() const override;
 
+  std::optional<double> mean_loss_burst(std::optional<int>) const override {
+    return independent_loss_burst(loss_probability());
+  }
  private:
   std::vector<double> pmf_;
   std::vector<double> cdf_;
@@ -90,6 +113,9 @@ class BernoulliLink final : public Link {
   std::vector<double> delay_pmf(int max_delay) const override;
   double loss_probability() const override { return loss_; }
 
+  std::optional<double> mean_loss_burst(std::optional<int>) const override {
+    return independent_loss_burst(loss_probability());
+  }
  private:
   double loss_;
   std::int64_t delay_;
@@ -106,6 +132,9 @@ class NegativeBinomialLink final : public Link {
   std::vector<double> delay_pmf(int max_delay) const override;
   double loss_probability() const override { return loss_; }
 
+  std::optional<double> mean_loss_burst(std::optional<int>) const override {
+    return independent_loss_burst(loss_probability());
+  }
  private:
   int successes_;
   double p_;
@@ -122,20 +151,30 @@ class ArrivalCdfLink final : public Link {
   std::vector<double> delay_pmf(int max_delay) const override;
   double loss_probability() const override { return 1.0 - tail_; }
 
+  std::optional<double> mean_loss_burst(std::optional<int>) const override {
+    return independent_loss_burst(loss_probability());
+  }
  private:
   std::vector<double> cdf_;  // non-decreasing, cdf_.back() <= tail_
   double tail_;
 };
 
-// Finite Markov chain stepped once per packet: packet k is lost with probability
-// loss[s_k], else delayed by d with probability delay_pmf[s_k][d] (delay 0 when
-// delay_pmf is empty); then s_{k+1} ~ transition.row(s_k). s_0 is drawn from
+// Finite Markov chain: a packet meeting state s is lost with probability loss[s], else delayed
+// by d with probability delay_pmf[s][d] (delay 0 when delay_pmf is empty). Stepping:
+// kPacket: once per packet, after it (s_{k+1} ~ transition.row(s_k), k counting packets);
+// kPeriod: once per control period (advance()), so packets sent in one period meet one state and
+// a sender silent for g periods finds the chain g steps on. For a single sender sending every
+// period both give the same draws in the same order, hence the same results. s_0 is drawn from
 // `initial`, or from the stationary law when `initial` is empty.
 // Gilbert–Elliott is the two-state case (make_gilbert_elliott).
 class MarkovLink final : public Link {
  public:
+  enum class Step { kPacket, kPeriod };
   MarkovLink(Eigen::MatrixXd transition, std::vector<double> loss,
-             std::vector<std::vector<double>> delay_pmf = {}, std::vector<double> initial = {});
+             std::vector<std::vector<double>> delay_pmf = {}, std::vector<double> initial = {},
+             Step step = Step::kPacket);
+  void advance(std::int64_t period, sim::Rng& rng) override;
+  Step step() const { return step_; }
   std::unique_ptr<Link> clone() const override;
   void reset(sim::Rng& rng) override;
   std::int64_t transmit(sim::Rng& rng) override;
@@ -144,7 +183,10 @@ class MarkovLink final : public Link {
   Eigen::Matrix2d on_time_chain() const override;
   // Stationary distribution of the chain (left eigenvector for eigenvalue 1).
   const Eigen::VectorXd& stationary() const { return stationary_; }
-  int state() const { return state_; }
+  int state() const override { return state_; }
+  std::vector<double> state_law() const override;
+  // P(L) / (P(L) - P(L, L)) with P(L, L) = sum_s pi_s lost_s (T^gap lost)_s.
+  std::optional<double> mean_loss_burst(std::optional<int> gap) const override;
 
  private:
   Eigen::MatrixXd transition_;
@@ -158,11 +200,28 @@ class MarkovLink final : public Link {
   std::vector<std::vector<double>> delay_cdf_;
   std::vector<double> initial_cdf_;
   int state_ = 0;
+  Step step_ = Step::kPacket;
+  std::int64_t period_ = 0;  // kPeriod: the period the state belongs to
 };
 
 // Two-state Markov link: state 0 = good, 1 = bad.
 std::unique_ptr<MarkovLink> make_gilbert_elliott(double p_good_to_bad, double p_bad_to_good,
-                                                 double loss_good, double loss_bad);
+                                                 double loss_good, double loss_bad,
+                                                 MarkovLink::Step step = MarkovLink::Step::kPacket);
+
+// The transition probabilities of the Gilbert–Elliott chain with per-state losses lg < lb whose
+// packets are lost with stationary probability `mean_loss` = P and whose runs of consecutive
+// losses have mean length `mean_burst` = b. With pi_B = (P - lg) / (lb - lg), V = pi_B (1 - pi_B)
+// (lb - lg)^2 and the chain's second eigenvalue lambda = 1 - p_gb - p_bg, the loss indicator has
+// P(L, L) = P^2 + lambda V, so b = P / (P - P(L, L)) gives lambda = P (1 - P - 1/b) / V and
+// p_gb = pi_B (1 - lambda), p_bg = (1 - pi_B)(1 - lambda). Valid when lg < P < lb and the two
+// probabilities lie in [0, 1] with lambda < 1; otherwise `error` says why (at `error_key`).
+struct GilbertElliottByMean {
+  double p_good_to_bad = 0.0, p_bad_to_good = 0.0;
+  std::string error, error_key;
+};
+GilbertElliottByMean gilbert_elliott_by_mean(double mean_loss, double mean_burst, double loss_good,
+                                             double loss_bad);
 
 // Replays a recorded trace: packet k (k-th packet sent on this link in the run) has
 // delay delays[k] periods, or is lost when delays[k] is empty. Every run replays it
@@ -176,6 +235,8 @@ class TraceLink final : public Link {
   std::int64_t transmit(sim::Rng& rng) override;
   std::vector<double> delay_pmf(int max_delay) const override;
   double loss_probability() const override;
+  // The trace's own mean loss-run length when one sender replays it (gap given).
+  std::optional<double> mean_loss_burst(std::optional<int> gap) const override;
   std::size_t size() const { return delays_.size(); }
 
  private:

@@ -96,7 +96,25 @@ std::unique_ptr<Link> read_arrival_cdf(const sim::Table& t, const LinkContext&) 
   return std::make_unique<ArrivalCdfLink>(std::move(cdf), tail);
 }
 
+// `step`: "period" (default: the chain moves once per control period) or "packet".
+MarkovLink::Step read_step(const sim::Table& t) {
+  return t.choice_or("step", "period", {"period", "packet"}) == "packet" ? MarkovLink::Step::kPacket
+                                                                          : MarkovLink::Step::kPeriod;
+}
+
 std::unique_ptr<Link> read_gilbert_elliott(const sim::Table& t, const LinkContext&) {
+  const MarkovLink::Step step = read_step(t);
+  const double lg = read_probability(t, "loss_good", 0.0);
+  const double lb = read_probability(t, "loss_bad", 1.0);
+  const bool by_mean = t.has("mean_loss") || t.has("mean_burst");
+  if (by_mean) {
+    for (const char* key : {"p_good_to_bad", "p_bad_to_good"}) {
+      if (t.has(key)) t.fail(key, fmt::format("expected either {} or mean_loss and mean_burst, got both", key));
+    }
+    const GilbertElliottByMean ge = gilbert_elliott_by_mean(t.number("mean_loss"), t.number("mean_burst"), lg, lb);
+    if (!ge.error.empty()) t.fail(ge.error_key, ge.error);
+    return make_gilbert_elliott(ge.p_good_to_bad, ge.p_bad_to_good, lg, lb, step);
+  }
   const double gb = t.number("p_good_to_bad");
   sim::require_probability(t, "p_good_to_bad", gb);
   const double bg = t.number("p_bad_to_good");
@@ -104,12 +122,11 @@ std::unique_ptr<Link> read_gilbert_elliott(const sim::Table& t, const LinkContex
   if (gb + bg <= 0.0) {
     t.fail("p_bad_to_good", "expected p_good_to_bad + p_bad_to_good > 0 (a chain that can move)");
   }
-  const double lg = read_probability(t, "loss_good", 0.0);
-  const double lb = read_probability(t, "loss_bad", 1.0);
-  return make_gilbert_elliott(gb, bg, lg, lb);
+  return make_gilbert_elliott(gb, bg, lg, lb, step);
 }
 
 std::unique_ptr<Link> read_markov(const sim::Table& t, const LinkContext&) {
+  const MarkovLink::Step step = read_step(t);
   const Eigen::MatrixXd T = t.matrix("transition");
   if (T.rows() != T.cols()) {
     t.fail("transition", fmt::format("expected a square matrix, got {}x{}", T.rows(), T.cols()));
@@ -156,7 +173,7 @@ std::unique_ptr<Link> read_markov(const sim::Table& t, const LinkContext&) {
     for (double p : initial) sum += p;
     if (std::abs(sum - 1.0) > 1e-9) t.fail("initial", fmt::format("expected probabilities summing to 1, got {:.6g}", sum));
   }
-  return std::make_unique<MarkovLink>(T, std::move(loss), std::move(delay), std::move(initial));
+  return std::make_unique<MarkovLink>(T, std::move(loss), std::move(delay), std::move(initial), step);
 }
 
 std::unique_ptr<Link> read_trace(const sim::Table& t, const LinkContext& ctx) {
@@ -191,9 +208,10 @@ void register_links(LinkRegistry& registry) {
                read_negative_binomial);
   registry.add("arrival_cdf", "Schenato's lambda_h = P[delay <= h]: cdf, tail", read_arrival_cdf);
   registry.add("gilbert_elliott",
-               "two-state Markov loss: p_good_to_bad, p_bad_to_good, loss_good, loss_bad",
+               "two-state Markov loss: p_good_to_bad, p_bad_to_good (or mean_loss, mean_burst), "
+               "loss_good, loss_bad, step",
                read_gilbert_elliott);
-  registry.add("markov", "finite Markov chain per packet: transition, loss, delay_pmf, initial",
+  registry.add("markov", "finite Markov chain (per period or per packet): transition, loss, delay_pmf, initial, step",
                read_markov);
   registry.add("trace", "replay a recorded CSV of seq,delay (empty delay = lost): file", read_trace);
 }

@@ -28,6 +28,7 @@
 #include "sim/cli.h"
 #include "sim/mpi_campaign.h"
 #include "sim/limits.h"
+#include "sim/link_stats.h"
 #include "sim/output.h"
 #include "sim/paired.h"
 #include "sim/output_set.h"
@@ -94,9 +95,9 @@ class StoreSink {
   StoreSink(const StoreSink&) = delete;
   StoreSink& operator=(const StoreSink&) = delete;
 
-  void push(std::size_t case_index, std::uint64_t run, RunMetrics&& m) {
+  void push(std::size_t case_index, std::uint64_t run, RunMetrics&& m, RunLinks&& links) {
     std::lock_guard<std::mutex> lock(mutex_);
-    pending_.push_back(StoredRun{case_index, run, std::move(m)});
+    pending_.push_back(StoredRun{case_index, run, std::move(m), std::move(links)});
   }
   // Commits everything pushed so far; rethrows a writer failure.
   void flush() {
@@ -181,7 +182,7 @@ std::map<std::string, std::string> campaign_meta(const LoadedScenario& loaded, c
   const auto abs = std::filesystem::absolute(loaded.file, ec);
   const Scenario& sc = *loaded.cases.front().scenario;
   return {
-      {"format", "1"},
+      {"format", "2"},  // 2: link counters per run (table link_runs)
       {"scenario_file", loaded.file},
       {"scenario_path", ec ? loaded.file : abs.lexically_normal().string()},
       {"scenario_text", loaded.text},
@@ -376,6 +377,38 @@ TargetDecision decide_target(const LoadedScenario& loaded, const std::vector<Cam
   }
 }
 
+// The link counters of every stored run, into each case's CampaignResult::link_runs (aligned
+// with its runs). Complete when every run has them; else link_runs are left empty.
+struct LinkCoverage {
+  bool complete = true;
+  std::size_t present = 0, missing = 0;
+};
+
+LinkCoverage load_link_runs(const RunStore& store, std::vector<CampaignResult>& results) {
+  LinkCoverage cov;
+  for (std::size_t c = 0; c < results.size(); ++c) {
+    CampaignResult& res = results[c];
+    auto stored = store.load_case_links(c);
+    std::size_t j = 0;
+    res.link_runs.reserve(res.run_ids.size());
+    for (const std::uint64_t run : res.run_ids) {
+      while (j < stored.size() && stored[j].first < run) ++j;
+      if (j < stored.size() && stored[j].first == run) {
+        res.link_runs.push_back(std::move(stored[j].second));
+        ++cov.present;
+      } else {
+        res.link_runs.emplace_back();
+        ++cov.missing;
+      }
+    }
+  }
+  cov.complete = cov.missing == 0;
+  if (!cov.complete) {
+    for (auto& res : results) res.link_runs.clear();
+  }
+  return cov;
+}
+
 struct ExportInfo {
   std::string command_line;
   std::string stopped;  // why the campaign stopped early ("" when it did not)
@@ -398,6 +431,8 @@ std::vector<std::pair<std::string, std::string>> derive_exports(const LoadedScen
       res.runs.push_back(std::move(m));
     }
   }
+  // Link counters: links.csv needs them for every run the exports use (sim/link_stats.h).
+  const LinkCoverage links = load_link_runs(store, results);
   TargetDecision decision;
   if (rule.on() && shard.count <= 1) {
     decision = decide_target(loaded, results, rule);
@@ -405,6 +440,7 @@ std::vector<std::pair<std::string, std::string>> derive_exports(const LoadedScen
       for (auto& res : results) {
         res.runs.resize(decision.runs);
         res.run_ids.resize(decision.runs);
+        if (!res.link_runs.empty()) res.link_runs.resize(decision.runs);
       }
     }
   }
@@ -490,6 +526,11 @@ std::vector<std::pair<std::string, std::string>> derive_exports(const LoadedScen
                         {"runs", decision.decided ? nlohmann::json(decision.runs) : nlohmann::json(nullptr)},
                         {"stop", decision.decided ? nlohmann::json(decision.reason) : nlohmann::json(nullptr)}};
   }
+  if (!links.complete) {
+    man["links_csv"] = fmt::format("not written: {} of the {} stored runs have no link counters (a store written "
+                                   "before ncosim counted them)",
+                                   links.missing, links.missing + links.present);
+  }
   std::vector<std::pair<std::string, std::string>> files{
       {"summary.csv", summary_csv(loaded.sweeps, rows, n)},
       {"summary.md", md},
@@ -498,6 +539,7 @@ std::vector<std::pair<std::string, std::string>> derive_exports(const LoadedScen
       {"design.json", design_json(loaded).dump(2) + "\n"},
       {"manifest.json", man.dump(2) + "\n"},
   };
+  if (links.complete) files.emplace_back("links.csv", links_csv(loaded.sweeps, labels, scs, res));
   const auto art = store.artifacts();
   if (const auto it = art.find("trajectory.csv"); it != art.end()) files.emplace_back("trajectory.csv", it->second);
   const std::string confusion = confusion_csv(loaded.sweeps, rows);
@@ -506,7 +548,7 @@ std::vector<std::pair<std::string, std::string>> derive_exports(const LoadedScen
   return files;
 }
 
-const std::vector<std::string> kStale{"trajectory.csv", "confusion.csv"};
+const std::vector<std::string> kStale{"trajectory.csv", "confusion.csv", "links.csv"};
 
 // Derives the exports, closes the store (checkpoint: the folder then holds runs.sqlite alone,
 // no -wal), then writes the exports atomically.
@@ -664,7 +706,9 @@ int cmd_run_campaign(const RunCommand& cmd) {
         opt.progress_label = label.empty() ? "" : label + ":";
         opt.only_runs = std::move(todo);
         opt.stop = &g_stop;
-        opt.on_run = [&sink, c](std::uint64_t run, RunMetrics&& m) { sink.push(c, run, std::move(m)); };
+        opt.on_run = [&sink, c](std::uint64_t run, RunMetrics&& m, RunLinks&& links) {
+          sink.push(c, run, std::move(m), std::move(links));
+        };
         CampaignResult res = mpi ? mpi->run(sc, c, opt) : run_campaign(sc, opt);
         sink.flush();
         wall += res.wall_seconds;
@@ -846,7 +890,13 @@ int cmd_merge(const std::string& out, const std::vector<std::string>& dirs, cons
     merged.put_estimators(c, names);
     std::vector<StoredRun> batch;
     for (auto& store : stores) {
-      for (auto& [run, m] : store.load_case(c)) batch.push_back(StoredRun{c, run, std::move(m)});
+      std::map<std::uint64_t, RunLinks> links;
+      for (auto& [run, l] : store.load_case_links(c)) links.emplace(run, std::move(l));
+      for (auto& [run, m] : store.load_case(c)) {
+        StoredRun sr{c, run, std::move(m), std::nullopt};
+        if (auto it = links.find(run); it != links.end()) sr.links = std::move(it->second);
+        batch.push_back(std::move(sr));
+      }
     }
     merged.put_runs(batch);
     // Timing: the first shard that measured it.

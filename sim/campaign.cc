@@ -21,6 +21,7 @@
 #include "models/actuator.h"
 #include "sim/check.h"
 #include "sim/event_queue.h"
+#include "sim/link_stats.h"
 #include "sim/rng.h"
 
 namespace ncosim::sim {
@@ -69,8 +70,10 @@ struct ReplayLog {
 
 class RunSimulation {
  public:
-  RunSimulation(const Scenario& sc, std::uint64_t run, std::vector<TraceRow>* trace, ReplayLog* log)
+  RunSimulation(const Scenario& sc, std::uint64_t run, std::vector<TraceRow>* trace, ReplayLog* log,
+                std::vector<models::LinkCounters>* link_counters = nullptr)
       : sc_(sc),
+        link_out_(link_counters),
         plant_(sc.model.plant),
         period_ns_(seconds_to_time(sc.run.period)),
         trace_(trace),
@@ -136,6 +139,11 @@ class RunSimulation {
       actuators_ = std::make_unique<models::ActuatorStage>(specs, links, seed, run);
       u_applied_ = actuators_->applied();  // u0: held before the first delivery
     }
+    if (link_out_ != nullptr) {
+      flows_ = link_flows(sc);
+      flow_of_ = flow_index(sc, flows_);
+      link_counters_.resize(flows_.size());
+    }
     mode_count_ = sc.model.mode_count();
     if (!plant_.modes.empty()) {
       mode_rng_ = make_stream(seed, run, stream_id(StreamKind::kPlant, 1));
@@ -177,6 +185,16 @@ class RunSimulation {
       metrics_[e].status = estimators_[e]->status();
       if (const auto* c = estimators_[e]->counters()) metrics_[e].counters = *c;
       if (precision_lost_ && metrics_[e].status == "ok") metrics_[e].status = "precision_lost";
+    }
+    if (link_out_ != nullptr) {
+      if (actuators_) {
+        for (std::size_t a = 0; a < flow_of_.actuator.size(); ++a) {
+          const int f = flow_of_.actuator[a];
+          if (f >= 0) link_counters_[static_cast<std::size_t>(f)] = std::move(actuators_->counters()[a]);
+        }
+      }
+      for (auto& c : link_counters_) c.close();
+      *link_out_ = std::move(link_counters_);
     }
     return std::move(metrics_);
   }
@@ -321,7 +339,10 @@ class RunSimulation {
       return;
     }
     LinkState& ls = links_[static_cast<std::size_t>(spec.link)];
+    ls.link->advance(k, ls.rng);
+    const int state = ls.link->state();
     ls.link->transmit_copies(ls.rng, delays_);
+    if (link_out_ != nullptr) link_counters_[static_cast<std::size_t>(flow_of_.sensor[s])].record(delays_, state);
     const bool independent = ls.link->independent_copies();
     for (std::size_t c = 0; c < delays_.size(); ++c) {
       if (independent && c > 0) {  // the design model: every copy has its own noise
@@ -526,6 +547,10 @@ class RunSimulation {
   }
 
   const Scenario& sc_;
+  std::vector<models::LinkCounters>* link_out_;
+  std::vector<LinkFlow> flows_;
+  FlowIndex flow_of_;
+  std::vector<models::LinkCounters> link_counters_;
   std::unique_ptr<MobilityRun> mobility_;  // before links_: links hold a pointer to it
   const models::LinearPlant& plant_;
   SimTime period_ns_;
@@ -612,9 +637,9 @@ std::string format_duration(double s) {
 }  // namespace
 
 RunMetrics simulate_run(const Scenario& sc, std::uint64_t run, std::vector<TraceRow>* trace,
-                        std::vector<double>* ns_per_period) {
+                        std::vector<double>* ns_per_period, std::vector<models::LinkCounters>* links) {
   ReplayLog log;
-  RunSimulation sim(sc, run, trace, ns_per_period != nullptr ? &log : nullptr);
+  RunSimulation sim(sc, run, trace, ns_per_period != nullptr ? &log : nullptr, links);
   RunMetrics m = sim.execute();
   if (ns_per_period != nullptr) *ns_per_period = time_estimators(sc, log, std::chrono::milliseconds(200));
   return m;
@@ -633,6 +658,7 @@ CampaignResult run_campaign(const Scenario& sc, const CampaignOptions& options) 
   const bool keep = !options.on_run;
   if (keep) {
     result.runs.resize(runs);
+    if (options.link_counters) result.link_runs.resize(runs);
     if (options.only_runs) result.run_ids = todo;
   }
   int threads = options.threads > 0 ? options.threads : static_cast<int>(std::thread::hardware_concurrency());
@@ -662,14 +688,17 @@ CampaignResult run_campaign(const Scenario& sc, const CampaignOptions& options) 
       const std::uint64_t r = todo[i];
       try {
         ReplayLog* lg = i == 0 && options.time_estimators ? &log : nullptr;
-        RunSimulation sim(sc, r, r == 0 && options.trace ? &result.trace : nullptr, lg);
+        RunLinks links;
+        RunSimulation sim(sc, r, r == 0 && options.trace ? &result.trace : nullptr, lg,
+                          options.link_counters ? &links : nullptr);
         RunMetrics m = sim.execute();
         if (keep) {
           result.runs[i] = std::move(m);
+          if (options.link_counters) result.link_runs[i] = std::move(links);
           completed[i] = 1;
         } else {
           std::lock_guard<std::mutex> lock(sink_mutex);
-          options.on_run(r, std::move(m));
+          options.on_run(r, std::move(m), std::move(links));
         }
       } catch (...) {
         std::lock_guard<std::mutex> lock(error_mutex);
@@ -736,14 +765,17 @@ CampaignResult run_campaign(const Scenario& sc, const CampaignOptions& options) 
   result.stopped = result.runs_done < runs;
   if (keep && result.stopped) {  // keep the completed runs only
     std::vector<RunMetrics> kept;
+    std::vector<RunLinks> kept_links;
     std::vector<std::uint64_t> ids;
     for (std::size_t i = 0; i < runs; ++i) {
       if (completed[i] != 0) {
         kept.push_back(std::move(result.runs[i]));
+        if (options.link_counters) kept_links.push_back(std::move(result.link_runs[i]));
         ids.push_back(todo[i]);
       }
     }
     result.runs = std::move(kept);
+    result.link_runs = std::move(kept_links);
     result.run_ids = std::move(ids);
   }
   result.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

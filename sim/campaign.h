@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "models/link_stats.h"
 #include "sim/scenario.h"
 
 namespace ncosim::sim {
@@ -42,6 +43,8 @@ struct EstimatorRunMetrics {
 inline constexpr int kMaxConfusionModes = 64;
 
 using RunMetrics = std::vector<EstimatorRunMetrics>;  // one per estimator
+// What each link did to each sender's packets in one run, one entry per flow (sim/link_stats.h).
+using RunLinks = std::vector<models::LinkCounters>;
 
 // Per-period record of run 0 (opt-in, for --trace).
 struct TraceRow {
@@ -65,9 +68,13 @@ struct CampaignOptions {
   std::string progress_label;
   // The run indices to simulate, ascending (nullopt: 0 .. runs-1). Resume and shards.
   std::optional<std::vector<std::uint64_t>> only_runs;
-  // Receives each completed run (called from the worker threads, one at a time); when set,
-  // CampaignResult::runs stays empty, so a campaign's memory does not grow with its runs.
-  std::function<void(std::uint64_t run, RunMetrics&& metrics)> on_run;
+  // Count what every link does to every sender's packets (CampaignResult::link_runs, or the
+  // `links` of on_run; empty when off). Never changes a draw: off only to measure its cost.
+  bool link_counters = true;
+  // Receives each completed run with its link counters (called from the worker threads, one at
+  // a time); when set, CampaignResult::runs stays empty, so a campaign's memory does not grow
+  // with its runs.
+  std::function<void(std::uint64_t run, RunMetrics&& metrics, RunLinks&& links)> on_run;
   // Set (e.g. by a signal handler): no new run is started; runs in progress finish.
   const std::atomic<int>* stop = nullptr;
 };
@@ -79,13 +86,17 @@ struct CampaignResult {
   bool stopped = false;                  // `stop` was set before every run was done
   std::vector<double> ns_per_period;     // per estimator (measured), NaN when not measured
   std::vector<TraceRow> trace;           // run 0 when requested
+  // [run][flow], aligned with `runs` (empty when CampaignOptions::link_counters is off).
+  std::vector<RunLinks> link_runs;
   double wall_seconds = 0.0;
   int threads = 1;
 };
 
 // Simulates run `run` of the scenario. `trace` (optional) receives run 0's rows.
+// `links` (optional) receives the run's link counters, one per flow (sim/link_stats.h).
 RunMetrics simulate_run(const Scenario& sc, std::uint64_t run, std::vector<TraceRow>* trace = nullptr,
-                        std::vector<double>* ns_per_period = nullptr);
+                        std::vector<double>* ns_per_period = nullptr,
+                        RunLinks* links = nullptr);
 
 CampaignResult run_campaign(const Scenario& sc, const CampaignOptions& options);
 

@@ -19,6 +19,7 @@
 #include "sim/campaign.h"
 #include "lmi/limits.h"
 #include "sim/find.h"
+#include "sim/fit_cmd.h"
 #include "sim/codesign.h"
 #include "sim/compare.h"
 #include "sim/figure_cli.h"
@@ -398,6 +399,18 @@ int run_cli(int argc, char** argv) {
     channel->add_option("--step", step, "distance step (m, default 10)");
   }
 
+  FitArgs fit_args;
+  CLI::App* fit = app.add_subcommand("fit", "fit channel models to a packet trace (seq,delay): a [[link]] table and fit.csv");
+  fit->add_option("TRACE", fit_args.trace, "trace CSV in the `trace` link's format (seq,delay; empty delay = lost)")
+      ->required();
+  fit->add_option("--out", fit_args.out, "output directory (default: results/fit_<trace stem>)");
+  fit->add_option("--family", fit_args.families,
+                  "family to fit (repeatable): bernoulli, delay, gilbert_elliott, markov2 .. markov8 "
+                  "(default: bernoulli, delay, gilbert_elliott, markov2, markov3)");
+  fit->add_option("--criterion", fit_args.criterion, "bic (default) or aic: which family link.toml proposes");
+  fit->add_option("--starts", fit_args.starts, "EM starts per hidden-state family (default 4)")->check(CLI::Range(1, 100));
+  fit->add_option("--name", fit_args.name, "name of the [[link]] table (default: the trace's file stem)");
+
   // An unknown command: CLI11 would only say "A subcommand is required".
   if (argc > 1 && argv[1][0] != '-') {
     std::vector<std::string> commands;
@@ -405,7 +418,7 @@ int run_cli(int argc, char** argv) {
     if (std::find(commands.begin(), commands.end(), argv[1]) == commands.end()) {
       const std::string hint = did_you_mean(argv[1], commands);
       std::cerr << fmt::format(
-          "ncosim: expected a command (run, export, merge, design, find, codesign, compare, check, plot, report or list), got "
+          "ncosim: expected a command (run, export, merge, design, find, codesign, compare, fit, check, plot, report or list), got "
           "'{}'{}\n",
           argv[1],
           hint.empty() ? "" : fmt::format(" (did you mean '{}'?)", hint));
@@ -448,6 +461,7 @@ int run_cli(int argc, char** argv) {
     if (check->parsed()) return cmd_check(a);
     if (compare->parsed()) return run_compare_command(cmp);
     if (const auto status = run_figure_commands(figure_commands)) return *status;
+    if (fit->parsed()) return cmd_fit(fit_args);
     if (codesign->parsed()) {
       cd_opt.progress = !quiet;
       return cmd_codesign(a, cd_opt, command_line);

@@ -40,7 +40,8 @@ bool mpi_available() { return true; }
 namespace {
 
 constexpr int kWork = 1;    // rank 0 -> worker: {case, run}
-constexpr int kResult = 2;  // worker -> rank 0: 8 bytes case, 8 bytes run, the serialized metrics
+constexpr int kResult = 2;  // worker -> rank 0: 8 bytes case, 8 bytes run, 8 bytes n, n bytes of
+                            // serialized metrics, the serialized link counters (empty: not counted)
 constexpr int kError = 3;   // worker -> rank 0: what failed
 constexpr int kStop = 4;    // rank 0 -> worker: no more work
 
@@ -93,9 +94,9 @@ CampaignResult MpiSession::run(const Scenario& sc, std::size_t case_index, const
   std::exception_ptr error;
   std::atomic<bool> failed{false};
   auto stop_requested = [&] { return (options.stop != nullptr && options.stop->load() != 0) || failed.load(); };
-  auto deliver = [&](std::uint64_t run, RunMetrics&& m) {
+  auto deliver = [&](std::uint64_t run, RunMetrics&& m, RunLinks&& links) {
     std::lock_guard<std::mutex> lock(sink_mutex);
-    options.on_run(run, std::move(m));
+    options.on_run(run, std::move(m), std::move(links));
     done.fetch_add(1);
   };
   auto local = [&] {
@@ -103,7 +104,9 @@ CampaignResult MpiSession::run(const Scenario& sc, std::size_t case_index, const
       const std::size_t i = next.fetch_add(1);
       if (i >= n) return;
       try {
-        deliver(todo[i], simulate_run(sc, todo[i]));
+        RunLinks links;
+        RunMetrics m = simulate_run(sc, todo[i], nullptr, nullptr, options.link_counters ? &links : nullptr);
+        deliver(todo[i], std::move(m), std::move(links));
       } catch (...) {
         std::lock_guard<std::mutex> lock(error_mutex);
         if (!error) error = std::current_exception();
@@ -121,7 +124,7 @@ CampaignResult MpiSession::run(const Scenario& sc, std::size_t case_index, const
     if (stop_requested()) return;
     const std::size_t i = next.fetch_add(1);
     if (i >= n) return;
-    world.send(w, kWork, std::vector<std::uint64_t>{case_index, todo[i]});
+    world.send(w, kWork, std::vector<std::uint64_t>{case_index, todo[i], options.link_counters ? 1u : 0u});
     ++outstanding;
   };
   for (int w = 1; w < world.size(); ++w) {
@@ -140,7 +143,18 @@ CampaignResult MpiSession::run(const Scenario& sc, std::size_t case_index, const
         failed = true;
         continue;
       }
-      deliver(get_u64(msg, 8), deserialize_run(msg.substr(16)));
+      try {
+        if (msg.size() < 24 || get_u64(msg, 16) > msg.size() - 24) throw std::runtime_error("malformed result message");
+        const auto n_metrics = static_cast<std::size_t>(get_u64(msg, 16));
+        const std::string links = msg.substr(24 + n_metrics);
+        deliver(get_u64(msg, 8), deserialize_run(msg.substr(24, n_metrics)),
+                links.empty() ? RunLinks{} : deserialize_links(links));
+      } catch (const std::exception& e) {
+        std::lock_guard<std::mutex> lock(error_mutex);
+        if (!error) error = std::make_exception_ptr(std::runtime_error(fmt::format("MPI rank {}: {}", st->source(), e.what())));
+        failed = true;
+        continue;
+      }
       give(st->source());
     } else {
       std::this_thread::sleep_for(std::chrono::microseconds(200));
@@ -177,12 +191,16 @@ void MpiSession::serve(const std::vector<const Scenario*>& cases) {
     std::vector<std::uint64_t> work;
     world.recv(0, kWork, work);
     try {
-      if (work.size() != 2 || work[0] >= cases.size()) throw std::runtime_error("malformed work message");
-      const RunMetrics m = simulate_run(*cases[work[0]], work[1]);
+      if (work.size() != 3 || work[0] >= cases.size()) throw std::runtime_error("malformed work message");
+      RunLinks links;
+      const RunMetrics m = simulate_run(*cases[work[0]], work[1], nullptr, nullptr, work[2] != 0 ? &links : nullptr);
       std::string msg;
       put_u64(msg, work[0]);
       put_u64(msg, work[1]);
-      msg += serialize_run(m);
+      const std::string metrics = serialize_run(m);
+      put_u64(msg, metrics.size());
+      msg += metrics;
+      if (work[2] != 0) msg += serialize_links(links);
       world.send(0, kResult, msg);
     } catch (const std::exception& e) {
       world.send(0, kError, std::string(e.what()));

@@ -523,8 +523,11 @@ LoadedScenario load_cases_text(const std::string& file, const std::string& text,
 
   toml::table doc = parse_document(out.text, file, sets, overrides);
 
-  // Sweeps: cartesian product, the first axis varying slowest.
-  std::vector<std::size_t> axis_sizes;
+  // Sweeps: cartesian product, the first axis varying slowest. Axes sharing a `zip` name are one
+  // dimension of that product (they move together; equal lengths), placed at its first axis.
+  std::vector<std::size_t> axis_sizes;   // per dimension
+  std::vector<std::size_t> axis_dim;     // per axis: its dimension
+  std::vector<std::string> dim_zip;      // per dimension: its zip name ("" = a plain axis)
   int last_sweep_line = 1;
   {
     Table root(doc, "", file);
@@ -541,6 +544,7 @@ LoadedScenario load_cases_text(const std::string& file, const std::string& text,
                            axis.key));
       }
       t.allow("values");
+      const std::string zip = t.string_or("zip", "");
       const toml::node* vals = doc.get("sweep")->as_array()->get(a)->as_table()->get("values");
       if (vals == nullptr || !vals->is_array() || vals->as_array()->empty()) {
         t.fail("values", fmt::format("expected a non-empty array of values, got {}",
@@ -556,8 +560,22 @@ LoadedScenario load_cases_text(const std::string& file, const std::string& text,
       // Validate the path now, on a scratch copy.
       toml::table scratch = doc;
       set_path(scratch, axis.key, *vals->as_array()->get(0), file, key_line);
-      axis_sizes.push_back(vals->as_array()->size());
       last_sweep_line = std::max(1, t.line_of("values"));
+      const std::size_t size = vals->as_array()->size();
+      std::size_t dim = axis_sizes.size();
+      if (!zip.empty()) {
+        for (std::size_t d = 0; d < dim_zip.size(); ++d) {
+          if (dim_zip[d] == zip) dim = d;
+        }
+      }
+      if (dim == axis_sizes.size()) {
+        axis_sizes.push_back(size);
+        dim_zip.push_back(zip);
+      } else if (axis_sizes[dim] != size) {
+        t.fail("values", fmt::format("expected {} values like the other sweeps zipped as \"{}\", got {}",
+                                     axis_sizes[dim], zip, size));
+      }
+      axis_dim.push_back(dim);
       out.sweeps.push_back(std::move(axis));
     }
   }
@@ -605,6 +623,27 @@ LoadedScenario load_cases_text(const std::string& file, const std::string& text,
     throw ScenarioError(format_error(file, 0, "sweep",
                                      fmt::format("expected a case index below {}, got {}", total, *only_case)));
   }
+  // Mobility (SUMO): every case's document is shown to the mobility source first, so that one
+  // recording per realisation can serve every case.
+  if (doc.contains("sumo") && total > 1 && !only_case) {
+    for (std::size_t c = 0; c < total; ++c) {
+      toml::table case_doc = parse_document(out.text, file, sets, overrides);
+      std::size_t rem = c;
+      std::vector<std::size_t> idx(axis_sizes.size());
+      for (std::size_t a = axis_sizes.size(); a-- > 0;) {
+        idx[a] = rem % axis_sizes[a];
+        rem /= axis_sizes[a];
+      }
+      try {
+        for (std::size_t a = 0; a < axis_dim.size(); ++a) {
+          set_path(case_doc, out.sweeps[a].key, *sweep_values(case_doc, a).get(idx[axis_dim[a]]), file, 0);
+        }
+      } catch (const ScenarioError&) {
+        continue;  // reported when the case is built
+      }
+      announce_mobility(case_doc, file, dir);
+    }
+  }
   for (std::size_t c = 0; c < total; ++c) {
     if (only_case && c != *only_case) continue;
     toml::table case_doc =
@@ -616,11 +655,12 @@ LoadedScenario load_cases_text(const std::string& file, const std::string& text,
       idx[a] = rem % axis_sizes[a];
       rem /= axis_sizes[a];
     }
-    for (std::size_t a = 0; a < axis_sizes.size(); ++a) {
+    for (std::size_t a = 0; a < axis_dim.size(); ++a) {
       // Moved, not copied: an error at the swept value then points at its line in `values`.
-      toml::node& value = *sweep_values(case_doc, a).get(idx[a]);
+      const std::size_t i = idx[axis_dim[a]];
+      toml::node& value = *sweep_values(case_doc, a).get(i);
       set_path(case_doc, out.sweeps[a].key, std::move(value), file, 0);
-      cs.labels.push_back(out.sweeps[a].labels[idx[a]]);
+      cs.labels.push_back(out.sweeps[a].labels[i]);
     }
     try {
       cs.scenario = build_scenario(case_doc, file, dir);

@@ -18,7 +18,8 @@ static_assert(sizeof(EstimatorRunMetrics) == 264 || sizeof(void*) != 8,
 
 namespace {
 
-constexpr std::uint32_t kFormat = 1;  // version of the run blob
+constexpr std::uint32_t kFormat = 1;       // version of the run blob
+constexpr std::uint32_t kLinksFormat = 1;  // version of the link counters blob
 
 class Writer {
  public:
@@ -168,6 +169,12 @@ CREATE VIEW estimator_runs_named AS
   FROM estimator_runs r JOIN estimators e USING (case_index, estimator);
 )sql";
 
+// Per (case, run): the serialized link counters of every flow. Created with the store, and by the
+// first put_runs into a store written before link counting (a --resume of one).
+constexpr const char* kLinkTable =
+    "CREATE TABLE IF NOT EXISTS link_runs (case_index INTEGER NOT NULL, run INTEGER NOT NULL, "
+    "counters BLOB NOT NULL, PRIMARY KEY (case_index, run)) WITHOUT ROWID;";
+
 constexpr const char* kApplicationId = "ncosim run store";
 
 }  // namespace
@@ -241,6 +248,41 @@ RunMetrics deserialize_run(const std::string& blob) {
   return run;
 }
 
+std::string serialize_links(const RunLinks& links) {
+  Writer w;
+  w.i64(kLinksFormat);
+  w.size(links.size());
+  for (const models::LinkCounters& c : links) {
+    w.i64(c.sent);
+    w.i64(c.delivered);
+    w.i64s(c.copies);
+    w.i64s(c.bursts);
+    w.i64s(c.states);
+    w.i64(c.open_burst);
+  }
+  return w.take();
+}
+
+RunLinks deserialize_links(const std::string& blob) {
+  Reader r(blob);
+  const std::int64_t format = r.i64();
+  if (format != kLinksFormat) {
+    throw StoreError(
+        fmt::format("run store: link counters format {} (this ncosim reads format {})", format, kLinksFormat));
+  }
+  RunLinks links(r.size());
+  for (models::LinkCounters& c : links) {
+    c.sent = r.i64();
+    c.delivered = r.i64();
+    c.copies = r.i64s();
+    c.bursts = r.i64s();
+    c.states = r.i64s();
+    c.open_burst = r.i64();
+  }
+  if (!r.at_end()) throw StoreError("run store: corrupt link counters (trailing bytes)");
+  return links;
+}
+
 std::string store_path(const std::string& dir) { return (std::filesystem::path(dir) / "runs.sqlite").string(); }
 
 RunStore& RunStore::operator=(RunStore&& o) noexcept {
@@ -295,6 +337,7 @@ RunStore RunStore::create(const std::string& path, const std::map<std::string, s
   s.exec("PRAGMA journal_mode=WAL; PRAGMA synchronous=FULL;");
   s.exec("BEGIN");
   s.exec(kSchema);
+  s.exec(kLinkTable);
   {
     Stmt st(s.db_, "INSERT INTO campaign (key, value) VALUES (?, ?)");
     st.bind(1, std::string("store")).bind(2, std::string(kApplicationId));
@@ -358,7 +401,9 @@ void RunStore::put_runs(const std::vector<StoredRun>& batch) {
   if (batch.empty()) return;
   exec("BEGIN");
   try {
+    exec(kLinkTable);
     Stmt run(db_, "INSERT INTO runs (case_index, run, metrics) VALUES (?, ?, ?)");
+    Stmt links(db_, "INSERT INTO link_runs (case_index, run, counters) VALUES (?, ?, ?)");
     Stmt est(db_,
              "INSERT INTO estimator_runs (case_index, run, estimator, mse, mse_ext, periods, samples_used, "
              "samples_taken, diverged, status) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
@@ -368,6 +413,11 @@ void RunStore::put_runs(const std::vector<StoredRun>& batch) {
       run.reset();
       run.bind(1, c).bind(2, k).bind_blob(3, serialize_run(r.metrics));
       run.step();
+      if (r.links) {
+        links.reset();
+        links.bind(1, c).bind(2, k).bind_blob(3, serialize_links(*r.links));
+        links.step();
+      }
       for (std::size_t e = 0; e < r.metrics.size(); ++e) {
         const EstimatorRunMetrics& m = r.metrics[e];
         const bool ok = !m.diverged && m.count > 0;
@@ -406,6 +456,19 @@ std::vector<std::pair<std::uint64_t, RunMetrics>> RunStore::load_case(std::size_
   Stmt st(db_, "SELECT run, metrics FROM runs WHERE case_index = ? ORDER BY run");
   st.bind(1, static_cast<std::int64_t>(case_index));
   while (st.step()) out.emplace_back(static_cast<std::uint64_t>(st.i64(0)), deserialize_run(st.text(1)));
+  return out;
+}
+
+std::vector<std::pair<std::uint64_t, RunLinks>> RunStore::load_case_links(std::size_t case_index) const {
+  std::vector<std::pair<std::uint64_t, RunLinks>> out;
+  {
+    Stmt t(db_, "SELECT count(*) FROM sqlite_master WHERE type = 'table' AND name = 'link_runs'");
+    t.step();
+    if (t.i64(0) == 0) return out;  // a store written before link counting
+  }
+  Stmt st(db_, "SELECT run, counters FROM link_runs WHERE case_index = ? ORDER BY run");
+  st.bind(1, static_cast<std::int64_t>(case_index));
+  while (st.step()) out.emplace_back(static_cast<std::uint64_t>(st.i64(0)), deserialize_links(st.text(1)));
   return out;
 }
 

@@ -9,6 +9,7 @@
 
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -30,11 +31,17 @@ std::string serialize_run(const RunMetrics& m);
 // Throws StoreError on a malformed or truncated blob.
 RunMetrics deserialize_run(const std::string& blob);
 
+// Binary form of one run's link counters (every flow): exact, versioned. Throws StoreError
+// on a malformed or truncated blob.
+std::string serialize_links(const RunLinks& links);
+RunLinks deserialize_links(const std::string& blob);
+
 // One completed run, ready to commit.
 struct StoredRun {
   std::size_t case_index = 0;
   std::uint64_t run = 0;
   RunMetrics metrics;
+  std::optional<RunLinks> links;  // nullopt: not counted (no row in link_runs)
 };
 
 class RunStore {
@@ -67,6 +74,10 @@ class RunStore {
   std::int64_t count_runs() const;
   // Every stored run of a case in run order.
   std::vector<std::pair<std::uint64_t, RunMetrics>> load_case(std::size_t case_index) const;
+  // The stored link counters of a case's runs, in run order (runs without counters, e.g. of a
+  // store written before link counting, are absent; so is everything when the store has no
+  // link_runs table).
+  std::vector<std::pair<std::uint64_t, RunLinks>> load_case_links(std::size_t case_index) const;
   // Measured ns per period per estimator (NaN: not measured); empty when never stored.
   void put_timing(std::size_t case_index, const std::vector<double>& ns);
   std::vector<double> timing(std::size_t case_index, std::size_t estimators) const;

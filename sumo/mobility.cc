@@ -15,6 +15,8 @@
 #include <cstdlib>
 
 #include <algorithm>
+#include <map>
+#include <mutex>
 #include <array>
 #include <csignal>
 #include <limits>
@@ -31,6 +33,7 @@
 
 #include "sim/time.h"
 #include "sumo/channel.h"
+#include "sumo/sumo.h"
 
 extern char** environ;
 
@@ -749,15 +752,91 @@ int Mobility::vehicle(const sim::Table& t, std::string_view key) {
   return static_cast<int>(vehicles_.size()) - 1;
 }
 
-std::string Mobility::key_for(std::uint64_t seed) const {
-  std::string text = "ncosim-sumo-recording-v2\n";  // v2: recorded from FCD output
+std::string Mobility::traffic_key() const {
+  // v3: keyed by the traffic only; a recording holds every vehicle announced for it.
+  std::string text = "ncosim-sumo-recording-v3\n";
   for (const auto& f : inputs_.files) {
     const std::string content = read_file(f);
     text += fmt::format("file {} {:016x}\n", content.size(), name_hash(content));
   }
-  text += fmt::format("step_ms {}\nframes {}\nseed {}\n", inputs_.step_ms, frames_, seed);
-  for (const auto& v : vehicles_) text += fmt::format("vehicle {}\n", v);
+  text += fmt::format("step_ms {}\nframes {}\n", inputs_.step_ms, frames_);
   return fmt::format("{:016x}", name_hash(text));
+}
+
+std::string Mobility::key_for(std::uint64_t seed) const {
+  return fmt::format("{:016x}", name_hash(fmt::format("{}\nseed {}\n", traffic_key(), seed)));
+}
+
+namespace {
+
+// Vehicles announced per traffic key (announce_vehicles), for the process's lifetime.
+std::map<std::string, std::vector<std::string>>& announced() {
+  static std::map<std::string, std::vector<std::string>> m;
+  return m;
+}
+std::mutex& announced_mutex() {
+  static std::mutex m;
+  return m;
+}
+
+void add_unique(std::vector<std::string>& to, const std::string& v) {
+  if (v.empty() || v.find_first_of(" \t\n\r|\\'\";,<>&") != std::string::npos) return;  // Mobility::vehicle's check
+  if (std::find(to.begin(), to.end(), v) == to.end()) to.push_back(v);
+}
+
+// The recording restricted to `vehicles` (all in r.vehicles), in that order.
+Recording project(const Recording& r, const std::vector<std::string>& vehicles) {
+  if (r.vehicles == vehicles) return r;
+  Recording p;
+  p.step_ms = r.step_ms;
+  p.frames = r.frames;
+  p.vehicles = vehicles;
+  std::vector<int> index;
+  for (const auto& v : vehicles) {
+    index.push_back(static_cast<int>(std::find(r.vehicles.begin(), r.vehicles.end(), v) - r.vehicles.begin()));
+  }
+  p.states.reserve(static_cast<std::size_t>(r.frames) * vehicles.size());
+  for (std::int64_t f = 0; f < r.frames; ++f) {
+    for (const int i : index) p.states.push_back(r.at(f, i));
+  }
+  return p;
+}
+
+bool holds(const Recording& r, const std::vector<std::string>& vehicles) {
+  for (const auto& v : vehicles) {
+    if (std::find(r.vehicles.begin(), r.vehicles.end(), v) == r.vehicles.end()) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+void announce_vehicles(const toml::table& doc, const std::string& file, const std::string& dir) {
+  try {
+    const toml::table* sumo = doc["sumo"].as_table();
+    if (sumo == nullptr) return;
+    sim::RunSettings run;
+    if (const auto* r = doc["run"].as_table()) {
+      run.periods = (*r)["periods"].value_or(run.periods);
+      run.period = (*r)["period"].value_or(run.period);
+    }
+    const sim::Table t(*sumo, "sumo", file);
+    const Mobility m(t, run, dir);
+    std::vector<std::string> v;
+    if (doc["plant"]["kind"].value_or(std::string()) == "sumo_vehicle") add_unique(v, doc["plant"]["vehicle"].value_or(std::string()));
+    if (const auto* links = doc["link"].as_array()) {
+      for (const auto& l : *links) {
+        const auto* lt = l.as_table();
+        if (lt == nullptr || (*lt)["kind"].value_or(std::string()) != "sumo_distance") continue;
+        add_unique(v, (*lt)["sender"].value_or(std::string()));
+        add_unique(v, (*lt)["receiver"].value_or(std::string()));
+      }
+    }
+    const std::lock_guard<std::mutex> lock(announced_mutex());
+    auto& list = announced()[m.traffic_key()];
+    for (const auto& x : v) add_unique(list, x);
+  } catch (const std::exception&) {
+  }
 }
 
 void Mobility::prepare() {
@@ -772,11 +851,33 @@ void Mobility::prepare() {
     std::string path;
   };
   std::vector<Job> jobs, missing;
+  // What to record: this case's vehicles, then those announced for the same traffic by the other
+  // cases, then those of an existing recording that lacks some of ours (it is replaced).
+  std::vector<std::string> record_vehicles = vehicles_;
+  {
+    const std::lock_guard<std::mutex> lock(announced_mutex());
+    const auto it = announced().find(traffic_key());
+    if (it != announced().end()) {
+      for (const auto& v : it->second) add_unique(record_vehicles, v);
+    }
+  }
   for (int s = 0; s < seeds_; ++s) {
     const std::uint64_t seed = first_seed_ + static_cast<std::uint64_t>(s);
     Job j{seed, (fs::path(cache_dir_) / (key_for(seed) + ".traj")).string()};
     jobs.push_back(j);
-    if (!fs::is_regular_file(j.path)) missing.push_back(j);
+    if (!fs::is_regular_file(j.path)) {
+      missing.push_back(j);
+      continue;
+    }
+    try {
+      const Recording r = read_recording(j.path);
+      if (!holds(r, vehicles_)) {
+        for (const auto& v : r.vehicles) add_unique(record_vehicles, v);
+        missing.push_back(j);
+      }
+    } catch (const std::exception&) {
+      missing.push_back(j);  // unreadable: recorded again
+    }
   }
   recorded_ = static_cast<int>(missing.size());
   reused_ = seeds_ - recorded_;
@@ -796,7 +897,7 @@ void Mobility::prepare() {
       for (std::size_t i = b; i < std::min(missing.size(), b + width); ++i) {
         const Job& j = missing[i];
         try {
-          running.emplace_back(start_sumo(exe, env.ptrs.data(), inputs_, j.seed, frames_, vehicles_,
+          running.emplace_back(start_sumo(exe, env.ptrs.data(), inputs_, j.seed, frames_, record_vehicles,
                                           fmt::format("{}.{}", j.path, ::getpid())),
                                &j);
         } catch (const std::exception& e) {
@@ -806,7 +907,7 @@ void Mobility::prepare() {
       }
       for (auto& [proc, job] : running) {  // every started process is waited for
         try {
-          const Recording r = finish_sumo(proc, inputs_, frames_, vehicles_);
+          const Recording r = finish_sumo(proc, inputs_, frames_, record_vehicles);
           if (first_error.empty()) write_recording(job->path, r);
         } catch (const std::exception& e) {
           if (first_error.empty()) first_error = fmt::format("SUMO failed (seed {}): {}", job->seed, e.what());
@@ -818,7 +919,11 @@ void Mobility::prepare() {
   recordings_.clear();
   for (const Job& j : jobs) {
     try {
-      recordings_.push_back(read_recording(j.path));
+      const Recording all = read_recording(j.path);
+      if (!holds(all, vehicles_) || all.frames != frames_) fail(fmt::format("recording '{}' does not match; remove it", j.path));
+      recordings_.push_back(project(all, vehicles_));
+    } catch (const sim::ScenarioError&) {
+      throw;
     } catch (const std::exception& e) {
       fs::remove(j.path, ec);  // a bad cache entry is re-recorded next time
       fail(fmt::format("recording '{}' unreadable ({}); removed, run again", j.path, e.what()));

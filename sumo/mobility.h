@@ -3,7 +3,8 @@
 // binary itself, one process per realisation (at most one per core at a time), writing FCD
 // output (x, y, speed, acceleration, odometer at 40 decimals) for the named vehicles only; the
 // FCD file is read by a strict reader (parse_fcd) into a binary trajectory, keyed by the content
-// hash of every SUMO input file, the step, the horizon, the vehicle list and the seed, and the
+// hash of every SUMO input file, the step, the horizon and the seed (the traffic: one recording
+// holds the vehicles of every case of a scenario, see announce_vehicles in sumo.h), and the
 // FCD file is deleted. Monte Carlo runs replay the recordings on every thread (run r uses
 // realisation r mod seeds); no SUMO runs in the hot loop. `mode = "live"` steps libsumo in a
 // worker process per run (`ncosim sumo-live`, which dlopens the libsumo module) over a socket
@@ -95,6 +96,9 @@ class Mobility final : public sim::MobilitySource {
   // Realisations simulated / reused by prepare() (for the log line and tests).
   int recorded() const { return recorded_; }
   int reused() const { return reused_; }
+  // The traffic's identity: the content of every SUMO input file, the step and the horizon (not
+  // the vehicles a case reads, not the seed). Recordings are keyed by it and the seed.
+  std::string traffic_key() const;
 
  private:
   std::string key_for(std::uint64_t seed) const;

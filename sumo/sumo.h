@@ -18,6 +18,13 @@ void register_plants(models::PlantRegistry& registry);
 // The [sumo] table read (files checked); recording happens in MobilitySource::prepare().
 std::shared_ptr<sim::MobilitySource> make_mobility(const sim::Table& t, const sim::RunSettings& run,
                                                    const std::string& dir);
+// Before the cases of a scenario are built: the vehicles that case document `doc` will read
+// (the sumo_vehicle plant's vehicle, every sumo_distance link's sender and receiver) are noted
+// under its traffic key, so that the first case's prepare() records them all in one SUMO run per
+// realisation and every later case (a sweep over receivers, presets, ...) reuses that recording.
+// Errors are ignored here: the case's own build reports them.
+void announce_vehicles(const toml::table& doc, const std::string& file, const std::string& dir);
+
 // `ncosim channel PRESET [--csv] [--gnuplot] [--max-distance M] [--step S]`.
 int channel_command(const std::string& preset, bool csv, bool gnuplot, double max_distance, double step);
 

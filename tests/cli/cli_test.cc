@@ -471,7 +471,7 @@ TEST_F(Cli, UnknownCommandSuggestsTheClosest) {
   const Outcome o = ncosim({"chek", scenario(base_)});
   EXPECT_EQ(o.code, 2) << o.output;
   EXPECT_NE(
-      o.output.find("expected a command (run, export, merge, design, find, codesign, compare, check, plot, report or list), "
+      o.output.find("expected a command (run, export, merge, design, find, codesign, compare, fit, check, plot, report or list), "
                     "got 'chek' (did you mean "
                     "'check'?)"),
       std::string::npos)
@@ -727,7 +727,7 @@ TEST_F(Cli, RunWritesTheContractFilesAndNothingElse) {
   ASSERT_EQ(o.code, 0) << o.output;
   // No temporary file left behind.
   EXPECT_EQ(listing(out_), (std::set<std::string>{"summary.csv", "summary.md", "runs.csv", "design.json",
-                                                  "manifest.json", "transmissions.csv", "runs.sqlite"}));
+                                                  "manifest.json", "transmissions.csv", "runs.sqlite", "links.csv"}));
 
   const Csv s = read_csv(out_ / "summary.csv");
   const std::vector<std::string> columns{"estimator",

@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "sim/store.h"
+#include <sqlite3.h>
 #include "test_util.h"
 
 extern char** environ;
@@ -66,7 +67,7 @@ ncosim::testing::CommandOutcome ncosim(const std::string& args) { return run_she
 // The exports that must be bit-identical (timing aside: --no-timing, and design.json without
 // its design_seconds lines).
 const std::vector<std::string> kExports{"summary.csv", "summary.md", "runs.csv", "transmissions.csv",
-                                        "confusion.csv", "trajectory.csv", "design.json"};
+                                        "confusion.csv", "trajectory.csv", "design.json", "links.csv"};
 
 std::string comparable(const fs::path& file) {
   if (!fs::exists(file)) return "<absent>";
@@ -76,6 +77,10 @@ std::string comparable(const fs::path& file) {
 }
 
 void expect_same_exports(const std::string& a, const std::string& b, const std::string& what) {
+  // links.csv is compared, never absent on both sides (every scenario here has links).
+  if (fs::exists(fs::path(a) / "summary.csv")) {
+    EXPECT_TRUE(fs::exists(fs::path(a) / "links.csv")) << what;
+  }
   for (const auto& f : kExports) {
     EXPECT_EQ(comparable(fs::path(a) / f), comparable(fs::path(b) / f)) << what << ": " << f << " differs";
   }
@@ -141,6 +146,54 @@ TEST(StoreCli, ExportReDerivesEveryFileFromTheStoreAlone) {
   r = ncosim(fmt::format("export {}", quote(t.path.string())));
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_NE(r.output.find("no run store"), std::string::npos) << r.output;
+}
+
+// Drops the link counters' table: the store then looks like one written before link counting.
+void drop_link_table(const fs::path& store) {
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open(store.c_str(), &db), SQLITE_OK);
+  EXPECT_EQ(sqlite3_exec(db, "DROP TABLE link_runs", nullptr, nullptr, nullptr), SQLITE_OK);
+  sqlite3_close(db);
+}
+
+TEST(StoreCli, AStoreWithoutLinkCountersExportsEverythingButLinksCsvAndSaysSo) {
+  TempDir t("oldstore");
+  const std::string flags = "--runs 6 --periods 400 --no-timing --quiet";
+  auto r = ncosim(fmt::format("run {} --out {} {}", quote(kBase.string()), quote(t / "a"), flags));
+  ASSERT_EQ(r.code, 0) << r.output;
+  fs::create_directories(t / "b");
+  fs::copy_file(t / "a/runs.sqlite", t / "b/runs.sqlite");
+  drop_link_table(t / "b/runs.sqlite");
+  r = ncosim(fmt::format("export {}", quote(t / "b")));
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_FALSE(fs::exists(t / "b/links.csv"));
+  for (const auto& f : kExports) {
+    if (f == "links.csv") continue;
+    EXPECT_EQ(comparable(fs::path(t / "a") / f), comparable(fs::path(t / "b") / f)) << f << " differs";
+  }
+  auto man = nlohmann::json::parse(read_text(t / "b/manifest.json"));
+  EXPECT_EQ(man["links_csv"], "not written: 6 of the 6 stored runs have no link counters (a store written before "
+                              "ncosim counted them)");
+  // An earlier links.csv in the folder does not survive an export that cannot write one.
+  fs::copy_file(t / "a/links.csv", t / "b/links.csv");
+  ASSERT_EQ(ncosim(fmt::format("export {}", quote(t / "b"))).code, 0);
+  EXPECT_FALSE(fs::exists(t / "b/links.csv"));
+  // Merged with a shard that counted them: some runs still lack counters, so no links.csv.
+  const fs::path part = t / "part";
+  r = ncosim(fmt::format("run {} --out {} --runs 6 --periods 400 --no-timing --quiet --shard 1/2",
+                         quote(kBase.string()), quote(part)));
+  ASSERT_EQ(r.code, 0) << r.output;
+  drop_link_table(part / "runs.sqlite");
+  r = ncosim(fmt::format("run {} --out {} --runs 6 --periods 400 --no-timing --quiet --shard 2/2",
+                         quote(kBase.string()), quote(t / "part2")));
+  ASSERT_EQ(r.code, 0) << r.output;
+  r = ncosim(fmt::format("merge {} {} {}", quote(t / "m"), quote(part), quote(t / "part2")));
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_FALSE(fs::exists(t / "m/links.csv"));
+  man = nlohmann::json::parse(read_text(t / "m/manifest.json"));
+  EXPECT_EQ(man["links_csv"], "not written: 3 of the 6 stored runs have no link counters (a store written before "
+                              "ncosim counted them)");
+  EXPECT_EQ(comparable(t / "a/runs.csv"), comparable(t / "m/runs.csv"));
 }
 
 // A campaign long enough to be interrupted (about a second on 2 threads).

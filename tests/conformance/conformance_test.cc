@@ -123,6 +123,8 @@ TEST(Conformance, EveryLinkHonoursItsMarginalLaw) {
     const int n = 20000;
     int lost = 0;
     for (int i = 0; i < n; ++i) {
+      a->advance(i, ra);  // one packet per period, as a sensor sending every period
+      b->advance(i, rb);
       const auto da = a->transmit(ra);
       ASSERT_EQ(da, b->transmit(rb));
       ASSERT_TRUE(da == models::kLost || da >= 0);

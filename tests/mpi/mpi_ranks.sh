@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # tests/mpi/mpi_ranks.sh NCOSIM SOURCE_DIR RANKS — `mpirun -n RANKS ncosim run` gives exports
-# bit-identical to one process with --threads 1: on the flagship (fewer periods), on a sweep
+# bit-identical to one process with --threads 1 (links.csv included): on the flagship (fewer periods), on a sweep
 # scenario, and with --target-ci (same stopping point and numbers; stopped by --max-runs on the
 # flagship, whose S1 row is heavy-tailed, and by the target on the small test scenario). Label `mpi` in ctest.
 set -euo pipefail
@@ -11,7 +11,8 @@ mpi=(mpirun --allow-run-as-root --oversubscribe -n "$k")
 fail=0
 same() {  # same REF OTHER WHAT: every export but the timing fields
   local f
-  for f in summary.csv summary.md runs.csv transmissions.csv confusion.csv; do
+  [[ -e $1/links.csv ]] || { echo "FAIL ($3): no links.csv"; fail=1; }
+  for f in summary.csv summary.md runs.csv transmissions.csv confusion.csv links.csv; do
     if [[ -e $1/$f || -e $2/$f ]] && ! cmp -s "$1/$f" "$2/$f"; then
       echo "FAIL ($3): $f differs"; diff "$1/$f" "$2/$f" | head -5; fail=1
     fi

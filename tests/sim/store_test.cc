@@ -3,6 +3,7 @@
 #include "sim/store.h"
 
 #include <gtest/gtest.h>
+#include <sqlite3.h>
 #include <unistd.h>
 
 #include <bit>
@@ -110,16 +111,85 @@ TEST(RunStore, MalformedRecordsAreRejected) {
   EXPECT_THROW(deserialize_run(""), StoreError);
 }
 
+RunLinks sample_links() {
+  models::LinkCounters a;
+  a.sent = 100;
+  a.delivered = 91;
+  a.copies = {80, 11};
+  a.bursts = {5, 0, 1};
+  a.states = {70, 30};
+  models::LinkCounters b;  // a flow that sent nothing
+  return {a, b};
+}
+
+TEST(RunStore, LinkCountersSerializationIsExactAndMalformedBlobsAreRejected) {
+  const RunLinks links = sample_links();
+  const std::string blob = serialize_links(links);
+  const RunLinks back = deserialize_links(blob);
+  ASSERT_EQ(back.size(), 2u);
+  EXPECT_EQ(back[0].sent, 100);
+  EXPECT_EQ(back[0].delivered, 91);
+  EXPECT_EQ(back[0].copies, links[0].copies);
+  EXPECT_EQ(back[0].bursts, links[0].bursts);
+  EXPECT_EQ(back[0].states, links[0].states);
+  EXPECT_EQ(back[1].sent, 0);
+  EXPECT_TRUE(back[1].copies.empty());
+  EXPECT_EQ(serialize_links(back), blob);
+  EXPECT_TRUE(deserialize_links(serialize_links({})).empty());
+  EXPECT_THROW(deserialize_links(blob.substr(0, blob.size() - 1)), StoreError);
+  EXPECT_THROW(deserialize_links(blob + "x"), StoreError);
+  std::string other = blob;
+  other[0] = 9;
+  EXPECT_THROW(deserialize_links(other), StoreError);
+  EXPECT_THROW(deserialize_links(""), StoreError);
+}
+
+TEST(RunStore, LinkCountersAreStoredPerRunAndAStoreWithoutThemStillReads) {
+  TempDir dir("links");
+  const std::string path = store_path(dir.path.string());
+  {
+    RunStore s = RunStore::create(path, {});
+    s.put_runs({{0, 2, {sample_metrics(1)}, sample_links()}, {0, 0, {sample_metrics(2)}, std::nullopt}});
+    s.close();
+  }
+  {
+    const RunStore s = RunStore::open(path, false);
+    const auto l = s.load_case_links(0);
+    ASSERT_EQ(l.size(), 1u);  // run 0 was stored without counters
+    EXPECT_EQ(l[0].first, 2u);
+    EXPECT_EQ(serialize_links(l[0].second), serialize_links(sample_links()));
+    EXPECT_TRUE(s.load_case_links(1).empty());
+  }
+  // A store written before link counting: no link_runs table at all.
+  {
+    sqlite3* db = nullptr;
+    ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
+    ASSERT_EQ(sqlite3_exec(db, "DROP TABLE link_runs", nullptr, nullptr, nullptr), SQLITE_OK);
+    sqlite3_close(db);
+  }
+  {
+    RunStore s = RunStore::open(path, true);
+    EXPECT_TRUE(s.load_case_links(0).empty());
+    EXPECT_EQ(s.load_case(0).size(), 2u);
+    // Runs added to it (a --resume) bring the table back.
+    s.put_runs({{0, 5, {sample_metrics(3)}, sample_links()}});
+    const auto l = s.load_case_links(0);
+    ASSERT_EQ(l.size(), 1u);
+    EXPECT_EQ(l[0].first, 5u);
+    EXPECT_EQ(s.integrity_check(), "ok");
+  }
+}
+
 TEST(RunStore, RunsCommitInBatchesAndReadBackInRunOrder) {
   TempDir dir("batches");
   const std::string path = store_path(dir.path.string());
   {
     RunStore s = RunStore::create(path, {{"seed", "7"}, {"scenario_text", "title = \"x\"\n"}});
     s.put_estimators(0, {"kf", "s1"});
-    s.put_runs({{0, 3, {sample_metrics(3), sample_metrics(4)}}, {0, 1, {sample_metrics(1), sample_metrics(2)}}});
-    s.put_runs({{1, 0, {sample_metrics(5), sample_metrics(6)}}});
+    s.put_runs({{0, 3, {sample_metrics(3), sample_metrics(4)}, std::nullopt}, {0, 1, {sample_metrics(1), sample_metrics(2)}, std::nullopt}});
+    s.put_runs({{1, 0, {sample_metrics(5), sample_metrics(6)}, std::nullopt}});
     // A duplicate (case, run) fails the whole batch: nothing of it is stored.
-    EXPECT_THROW(s.put_runs({{0, 5, {sample_metrics(1)}}, {0, 3, {sample_metrics(1)}}}), StoreError);
+    EXPECT_THROW(s.put_runs({{0, 5, {sample_metrics(1)}, std::nullopt}, {0, 3, {sample_metrics(1)}, std::nullopt}}), StoreError);
     EXPECT_EQ(s.count_runs(), 3);
     s.put_timing(0, {12.5, std::nan("")});
     s.put_artifact("trajectory.csv", "period,x1\n0,1\n");
@@ -151,7 +221,7 @@ TEST(RunStore, CreateReplacesAndOpenRefusesWhatIsNotAStore) {
   const std::string path = store_path(dir.path.string());
   {
     RunStore s = RunStore::create(path, {});
-    s.put_runs({{0, 0, {sample_metrics(1)}}});
+    s.put_runs({{0, 0, {sample_metrics(1)}, std::nullopt}});
     s.close();
   }
   {
@@ -184,7 +254,11 @@ TEST(Campaign, RunSubsetsThroughTheSinkEqualTheFullCampaign) {
   CampaignOptions part = full;
   part.only_runs = std::vector<std::uint64_t>{1, 4, 5};
   std::map<std::uint64_t, RunMetrics> got;
-  part.on_run = [&](std::uint64_t r, RunMetrics&& m) { got.emplace(r, std::move(m)); };
+  std::map<std::uint64_t, RunLinks> got_links;
+  part.on_run = [&](std::uint64_t r, RunMetrics&& m, RunLinks&& l) {
+    got.emplace(r, std::move(m));
+    got_links.emplace(r, std::move(l));
+  };
   const CampaignResult res = run_campaign(*sc, part);
   EXPECT_TRUE(res.runs.empty());  // nothing kept: the sink has them
   EXPECT_EQ(res.runs_done, 3u);
@@ -192,6 +266,21 @@ TEST(Campaign, RunSubsetsThroughTheSinkEqualTheFullCampaign) {
   ASSERT_EQ(got.size(), 3u);
   for (const auto& [r, m] : got) {
     for (std::size_t e = 0; e < m.size(); ++e) expect_identical(m[e], all.runs[r][e]);
+  }
+  // The link counters too: one per flow (2 sensors behind 2 links), the same as the full campaign's.
+  ASSERT_EQ(all.link_runs.size(), 6u);
+  for (const auto& [r, l] : got_links) {
+    ASSERT_EQ(l.size(), 2u);
+    EXPECT_GT(l[0].sent, 0);
+    EXPECT_EQ(serialize_links(l), serialize_links(all.link_runs[r])) << "run " << r;
+  }
+  // Counting off: no counters, and the same metrics (counting never changes a draw).
+  CampaignOptions off = full;
+  off.link_counters = false;
+  const CampaignResult uncounted = run_campaign(*sc, off);
+  EXPECT_TRUE(uncounted.link_runs.empty());
+  for (std::size_t r = 0; r < 6; ++r) {
+    for (std::size_t e = 0; e < all.runs[r].size(); ++e) expect_identical(uncounted.runs[r][e], all.runs[r][e]);
   }
   // A stop flag already set: no run starts.
   std::atomic<int> stop{15};

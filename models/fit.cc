@@ -1,0 +1,691 @@
+// models/fit.cc — maximum-likelihood fits of the packet-fate families (models/fit.h).
+#include "models/fit.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <stdexcept>
+
+#include "models/link.h"
+#include "models/plant.h"  // stationary_law
+
+namespace ncosim::models {
+
+
+namespace {
+
+constexpr double kTiny = 1e-300;
+
+int alphabet(const std::vector<int>& sym) {
+  int m = 0;
+  for (const int s : sym) m = std::max(m, s);
+  return m + 1;
+}
+
+// Scaled forward-backward: accumulates expected transition counts A (K x K) and emission counts
+// B (K x M); returns the log-likelihood. `alpha` and `scale` are work buffers.
+double e_step(const FateHmm& h, const std::vector<int>& sym, Eigen::MatrixXd* A, Eigen::MatrixXd* B,
+              std::vector<double>& alpha, std::vector<double>& scale) {
+  const int K = static_cast<int>(h.transition.rows());
+  const int M = static_cast<int>(h.emission.cols());
+  const std::size_t N = sym.size();
+  const Eigen::VectorXd pi = h.stationary();
+  // Row-major copies for the inner loops.
+  std::vector<double> T(static_cast<std::size_t>(K * K)), E(static_cast<std::size_t>(M * K));
+  for (int i = 0; i < K; ++i) {
+    for (int j = 0; j < K; ++j) T[static_cast<std::size_t>(i * K + j)] = h.transition(i, j);
+    for (int m = 0; m < M; ++m) E[static_cast<std::size_t>(m * K + i)] = h.emission(i, m);
+  }
+  alpha.resize(N * static_cast<std::size_t>(K));
+  scale.resize(N);
+  double ll = 0.0;
+  {
+    const double* e = &E[static_cast<std::size_t>(sym[0] * K)];
+    double c = 0.0;
+    for (int j = 0; j < K; ++j) c += alpha[static_cast<std::size_t>(j)] = pi(j) * e[j];
+    c = std::max(c, kTiny);
+    for (int j = 0; j < K; ++j) alpha[static_cast<std::size_t>(j)] /= c;
+    scale[0] = c;
+    ll += std::log(c);
+  }
+  for (std::size_t t = 1; t < N; ++t) {
+    const double* prev = &alpha[(t - 1) * static_cast<std::size_t>(K)];
+    double* cur = &alpha[t * static_cast<std::size_t>(K)];
+    const double* e = &E[static_cast<std::size_t>(sym[t] * K)];
+    double c = 0.0;
+    for (int j = 0; j < K; ++j) {
+      double s = 0.0;
+      for (int i = 0; i < K; ++i) s += prev[i] * T[static_cast<std::size_t>(i * K + j)];
+      cur[j] = s * e[j];
+      c += cur[j];
+    }
+    c = std::max(c, kTiny);
+    const double inv = 1.0 / c;
+    for (int j = 0; j < K; ++j) cur[j] *= inv;
+    scale[t] = c;
+    ll += std::log(c);
+  }
+  if (A == nullptr) return ll;
+  A->setZero(K, K);
+  B->setZero(K, M);
+  std::vector<double> beta(static_cast<std::size_t>(K), 1.0), next(static_cast<std::size_t>(K)),
+      w(static_cast<std::size_t>(K));
+  std::vector<double> a(static_cast<std::size_t>(K * K), 0.0);
+  for (std::size_t t = N; t-- > 0;) {
+    const double* al = &alpha[t * static_cast<std::size_t>(K)];
+    for (int i = 0; i < K; ++i) (*B)(i, sym[t]) += al[i] * beta[static_cast<std::size_t>(i)];
+    if (t == 0) break;
+    // w_j = e_j(o_t) beta_t(j) / c_t; xi_{t-1}(i, j) = alpha_{t-1}(i) T_ij w_j.
+    const double* e = &E[static_cast<std::size_t>(sym[t] * K)];
+    const double inv = 1.0 / scale[t];
+    for (int j = 0; j < K; ++j) w[static_cast<std::size_t>(j)] = e[j] * beta[static_cast<std::size_t>(j)] * inv;
+    const double* ap = &alpha[(t - 1) * static_cast<std::size_t>(K)];
+    for (int i = 0; i < K; ++i) {
+      double s = 0.0;
+      for (int j = 0; j < K; ++j) {
+        const double tw = T[static_cast<std::size_t>(i * K + j)] * w[static_cast<std::size_t>(j)];
+        a[static_cast<std::size_t>(i * K + j)] += ap[i] * tw;
+        s += tw;
+      }
+      next[static_cast<std::size_t>(i)] = s;
+    }
+    beta.swap(next);
+  }
+  for (int i = 0; i < K; ++i) {
+    for (int j = 0; j < K; ++j) (*A)(i, j) = a[static_cast<std::size_t>(i * K + j)];
+  }
+  return ll;
+}
+
+void normalise_rows(Eigen::MatrixXd& m) {
+  for (Eigen::Index i = 0; i < m.rows(); ++i) {
+    const double s = m.row(i).sum();
+    if (s > 0.0) {
+      m.row(i) /= s;
+    } else {
+      m.row(i).setConstant(1.0 / static_cast<double>(m.cols()));
+    }
+  }
+}
+
+struct EmOutcome {
+  FateHmm hmm;
+  double loglik = 0.0;
+  int iterations = 0;
+  bool converged = false;
+};
+
+// One EM step: the log-likelihood of `h` and the updated model.
+double em_map(const FateHmm& h, const std::vector<int>& sym, FateHmm& next, std::vector<double>& alpha,
+              std::vector<double>& scale, Eigen::MatrixXd& A, Eigen::MatrixXd& B) {
+  const double ll = e_step(h, sym, &A, &B, alpha, scale);
+  normalise_rows(A);
+  normalise_rows(B);
+  next.transition = A;
+  next.emission = B;
+  return ll;
+}
+
+// Back to a valid model after an extrapolation: entries clipped to [0, 1], rows renormalised.
+void project(FateHmm& h) {
+  for (Eigen::MatrixXd* m : {&h.transition, &h.emission}) {
+    *m = m->cwiseMax(0.0).cwiseMin(1.0);
+    normalise_rows(*m);
+  }
+}
+
+// Baum–Welch accelerated by SQUAREM (Varadhan & Roland 2008, scheme S3): from h0, two EM steps
+// h1 = F(h0), h2 = F(h1), r = h1 - h0, v = h2 - 2 h1 + h0, alpha = -|r| / |v| (at most -1), the
+// extrapolation h' = h0 - 2 alpha r + alpha^2 v (projected) is kept when its likelihood is not
+// below LL(h1), else h2. Stops when one EM step gains less than `tol_total`. `iterations`
+// counts E-steps (likelihood evaluations).
+EmOutcome baum_welch(FateHmm h, const std::vector<int>& sym, int max_iter, double tol_total) {
+  std::vector<double> alpha, scale;
+  Eigen::MatrixXd A, B;
+  EmOutcome out;
+  FateHmm h1, h2, hp, h3;
+  int evals = 0;
+  while (evals < max_iter) {
+    const double ll0 = em_map(h, sym, h1, alpha, scale, A, B);
+    const double ll1 = em_map(h1, sym, h2, alpha, scale, A, B);
+    evals += 2;
+    out.hmm = h1;
+    out.loglik = ll1;
+    out.iterations = evals;
+    if (ll1 - ll0 < tol_total) {
+      out.converged = true;
+      return out;
+    }
+    const Eigen::MatrixXd rt = h1.transition - h.transition, re = h1.emission - h.emission;
+    const Eigen::MatrixXd vt = h2.transition - 2.0 * h1.transition + h.transition,
+                          ve = h2.emission - 2.0 * h1.emission + h.emission;
+    const double rr = rt.squaredNorm() + re.squaredNorm(), vv = vt.squaredNorm() + ve.squaredNorm();
+    double a = vv > 0.0 ? -std::sqrt(rr / vv) : -1.0;
+    if (!std::isfinite(a) || a > -1.0) a = -1.0;
+    hp.transition = h.transition - 2.0 * a * rt + a * a * vt;
+    hp.emission = h.emission - 2.0 * a * re + a * a * ve;
+    project(hp);
+    if (a == -1.0 || evals >= max_iter) {
+      h = h2;
+      continue;
+    }
+    const double llp = em_map(hp, sym, h3, alpha, scale, A, B);
+    ++evals;
+    h = std::isfinite(llp) && llp >= ll1 ? h3 : h2;
+  }
+  out.loglik = e_step(h, sym, nullptr, nullptr, alpha, scale);
+  out.hmm = h;
+  return out;
+}
+
+// Orders the hidden states by their loss probability (state 0: the best).
+void sort_states(FateHmm& h) {
+  const Eigen::Index K = h.transition.rows();
+  std::vector<Eigen::Index> order(static_cast<std::size_t>(K));
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(),
+                   [&](Eigen::Index a, Eigen::Index b) { return h.emission(a, 0) < h.emission(b, 0); });
+  FateHmm s = h;
+  for (Eigen::Index i = 0; i < K; ++i) {
+    s.emission.row(i) = h.emission.row(order[static_cast<std::size_t>(i)]);
+    for (Eigen::Index j = 0; j < K; ++j) {
+      s.transition(i, j) = h.transition(order[static_cast<std::size_t>(i)], order[static_cast<std::size_t>(j)]);
+    }
+  }
+  h = s;
+}
+
+// Loss runs of the trace: runs[L - 1] = number of maximal runs of L losses.
+std::vector<std::int64_t> loss_runs(const std::vector<int>& sym) {
+  std::vector<std::int64_t> runs;
+  std::int64_t open = 0;
+  auto close = [&] {
+    if (open == 0) return;
+    if (static_cast<std::size_t>(open) > runs.size()) runs.resize(static_cast<std::size_t>(open), 0);
+    ++runs[static_cast<std::size_t>(open - 1)];
+    open = 0;
+  };
+  for (const int s : sym) {
+    if (s == 0) {
+      ++open;
+    } else {
+      close();
+    }
+  }
+  close();
+  return runs;
+}
+
+std::vector<double> hmm_start_emission(int K, int M, const std::vector<double>& freq, double spread) {
+  // State s: loss between P (1 - spread) and P + spread (1 - P), delays tilted towards short
+  // (good) or long (bad) ones.
+  const double P = freq[0];
+  std::vector<double> out(static_cast<std::size_t>(K * M));
+  for (int s = 0; s < K; ++s) {
+    const double f = K == 1 ? 0.5 : static_cast<double>(s) / (K - 1);
+    const double lo = P * (1.0 - spread), hi = P + spread * (1.0 - P);
+    const double loss = std::clamp(lo + f * (hi - lo), 1e-4, 1.0 - 1e-4);
+    double delivered = 0.0;
+    std::vector<double> q(static_cast<std::size_t>(M), 0.0);
+    for (int m = 1; m < M; ++m) {
+      const double tilt = std::exp(spread * (2.0 * f - 1.0) * (m - 1) / std::max(1, M - 2));
+      q[static_cast<std::size_t>(m)] = (freq[static_cast<std::size_t>(m)] + 1e-6) * tilt;
+      delivered += q[static_cast<std::size_t>(m)];
+    }
+    out[static_cast<std::size_t>(s * M)] = loss;
+    for (int m = 1; m < M; ++m) {
+      out[static_cast<std::size_t>(s * M + m)] =
+          delivered > 0.0 ? (1.0 - loss) * q[static_cast<std::size_t>(m)] / delivered : 0.0;
+    }
+  }
+  return out;
+}
+
+// Baum–Welch from several starts: a short run of each, then the best one to convergence.
+EmOutcome fit_hidden(int K, const std::vector<int>& sym, const FitOptions& o, int& starts_used,
+                     double mean_burst) {
+  const int M = alphabet(sym);
+  std::vector<double> freq(static_cast<std::size_t>(std::max(M, 2)), 0.0);
+  for (const int s : sym) freq[static_cast<std::size_t>(s)] += 1.0;
+  for (double& f : freq) f /= static_cast<double>(sym.size());
+  const int Mm = std::max(M, 2);
+  std::vector<FateHmm> starts;
+  const double stays[] = {0.95, 0.7, 0.99, 0.5, 0.9, 0.8};
+  const double spreads[] = {0.9, 0.5, 0.99, 0.3, 0.7, 0.95};
+  // A moment-matched start for two states: Gilbert's chain with the trace's loss and mean run.
+  if (K == 2 && freq[0] > 0.0 && freq[0] < 1.0) {
+    const GilbertElliottByMean g = gilbert_elliott_by_mean(freq[0], std::max(mean_burst, 1.0), 0.0, 1.0);
+    if (g.error.empty() && g.p_good_to_bad > 0.0 && g.p_bad_to_good > 0.0) {
+      FateHmm h;
+      h.transition.resize(2, 2);
+      h.transition << 1.0 - g.p_good_to_bad, g.p_good_to_bad, g.p_bad_to_good, 1.0 - g.p_bad_to_good;
+      const std::vector<double> e = hmm_start_emission(2, Mm, freq, 0.9);
+      h.emission = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(e.data(), 2, Mm);
+      starts.push_back(h);
+    }
+  }
+  for (int s = 0; static_cast<int>(starts.size()) < std::max(1, o.starts); ++s) {
+    const double stay = stays[s % 6], spread = spreads[(s + s / 6) % 6];
+    FateHmm h;
+    h.transition = Eigen::MatrixXd::Constant(K, K, (1.0 - stay) / std::max(1, K - 1));
+    h.transition.diagonal().setConstant(K == 1 ? 1.0 : stay);
+    const std::vector<double> e = hmm_start_emission(K, Mm, freq, spread);
+    h.emission = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(e.data(), K, Mm);
+    starts.push_back(h);
+  }
+  starts_used = static_cast<int>(starts.size());
+  const double tol = o.tolerance * static_cast<double>(sym.size());
+  EmOutcome best;
+  best.loglik = -INFINITY;
+  int burn_iterations = 0;
+  for (const FateHmm& h : starts) {
+    EmOutcome r = baum_welch(h, sym, std::min(o.max_iterations, 25), tol);
+    burn_iterations += r.iterations;
+    if (r.loglik > best.loglik) best = r;
+  }
+  if (!best.converged) {
+    const int done = best.iterations;
+    EmOutcome r = baum_welch(best.hmm, sym, std::max(1, o.max_iterations - done), tol);
+    r.iterations += done;
+    best = r;
+  }
+  (void)burn_iterations;
+  sort_states(best.hmm);
+  return best;
+}
+
+// The free coordinates of a model: in every row of `transition` and `emission`, the entries
+// other than the largest (the largest is 1 - the others); zero entries stay fixed at 0.
+struct Coordinates {
+  struct Entry {
+    bool emission;
+    Eigen::Index row, col, dependent;
+  };
+  std::vector<Entry> entries;
+};
+
+Coordinates free_coordinates(const FateHmm& h) {
+  Coordinates c;
+  auto add = [&](const Eigen::MatrixXd& m, bool emission) {
+    for (Eigen::Index i = 0; i < m.rows(); ++i) {
+      Eigen::Index dep = 0;
+      m.row(i).maxCoeff(&dep);
+      for (Eigen::Index j = 0; j < m.cols(); ++j) {
+        if (j != dep && m(i, j) > 1e-12) c.entries.push_back({emission, i, j, dep});
+      }
+    }
+  };
+  add(h.transition, false);
+  add(h.emission, true);
+  return c;
+}
+
+FateHmm moved(const FateHmm& h, const Coordinates& c, const Eigen::VectorXd& delta) {
+  FateHmm m = h;
+  for (std::size_t k = 0; k < c.entries.size(); ++k) {
+    const auto& e = c.entries[k];
+    Eigen::MatrixXd& mat = e.emission ? m.emission : m.transition;
+    mat(e.row, e.col) += delta(static_cast<Eigen::Index>(k));
+    mat(e.row, e.dependent) -= delta(static_cast<Eigen::Index>(k));
+  }
+  return m;
+}
+
+// Covariance of the free coordinates: the inverse observed information, by central differences
+// of the exact log-likelihood. Empty when the Hessian is not negative definite.
+Eigen::MatrixXd covariance(const FateHmm& h, const Coordinates& c, const std::vector<int>& sym) {
+  const auto F = static_cast<Eigen::Index>(c.entries.size());
+  Eigen::VectorXd step(F);
+  for (Eigen::Index k = 0; k < F; ++k) {
+    const auto& e = c.entries[static_cast<std::size_t>(k)];
+    const Eigen::MatrixXd& mat = e.emission ? h.emission : h.transition;
+    step(k) = std::min({1e-4, 0.25 * mat(e.row, e.col), 0.25 * mat(e.row, e.dependent)});
+  }
+  const double f0 = hmm_loglik(h, sym);
+  auto f = [&](Eigen::Index a, double sa, Eigen::Index b, double sb) {
+    Eigen::VectorXd d = Eigen::VectorXd::Zero(F);
+    d(a) += sa * step(a);
+    if (b >= 0) d(b) += sb * step(b);
+    return hmm_loglik(moved(h, c, d), sym);
+  };
+  Eigen::MatrixXd H(F, F);
+  for (Eigen::Index a = 0; a < F; ++a) {
+    H(a, a) = (f(a, 1, -1, 0) - 2.0 * f0 + f(a, -1, -1, 0)) / (step(a) * step(a));
+    for (Eigen::Index b = 0; b < a; ++b) {
+      H(a, b) = H(b, a) =
+          (f(a, 1, b, 1) - f(a, 1, b, -1) - f(a, -1, b, 1) + f(a, -1, b, -1)) / (4.0 * step(a) * step(b));
+    }
+  }
+  Eigen::LLT<Eigen::MatrixXd> llt(-H);
+  if (llt.info() != Eigen::Success) return {};
+  return llt.solve(Eigen::MatrixXd::Identity(F, F));
+}
+
+// A reported quantity of the model and its Wald interval (delta method on the coordinates).
+template <class G>
+FitParameter wald(const std::string& name, const FateHmm& h, const Coordinates& c, const Eigen::MatrixXd& cov, G g) {
+  FitParameter p;
+  p.name = name;
+  p.estimate = g(h);
+  p.ci_low = p.ci_high = std::nan("");
+  if (cov.size() == 0 && !c.entries.empty()) return p;
+  const auto F = static_cast<Eigen::Index>(c.entries.size());
+  Eigen::VectorXd grad(F);
+  for (Eigen::Index k = 0; k < F; ++k) {
+    Eigen::VectorXd d = Eigen::VectorXd::Zero(F);
+    const double s = 1e-7;
+    d(k) = s;
+    const double up = g(moved(h, c, d));
+    d(k) = -s;
+    grad(k) = (up - g(moved(h, c, d))) / (2.0 * s);
+  }
+  const double se = F > 0 ? std::sqrt(std::max(0.0, grad.dot(cov * grad))) : 0.0;
+  p.ci_low = std::max(0.0, p.estimate - 1.959963985 * se);
+  p.ci_high = std::min(1.0, p.estimate + 1.959963985 * se);
+  return p;
+}
+
+FitParameter binomial(const std::string& name, double p, double n) {
+  FitParameter r;
+  r.name = name;
+  r.estimate = p;
+  const double se = n > 0 ? std::sqrt(p * (1.0 - p) / n) : 0.0;
+  r.ci_low = std::max(0.0, p - 1.959963985 * se);
+  r.ci_high = std::min(1.0, p + 1.959963985 * se);
+  return r;
+}
+
+std::string num(double v) { return fmt::format("{:.12g}", v); }
+
+std::string list(const std::vector<double>& v) {
+  std::string s = "[";
+  for (std::size_t i = 0; i < v.size(); ++i) s += (i ? ", " : "") + num(v[i]);
+  return s + "]";
+}
+
+// A probability vector with its largest entry set to 1 - the others (exact sum to 1 in the
+// scenario reader's tolerance after printing).
+std::vector<double> law(std::vector<double> v) {
+  double s = 0.0;
+  for (const double x : v) s += x;
+  for (double& x : v) x = s > 0.0 ? x / s : 0.0;
+  return v;
+}
+
+void goodness_of_fit(FitResult& r, const std::vector<int>& sym, int lags) {
+  const FateHmm& h = r.model;
+  const Eigen::Index K = h.transition.rows();
+  const Eigen::VectorXd l = h.emission.col(0);
+  const Eigen::VectorXd d = Eigen::VectorXd::Ones(K) - l;
+  const Eigen::VectorXd pi = h.stationary();
+  // Observed.
+  const std::vector<std::int64_t> runs = loss_runs(sym);
+  std::int64_t total = 0;
+  for (const auto n : runs) total += n;
+  for (const auto n : runs) r.burst_observed.push_back(total > 0 ? static_cast<double>(n) / static_cast<double>(total) : 0.0);
+  // Model: w = P(state at the first loss of a run), then P(run = L) = w (T L)^{L-1} T d.
+  Eigen::RowVectorXd w = (pi.cwiseProduct(d)).transpose() * h.transition;
+  w = w.cwiseProduct(l.transpose());
+  const double norm = w.sum();
+  double model_mass = 0.0;
+  for (std::size_t L = 1; L <= runs.size(); ++L) {
+    double p = 0.0;
+    if (norm > 0.0) {
+      p = (w * (h.transition * d))(0) / norm;
+      w = (w * h.transition).cwiseProduct(l.transpose());
+    }
+    r.burst_model.push_back(p);
+    model_mass += p;
+  }
+  r.burst_tv = 0.5 * std::max(0.0, 1.0 - model_mass);
+  for (std::size_t i = 0; i < runs.size(); ++i) r.burst_tv += 0.5 * std::abs(r.burst_observed[i] - r.burst_model[i]);
+  // Autocorrelation of the loss indicator.
+  const auto N = static_cast<std::int64_t>(sym.size());
+  double P = 0.0;
+  for (const int s : sym) P += s == 0 ? 1.0 : 0.0;
+  P /= static_cast<double>(N);
+  const double Pm = pi.dot(l);
+  if (!(P > 0.0 && P < 1.0) || !(Pm > 0.0 && Pm < 1.0)) return;
+  Eigen::RowVectorXd v = pi.cwiseProduct(l).transpose();
+  double ss = 0.0;
+  int used = 0;
+  for (int k = 1; k <= lags && k < N; ++k) {
+    std::int64_t both = 0;
+    for (std::int64_t t = 0; t + k < N; ++t) both += (sym[static_cast<std::size_t>(t)] == 0) & (sym[static_cast<std::size_t>(t + k)] == 0);
+    const double obs = (static_cast<double>(both) / static_cast<double>(N - k) - P * P) / (P * (1.0 - P));
+    v = v * h.transition;
+    const double mod = (v.dot(l.transpose()) - Pm * Pm) / (Pm * (1.0 - Pm));
+    r.acf_observed.push_back(obs);
+    r.acf_model.push_back(mod);
+    ss += (obs - mod) * (obs - mod);
+    ++used;
+  }
+  r.acf_rmse = used > 0 ? std::sqrt(ss / used) : 0.0;
+}
+
+}  // namespace
+
+Eigen::VectorXd FateHmm::stationary() const {
+  if (transition.rows() == 1) return Eigen::VectorXd::Ones(1);
+  return stationary_law(transition);
+}
+
+std::vector<int> fate_symbols(const std::vector<std::optional<std::int64_t>>& trace) {
+  std::vector<int> s;
+  s.reserve(trace.size());
+  for (const auto& d : trace) s.push_back(d ? static_cast<int>(*d) + 1 : 0);
+  return s;
+}
+
+double hmm_loglik(const FateHmm& hmm, const std::vector<int>& symbols) {
+  std::vector<double> alpha, scale;
+  return e_step(hmm, symbols, nullptr, nullptr, alpha, scale);
+}
+
+std::size_t best_fit(const std::vector<FitResult>& fits, const std::string& criterion) {
+  std::size_t best = 0;
+  for (std::size_t i = 1; i < fits.size(); ++i) {
+    const double a = criterion == "aic" ? fits[i].aic : fits[i].bic;
+    const double b = criterion == "aic" ? fits[best].aic : fits[best].bic;
+    if (a < b - 1e-6 * std::max(1.0, std::abs(b))) best = i;  // ties: the family listed first
+  }
+  return best;
+}
+
+int family_states(const std::string& family) {
+  if (family == "bernoulli" || family == "delay") return 1;
+  if (family == "gilbert_elliott") return 2;
+  if (family.starts_with("markov") && family.size() > 6) {
+    const int K = std::atoi(family.c_str() + 6);
+    if (K >= 2 && K <= 8 && family == fmt::format("markov{}", K)) return K;
+  }
+  return 0;
+}
+
+FitResult fit_family(const std::string& family, const std::vector<int>& sym, const FitOptions& o) {
+  FitResult r;
+  r.family = family;
+  const auto N = static_cast<double>(sym.size());
+  const int M = std::max(alphabet(sym), 2);
+  const int D = M - 2;  // the longest delay seen (0 when none delivered)
+  std::vector<double> counts(static_cast<std::size_t>(M), 0.0);
+  for (const int s : sym) counts[static_cast<std::size_t>(s)] += 1.0;
+  const double lost = counts[0], delivered = N - lost;
+  // The delays of the delivered packets: their empirical law and its log-likelihood.
+  double delay_ll = 0.0;
+  std::vector<double> q(static_cast<std::size_t>(D + 1), 0.0);
+  int delay_outcomes = 0;
+  for (int d = 0; d <= D; ++d) {
+    const double c = counts[static_cast<std::size_t>(d + 1)];
+    if (delivered > 0.0) q[static_cast<std::size_t>(d)] = c / delivered;
+    if (c > 0.0) {
+      delay_ll += c * std::log(c / delivered);
+      ++delay_outcomes;
+    }
+  }
+  if (delivered == 0.0) q[0] = 1.0;
+  const double loss_ll = (lost > 0.0 ? lost * std::log(lost / N) : 0.0) +
+                         (delivered > 0.0 ? delivered * std::log(delivered / N) : 0.0);
+  const int K = family_states(family);
+  if (K == 0) {
+    throw std::invalid_argument(fmt::format(
+        "unknown family '{}' (expected bernoulli, delay, gilbert_elliott or markov2 .. markov8)", family));
+  }
+  r.states = K;
+  if (family == "bernoulli") {
+    r.parameters = 1;
+    if (delay_outcomes > 1) {
+      throw std::domain_error("the delivered packets have different delays; a bernoulli link has one fixed delay");
+    }
+  } else if (family == "delay") {
+    r.parameters = M - 1;
+  } else if (family == "gilbert_elliott") {
+    r.parameters = 4 + D;
+  } else {
+    r.parameters = K * (K - 1) + K * (M - 1);
+  }
+  if (N < r.parameters) {
+    throw std::invalid_argument(fmt::format("{} packet(s), fewer than the {} parameters of the {} family",
+                                            sym.size(), r.parameters, family));
+  }
+  const std::vector<std::int64_t> runs = loss_runs(sym);
+  double run_count = 0.0;
+  for (const auto n : runs) run_count += static_cast<double>(n);
+  const double mean_burst = run_count > 0.0 ? lost / run_count : 1.0;
+
+  if (K == 1) {
+    r.model.transition = Eigen::MatrixXd::Ones(1, 1);
+    r.model.emission = Eigen::MatrixXd::Zero(1, M);
+    r.model.emission(0, 0) = lost / N;
+    for (int d = 0; d <= D; ++d) r.model.emission(0, d + 1) = counts[static_cast<std::size_t>(d + 1)] / N;
+    r.loglik = loss_ll + delay_ll;
+    r.params.push_back(binomial("loss", lost / N, N));
+    if (family == "bernoulli") {
+      int delay = 0;
+      for (int d = 0; d <= D; ++d) {
+        if (counts[static_cast<std::size_t>(d + 1)] > 0.0) delay = d;
+      }
+      r.link_toml = fmt::format("kind = \"bernoulli\"\nloss = {}\ndelay = {}\n", num(lost / N), delay);
+    } else {
+      std::vector<double> pmf;
+      for (int d = 0; d <= D; ++d) {
+        pmf.push_back(counts[static_cast<std::size_t>(d + 1)] / N);
+        r.params.push_back(binomial(fmt::format("pmf[{}]", d), pmf.back(), N));
+      }
+      r.link_toml = fmt::format("kind = \"delay\"\npmf = {}\n", list(pmf));
+    }
+  } else if (family == "gilbert_elliott") {
+    // The loss indicator carries the chain; the delays are independent of it.
+    std::vector<int> binary(sym.size());
+    for (std::size_t t = 0; t < sym.size(); ++t) binary[t] = sym[t] == 0 ? 0 : 1;
+    EmOutcome em;
+    if (lost == 0.0 || delivered == 0.0) {  // degenerate: one state explains the trace
+      em.hmm.transition.resize(2, 2);
+      em.hmm.transition << 0.5, 0.5, 0.5, 0.5;
+      em.hmm.emission.resize(2, 2);
+      const double l = lost / N;
+      em.hmm.emission << l, 1.0 - l, l, 1.0 - l;
+      em.loglik = loss_ll;
+      em.converged = true;
+      r.starts = 0;
+    } else {
+      em = fit_hidden(2, binary, o, r.starts, mean_burst);
+    }
+    r.iterations = em.iterations;
+    r.converged = em.converged;
+    r.loglik = em.loglik + delay_ll;
+    const FateHmm& b = em.hmm;
+    r.model.transition = b.transition;
+    r.model.emission = Eigen::MatrixXd::Zero(2, M);
+    for (int s = 0; s < 2; ++s) {
+      r.model.emission(s, 0) = b.emission(s, 0);
+      for (int d = 0; d <= D; ++d) r.model.emission(s, d + 1) = (1.0 - b.emission(s, 0)) * q[static_cast<std::size_t>(d)];
+    }
+    Coordinates c;
+    Eigen::MatrixXd cov;
+    if (o.intervals && lost > 0.0 && delivered > 0.0) {
+      c = free_coordinates(b);
+      cov = covariance(b, c, binary);
+    }
+    const auto ge = [&](const char* name, auto g) { r.params.push_back(wald(name, b, c, cov, g)); };
+    ge("p_good_to_bad", [](const FateHmm& h) { return h.transition(0, 1); });
+    ge("p_bad_to_good", [](const FateHmm& h) { return h.transition(1, 0); });
+    ge("loss_good", [](const FateHmm& h) { return h.emission(0, 0); });
+    ge("loss_bad", [](const FateHmm& h) { return h.emission(1, 0); });
+    if (D > 0) {
+      for (int d = 0; d <= D; ++d) r.params.push_back(binomial(fmt::format("delay_pmf[{}]", d), q[static_cast<std::size_t>(d)], delivered));
+    }
+    if (D == 0) {
+      r.link_toml = fmt::format(
+          "kind = \"gilbert_elliott\"\nstep = \"packet\"\np_good_to_bad = {}\np_bad_to_good = {}\nloss_good = {}\n"
+          "loss_bad = {}\n",
+          num(b.transition(0, 1)), num(b.transition(1, 0)), num(b.emission(0, 0)), num(b.emission(1, 0)));
+    } else {
+      const std::vector<double> qq = law(q);
+      r.link_toml = fmt::format(
+          "kind = \"markov\"  # Gilbert–Elliott with state-independent delays\nstep = \"packet\"\ntransition = [{}, {}]\n"
+          "loss = [{}, {}]\ndelay_pmf = [{}, {}]\n",
+          list(law({b.transition(0, 0), b.transition(0, 1)})), list(law({b.transition(1, 0), b.transition(1, 1)})),
+          num(b.emission(0, 0)), num(b.emission(1, 0)), list(qq), list(qq));
+    }
+  } else {
+    EmOutcome em = fit_hidden(K, sym, o, r.starts, mean_burst);
+    r.iterations = em.iterations;
+    r.converged = em.converged;
+    r.loglik = em.loglik;
+    r.model = em.hmm;
+    if (r.model.emission.cols() < M) {
+      Eigen::MatrixXd e = Eigen::MatrixXd::Zero(K, M);
+      e.leftCols(r.model.emission.cols()) = r.model.emission;
+      r.model.emission = e;
+    }
+    Coordinates c;
+    Eigen::MatrixXd cov;
+    if (o.intervals) {
+      c = free_coordinates(r.model);
+      if (c.entries.size() <= 30) cov = covariance(r.model, c, sym);
+      else c.entries.clear(), cov.resize(0, 0);
+    }
+    const bool have_ci = cov.size() > 0 || (o.intervals && c.entries.empty());
+    auto add = [&](const std::string& name, auto g) {
+      FitParameter p = wald(name, r.model, c, have_ci ? cov : Eigen::MatrixXd(), g);
+      if (!have_ci) p.ci_low = p.ci_high = std::nan("");
+      r.params.push_back(p);
+    };
+    for (int i = 0; i < K; ++i) {
+      for (int j = 0; j < K; ++j) add(fmt::format("transition[{}][{}]", i, j), [i, j](const FateHmm& h) { return h.transition(i, j); });
+    }
+    for (int i = 0; i < K; ++i) add(fmt::format("loss[{}]", i), [i](const FateHmm& h) { return h.emission(i, 0); });
+    for (int i = 0; i < K; ++i) {
+      for (int d = 0; d <= D; ++d) {
+        add(fmt::format("delay_pmf[{}][{}]", i, d), [i, d](const FateHmm& h) {
+          const double del = 1.0 - h.emission(i, 0);
+          return del > 0.0 ? h.emission(i, d + 1) / del : (d == 0 ? 1.0 : 0.0);
+        });
+      }
+    }
+    std::string rows, loss, pmfs;
+    for (int i = 0; i < K; ++i) {
+      std::vector<double> row(r.model.transition.row(i).data(), r.model.transition.row(i).data() + 0);
+      row.clear();
+      for (int j = 0; j < K; ++j) row.push_back(r.model.transition(i, j));
+      std::vector<double> pmf;
+      for (int d = 0; d <= D; ++d) pmf.push_back(r.model.emission(i, d + 1));
+      if (std::accumulate(pmf.begin(), pmf.end(), 0.0) <= 0.0) pmf.assign(1, 1.0);
+      rows += (i ? ", " : "") + list(law(row));
+      loss += (i ? ", " : "") + num(r.model.emission(i, 0));
+      pmfs += (i ? ", " : "") + list(law(pmf));
+    }
+    r.link_toml = fmt::format("kind = \"markov\"\nstep = \"packet\"\ntransition = [{}]\nloss = [{}]\ndelay_pmf = [{}]\n",
+                              rows, loss, pmfs);
+  }
+  r.aic = 2.0 * r.parameters - 2.0 * r.loglik;
+  r.bic = r.parameters * std::log(N) - 2.0 * r.loglik;
+  r.link_toml = fmt::format("[[link]]\nname = \"{}\"\n{}", o.link_name, r.link_toml);
+  goodness_of_fit(r, sym, o.acf_lags);
+  return r;
+}
+
+}  // namespace ncosim::models

@@ -1,0 +1,85 @@
+// models/fit.h — maximum-likelihood channel models from a packet trace (`ncosim fit`).
+// A trace is the sequence of packet fates of one sender: lost, or delivered after d whole
+// periods. Families (each fitted by maximum likelihood):
+//   bernoulli        independent losses, one fixed delay (only when every delivered packet has
+//                    the same delay); 1 parameter.
+//   delay            independent packets, delay d with probability pmf[d], lost otherwise;
+//                    one parameter per observed outcome but one.
+//   gilbert_elliott  hidden two-state Markov chain stepped per packet, loss probability in each
+//                    state (both free), delays independent of the state (their empirical law);
+//                    fitted by Baum–Welch (EM, SQUAREM-accelerated) from several starts.
+//   markov<K>        hidden K-state chain, per-state loss and per-state delay pmf (Baum–Welch).
+// For each: log-likelihood, parameter count k, AIC = 2k - 2 LL, BIC = k ln N - 2 LL, Wald 95 %
+// intervals from the observed information (numerical Hessian of the exact log-likelihood in the
+// free probabilities; iid families: the binomial standard error), and goodness of fit: the
+// loss-run length distribution and the loss indicator's autocorrelation, model against trace.
+#pragma once
+
+#include <Eigen/Dense>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace ncosim::models {
+
+// A hidden Markov model of the packet fates with symbols 0 = lost, 1 + d = delay d.
+struct FateHmm {
+  Eigen::MatrixXd transition;  // K x K, per packet
+  Eigen::MatrixXd emission;    // K x M, rows sum to 1
+  Eigen::VectorXd stationary() const;
+};
+
+struct FitParameter {
+  std::string name;  // e.g. "p_good_to_bad", "loss[1]", "delay_pmf[0][2]"
+  double estimate = 0.0;
+  double ci_low = 0.0, ci_high = 0.0;  // Wald 95 %, clipped to [0, 1]
+};
+
+struct FitResult {
+  std::string family;   // bernoulli | delay | gilbert_elliott | markov<K>
+  int states = 1;
+  FateHmm model;        // the fitted law of the fates (iid families: one state)
+  double loglik = 0.0;
+  int parameters = 0;
+  double aic = 0.0, bic = 0.0;
+  int iterations = 0;   // EM iterations of the best start (0: closed form)
+  int starts = 0;
+  bool converged = true;
+  std::vector<FitParameter> params;
+  std::string link_toml;  // a [[link]] table reproducing the fitted model
+  // Goodness of fit: P(loss run = L), L = 1..burst_observed.size(), and the autocorrelation
+  // of the loss indicator at lags 1..acf_observed.size(), observed and under the model.
+  std::vector<double> burst_observed, burst_model, acf_observed, acf_model;
+  double burst_tv = 0.0;   // total variation distance between the two run-length laws
+  double acf_rmse = 0.0;   // root mean square difference of the autocorrelations
+};
+
+struct FitOptions {
+  std::vector<std::string> families{"bernoulli", "delay", "gilbert_elliott", "markov2", "markov3"};
+  int starts = 4;          // EM starts per hidden family
+  int max_iterations = 2000;
+  double tolerance = 1e-9;  // stop when an EM step raises LL by less than tolerance * N
+  int acf_lags = 20;
+  bool intervals = true;
+  std::string link_name = "fitted";
+};
+
+// Symbols of a trace (0 = lost, 1 + d = delay d).
+std::vector<int> fate_symbols(const std::vector<std::optional<std::int64_t>>& trace);
+
+// The exact log-likelihood of `symbols` under `hmm` started from its stationary law
+// (scaled forward recursion).
+double hmm_loglik(const FateHmm& hmm, const std::vector<int>& symbols);
+
+// Fits one family (names as above). Throws std::invalid_argument for an unknown family and
+// when the trace has fewer packets than the family has parameters.
+FitResult fit_family(const std::string& family, const std::vector<int>& symbols, const FitOptions& options);
+
+// The number of hidden states of a family name (1 for bernoulli and delay), 0 when unknown.
+int family_states(const std::string& family);
+
+// Index of the result with the smallest criterion ("bic" or "aic").
+std::size_t best_fit(const std::vector<FitResult>& fits, const std::string& criterion);
+
+}  // namespace ncosim::models

@@ -1,0 +1,99 @@
+// models/link_stats.h — what a link did to the packets of one sender, counted cheaply during a
+// run (a few integer increments per packet), and the values the link's model predicts for them.
+// A "flow" is one (link, sender) pair: packets of several sensors crossing one [[link]] share its
+// channel state but are counted apart. sim/link_stats.* turns the counters into links.csv.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include "models/link.h"
+
+namespace ncosim::models {
+
+struct LinkCounters {
+  std::int64_t sent = 0;       // packets handed to the link
+  std::int64_t delivered = 0;  // packets with at least one delivered copy
+  // copies[d]: delivered copies with delay d periods (a physical link delivers at most one copy
+  // per packet; the `independent` delay link may deliver several).
+  std::vector<std::int64_t> copies;
+  // bursts[L - 1]: maximal runs of exactly L consecutive lost packets of this flow. A run still
+  // open at the end of the run is counted with its observed length (close()).
+  std::vector<std::int64_t> bursts;
+  // states[s]: packets sent while the link's channel was in state s (Markov kinds only).
+  std::vector<std::int64_t> states;
+  std::int64_t open_burst = 0;  // losses in a row so far (not yet in `bursts`)
+
+  // One packet: the delays of its delivered copies (empty: lost) and the channel state it met
+  // (-1: the link has no state).
+  void record(const std::vector<std::int64_t>& delays, int state) {
+    ++sent;
+    count_state(state);
+    if (delays.empty()) {
+      ++open_burst;
+      return;
+    }
+    ++delivered;
+    close();
+    for (const std::int64_t d : delays) count_copy(d);
+  }
+  // One packet of a physical link: its delay, or kLost.
+  void record(std::int64_t delay, int state) {
+    ++sent;
+    count_state(state);
+    if (delay == kLost) {
+      ++open_burst;
+      return;
+    }
+    ++delivered;
+    close();
+    count_copy(delay);
+  }
+  // Ends the current loss run (if any) and counts it.
+  void close() {
+    if (open_burst == 0) return;
+    const auto i = static_cast<std::size_t>(open_burst - 1);
+    if (i >= bursts.size()) bursts.resize(i + 1, 0);
+    ++bursts[i];
+    open_burst = 0;
+  }
+  // Adds the (closed) counters of another run.
+  void add(const LinkCounters& o);
+
+ private:
+  void count_state(int state) {
+    if (state < 0) return;
+    const auto s = static_cast<std::size_t>(state);
+    if (s >= states.size()) states.resize(s + 1, 0);
+    ++states[s];
+  }
+  void count_copy(std::int64_t d) {
+    const auto i = static_cast<std::size_t>(d);
+    if (i >= copies.size()) copies.resize(i + 1, 0);
+    ++copies[i];
+  }
+};
+
+// Summary of the loss-run lengths: count, mean, 95th percentile (the smallest L with at least
+// 95 % of the runs of length <= L) and maximum. Empty optionals when there is no run.
+struct BurstSummary {
+  std::int64_t count = 0;
+  std::optional<double> mean;
+  std::optional<std::int64_t> p95, max;
+};
+BurstSummary summarise_bursts(const std::vector<std::int64_t>& bursts);
+
+// The model's predictions for a flow, where the model makes one.
+struct LinkNominal {
+  std::optional<double> delivered_ratio;  // 1 - loss_probability()
+  std::vector<double> delay_pmf;          // per packet: P(a copy arrives with delay d), d = 0..max
+  std::optional<double> burst_mean;       // mean loss-run length of the flow's packet sequence
+  std::vector<double> states;             // stationary law of the channel state (Markov kinds)
+};
+// `gap`: channel steps between two consecutive packets of the flow (1 with per-packet stepping
+// and a single sender; the sender's period in periods with time-driven stepping); nullopt when
+// the flow's packets meet the chain at irregular steps (then no nominal burst for Markov kinds).
+LinkNominal nominal_of(const Link& link, int max_delay, std::optional<int> gap);
+
+}  // namespace ncosim::models

@@ -1,0 +1,203 @@
+// tests/cli/channel_cli_test.cc — the channel features through the ncosim executable: links.csv
+// in every run, zipped sweep axes, Gilbert–Elliott by mean loss and mean burst (and its errors at
+// FILE:LINE), and `ncosim fit` (its files, and exit 2 with FILE:LINE and nothing written for a
+// trace with no packet, non-consecutive sequence numbers, fewer packets than parameters, and an
+// unknown family).
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+#include <stdlib.h>
+
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include "test_util.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+using Outcome = ncosim::testing::CommandOutcome;
+
+std::string quote(const std::string& s) {
+  std::string out = "'";
+  for (char c : s) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return out + "'";
+}
+
+Outcome ncosim(const std::vector<std::string>& args) {
+  std::string cmd = quote(NCOSIM_BINARY);
+  for (const auto& a : args) cmd += " " + quote(a);
+  return ncosim::testing::run_shell(cmd);
+}
+
+std::vector<std::string> lines(const std::string& text) {
+  std::vector<std::string> out;
+  std::istringstream in(text);
+  for (std::string l; std::getline(in, l);) out.push_back(l);
+  return out;
+}
+
+class ChannelCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::string tmpl = (fs::temp_directory_path() / "ncosim_channel_XXXXXX").string();
+    ASSERT_NE(::mkdtemp(tmpl.data()), nullptr);
+    dir_ = tmpl;
+    out_ = dir_ / "out";
+    base_ = ncosim::testing::read_text(std::string(NCOSIM_SOURCE_DIR) + "/tests/cli/data/base.toml");
+  }
+  void TearDown() override {
+    std::error_code ec;
+    fs::remove_all(dir_, ec);
+  }
+  std::string write(const std::string& name, const std::string& text) {
+    std::ofstream(dir_ / name, std::ios::binary) << text;
+    return (dir_ / name).string();
+  }
+  std::string with_link2(const std::string& link) {
+    const std::string from = "name = \"net2\"\nkind = \"bernoulli\"\nloss = 0.2\n";
+    std::string t = base_;
+    const auto at = t.find(from);
+    EXPECT_NE(at, std::string::npos);
+    return t.replace(at, from.size(), "name = \"net2\"\n" + link);
+  }
+  fs::path dir_, out_;
+  std::string base_;
+};
+
+TEST_F(ChannelCli, RunWritesLinksCsvWithARowPerLinkAndSender) {
+  const Outcome o = ncosim({"run", write("s.toml", base_), "--out", out_.string(), "--quiet"});
+  ASSERT_EQ(o.code, 0) << o.output;
+  const auto l = lines(ncosim::testing::read_text((out_ / "links.csv").string()));
+  ASSERT_EQ(l.size(), 3u);
+  EXPECT_EQ(l[0],
+            "link,kind,sender,runs,packets_sent,packets_delivered,delivered_ratio,nominal_delivered_ratio,delay_max,"
+            "delay_pmf,nominal_delay_pmf,bursts,burst_mean,nominal_burst_mean,burst_p95,burst_max,state_occupancy,"
+            "nominal_state_occupancy,step");
+  EXPECT_EQ(l[1].rfind("net1,delay,y1,4,8000,", 0), 0u) << l[1];
+  EXPECT_EQ(l[2].rfind("net2,bernoulli,y2,4,8000,", 0), 0u) << l[2];
+}
+
+TEST_F(ChannelCli, ZippedSweepsMoveTogetherAndCrossTheOtherAxes) {
+  const std::string text = with_link2("kind = \"gilbert_elliott\"\nmean_loss = 0.1\nmean_burst = 2.0\n") +
+                           "\n[[sweep]]\nkey = \"link[1].mean_loss\"\nvalues = [0.05, 0.1, 0.2]\nzip = \"ge\"\n"
+                           "\n[[sweep]]\nkey = \"estimator[0].history\"\nvalues = [1, 2]\n"
+                           "\n[[sweep]]\nkey = \"link[1].mean_burst\"\nvalues = [1.5, 3.0, 6.0]\nzip = \"ge\"\n";
+  const Outcome o = ncosim({"run", write("s.toml", text), "--out", out_.string(), "--runs", "2", "--periods",
+                            "20000", "--quiet"});
+  ASSERT_EQ(o.code, 0) << o.output;
+  const auto l = lines(ncosim::testing::read_text((out_ / "links.csv").string()));
+  ASSERT_EQ(l.size(), 1u + 6u * 2u);  // 3 zipped x 2 cases, 2 links each
+  EXPECT_EQ(l[0].rfind("link[1].mean_loss,estimator[0].history,link[1].mean_burst,link,", 0), 0u) << l[0];
+  const std::vector<std::string> expect{"0.05,1,1.5", "0.05,2,1.5", "0.1,1,3.0", "0.1,2,3.0", "0.2,1,6.0", "0.2,2,6.0"};
+  for (std::size_t c = 0; c < 6; ++c) {
+    const std::string& row = l[2 + 2 * c];  // the net2 row of case c
+    EXPECT_EQ(row.rfind(expect[c] + ",net2,gilbert_elliott,", 0), 0u) << row;
+    // The nominal loss and burst are the keys' values (exact conversion).
+    std::vector<std::string> f;
+    std::stringstream ss(row);
+    for (std::string x; std::getline(ss, x, ',');) f.push_back(x);
+    EXPECT_NEAR(1.0 - std::stod(f[10]), std::stod(f[0]), 1e-6) << row;
+    EXPECT_NEAR(std::stod(f[16]), std::stod(f[2]), 1e-5) << row;
+  }
+}
+
+TEST_F(ChannelCli, ZippedSweepsOfDifferentLengthsAreRejectedAtTheirLine) {
+  const std::string text = base_ + "\n[[sweep]]\nkey = \"link[1].loss\"\nvalues = [0.1, 0.2]\nzip = \"a\"\n"
+                                   "\n[[sweep]]\nkey = \"estimator[0].history\"\nvalues = [1, 2, 3]\nzip = \"a\"\n";
+  const std::string file = write("s.toml", text);
+  const Outcome o = ncosim({"run", file, "--out", out_.string(), "--quiet"});
+  EXPECT_EQ(o.code, 2) << o.output;
+  const auto l = lines(text);
+  int line = 0;
+  for (std::size_t i = 0; i < l.size(); ++i) {
+    if (l[i] == "values = [1, 2, 3]") line = static_cast<int>(i) + 1;
+  }
+  EXPECT_NE(o.output.find(fmt::format("{}:{}:", file, line)), std::string::npos) << o.output;
+  EXPECT_NE(o.output.find("expected 2 values like the other sweeps zipped as \"a\", got 3"), std::string::npos)
+      << o.output;
+  EXPECT_FALSE(fs::exists(out_ / "summary.csv"));
+}
+
+TEST_F(ChannelCli, GilbertElliottByMeanIsValidated) {
+  struct Bad {
+    std::string link, key, message;
+  };
+  const std::vector<Bad> bad{
+      {"kind = \"gilbert_elliott\"\nmean_loss = 0.1\nmean_burst = 2.0\np_good_to_bad = 0.1\n", "p_good_to_bad",
+       "expected either p_good_to_bad or mean_loss and mean_burst, got both"},
+      {"kind = \"gilbert_elliott\"\nmean_loss = 0.6\nmean_burst = 2.0\nloss_bad = 0.5\n", "mean_loss",
+       "expected loss_good < mean_loss < loss_bad"},
+      {"kind = \"gilbert_elliott\"\nmean_loss = 0.1\nmean_burst = 40.0\nloss_good = 0.05\nloss_bad = 0.2\n",
+       "mean_burst", "expected mean_burst <"},
+      {"kind = \"gilbert_elliott\"\nmean_loss = 0.1\n", "mean_burst", "required"},
+      {"kind = \"markov\"\ntransition = [[1.0]]\nloss = [0.1]\nstep = \"tick\"\n", "step", "tick"},
+  };
+  for (const auto& b : bad) {
+    const std::string text = with_link2(b.link);
+    const std::string file = write("s.toml", text);
+    const Outcome o = ncosim({"run", file, "--out", out_.string(), "--quiet"});
+    EXPECT_EQ(o.code, 2) << o.output;
+    EXPECT_NE(o.output.find(file + ":"), std::string::npos) << o.output;
+    EXPECT_NE(o.output.find("link[1]." + b.key), std::string::npos) << o.output;
+    EXPECT_NE(o.output.find(b.message), std::string::npos) << o.output;
+    EXPECT_FALSE(fs::exists(out_));
+  }
+}
+
+TEST_F(ChannelCli, FitWritesTheLinkTableAndDiagnosticsAndTheTableRuns) {
+  std::string trace = "seq,delay\n";
+  // Bursty: 40 packets delivered, then 10 lost, repeated (with a delay-1 packet now and then).
+  for (int i = 0; i < 5000; ++i) trace += fmt::format("{},{}\n", i, i % 50 >= 40 ? "" : (i % 7 == 0 ? "1" : "0"));
+  const std::string file = write("trace.csv", trace);
+  const Outcome o = ncosim({"fit", file, "--out", out_.string(), "--family", "delay", "--family", "gilbert_elliott"});
+  ASSERT_EQ(o.code, 0) << o.output;
+  EXPECT_NE(o.output.find("gilbert_elliott"), std::string::npos) << o.output;
+  const std::string toml = ncosim::testing::read_text((out_ / "link.toml").string());
+  EXPECT_NE(toml.find("[[link]]\nname = \"trace\"\nkind = \"markov\""), std::string::npos) << toml;  // GE + delays
+  EXPECT_NE(toml.find("# delay (loglik"), std::string::npos) << toml;
+  const auto csv = lines(ncosim::testing::read_text((out_ / "fit.csv").string()));
+  ASSERT_GT(csv.size(), 20u);
+  EXPECT_EQ(csv[0], "family,section,item,estimate,ci95_low,ci95_high,observed");
+  EXPECT_NE(std::find(csv.begin(), csv.end(), "gilbert_elliott,fit,selected,1,,,"), csv.end());
+  // The table is a valid [[link]]: paste it into a scenario in place of net2.
+  std::string link = toml.substr(toml.find("kind ="));
+  link = link.substr(0, link.find("\n\n") + 1);
+  const Outcome run = ncosim({"check", write("s.toml", with_link2(link))});
+  EXPECT_EQ(run.code, 0) << run.output << link;
+}
+
+TEST_F(ChannelCli, FitRejectsBadTracesWithFileLineAndWritesNothing) {
+  struct Bad {
+    std::string trace;
+    std::vector<std::string> args;
+    std::string where, message;
+  };
+  const std::vector<Bad> bad{
+      {"seq,delay\n", {}, ":1:", "the trace holds no packet"},
+      {"0,0\n1,\n3,0\n", {}, ":3:", "consecutive from 0"},
+      {"0,0\n1,\n2,0\n1,0\n", {}, ":4:", "consecutive from 0"},
+      {"0,0\n1,\n2,0\n", {"--family", "markov2"}, ":3:", "fewer than the 4 parameters of the markov2 family"},
+      {"0,0\n1,x\n", {}, ":2:", "non-negative integer delay"},
+  };
+  for (const auto& b : bad) {
+    const std::string file = write("t.csv", b.trace);
+    std::vector<std::string> args{"fit", file, "--out", out_.string()};
+    args.insert(args.end(), b.args.begin(), b.args.end());
+    const Outcome o = ncosim(args);
+    EXPECT_EQ(o.code, 2) << o.output;
+    EXPECT_NE(o.output.find(file + b.where), std::string::npos) << o.output;
+    EXPECT_NE(o.output.find(b.message), std::string::npos) << o.output;
+    EXPECT_FALSE(fs::exists(out_)) << b.trace;
+  }
+  const std::string file = write("t.csv", "0,0\n1,\n");
+  const Outcome o = ncosim({"fit", file, "--out", out_.string(), "--family", "hmm"});
+  EXPECT_EQ(o.code, 2);
+  EXPECT_NE(o.output.find("--family: expected bernoulli, delay, gilbert_elliott or markov2 .. markov8, got 'hmm'"),
+            std::string::npos)
+      << o.output;
+  EXPECT_FALSE(fs::exists(out_));
+}
+
+}  // namespace
