@@ -4,6 +4,7 @@
 #include <fmt/format.h>
 
 #include <cmath>
+#include <iostream>
 #include <mutex>
 
 #include "lmi/limits.h"
@@ -21,6 +22,13 @@ ResourceLimits& storage() {
 // RSS); the constants keep a margin of about 2.5x.
 constexpr double kCaseBytes = 40e3;
 constexpr double kCaseBytesPerTextByte = 2.0;
+
+// Designs estimated above either of these get a note on stderr before they start.
+constexpr double kNoteBytes = 256.0 * 1024 * 1024;
+constexpr double kNoteFlops = 10e9;
+// Effective rate of the design code (Table 2's S4 design at history 4, max_delay 7: an estimated
+// 67 GFLOP in 56 s on a 2-core Zen 4 guest).
+constexpr double kFlopsPerSecond = 1.2e9;
 
 std::string gflop(double flops) { return fmt::format("{:.0f} GFLOP", flops / 1e9); }
 
@@ -84,11 +92,14 @@ void check_estimator_resources(const Table& t, const toml::table& raw, const std
   double flops = 200.0 * 2.0 * dim * dim * dim;
   if (kind == "jump") {
     // history x 2^(fictitious sensors) terms, each with gains n x (fictitious outputs) and an
-    // update of the n x n covariance, over ~50 iterations.
+    // update of the n x n covariance, over ~50 iterations. Memory per term: about two nyf x nyf
+    // matrices besides the gain and covariance (measured on Table 2's A3 with S4: 1.9, 3.1 and
+    // 4.3 kB per term at nyf = 12, 14, 16, i.e. max_delay 5, 6, 7; 1.1 GB at history 4,
+    // max_delay 7, where this formula gives 1.2 GB).
     const double nf = sensors * static_cast<double>(dbar + 1);
     const double terms = static_cast<double>(history) * std::ldexp(1.0, static_cast<int>(std::min(nf, 60.0)));
     const double nyf = ny * static_cast<double>(dbar + 1);
-    bytes += terms * 8.0 * (n * nyf + n * n);
+    bytes += terms * 8.0 * (2.0 * nyf * nyf + 2.0 * n * nyf + 2.0 * n * n);
     flops += 50.0 * terms * (2.0 * n * n * n + 2.0 * n * nyf * nyf + nyf * nyf * nyf);
     key = fmt::format("{} and {} ({} x 2^{} terms, {})", t.key_path("history"), t.key_path("max_delay"), history,
                       nf, driver);
@@ -102,6 +113,13 @@ void check_estimator_resources(const Table& t, const toml::table& raw, const std
     t.fail("kind", fmt::format("the {} design needs an estimated {}, above the work limit of {} "
                                "(--max-work); its size is driven by {}",
                                kind, gflop(flops), gflop(lim.work_flops), key));
+  }
+  if (bytes > kNoteBytes || flops > kNoteFlops) {
+    // Within the limits but large: say so before minutes of silence (`check` included).
+    std::cerr << fmt::format("ncosim: note: {}: the {} design needs an estimated {} and {} (about {} s of one core); "
+                             "its size is driven by {}\n",
+                             t.key_path("kind"), kind, human_bytes(bytes), gflop(flops),
+                             static_cast<long>(std::ceil(flops / kFlopsPerSecond)), key);
   }
 }
 

@@ -338,8 +338,19 @@ Figure summary_figure(const std::string& dir, const Summary& s, const PlotOption
   const int runs = s.t.column("runs");
   std::string runs_text;
   if (runs >= 0 && !s.t.rows.empty()) runs_text = fmt::format(", {} runs", s.t.rows.front()[static_cast<std::size_t>(runs)]);
-  f.title = fmt::format("{}{}{}{}", opt.metric, ci >= 0 ? " with 95 % CI" : "", runs_text,
-                        title0.empty() ? "" : " — " + title0);
+  // A paired-difference column (`mse_diff`, ...): each row minus its reference estimator on the
+  // same runs (results/README.md, "Paired columns"); zero line, linear axis, reference named.
+  const bool paired = opt.metric.size() > 5 && opt.metric.ends_with("_diff") && s.t.column("paired_reference") >= 0;
+  std::string reference;
+  if (paired) {
+    const auto refs = distinct(s.t, s.t.column("paired_reference"));
+    for (const auto& r : refs) reference += (reference.empty() ? "" : ", ") + r;
+  }
+  const std::string base_metric = paired ? opt.metric.substr(0, opt.metric.size() - 5) : opt.metric;
+  f.title = paired ? fmt::format("paired {0}: {0} − {0} of the reference ({1}) on the same runs{2}{3}{4}", base_metric,
+                                 reference, ci >= 0 ? ", 95 % CI" : "", runs_text, title0.empty() ? "" : " — " + title0)
+                   : fmt::format("{}{}{}{}", opt.metric, ci >= 0 ? " with 95 % CI" : "", runs_text,
+                                 title0.empty() ? "" : " — " + title0);
   Range yr;
   auto add_y = [&](const std::vector<std::string>& r) {
     const auto v = number(r[static_cast<std::size_t>(m)]);
@@ -348,7 +359,7 @@ Figure summary_figure(const std::string& dir, const Summary& s, const PlotOption
     if (ci >= 0) {
       if (const auto h = number(r[static_cast<std::size_t>(ci)])) {
         yr.add(*v + *h);
-        if (*v - *h > 0) yr.add(*v - *h);
+        if (*v - *h > 0 || paired) yr.add(*v - *h);
       }
     }
     if (pred >= 0) {
@@ -356,7 +367,7 @@ Figure summary_figure(const std::string& dir, const Summary& s, const PlotOption
     }
   };
   for (const auto& r : s.t.rows) add_y(r);
-  const bool logy = want_log(opt.logy, yr, "--logy");
+  const bool logy = !paired && want_log(opt.logy, yr, "--logy");
   bool any_pred = false;
   for (const auto& r : s.t.rows) any_pred = any_pred || (pred >= 0 && number(r[static_cast<std::size_t>(pred)]));
 
@@ -365,6 +376,7 @@ Figure summary_figure(const std::string& dir, const Summary& s, const PlotOption
   body += fmt::format("  set title {}\n  set ylabel {}\n  set grid\n", gnuplot_quote(f.title),
                       gnuplot_quote(opt.metric + (ci >= 0 ? "  (bars: 95 % CI)" : "")));
   if (logy) body += "  set logscale y\n";
+  if (paired) body += "  set xzeroaxis lt -1 lw 1.5\n";
   int width = 900, height = 560;
 
   if (c.kind == FigureKind::kPerEstimator) {
@@ -379,8 +391,11 @@ Figure summary_figure(const std::string& dir, const Summary& s, const PlotOption
     width = std::max(700, 110 * static_cast<int>(s.t.rows.size()) + 250);
     std::vector<std::string> labels;
     for (const auto& r : s.t.rows) {
-      labels.push_back(r[static_cast<std::size_t>(s.est_col)] +
-                       (number(r[static_cast<std::size_t>(m)]) ? "" : " (no " + opt.metric + ")"));
+      const auto& name = r[static_cast<std::size_t>(s.est_col)];
+      const bool is_reference = paired && name == r[static_cast<std::size_t>(s.t.column("paired_reference"))];
+      labels.push_back(name + (number(r[static_cast<std::size_t>(m)]) ? ""
+                               : is_reference                       ? " (reference)"
+                                                                    : " (no " + opt.metric + ")"));
     }
     body += fmt::format("  set xtics rotate by -25 {}\n  set xrange [-0.6:{}]\n  set bmargin 9\n",
                         tics(labels), static_cast<double>(s.t.rows.size()) - 0.4);
@@ -648,7 +663,18 @@ FigureKind summary_figure_kind(const CsvTable& summary, const PlotOptions& opt) 
 std::vector<Figure> build_figures(const std::string& dir, const PlotOptions& opt) {
   if (!fs::is_directory(dir)) throw ScenarioError(fmt::format("{}: not a directory", dir));
   std::vector<Figure> out;
-  out.push_back(summary_figure(dir, read_summary(dir), opt));
+  const Summary s = read_summary(dir);
+  out.push_back(summary_figure(dir, s, opt));
+  // The paired differences against the reference estimator, when summary.csv has them for this
+  // metric and any row has a value (a second figure, `plot_<metric>_diff`).
+  const int diff = s.t.column(opt.metric + "_diff");
+  if (!opt.metric.ends_with("_diff") && diff >= 0 &&
+      std::any_of(s.t.rows.begin(), s.t.rows.end(),
+                  [&](const auto& r) { return number(r[static_cast<std::size_t>(diff)]).has_value(); })) {
+    PlotOptions po = opt;
+    po.metric += "_diff";
+    out.push_back(summary_figure(dir, s, po));
+  }
   if (opt.trace) out.push_back(trace_figure(dir, opt));
   return out;
 }

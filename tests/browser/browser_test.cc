@@ -138,7 +138,7 @@ TEST(Browser, ReportRendersInHeadlessChromium) {
   EXPECT_TRUE(v.stderr_console.empty()) << v.stderr_console;
   EXPECT_TRUE(v.j["resources"].empty()) << "the report loaded: " << v.j["resources"].dump();
   EXPECT_TRUE(v.j["duplicate_ids"].empty()) << v.j["duplicate_ids"].dump();
-  ASSERT_EQ(v.j["figures"].size(), 3u) << v.j.dump();  // mse, mse_ext, trace
+  ASSERT_EQ(v.j["figures"].size(), 4u) << v.j.dump();  // mse, mse_ext, paired mse_diff, trace
   for (const auto& f : v.j["figures"]) {
     EXPECT_GT(f[1].get<int>(), 100) << f.dump();  // rendered width, px
     EXPECT_GT(f[2].get<int>(), 100) << f.dump();

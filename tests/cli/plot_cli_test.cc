@@ -175,7 +175,7 @@ TEST_F(PlotCli, ReportIsSelfContainedWellFormedAndEscaped) {
   EXPECT_EQ(html.find("<b>µ</b>"), std::string::npos);
   std::size_t figures = 0;
   for (auto p = html.find("<figure"); p != std::string::npos; p = html.find("<figure", p + 1)) ++figures;
-  EXPECT_EQ(figures, 3u);  // mse, mse_ext, trace
+  EXPECT_EQ(figures, 4u);  // mse, mse_ext, paired mse_diff, trace
   EXPECT_TRUE(duplicate_ids(html).empty());
   const auto lint = ncosim::testing::run_shell("xmllint --noout " + shell_quote(html_path.string()));
   EXPECT_EQ(lint.code, 0) << lint.output;

@@ -122,6 +122,22 @@ w_rms = 0.1
 
 // Finding 6: valid but large inputs are refused with the key that drives the size; the
 // option raises the limit.
+// Finding 6: a jump S4 design with max_delay 7 passed `check` with an estimate of 37 MB and then
+// took 30 s and 573 MB (history 2; 56 s and 1.1 GB at history 4). The estimate now counts the
+// per-term matrices (612 MB here), so a 400 MB limit refuses it at once, naming the keys.
+TEST_F(Reliability, JumpDesignMemoryEstimateCountsThePatternTerms) {
+  const std::string file = (kSource / "scenarios" / "dolz2014_table2.toml").string();
+  const auto t0 = std::chrono::steady_clock::now();
+  const Outcome o = ncosim({"check", file, "--set", "estimator[4].max_delay=7", "--set", "estimator[4].history=2",
+                            "--max-memory", "400"});
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  EXPECT_EQ(o.code, 2) << o.output;
+  EXPECT_NE(o.output.find("key 'estimator[4].kind': the jump design needs an estimated"), std::string::npos) << o.output;
+  EXPECT_NE(o.output.find("above the memory limit"), std::string::npos) << o.output;
+  EXPECT_NE(o.output.find("2 x 2^16 terms"), std::string::npos) << o.output;
+  EXPECT_LT(seconds, 10.0);
+}
+
 TEST_F(Reliability, LargeDesignsNameTheKeyTheEstimateAndTheLimit) {
   const int n = 300;
   std::string a = "[", bw = "[", c = "[[";

@@ -143,6 +143,37 @@ TEST(PlotData, PanelsHoldEveryCaseInBlocks) {
   fs::remove_all(d);
 }
 
+// Paired columns (issue 14): a second figure `plot_mse_diff` holds each row's `mse_diff` and its
+// CI as written, on a linear axis with a zero line (even when the differences span a factor of
+// 100), and the reference row is labelled as such; the `plot_mse` figure is unchanged.
+TEST(PlotData, PairedDifferencesAreASecondFigure) {
+  const fs::path d = temp_dir("paired");
+  const std::string head =
+      "estimator,kind,runs,mse,mse_ci95,predicted_mse,status,paired_reference,mse_diff,mse_diff_ci95\n";
+  write(d / "summary.csv", head + "Kalman,kalman_extended,20,0.03,0.001,,ok,Kalman,,\n"
+                                  "S1,jump,20,0.08,0.003,0.1,ok,Kalman,0.05,0.002\n"
+                                  "S4,jump,20,0.0305,0.001,0.04,ok,Kalman,0.0005,0.0008\n");
+  const auto figs = ncosim::sim::build_figures(d.string(), PlotOptions{});
+  ASSERT_EQ(figs.size(), 2u);
+  EXPECT_EQ(figs[0].name, "plot_mse");
+  EXPECT_EQ(figs[1].name, "plot_mse_diff");
+  EXPECT_EQ(figs[1].kind, FigureKind::kPerEstimator);
+  const auto rows = dat_rows(figs[1].dat);
+  ASSERT_EQ(rows.size(), 3u);
+  EXPECT_EQ(rows[0], (std::vector<std::string>{"0", "?", "?", "?"}));
+  EXPECT_EQ(rows[1], (std::vector<std::string>{"1", "0.05", "0.002", "?"}));
+  EXPECT_EQ(rows[2], (std::vector<std::string>{"2", "0.0005", "0.0008", "?"}));
+  EXPECT_NE(figs[1].gp.find("set xzeroaxis"), std::string::npos) << figs[1].gp;
+  EXPECT_EQ(figs[1].gp.find("set logscale"), std::string::npos) << figs[1].gp;
+  EXPECT_NE(figs[1].gp.find("'Kalman (reference)'"), std::string::npos) << figs[1].gp;
+  EXPECT_NE(figs[1].title.find("reference (Kalman)"), std::string::npos) << figs[1].title;
+  EXPECT_EQ(figs[0].gp.find("set xzeroaxis"), std::string::npos);
+  // No value in the diff column (e.g. one run): no second figure.
+  write(d / "summary.csv", head + "Kalman,kalman_extended,1,0.03,,,ok,Kalman,,\nS1,jump,1,0.08,,,ok,Kalman,,\n");
+  EXPECT_EQ(ncosim::sim::build_figures(d.string(), PlotOptions{}).size(), 1u);
+  fs::remove_all(d);
+}
+
 TEST(PlotData, LogAxisOnlyWhenTheRangeAsksForIt) {
   const fs::path d = temp_dir("log");
   write(d / "summary.csv", std::string(kHead) + "a,jump,2,0.02,0.001,,ok\nb,open_loop,2,1.3e7,2e5,,ok\n");
