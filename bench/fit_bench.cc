@@ -7,7 +7,7 @@
 #include "models/fit.h"
 #include "models/link.h"
 #include "sim/campaign.h"
-#include "sim/rng.h"
+#include "kernel/rng.h"
 #include "sim/scenario.h"
 
 namespace ncosim {

@@ -12,10 +12,10 @@
 #include <string>
 #include <vector>
 
+#include "config/config.h"
+#include "kernel/rng.h"
 #include "models/link.h"
 #include "models/link_stats.h"
-#include "sim/config.h"
-#include "sim/rng.h"
 
 namespace ncosim::models {
 

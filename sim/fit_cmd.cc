@@ -12,7 +12,7 @@
 
 #include "models/fit.h"
 #include "models/link.h"
-#include "sim/config.h"
+#include "config/config.h"
 #include "sim/output.h"
 #include "sim/output_set.h"
 

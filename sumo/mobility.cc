@@ -31,7 +31,7 @@
 #include <sstream>
 #include <thread>
 
-#include "sim/time.h"
+#include "kernel/time.h"
 #include "sumo/channel.h"
 #include "sumo/sumo.h"
 

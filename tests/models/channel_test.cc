@@ -9,7 +9,7 @@
 
 #include "models/link.h"
 #include "models/link_stats.h"
-#include "sim/rng.h"
+#include "kernel/rng.h"
 
 namespace ncosim::models {
 namespace {

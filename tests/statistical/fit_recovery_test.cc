@@ -16,7 +16,7 @@
 #include <map>
 
 #include "models/link.h"
-#include "sim/rng.h"
+#include "kernel/rng.h"
 
 namespace ncosim::models {
 namespace {
