@@ -10,7 +10,7 @@
 #include <random>
 #include <vector>
 
-#include "sim/event_queue.h"
+#include "kernel/event_queue.h"
 
 namespace ncosim::sim {
 namespace {

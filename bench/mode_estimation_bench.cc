@@ -8,7 +8,7 @@
 #include <memory>
 #include <string>
 
-#include "sim/rng.h"
+#include "kernel/rng.h"
 #include "sim/scenario.h"
 
 namespace ncosim {

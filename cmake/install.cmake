@@ -27,7 +27,7 @@ if(NCOSIM_SUMO)
   # The live-SUMO module is opened by path (NCOSIM_SUMO_MODULE_PATH, the build tree's copy).
   install(TARGETS ncosim_sumo_session LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}/ncosim)
 endif()
-foreach(dir sim models estimators lmi sumo)
+foreach(dir kernel config sim models estimators lmi sumo)
   install(DIRECTORY ${PROJECT_SOURCE_DIR}/${dir}/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/ncosim/${dir}
           FILES_MATCHING PATTERN "*.h")
 endforeach()

@@ -12,12 +12,12 @@
 #include <string>
 #include <vector>
 
+#include "config/config.h"
+#include "config/registry.h"
 #include "models/actuator.h"
 #include "models/link.h"
 #include "models/plant.h"
 #include "models/sensor.h"
-#include "sim/config.h"
-#include "sim/registry.h"
 
 namespace ncosim::est {
 

@@ -8,7 +8,7 @@
 #include <cctype>
 #include <stdexcept>
 
-#include "sim/check.h"
+#include "kernel/check.h"
 
 namespace ncosim::est {
 

@@ -3,7 +3,7 @@
 
 #include <bit>
 
-#include "sim/check.h"
+#include "kernel/check.h"
 
 namespace ncosim::est {
 

@@ -6,7 +6,7 @@
 #include <limits>
 #include <utility>
 
-#include "sim/check.h"
+#include "kernel/check.h"
 
 namespace ncosim::est {
 

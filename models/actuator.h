@@ -12,9 +12,9 @@
 #include <string>
 #include <vector>
 
+#include "config/config.h"
+#include "kernel/rng.h"
 #include "models/link.h"
-#include "sim/config.h"
-#include "sim/rng.h"
 
 namespace ncosim::models {
 

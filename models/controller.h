@@ -12,8 +12,8 @@
 #include <string>
 #include <vector>
 
+#include "config/config.h"
 #include "models/sensor.h"
-#include "sim/config.h"
 
 namespace ncosim::models {
 

@@ -10,10 +10,10 @@
 
 #include <memory>
 
+#include "config/config.h"
+#include "config/registry.h"
 #include "models/controller.h"
 #include "models/plant.h"
-#include "sim/config.h"
-#include "sim/registry.h"
 
 namespace ncosim::models {
 

@@ -18,7 +18,7 @@
 #include <fstream>
 #include <string_view>
 
-#include "sim/check.h"
+#include "kernel/check.h"
 
 namespace ncosim::models {
 namespace {

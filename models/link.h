@@ -15,8 +15,8 @@
 #include <utility>
 #include <vector>
 
-#include "sim/mobility.h"
-#include "sim/rng.h"
+#include "config/mobility.h"
+#include "kernel/rng.h"
 
 namespace ncosim::models {
 

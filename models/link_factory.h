@@ -4,9 +4,9 @@
 #include <memory>
 #include <string>
 
+#include "config/mobility.h"
+#include "config/registry.h"
 #include "models/link.h"
-#include "sim/mobility.h"
-#include "sim/registry.h"
 
 namespace ncosim::models {
 

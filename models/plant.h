@@ -8,8 +8,8 @@
 #include <cstdint>
 #include <vector>
 
-#include "sim/config.h"
-#include "sim/registry.h"
+#include "config/config.h"
+#include "config/registry.h"
 
 namespace ncosim::models {
 

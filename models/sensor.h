@@ -9,8 +9,8 @@
 #include <string>
 #include <vector>
 
+#include "config/config.h"
 #include "models/plant.h"
-#include "sim/config.h"
 
 namespace ncosim::models {
 

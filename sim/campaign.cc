@@ -18,10 +18,10 @@
 #include <system_error>
 #include <thread>
 
+#include "kernel/check.h"
+#include "kernel/event_queue.h"
+#include "kernel/rng.h"
 #include "models/actuator.h"
-#include "sim/check.h"
-#include "sim/event_queue.h"
-#include "sim/rng.h"
 
 namespace ncosim::sim {
 

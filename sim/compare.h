@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "sim/config.h"
+#include "config/config.h"
 
 namespace ncosim::sim {
 

@@ -5,7 +5,7 @@
 
 #include <sstream>
 
-#include "sim/config.h"
+#include "config/config.h"
 
 namespace ncosim::sim {
 

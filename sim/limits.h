@@ -7,8 +7,8 @@
 #include <cstdint>
 #include <string>
 
+#include "config/config.h"
 #include "estimators/estimator.h"
-#include "sim/config.h"
 
 namespace ncosim::sim {
 

@@ -29,7 +29,7 @@
 #include <mutex>
 #include <stdexcept>
 
-#include "sim/config.h"
+#include "config/config.h"
 
 #ifndef RENAME_EXCHANGE
 #define RENAME_EXCHANGE (1 << 1)

@@ -13,7 +13,7 @@
 #include <utility>
 #include <vector>
 
-#include "sim/config.h"
+#include "config/config.h"
 
 namespace ncosim::sim {
 

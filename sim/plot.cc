@@ -18,7 +18,7 @@
 #include <optional>
 #include <sstream>
 
-#include "sim/config.h"
+#include "config/config.h"
 #include "sim/output.h"
 
 namespace ncosim::sim {

@@ -14,7 +14,7 @@
 #include <set>
 #include <sstream>
 
-#include "sim/config.h"
+#include "config/config.h"
 #include "sim/output.h"
 
 namespace ncosim::sim {

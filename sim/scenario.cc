@@ -8,11 +8,11 @@
 #include <set>
 #include <sstream>
 
+#include "kernel/time.h"
 #include "lmi/limits.h"
 #include "lmi/lmi.h"
 #include "sim/limits.h"
 #include "sim/registries.h"
-#include "sim/time.h"
 
 namespace ncosim::sim {
 

@@ -11,24 +11,16 @@
 #include <utility>
 #include <vector>
 
+#include "config/config.h"
+#include "config/mobility.h"
+#include "config/run_settings.h"
 #include "estimators/estimator.h"
 #include "models/input.h"
 #include "models/link.h"
 #include "models/plant.h"
-#include "sim/config.h"
-#include "sim/mobility.h"
 #include "sim/paired.h"
 
 namespace ncosim::sim {
-
-struct RunSettings {
-  std::int64_t periods = 10000;
-  std::int64_t warmup = 100;
-  std::int64_t runs = 10;
-  std::uint64_t seed = 1;
-  double period = 1.0;  // seconds
-  std::string recentre = "auto";  // auto | always | never
-};
 
 struct LinkEntry {
   std::string name;

@@ -8,7 +8,7 @@
 #include <numbers>
 #include <stdexcept>
 
-#include "sim/rng.h"
+#include "kernel/rng.h"
 
 namespace ncosim::sumo {
 

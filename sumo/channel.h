@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "sim/config.h"
+#include "config/config.h"
 
 namespace ncosim::sumo {
 

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <iostream>
 
-#include "sim/time.h"
+#include "kernel/time.h"
 #include "sumo/channel.h"
 #include "sumo/mobility.h"
 #include "sumo/sumo.h"

@@ -29,7 +29,7 @@
 #include <sstream>
 #include <thread>
 
-#include "sim/time.h"
+#include "kernel/time.h"
 #include "sumo/channel.h"
 
 extern char** environ;

@@ -18,9 +18,9 @@
 #include <string>
 #include <vector>
 
-#include "sim/config.h"
-#include "sim/mobility.h"
-#include "sim/scenario.h"
+#include "config/config.h"
+#include "config/mobility.h"
+#include "config/run_settings.h"
 
 namespace ncosim::sumo {
 

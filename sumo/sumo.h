@@ -5,10 +5,10 @@
 #include <string>
 #include <vector>
 
+#include "config/mobility.h"
+#include "config/run_settings.h"
 #include "models/link_factory.h"
 #include "models/plant.h"
-#include "sim/mobility.h"
-#include "sim/scenario.h"
 
 namespace ncosim::sumo {
 

@@ -19,8 +19,8 @@
 #include <vector>
 
 #include "conformance/fixtures.h"
+#include "kernel/rng.h"
 #include "sim/registries.h"
-#include "sim/rng.h"
 #include "test_util.h"
 
 namespace {

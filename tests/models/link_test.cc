@@ -25,7 +25,7 @@
 #include <string>
 #include <vector>
 
-#include "sim/rng.h"
+#include "kernel/rng.h"
 
 namespace ncosim::models {
 namespace {

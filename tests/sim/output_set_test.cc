@@ -20,7 +20,7 @@
 #include <thread>
 #include <vector>
 
-#include "sim/config.h"
+#include "config/config.h"
 #include "test_util.h"
 
 namespace ncosim::sim {

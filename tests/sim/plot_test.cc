@@ -8,7 +8,7 @@
 #include <fstream>
 #include <sstream>
 
-#include "sim/config.h"
+#include "config/config.h"
 #include "sim/plot.h"
 #include "sim/report.h"
 

@@ -12,8 +12,8 @@
 #include <map>
 #include <limits>
 
+#include "config/config.h"
 #include "sim/batch.h"
-#include "sim/config.h"
 #include "test_util.h"
 
 namespace ncosim::sim {

@@ -1,5 +1,5 @@
-// sim/check.h — NCOSIM_CHECK: programmer-error checks that abort with a message.
-// Bad user input is never checked with this: it is a ScenarioError (sim/config.h).
+// kernel/check.h — NCOSIM_CHECK: programmer-error checks that abort with a message.
+// Bad user input is never checked with this: it is a ScenarioError (config/config.h).
 #pragma once
 
 #include <cstdio>

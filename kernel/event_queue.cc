@@ -1,10 +1,10 @@
-// sim/event_queue.cc — radix heap on time over a block pool, binary heap for the current instant.
-#include "sim/event_queue.h"
+// kernel/event_queue.cc — radix heap on time over a block pool, binary heap for the current instant.
+#include "kernel/event_queue.h"
 
 #include <algorithm>
 #include <bit>
 
-#include "sim/check.h"
+#include "kernel/check.h"
 
 namespace ncosim::sim {
 

@@ -1,6 +1,6 @@
-// tests/sim/event_queue_test.cc — EventQueue: dispatch order against a sorted reference, phase
+// tests/kernel/event_queue_test.cc — EventQueue: dispatch order against a sorted reference, phase
 // order, FIFO ties, run_until, clear, size, and the abort on scheduling in the past.
-#include "sim/event_queue.h"
+#include "kernel/event_queue.h"
 
 #include <gtest/gtest.h>
 
@@ -16,7 +16,7 @@
 #include <utility>
 #include <vector>
 
-#include "sim/time.h"
+#include "kernel/time.h"
 
 namespace ncosim::sim {
 namespace {

@@ -1,4 +1,4 @@
-// sim/config.h — typed, checked reading of scenario tables (TOML) with precise errors.
+// config/config.h — typed, checked reading of scenario tables (TOML) with precise errors.
 // Every getter records the key as known; Table::finish() rejects keys that no reader
 // asked for, with a did-you-mean. Every error is a ScenarioError whose message reads
 // `FILE:LINE: key 'PATH': expected ..., got ...` (the line of the offending value). A value

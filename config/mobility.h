@@ -1,4 +1,4 @@
-// sim/mobility.h — the kernel's view of an external mobility source (SUMO, see sumo/): the
+// config/mobility.h — the kernel's view of an external mobility source (SUMO, see sumo/): the
 // state of the vehicles a scenario names, advanced by the kernel's clock. Header only, so the
 // kernel builds without SUMO; the sumo/ component implements it (replay of recorded
 // trajectories, or libsumo stepped live in a worker process).
@@ -8,9 +8,9 @@
 #include <memory>
 #include <string_view>
 
-#include "sim/config.h"
+#include "config/config.h"
 
-#include "sim/time.h"
+#include "kernel/time.h"
 
 namespace ncosim::sim {
 

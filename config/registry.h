@@ -1,4 +1,4 @@
-// sim/registry.h — one registry per component kind: a name, a one-line help and a factory
+// config/registry.h — one registry per component kind: a name, a one-line help and a factory
 // that reads its own table. A failed lookup lists the valid names (with a did-you-mean).
 // Built-ins are registered by explicit calls from one place (sim/registry.cc).
 #pragma once
@@ -10,7 +10,7 @@
 #include <string_view>
 #include <vector>
 
-#include "sim/config.h"
+#include "config/config.h"
 
 namespace ncosim::sim {
 

@@ -1,5 +1,5 @@
-// sim/config.cc — typed reading of TOML scenario tables with file:line errors.
-#include "sim/config.h"
+// config/config.cc — typed reading of TOML scenario tables with file:line errors.
+#include "config/config.h"
 
 #include <fmt/format.h>
 

@@ -1,4 +1,4 @@
-// sim/rng.h — random streams: one Boost.Random engine per (campaign seed, run, component).
+// kernel/rng.h — random streams: one Boost.Random engine per (campaign seed, run, component).
 // Boost.Random engines and distributions give the same numbers on every platform and
 // compiler (the standard library's distributions do not), so a run is a pure function
 // of (scenario, seed, run index) whatever the thread count.

@@ -1,4 +1,4 @@
-// sim/time.h — simulated time: an integer count of nanoseconds (no floating-point clock).
+// kernel/time.h — simulated time: an integer count of nanoseconds (no floating-point clock).
 #pragma once
 
 #include <cmath>

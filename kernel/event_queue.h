@@ -1,4 +1,4 @@
-// sim/event_queue.h — the kernel: a priority queue of events ordered by (time, phase, sequence).
+// kernel/event_queue.h — the kernel: a priority queue of events ordered by (time, phase, sequence).
 // Within one instant the order is fixed by the phase (plant step, sampling, sending, packet
 // arrivals, estimator updates, control, actuation, metrics) and, within a phase, by the order
 // of scheduling, so a run never depends on container internals. Scheduling an event in the
@@ -10,7 +10,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "sim/time.h"
+#include "kernel/time.h"
 
 namespace ncosim::sim {
 

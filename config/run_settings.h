@@ -1,0 +1,21 @@
+// config/run_settings.h — the [run] table's values (horizon, runs, seed, period, re-centring):
+// what a campaign is made of, read by the scenario reader (sim/scenario_sections.cc) and by
+// the components that must know the horizon before t = 0 (the SUMO mobility source records
+// that many periods). Plain data: the ranges are checked where it is read.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+namespace ncosim::sim {
+
+struct RunSettings {
+  std::int64_t periods = 10000;
+  std::int64_t warmup = 100;
+  std::int64_t runs = 10;
+  std::uint64_t seed = 1;
+  double period = 1.0;  // seconds
+  std::string recentre = "auto";  // auto | always | never
+};
+
+}  // namespace ncosim::sim
