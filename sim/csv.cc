@@ -3,7 +3,7 @@
 
 #include <fmt/format.h>
 
-#include "sim/config.h"
+#include "config/config.h"
 
 namespace ncosim::sim {
 
