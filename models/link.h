@@ -12,6 +12,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -60,6 +61,16 @@ class Link {
   // whose states deliver on time with probability 0 or 1; otherwise the one-step Markov fit
   // of the stationary pair law. Default: independent packets, P(on time) = delay_pmf(0)[0].
   virtual Eigen::Matrix2d on_time_chain() const;
+  // The most packets one run may send over this link, when bounded (a replayed trace holds a
+  // fixed number): the scenario reader refuses, before t = 0, sensors or actuators that would
+  // send more, naming the table key `key` and calling the link a `noun` ("trace"). nullopt:
+  // unbounded (every random link).
+  struct PacketBound {
+    std::int64_t packets;
+    std::string_view key;
+    std::string_view noun;
+  };
+  virtual std::optional<PacketBound> packet_bound() const { return std::nullopt; }
 };
 
 // Each packet: delay d with probability pmf[d] (d = 0..size-1); lost otherwise.
@@ -177,6 +188,9 @@ class TraceLink final : public Link {
   std::vector<double> delay_pmf(int max_delay) const override;
   double loss_probability() const override;
   std::size_t size() const { return delays_.size(); }
+  std::optional<PacketBound> packet_bound() const override {
+    return PacketBound{static_cast<std::int64_t>(delays_.size()), "file", "trace"};
+  }
 
  private:
   std::vector<std::optional<std::int64_t>> delays_;
