@@ -170,17 +170,7 @@ class KalmanBuffer final : public Estimator {
     }
     ws_.y.head(m) = sl.values.head(m);
     ws_.m = m;
-    switch (kalman::factor(sl.xpost, sl.Ppost, ws_)) {
-      case kalman::Factor::kOk:
-        kalman::apply(sl.xpost, sl.Ppost, ws_);
-        break;
-      case kalman::Factor::kNotPositiveDefinite:
-        kalman::apply_pseudo_inverse(sl.xpost, sl.Ppost, ws_);
-        break;
-      case kalman::Factor::kNonFinite:
-        failed_ = true;
-        break;
-    }
+    if (!kalman::update(sl.xpost, sl.Ppost, ws_)) failed_ = true;
   }
 
   const BufferShape& sh_;

@@ -53,18 +53,9 @@ class KalmanExtended final : public Estimator {
       for (Eigen::Index r = 0; r < f.rows; ++r) rows_[m++] = f.row + r;
     }
     kalman::select(ext_.C, ext_.V, window_.values(), rows_.data(), m, ws_);
-    switch (kalman::factor(x_, P_, ws_)) {
-      case kalman::Factor::kOk:
-        kalman::apply(x_, P_, ws_);
-        break;
-      case kalman::Factor::kNotPositiveDefinite:
-        // S is only semidefinite (R singular, or P0 = 0 with R = 0): the minimum-variance gain
-        // is P Cs' S^+ (rows without information get no weight).
-        kalman::apply_pseudo_inverse(x_, P_, ws_);
-        break;
-      case kalman::Factor::kNonFinite:
-        failed_ = true;
-        return;
+    if (!kalman::update(x_, P_, ws_)) {
+      failed_ = true;
+      return;
     }
     if (!x_.allFinite()) failed_ = true;
   }

@@ -239,4 +239,18 @@ void apply_pseudo_inverse(Eigen::VectorXd& x, Eigen::MatrixXd& P, const Workspac
   P = 0.5 * (P + P.transpose()).eval();
 }
 
+bool update(Eigen::VectorXd& x, Eigen::MatrixXd& P, Workspace& ws) {
+  switch (factor(x, P, ws)) {
+    case Factor::kOk:
+      apply(x, P, ws);
+      return true;
+    case Factor::kNotPositiveDefinite:
+      apply_pseudo_inverse(x, P, ws);
+      return true;
+    case Factor::kNonFinite:
+      return false;
+  }
+  return false;
+}
+
 }  // namespace ncosim::est::kalman

@@ -72,5 +72,10 @@ Factor factor(const Eigen::VectorXd& x, const Eigen::MatrixXd& P, Workspace& ws)
 void apply(Eigen::VectorXd& x, Eigen::MatrixXd& P, const Workspace& ws);
 // The minimum-variance update with a semidefinite S: K = P C' S^+ (allocates).
 void apply_pseudo_inverse(Eigen::VectorXd& x, Eigen::MatrixXd& P, const Workspace& ws);
+// The minimum-variance measurement update of (x, P) with ws.m rows: apply() when S is positive
+// definite, the pseudo-inverse gain when it is only semidefinite (R singular, or P = 0 with
+// R = 0: rows without information get no weight). Returns false, leaving (x, P) untouched, when
+// the innovation or S is not finite.
+bool update(Eigen::VectorXd& x, Eigen::MatrixXd& P, Workspace& ws);
 
 }  // namespace ncosim::est::kalman

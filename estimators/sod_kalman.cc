@@ -61,16 +61,9 @@ class SodKalman final : public Estimator {
         if (!sent) ws_.R(row, row) += p_.virtual_var(hold_.offset(s) + i);
       }
     }
-    switch (kalman::factor(x_, P_, ws_)) {
-      case kalman::Factor::kOk:
-        kalman::apply(x_, P_, ws_);
-        break;
-      case kalman::Factor::kNotPositiveDefinite:
-        kalman::apply_pseudo_inverse(x_, P_, ws_);
-        break;
-      case kalman::Factor::kNonFinite:
-        failed_ = true;
-        return;
+    if (!kalman::update(x_, P_, ws_)) {
+      failed_ = true;
+      return;
     }
     if (!x_.allFinite()) failed_ = true;
   }

@@ -1,5 +1,6 @@
 // sim/compare.cc — `ncosim compare`: reading two output folders, matching and testing rows.
 #include "sim/compare.h"
+#include "sim/csv.h"
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
@@ -29,66 +30,6 @@ std::string slurp(const fs::path& p) {
   std::stringstream ss;
   ss << in.rdbuf();
   return ss.str();
-}
-
-// RFC 4180 records with the line each starts on. Throws on an unterminated quote.
-struct Record {
-  std::vector<std::string> fields;
-  int line = 0;
-};
-
-std::vector<Record> parse_csv(const std::string& text, const std::string& file) {
-  std::vector<Record> out;
-  Record rec;
-  std::string field;
-  bool quoted = false, any = false;
-  int line = 1;
-  rec.line = 1;
-  for (std::size_t i = 0; i < text.size(); ++i) {
-    const char c = text[i];
-    if (quoted) {
-      if (c == '"') {
-        if (i + 1 < text.size() && text[i + 1] == '"') {
-          field += '"';
-          ++i;
-        } else {
-          quoted = false;
-        }
-      } else {
-        if (c == '\n') ++line;
-        field += c;
-      }
-      continue;
-    }
-    if (c == '"') {
-      quoted = true;
-      any = true;
-    } else if (c == ',') {
-      rec.fields.push_back(std::move(field));
-      field.clear();
-      any = true;
-    } else if (c == '\n' || c == '\r') {
-      if (c == '\r' && i + 1 < text.size() && text[i + 1] == '\n') ++i;
-      if (any || !field.empty()) {
-        rec.fields.push_back(std::move(field));
-        out.push_back(std::move(rec));
-      }
-      field.clear();
-      rec = Record{};
-      any = false;
-      ++line;
-      rec.line = line;
-    } else {
-      field += c;
-      any = true;
-    }
-  }
-  if (quoted) throw CompareInputError(fmt::format("{}:{}: unterminated quoted field", file, rec.line));
-  if (any || !field.empty()) {
-    rec.fields.push_back(std::move(field));
-    out.push_back(std::move(rec));
-  }
-  return out;
 }
 
 std::optional<double> parse_number(const std::string& s) {
@@ -142,7 +83,14 @@ RunFolder read_run_folder(const std::string& dir, const std::string& metric) {
   if (!fs::exists(runs) && fs::exists(d / "runs.sqlite")) {
     throw CompareInputError(fmt::format("{}: missing; the folder holds a run store: `ncosim export {}` writes it", file, dir));
   }
-  const auto records = parse_csv(slurp(runs), file);
+  std::vector<CsvRecord> records;
+  try {
+    records = read_csv_records(slurp(runs), file);
+  } catch (const CompareInputError&) {
+    throw;
+  } catch (const ScenarioError& e) {
+    throw CompareInputError(e.what());
+  }
   if (records.empty()) throw CompareInputError(fmt::format("{}: empty file (expected the runs.csv of `ncosim run`)", file));
   const auto& head = records.front().fields;
   auto col = [&](const std::string& name) -> std::size_t {

@@ -9,17 +9,9 @@
 #include <string>
 #include <vector>
 
-namespace ncosim::sim {
+#include "sim/csv.h"
 
-// A CSV file read per RFC 4180 (quoted fields may hold commas, quotes and line breaks).
-struct CsvTable {
-  std::vector<std::string> header;
-  std::vector<std::vector<std::string>> rows;  // every row has header.size() fields
-  int column(const std::string& name) const;   // -1 when absent
-};
-// Throws ScenarioError naming `what` and the line on malformed input (unterminated quote,
-// a row with a different number of fields).
-CsvTable parse_csv(const std::string& text, const std::string& what);
+namespace ncosim::sim {
 
 enum class FigureKind {
   kPerEstimator,  // one case: metric per estimator, CI bars, prediction beside
