@@ -12,6 +12,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -76,6 +77,16 @@ class Link {
     (void)gap;
     return std::nullopt;
   }
+  // The most packets one run may send over this link, when bounded (a replayed trace holds a
+  // fixed number): the scenario reader refuses, before t = 0, sensors or actuators that would
+  // send more, naming the table key `key` and calling the link a `noun` ("trace"). nullopt:
+  // unbounded (every random link).
+  struct PacketBound {
+    std::int64_t packets;
+    std::string_view key;
+    std::string_view noun;
+  };
+  virtual std::optional<PacketBound> packet_bound() const { return std::nullopt; }
 };
 
 // 1 / (1 - p): the mean length of a run of losses of independent packets lost with probability p
@@ -238,6 +249,9 @@ class TraceLink final : public Link {
   // The trace's own mean loss-run length when one sender replays it (gap given).
   std::optional<double> mean_loss_burst(std::optional<int> gap) const override;
   std::size_t size() const { return delays_.size(); }
+  std::optional<PacketBound> packet_bound() const override {
+    return PacketBound{static_cast<std::int64_t>(delays_.size()), "file", "trace"};
+  }
 
  private:
   std::vector<std::optional<std::int64_t>> delays_;

@@ -6,6 +6,7 @@
 
 #include <Eigen/Dense>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "config/config.h"
@@ -33,6 +34,10 @@ struct LinearPlant {
   // The plant's own output matrix when its kind defines one (transfer_function: y = C x),
   // which sensors use with C = "output"; empty otherwise.
   Eigen::MatrixXd C_out;
+  // Non-empty when the true state is not simulated from this model but is the motion of a
+  // vehicle of the scenario's mobility source ([sumo]): the key of the plant table that names
+  // the vehicle. The matrices are then the estimators' design model only (sumo_vehicle).
+  std::string vehicle_key;
   Eigen::Index n() const { return A.rows(); }
   Eigen::Index nu() const { return Bu.cols(); }
   Eigen::Index nw() const { return Bw.cols(); }

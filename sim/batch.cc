@@ -581,8 +581,10 @@ Shard parse_shard(const std::string& text) {
   return Shard{i - 1, n};
 }
 
-int cmd_run_campaign(const RunCommand& cmd) {
-  const Shard shard = cmd.shard.empty() ? Shard{} : parse_shard(cmd.shard);
+namespace {
+
+// --target-ci and --max-runs checked before the scenario is read.
+void check_target_options(const RunCommand& cmd) {
   if (!cmd.target_ci && cmd.max_runs > 0) throw ScenarioError("--max-runs: only with --target-ci");
   if (cmd.target_ci && (!std::isfinite(*cmd.target_ci) || *cmd.target_ci <= 0.0 || *cmd.target_ci >= 1.0)) {
     throw ScenarioError(fmt::format("--target-ci: expected a relative half-width in (0, 1), e.g. 0.01, got {}",
@@ -591,31 +593,130 @@ int cmd_run_campaign(const RunCommand& cmd) {
   if (cmd.target_ci && cmd.max_runs <= 0) {
     throw ScenarioError("--target-ci: --max-runs N is required (the most runs per case before giving up)");
   }
+}
+
+// The --target-ci rule of the campaign (off without the option), checked against its cases and
+// recorded in `meta`.
+TargetRule target_rule(const RunCommand& cmd, const LoadedScenario& loaded, std::map<std::string, std::string>& meta) {
+  if (!cmd.target_ci) return TargetRule{};
+  const auto batch = loaded.cases.front().scenario->run.runs;
+  for (const auto& c : loaded.cases) {
+    if (c.scenario->run.runs != batch) {
+      throw ScenarioError("--target-ci: every sweep case must have the same run.runs (the batch size)");
+    }
+  }
+  if (cmd.max_runs < batch) {
+    throw ScenarioError(fmt::format("--max-runs: expected at least run.runs = {} (one batch), got {}", batch,
+                                    cmd.max_runs));
+  }
+  bool reachable = false;
+  for (const auto& c : loaded.cases) {
+    for (const auto& e : c.scenario->estimators) reachable = reachable || e.design->report().status == "ok";
+  }
+  if (!reachable) throw ScenarioError("--target-ci: no estimator has a working design, so no row has an mse to reach the target");
+  meta["target_ci"] = fmt::format("{:.17g}", *cmd.target_ci);
+  meta["max_runs"] = std::to_string(cmd.max_runs);
+  return target_of(meta, loaded);
+}
+
+// The run store at `path`: created afresh, or with --resume the stored campaign, which must be
+// this one.
+RunStore open_run_store(const RunCommand& cmd, const std::string& path, const std::map<std::string, std::string>& meta) {
+  if (!cmd.resume) return RunStore::create(path, meta);
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) {
+    throw ScenarioError(fmt::format("--resume: no run store to resume in '{}' (expected {})", cmd.out, path));
+  }
+  RunStore store;
+  try {
+    store = RunStore::open(path, true);
+  } catch (const StoreError& e) {
+    throw ScenarioError(fmt::format("--resume: {}", e.what()));
+  }
+  const std::string diff = identity_difference(store.meta(), meta, true);
+  if (!diff.empty()) {
+    throw ScenarioError(fmt::format("--resume: {} holds a different campaign: {} differ(s) (stored vs now); run "
+                                    "without --resume to start afresh, or choose another --out",
+                                    path, diff));
+  }
+  return store;
+}
+
+// The campaign's totals added to what the store holds from earlier sessions.
+void record_session(RunStore& store, double wall, int used_threads, int ranks, int sig) {
+  const auto m = store.meta();
+  double total = wall;
+  try {
+    total += std::stod(m.at("wall_seconds"));
+  } catch (...) {
+  }
+  store.set_meta("wall_seconds", fmt::format("{:.17g}", total));
+  store.set_meta("threads", std::to_string(used_threads));
+  store.set_meta("ranks", std::to_string(ranks));
+  store.set_meta("stopped", sig > 0 ? signal_name(sig) : "");
+}
+
+// What one `run` session did, for its closing line.
+struct SessionTotals {
+  double wall = 0.0;
+  int threads = 1;
+  std::uint64_t simulated = 0, skipped = 0;
+};
+
+// The runs lo..limit-1 of this shard that the store does not hold yet (`done`, sorted); the
+// others are counted in `skipped`.
+std::vector<std::uint64_t> runs_to_do(const std::vector<std::uint64_t>& done, std::uint64_t lo, std::uint64_t limit,
+                                      const Shard& shard, std::uint64_t& skipped) {
+  std::vector<std::uint64_t> todo;
+  auto d = std::lower_bound(done.begin(), done.end(), lo);
+  for (std::uint64_t r = lo; r < limit; ++r) {
+    if (!shard.owns(r)) continue;
+    while (d != done.end() && *d < r) ++d;
+    if (d != done.end() && *d == r) {
+      ++skipped;
+      continue;
+    }
+    todo.push_back(r);
+  }
+  return todo;
+}
+
+// The summary table and closing line on stdout; the exit status (a stop signal's, or
+// kExitFlagged with --fail-on-status and rows not ok).
+int finish_session(const RunCommand& cmd, const std::string& md, const LoadedScenario& loaded, const SessionTotals& t,
+                   const std::string& path, int sig, const std::vector<std::string>& not_ok) {
+  const Scenario& first = *loaded.cases.front().scenario;
+  std::cout << md
+            << fmt::format("\n{} runs x {} periods x {} case(s){} in {:.2f} s on {} thread(s){}; results in {}/\n",
+                           t.simulated, first.run.periods, loaded.cases.size(),
+                           t.skipped > 0 ? fmt::format(" ({} earlier runs resumed)", t.skipped) : "", t.wall,
+                           t.threads, cmd.shard.empty() ? "" : fmt::format(", shard {}", cmd.shard), cmd.out);
+  if (sig > 0) {
+    std::cerr << fmt::format("ncosim: stopped by {}: {} run(s) committed to {}; partial results written; "
+                             "`--resume` continues\n",
+                             signal_name(sig), t.simulated, path);
+    return 128 + sig;
+  }
+  if (cmd.fail_on_status && !not_ok.empty()) {
+    std::string list;
+    for (const auto& r : not_ok) list += "  " + r + "\n";
+    std::cerr << fmt::format("ncosim: --fail-on-status: {} row(s) not ok (results written to {}/):\n{}", not_ok.size(),
+                             cmd.out, list);
+    return kExitFlagged;
+  }
+  return 0;
+}
+
+}  // namespace
+
+int cmd_run_campaign(const RunCommand& cmd) {
+  const Shard shard = cmd.shard.empty() ? Shard{} : parse_shard(cmd.shard);
+  check_target_options(cmd);
   LoadedScenario loaded = load_cases(cmd.file, cmd.sets, cmd.overrides);
   reference_case_index(loaded);  // [paired] reference_case: bad input before t = 0
   const std::string& out = cmd.out;
   auto meta = campaign_meta(loaded, cmd.overrides, cmd.shard.empty() ? "" : fmt::format("{}/{}", shard.index + 1, shard.count));
-  TargetRule rule;
-  if (cmd.target_ci) {
-    const auto batch = loaded.cases.front().scenario->run.runs;
-    for (const auto& c : loaded.cases) {
-      if (c.scenario->run.runs != batch) {
-        throw ScenarioError("--target-ci: every sweep case must have the same run.runs (the batch size)");
-      }
-    }
-    if (cmd.max_runs < batch) {
-      throw ScenarioError(fmt::format("--max-runs: expected at least run.runs = {} (one batch), got {}", batch,
-                                      cmd.max_runs));
-    }
-    bool reachable = false;
-    for (const auto& c : loaded.cases) {
-      for (const auto& e : c.scenario->estimators) reachable = reachable || e.design->report().status == "ok";
-    }
-    if (!reachable) throw ScenarioError("--target-ci: no estimator has a working design, so no row has an mse to reach the target");
-    meta["target_ci"] = fmt::format("{:.17g}", *cmd.target_ci);
-    meta["max_runs"] = std::to_string(cmd.max_runs);
-    rule = target_of(meta, loaded);
-  }
+  const TargetRule rule = target_rule(cmd, loaded, meta);
   // Under mpirun: ranks > 0 simulate what rank 0 hands out; rank 0 goes on alone from here.
   std::unique_ptr<MpiSession> mpi;
   if (mpi_launched()) {
@@ -639,26 +740,7 @@ int cmd_run_campaign(const RunCommand& cmd) {
                              sc0.model.plant.n(), sc0.model.sensors.size());
   }
   const std::string path = store_path(out);
-  RunStore store;
-  if (cmd.resume) {
-    std::error_code ec;
-    if (!std::filesystem::exists(path, ec)) {
-      throw ScenarioError(fmt::format("--resume: no run store to resume in '{}' (expected {})", out, path));
-    }
-    try {
-      store = RunStore::open(path, true);
-    } catch (const StoreError& e) {
-      throw ScenarioError(fmt::format("--resume: {}", e.what()));
-    }
-    const std::string diff = identity_difference(store.meta(), meta, true);
-    if (!diff.empty()) {
-      throw ScenarioError(fmt::format("--resume: {} holds a different campaign: {} differ(s) (stored vs now); run "
-                                      "without --resume to start afresh, or choose another --out",
-                                      path, diff));
-    }
-  } else {
-    store = RunStore::create(path, meta);
-  }
+  RunStore store = open_run_store(cmd, path, meta);
   std::vector<std::vector<std::uint64_t>> stored(loaded.cases.size());
   for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
     std::vector<std::string> names;
@@ -669,9 +751,7 @@ int cmd_run_campaign(const RunCommand& cmd) {
 
   const bool tty = ::isatty(2) != 0;
   StopSignals signals;
-  double wall = 0.0;
-  int used_threads = 1;
-  std::uint64_t simulated = 0, skipped = 0;
+  SessionTotals totals;
   std::vector<char> timed(loaded.cases.size(), 0), ran(loaded.cases.size(), 0);
   std::vector<TraceRow> trace;
   {
@@ -682,18 +762,7 @@ int cmd_run_campaign(const RunCommand& cmd) {
       for (std::size_t c = 0; c < loaded.cases.size() && g_stop.load() == 0; ++c) {
         const Scenario& sc = *loaded.cases[c].scenario;
         const std::uint64_t limit = rule.on() ? hi : static_cast<std::uint64_t>(sc.run.runs);
-        const auto& done = stored[c];
-        std::vector<std::uint64_t> todo;
-        auto d = std::lower_bound(done.begin(), done.end(), lo);
-        for (std::uint64_t r = lo; r < limit; ++r) {
-          if (!shard.owns(r)) continue;
-          while (d != done.end() && *d < r) ++d;
-          if (d != done.end() && *d == r) {
-            ++skipped;
-            continue;
-          }
-          todo.push_back(r);
-        }
+        std::vector<std::uint64_t> todo = runs_to_do(stored[c], lo, limit, shard, totals.skipped);
         if (todo.empty()) continue;
         CampaignOptions opt;
         opt.threads = mpi && cmd.threads == 0 ? 1 : cmd.threads;  // one thread per rank unless asked
@@ -711,9 +780,9 @@ int cmd_run_campaign(const RunCommand& cmd) {
         };
         CampaignResult res = mpi ? mpi->run(sc, c, opt) : run_campaign(sc, opt);
         sink.flush();
-        wall += res.wall_seconds;
-        used_threads = res.threads;
-        simulated += res.runs_done;
+        totals.wall += res.wall_seconds;
+        totals.threads = res.threads;
+        totals.simulated += res.runs_done;
         ran[c] = 1;
         if (!res.trace.empty()) trace = std::move(res.trace);
         if (opt.time_estimators && !res.stopped) {
@@ -752,44 +821,14 @@ int cmd_run_campaign(const RunCommand& cmd) {
     sink.finish();
   }
   const int sig = g_stop.load();
-  {
-    const auto m = store.meta();
-    double total = wall;
-    try {
-      total += std::stod(m.at("wall_seconds"));
-    } catch (...) {
-    }
-    store.set_meta("wall_seconds", fmt::format("{:.17g}", total));
-    store.set_meta("threads", std::to_string(used_threads));
-    store.set_meta("ranks", std::to_string(mpi ? mpi->size() : 1));
-    store.set_meta("stopped", sig > 0 ? signal_name(sig) : "");
-  }
+  record_session(store, totals.wall, totals.threads, mpi ? mpi->size() : 1, sig);
   ExportInfo info;
   info.command_line = cmd.command_line;
   info.stopped = sig > 0 ? signal_name(sig) : "";
   std::vector<std::string> not_ok;
   info.not_ok = &not_ok;
   const std::string md = export_and_close(loaded, store, out, info);
-  const Scenario& first = *loaded.cases.front().scenario;
-  std::cout << md
-            << fmt::format("\n{} runs x {} periods x {} case(s){} in {:.2f} s on {} thread(s){}; results in {}/\n",
-                           simulated, first.run.periods, loaded.cases.size(),
-                           skipped > 0 ? fmt::format(" ({} earlier runs resumed)", skipped) : "", wall, used_threads,
-                           cmd.shard.empty() ? "" : fmt::format(", shard {}", cmd.shard), out);
-  if (sig > 0) {
-    std::cerr << fmt::format("ncosim: stopped by {}: {} run(s) committed to {}; partial results written; "
-                             "`--resume` continues\n",
-                             signal_name(sig), simulated, path);
-    return 128 + sig;
-  }
-  if (cmd.fail_on_status && !not_ok.empty()) {
-    std::string list;
-    for (const auto& r : not_ok) list += "  " + r + "\n";
-    std::cerr << fmt::format("ncosim: --fail-on-status: {} row(s) not ok (results written to {}/):\n{}", not_ok.size(),
-                             out, list);
-    return kExitFlagged;
-  }
-  return 0;
+  return finish_session(cmd, md, loaded, totals, path, sig, not_ok);
 }
 
 int cmd_export(const std::string& dir, const std::string& out, const std::string& command_line) {

@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <iostream>
 #include <limits>
+#include <optional>
 #include <thread>
 
 #include "ncosim_version.h"
@@ -267,6 +268,201 @@ nlohmann::json campaign_manifest(const LoadedScenario& loaded, const std::string
   return manifest(loaded, command_line, threads, wall_seconds);
 }
 
+namespace {
+
+// Every option's storage and every subcommand of the command line (run_cli), filled by CLI11.
+struct CommandLine {
+  CLI::App app{"ncosim: discrete-event co-simulator for state estimation over networks"};
+  CommonArgs a;
+  int threads = 0;
+  bool trace = false;
+  bool quiet = false;
+  double max_memory_mb = resource_limits().memory_bytes / 1e6;
+  double max_work_gflop = resource_limits().work_flops / 1e9;
+  std::vector<CLI::Option*> out_options;
+  RunCommand run_cmd;
+  std::string export_dir, export_out;
+  std::string merge_out;
+  std::vector<std::string> merge_dirs;
+  std::string export_c_dir;
+  FindOptions find_opt;
+  std::string target_text;
+  CodesignOptions cd_opt;
+  CompareCommand cmp;
+  FigureCommands figure_commands;
+  std::string preset;
+  bool csv = false, gnuplot = false;
+  double max_distance = 1000.0, step = 10.0;
+  CLI::App *run = nullptr, *export_cmd = nullptr, *merge = nullptr, *design = nullptr, *find = nullptr,
+           *codesign = nullptr, *compare = nullptr, *check = nullptr, *channel = nullptr, *fit = nullptr;
+  FitArgs fit_args;
+
+  // FILE, --set, --out (when `with_out`) and the resource limits of a command that reads a scenario.
+  void add_common(CLI::App* sub, bool with_out) {
+    sub->add_option("FILE", a.file, "scenario file (TOML)")->required();
+    sub->add_option("--set", a.sets, "override one key before validation: KEY=VALUE (VALUE in TOML)");
+    if (with_out) out_options.push_back(sub->add_option("--out", a.out, "output directory (default: out/<file stem>)"));
+    sub->add_option("--max-memory", max_memory_mb,
+                    fmt::format("memory limit in MB of a design or campaign, estimated before it starts (default {:.0f})",
+                                max_memory_mb))
+        ->check(CLI::Range(1.0, 1e9));
+    sub->add_option("--max-work", max_work_gflop,
+                    fmt::format("work limit in GFLOP of one design, estimated before it starts (default {:.0f})",
+                                max_work_gflop))
+        ->check(CLI::Range(1e-9, 1e12));
+  }
+
+  // run, export, merge: the campaign and its run store.
+  void add_campaign_commands() {
+    run = app.add_subcommand("run", "run the Monte Carlo campaign and write the results");
+    add_common(run, true);
+    // Ranges as in [run] (CLI::PositiveNumber would print its bound as a 300-digit double).
+    run->add_option("--runs", a.overrides.runs, "Monte Carlo runs (overrides run.runs)")
+        ->check(CLI::Range(std::int64_t{1}, std::int64_t{10'000'000}));
+    run->add_option("--periods", a.overrides.periods, "periods per run (overrides run.periods)")
+        ->check(CLI::Range(std::int64_t{1}, std::int64_t{1'000'000'000}));
+    run->add_option("--seed", a.seed, "campaign seed (overrides run.seed)")
+        ->check(CLI::Range(std::int64_t{0}, std::numeric_limits<std::int64_t>::max()));
+    run->add_option("--threads", threads, "worker threads (default: all cores)")
+        ->check(CLI::Range(0, 4096));
+    run->add_flag("--trace", trace, "also write trajectory.csv (x, xhat, arrivals of run 0)");
+    run->add_flag("--quiet", quiet, "no progress line");
+    run->add_flag("--resume", run_cmd.resume,
+                  "continue the campaign whose run store (runs.sqlite) is in --out: only the missing runs");
+    run->add_flag("!--no-timing", run_cmd.timing, "do not measure ns_per_period (no replay after the campaign)");
+    run->add_option("--shard", run_cmd.shard, "run the shard I of N (1-based): the runs r with r % N == I-1");
+    run->add_option("--target-ci", run_cmd.target_ci,
+                    "run batches of run.runs until every row's 95% CI half-width of mse is within REL of its mean");
+    run->add_option("--max-runs", run_cmd.max_runs, "with --target-ci: the most runs per case")
+        ->check(CLI::Range(std::int64_t{1}, std::int64_t{10'000'000}));
+    export_cmd = app.add_subcommand("export", "re-derive every export of a campaign from its run store");
+    export_cmd->add_option("DIR", export_dir, "output folder holding runs.sqlite")->required();
+    export_cmd->add_option("--out", export_out, "write the exports here instead of DIR");
+    merge = app.add_subcommand("merge", "combine the run stores of a campaign's shards and export");
+    merge->add_option("OUT", merge_out, "output folder of the merged campaign")->required();
+    merge->add_option("DIR", merge_dirs, "output folders of the shards (each with runs.sqlite)")->required();
+    run->add_flag("--fail-on-status", run_cmd.fail_on_status,
+                  "exit 3 (after writing the results) when any row's status is not ok, listing those rows");
+  }
+
+  // design, find, codesign: offline design.
+  void add_design_commands() {
+    design = app.add_subcommand("design", "offline design only: write design.json and design.csv");
+    add_common(design, true);
+    design->add_option("--export-c", export_c_dir,
+                       "also write a C99 header and source per jump estimator into this directory");
+    find = app.add_subcommand("find",
+                              "the value of one key at which a design quantity reaches a target (scan + bisection)");
+    add_common(find, false);
+    out_options.push_back(find->add_option("--out", a.out, "also write find.csv and manifest.json into this directory"));
+    find->add_option("--key", find_opt.key, "scenario key path to vary, set as a float (e.g. link[0].delivery)")
+        ->required();
+    find->add_option("--target", target_text, "QUANTITY<=VALUE (or >=, <, >) on a design.json field, "
+                                              "e.g. 'predicted_mse<=0.03'")
+        ->required();
+    find->add_option("--estimator", find_opt.estimators, "estimator name (repeatable; default: every estimator)");
+    find->add_option("--lo", find_opt.lo, "lower end of the key's range")->required();
+    find->add_option("--hi", find_opt.hi, "upper end of the key's range")->required();
+    find->add_option("--tol", find_opt.tol, "bisection stops when the bracket is narrower (default 1e-4)");
+    find->add_option("--scan", find_opt.scan,
+                     "equal intervals scanned before the bisection, to bracket and check monotonicity (default 8)")
+        ->check(CLI::Range(1, 100000));
+    codesign = app.add_subcommand(
+        "codesign", "send-on-delta threshold co-design (greedy, section 4) of the sod_jump estimators: codesign.json");
+    add_common(codesign, true);
+    codesign->add_option("--estimator", cd_opt.estimator, "only this sod_jump estimator");
+    codesign->add_option("--mu", cd_opt.mu, "prescribed bound mu * z~0 (overrides [codesign] mu)")
+        ->check(CLI::Range(1.0, 1e6));
+    codesign->add_flag("--quiet", quiet, "no progress lines");
+  }
+
+  // compare, check, list, plot, report and (SUMO builds) channel.
+  void add_other_commands() {
+    compare = app.add_subcommand(
+        "compare",
+        "compare two `run` output folders row by row (paired where the seeds match): exit 1 on a regression");
+    compare->add_option("BASE", cmp.base, "the baseline output folder")->required();
+    compare->add_option("NEW", cmp.fresh, "the output folder to check")->required();
+    compare->add_option("--metric", cmp.options.metric,
+                        "per-run column of runs.csv (default mse; mse_ext, mde_percent, rmse_xI)");
+    compare->add_option("--tolerance", cmp.options.tolerance,
+                        "relative change never reported as worse or better (default 0; 0.01 = 1 %)");
+    compare->add_option("--alpha", cmp.options.alpha, "significance level of the one-sided tests (default 0.05)");
+    compare->add_option("--correction", cmp.correction, "multiple-testing correction over the rows (default holm)")
+        ->check(CLI::IsMember({"holm", "none"}));
+    compare->add_flag("--allow-scenario-change", cmp.options.allow_scenario_change,
+                      "compare folders of different scenarios or overrides; rows in one folder only are not comparable");
+    compare->add_option("--out", cmp.out, "also write compare.csv and compare.md into this directory");
+    check = app.add_subcommand("check", "parse and validate only");
+    add_common(check, false);
+    app.add_subcommand("list", "list every registered kind with a one-line help");
+    add_figure_commands(app, figure_commands);
+    fit = app.add_subcommand("fit", "fit channel models to a packet trace (seq,delay): a [[link]] table and fit.csv");
+    fit->add_option("TRACE", fit_args.trace, "trace CSV in the `trace` link's format (seq,delay; empty delay = lost)")
+        ->required();
+    fit->add_option("--out", fit_args.out, "output directory (default: out/fit_<trace stem>)");
+    fit->add_option("--family", fit_args.families,
+                    "family to fit (repeatable): bernoulli, delay, gilbert_elliott, markov2 .. markov8 "
+                    "(default: bernoulli, delay, gilbert_elliott, markov2, markov3)");
+    fit->add_option("--criterion", fit_args.criterion, "bic (default) or aic: which family link.toml proposes");
+    fit->add_option("--starts", fit_args.starts, "EM starts per hidden-state family (default 4)")
+        ->check(CLI::Range(1, 100));
+    fit->add_option("--name", fit_args.name, "name of the [[link]] table (default: the trace's file stem)");
+    if (have_sumo()) {
+      channel = app.add_subcommand("channel", "print p(d) and the delay law of a sumo_distance channel preset");
+      channel->add_option("PRESET", preset, "channel preset (see `ncosim list`)")->required();
+      channel->add_flag("--csv", csv, "CSV: distance_m,mean_rx_dbm,p_reception");
+      channel->add_flag("--gnuplot", gnuplot, "print a gnuplot script plotting the CSV");
+      channel->add_option("--max-distance", max_distance, "largest distance (m, default 1000)");
+      channel->add_option("--step", step, "distance step (m, default 10)");
+    }
+  }
+
+  // The parsed command, run. Throws what the commands throw.
+  int dispatch(const std::string& command_line) {
+    if (run->parsed()) {
+      run_cmd.threads = threads;
+      run_cmd.trace = trace;
+      run_cmd.quiet = quiet;
+      run_cmd.command_line = command_line;
+      return cmd_run(a, run_cmd);
+    }
+    if (export_cmd->parsed()) return cmd_export(export_dir, export_out, command_line);
+    if (merge->parsed()) return cmd_merge(merge_out, merge_dirs, command_line);
+    if (design->parsed()) return cmd_design(a, command_line, export_c_dir);
+    if (find->parsed()) return cmd_find(a, find_opt, target_text, command_line);
+    if (check->parsed()) return cmd_check(a);
+    if (compare->parsed()) return run_compare_command(cmp);
+    if (fit->parsed()) return cmd_fit(fit_args);
+    if (const auto status = run_figure_commands(figure_commands)) return *status;
+    if (codesign->parsed()) {
+      cd_opt.progress = !quiet;
+      return cmd_codesign(a, cd_opt, command_line);
+    }
+#if NCOSIM_HAVE_SUMO
+    if (channel != nullptr && channel->parsed()) return sumo::channel_command(preset, csv, gnuplot, max_distance, step);
+#endif
+    return cmd_list();
+  }
+};
+
+// An unknown command named with a did-you-mean (CLI11 would only say "A subcommand is
+// required"): exit status 2, or nothing when argv[1] is a command or an option.
+std::optional<int> unknown_command(const CLI::App& app, int argc, char** argv) {
+  if (argc <= 1 || argv[1][0] == '-') return std::nullopt;
+  std::vector<std::string> commands;
+  for (const CLI::App* sub : app.get_subcommands({})) commands.push_back(sub->get_name());
+  if (std::find(commands.begin(), commands.end(), argv[1]) != commands.end()) return std::nullopt;
+  const std::string hint = did_you_mean(argv[1], commands);
+  std::cerr << fmt::format(
+      "ncosim: expected a command (run, export, merge, design, find, codesign, compare, fit, check, plot, report or list), got "
+      "'{}'{}\n",
+      argv[1], hint.empty() ? "" : fmt::format(" (did you mean '{}'?)", hint));
+  return 2;
+}
+
+}  // namespace
+
 int run_cli(int argc, char** argv) {
 #if NCOSIM_HAVE_SUMO
   // Hidden: one live SUMO run stepped in this process (started by a [sumo] mode = "live" run).
@@ -279,152 +475,14 @@ int run_cli(int argc, char** argv) {
     if (!ec) sumo::set_worker_executable(self.string());
   }
 #endif
-  CLI::App app{"ncosim: discrete-event co-simulator for state estimation over networks"};
+  CommandLine cl;
+  CLI::App& app = cl.app;
   app.set_version_flag("--version", fmt::format("ncosim {} ({})", NCOSIM_VERSION, NCOSIM_GIT_COMMIT));
   app.require_subcommand(1);
-  CommonArgs a;
-  int threads = 0;
-  bool trace = false;
-  bool quiet = false;
-  double max_memory_mb = resource_limits().memory_bytes / 1e6;
-  double max_work_gflop = resource_limits().work_flops / 1e9;
-  std::vector<CLI::Option*> out_options;
-
-  auto add_common = [&](CLI::App* sub, bool with_out) {
-    sub->add_option("FILE", a.file, "scenario file (TOML)")->required();
-    sub->add_option("--set", a.sets, "override one key before validation: KEY=VALUE (VALUE in TOML)");
-    if (with_out) out_options.push_back(sub->add_option("--out", a.out, "output directory (default: out/<file stem>)"));
-    sub->add_option("--max-memory", max_memory_mb,
-                    fmt::format("memory limit in MB of a design or campaign, estimated before it starts (default {:.0f})",
-                                max_memory_mb))
-        ->check(CLI::Range(1.0, 1e9));
-    sub->add_option("--max-work", max_work_gflop,
-                    fmt::format("work limit in GFLOP of one design, estimated before it starts (default {:.0f})",
-                                max_work_gflop))
-        ->check(CLI::Range(1e-9, 1e12));
-  };
-  CLI::App* run = app.add_subcommand("run", "run the Monte Carlo campaign and write the results");
-  add_common(run, true);
-  // Ranges as in [run] (CLI::PositiveNumber would print its bound as a 300-digit double).
-  run->add_option("--runs", a.overrides.runs, "Monte Carlo runs (overrides run.runs)")
-      ->check(CLI::Range(std::int64_t{1}, std::int64_t{10'000'000}));
-  run->add_option("--periods", a.overrides.periods, "periods per run (overrides run.periods)")
-      ->check(CLI::Range(std::int64_t{1}, std::int64_t{1'000'000'000}));
-  run->add_option("--seed", a.seed, "campaign seed (overrides run.seed)")
-      ->check(CLI::Range(std::int64_t{0}, std::numeric_limits<std::int64_t>::max()));
-  run->add_option("--threads", threads, "worker threads (default: all cores)")
-      ->check(CLI::Range(0, 4096));
-  run->add_flag("--trace", trace, "also write trajectory.csv (x, xhat, arrivals of run 0)");
-  run->add_flag("--quiet", quiet, "no progress line");
-  RunCommand run_cmd;
-  run->add_flag("--resume", run_cmd.resume,
-                "continue the campaign whose run store (runs.sqlite) is in --out: only the missing runs");
-  run->add_flag("!--no-timing", run_cmd.timing, "do not measure ns_per_period (no replay after the campaign)");
-  run->add_option("--shard", run_cmd.shard, "run the shard I of N (1-based): the runs r with r % N == I-1");
-  run->add_option("--target-ci", run_cmd.target_ci,
-                  "run batches of run.runs until every row's 95% CI half-width of mse is within REL of its mean");
-  run->add_option("--max-runs", run_cmd.max_runs, "with --target-ci: the most runs per case")
-      ->check(CLI::Range(std::int64_t{1}, std::int64_t{10'000'000}));
-  std::string export_dir, export_out;
-  CLI::App* export_cmd = app.add_subcommand("export", "re-derive every export of a campaign from its run store");
-  export_cmd->add_option("DIR", export_dir, "output folder holding runs.sqlite")->required();
-  export_cmd->add_option("--out", export_out, "write the exports here instead of DIR");
-  std::string merge_out;
-  std::vector<std::string> merge_dirs;
-  CLI::App* merge = app.add_subcommand("merge", "combine the run stores of a campaign's shards and export");
-  merge->add_option("OUT", merge_out, "output folder of the merged campaign")->required();
-  merge->add_option("DIR", merge_dirs, "output folders of the shards (each with runs.sqlite)")->required();
-  run->add_flag("--fail-on-status", run_cmd.fail_on_status,
-                "exit 3 (after writing the results) when any row's status is not ok, listing those rows");
-  CLI::App* design = app.add_subcommand("design", "offline design only: write design.json and design.csv");
-  add_common(design, true);
-  std::string export_c_dir;
-  design->add_option("--export-c", export_c_dir,
-                     "also write a C99 header and source per jump estimator into this directory");
-  CLI::App* find = app.add_subcommand(
-      "find", "the value of one key at which a design quantity reaches a target (scan + bisection)");
-  add_common(find, false);
-  out_options.push_back(find->add_option("--out", a.out, "also write find.csv and manifest.json into this directory"));
-  FindOptions find_opt;
-  std::string target_text;
-  find->add_option("--key", find_opt.key, "scenario key path to vary, set as a float (e.g. link[0].delivery)")
-      ->required();
-  find->add_option("--target", target_text, "QUANTITY<=VALUE (or >=, <, >) on a design.json field, "
-                                            "e.g. 'predicted_mse<=0.03'")
-      ->required();
-  find->add_option("--estimator", find_opt.estimators, "estimator name (repeatable; default: every estimator)");
-  find->add_option("--lo", find_opt.lo, "lower end of the key's range")->required();
-  find->add_option("--hi", find_opt.hi, "upper end of the key's range")->required();
-  find->add_option("--tol", find_opt.tol, "bisection stops when the bracket is narrower (default 1e-4)");
-  find->add_option("--scan", find_opt.scan,
-                   "equal intervals scanned before the bisection, to bracket and check monotonicity (default 8)")
-      ->check(CLI::Range(1, 100000));
-  CodesignOptions cd_opt;
-  CLI::App* codesign = app.add_subcommand(
-      "codesign", "send-on-delta threshold co-design (greedy, section 4) of the sod_jump estimators: codesign.json");
-  add_common(codesign, true);
-  codesign->add_option("--estimator", cd_opt.estimator, "only this sod_jump estimator");
-  codesign->add_option("--mu", cd_opt.mu, "prescribed bound mu * z~0 (overrides [codesign] mu)")
-      ->check(CLI::Range(1.0, 1e6));
-  codesign->add_flag("--quiet", quiet, "no progress lines");
-  CompareCommand cmp;
-  CLI::App* compare = app.add_subcommand(
-      "compare", "compare two `run` output folders row by row (paired where the seeds match): exit 1 on a regression");
-  compare->add_option("BASE", cmp.base, "the baseline output folder")->required();
-  compare->add_option("NEW", cmp.fresh, "the output folder to check")->required();
-  compare->add_option("--metric", cmp.options.metric, "per-run column of runs.csv (default mse; mse_ext, mde_percent, rmse_xI)");
-  compare->add_option("--tolerance", cmp.options.tolerance,
-                      "relative change never reported as worse or better (default 0; 0.01 = 1 %)");
-  compare->add_option("--alpha", cmp.options.alpha, "significance level of the one-sided tests (default 0.05)");
-  compare->add_option("--correction", cmp.correction, "multiple-testing correction over the rows (default holm)")
-      ->check(CLI::IsMember({"holm", "none"}));
-  compare->add_flag("--allow-scenario-change", cmp.options.allow_scenario_change,
-                    "compare folders of different scenarios or overrides; rows in one folder only are not comparable");
-  compare->add_option("--out", cmp.out, "also write compare.csv and compare.md into this directory");
-  CLI::App* check = app.add_subcommand("check", "parse and validate only");
-  add_common(check, false);
-  app.add_subcommand("list", "list every registered kind with a one-line help");
-  FigureCommands figure_commands;
-  add_figure_commands(app, figure_commands);
-  std::string preset;
-  bool csv = false, gnuplot = false;
-  double max_distance = 1000.0, step = 10.0;
-  CLI::App* channel = nullptr;
-  if (have_sumo()) {
-    channel = app.add_subcommand("channel", "print p(d) and the delay law of a sumo_distance channel preset");
-    channel->add_option("PRESET", preset, "channel preset (see `ncosim list`)")->required();
-    channel->add_flag("--csv", csv, "CSV: distance_m,mean_rx_dbm,p_reception");
-    channel->add_flag("--gnuplot", gnuplot, "print a gnuplot script plotting the CSV");
-    channel->add_option("--max-distance", max_distance, "largest distance (m, default 1000)");
-    channel->add_option("--step", step, "distance step (m, default 10)");
-  }
-
-  FitArgs fit_args;
-  CLI::App* fit = app.add_subcommand("fit", "fit channel models to a packet trace (seq,delay): a [[link]] table and fit.csv");
-  fit->add_option("TRACE", fit_args.trace, "trace CSV in the `trace` link's format (seq,delay; empty delay = lost)")
-      ->required();
-  fit->add_option("--out", fit_args.out, "output directory (default: results/fit_<trace stem>)");
-  fit->add_option("--family", fit_args.families,
-                  "family to fit (repeatable): bernoulli, delay, gilbert_elliott, markov2 .. markov8 "
-                  "(default: bernoulli, delay, gilbert_elliott, markov2, markov3)");
-  fit->add_option("--criterion", fit_args.criterion, "bic (default) or aic: which family link.toml proposes");
-  fit->add_option("--starts", fit_args.starts, "EM starts per hidden-state family (default 4)")->check(CLI::Range(1, 100));
-  fit->add_option("--name", fit_args.name, "name of the [[link]] table (default: the trace's file stem)");
-
-  // An unknown command: CLI11 would only say "A subcommand is required".
-  if (argc > 1 && argv[1][0] != '-') {
-    std::vector<std::string> commands;
-    for (const CLI::App* sub : app.get_subcommands({})) commands.push_back(sub->get_name());
-    if (std::find(commands.begin(), commands.end(), argv[1]) == commands.end()) {
-      const std::string hint = did_you_mean(argv[1], commands);
-      std::cerr << fmt::format(
-          "ncosim: expected a command (run, export, merge, design, find, codesign, compare, fit, check, plot, report or list), got "
-          "'{}'{}\n",
-          argv[1],
-          hint.empty() ? "" : fmt::format(" (did you mean '{}'?)", hint));
-      return 2;
-    }
-  }
+  cl.add_campaign_commands();
+  cl.add_design_commands();
+  cl.add_other_commands();
+  if (const auto status = unknown_command(app, argc, argv)) return *status;
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -439,37 +497,15 @@ int run_cli(int argc, char** argv) {
   }
   std::string command_line;
   for (int i = 0; i < argc; ++i) command_line += (i ? " " : "") + std::string(argv[i]);
-  for (const CLI::Option* o : out_options) {
-    if (o->count() > 0 && a.out.empty()) {
+  for (const CLI::Option* o : cl.out_options) {
+    if (o->count() > 0 && cl.a.out.empty()) {
       std::cerr << "ncosim: --out: expected a folder name, got an empty string\n";
       return 2;
     }
   }
-  set_resource_limits({max_memory_mb * 1e6, max_work_gflop * 1e9});
+  set_resource_limits({cl.max_memory_mb * 1e6, cl.max_work_gflop * 1e9});
   try {
-    if (run->parsed()) {
-      run_cmd.threads = threads;
-      run_cmd.trace = trace;
-      run_cmd.quiet = quiet;
-      run_cmd.command_line = command_line;
-      return cmd_run(a, run_cmd);
-    }
-    if (export_cmd->parsed()) return cmd_export(export_dir, export_out, command_line);
-    if (merge->parsed()) return cmd_merge(merge_out, merge_dirs, command_line);
-    if (design->parsed()) return cmd_design(a, command_line, export_c_dir);
-    if (find->parsed()) return cmd_find(a, find_opt, target_text, command_line);
-    if (check->parsed()) return cmd_check(a);
-    if (compare->parsed()) return run_compare_command(cmp);
-    if (const auto status = run_figure_commands(figure_commands)) return *status;
-    if (fit->parsed()) return cmd_fit(fit_args);
-    if (codesign->parsed()) {
-      cd_opt.progress = !quiet;
-      return cmd_codesign(a, cd_opt, command_line);
-    }
-#if NCOSIM_HAVE_SUMO
-    if (channel != nullptr && channel->parsed()) return sumo::channel_command(preset, csv, gnuplot, max_distance, step);
-#endif
-    return cmd_list();
+    return cl.dispatch(command_line);
   } catch (const ScenarioError& e) {
     std::cerr << "ncosim: " << e.what() << "\n";
     return 2;

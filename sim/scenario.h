@@ -14,6 +14,7 @@
 #include "config/config.h"
 #include "config/mobility.h"
 #include "config/run_settings.h"
+#include "config/toml_path.h"
 #include "estimators/estimator.h"
 #include "models/input.h"
 #include "models/link.h"
@@ -94,16 +95,6 @@ LoadedScenario load_cases_text(const std::string& file, const std::string& text,
 // Parses and validates one scenario table (no sweep expansion).
 std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::string& file,
                                          const std::string& dir);
-
-// Applies `KEY=VALUE` (VALUE in TOML syntax) to `doc`. Throws ScenarioError.
-void apply_set(toml::table& doc, const std::string& assignment, const std::string& origin);
-// Sets the value at a key path ("estimator[0].history", "run.runs"). Throws ScenarioError.
-// The copying overload drops the value's source (toml++ copies never carry it); the moving
-// one keeps it, so that later errors at the value point at where it came from.
-void set_path(toml::table& doc, const std::string& path, const toml::node& value,
-              const std::string& origin, int line);
-void set_path(toml::table& doc, const std::string& path, toml::node&& value,
-              const std::string& origin, int line);
 
 std::string fnv1a_hex(const std::string& text);
 

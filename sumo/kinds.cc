@@ -131,7 +131,7 @@ std::unique_ptr<models::Link> read_sumo_distance(const sim::Table& t, const mode
 // The declared kinematic design model of a SUMO vehicle's longitudinal motion. The true
 // state (position along the route, speed[, acceleration]) comes from SUMO.
 models::LinearPlant read_sumo_vehicle(const sim::Table& t, double period) {
-  t.allow("vehicle");  // bound to the mobility by the scenario reader
+  t.allow("vehicle");  // bound to the mobility by the scenario reader (LinearPlant::vehicle_key)
   const std::string model = t.choice_or("model", "constant_velocity", {"constant_velocity", "constant_acceleration"});
   const double q = t.number("q");
   if (!(q > 0.0 && std::isfinite(q))) t.fail("q", fmt::format("expected a positive process-noise intensity, got {}", q));
@@ -141,6 +141,7 @@ models::LinearPlant read_sumo_vehicle(const sim::Table& t, double period) {
   Eigen::MatrixXd Gc = Eigen::MatrixXd::Zero(n, 1);
   Gc(n - 1, 0) = 1.0;
   models::LinearPlant p = models::discretise(Ac, Eigen::MatrixXd::Zero(n, 0), Gc, Eigen::MatrixXd::Constant(1, 1, q), period);
+  p.vehicle_key = "vehicle";
   if (t.has("x0")) {
     p.x0 = t.vector("x0");
     if (p.x0.size() != n) t.fail("x0", fmt::format("expected {} entries (the state size), got {}", n, p.x0.size()));
