@@ -24,11 +24,117 @@ int alphabet(const std::vector<int>& sym) {
   return m + 1;
 }
 
+// The log of a product of many factors in [kTiny, 1]-ish: one log per block of factors instead
+// of one per factor (the product is flushed into the sum before it could underflow).
+class LogProduct {
+ public:
+  void add(double c) {
+    if (c < 1e-20) {
+      sum_ += std::log(c);
+      return;
+    }
+    prod_ *= c;
+    if (prod_ < 1e-280) {
+      sum_ += std::log(prod_);
+      prod_ = 1.0;
+    }
+  }
+  double value() const { return sum_ + std::log(prod_); }
+
+ private:
+  double sum_ = 0.0, prod_ = 1.0;
+};
+
+// The two-state case of e_step (Gilbert–Elliott: every EM iteration of `ncosim fit`'s default
+// family): the same recursions with the model in registers, the inverse scales stored so that
+// the backward pass multiplies instead of dividing (bench/README.md, "ncosim fit").
+double e_step2(const FateHmm& h, const std::vector<int>& sym, Eigen::MatrixXd* A, Eigen::MatrixXd* B,
+               std::vector<double>& alpha, std::vector<double>& inv_scale) {
+  const int M = static_cast<int>(h.emission.cols());
+  const std::size_t N = sym.size();
+  const Eigen::VectorXd pi = h.stationary();
+  const double t00 = h.transition(0, 0), t01 = h.transition(0, 1), t10 = h.transition(1, 0),
+               t11 = h.transition(1, 1);
+  std::vector<double> E(static_cast<std::size_t>(2 * M));
+  for (int m = 0; m < M; ++m) {
+    E[static_cast<std::size_t>(2 * m)] = h.emission(0, m);
+    E[static_cast<std::size_t>(2 * m + 1)] = h.emission(1, m);
+  }
+  alpha.resize(2 * N);
+  inv_scale.resize(N);
+  LogProduct ll;
+  double a0, a1;
+  {
+    const double* e = &E[static_cast<std::size_t>(2 * sym[0])];
+    a0 = pi(0) * e[0];
+    a1 = pi(1) * e[1];
+    const double c = std::max(a0 + a1, kTiny);
+    const double inv = 1.0 / c;
+    a0 *= inv;
+    a1 *= inv;
+    alpha[0] = a0;
+    alpha[1] = a1;
+    inv_scale[0] = inv;
+    ll.add(c);
+  }
+  // Normalised every 16 packets (and when small, and at the last packet) rather than at every
+  // one: the division then leaves the loop's dependency chain. Any positive scales give the same
+  // posteriors as long as the backward pass uses them too and the last step is normalised (then
+  // their product is the likelihood).
+  for (std::size_t t = 1; t < N; ++t) {
+    const double* e = &E[static_cast<std::size_t>(2 * sym[t])];
+    const double n0 = (a0 * t00 + a1 * t10) * e[0];
+    const double n1 = (a0 * t01 + a1 * t11) * e[1];
+    const double sum = n0 + n1;
+    double inv = 1.0;
+    if ((t & 15U) == 0 || sum < 1e-100 || t + 1 == N) {
+      const double c = std::max(sum, kTiny);
+      inv = 1.0 / c;
+      ll.add(c);
+    }
+    a0 = n0 * inv;
+    a1 = n1 * inv;
+    alpha[2 * t] = a0;
+    alpha[2 * t + 1] = a1;
+    inv_scale[t] = inv;
+  }
+  if (A == nullptr) return ll.value();
+  std::vector<double> b(static_cast<std::size_t>(2 * M), 0.0);
+  double b0 = 1.0, b1 = 1.0, x00 = 0.0, x01 = 0.0, x10 = 0.0, x11 = 0.0;
+  for (std::size_t t = N; t-- > 0;) {
+    const double al0 = alpha[2 * t], al1 = alpha[2 * t + 1];
+    double* bs = &b[static_cast<std::size_t>(2 * sym[t])];
+    bs[0] += al0 * b0;
+    bs[1] += al1 * b1;
+    if (t == 0) break;
+    // w_j = e_j(o_t) beta_t(j) / c_t; xi_{t-1}(i, j) = alpha_{t-1}(i) T_ij w_j.
+    const double* e = &E[static_cast<std::size_t>(2 * sym[t])];
+    const double w0 = e[0] * b0 * inv_scale[t], w1 = e[1] * b1 * inv_scale[t];
+    const double p0 = alpha[2 * t - 2], p1 = alpha[2 * t - 1];
+    const double u00 = t00 * w0, u01 = t01 * w1, u10 = t10 * w0, u11 = t11 * w1;
+    x00 += p0 * u00;
+    x01 += p0 * u01;
+    x10 += p1 * u10;
+    x11 += p1 * u11;
+    b0 = u00 + u01;
+    b1 = u10 + u11;
+  }
+  A->resize(2, 2);
+  *A << x00, x01, x10, x11;
+  B->resize(2, M);
+  for (int m = 0; m < M; ++m) {
+    (*B)(0, m) = b[static_cast<std::size_t>(2 * m)];
+    (*B)(1, m) = b[static_cast<std::size_t>(2 * m + 1)];
+  }
+  return ll.value();
+}
+
 // Scaled forward-backward: accumulates expected transition counts A (K x K) and emission counts
 // B (K x M); returns the log-likelihood. `alpha` and `scale` are work buffers.
 double e_step(const FateHmm& h, const std::vector<int>& sym, Eigen::MatrixXd* A, Eigen::MatrixXd* B,
               std::vector<double>& alpha, std::vector<double>& scale) {
   const int K = static_cast<int>(h.transition.rows());
+  if (K == 2) return e_step2(h, sym, A, B, alpha, scale);
   const int M = static_cast<int>(h.emission.cols());
   const std::size_t N = sym.size();
   const Eigen::VectorXd pi = h.stationary();
@@ -40,7 +146,7 @@ double e_step(const FateHmm& h, const std::vector<int>& sym, Eigen::MatrixXd* A,
   }
   alpha.resize(N * static_cast<std::size_t>(K));
   scale.resize(N);
-  double ll = 0.0;
+  LogProduct ll;
   {
     const double* e = &E[static_cast<std::size_t>(sym[0] * K)];
     double c = 0.0;
@@ -48,7 +154,7 @@ double e_step(const FateHmm& h, const std::vector<int>& sym, Eigen::MatrixXd* A,
     c = std::max(c, kTiny);
     for (int j = 0; j < K; ++j) alpha[static_cast<std::size_t>(j)] /= c;
     scale[0] = c;
-    ll += std::log(c);
+    ll.add(c);
   }
   for (std::size_t t = 1; t < N; ++t) {
     const double* prev = &alpha[(t - 1) * static_cast<std::size_t>(K)];
@@ -65,9 +171,9 @@ double e_step(const FateHmm& h, const std::vector<int>& sym, Eigen::MatrixXd* A,
     const double inv = 1.0 / c;
     for (int j = 0; j < K; ++j) cur[j] *= inv;
     scale[t] = c;
-    ll += std::log(c);
+    ll.add(c);
   }
-  if (A == nullptr) return ll;
+  if (A == nullptr) return ll.value();
   A->setZero(K, K);
   B->setZero(K, M);
   std::vector<double> beta(static_cast<std::size_t>(K), 1.0), next(static_cast<std::size_t>(K)),
@@ -96,7 +202,7 @@ double e_step(const FateHmm& h, const std::vector<int>& sym, Eigen::MatrixXd* A,
   for (int i = 0; i < K; ++i) {
     for (int j = 0; j < K; ++j) (*A)(i, j) = a[static_cast<std::size_t>(i * K + j)];
   }
-  return ll;
+  return ll.value();
 }
 
 void normalise_rows(Eigen::MatrixXd& m) {
