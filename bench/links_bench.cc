@@ -38,12 +38,12 @@ double median(std::vector<double> v) {
 void BM_LinkCountersShare(benchmark::State& state) {
   const sim::Scenario& sc = *flagship().cases.front().scenario;
   std::vector<double> off_s, on_s, share;
-  std::size_t flip = 0;
+  std::int64_t iteration = 0;
   for (auto _ : state) {
     double off = 0.0, on = 0.0;
     for (std::int64_t r = 0; r < sc.run.runs; ++r) {
-      for (int pass = 0; pass < 2; ++pass) {
-        const bool count = ((pass + flip++) % 2) == 0;
+      for (std::int64_t pass = 0; pass < 2; ++pass) {
+        const bool count = (pass + r + iteration) % 2 == 0;  // which goes first alternates
         const auto t0 = Clock::now();
         sim::RunLinks links;
         const sim::RunMetrics m = sim::simulate_run(sc, static_cast<std::uint64_t>(r), nullptr, nullptr,
@@ -58,6 +58,7 @@ void BM_LinkCountersShare(benchmark::State& state) {
     off_s.push_back(off);
     on_s.push_back(on);
     share.push_back(100.0 * (on - off) / off);
+    ++iteration;
   }
   state.counters["off_s"] = median(off_s);
   state.counters["on_s"] = median(on_s);
