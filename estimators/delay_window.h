@@ -3,7 +3,7 @@
 // were already used. With `deduplicate` (the Kalman filter: a repeat would count the same
 // noise twice) a buffered sample arriving again is ignored; without it (the jump observer,
 // whose design model lets a buffered packet deliver every fictitious sensor it carries,
-// paper-notes §1, Dolz example 3) every in-window sample of a packet is used.
+// Dolz example 3) every in-window sample of a packet is used.
 #pragma once
 
 #include <Eigen/Dense>

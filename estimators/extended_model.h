@@ -50,7 +50,7 @@ ExtendedModel build_extended(const Model& model, int dbar);
 std::vector<double> pattern_probabilities(const Model& model, const ExtendedModel& ext);
 
 // Expected covariance at every period from the covariance P at update instants, with
-// p0 = P[no measurement] (Dolz eq. (28) corrected, paper-notes §1):
+// p0 = P[no measurement] (Dolz eq. (28) corrected: results/README.md, Dolz Fig. 3):
 // Pt = (1-p0) P + p0 [(1-p0) Abar S_P Abar' + S'_W],  S_X = sum_k p0^k Abar^k X Abar^k'.
 // `stein` is (I - p0 Abar ⊗ Abar)^{-1}.
 Eigen::MatrixXd stein_sum(const Eigen::MatrixXd& stein, const Eigen::MatrixXd& X);

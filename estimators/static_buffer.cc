@@ -1,7 +1,7 @@
 // estimators/static_buffer.cc
 // The constant-gain estimator with a buffer of N periods of Schenato (2008), eqs. (23)–(25),
 // with the optimal gains of Theorem 3 (estimators/design/buffer_design.h, gain indexing of
-// paper-notes §2). At period t the slot of period t-N+1 closes: its estimate is predicted from
+// the gain indexing of scenarios/README.md). At period t the slot of period t-N+1 closes: its estimate is predicted from
 // the closed slot before it and corrected with K_{N-1} if its sample arrived (delay <= N-1);
 // then the open slots t-N+2 .. t are re-predicted from it, the slot of delay k corrected
 // with K_k if its sample has arrived. Several sensors are corrected one after the other in

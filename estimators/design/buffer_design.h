@@ -1,6 +1,6 @@
 // estimators/design/buffer_design.h — Schenato (2008): the operators of the buffered
 // estimators, the optimal static gains of Theorem 3, and the critical arrival probability.
-// Notation of paper-notes §2:
+// Notation (scenarios/README.md, static_buffer):
 //   L_lambda(K, P) = lambda A(I-KC)P(I-KC)'A' + (1-lambda) A P A' + Q + lambda A K R K' A'
 //   Phi_lambda(P)  = A P A' + Q - lambda A P C'(C P C' + R)^-1 C P A'   (= min_K L_lambda(K, P))
 // lambda_h = P[delay <= h]. Every covariance here is of a one-step prediction error unless
@@ -75,7 +75,7 @@ struct CriticalProbability {
 };
 CriticalProbability critical_probability_bisection(const Plant& p, double tolerance = 1e-7);
 
-// Theorem 3 with the gain indexing of paper-notes §2, for lambda[i][k] = P[delay of sensor i
+// Theorem 3 with the gain indexing of scenarios/README.md, for lambda[i][k] = P[delay of sensor i
 // <= k], k = 0 .. N-1: V_N = fixed point of Phi_{lambda_{N-1}}, V_k = Phi_{lambda_k}(V_{k+1}),
 // K_k = slot_gains(V_{k+1}) (K_k = V_{k+1} C'(C V_{k+1} C' + R)^-1 for one sensor). The slot of
 // delay k (0 = the newest) is corrected with K_k.

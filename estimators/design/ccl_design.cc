@@ -276,7 +276,7 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
     }
     return tr;
   };
-  // The exact S4 design (value iteration, paper-notes §1). Every grouping's feasible set lies in
+  // The exact S4 design (value iteration). Every grouping's feasible set lies in
   // S4's (S1-S3 only add equalities): its tr(P) is a certified lower bound for the bisection,
   // far tighter than the LMI relaxation's (the paper starts at 0), and its (P, S_P) is where
   // the first CCL iterate is linearised.

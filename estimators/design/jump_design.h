@@ -1,5 +1,5 @@
 // estimators/design/jump_design.h — offline design of the jump observer gains L(N, pattern)
-// (Dolz et al. 2014, eqs. (16)–(23), paper-notes §1), method "iterative".
+// (Dolz et al. 2014, eqs. (16)–(23)), method "iterative".
 // Each term of the expected-covariance operator (18) is w (F X F' + L eta V eta L') with
 // F = I - L eta Cbar. S4 (a gain per (N, pattern)) uses the closed-form minimiser
 // L = X Cs'(Cs X Cs' + Vs)^-1 and iterates P <- min_L E_L{P} from P = 0 (exact value

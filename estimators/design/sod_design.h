@@ -3,7 +3,7 @@
 // by LMIs on CSDP (lmi/lmi.h), and the greedy threshold co-design of section 4.
 //   deterministic: LMI (11) for every pair of sending patterns (j, k), P_j per pattern;
 //   stochastic:    LMI (20) with one P, imposed at the 2^ns vertices of the probability box
-//                  beta_i in [beta'_i, 1] (exact: Psi is multi-affine in beta; paper-notes §4),
+//                  beta_i in [beta'_i, 1] (exact: Psi is multi-affine in beta),
 //                  blocks of zero-probability patterns dropped (Psi >= 0 reading), or only at
 //                  beta = beta' (the variant that may be the paper's; labelled "lower_vertex").
 // Patterns are over sensors (a sensor sends all its outputs); the paper's example has one output

@@ -31,7 +31,7 @@ Packet packet(int sensor, std::int64_t stamp, const Eigen::VectorXd& y) {
   return p;
 }
 
-// The examples of paper-notes §2: motor (a = 1) and pendulum (a = 1.2).
+// Schenato (2008)'s examples: motor (a = 1) and pendulum (a = 1.2).
 buffer::Plant example(double a) {
   buffer::Plant p;
   p.A.resize(2, 2);
@@ -144,7 +144,7 @@ TEST(BufferDesign, CovarianceOfTheDesignedGainsThroughLEqualsTheorem3) {
 }
 
 TEST(BufferDesign, FourthMomentRadiusMarksHeavyTailsOfThePendulum) {
-  // paper-notes §2: above 1 for the pendulum with N = 8..11, below from 12.
+  // Measured for this project: above 1 for the pendulum with N = 8..11, below from 12.
   for (int N = 8; N <= 16; ++N) {
     const auto g = buffer::design_static_gains(example(1.2), {paper_lambda(N)});
     EXPECT_LT(g.second_moment_radius, 1.0);

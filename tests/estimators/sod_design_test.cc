@@ -37,7 +37,7 @@ double min_eig(const MatrixXd& M) {
 }
 
 TEST(SodDesign, ZTilde0OfExample51) {
-  // paper-notes §4: about 0.236 (an independent cvxopt solution); the printed 0.225 is outside
+  // About 0.236 (an independent cvxopt solution); the printed 0.225 is outside
   // the range the printed matrices' rounding allows (about +-0.003).
   const SodDesignResult r = design_all_measurements(example51());
   ASSERT_TRUE(r.ok) << r.status;

@@ -2,7 +2,7 @@
 // delivery probability of sensor 1 (A3, buffered packets) with tr(Pt) <= 0.03, found by the
 // `ncosim find` search on scenarios/dolz2014_fig5.toml. tr(Pt) is the plant-state block
 // (predicted_mse): with b = 3 the extended-state trace grows with b and 0.03 would be out of reach
-// (paper-notes §1).
+// (checked for this project).
 #include <gtest/gtest.h>
 
 #include <sstream>

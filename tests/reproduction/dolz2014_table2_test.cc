@@ -28,7 +28,7 @@ const std::map<std::string, PaperRow> kTable2{
 TEST(DolzTable2, EveryRowReproducesThePaper) {
   // 40 runs x 50000 periods: the 95% CI of S4 and Kalman is about 0.5% of the value, so the
   // 5% tolerance below is a real test. S4 and Kalman within 5% of the paper; the shared-gain
-  // designs (S1-S3) no worse than the paper (our design beats the paper's, paper-notes §1).
+  // designs (S1-S3) no worse than the paper (our design beats the paper's).
   auto sc = testing::load_one(testing::source_path("scenarios/dolz2014_table2.toml"),
                               {"run.runs=40", "run.periods=50000"});
   CampaignOptions opt;
