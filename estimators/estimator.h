@@ -16,6 +16,7 @@
 #include "config/registry.h"
 #include "models/actuator.h"
 #include "models/link.h"
+#include "models/packet.h"
 #include "models/plant.h"
 #include "models/sensor.h"
 
@@ -47,17 +48,8 @@ struct Model {
   int mode_count() const;
 };
 
-// A packet as delivered: samples of one sensor, newest first, with their sampling periods.
-struct Packet {
-  int sensor = -1;
-  std::int64_t send_period = 0;
-  int count = 0;                      // number of samples
-  std::vector<std::int64_t> stamps;   // stamps[i] = sampling period of sample i
-  Eigen::VectorXd values;             // sample i occupies rows [i*ny, (i+1)*ny)
-  // A copy from an independent-copies link (the design model of Dolz Remark 2.3): it carries
-  // its own measurement noise, so it is a new measurement even if its sample was seen before.
-  bool independent_copy = false;
-};
+// A packet as delivered (models/packet.h).
+using Packet = models::Packet;
 
 // What every estimator knows at the update of period k.
 struct PeriodInput {

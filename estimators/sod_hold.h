@@ -69,7 +69,7 @@ inline Eigen::VectorXd stacked_delta(const Model& model) {
   Eigen::VectorXd d = Eigen::VectorXd::Zero(model.total_outputs());
   Eigen::Index off = 0;
   for (const auto& s : model.sensors) {
-    if (s.spec.policy == models::SensorSpec::Policy::kSendOnDelta) d.segment(off, s.spec.ny()) = s.spec.delta;
+    if (const Eigen::VectorXd* delta = s.spec.deadband()) d.segment(off, s.spec.ny()) = *delta;
     off += s.spec.ny();
   }
   return d;

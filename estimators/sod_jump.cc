@@ -145,7 +145,7 @@ std::unique_ptr<EstimatorDesign> read_sod_jump(const sim::Table& t, const Model&
   bool all_sod = true;
   for (const auto& s : model.sensors) {
     sys.sensor_rows.push_back(sys.sensor_rows.back() + s.spec.ny());
-    const bool sod = s.spec.policy == models::SensorSpec::Policy::kSendOnDelta;
+    const bool sod = s.spec.deadband() != nullptr;
     sys.send_on_delta.push_back(sod);
     all_sod = all_sod && sod;
   }

@@ -148,7 +148,7 @@ std::unique_ptr<EstimatorDesign> read_sod_kalman(const sim::Table& t, const Mode
   }
   p.virtual_var = factor * delta.cwiseProduct(delta);
   p.init = read_initial(t, model);
-  for (const auto& sm : model.sensors) p.send_on_delta.push_back(sm.spec.policy == models::SensorSpec::Policy::kSendOnDelta);
+  for (const auto& sm : model.sensors) p.send_on_delta.push_back(sm.spec.deadband() != nullptr);
   return std::make_unique<SodKalmanDesign>(std::move(p), model, factor);
 }
 

@@ -1,8 +1,10 @@
-// models/controller.h — controllers as plug-ins of the [input] registry. A ControllerDesign is
-// read once per scenario (shared read-only by every run); instantiate() makes the per-run
-// controller, which keeps its own state (an integrator, a reference phase). At the control
-// phase of period k the simulator hands it what a controller node could know (ControlContext)
-// and it writes u[k]. The loop timing is the input's `actuation_delay` (sim/campaign.cc).
+// models/controller.h — every [input] kind is a controller: a plug-in of the input registry.
+// A ControllerDesign is read once per scenario (shared read-only by every run); instantiate()
+// makes the per-run controller, which keeps its own state (an integrator, a reference phase).
+// At the control phase of period k the run hands it what a controller node could know
+// (ControlContext) and it writes u[k]: one virtual call. Built in: none, white,
+// state_feedback (models/input.cc), relay, pi (models/controller.cc). The loop timing is the
+// input's `actuation_delay` (models/input.h).
 #pragma once
 
 #include <Eigen/Dense>
@@ -13,6 +15,7 @@
 #include <vector>
 
 #include "config/config.h"
+#include "kernel/rng.h"
 #include "models/sensor.h"
 
 namespace ncosim::models {
@@ -28,6 +31,7 @@ struct ControlContext {
   const std::vector<Eigen::VectorXd>* measured = nullptr;
   const std::vector<Eigen::VectorXd>* received = nullptr;
   const Eigen::VectorXd* estimate = nullptr;  // the source estimator's xhat[k|k] (nullptr: none)
+  sim::Rng* rng = nullptr;                    // the run's input stream (random inputs)
 };
 
 class Controller {
@@ -44,9 +48,15 @@ class ControllerDesign {
   virtual ~ControllerDesign() = default;
   // Resolves sensor references and checks sizes against the scenario's sensors; errors at
   // `t` (the [input] table). Called once by the scenario builder before any run.
-  virtual void bind(const sim::Table& t, const std::vector<SensorSpec>& sensors) = 0;
-  // The estimator whose estimate the controller reads ("" for none).
+  virtual void bind(const sim::Table&, const std::vector<SensorSpec>&) {}
+  // The estimator whose estimate the controller reads ("" for none) and the key that names it.
   virtual std::string estimate_source() const { return ""; }
+  virtual const char* source_key() const { return "feedback"; }
+  // u[k] depends on the plant (its state, outputs or an estimate): a closed loop.
+  virtual bool closes_loop() const { return true; }
+  // u[k] is computed from sensor outputs (ControlContext::true_output, measured, received):
+  // the run fills them, re-centring is refused, and traces carry the `reference` column.
+  virtual bool sees_outputs() const { return true; }
   virtual std::unique_ptr<Controller> instantiate() const = 0;
 };
 

@@ -1,7 +1,9 @@
-// models/input.cc — [input] readers.
+// models/input.cc — [input] readers and the built-in inputs none, white and state_feedback.
 #include "models/input.h"
 
 #include <fmt/format.h>
+
+#include "models/noise.h"
 
 namespace ncosim::models {
 
@@ -13,45 +15,109 @@ void require_input_channel(const sim::Table& t, const LinearPlant& plant) {
   }
 }
 
-InputSpec read_none(const sim::Table&, const LinearPlant&) { return {}; }
+// u = 0.
+class NoInput final : public Controller {
+ public:
+  void compute(const ControlContext&, Eigen::VectorXd&) override {}
+};
+class NoInputDesign final : public ControllerDesign {
+ public:
+  bool closes_loop() const override { return false; }
+  bool sees_outputs() const override { return false; }
+  std::unique_ptr<Controller> instantiate() const override { return std::make_unique<NoInput>(); }
+};
+
+// u ~ N(0, diag(std^2)), drawn from the run's input stream.
+class WhiteInput final : public Controller {
+ public:
+  explicit WhiteInput(const Eigen::VectorXd& std) : std_(std) {}
+  void compute(const ControlContext& c, Eigen::VectorXd& u) override {
+    draw_standard_normal(*c.rng, u);
+    u = u.cwiseProduct(std_);
+  }
+
+ private:
+  const Eigen::VectorXd& std_;
+};
+class WhiteInputDesign final : public ControllerDesign {
+ public:
+  explicit WhiteInputDesign(Eigen::VectorXd std) : std_(std::move(std)) {}
+  bool closes_loop() const override { return false; }
+  bool sees_outputs() const override { return false; }
+  std::unique_ptr<Controller> instantiate() const override { return std::make_unique<WhiteInput>(std_); }
+
+ private:
+  Eigen::VectorXd std_;
+};
+
+// u = -K x on the true state, or -K xhat on the source estimator's estimate.
+class StateFeedback final : public Controller {
+ public:
+  explicit StateFeedback(const Eigen::MatrixXd& K) : K_(K) {}
+  void compute(const ControlContext& c, Eigen::VectorXd& u) override {
+    u.noalias() = -K_ * (c.estimate != nullptr ? *c.estimate : *c.x);
+  }
+
+ private:
+  const Eigen::MatrixXd& K_;
+};
+class StateFeedbackDesign final : public ControllerDesign {
+ public:
+  StateFeedbackDesign(Eigen::MatrixXd K, std::string source) : K_(std::move(K)), source_(std::move(source)) {}
+  std::string estimate_source() const override { return source_ == "plant" ? "" : source_; }
+  const char* source_key() const override { return "source"; }
+  bool sees_outputs() const override { return false; }
+  std::unique_ptr<Controller> instantiate() const override { return std::make_unique<StateFeedback>(K_); }
+
+ private:
+  Eigen::MatrixXd K_;
+  std::string source_;
+};
+
+InputSpec with(std::shared_ptr<ControllerDesign> design) {
+  InputSpec s;
+  s.source = design->estimate_source();
+  s.controller = std::move(design);
+  return s;
+}
+
+InputSpec read_none(const sim::Table&, const LinearPlant&) { return with(no_input()); }
 
 InputSpec read_white(const sim::Table& t, const LinearPlant& plant) {
   require_input_channel(t, plant);
-  InputSpec s;
-  s.kind = InputSpec::Kind::kWhite;
-  s.std = t.vector("std");
-  if (s.std.size() == 1 && plant.nu() > 1) s.std = Eigen::VectorXd::Constant(plant.nu(), s.std(0));
-  if (s.std.size() != plant.nu()) {
+  Eigen::VectorXd std = t.vector("std");
+  if (std.size() == 1 && plant.nu() > 1) std = Eigen::VectorXd::Constant(plant.nu(), std(0));
+  if (std.size() != plant.nu()) {
     t.fail("std", plant.nu() == 1
-                      ? fmt::format("expected 1 entry (the input size), got {}", s.std.size())
+                      ? fmt::format("expected 1 entry (the input size), got {}", std.size())
                       : fmt::format("expected 1 or {} entries (the input size), got {}", plant.nu(),
-                                    s.std.size()));
+                                    std.size()));
   }
-  if (s.std.minCoeff() < 0) t.fail("std", "expected non-negative standard deviations");
-  return s;
+  if (std.minCoeff() < 0) t.fail("std", "expected non-negative standard deviations");
+  return with(std::make_shared<WhiteInputDesign>(std::move(std)));
 }
 
 InputSpec read_state_feedback(const sim::Table& t, const LinearPlant& plant) {
   require_input_channel(t, plant);
-  InputSpec s;
-  s.kind = InputSpec::Kind::kStateFeedback;
-  s.K = t.matrix("K");
-  sim::require_shape(t, "K", s.K, plant.nu(), plant.n());
-  s.source = t.string_or("source", "plant");
-  return s;
+  Eigen::MatrixXd K = t.matrix("K");
+  sim::require_shape(t, "K", K, plant.nu(), plant.n());
+  const std::string source = t.string_or("source", "plant");
+  if (source.empty()) t.fail("source", "expected \"plant\" or an estimator name, got \"\"");
+  return with(std::make_shared<StateFeedbackDesign>(std::move(K), source));
 }
 
 InputSpec read_controller(const sim::Table& t, const LinearPlant& plant,
                           std::shared_ptr<ControllerDesign> (*reader)(const sim::Table&, Eigen::Index)) {
   require_input_channel(t, plant);
-  InputSpec s;
-  s.kind = InputSpec::Kind::kController;
-  s.controller = reader(t, plant.nu());
-  s.source = s.controller->estimate_source();
-  return s;
+  return with(reader(t, plant.nu()));
 }
 
 }  // namespace
+
+std::shared_ptr<ControllerDesign> no_input() {
+  static const auto none = std::make_shared<NoInputDesign>();
+  return none;
+}
 
 void register_inputs(InputRegistry& registry) {
   registry.add("none", "u = 0", read_none);

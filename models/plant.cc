@@ -5,6 +5,8 @@
 
 #include <unsupported/Eigen/MatrixFunctions>
 
+#include "models/plant_process.h"
+
 namespace ncosim::models {
 
 double LinearPlant::spectral_radius() const {
@@ -248,6 +250,7 @@ LinearPlant read_jump_linear(const sim::Table& t, double period) {
   } else {
     p.mode_initial = stationary_law(p.mode_transition);
   }
+  p.process = jump_linear_process;
   return p;
 }
 

@@ -6,6 +6,8 @@
 
 #include <Eigen/Dense>
 #include <cstdint>
+#include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -13,6 +15,12 @@
 #include "config/registry.h"
 
 namespace ncosim::models {
+
+struct LinearPlant;
+class PlantProcess;
+struct PlantRun;
+// Makes the per-run process of a plant (models/plant_process.h).
+using PlantProcessFactory = std::function<std::unique_ptr<PlantProcess>(const LinearPlant&, const PlantRun&)>;
 
 // One mode of a jump_linear plant: its own A, Bu, Bw, W.
 struct PlantMode {
@@ -38,6 +46,9 @@ struct LinearPlant {
   // vehicle of the scenario's mobility source ([sumo]): the key of the plant table that names
   // the vehicle. The matrices are then the estimators' design model only (sumo_vehicle).
   std::string vehicle_key;
+  // The per-run process of the true plant, set by the kind's reader (empty: the linear process;
+  // jump_linear and sumo_vehicle set theirs: models/plant_process.h).
+  PlantProcessFactory process;
   Eigen::Index n() const { return A.rows(); }
   Eigen::Index nu() const { return Bu.cols(); }
   Eigen::Index nw() const { return Bw.cols(); }

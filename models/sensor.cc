@@ -23,7 +23,7 @@ int read_link_ref(const sim::Table& t, const std::vector<std::string>& links) {
 }
 
 SensorSpec read_sensor(const sim::Table& t, const LinearPlant& plant,
-                       const std::vector<std::string>& links, int index) {
+                       const std::vector<std::string>& links, int index, const SendPolicyRegistry& policies) {
   SensorSpec s;
   s.name = t.string_or("name", fmt::format("y{}", index + 1));
   if (t.is_string("C")) {
@@ -58,22 +58,7 @@ SensorSpec read_sensor(const sim::Table& t, const LinearPlant& plant,
       t.fail("R", "expected a diagonal R with noise = \"uniform\" (independent bounded noises)");
     }
   }
-  const std::string policy = t.choice_or("policy", "periodic", {"periodic", "send_on_delta"});
-  if (policy == "send_on_delta") {
-    s.policy = SensorSpec::Policy::kSendOnDelta;
-    s.delta = t.vector("delta");
-    if (s.delta.size() == 1 && s.ny() > 1) s.delta = Eigen::VectorXd::Constant(s.ny(), s.delta(0));
-    if (s.delta.size() != s.ny()) {
-      t.fail("delta", fmt::format("expected 1 or {} entries (one threshold per output), got {}", s.ny(),
-                                  s.delta.size()));
-    }
-    if (!s.delta.allFinite() || s.delta.minCoeff() < 0.0) {
-      t.fail("delta", "expected finite thresholds >= 0");
-    }
-    if (s.buffer > 0) t.fail("buffer", fmt::format("expected buffer = 0 with policy = \"send_on_delta\", got {}", s.buffer));
-  } else if (t.has("delta")) {
-    t.fail("delta", "expected no threshold with policy = \"periodic\" (set policy = \"send_on_delta\")");
-  }
+  s.policy = policies.lookup(t, "policy", "periodic").factory(t, s);
   return s;
 }
 

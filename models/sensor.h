@@ -1,8 +1,7 @@
 // models/sensor.h — sensors: y = C x + v, v ~ N(0, R) (or bounded: uniform with covariance
 // R), sampled every `every` periods; each packet carries the newest sample and the `buffer`
-// previous ones, with their time stamps. Policy "periodic" sends every sample; policy
-// "send_on_delta" sends a sample only when |y_i - y_i(last sent)| >= delta_i for some
-// output i (the first sample is always sent).
+// previous ones, with their time stamps. When a sample is sent is the sensor's send policy
+// (models/send_policy.h: "periodic", "send_on_delta", or a registered one).
 #pragma once
 
 #include <Eigen/Dense>
@@ -11,6 +10,7 @@
 
 #include "config/config.h"
 #include "models/plant.h"
+#include "models/send_policy.h"
 
 namespace ncosim::models {
 
@@ -25,12 +25,12 @@ struct SensorSpec {
   // draw (the jump observer's design model for buffered packets); "same" (default): the
   // physical case, the sample's own noise every time.
   bool fresh_resend_noise = false;
-  enum class Policy { kPeriodic, kSendOnDelta };
-  Policy policy = Policy::kPeriodic;
-  Eigen::VectorXd delta;  // send_on_delta: threshold per output (ny), >= 0
+  std::shared_ptr<const SendPolicyDesign> policy = periodic_policy();  // `policy` key
   enum class Noise { kGaussian, kUniform };
   Noise noise = Noise::kGaussian;  // uniform: v_i ~ U(-sqrt(3 R_ii), sqrt(3 R_ii)), R diagonal
   Eigen::Index ny() const { return C.rows(); }
+  // The send-on-delta thresholds (ny) when the policy is a send-on-delta dead band, else nullptr.
+  const Eigen::VectorXd* deadband() const { return policy->deadband(); }
 };
 
 // Reads one [[sensor]] table; `links` are the scenario's link names (for `link`).
@@ -39,6 +39,6 @@ struct SensorSpec {
 int read_link_ref(const sim::Table& t, const std::vector<std::string>& links);
 
 SensorSpec read_sensor(const sim::Table& t, const LinearPlant& plant,
-                       const std::vector<std::string>& links, int index);
+                       const std::vector<std::string>& links, int index, const SendPolicyRegistry& policies);
 
 }  // namespace ncosim::models

@@ -254,6 +254,7 @@ int cmd_list() {
   list_registry("link kinds ([[link]] kind)", link_registry());
   list_registry("input kinds ([input] kind)", input_registry());
   list_registry("estimator kinds ([[estimator]] kind)", estimator_registry());
+  list_registry("send policies ([[sensor]] policy)", send_policy_registry());
 #if NCOSIM_HAVE_SUMO
   std::cout << "channel presets (sumo_distance preset; see `ncosim channel PRESET`):\n";
   for (const auto& n : sumo::preset_names()) std::cout << fmt::format("  {:<18} {}\n", n, sumo::preset_help(n));

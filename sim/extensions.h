@@ -9,6 +9,7 @@
 #include "models/input.h"
 #include "models/link_factory.h"
 #include "models/plant.h"
+#include "models/send_policy.h"
 
 namespace ncosim::sim {
 
@@ -18,6 +19,7 @@ struct Registries {
   models::LinkRegistry& links;
   models::InputRegistry& inputs;
   est::EstimatorRegistry& estimators;
+  models::SendPolicyRegistry& send_policies;  // [[sensor]] policy
 };
 using Extension = std::function<void(Registries&)>;
 

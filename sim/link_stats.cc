@@ -36,7 +36,7 @@ std::vector<LinkFlow> link_flows(const Scenario& sc) {
         flow.gap = 1;
       } else {
         const auto& spec = sc.model.sensors[flow.sender].spec;
-        if (spec.policy == models::SensorSpec::Policy::kPeriodic) flow.gap = static_cast<int>(spec.every);
+        if (spec.policy->sends_every_sample()) flow.gap = static_cast<int>(spec.every);
       }
     }
   }

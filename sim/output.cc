@@ -479,11 +479,11 @@ std::string transmissions_csv(const std::vector<SweepAxis>& sweeps, const std::v
         sent += run[0].sensor_sent[s];
         for (std::size_t i = 0; i < sse.size(); ++i) sse[i] += run[0].sensor_virtual_sse[s][i];
       }
-      const bool sod = spec.policy == models::SensorSpec::Policy::kSendOnDelta;
+      const Eigen::VectorXd* delta = spec.deadband();
       for (Eigen::Index i = 0; i < spec.ny(); ++i) {
         for (const auto& l : labels[c]) out += csv_field(l) + ",";
-        out += fmt::format("{},{},{},{},{},{},{},{}\n", csv_field(spec.name), i + 1, sod ? "send_on_delta" : "periodic",
-                           sod ? fmt::format("{:.6g}", spec.delta(i)) : "", taken, sent,
+        out += fmt::format("{},{},{},{},{},{},{},{}\n", csv_field(spec.name), i + 1, csv_field(spec.policy->name()),
+                           delta != nullptr ? fmt::format("{:.6g}", (*delta)(i)) : "", taken, sent,
                            fmt_number(taken > 0 ? std::optional<double>(static_cast<double>(sent) / static_cast<double>(taken))
                                                 : std::nullopt),
                            fmt_number(taken > 0 ? std::optional<double>(std::sqrt(sse[static_cast<std::size_t>(i)] /
@@ -509,7 +509,7 @@ std::string trajectory_csv(const Scenario& sc, const std::vector<TraceRow>& trac
       out += "," + csv_field(s.spec.ny() == 1 ? fmt::format("y:{}", s.spec.name) : fmt::format("y:{}:{}", s.spec.name, i + 1));
     }
   }
-  const bool has_reference = sc.input.kind == models::InputSpec::Kind::kController;
+  const bool has_reference = sc.input.controller->sees_outputs();
   if (has_reference) out += ",reference";
   const bool modes = sc.model.mode_count() > 0;
   if (modes) {

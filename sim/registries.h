@@ -5,6 +5,7 @@
 #include "models/input.h"
 #include "models/link_factory.h"
 #include "models/plant.h"
+#include "models/send_policy.h"
 #include "sim/scenario.h"
 
 namespace ncosim::sim {
@@ -13,6 +14,7 @@ const models::PlantRegistry& plant_registry();
 const models::LinkRegistry& link_registry();
 const models::InputRegistry& input_registry();
 const est::EstimatorRegistry& estimator_registry();
+const models::SendPolicyRegistry& send_policy_registry();
 
 // The [sumo] table's reader: ScenarioError when this build has no SUMO (NCOSIM_SUMO=OFF).
 std::shared_ptr<MobilitySource> make_mobility(const Table& t, const RunSettings& run, const std::string& dir);

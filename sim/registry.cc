@@ -49,6 +49,7 @@ struct AllRegistries {
   models::LinkRegistry links;
   models::InputRegistry inputs;
   est::EstimatorRegistry estimators;
+  models::SendPolicyRegistry send_policies;
 };
 
 const AllRegistries& all_registries() {
@@ -58,18 +59,20 @@ const AllRegistries& all_registries() {
     models::register_links(a.links);
     models::register_inputs(a.inputs);
     est::register_estimators(a.estimators);
+    models::register_send_policies(a.send_policies);
 #if NCOSIM_HAVE_SUMO
     sumo::register_plants(a.plants);
     sumo::register_links(a.links);
 #endif
     std::lock_guard<std::mutex> lock(extension_mutex());
-    Registries view{a.plants, a.links, a.inputs, a.estimators};
+    Registries view{a.plants, a.links, a.inputs, a.estimators, a.send_policies};
     for (const auto& e : extensions()) e(view);
     registries_built() = true;
     check_unique(a.plants, "plant");
     check_unique(a.links, "link");
     check_unique(a.inputs, "input");
     check_unique(a.estimators, "estimator");
+    check_unique(a.send_policies, "send policy");
     return a;
   }();
   return r;
@@ -89,6 +92,7 @@ const models::PlantRegistry& plant_registry() { return all_registries().plants; 
 const models::LinkRegistry& link_registry() { return all_registries().links; }
 const models::InputRegistry& input_registry() { return all_registries().inputs; }
 const est::EstimatorRegistry& estimator_registry() { return all_registries().estimators; }
+const models::SendPolicyRegistry& send_policy_registry() { return all_registries().send_policies; }
 
 bool have_sumo() { return NCOSIM_HAVE_SUMO != 0; }
 

@@ -113,7 +113,7 @@ void read_sensors(const Table& root, Scenario& sc) {
   for (std::size_t i = 0; i < sensor_tables.size(); ++i) {
     const Table& t = sensor_tables[i];
     est::SensorModel sm;
-    sm.spec = models::read_sensor(t, sc.model.plant, links, static_cast<int>(i));
+    sm.spec = models::read_sensor(t, sc.model.plant, links, static_cast<int>(i), send_policy_registry());
     if (!sensor_names.insert(sm.spec.name).second) {
       t.fail("name", fmt::format("expected a unique sensor name, got \"{}\" twice", sm.spec.name));
     }
@@ -221,10 +221,7 @@ void read_estimators(const Table& root, const toml::table& doc, const std::strin
 }
 
 void bind_feedback_source(const std::optional<Table>& input, Scenario& sc) {
-  const bool reads_estimate =
-      (sc.input.kind == models::InputSpec::Kind::kStateFeedback && sc.input.source != "plant") ||
-      (sc.input.kind == models::InputSpec::Kind::kController && !sc.input.source.empty());
-  if (!reads_estimate) return;
+  if (sc.input.source.empty()) return;  // the input reads no estimate
   for (std::size_t i = 0; i < sc.estimators.size(); ++i) {
     if (sc.estimators[i].name == sc.input.source) sc.input.source_index = static_cast<int>(i);
   }
@@ -234,7 +231,7 @@ void bind_feedback_source(const std::optional<Table>& input, Scenario& sc) {
   std::string list;
   for (const auto& n : names) list += (list.empty() ? "" : ", ") + fmt::format("\"{}\"", n);
   const std::string hint = did_you_mean(sc.input.source, names);
-  input->fail(sc.input.kind == models::InputSpec::Kind::kController ? "feedback" : "source",
+  input->fail(sc.input.controller->source_key(),
               fmt::format("expected \"plant\" or an estimator name ({}), got \"{}\"{}", list, sc.input.source,
                           hint.empty() ? "" : fmt::format(" (did you mean \"{}\"?)", hint)));
 }
@@ -243,12 +240,11 @@ void choose_recentre(const Table& root, Scenario& sc) {
   // Re-centring: an open-loop unstable plant is simulated in coordinates that the known
   // input keeps bounded; the estimation error is unchanged (scenarios/README.md).
   const bool unstable = sc.model.plant.spectral_radius() >= 1.0;
-  const bool feedback = sc.input.kind == models::InputSpec::Kind::kStateFeedback ||
-                        sc.input.kind == models::InputSpec::Kind::kController;
+  const bool feedback = sc.input.controller->closes_loop();
   // Send-on-delta sensors decide on the output itself: re-centring would change what they send.
   bool send_on_delta = false;
   for (const auto& sm : sc.model.sensors) {
-    send_on_delta = send_on_delta || sm.spec.policy == models::SensorSpec::Policy::kSendOnDelta;
+    send_on_delta = send_on_delta || !sm.spec.policy->sends_every_sample();
   }
   auto refuse = [&](const std::string& why) { root.table("run").fail("recentre", why); };
   if (sc.plant_vehicle >= 0) {
@@ -268,7 +264,7 @@ void choose_recentre(const Table& root, Scenario& sc) {
                        "\"always\" (the controller would see re-centred estimates)",
                        sc.input.source));
   }
-  if (sc.recentre && sc.input.kind == models::InputSpec::Kind::kController) {
+  if (sc.recentre && sc.input.controller->sees_outputs()) {
     refuse("expected \"auto\" or \"never\" with a controller input (it would see re-centred outputs), got "
            "\"always\"");
   }

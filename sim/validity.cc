@@ -40,8 +40,9 @@ std::string design_model_departure(const Scenario& sc, std::size_t e) {
   std::vector<std::string> physical;  // links with one copy per sample and several possible delays
   for (const auto& s : sc.model.sensors) {
     const auto& spec = s.spec;
-    if (spec.policy == models::SensorSpec::Policy::kSendOnDelta) {
-      why.push_back(fmt::format("sensor '{}' sends on delta (what arrives depends on the state)", spec.name));
+    if (!spec.policy->sends_every_sample()) {
+      why.push_back(fmt::format("sensor '{}' sends by policy \"{}\" (what arrives depends on the state)", spec.name,
+                                spec.policy->name()));
       continue;
     }
     if (jump && spec.every > 1) {

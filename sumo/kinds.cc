@@ -5,6 +5,7 @@
 #include <iostream>
 
 #include "kernel/time.h"
+#include "models/plant_process.h"
 #include "sumo/channel.h"
 #include "sumo/mobility.h"
 #include "sumo/sumo.h"
@@ -142,6 +143,7 @@ models::LinearPlant read_sumo_vehicle(const sim::Table& t, double period) {
   Gc(n - 1, 0) = 1.0;
   models::LinearPlant p = models::discretise(Ac, Eigen::MatrixXd::Zero(n, 0), Gc, Eigen::MatrixXd::Constant(1, 1, q), period);
   p.vehicle_key = "vehicle";
+  p.process = models::vehicle_process;
   if (t.has("x0")) {
     p.x0 = t.vector("x0");
     if (p.x0.size() != n) t.fail("x0", fmt::format("expected {} entries (the state size), got {}", n, p.x0.size()));

@@ -9,6 +9,7 @@ int main(int argc, char** argv) {
     register_alpha_beta(r.estimators);
     register_mass_spring_damper(r.plants);
     register_periodic_outage(r.links);
+    register_deadband_heartbeat(r.send_policies);
   });
   return ncosim::sim::run_cli(argc, argv);
 }

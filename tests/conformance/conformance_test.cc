@@ -32,6 +32,7 @@ TEST(Conformance, KindsHaveAConformanceEntryAndHelp) {
   expect_entries(link_registry(), kLinks, "link");
   expect_entries(plant_registry(), kPlants, "plant");
   expect_entries(input_registry(), kInputs, "input");
+  expect_entries(send_policy_registry(), kSendPolicies, "send policy");
 }
 
 std::vector<std::string> all_estimators() {
@@ -151,6 +152,42 @@ TEST(Conformance, EveryPlantAndInputKindBuildsAndRuns) {
       const auto rows = summarise(*sc, run_campaign(*sc, opt), {});
       EXPECT_EQ(rows.front().status, "ok");
     }
+  }
+}
+
+TEST(Conformance, EverySendPolicyDecidesAndKeepsTheRunDeterministic) {
+  // Every policy on both sensors: the run completes with finite errors, sends at most what was
+  // taken (all of it when the policy says it sends every sample), repeats bit for bit, and names
+  // itself in transmissions.csv.
+  for (const auto& p : send_policy_registry().entries()) {
+    SCOPED_TRACE("send policy " + p.name);
+    TempDir dir;
+    std::string text = scenario_text("lti", "white", "bernoulli", {"kalman_extended"});
+    const std::string keys = "policy = \"" + p.name + "\"\n" + kSendPolicies.at(p.name) + "\n";
+    for (std::size_t at = text.find("[[sensor]]\n"); at != std::string::npos; at = text.find("[[sensor]]\n", at + 1)) {
+      text.insert(at + 11, keys);
+    }
+    auto sc = testing::load_one(write_scenario(dir, text));
+    ASSERT_EQ(sc->model.sensors.size(), 2u);
+    EXPECT_EQ(sc->model.sensors[0].spec.policy->name(), p.name);
+    CampaignOptions opt;
+    opt.time_estimators = false;
+    const auto a = run_campaign(*sc, opt);
+    const auto b = run_campaign(*sc, opt);
+    for (std::size_t r = 0; r < a.runs.size(); ++r) {
+      const auto& m = a.runs[r][0];
+      EXPECT_TRUE(std::isfinite(m.sse)) << "run " << r;
+      EXPECT_EQ(m.sse, b.runs[r][0].sse) << "run " << r;
+      for (std::size_t s = 0; s < 2; ++s) {
+        EXPECT_GT(m.sensor_taken[s], 0);
+        EXPECT_LE(m.sensor_sent[s], m.sensor_taken[s]);
+        if (sc->model.sensors[s].spec.policy->sends_every_sample()) {
+          EXPECT_EQ(m.sensor_sent[s], m.sensor_taken[s]);
+        }
+      }
+    }
+    const std::string csv = transmissions_csv({}, {{}}, {sc.get()}, {&a});
+    EXPECT_NE(csv.find("," + p.name + ","), std::string::npos) << csv;
   }
 }
 

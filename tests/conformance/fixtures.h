@@ -74,6 +74,12 @@ inline const std::map<std::string, std::string> kInputs{
     {"pi", "kp = 0.1\nki = 0.05\nb = 0.7\nu_min = -1.0\nu_max = 1.0\nreference = {kind = \"square\", low = 0.0, high = 1.0, period = 50.0}"},
 };
 
+// Send policies ([[sensor]] policy): the keys each needs on a one-output sensor.
+inline const std::map<std::string, std::string> kSendPolicies{
+    {"periodic", ""},
+    {"send_on_delta", "delta = 0.05"},
+};
+
 struct TempDir {
   std::filesystem::path path;
   TempDir() {

@@ -1,6 +1,7 @@
 # tests/install/example_test.cmake — run by CTest: install the build into WORK_DIR/prefix,
 # build examples/custom_estimator against it (find_package(ncosim)), run its scenario and check
-# that the example's kinds are listed and that its estimator has a row in summary.csv.
+# that the example's kinds are listed, that its estimator has a row in summary.csv and that its
+# send policy skipped some samples (transmissions.csv).
 foreach(v BUILD_DIR SOURCE_DIR WORK_DIR CXX)
   if(NOT DEFINED ${v})
     message(FATAL_ERROR "example_test.cmake: ${v} not set")
@@ -29,7 +30,7 @@ run("building the example" ${CMAKE_COMMAND} --build ${WORK_DIR}/build -j2)
 
 set(exe ${WORK_DIR}/build/my_ncosim)
 run("my_ncosim list" ${exe} list)
-foreach(kind alpha_beta mass_spring_damper periodic_outage kalman_extended)
+foreach(kind alpha_beta mass_spring_damper periodic_outage deadband_heartbeat kalman_extended)
   string(FIND "${last_output}" "${kind}" at)
   if(at EQUAL -1)
     message(FATAL_ERROR "my_ncosim list does not show ${kind}:\n${last_output}")
@@ -47,5 +48,19 @@ endforeach()
 if(NOT found)
   file(READ ${WORK_DIR}/out/summary.csv text)
   message(FATAL_ERROR "no alpha_beta row in summary.csv:\n${text}")
+endif()
+# The example's send policy decided: transmissions.csv names it, and it skipped some samples.
+file(STRINGS ${WORK_DIR}/out/transmissions.csv sensor_rows REGEX "deadband_heartbeat")
+list(LENGTH sensor_rows n_policy_rows)
+if(n_policy_rows EQUAL 0)
+  file(READ ${WORK_DIR}/out/transmissions.csv text)
+  message(FATAL_ERROR "no deadband_heartbeat row in transmissions.csv:\n${text}")
+endif()
+list(GET sensor_rows 0 policy_row)
+string(REPLACE "," ";" fields "${policy_row}")
+list(GET fields 4 taken)
+list(GET fields 5 sent)
+if(NOT sent LESS taken OR sent EQUAL 0)
+  message(FATAL_ERROR "deadband_heartbeat sent ${sent} of ${taken} samples: expected some but not all:\n${policy_row}")
 endif()
 message(STATUS "example built against the installed package and ran: ${WORK_DIR}/out/summary.csv")

@@ -1,0 +1,35 @@
+// sim/run.h — one Monte Carlo run: the kernel's event queue routing between the run's
+// components: the plant process, the sensors (models/sensor_process.h), the links, the
+// estimators, the controller (models/controller.h), the actuation path and the recorder
+// (sim/run_recorder.h). Each event handler is a few lines that hand one component's output
+// to the next; the components own their state and random streams.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <vector>
+
+#include "sim/campaign.h"
+
+namespace ncosim::sim {
+
+// The first periods of one run as the estimators saw them, replayed to time each estimator
+// alone. Bounded: the replay's memory and time do not grow with the periods of a run.
+inline constexpr std::size_t kReplayPeriods = 10000;
+struct ReplayLog {
+  std::vector<est::Packet> packets;
+  std::vector<std::int64_t> packet_period;
+  std::vector<Eigen::VectorXd> u, drive;  // per period
+  std::size_t limit = kReplayPeriods;     // periods logged
+};
+
+// Simulates run `run`; `trace`, `log` and `links` are optional outputs.
+RunMetrics execute_run(const Scenario& sc, std::uint64_t run, std::vector<TraceRow>* trace, ReplayLog* log,
+                       std::vector<models::LinkCounters>* links);
+
+// Replays a logged run into a fresh instance of each estimator and times it alone: the median
+// over repetitions of (wall time / periods). At least one repetition, at most 15, more only
+// while the estimator's `budget` lasts.
+std::vector<double> time_estimators(const Scenario& sc, const ReplayLog& log, std::chrono::nanoseconds budget);
+
+}  // namespace ncosim::sim
