@@ -356,7 +356,9 @@ struct Problem::Impl {
   void objective_raw(const LinearForm& f, double sign) {
     c = Eigen::VectorXd::Zero(nraw);
     c0 = sign * f.constant;
-    for (const auto& [e, w] : f.parts) {
+    for (const auto& part : f.parts) {
+      const auto& e = part.first;
+      const auto& w = part.second;  // a reference, not a structured binding: lambdas capture it (clang 14)
       if (w.rows() != e.rows() || w.cols() != e.cols()) throw Error("lmi: objective weight shape mismatch");
       for (const auto& t : e.terms())
         if (t.problem != serial) throw Error("lmi: objective uses a variable of another problem");
