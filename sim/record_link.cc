@@ -38,11 +38,11 @@ std::vector<std::size_t> senders(const Scenario& sc, std::size_t l) {
   for (std::size_t s = 0; s < sc.model.sensors.size(); ++s) {
     const auto& spec = sc.model.sensors[s].spec;
     if (spec.link != static_cast<int>(l)) continue;
-    if (spec.policy != models::SensorSpec::Policy::kPeriodic) {
+    if (!spec.policy->sends_every_sample()) {
       throw ScenarioError(fmt::format(
-          "--link: sensor {} on link '{}' sends on delta (its send times depend on the simulation): only "
-          "periodic sensors can be recorded",
-          s, name));
+          "--link: sensor {} on link '{}' sends by policy \"{}\" (its send times depend on the simulation): only "
+          "sensors that send every sample can be recorded",
+          s, name, spec.policy->name()));
     }
     out.push_back(s);
   }

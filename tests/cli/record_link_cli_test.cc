@@ -161,7 +161,7 @@ TEST_F(RecordLinkCli, BadInputIsExit2AndWritesNothing) {
   const std::string sod = replace(base_, "R = [[0.01]]\n", "R = [[0.01]]\npolicy = \"send_on_delta\"\ndelta = [0.1]\n");
   const std::vector<Bad> bad{
       {base_, {"--link", "net9"}, "--link: expected the name of a [[link]] of"},
-      {sod, {"--link", "net1"}, "sends on delta"},
+      {sod, {"--link", "net1"}, "sends by policy \"send_on_delta\""},
       {base_, {"--link", "net1", "--runs", "30000"}, "more than the 50000000 packets a trace link reads"},
   };
   for (const auto& b : bad) {
