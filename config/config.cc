@@ -135,7 +135,20 @@ Table::Table(const toml::table& table, std::string path, std::string file)
       file_(std::move(file)),
       known_(std::make_shared<std::set<std::string, std::less<>>>()) {}
 
-int Table::line() const { return static_cast<int>(table_->source().begin.line); }
+int Table::line() const {
+  const int own = static_cast<int>(table_->source().begin.line);
+  if (own > 0) return own;
+  // A table that only an override made (a [[sweep]] key below a table the file lacks) has no
+  // place of its own: point at the first value the file gave it (the sweep's values).
+  int first = 0;
+  for (auto&& [key, node] : *table_) {
+    const toml::source_region& src = node.source();
+    if (src.path && src.path->starts_with(kCommandLineOrigin)) continue;
+    const int l = static_cast<int>(src.begin.line);
+    if (l > 0 && (first == 0 || l < first)) first = l;
+  }
+  return first;
+}
 
 std::string Table::key_path(std::string_view key) const {
   return path_.empty() ? std::string(key) : fmt::format("{}.{}", path_, key);

@@ -285,6 +285,22 @@ TEST_F(Reliability, AMissingRequiredTableNamesTheFileAndTheTable) {
   EXPECT_NE(o.output.find(file + ":1: key 'plant': expected a [plant] table"), std::string::npos) << o.output;
 }
 
+// Found by the 10^6-mutant structured fuzz campaign: a [[sweep]] key below a table the file
+// lacks made that table with no line, and the table's missing required key had no FILE:LINE.
+TEST_F(Reliability, ATableOnlyASweepMakesNamesTheSweepsLine) {
+  write("trace.csv", trace_csv(400));
+  std::string text = kSmall;
+  const std::size_t from = text.find("[plant]");
+  text.erase(from, text.find("[[sensor]]") - from);
+  text += "\n[[sweep]]\nkey = \"plant.W\"\nvalues = [[[0.01, 0.0], [0.0, 0.01]], [[0.02, 0.0], [0.0, 0.02]]]\n";
+  const std::string file = write("sweepplant.toml", text);
+  std::size_t values_line = 1;
+  for (std::size_t i = 0; i < text.find("values = [[["); ++i) values_line += text[i] == '\n' ? 1 : 0;
+  const Outcome o = ncosim({"check", file});
+  EXPECT_EQ(o.code, 2) << o.output;
+  EXPECT_NE(o.output.find(fmt::format("{}:{}: key 'plant.", file, values_line)), std::string::npos) << o.output;
+}
+
 // Finding 8: R = 0 and delta = 0 in the send-on-delta design gave design_lmi_invalid_problem,
 // a status the docs called a bug.
 TEST_F(Reliability, DegenerateSendOnDeltaDesignsGetAClearStatus) {
