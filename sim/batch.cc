@@ -743,7 +743,7 @@ struct RunSession {
   bool tty = false;       // stderr is a terminal: a progress line, else (without --quiet) a progress log
   std::vector<std::vector<std::uint64_t>> stored;  // per case: the runs the store held at the start
   SessionTotals totals;
-  std::vector<char> timed, ran;  // per case: ns_per_period stored / runs simulated in this session
+  std::vector<char> timed, ran;  // per case: ns_per_period stored / a campaign of it ran in this session
   std::vector<TraceRow> trace;   // run 0 of the first case, with --trace
 };
 
