@@ -457,24 +457,32 @@ GilbertElliottByMean gilbert_elliott_by_mean(double mean_loss, double mean_burst
 // ---------------------------------------------------------------------------------------
 // TraceLink
 
-TraceLink::TraceLink(std::vector<std::optional<std::int64_t>> delays) : delays_(std::move(delays)) {
+TraceLink::TraceLink(std::vector<std::optional<std::int64_t>> delays, std::size_t segment)
+    : delays_(std::move(delays)), segment_(segment) {
   for (const auto& d : delays_) NCOSIM_CHECK(!d || *d >= 0);
+  NCOSIM_CHECK(segment_ <= delays_.size());
 }
 
 std::unique_ptr<Link> TraceLink::clone() const {
   auto copy = std::make_unique<TraceLink>(*this);
+  copy->start_ = 0;
   copy->next_ = 0;
   return copy;
 }
 
+void TraceLink::bind_run(const sim::MobilityRun* mobility, std::uint64_t seed, std::uint64_t run) {
+  (void)mobility, (void)seed;
+  start_ = segment_ > 0 ? static_cast<std::size_t>(run % (delays_.size() / segment_)) * segment_ : 0;
+}
+
 void TraceLink::reset(sim::Rng& rng) {
   (void)rng;
-  next_ = 0;
+  next_ = start_;
 }
 
 std::int64_t TraceLink::transmit(sim::Rng& rng) {
   (void)rng;
-  NCOSIM_CHECK(next_ < delays_.size());
+  NCOSIM_CHECK(next_ < (segment_ > 0 ? start_ + segment_ : delays_.size()));
   const auto& d = delays_[next_++];
   return d ? *d : kLost;
 }

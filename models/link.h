@@ -236,12 +236,16 @@ GilbertElliottByMean gilbert_elliott_by_mean(double mean_loss, double mean_burst
 
 // Replays a recorded trace: packet k (k-th packet sent on this link in the run) has
 // delay delays[k] periods, or is lost when delays[k] is empty. Every run replays it
-// from the start. Sending more packets than the trace holds is a programmer error:
-// the scenario reader checks the length before the run.
+// from the start; with `segment` S > 0 the trace is cut into floor(size / S) segments of S
+// rows and run r replays segment r mod floor(size / S) (the layout `ncosim record-link`
+// writes: run r's packets in rows r S .. r S + S - 1). Sending more packets than the trace
+// (or a segment) holds is a programmer error: the scenario reader checks the length before
+// the run.
 class TraceLink final : public Link {
  public:
-  explicit TraceLink(std::vector<std::optional<std::int64_t>> delays);
+  explicit TraceLink(std::vector<std::optional<std::int64_t>> delays, std::size_t segment = 0);
   std::unique_ptr<Link> clone() const override;
+  void bind_run(const sim::MobilityRun* mobility, std::uint64_t seed, std::uint64_t run) override;
   void reset(sim::Rng& rng) override;
   std::int64_t transmit(sim::Rng& rng) override;
   std::vector<double> delay_pmf(int max_delay) const override;
@@ -250,11 +254,14 @@ class TraceLink final : public Link {
   std::optional<double> mean_loss_burst(std::optional<int> gap) const override;
   std::size_t size() const { return delays_.size(); }
   std::optional<PacketBound> packet_bound() const override {
+    if (segment_ > 0) return PacketBound{static_cast<std::int64_t>(segment_), "segment", "trace segment"};
     return PacketBound{static_cast<std::int64_t>(delays_.size()), "file", "trace"};
   }
 
  private:
   std::vector<std::optional<std::int64_t>> delays_;
+  std::size_t segment_ = 0;  // rows per run (0: every run replays the whole trace from row 0)
+  std::size_t start_ = 0;    // first row of this run's segment
   std::size_t next_ = 0;
 };
 

@@ -183,7 +183,16 @@ std::unique_ptr<Link> read_trace(const sim::Table& t, const LinkContext& ctx) {
   try {
     auto delays = load_trace(path.string());
     if (delays.empty()) t.fail("file", fmt::format("trace '{}' holds no packet", path.string()));
-    return std::make_unique<TraceLink>(std::move(delays));
+    // `segment`: rows per run (run r replays segment r mod floor(rows / segment)).
+    std::size_t segment = 0;
+    if (t.has("segment")) {
+      const auto s = t.integer("segment");
+      if (s < 1 || s > static_cast<std::int64_t>(delays.size())) {
+        t.fail("segment", fmt::format("expected an integer in 1..{} (the trace's rows), got {}", delays.size(), s));
+      }
+      segment = static_cast<std::size_t>(s);
+    }
+    return std::make_unique<TraceLink>(std::move(delays), segment);
   } catch (const TraceError& e) {
     if (e.line <= 0)
       t.fail("file",
@@ -213,7 +222,7 @@ void register_links(LinkRegistry& registry) {
                read_gilbert_elliott);
   registry.add("markov", "finite Markov chain (per period or per packet): transition, loss, delay_pmf, initial, step",
                read_markov);
-  registry.add("trace", "replay a recorded CSV of seq,delay (empty delay = lost): file", read_trace);
+  registry.add("trace", "replay a recorded CSV of seq,delay (empty delay = lost): file[, segment]", read_trace);
 }
 
 }  // namespace ncosim::models

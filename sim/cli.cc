@@ -21,6 +21,7 @@
 #include "lmi/limits.h"
 #include "sim/find.h"
 #include "sim/fit_cmd.h"
+#include "sim/record_link.h"
 #include "sim/codesign.h"
 #include "sim/compare.h"
 #include "sim/figure_cli.h"
@@ -296,6 +297,8 @@ struct CommandLine {
   CLI::App *run = nullptr, *export_cmd = nullptr, *merge = nullptr, *design = nullptr, *find = nullptr,
            *codesign = nullptr, *compare = nullptr, *check = nullptr, *channel = nullptr, *fit = nullptr;
   FitArgs fit_args;
+  CLI::App* record_link = nullptr;  // sim/record_link.h
+  std::string record_link_name;
 
   // FILE, --set, --out (when `with_out`) and the resource limits of a command that reads a scenario.
   void add_common(CLI::App* sub, bool with_out) {
@@ -408,6 +411,17 @@ struct CommandLine {
     fit->add_option("--starts", fit_args.starts, "EM starts per hidden-state family (default 4)")
         ->check(CLI::Range(1, 100));
     fit->add_option("--name", fit_args.name, "name of the [[link]] table (default: the trace's file stem)");
+    record_link = app.add_subcommand(
+        "record-link", "the fate of every packet one link carries, run after run, as a trace (seq,delay) per case");
+    add_common(record_link, true);
+    record_link->add_option("--link", record_link_name, "the [[link]] to record (its name)")->required();
+    record_link->add_option("--runs", a.overrides.runs, "runs recorded (overrides run.runs)")
+        ->check(CLI::Range(std::int64_t{1}, std::int64_t{10'000'000}));
+    record_link->add_option("--periods", a.overrides.periods, "periods per run (overrides run.periods)")
+        ->check(CLI::Range(std::int64_t{1}, std::int64_t{1'000'000'000}));
+    record_link->add_option("--seed", a.seed, "campaign seed (overrides run.seed)")
+        ->check(CLI::Range(std::int64_t{0}, std::numeric_limits<std::int64_t>::max()));
+    record_link->add_flag("--quiet", quiet, "no progress lines");
     if (have_sumo()) {
       channel = app.add_subcommand("channel", "print p(d) and the delay law of a sumo_distance channel preset");
       channel->add_option("PRESET", preset, "channel preset (see `ncosim list`)")->required();
@@ -434,6 +448,11 @@ struct CommandLine {
     if (check->parsed()) return cmd_check(a);
     if (compare->parsed()) return run_compare_command(cmp);
     if (fit->parsed()) return cmd_fit(fit_args);
+    if (record_link->parsed()) {
+      RecordLinkArgs r{a.file, a.sets, a.overrides, record_link_name, a.out, quiet};
+      if (a.seed >= 0) r.overrides.seed = static_cast<std::uint64_t>(a.seed);
+      return cmd_record_link(r);
+    }
     if (const auto status = run_figure_commands(figure_commands)) return *status;
     if (codesign->parsed()) {
       cd_opt.progress = !quiet;
@@ -455,7 +474,7 @@ std::optional<int> unknown_command(const CLI::App& app, int argc, char** argv) {
   if (std::find(commands.begin(), commands.end(), argv[1]) != commands.end()) return std::nullopt;
   const std::string hint = did_you_mean(argv[1], commands);
   std::cerr << fmt::format(
-      "ncosim: expected a command (run, export, merge, design, find, codesign, compare, fit, check, plot, report or list), got "
+      "ncosim: expected a command (run, export, merge, design, find, codesign, compare, fit, record-link, check, plot, report or list), got "
       "'{}'{}\n",
       argv[1], hint.empty() ? "" : fmt::format(" (did you mean '{}'?)", hint));
   return 2;
