@@ -707,6 +707,140 @@ int finish_session(const RunCommand& cmd, const std::string& md, const LoadedSce
   return 0;
 }
 
+// Under mpirun, the MPI session (null otherwise); throws when this build has no MPI.
+std::unique_ptr<MpiSession> start_mpi() {
+  if (!mpi_launched()) return nullptr;
+  if (!mpi_available()) {
+    throw ScenarioError("started by mpirun with several ranks, but this ncosim was built without MPI "
+                        "(CMake option NCOSIM_MPI; Debian libboost-mpi-dev libopenmpi-dev)");
+  }
+  return std::make_unique<MpiSession>();
+}
+
+// Each case's estimator names into the store; per case, the runs it holds already (with
+// --resume; none otherwise).
+std::vector<std::vector<std::uint64_t>> register_cases(RunStore& store, const LoadedScenario& loaded, bool resume) {
+  std::vector<std::vector<std::uint64_t>> stored(loaded.cases.size());
+  for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
+    std::vector<std::string> names;
+    for (const auto& e : loaded.cases[c].scenario->estimators) names.push_back(e.name);
+    store.put_estimators(c, names);
+    if (resume) stored[c] = store.done_runs(c);
+  }
+  return stored;
+}
+
+// One `run` session on rank 0: the campaign's fixed inputs and what its batches accumulate.
+struct RunSession {
+  RunSession(const RunCommand& c, const LoadedScenario& l, const Shard& sh, const TargetRule& r, MpiSession* m)
+      : cmd(c), loaded(l), shard(sh), rule(r), mpi(m), timed(l.cases.size(), 0), ran(l.cases.size(), 0) {}
+
+  const RunCommand& cmd;
+  const LoadedScenario& loaded;
+  const Shard shard;
+  const TargetRule rule;
+  MpiSession* const mpi;  // under mpirun, else null
+  bool tty = false;       // stderr is a terminal: a progress line, else (without --quiet) a progress log
+  std::vector<std::vector<std::uint64_t>> stored;  // per case: the runs the store held at the start
+  SessionTotals totals;
+  std::vector<char> timed, ran;  // per case: ns_per_period stored / a campaign of it ran in this session
+  std::vector<TraceRow> trace;   // run 0 of the first case, with --trace
+};
+
+// The runs lo..limit-1 of case c that are still to do, simulated here or on the MPI ranks and
+// pushed to the sink as they complete; ns_per_period stored once per case (unless stopped).
+void run_case_batch(RunSession& session, StoreSink& sink, std::size_t c, std::uint64_t lo, std::uint64_t limit) {
+  const RunCommand& cmd = session.cmd;
+  const std::size_t cases = session.loaded.cases.size();
+  const Scenario& sc = *session.loaded.cases[c].scenario;
+  std::vector<std::uint64_t> todo = runs_to_do(session.stored[c], lo, limit, session.shard, session.totals.skipped);
+  if (todo.empty()) return;
+  CampaignOptions opt;
+  opt.threads = session.mpi && cmd.threads == 0 ? 1 : cmd.threads;  // one thread per rank unless asked
+  opt.progress = session.tty && !cmd.quiet;
+  opt.progress_log = !session.tty && !cmd.quiet;
+  opt.trace = cmd.trace && c == 0;
+  opt.time_estimators = cmd.timing && session.timed[c] == 0;
+  std::string label = cases > 1 ? fmt::format("case {}/{}", c + 1, cases) : "";
+  if (session.rule.on()) label += fmt::format("{}runs {}..{}", label.empty() ? "" : ", ", lo, limit - 1);
+  opt.progress_label = label.empty() ? "" : label + ":";
+  opt.only_runs = std::move(todo);
+  opt.stop = &g_stop;
+  opt.on_run = [&sink, c](std::uint64_t run, RunMetrics&& m, RunLinks&& links) {
+    sink.push(c, run, std::move(m), std::move(links));
+  };
+  CampaignResult res = session.mpi ? session.mpi->run(sc, c, opt) : run_campaign(sc, opt);
+  sink.flush();
+  session.totals.wall += res.wall_seconds;
+  session.totals.threads = res.threads;
+  session.totals.simulated += res.runs_done;
+  session.ran[c] = 1;
+  if (!res.trace.empty()) session.trace = std::move(res.trace);
+  if (opt.time_estimators && !res.stopped) {
+    session.timed[c] = 1;
+    sink.with_store([&](RunStore& s) { s.put_timing(c, res.ns_per_period); });
+  }
+}
+
+// --target-ci: whether the runs stored so far meet the target in every row.
+bool target_decided(const RunSession& session, StoreSink& sink) {
+  std::vector<CampaignResult> results(session.loaded.cases.size());
+  sink.with_store([&](RunStore& s) {
+    for (std::size_t c = 0; c < session.loaded.cases.size(); ++c) {
+      for (auto& [run, m] : s.load_case(c)) {
+        results[c].run_ids.push_back(run);
+        results[c].runs.push_back(std::move(m));
+      }
+    }
+  });
+  return decide_target(session.loaded, results, session.rule).decided;
+}
+
+// Batches: the whole campaign at once, or with --target-ci fixed batches of run.runs until the
+// target is met or --max-runs; a stop signal ends them between cases.
+void run_batches(RunSession& session, StoreSink& sink) {
+  const TargetRule& rule = session.rule;
+  for (std::uint64_t lo = 0; g_stop.load() == 0;) {
+    const std::uint64_t hi = rule.on() ? std::min(lo + rule.batch, rule.max_runs) : 0;
+    for (std::size_t c = 0; c < session.loaded.cases.size() && g_stop.load() == 0; ++c) {
+      const std::uint64_t limit = rule.on() ? hi : static_cast<std::uint64_t>(session.loaded.cases[c].scenario->run.runs);
+      run_case_batch(session, sink, c, lo, limit);
+    }
+    if (!rule.on() || hi >= rule.max_runs || g_stop.load() != 0) break;
+    if (session.shard.count <= 1) {  // a shard cannot decide: it runs to --max-runs, merge decides
+      if (target_decided(session, sink)) break;
+    }
+    lo = hi;
+  }
+}
+
+// After the batches: NaN timings for the cases run with --no-timing, and with --trace the
+// trajectory of run 0 (simulated again when an earlier session did run 0).
+void store_timing_and_trace(RunSession& session, StoreSink& sink) {
+  const LoadedScenario& loaded = session.loaded;
+  for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
+    if (!session.cmd.timing && session.ran[c] != 0) {
+      const std::size_t ne = loaded.cases[c].scenario->estimators.size();
+      sink.with_store([&](RunStore& s) { s.put_timing(c, std::vector<double>(ne, std::nan(""))); });
+    }
+  }
+  if (session.cmd.trace && session.trace.empty() && g_stop.load() == 0) {  // run 0 was done by an earlier session
+    simulate_run(*loaded.cases.front().scenario, 0, &session.trace);
+  }
+  if (session.cmd.trace && !session.trace.empty()) {
+    const std::string csv = trajectory_csv(*loaded.cases.front().scenario, session.trace);
+    sink.with_store([&](RunStore& s) { s.put_artifact("trajectory.csv", csv); });
+  }
+}
+
+// Simulates the session's runs into the store, committed by a writer thread as they complete.
+void simulate_session(RunSession& session, RunStore& store) {
+  StoreSink sink(store);
+  run_batches(session, sink);
+  store_timing_and_trace(session, sink);
+  sink.finish();
+}
+
 }  // namespace
 
 int cmd_run_campaign(const RunCommand& cmd) {
@@ -718,19 +852,12 @@ int cmd_run_campaign(const RunCommand& cmd) {
   auto meta = campaign_meta(loaded, cmd.overrides, cmd.shard.empty() ? "" : fmt::format("{}/{}", shard.index + 1, shard.count));
   const TargetRule rule = target_rule(cmd, loaded, meta);
   // Under mpirun: ranks > 0 simulate what rank 0 hands out; rank 0 goes on alone from here.
-  std::unique_ptr<MpiSession> mpi;
-  if (mpi_launched()) {
-    if (!mpi_available()) {
-      throw ScenarioError("started by mpirun with several ranks, but this ncosim was built without MPI "
-                          "(CMake option NCOSIM_MPI; Debian libboost-mpi-dev libopenmpi-dev)");
-    }
-    mpi = std::make_unique<MpiSession>();
-    if (mpi->rank() > 0) {
-      std::vector<const Scenario*> cases;
-      for (const auto& c : loaded.cases) cases.push_back(c.scenario.get());
-      mpi->serve(cases);
-      return 0;
-    }
+  const std::unique_ptr<MpiSession> mpi = start_mpi();
+  if (mpi && mpi->rank() > 0) {
+    std::vector<const Scenario*> cases;
+    for (const auto& c : loaded.cases) cases.push_back(c.scenario.get());
+    mpi->serve(cases);
+    return 0;
   }
   prepare_output_dir(out);  // fail before the campaign, not after it
   const OutputFolderLock folder_lock(out);  // sim/output_set.h: one writer per folder for the whole campaign
@@ -741,94 +868,21 @@ int cmd_run_campaign(const RunCommand& cmd) {
   }
   const std::string path = store_path(out);
   RunStore store = open_run_store(cmd, path, meta);
-  std::vector<std::vector<std::uint64_t>> stored(loaded.cases.size());
-  for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
-    std::vector<std::string> names;
-    for (const auto& e : loaded.cases[c].scenario->estimators) names.push_back(e.name);
-    store.put_estimators(c, names);
-    if (cmd.resume) stored[c] = store.done_runs(c);
-  }
+  RunSession session(cmd, loaded, shard, rule, mpi.get());
+  session.stored = register_cases(store, loaded, cmd.resume);
 
-  const bool tty = ::isatty(2) != 0;
+  session.tty = ::isatty(2) != 0;
   StopSignals signals;
-  SessionTotals totals;
-  std::vector<char> timed(loaded.cases.size(), 0), ran(loaded.cases.size(), 0);
-  std::vector<TraceRow> trace;
-  {
-    StoreSink sink(store);
-    // Batches: the whole campaign at once, or with --target-ci fixed batches of run.runs.
-    for (std::uint64_t lo = 0; g_stop.load() == 0;) {
-      const std::uint64_t hi = rule.on() ? std::min(lo + rule.batch, rule.max_runs) : 0;
-      for (std::size_t c = 0; c < loaded.cases.size() && g_stop.load() == 0; ++c) {
-        const Scenario& sc = *loaded.cases[c].scenario;
-        const std::uint64_t limit = rule.on() ? hi : static_cast<std::uint64_t>(sc.run.runs);
-        std::vector<std::uint64_t> todo = runs_to_do(stored[c], lo, limit, shard, totals.skipped);
-        if (todo.empty()) continue;
-        CampaignOptions opt;
-        opt.threads = mpi && cmd.threads == 0 ? 1 : cmd.threads;  // one thread per rank unless asked
-        opt.progress = tty && !cmd.quiet;
-        opt.progress_log = !tty && !cmd.quiet;
-        opt.trace = cmd.trace && c == 0;
-        opt.time_estimators = cmd.timing && timed[c] == 0;
-        std::string label = loaded.cases.size() > 1 ? fmt::format("case {}/{}", c + 1, loaded.cases.size()) : "";
-        if (rule.on()) label += fmt::format("{}runs {}..{}", label.empty() ? "" : ", ", lo, limit - 1);
-        opt.progress_label = label.empty() ? "" : label + ":";
-        opt.only_runs = std::move(todo);
-        opt.stop = &g_stop;
-        opt.on_run = [&sink, c](std::uint64_t run, RunMetrics&& m, RunLinks&& links) {
-          sink.push(c, run, std::move(m), std::move(links));
-        };
-        CampaignResult res = mpi ? mpi->run(sc, c, opt) : run_campaign(sc, opt);
-        sink.flush();
-        totals.wall += res.wall_seconds;
-        totals.threads = res.threads;
-        totals.simulated += res.runs_done;
-        ran[c] = 1;
-        if (!res.trace.empty()) trace = std::move(res.trace);
-        if (opt.time_estimators && !res.stopped) {
-          timed[c] = 1;
-          sink.with_store([&](RunStore& s) { s.put_timing(c, res.ns_per_period); });
-        }
-      }
-      if (!rule.on() || hi >= rule.max_runs || g_stop.load() != 0) break;
-      if (shard.count <= 1) {  // a shard cannot decide: it runs to --max-runs, merge decides
-        std::vector<CampaignResult> results(loaded.cases.size());
-        sink.with_store([&](RunStore& s) {
-          for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
-            for (auto& [run, m] : s.load_case(c)) {
-              results[c].run_ids.push_back(run);
-              results[c].runs.push_back(std::move(m));
-            }
-          }
-        });
-        if (decide_target(loaded, results, rule).decided) break;
-      }
-      lo = hi;
-    }
-    for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
-      if (!cmd.timing && ran[c] != 0) {
-        const std::size_t ne = loaded.cases[c].scenario->estimators.size();
-        sink.with_store([&](RunStore& s) { s.put_timing(c, std::vector<double>(ne, std::nan(""))); });
-      }
-    }
-    if (cmd.trace && trace.empty() && g_stop.load() == 0) {  // run 0 was done by an earlier session
-      simulate_run(*loaded.cases.front().scenario, 0, &trace);
-    }
-    if (cmd.trace && !trace.empty()) {
-      const std::string csv = trajectory_csv(*loaded.cases.front().scenario, trace);
-      sink.with_store([&](RunStore& s) { s.put_artifact("trajectory.csv", csv); });
-    }
-    sink.finish();
-  }
+  simulate_session(session, store);
   const int sig = g_stop.load();
-  record_session(store, totals.wall, totals.threads, mpi ? mpi->size() : 1, sig);
+  record_session(store, session.totals.wall, session.totals.threads, mpi ? mpi->size() : 1, sig);
   ExportInfo info;
   info.command_line = cmd.command_line;
   info.stopped = sig > 0 ? signal_name(sig) : "";
   std::vector<std::string> not_ok;
   info.not_ok = &not_ok;
   const std::string md = export_and_close(loaded, store, out, info);
-  return finish_session(cmd, md, loaded, totals, path, sig, not_ok);
+  return finish_session(cmd, md, loaded, session.totals, path, sig, not_ok);
 }
 
 int cmd_export(const std::string& dir, const std::string& out, const std::string& command_line) {
@@ -850,36 +904,49 @@ int cmd_export(const std::string& dir, const std::string& out, const std::string
   return 0;
 }
 
-int cmd_merge(const std::string& out, const std::vector<std::string>& dirs, const std::string& command_line) {
+namespace {
+
+// The run stores of a campaign's shards, opened read-only, with their campaign tables.
+struct ShardStores {
+  std::vector<RunStore> stores;
+  std::vector<std::map<std::string, std::string>> metas;
+};
+
+// Opens the store of each folder; throws when the output folder is one of them, when one does
+// not open or when they are shards of different campaigns.
+ShardStores open_shards(const std::string& out, const std::vector<std::string>& dirs) {
   namespace fs = std::filesystem;
-  if (dirs.empty()) throw ScenarioError("merge: expected at least one shard folder");
   std::error_code ec;
   for (const auto& d : dirs) {
     if (fs::exists(out, ec) && fs::exists(d, ec) && fs::equivalent(out, d, ec)) {
       throw ScenarioError(fmt::format("merge: the output folder '{}' is also an input", out));
     }
   }
-  std::vector<RunStore> stores;
-  std::vector<std::map<std::string, std::string>> metas;
+  ShardStores s;
   for (const auto& d : dirs) {
     try {
-      stores.push_back(RunStore::open(store_path(d), false));
+      s.stores.push_back(RunStore::open(store_path(d), false));
     } catch (const StoreError& e) {
       throw ScenarioError(fmt::format("merge: {}", e.what()));
     }
-    metas.push_back(stores.back().meta());
-    const std::string diff = identity_difference(metas.front(), metas.back(), false);
+    s.metas.push_back(s.stores.back().meta());
+    const std::string diff = identity_difference(s.metas.front(), s.metas.back(), false);
     if (!diff.empty()) {
       throw ScenarioError(fmt::format("merge: {} and {} are shards of different campaigns: {} differ(s)",
                                       store_path(dirs.front()), store_path(d), diff));
     }
   }
-  LoadedScenario loaded = reload(metas.front());
-  // Every (case, run) exactly once.
+  return s;
+}
+
+// The shard holding each (case, run); throws when two shards hold the same one.
+std::map<std::pair<std::size_t, std::uint64_t>, std::size_t> run_owners(ShardStores& shards,
+                                                                        const std::vector<std::string>& dirs,
+                                                                        const LoadedScenario& loaded) {
   std::map<std::pair<std::size_t, std::uint64_t>, std::size_t> owner;
-  for (std::size_t s = 0; s < stores.size(); ++s) {
+  for (std::size_t s = 0; s < shards.stores.size(); ++s) {
     for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
-      for (std::uint64_t r : stores[s].done_runs(c)) {
+      for (std::uint64_t r : shards.stores[s].done_runs(c)) {
         const auto [it, fresh] = owner.emplace(std::make_pair(c, r), s);
         if (!fresh) {
           throw ScenarioError(fmt::format("merge: run {} of case {} is in both {} and {} (overlapping shards)", r,
@@ -888,9 +955,15 @@ int cmd_merge(const std::string& out, const std::vector<std::string>& dirs, cons
       }
     }
   }
+  return owner;
+}
+
+// Throws naming the first missing runs unless every run of every case has an owner (with
+// --target-ci, every run up to --max-runs: the shards run to it and the merge decides).
+void check_complete(const std::map<std::pair<std::size_t, std::uint64_t>, std::size_t>& owner,
+                    const LoadedScenario& loaded, const TargetRule& rule) {
   std::vector<std::string> missing;
   std::size_t missing_count = 0;
-  const TargetRule rule = target_of(metas.front(), loaded);  // shards of a --target-ci campaign run to --max-runs
   for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
     const auto runs = rule.on() ? rule.max_runs : static_cast<std::uint64_t>(loaded.cases[c].scenario->run.runs);
     for (std::uint64_t r = 0; r < runs; ++r) {
@@ -906,8 +979,12 @@ int cmd_merge(const std::string& out, const std::vector<std::string>& dirs, cons
                                     "each complete (`ncosim run ... --shard I/N --resume` finishes one)",
                                     missing_count, list));
   }
-  prepare_output_dir(out);
-  const OutputFolderLock folder_lock(out);  // sim/output_set.h
+}
+
+// The campaign table of the merged store: the first shard's, unsharded, with the shards' wall
+// time summed and the folders it was merged from.
+std::map<std::string, std::string> merged_meta(const std::vector<std::map<std::string, std::string>>& metas,
+                                               const std::vector<std::string>& dirs) {
   auto meta = metas.front();
   meta["shard"] = "";
   meta.erase("store");
@@ -921,40 +998,56 @@ int cmd_merge(const std::string& out, const std::vector<std::string>& dirs, cons
   meta["wall_seconds"] = fmt::format("{:.17g}", wall);
   meta["merged_from"] = json_text(dirs);
   meta["stopped"] = "";
-  RunStore merged = RunStore::create(store_path(out), meta);
-  for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
-    const Scenario& sc = *loaded.cases[c].scenario;
-    std::vector<std::string> names;
-    for (const auto& e : sc.estimators) names.push_back(e.name);
-    merged.put_estimators(c, names);
-    std::vector<StoredRun> batch;
-    for (auto& store : stores) {
-      std::map<std::uint64_t, RunLinks> links;
-      for (auto& [run, l] : store.load_case_links(c)) links.emplace(run, std::move(l));
-      for (auto& [run, m] : store.load_case(c)) {
-        StoredRun sr{c, run, std::move(m), std::nullopt};
-        if (auto it = links.find(run); it != links.end()) sr.links = std::move(it->second);
-        batch.push_back(std::move(sr));
-      }
+  return meta;
+}
+
+// Case c of every shard into the merged store: estimator names, runs with their link
+// counters, and the timing of the first shard that measured it.
+void merge_case(ShardStores& shards, RunStore& merged, const Scenario& sc, std::size_t c) {
+  std::vector<std::string> names;
+  for (const auto& e : sc.estimators) names.push_back(e.name);
+  merged.put_estimators(c, names);
+  std::vector<StoredRun> batch;
+  for (auto& store : shards.stores) {
+    std::map<std::uint64_t, RunLinks> links;
+    for (auto& [run, l] : store.load_case_links(c)) links.emplace(run, std::move(l));
+    for (auto& [run, m] : store.load_case(c)) {
+      StoredRun sr{c, run, std::move(m), std::nullopt};
+      if (auto it = links.find(run); it != links.end()) sr.links = std::move(it->second);
+      batch.push_back(std::move(sr));
     }
-    merged.put_runs(batch);
-    // Timing: the first shard that measured it.
-    std::vector<double> ns(sc.estimators.size(), std::nan(""));
-    for (auto& store : stores) {
-      const auto t = store.timing(c, sc.estimators.size());
-      bool any = false;
-      for (double v : t) any = any || std::isfinite(v);
-      if (any) {
-        ns = t;
-        break;
-      }
-    }
-    merged.put_timing(c, ns);
   }
-  for (auto& store : stores) {
+  merged.put_runs(batch);
+  std::vector<double> ns(sc.estimators.size(), std::nan(""));
+  for (auto& store : shards.stores) {
+    const auto t = store.timing(c, sc.estimators.size());
+    bool any = false;
+    for (double v : t) any = any || std::isfinite(v);
+    if (any) {
+      ns = t;
+      break;
+    }
+  }
+  merged.put_timing(c, ns);
+}
+
+}  // namespace
+
+int cmd_merge(const std::string& out, const std::vector<std::string>& dirs, const std::string& command_line) {
+  if (dirs.empty()) throw ScenarioError("merge: expected at least one shard folder");
+  ShardStores shards = open_shards(out, dirs);
+  LoadedScenario loaded = reload(shards.metas.front());
+  // Every (case, run) exactly once.
+  const auto owner = run_owners(shards, dirs, loaded);
+  check_complete(owner, loaded, target_of(shards.metas.front(), loaded));
+  prepare_output_dir(out);
+  const OutputFolderLock folder_lock(out);  // sim/output_set.h
+  RunStore merged = RunStore::create(store_path(out), merged_meta(shards.metas, dirs));
+  for (std::size_t c = 0; c < loaded.cases.size(); ++c) merge_case(shards, merged, *loaded.cases[c].scenario, c);
+  for (auto& store : shards.stores) {
     for (const auto& [name, content] : store.artifacts()) merged.put_artifact(name, content);
   }
-  for (auto& store : stores) store.close();
+  for (auto& store : shards.stores) store.close();
   ExportInfo info;
   info.command_line = command_line;
   export_and_close(loaded, merged, out, info);

@@ -248,244 +248,339 @@ std::string tics(const std::vector<std::string>& labels) {
   return out + ")";
 }
 
-Figure summary_figure(const std::string& dir, const Summary& s, const PlotOptions& opt) {
-  const std::string what = (fs::path(dir) / "summary.csv").string();
-  const int m = s.t.column(opt.metric);
-  if (m < 0 || m <= s.est_col + 1) {
+// The columns of summary.csv that one summary figure reads.
+struct MetricColumns {
+  std::string metric;
+  int value = -1;  // the metric
+  int ci = -1;     // <metric>_ci95, -1 when absent
+  int pred = -1;   // the prediction of the metric (prediction_column), -1 when absent
+  std::string pred_name;
+  // A paired-difference column (`mse_diff`, ...): each row minus its reference estimator on the
+  // same runs (results/README.md, "Paired columns"); zero line, linear axis, reference named.
+  bool paired = false;
+};
+
+// The columns of `metric`; throws naming the columns that could be plotted when it is not one.
+MetricColumns metric_columns(const Summary& s, const std::string& metric, const std::string& what) {
+  MetricColumns mc;
+  mc.metric = metric;
+  mc.value = s.t.column(metric);
+  if (mc.value < 0 || mc.value <= s.est_col + 1) {
     std::string valid;
     for (std::size_t i = static_cast<std::size_t>(s.est_col) + 2; i < s.t.header.size(); ++i) {
       const auto& h = s.t.header[i];
       if (h != "status" && h.find("_ci95") == std::string::npos) valid += (valid.empty() ? "" : ", ") + h;
     }
-    throw ScenarioError(fmt::format("--metric '{}': not a column of {} (columns: {})", opt.metric, what, valid));
+    throw ScenarioError(fmt::format("--metric '{}': not a column of {} (columns: {})", metric, what, valid));
   }
-  const int ci = s.t.column(opt.metric + "_ci95");
-  const std::string pred_name = prediction_column(s.t, opt.metric);
-  const int pred = pred_name.empty() ? -1 : s.t.column(pred_name);
-  const Choice c = choose(s, opt, what);
-  const std::string title0 = scenario_title(dir);
+  mc.ci = s.t.column(metric + "_ci95");
+  mc.pred_name = prediction_column(s.t, metric);
+  mc.pred = mc.pred_name.empty() ? -1 : s.t.column(mc.pred_name);
+  mc.paired = metric.size() > 5 && metric.ends_with("_diff") && s.t.column("paired_reference") >= 0;
+  return mc;
+}
 
-  Figure f;
-  f.name = "plot_" + opt.metric;
-  f.kind = c.kind;
+// The names of the metric's three .dat columns ('-' for an absent one).
+std::string dat_metric_names(const MetricColumns& mc) {
+  return fmt::format("{} {} {}", mc.metric, mc.ci >= 0 ? mc.metric + "_ci95" : "-", mc.pred >= 0 ? mc.pred_name : "-");
+}
+
+// The metric's three .dat fields of row r: value, CI half-width, prediction ('?' when absent).
+std::string dat_metric_fields(const std::vector<std::string>& r, const MetricColumns& mc) {
+  return fmt::format("{} {} {}", dat_field(r[static_cast<std::size_t>(mc.value)]),
+                     mc.ci >= 0 ? dat_field(r[static_cast<std::size_t>(mc.ci)]) : "?",
+                     mc.pred >= 0 ? dat_field(r[static_cast<std::size_t>(mc.pred)]) : "?");
+}
+
+// The summary figure's title: the metric, its CI, the runs and the scenario's title; a paired
+// difference names its reference estimator(s).
+std::string summary_title(const Summary& s, const MetricColumns& mc, const std::string& scenario) {
   const int runs = s.t.column("runs");
   std::string runs_text;
   if (runs >= 0 && !s.t.rows.empty()) runs_text = fmt::format(", {} runs", s.t.rows.front()[static_cast<std::size_t>(runs)]);
-  // A paired-difference column (`mse_diff`, ...): each row minus its reference estimator on the
-  // same runs (results/README.md, "Paired columns"); zero line, linear axis, reference named.
-  const bool paired = opt.metric.size() > 5 && opt.metric.ends_with("_diff") && s.t.column("paired_reference") >= 0;
+  const std::string tail = scenario.empty() ? "" : " — " + scenario;
+  if (!mc.paired) return fmt::format("{}{}{}{}", mc.metric, mc.ci >= 0 ? " with 95 % CI" : "", runs_text, tail);
   std::string reference;
-  if (paired) {
-    const auto refs = distinct(s.t, s.t.column("paired_reference"));
-    for (const auto& r : refs) reference += (reference.empty() ? "" : ", ") + r;
-  }
-  const std::string base_metric = paired ? opt.metric.substr(0, opt.metric.size() - 5) : opt.metric;
-  f.title = paired ? fmt::format("paired {0}: {0} − {0} of the reference ({1}) on the same runs{2}{3}{4}", base_metric,
-                                 reference, ci >= 0 ? ", 95 % CI" : "", runs_text, title0.empty() ? "" : " — " + title0)
-                   : fmt::format("{}{}{}{}", opt.metric, ci >= 0 ? " with 95 % CI" : "", runs_text,
-                                 title0.empty() ? "" : " — " + title0);
+  for (const auto& r : distinct(s.t, s.t.column("paired_reference"))) reference += (reference.empty() ? "" : ", ") + r;
+  const std::string base_metric = mc.metric.substr(0, mc.metric.size() - 5);
+  return fmt::format("paired {0}: {0} − {0} of the reference ({1}) on the same runs{2}{3}{4}", base_metric, reference,
+                     mc.ci >= 0 ? ", 95 % CI" : "", runs_text, tail);
+}
+
+// The y values the figure shows: the metric, the ends of its CI (the lower end when positive,
+// or always for a paired difference) and the prediction.
+Range y_range(const Summary& s, const MetricColumns& mc) {
   Range yr;
-  auto add_y = [&](const std::vector<std::string>& r) {
-    const auto v = number(r[static_cast<std::size_t>(m)]);
-    if (!v) return;
+  for (const auto& r : s.t.rows) {
+    const auto v = number(r[static_cast<std::size_t>(mc.value)]);
+    if (!v) continue;
     yr.add(*v);
-    if (ci >= 0) {
-      if (const auto h = number(r[static_cast<std::size_t>(ci)])) {
+    if (mc.ci >= 0) {
+      if (const auto h = number(r[static_cast<std::size_t>(mc.ci)])) {
         yr.add(*v + *h);
-        if (*v - *h > 0 || paired) yr.add(*v - *h);
+        if (*v - *h > 0 || mc.paired) yr.add(*v - *h);
       }
     }
-    if (pred >= 0) {
-      if (const auto p = number(r[static_cast<std::size_t>(pred)])) yr.add(*p);
+    if (mc.pred >= 0) {
+      if (const auto p = number(r[static_cast<std::size_t>(mc.pred)])) yr.add(*p);
     }
-  };
-  for (const auto& r : s.t.rows) add_y(r);
-  const bool logy = !paired && want_log(opt.logy, yr, "--logy");
-  bool any_pred = false;
-  for (const auto& r : s.t.rows) any_pred = any_pred || (pred >= 0 && number(r[static_cast<std::size_t>(pred)]));
+  }
+  return yr;
+}
 
-  std::string dat = fmt::format("# {} — numbers copied from summary.csv as written ('?' = empty)\n", comment(f.title));
-  std::string body;
-  body += fmt::format("  set title {}\n  set ylabel {}\n  set grid\n", gnuplot_quote(f.title),
-                      gnuplot_quote(opt.metric + (ci >= 0 ? "  (bars: 95 % CI)" : "")));
-  if (logy) body += "  set logscale y\n";
-  if (paired) body += "  set xzeroaxis lt -1 lw 1.5\n";
+// A summary figure before `script` wraps it: the .dat text, the gnuplot body, the image size.
+struct SummaryPlot {
+  std::string dat, body;
   int width = 900, height = 560;
+};
 
-  if (c.kind == FigureKind::kPerEstimator) {
-    dat += fmt::format("# index {} {} {}   (index: estimator, named in the comment above its row)\n",
-                       opt.metric, ci >= 0 ? opt.metric + "_ci95" : "-", pred >= 0 ? pred_name : "-");
-    for (std::size_t e = 0; e < s.t.rows.size(); ++e) {
-      const auto& r = s.t.rows[e];
-      dat += fmt::format("# {}\n{} {} {} {}\n", comment(r[static_cast<std::size_t>(s.est_col)]), e,
-                         dat_field(r[static_cast<std::size_t>(m)]), ci >= 0 ? dat_field(r[static_cast<std::size_t>(ci)]) : "?",
-                         pred >= 0 ? dat_field(r[static_cast<std::size_t>(pred)]) : "?");
-    }
-    width = std::max(700, 110 * static_cast<int>(s.t.rows.size()) + 250);
-    std::vector<std::string> labels;
-    for (const auto& r : s.t.rows) {
-      const auto& name = r[static_cast<std::size_t>(s.est_col)];
-      const bool is_reference = paired && name == r[static_cast<std::size_t>(s.t.column("paired_reference"))];
-      labels.push_back(name + (number(r[static_cast<std::size_t>(m)]) ? ""
-                               : is_reference                       ? " (reference)"
-                                                                    : " (no " + opt.metric + ")"));
-    }
-    body += fmt::format("  set xtics rotate by -25 {}\n  set xrange [-0.6:{}]\n  set bmargin 9\n",
-                        tics(labels), static_cast<double>(s.t.rows.size()) - 0.4);
-    body += "  set key outside bottom center horizontal\n";
-    body += fmt::format("  plot '{}.dat' using {} with {} pt 7 ps 1.2 lc rgb '#1f77b4' title {}", f.name,
-                        errorbar_using("1", ci >= 0, logy), ci >= 0 ? "yerrorbars" : "points",
-                        gnuplot_quote(ci >= 0 ? "simulated, 95 % CI" : "simulated"));
-    if (any_pred) {
-      body += fmt::format(", \\\n       '' using ($1+0.2):4 with points pt 4 ps 1.5 lc rgb '#d62728' title {}",
-                          gnuplot_quote("predicted (" + pred_name + ")"));
-    }
-    body += "\n";
-    f.dat = dat;
-    f.gp = script(f.name, f.title, width, height, body);
-    return f;
+// Without sweep keys: one point per row of summary.csv, the estimators along x.
+void plot_per_estimator(const Summary& s, const MetricColumns& mc, const std::string& name, bool logy, SummaryPlot& p) {
+  bool any_pred = false;
+  for (const auto& r : s.t.rows) any_pred = any_pred || (mc.pred >= 0 && number(r[static_cast<std::size_t>(mc.pred)]));
+  p.dat += fmt::format("# index {}   (index: estimator, named in the comment above its row)\n", dat_metric_names(mc));
+  for (std::size_t e = 0; e < s.t.rows.size(); ++e) {
+    const auto& r = s.t.rows[e];
+    p.dat += fmt::format("# {}\n{} {}\n", comment(r[static_cast<std::size_t>(s.est_col)]), e, dat_metric_fields(r, mc));
   }
+  p.width = std::max(700, 110 * static_cast<int>(s.t.rows.size()) + 250);
+  std::vector<std::string> labels;
+  for (const auto& r : s.t.rows) {
+    const auto& est = r[static_cast<std::size_t>(s.est_col)];
+    const bool is_reference = mc.paired && est == r[static_cast<std::size_t>(s.t.column("paired_reference"))];
+    labels.push_back(est + (number(r[static_cast<std::size_t>(mc.value)]) ? ""
+                            : is_reference                               ? " (reference)"
+                                                                         : " (no " + mc.metric + ")"));
+  }
+  p.body += fmt::format("  set xtics rotate by -25 {}\n  set xrange [-0.6:{}]\n  set bmargin 9\n", tics(labels),
+                        static_cast<double>(s.t.rows.size()) - 0.4);
+  p.body += "  set key outside bottom center horizontal\n";
+  p.body += fmt::format("  plot '{}.dat' using {} with {} pt 7 ps 1.2 lc rgb '#1f77b4' title {}", name,
+                        errorbar_using("1", mc.ci >= 0, logy), mc.ci >= 0 ? "yerrorbars" : "points",
+                        gnuplot_quote(mc.ci >= 0 ? "simulated, 95 % CI" : "simulated"));
+  if (any_pred) {
+    p.body += fmt::format(", \\\n       '' using ($1+0.2):4 with points pt 4 ps 1.5 lc rgb '#d62728' title {}",
+                          gnuplot_quote("predicted (" + mc.pred_name + ")"));
+  }
+  p.body += "\n";
+}
 
-  // Against a key, optionally in panels.
-  const int xc = s.t.column(c.x_key);
-  const std::vector<std::string> xs = distinct(s.t, xc);
-  const bool numeric_x = all_numeric(xs);
-  Range xr;
-  if (numeric_x) {
-    for (const auto& v : xs) xr.add(*number(v));
-  }
-  const bool logx = numeric_x && want_log(opt.logx, xr, "--logx");
-  std::vector<int> pcols;
-  for (const auto& k : c.panel_keys) pcols.push_back(s.t.column(k));
-  auto panel_of = [&](const std::vector<std::string>& r) {
+// The x axis and the panels of a figure against a sweep key.
+struct KeyAxes {
+  std::string x_key;
+  int x_col = -1;
+  std::vector<std::string> xs;  // distinct x values in file order
+  bool numeric_x = false, logx = false;
+  std::vector<std::string> panel_keys;
+  std::vector<int> panel_cols;
+  std::vector<std::string> panels;  // panel labels in order of first appearance
+
+  // The panel label of row r: "key = value, ..." over the panel keys ("" without panel keys).
+  std::string panel_of(const std::vector<std::string>& r) const {
     std::string label;
-    for (std::size_t i = 0; i < pcols.size(); ++i) {
-      label += fmt::format("{}{} = {}", i ? ", " : "", c.panel_keys[i], r[static_cast<std::size_t>(pcols[i])]);
+    for (std::size_t i = 0; i < panel_cols.size(); ++i) {
+      label += fmt::format("{}{} = {}", i ? ", " : "", panel_keys[i], r[static_cast<std::size_t>(panel_cols[i])]);
     }
     return label;
-  };
-  std::vector<std::string> panels;
-  for (const auto& r : s.t.rows) {
-    const std::string p = panel_of(r);
-    if (std::find(panels.begin(), panels.end(), p) == panels.end()) panels.push_back(p);
   }
-  const std::size_t E = s.estimators.size();
-  std::vector<bool> est_pred(E, false);
-  for (const auto& r : s.t.rows) {
-    if (pred < 0 || !number(r[static_cast<std::size_t>(pred)])) continue;
-    const auto& name = r[static_cast<std::size_t>(s.est_col)];
-    est_pred[static_cast<std::size_t>(std::find(s.estimators.begin(), s.estimators.end(), name) - s.estimators.begin())] = true;
+};
+
+KeyAxes key_axes(const Summary& s, const Choice& c, const std::string& logx_mode) {
+  KeyAxes a;
+  a.x_key = c.x_key;
+  a.x_col = s.t.column(c.x_key);
+  a.xs = distinct(s.t, a.x_col);
+  a.numeric_x = all_numeric(a.xs);
+  Range xr;
+  if (a.numeric_x) {
+    for (const auto& v : a.xs) xr.add(*number(v));
   }
-  dat += fmt::format("# x {} {} {}   (one block per {}estimator; x = {}{})\n", opt.metric,
-                     ci >= 0 ? opt.metric + "_ci95" : "-", pred >= 0 ? pred_name : "-",
-                     panels.size() > 1 ? "panel and " : "", comment(c.x_key),
-                     numeric_x ? "" : ", as the index of its value in the figure's x tics");
+  a.logx = a.numeric_x && want_log(logx_mode, xr, "--logx");
+  a.panel_keys = c.panel_keys;
+  for (const auto& k : c.panel_keys) a.panel_cols.push_back(s.t.column(k));
+  for (const auto& r : s.t.rows) {
+    const std::string p = a.panel_of(r);
+    if (std::find(a.panels.begin(), a.panels.end(), p) == a.panels.end()) a.panels.push_back(p);
+  }
+  return a;
+}
+
+// The .dat of a figure against a key: one block per panel and estimator, in that order
+// (gnuplot's `index` = panel * estimators + estimator), "? ? ? ?" for a block without rows.
+std::string against_key_dat(const Summary& s, const MetricColumns& mc, const KeyAxes& a) {
+  std::string dat = fmt::format("# x {}   (one block per {}estimator; x = {}{})\n", dat_metric_names(mc),
+                                a.panels.size() > 1 ? "panel and " : "", comment(a.x_key),
+                                a.numeric_x ? "" : ", as the index of its value in the figure's x tics");
   std::size_t block = 0;
-  for (const auto& p : panels) {
+  for (const auto& p : a.panels) {
     for (const auto& e : s.estimators) {
       if (block++ > 0) dat += "\n\n";
       dat += fmt::format("# block {}: {}{}\n", block - 1, p.empty() ? "" : comment(p) + ", ", comment(e));
       bool wrote = false;
       for (const auto& r : s.t.rows) {
-        if (r[static_cast<std::size_t>(s.est_col)] != e || panel_of(r) != p) continue;
-        const auto& xv = r[static_cast<std::size_t>(xc)];
-        const std::string x =
-            numeric_x ? xv : std::to_string(std::find(xs.begin(), xs.end(), xv) - xs.begin());
-        dat += fmt::format("{} {} {} {}\n", x, dat_field(r[static_cast<std::size_t>(m)]),
-                           ci >= 0 ? dat_field(r[static_cast<std::size_t>(ci)]) : "?",
-                           pred >= 0 ? dat_field(r[static_cast<std::size_t>(pred)]) : "?");
+        if (r[static_cast<std::size_t>(s.est_col)] != e || a.panel_of(r) != p) continue;
+        const auto& xv = r[static_cast<std::size_t>(a.x_col)];
+        const std::string x = a.numeric_x ? xv : std::to_string(std::find(a.xs.begin(), a.xs.end(), xv) - a.xs.begin());
+        dat += fmt::format("{} {}\n", x, dat_metric_fields(r, mc));
         wrote = true;
       }
       if (!wrote) dat += "? ? ? ?\n";
     }
   }
-  const std::size_t P = panels.size();
+  return dat;
+}
+
+// Per estimator (in s.estimators' order): whether any of its rows has a prediction.
+std::vector<bool> estimators_with_prediction(const Summary& s, const MetricColumns& mc) {
+  std::vector<bool> out(s.estimators.size(), false);
+  for (const auto& r : s.t.rows) {
+    if (mc.pred < 0 || !number(r[static_cast<std::size_t>(mc.pred)])) continue;
+    const auto& name = r[static_cast<std::size_t>(s.est_col)];
+    out[static_cast<std::size_t>(std::find(s.estimators.begin(), s.estimators.end(), name) - s.estimators.begin())] = true;
+  }
+  return out;
+}
+
+// The `plot` command of panel p: one curve per estimator, its prediction dashed in the same colour.
+std::string panel_plot(const Summary& s, const MetricColumns& mc, const KeyAxes& a, const std::string& name, bool logy,
+                       std::size_t p, const std::vector<bool>& est_pred) {
+  const std::size_t E = s.estimators.size();
+  std::string plot;
+  for (std::size_t e = 0; e < E; ++e) {
+    const std::size_t b = p * E + e;
+    // Categorical x: estimators side by side around each tic so their bars do not overlap.
+    const std::string x = a.numeric_x ? "1" : fmt::format("($1{:+.3f})", (static_cast<double>(e) - (E - 1) / 2.0) * 0.06);
+    plot += fmt::format("{}'{}.dat' index {} using {} with {} {} ps 1.0 title {}", plot.empty() ? "" : ", \\\n       ",
+                        name, b, errorbar_using(x, mc.ci >= 0, logy), mc.ci >= 0 ? "yerrorlines" : "linespoints",
+                        palette_style(e), gnuplot_quote(s.estimators[e]));
+    if (est_pred[e]) {
+      plot += fmt::format(", \\\n       '' index {} using {}:4 with lines dt 2 {} title {}", b, x, colour_of(e),
+                          gnuplot_quote(s.estimators[e] + ", predicted"));
+    }
+  }
+  return "  plot " + plot + "\n";
+}
+
+// Against a sweep key: one curve per estimator, in one panel per value of the panel keys (a
+// grid of up to 3 columns sharing one y range).
+void plot_against_key(const Summary& s, const MetricColumns& mc, const Choice& c, const PlotOptions& opt,
+                      const std::string& name, const std::string& title, const Range& yr, bool logy, SummaryPlot& p) {
+  const KeyAxes a = key_axes(s, c, opt.logx);
+  p.dat += against_key_dat(s, mc, a);
+  const std::size_t P = a.panels.size();
   const std::size_t cols = P == 1 ? 1 : std::min<std::size_t>(3, static_cast<std::size_t>(std::ceil(std::sqrt(P))));
   const std::size_t rows = (P + cols - 1) / cols;
-  width = P == 1 ? 900 : static_cast<int>(cols) * 520;
-  height = P == 1 ? 560 : static_cast<int>(rows) * 400 + 60;
-  body += fmt::format("  set xlabel {}\n", gnuplot_quote(c.x_key));
-  if (logx) body += "  set logscale x\n";
-  if (numeric_x) body += "  set offsets graph 0.03, graph 0.03, 0, 0\n";  // end points' bars inside the frame
-  if (!numeric_x) {
-    body += fmt::format("  set xtics {}\n  set xrange [-0.5:{}]\n", tics(xs), static_cast<double>(xs.size()) - 0.5);
+  p.width = P == 1 ? 900 : static_cast<int>(cols) * 520;
+  p.height = P == 1 ? 560 : static_cast<int>(rows) * 400 + 60;
+  p.body += fmt::format("  set xlabel {}\n", gnuplot_quote(a.x_key));
+  if (a.logx) p.body += "  set logscale x\n";
+  if (a.numeric_x) p.body += "  set offsets graph 0.03, graph 0.03, 0, 0\n";  // end points' bars inside the frame
+  if (!a.numeric_x) {
+    p.body += fmt::format("  set xtics {}\n  set xrange [-0.5:{}]\n", tics(a.xs), static_cast<double>(a.xs.size()) - 0.5);
   }
   if (P > 1 && !yr.empty()) {  // one y range for every panel, so that panels compare
     const double lo = logy ? yr.min_positive / 1.5 : yr.lo - 0.05 * (yr.hi - yr.lo);
     const double hi = logy ? yr.hi * 1.5 : yr.hi + 0.05 * (yr.hi - yr.lo);
-    if (hi > lo) body += fmt::format("  set yrange [{:.6g}:{:.6g}]\n", lo, hi);
+    if (hi > lo) p.body += fmt::format("  set yrange [{:.6g}:{:.6g}]\n", lo, hi);
   }
   if (P > 1) {
-    body += fmt::format("  set multiplot layout {},{} title {}\n", rows, cols, gnuplot_quote(f.title));
-    body += "  set key top left font ',8' box opaque\n";
+    p.body += fmt::format("  set multiplot layout {},{} title {}\n", rows, cols, gnuplot_quote(title));
+    p.body += "  set key top left font ',8' box opaque\n";
   } else {
-    body += "  set key outside right top\n";
+    p.body += "  set key outside right top\n";
   }
-  for (std::size_t p = 0; p < P; ++p) {
+  const std::vector<bool> est_pred = estimators_with_prediction(s, mc);
+  for (std::size_t i = 0; i < P; ++i) {
     if (P > 1) {
-      body += fmt::format("  set title {}\n", gnuplot_quote(panels[p]));
-      if (p == 1) body += "  unset key\n";
+      p.body += fmt::format("  set title {}\n", gnuplot_quote(a.panels[i]));
+      if (i == 1) p.body += "  unset key\n";
     }
-    std::string plot;
-    for (std::size_t e = 0; e < E; ++e) {
-      const std::size_t b = p * E + e;
-      // Categorical x: estimators side by side around each tic so their bars do not overlap.
-      const std::string x = numeric_x ? "1" : fmt::format("($1{:+.3f})", (static_cast<double>(e) - (E - 1) / 2.0) * 0.06);
-      plot += fmt::format("{}'{}.dat' index {} using {} with {} {} ps 1.0 title {}", plot.empty() ? "" : ", \\\n       ",
-                          f.name, b, errorbar_using(x, ci >= 0, logy), ci >= 0 ? "yerrorlines" : "linespoints",
-                          palette_style(e), gnuplot_quote(s.estimators[e]));
-      if (est_pred[e]) {
-        plot += fmt::format(", \\\n       '' index {} using {}:4 with lines dt 2 {} title {}", b, x, colour_of(e),
-                            gnuplot_quote(s.estimators[e] + ", predicted"));
-      }
-    }
-    body += "  plot " + plot + "\n";
+    p.body += panel_plot(s, mc, a, name, logy, i, est_pred);
   }
-  f.dat = dat;
-  f.gp = script(f.name, f.title, width, height, body);
+}
+
+Figure summary_figure(const std::string& dir, const Summary& s, const PlotOptions& opt) {
+  const std::string what = (fs::path(dir) / "summary.csv").string();
+  const MetricColumns mc = metric_columns(s, opt.metric, what);
+  const Choice c = choose(s, opt, what);
+
+  Figure f;
+  f.name = "plot_" + opt.metric;
+  f.kind = c.kind;
+  f.title = summary_title(s, mc, scenario_title(dir));
+  const Range yr = y_range(s, mc);
+  const bool logy = !mc.paired && want_log(opt.logy, yr, "--logy");
+
+  SummaryPlot p;
+  p.dat = fmt::format("# {} — numbers copied from summary.csv as written ('?' = empty)\n", comment(f.title));
+  p.body = fmt::format("  set title {}\n  set ylabel {}\n  set grid\n", gnuplot_quote(f.title),
+                       gnuplot_quote(opt.metric + (mc.ci >= 0 ? "  (bars: 95 % CI)" : "")));
+  if (logy) p.body += "  set logscale y\n";
+  if (mc.paired) p.body += "  set xzeroaxis lt -1 lw 1.5\n";
+  if (c.kind == FigureKind::kPerEstimator) {
+    plot_per_estimator(s, mc, f.name, logy, p);
+  } else {
+    plot_against_key(s, mc, c, opt, f.name, f.title, yr, logy, p);
+  }
+  f.dat = p.dat;
+  f.gp = script(f.name, f.title, p.width, p.height, p.body);
   return f;
 }
 
-// The trace figure from trajectory.csv: true state and estimates against time, arrivals marked.
-Figure trace_figure(const std::string& dir, const PlotOptions& opt) {
-  const fs::path p = fs::path(dir) / "trajectory.csv";
+// The columns of trajectory.csv: period, states (and their physical coordinates), each
+// estimator's estimate, each sensor's arrivals.
+struct Trajectory {
+  fs::path path;
+  CsvTable t;
+  int period = -1;
+  std::vector<int> x, xphys;            // x1..xn and x<i>_physical (-1 when absent)
+  std::vector<std::string> estimators;  // in column order
+  std::vector<std::vector<int>> xhat;   // per estimator: <name>:xhat1 ..
+  std::vector<std::string> sensors;
+  std::vector<int> arrived;  // per sensor: arrived:<name>
+};
+
+Trajectory read_trajectory(const std::string& dir) {
+  Trajectory tr;
+  tr.path = fs::path(dir) / "trajectory.csv";
+  const fs::path& p = tr.path;
   if (!fs::exists(p)) {
     throw ScenarioError(fmt::format("--trace: {} does not exist (run the campaign with `ncosim run --trace`)", p.string()));
   }
-  const CsvTable t = parse_csv(read_file(p), p.string());
-  std::vector<int> x, xphys;
+  tr.t = parse_csv(read_file(p), p.string());
+  const CsvTable& t = tr.t;
   for (int i = 1;; ++i) {
     const int c = t.column(fmt::format("x{}", i));
     if (c < 0) break;
-    x.push_back(c);
-    xphys.push_back(t.column(fmt::format("x{}_physical", i)));
+    tr.x.push_back(c);
+    tr.xphys.push_back(t.column(fmt::format("x{}_physical", i)));
   }
-  if (x.empty()) throw ScenarioError(format_error(p.string(), 1, "", "expected columns x1 .. xn"));
-  const std::size_t n = x.size();
-  std::vector<std::string> est;
-  std::vector<std::vector<int>> xh;
-  std::vector<std::string> sensors;
-  std::vector<int> arrived;
+  if (tr.x.empty()) throw ScenarioError(format_error(p.string(), 1, "", "expected columns x1 .. xn"));
   for (std::size_t c = 0; c < t.header.size(); ++c) {
     const std::string& h = t.header[c];
     if (h.rfind("arrived:", 0) == 0) {
-      sensors.push_back(h.substr(8));
-      arrived.push_back(static_cast<int>(c));
+      tr.sensors.push_back(h.substr(8));
+      tr.arrived.push_back(static_cast<int>(c));
       continue;
     }
     const auto pos = h.rfind(":xhat");
     if (pos == std::string::npos || h.size() == pos + 5) continue;
     const std::string name = h.substr(0, pos);
     if (h.substr(pos + 5) == "1") {
-      est.push_back(name);
-      xh.emplace_back();
+      tr.estimators.push_back(name);
+      tr.xhat.emplace_back();
     }
-    if (!xh.empty() && est.back() == name) xh.back().push_back(static_cast<int>(c));
+    if (!tr.xhat.empty() && tr.estimators.back() == name) tr.xhat.back().push_back(static_cast<int>(c));
   }
-  const int period = t.column("period");
+  tr.period = t.column("period");
+  return tr;
+}
+
+// The rows of the periods from..from+periods-1; throws when there is none.
+std::vector<const std::vector<std::string>*> trace_window(const Trajectory& tr, const PlotOptions& opt) {
   std::vector<const std::vector<std::string>*> window;
-  for (const auto& r : t.rows) {
-    const auto k = number(r[static_cast<std::size_t>(period)]);
+  for (const auto& r : tr.t.rows) {
+    const auto k = number(r[static_cast<std::size_t>(tr.period)]);
     if (k && *k >= static_cast<double>(opt.trace_from) &&
         *k < static_cast<double>(opt.trace_from) + static_cast<double>(opt.trace_periods)) {
       window.push_back(&r);
@@ -493,46 +588,38 @@ Figure trace_figure(const std::string& dir, const PlotOptions& opt) {
   }
   if (window.empty()) {
     throw ScenarioError(fmt::format("--from {}: no period of {} in the window of {} periods", opt.trace_from,
-                                    p.string(), opt.trace_periods));
+                                    tr.path.string(), opt.trace_periods));
   }
-  // Physical coordinates where the re-centred run has them over the whole window.
-  bool physical = std::all_of(xphys.begin(), xphys.end(), [](int c) { return c >= 0; });
-  const bool recentred = physical;
-  for (const auto* r : window) {
-    for (int c : xphys) physical = physical && c >= 0 && number((*r)[static_cast<std::size_t>(c)]).has_value();
-  }
-  const std::size_t shown = std::min<std::size_t>(n, 6);
-  Figure f;
-  f.name = "trace";
-  f.kind = FigureKind::kTrace;
-  const std::string title0 = scenario_title(dir);
-  f.title = fmt::format("run 0, periods {}..{}{}{}", (*window.front())[static_cast<std::size_t>(period)],
-                        (*window.back())[static_cast<std::size_t>(period)],
-                        recentred ? (physical ? ", physical coordinates (re-centring added back)"
-                                              : ", re-centred coordinates (the physical state exceeds 1e10 here)")
-                                  : "",
-                        title0.empty() ? "" : " — " + title0);
-  std::string dat = fmt::format("# {}\n# period", comment(f.title));
+  return window;
+}
+
+// The trace .dat: period, x, every estimate and every arrival count per row. With `physical`,
+// x is written as x_physical and each estimate of a state is shifted by (x_physical - x).
+std::string trace_dat(const Trajectory& tr, const std::vector<const std::vector<std::string>*>& window, bool physical,
+                      const std::string& title) {
+  const std::size_t n = tr.x.size();
+  std::string dat = fmt::format("# {}\n# period", comment(title));
   for (std::size_t i = 0; i < n; ++i) dat += fmt::format(" x{}", i + 1);
-  for (const auto& e : est) {
-    for (std::size_t i = 0; i < xh[&e - est.data()].size(); ++i) dat += fmt::format(" [{}]:xhat{}", comment(e), i + 1);
+  for (std::size_t e = 0; e < tr.estimators.size(); ++e) {
+    for (std::size_t i = 0; i < tr.xhat[e].size(); ++i) dat += fmt::format(" [{}]:xhat{}", comment(tr.estimators[e]), i + 1);
   }
-  for (const auto& s : sensors) dat += fmt::format(" arrived:[{}]", comment(s));
+  for (const auto& s : tr.sensors) dat += fmt::format(" arrived:[{}]", comment(s));
   dat += physical ? "\n# x and xhat in physical coordinates: xhat + (x_physical - x) from trajectory.csv\n"
                   : "\n# numbers copied from trajectory.csv as written\n";
   for (const auto* rp : window) {
     const auto& r = *rp;
-    dat += r[static_cast<std::size_t>(period)];
+    dat += r[static_cast<std::size_t>(tr.period)];
     std::vector<double> offset(n, 0.0);
     for (std::size_t i = 0; i < n; ++i) {
       if (physical) {
-        offset[i] = *number(r[static_cast<std::size_t>(xphys[i])]) - number(r[static_cast<std::size_t>(x[i])]).value_or(0.0);
-        dat += " " + r[static_cast<std::size_t>(xphys[i])];
+        offset[i] = *number(r[static_cast<std::size_t>(tr.xphys[i])]) -
+                    number(r[static_cast<std::size_t>(tr.x[i])]).value_or(0.0);
+        dat += " " + r[static_cast<std::size_t>(tr.xphys[i])];
       } else {
-        dat += " " + dat_field(r[static_cast<std::size_t>(x[i])]);
+        dat += " " + dat_field(r[static_cast<std::size_t>(tr.x[i])]);
       }
     }
-    for (const auto& cols : xh) {
+    for (const auto& cols : tr.xhat) {
       for (std::size_t i = 0; i < cols.size(); ++i) {
         const std::string& v = r[static_cast<std::size_t>(cols[i])];
         if (physical && i < n && number(v)) {
@@ -542,33 +629,41 @@ Figure trace_figure(const std::string& dir, const PlotOptions& opt) {
         }
       }
     }
-    for (int a : arrived) dat += " " + dat_field(r[static_cast<std::size_t>(a)]);
+    for (int a : tr.arrived) dat += " " + dat_field(r[static_cast<std::size_t>(a)]);
     dat += "\n";
   }
-  std::string body = fmt::format("  set multiplot layout {},1 title {}\n", shown + (sensors.empty() ? 0 : 1),
-                                 gnuplot_quote(f.title));
+  return dat;
+}
+
+// The trace gnuplot body: one panel per shown state (true x and every estimate), then one of
+// the arrivals per sensor (dots where packets arrived, crosses where none did).
+std::string trace_body(const Trajectory& tr, std::size_t shown, const std::string& title) {
+  const std::size_t n = tr.x.size();
+  std::string body = fmt::format("  set multiplot layout {},1 title {}\n", shown + (tr.sensors.empty() ? 0 : 1),
+                                 gnuplot_quote(title));
   body += "  set lmargin 12\n  set rmargin 30\n  set grid\n  set key outside right top font ',8'\n";
-  std::size_t col = 2 + n;
+  std::size_t col = 2 + n;  // trace.dat's column of the first estimate
   std::vector<std::size_t> first_col;
-  for (const auto& cols : xh) {
+  for (const auto& cols : tr.xhat) {
     first_col.push_back(col);
     col += cols.size();
   }
   for (std::size_t i = 0; i < shown; ++i) {
     body += fmt::format("  set ylabel {}\n", gnuplot_quote(fmt::format("x{}", i + 1)));
     std::string plot = fmt::format("'trace.dat' using 1:{} with lines lw 2 lc rgb 'black' title 'true x{}'", 2 + i, i + 1);
-    for (std::size_t e = 0; e < est.size(); ++e) {
-      if (i >= xh[e].size()) continue;
-      plot += fmt::format(", \\\n       '' using 1:{} with lines {} title {}", first_col[e] + i,
-                          colour_of(e), gnuplot_quote(est[e]));
+    for (std::size_t e = 0; e < tr.estimators.size(); ++e) {
+      if (i >= tr.xhat[e].size()) continue;
+      plot += fmt::format(", \\\n       '' using 1:{} with lines {} title {}", first_col[e] + i, colour_of(e),
+                          gnuplot_quote(tr.estimators[e]));
     }
     body += "  plot " + plot + "\n";
   }
-  if (!sensors.empty()) {
+  if (!tr.sensors.empty()) {
     body += "  set ylabel 'packets'\n  set xlabel 'period'\n";
-    body += fmt::format("  set yrange [-0.5:{}]\n  set ytics {}\n", static_cast<double>(sensors.size()) - 0.5, tics(sensors));
+    body += fmt::format("  set yrange [-0.5:{}]\n  set ytics {}\n", static_cast<double>(tr.sensors.size()) - 0.5,
+                        tics(tr.sensors));
     std::string plot;
-    for (std::size_t s = 0; s < sensors.size(); ++s) {
+    for (std::size_t s = 0; s < tr.sensors.size(); ++s) {
       const std::size_t c = col + s;
       plot += fmt::format("{}'trace.dat' using 1:(${} > 0 ? {} : 1/0) with points pt 7 ps 0.5 lc rgb '#2ca02c' title {}",
                           plot.empty() ? "" : ", \\\n       ", c, s, s == 0 ? "'packet(s) arrived'" : "''");
@@ -577,9 +672,34 @@ Figure trace_figure(const std::string& dir, const PlotOptions& opt) {
     }
     body += "  plot " + plot + "\n";
   }
-  if (n > shown) dat += fmt::format("# the figure shows x1..x{} of {} states\n", shown, n);
-  f.dat = dat;
-  f.gp = script(f.name, f.title, 1000, static_cast<int>(260 * (shown + 1) + 60), body);
+  return body;
+}
+
+// The trace figure from trajectory.csv: true state and estimates against time, arrivals marked.
+Figure trace_figure(const std::string& dir, const PlotOptions& opt) {
+  const Trajectory tr = read_trajectory(dir);
+  const auto window = trace_window(tr, opt);
+  // Physical coordinates where the re-centred run has them over the whole window.
+  bool physical = std::all_of(tr.xphys.begin(), tr.xphys.end(), [](int c) { return c >= 0; });
+  const bool recentred = physical;
+  for (const auto* r : window) {
+    for (int c : tr.xphys) physical = physical && c >= 0 && number((*r)[static_cast<std::size_t>(c)]).has_value();
+  }
+  const std::size_t n = tr.x.size();
+  const std::size_t shown = std::min<std::size_t>(n, 6);
+  Figure f;
+  f.name = "trace";
+  f.kind = FigureKind::kTrace;
+  const std::string title0 = scenario_title(dir);
+  f.title = fmt::format("run 0, periods {}..{}{}{}", (*window.front())[static_cast<std::size_t>(tr.period)],
+                        (*window.back())[static_cast<std::size_t>(tr.period)],
+                        recentred ? (physical ? ", physical coordinates (re-centring added back)"
+                                              : ", re-centred coordinates (the physical state exceeds 1e10 here)")
+                                  : "",
+                        title0.empty() ? "" : " — " + title0);
+  f.dat = trace_dat(tr, window, physical, f.title);
+  if (n > shown) f.dat += fmt::format("# the figure shows x1..x{} of {} states\n", shown, n);
+  f.gp = script(f.name, f.title, 1000, static_cast<int>(260 * (shown + 1) + 60), trace_body(tr, shown, f.title));
   return f;
 }
 

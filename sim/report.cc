@@ -216,6 +216,227 @@ std::optional<std::pair<std::string, std::string>> scenario_text(const std::stri
   return std::nullopt;
 }
 
+
+// summary.csv of `dir` with its sweep key, estimator and status columns; throws when unreadable.
+SummaryTable read_summary_table(const std::string& dir) {
+  const fs::path sp = fs::path(dir) / "summary.csv";
+  const auto stext = try_read(sp);
+  if (!stext) throw ScenarioError(fmt::format("{}: cannot read (is this an ncosim output folder?)", sp.string()));
+  SummaryTable tb;
+  tb.t = parse_csv(*stext, sp.string());
+  tb.est = tb.t.column("estimator");
+  tb.status = tb.t.column("status");
+  if (tb.est < 0) throw ScenarioError(format_error(sp.string(), 1, "", "expected an `estimator` column"));
+  for (int i = 0; i < tb.est; ++i) tb.keys.push_back(i);
+  return tb;
+}
+
+// manifest.json of `dir`, or an empty object when it is missing or unreadable.
+nlohmann::json read_manifest(const std::string& dir) {
+  if (const auto m = try_read(fs::path(dir) / "manifest.json")) {
+    try {
+      return nlohmann::json::parse(*m);
+    } catch (const std::exception&) {
+    }
+  }
+  return nlohmann::json::object();
+}
+
+// The sweep cases of summary.csv: consecutive rows with the same sweep labels.
+struct Cases {
+  std::vector<std::vector<std::size_t>> rows;  // row indices of each case
+  std::vector<std::string> labels;             // "key = value, ..." ("" without sweep keys)
+};
+
+Cases split_cases(const SummaryTable& tb) {
+  const CsvTable& t = tb.t;
+  Cases cases;
+  for (std::size_t r = 0; r < t.rows.size(); ++r) {
+    std::string label;
+    for (int k : tb.keys) {
+      label += fmt::format("{}{} = {}", label.empty() ? "" : ", ", t.header[static_cast<std::size_t>(k)],
+                           t.rows[r][static_cast<std::size_t>(k)]);
+    }
+    if (cases.rows.empty() || cases.labels.back() != label) {
+      cases.rows.emplace_back();
+      cases.labels.push_back(label);
+    }
+    cases.rows.back().push_back(r);
+  }
+  return cases;
+}
+
+// Columns from `estimator` on: the known ones that hold a value somewhere (ci columns merged
+// into their value's cell) in `main_cols`, the others in `extra_cols`.
+void split_columns(const SummaryTable& tb, std::vector<int>& main_cols, std::vector<int>& extra_cols) {
+  const CsvTable& t = tb.t;
+  for (int c = tb.est; c < static_cast<int>(t.header.size()); ++c) {
+    const std::string& name = t.header[static_cast<std::size_t>(c)];
+    const bool ci_of_shown = name.size() > 5 && name.compare(name.size() - 5, 5, "_ci95") == 0 &&
+                             t.column(name.substr(0, name.size() - 5)) >= 0;
+    if (ci_of_shown) continue;
+    bool any = c == tb.est || c == tb.status;
+    for (const auto& r : t.rows) any = any || !r[static_cast<std::size_t>(c)].empty();
+    if (!any) continue;
+    (known_column(name) ? main_cols : extra_cols).push_back(c);
+  }
+}
+
+// The document's head, title and the line under it (scenario, cases, estimators, runs, seed, folder).
+std::string page_head(const std::string& dir, const nlohmann::json& man, const std::string& title, const Cases& cases) {
+  std::string h = "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\"/>\n";
+  h += "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\"/>\n";
+  h += fmt::format("<title>{} — ncosim report</title>\n<style>{}</style>\n</head>\n<body>\n", html_escape(title), kCss);
+  h += fmt::format("<h1>{}</h1>\n", html_escape(title));
+  h += fmt::format("<p class=\"sub\">{} · {} case(s) · {} estimator(s){}{}{} · folder {}</p>\n",
+                   man.contains("scenario") ? html_escape(json_text(man["scenario"])) : "scenario unknown",
+                   cases.rows.size(), cases.rows.empty() ? 0 : cases.rows.front().size(),
+                   man.contains("runs") ? fmt::format(" · {} runs", html_escape(json_text(man["runs"]))) : "",
+                   man.contains("periods") ? fmt::format(" × {} periods", html_escape(json_text(man["periods"]))) : "",
+                   man.contains("seed") ? fmt::format(" · seed {}", html_escape(json_text(man["seed"]))) : "",
+                   html_escape(dir));
+  return h;
+}
+
+// Warnings: every row whose status is not ok (or a line saying there is none), and the
+// re-centring note.
+std::string warnings_section(const SummaryTable& tb, const Cases& cases, const nlohmann::json& man) {
+  const CsvTable& t = tb.t;
+  std::string warn;
+  if (tb.status >= 0) {
+    for (std::size_t c = 0; c < cases.rows.size(); ++c) {
+      for (std::size_t r : cases.rows[c]) {
+        const auto& st = t.rows[r][static_cast<std::size_t>(tb.status)];
+        if (st == "ok") continue;
+        warn += fmt::format("<li>{}{}: <b>{}</b></li>\n",
+                            cases.labels[c].empty() ? "" : html_escape(cases.labels[c]) + " · ",
+                            html_escape(t.rows[r][static_cast<std::size_t>(tb.est)]), html_escape(st));
+      }
+    }
+  }
+  std::string h;
+  if (!warn.empty()) {
+    h += "<div class=\"warn\" id=\"warnings\"><b>Rows whose status is not ok</b> (not trustworthy, see the status "
+         "column in results/README.md):\n<ul>\n" + warn + "</ul></div>\n";
+  } else {
+    h += "<p class=\"ok\" id=\"warnings\">Every row has status ok.</p>\n";
+  }
+  if (man.contains("recentred") && man["recentred"].is_boolean() && man["recentred"].get<bool>()) {
+    h += "<p class=\"sub\">The plant was simulated re-centred (scenarios/README.md); metrics are unaffected, "
+         "trajectory.csv carries the physical state in its x*_physical columns.</p>\n";
+  }
+  return h;
+}
+
+// The table of contents; the further-columns section only when there is one.
+std::string contents_nav(bool further) {
+  std::string h = "<nav><b>Contents:</b> <a href=\"#figures\">figures</a> · <a href=\"#summary\">summary</a>";
+  if (further) h += " · <a href=\"#further\">paired comparison / further columns</a>";
+  h += " · <a href=\"#design\">design</a> · <a href=\"#manifest\">manifest</a> · <a href=\"#scenario\">scenario</a></nav>\n";
+  return h;
+}
+
+// The figures, inlined as SVG with ids prefixed per figure (f1-, f2-, ...).
+std::string figures_section(const std::vector<ReportFigure>& figures) {
+  std::string h = "<h2 id=\"figures\">Figures</h2>\n";
+  if (figures.empty()) h += "<p>No figures (report written with --no-figures).</p>\n";
+  for (std::size_t i = 0; i < figures.size(); ++i) {
+    h += fmt::format("<figure id=\"fig-{}\">\n{}\n<figcaption>Figure {}: {}</figcaption>\n</figure>\n", i + 1,
+                     inline_svg(figures[i].svg, fmt::format("f{}-", i + 1)), i + 1, html_escape(figures[i].title));
+  }
+  return h;
+}
+
+// Several cases: one row per case, one column per estimator (mse ± CI), linked to the case's
+// section; the lowest mse of a case green, a row not ok red with its status.
+std::string case_overview(const SummaryTable& tb, const Cases& cases) {
+  const CsvTable& t = tb.t;
+  const int mse = t.column("mse"), mci = t.column("mse_ci95");
+  std::string h = "<h3 id=\"overview\">mse per case and estimator</h3>\n<div class=\"scroll\"><table>\n<tr><th class=\"t\">case</th>";
+  for (std::size_t r : cases.rows.front()) {
+    h += fmt::format("<th>{}</th>", html_escape(t.rows[r][static_cast<std::size_t>(tb.est)]));
+  }
+  h += "</tr>\n";
+  for (std::size_t c = 0; c < cases.rows.size(); ++c) {
+    h += fmt::format("<tr><td class=\"t\"><a href=\"#case-{}\">{}</a></td>", c + 1, html_escape(cases.labels[c]));
+    double best = INFINITY;
+    for (std::size_t r : cases.rows[c]) {
+      best = std::min(best, mse >= 0 ? to_double(t.rows[r][static_cast<std::size_t>(mse)]) : NAN);
+    }
+    for (std::size_t r : cases.rows[c]) {
+      const auto& row = t.rows[r];
+      const bool bad = tb.status >= 0 && row[static_cast<std::size_t>(tb.status)] != "ok";
+      const bool is_best = mse >= 0 && to_double(row[static_cast<std::size_t>(mse)]) == best;
+      h += fmt::format("<td{}>{}{}</td>", bad ? " class=\"status-bad\"" : (is_best ? " class=\"best\"" : ""),
+                       mse >= 0 ? cell(t, row, mse, mci) : "",
+                       bad ? " (" + html_escape(row[static_cast<std::size_t>(tb.status)]) + ")" : "");
+    }
+    h += "</tr>\n";
+  }
+  return h + "</table></div>\n";
+}
+
+// The summary: one table, or with several cases the overview and one folded table per case.
+std::string summary_section(const SummaryTable& tb, const Cases& cases, const std::vector<int>& main_cols) {
+  std::string h = "<h2 id=\"summary\">Summary</h2>\n";
+  h += "<p class=\"sub\">Numbers as written in summary.csv (columns: results/README.md); rows whose status is not "
+       "ok are red; the lowest mse of each case is green. Columns empty in every row are left out.</p>\n";
+  if (cases.rows.size() <= 1) {
+    return h + html_table(tb, cases.rows.empty() ? std::vector<std::size_t>{} : cases.rows.front(), main_cols, true);
+  }
+  h += case_overview(tb, cases) + "<h3>Every case</h3>\n";
+  for (std::size_t c = 0; c < cases.rows.size(); ++c) {
+    h += fmt::format("<details id=\"case-{}\"><summary>case {}: {}</summary>\n{}</details>\n", c + 1, c + 1,
+                     html_escape(cases.labels[c]), html_table(tb, cases.rows[c], main_cols, true));
+  }
+  return h;
+}
+
+// The columns beyond the known ones (e.g. the paired comparison), every row in one table.
+std::string further_section(const SummaryTable& tb, const Cases& cases, const std::vector<int>& extra_cols) {
+  std::string h = "<h2 id=\"further\">Paired comparison and further columns</h2>\n";
+  h += "<p class=\"sub\">Columns of summary.csv beyond the ones above (for instance the paired differences "
+       "against the reference estimator), as written.</p>\n";
+  std::vector<int> cols = tb.keys;
+  cols.push_back(tb.est);
+  cols.insert(cols.end(), extra_cols.begin(), extra_cols.end());
+  std::vector<std::size_t> all(tb.t.rows.size());
+  for (std::size_t i = 0; i < all.size(); ++i) all[i] = i;
+  const std::string table = html_table(tb, all, cols, false);
+  h += cases.rows.size() > 1 ? "<details><summary>every case</summary>\n" + table + "</details>\n" : table;
+  return h;
+}
+
+// The manifest as a two-column table.
+std::string manifest_section(const nlohmann::json& man) {
+  std::string h = "<h2 id=\"manifest\">Manifest</h2>\n";
+  if (man.empty()) return h + "<p>No manifest.json in this folder.</p>\n";
+  h += "<table>\n";
+  for (const auto& [k, v] : man.items()) {
+    h += fmt::format("<tr><th class=\"t\">{}</th><td class=\"t\">{}</td></tr>\n", html_escape(k), html_escape(json_text(v)));
+  }
+  return h + "</table>\n";
+}
+
+// The scenario file named in the manifest, as read now, or a warning when it is not found.
+std::string scenario_section(const std::string& dir, const nlohmann::json& man) {
+  std::string h = "<h2 id=\"scenario\">Scenario</h2>\n";
+  const std::string sname = man.contains("scenario") ? json_text(man["scenario"]) : "";
+  if (const auto sc = scenario_text(dir, sname)) {
+    h += fmt::format("<p class=\"sub\">{} as read when this report was written{}</p>\n<pre>{}</pre>\n",
+                     html_escape(sc->first),
+                     man.contains("overrides") && !man["overrides"].empty()
+                         ? ", before the overrides " + html_escape(json_text(man["overrides"]))
+                         : "",
+                     html_escape(sc->second));
+  } else {
+    h += fmt::format("<p class=\"warn\">The scenario file '{}' was not found from here (relative paths are read "
+                     "from the current folder and the folders above the output folder).</p>\n",
+                     html_escape(sname));
+  }
+  return h;
+}
+
 }  // namespace
 
 std::string inline_svg(const std::string& svg, const std::string& prefix) {
@@ -255,174 +476,24 @@ std::string inline_svg(const std::string& svg, const std::string& prefix) {
 }
 
 std::string build_report(const std::string& dir, const std::vector<ReportFigure>& figures) {
-  const fs::path sp = fs::path(dir) / "summary.csv";
-  const auto stext = try_read(sp);
-  if (!stext) throw ScenarioError(fmt::format("{}: cannot read (is this an ncosim output folder?)", sp.string()));
-  SummaryTable tb;
-  tb.t = parse_csv(*stext, sp.string());
-  tb.est = tb.t.column("estimator");
-  tb.status = tb.t.column("status");
-  if (tb.est < 0) throw ScenarioError(format_error(sp.string(), 1, "", "expected an `estimator` column"));
-  for (int i = 0; i < tb.est; ++i) tb.keys.push_back(i);
-  const CsvTable& t = tb.t;
-
-  nlohmann::json man = nlohmann::json::object();
-  if (const auto m = try_read(fs::path(dir) / "manifest.json")) {
-    try {
-      man = nlohmann::json::parse(*m);
-    } catch (const std::exception&) {
-      man = nlohmann::json::object();
-    }
-  }
+  const SummaryTable tb = read_summary_table(dir);
+  const nlohmann::json man = read_manifest(dir);
   const std::string title = man.contains("title") ? json_text(man["title"]) : fs::path(dir).filename().string();
-
-  // Cases: consecutive rows with the same sweep labels.
-  std::vector<std::vector<std::size_t>> cases;
-  std::vector<std::string> case_labels;
-  for (std::size_t r = 0; r < t.rows.size(); ++r) {
-    std::string label;
-    for (int k : tb.keys) {
-      label += fmt::format("{}{} = {}", label.empty() ? "" : ", ", t.header[static_cast<std::size_t>(k)],
-                           t.rows[r][static_cast<std::size_t>(k)]);
-    }
-    if (cases.empty() || case_labels.back() != label) {
-      cases.emplace_back();
-      case_labels.push_back(label);
-    }
-    cases.back().push_back(r);
-  }
-  // Columns: known ones that hold a value somewhere (ci columns merged), then the others.
+  const Cases cases = split_cases(tb);
   std::vector<int> main_cols, extra_cols;
-  for (int c = tb.est; c < static_cast<int>(t.header.size()); ++c) {
-    const std::string& name = t.header[static_cast<std::size_t>(c)];
-    const bool ci_of_shown = name.size() > 5 && name.compare(name.size() - 5, 5, "_ci95") == 0 &&
-                             t.column(name.substr(0, name.size() - 5)) >= 0;
-    if (ci_of_shown) continue;
-    bool any = c == tb.est || c == tb.status;
-    for (const auto& r : t.rows) any = any || !r[static_cast<std::size_t>(c)].empty();
-    if (!any) continue;
-    (known_column(name) ? main_cols : extra_cols).push_back(c);
-  }
+  split_columns(tb, main_cols, extra_cols);
 
   std::string h;
   h.reserve(64 * 1024);
-  h += "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\"/>\n";
-  h += "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\"/>\n";
-  h += fmt::format("<title>{} — ncosim report</title>\n<style>{}</style>\n</head>\n<body>\n", html_escape(title), kCss);
-  h += fmt::format("<h1>{}</h1>\n", html_escape(title));
-  h += fmt::format("<p class=\"sub\">{} · {} case(s) · {} estimator(s){}{}{} · folder {}</p>\n",
-                   man.contains("scenario") ? html_escape(json_text(man["scenario"])) : "scenario unknown", cases.size(),
-                   cases.empty() ? 0 : cases.front().size(),
-                   man.contains("runs") ? fmt::format(" · {} runs", html_escape(json_text(man["runs"]))) : "",
-                   man.contains("periods") ? fmt::format(" × {} periods", html_escape(json_text(man["periods"]))) : "",
-                   man.contains("seed") ? fmt::format(" · seed {}", html_escape(json_text(man["seed"]))) : "",
-                   html_escape(dir));
-
-  // Warnings: every row whose status is not ok, and the re-centring note.
-  std::string warn;
-  if (tb.status >= 0) {
-    for (std::size_t c = 0; c < cases.size(); ++c) {
-      for (std::size_t r : cases[c]) {
-        const auto& st = t.rows[r][static_cast<std::size_t>(tb.status)];
-        if (st == "ok") continue;
-        warn += fmt::format("<li>{}{}: <b>{}</b></li>\n", case_labels[c].empty() ? "" : html_escape(case_labels[c]) + " · ",
-                            html_escape(t.rows[r][static_cast<std::size_t>(tb.est)]), html_escape(st));
-      }
-    }
-  }
-  if (!warn.empty()) {
-    h += "<div class=\"warn\" id=\"warnings\"><b>Rows whose status is not ok</b> (not trustworthy, see the status "
-         "column in results/README.md):\n<ul>\n" + warn + "</ul></div>\n";
-  } else {
-    h += "<p class=\"ok\" id=\"warnings\">Every row has status ok.</p>\n";
-  }
-  if (man.contains("recentred") && man["recentred"].is_boolean() && man["recentred"].get<bool>()) {
-    h += "<p class=\"sub\">The plant was simulated re-centred (scenarios/README.md); metrics are unaffected, "
-         "trajectory.csv carries the physical state in its x*_physical columns.</p>\n";
-  }
-
-  // Table of contents.
-  h += "<nav><b>Contents:</b> <a href=\"#figures\">figures</a> · <a href=\"#summary\">summary</a>";
-  if (!extra_cols.empty()) h += " · <a href=\"#further\">paired comparison / further columns</a>";
-  h += " · <a href=\"#design\">design</a> · <a href=\"#manifest\">manifest</a> · <a href=\"#scenario\">scenario</a></nav>\n";
-
-  h += "<h2 id=\"figures\">Figures</h2>\n";
-  if (figures.empty()) h += "<p>No figures (report written with --no-figures).</p>\n";
-  for (std::size_t i = 0; i < figures.size(); ++i) {
-    h += fmt::format("<figure id=\"fig-{}\">\n{}\n<figcaption>Figure {}: {}</figcaption>\n</figure>\n", i + 1,
-                     inline_svg(figures[i].svg, fmt::format("f{}-", i + 1)), i + 1, html_escape(figures[i].title));
-  }
-
-  h += "<h2 id=\"summary\">Summary</h2>\n";
-  h += "<p class=\"sub\">Numbers as written in summary.csv (columns: results/README.md); rows whose status is not "
-       "ok are red; the lowest mse of each case is green. Columns empty in every row are left out.</p>\n";
-  if (cases.size() <= 1) {
-    h += html_table(tb, cases.empty() ? std::vector<std::size_t>{} : cases.front(), main_cols, true);
-  } else {
-    // Overview: one row per case, one column per estimator (mse ± CI), linked to the case's section.
-    const int mse = t.column("mse"), mci = t.column("mse_ci95");
-    h += "<h3 id=\"overview\">mse per case and estimator</h3>\n<div class=\"scroll\"><table>\n<tr><th class=\"t\">case</th>";
-    for (std::size_t r : cases.front()) h += fmt::format("<th>{}</th>", html_escape(t.rows[r][static_cast<std::size_t>(tb.est)]));
-    h += "</tr>\n";
-    for (std::size_t c = 0; c < cases.size(); ++c) {
-      h += fmt::format("<tr><td class=\"t\"><a href=\"#case-{}\">{}</a></td>", c + 1, html_escape(case_labels[c]));
-      double best = INFINITY;
-      for (std::size_t r : cases[c]) best = std::min(best, mse >= 0 ? to_double(t.rows[r][static_cast<std::size_t>(mse)]) : NAN);
-      for (std::size_t r : cases[c]) {
-        const auto& row = t.rows[r];
-        const bool bad = tb.status >= 0 && row[static_cast<std::size_t>(tb.status)] != "ok";
-        const bool is_best = mse >= 0 && to_double(row[static_cast<std::size_t>(mse)]) == best;
-        h += fmt::format("<td{}>{}{}</td>", bad ? " class=\"status-bad\"" : (is_best ? " class=\"best\"" : ""),
-                         mse >= 0 ? cell(t, row, mse, mci) : "", bad ? " (" + html_escape(row[static_cast<std::size_t>(tb.status)]) + ")" : "");
-      }
-      h += "</tr>\n";
-    }
-    h += "</table></div>\n<h3>Every case</h3>\n";
-    for (std::size_t c = 0; c < cases.size(); ++c) {
-      h += fmt::format("<details id=\"case-{}\"><summary>case {}: {}</summary>\n{}</details>\n", c + 1, c + 1,
-                       html_escape(case_labels[c]), html_table(tb, cases[c], main_cols, true));
-    }
-  }
-  if (!extra_cols.empty()) {
-    h += "<h2 id=\"further\">Paired comparison and further columns</h2>\n";
-    h += "<p class=\"sub\">Columns of summary.csv beyond the ones above (for instance the paired differences "
-         "against the reference estimator), as written.</p>\n";
-    std::vector<int> cols = tb.keys;
-    cols.push_back(tb.est);
-    cols.insert(cols.end(), extra_cols.begin(), extra_cols.end());
-    std::vector<std::size_t> all(t.rows.size());
-    for (std::size_t i = 0; i < all.size(); ++i) all[i] = i;
-    const std::string table = html_table(tb, all, cols, false);
-    h += cases.size() > 1 ? "<details><summary>every case</summary>\n" + table + "</details>\n" : table;
-  }
-
+  h += page_head(dir, man, title, cases);
+  h += warnings_section(tb, cases, man);
+  h += contents_nav(!extra_cols.empty());
+  h += figures_section(figures);
+  h += summary_section(tb, cases, main_cols);
+  if (!extra_cols.empty()) h += further_section(tb, cases, extra_cols);
   h += "<h2 id=\"design\">Design</h2>\n" + design_section(dir);
-
-  h += "<h2 id=\"manifest\">Manifest</h2>\n";
-  if (man.empty()) {
-    h += "<p>No manifest.json in this folder.</p>\n";
-  } else {
-    h += "<table>\n";
-    for (const auto& [k, v] : man.items()) {
-      h += fmt::format("<tr><th class=\"t\">{}</th><td class=\"t\">{}</td></tr>\n", html_escape(k), html_escape(json_text(v)));
-    }
-    h += "</table>\n";
-  }
-
-  h += "<h2 id=\"scenario\">Scenario</h2>\n";
-  const std::string sname = man.contains("scenario") ? json_text(man["scenario"]) : "";
-  if (const auto sc = scenario_text(dir, sname)) {
-    h += fmt::format("<p class=\"sub\">{} as read when this report was written{}</p>\n<pre>{}</pre>\n",
-                     html_escape(sc->first),
-                     man.contains("overrides") && !man["overrides"].empty()
-                         ? ", before the overrides " + html_escape(json_text(man["overrides"]))
-                         : "",
-                     html_escape(sc->second));
-  } else {
-    h += fmt::format("<p class=\"warn\">The scenario file '{}' was not found from here (relative paths are read "
-                     "from the current folder and the folders above the output folder).</p>\n",
-                     html_escape(sname));
-  }
+  h += manifest_section(man);
+  h += scenario_section(dir, man);
   h += "<p class=\"sub\">Written by <code>ncosim report</code>; self-contained (no script, no network).</p>\n";
   h += "</body>\n</html>\n";
   return h;
