@@ -18,6 +18,7 @@ class LinearProcess : public PlantProcess {
         rng_(sim::make_stream(run.seed, run.run, sim::stream_id(sim::StreamKind::kPlant, 0))),
         w_sqrt_(psd_sqrt(plant.W)),
         w_(plant.nw()),
+        scaled_(plant.nw()),
         next_(plant.n()) {}
 
   bool step(std::int64_t k, const Eigen::VectorXd& u_applied, PlantSignals& s) override {
@@ -32,7 +33,8 @@ class LinearProcess : public PlantProcess {
  protected:
   // next_ = A x + Bu u + recentre + Bw w with w_ holding N(0, I) draws.
   virtual void advance(std::int64_t k, const Eigen::VectorXd& u_applied, PlantSignals& s) {
-    w_ = w_sqrt_ * w_;
+    scaled_.noalias() = w_sqrt_ * w_;  // into its own buffer: no temporary, no allocation
+    w_.swap(scaled_);
     disturbance_.at(k - 1, w_);  // deterministic part of w[k-1]
     s.drive.noalias() = plant_.Bu * u_applied;
     s.drive += s.recentre;
@@ -46,7 +48,7 @@ class LinearProcess : public PlantProcess {
   bool recentre_;
   sim::Rng rng_;
   Eigen::MatrixXd w_sqrt_;
-  Eigen::VectorXd w_, next_;
+  Eigen::VectorXd w_, scaled_, next_;
 };
 
 // x[k] = A_m x[k-1] + Bu_m u + Bw_m w with m = theta[k-1] drawn from the mode chain.
@@ -79,7 +81,8 @@ class JumpLinearProcess final : public LinearProcess {
     s.drive += s.recentre;
     next_.noalias() = pm.A * s.x;
     next_ += s.drive;
-    w_ = mode_w_sqrt_[static_cast<std::size_t>(m)] * w_;
+    scaled_.noalias() = mode_w_sqrt_[static_cast<std::size_t>(m)] * w_;
+    w_.swap(scaled_);
     disturbance_.at(k - 1, w_);  // deterministic part of w[k-1]
     next_.noalias() += pm.Bw * w_;
   }

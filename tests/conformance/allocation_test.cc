@@ -20,6 +20,7 @@
 
 #include "conformance/fixtures.h"
 #include "kernel/rng.h"
+#include "sim/campaign.h"
 #include "sim/registries.h"
 #include "test_util.h"
 
@@ -193,6 +194,43 @@ TEST(Allocation, ModeEstimatorsOnAJumpLinearPlantDoNotAllocate) {
   std::string text = scenario_text("jump_linear", "white", "bernoulli", {"imm", "mode_ss"});
   text.replace(text.find("[[actuator]]"), std::string("[[actuator]]\nlink = \"net\"\non_loss = \"hold\"\n\n").size(), "");
   expect_no_allocation(*testing::load_one(write_scenario(dir, text)), "jump_linear plant");
+}
+
+// The run itself (plant process, sensors and their policies, links, controller, actuation,
+// recorder; open_loop as the only estimator): a run of 2P periods makes as many allocations as
+// one of P periods, up to the pools that grow to their steady size (events, packets in flight).
+// An allocation per period would add P.
+long run_allocations(Scenario& sc, std::int64_t periods) {
+  sc.run.periods = periods;
+  g_allocations = 0;
+  g_counting = true;
+  simulate_run(sc, 0);
+  g_counting = false;
+  return g_allocations;
+}
+
+TEST(Allocation, ARunAllocatesNothingPerPeriod) {
+  constexpr std::int64_t kPeriods = 4000;
+  constexpr long kPoolGrowth = 16;  // a pool doubling a few more times in the longer run
+  TempDir dir;
+  for (const auto& p : plant_registry().entries()) {
+    if (needs_sumo(p.name)) continue;
+    for (const auto& in : input_registry().entries()) {
+      for (const std::string policy : {"", "policy = \"send_on_delta\"\ndelta = 0.05\n"}) {
+        std::string text = scenario_text(p.name, in.name, "delay", {"open_loop"});
+        for (std::size_t at = text.find("[[sensor]]\n"); at != std::string::npos; at = text.find("[[sensor]]\n", at + 1)) {
+          text.insert(at + 11, policy);
+        }
+        auto sc = testing::load_one(write_scenario(dir, text));
+        const long once = run_allocations(*sc, kPeriods);
+        const long twice = run_allocations(*sc, 2 * kPeriods);
+        EXPECT_LE(twice - once, kPoolGrowth) << p.name << " plant, " << in.name << " input"
+                                             << (policy.empty() ? "" : ", send-on-delta sensors") << ": " << once
+                                             << " allocations in " << kPeriods << " periods, " << twice << " in "
+                                             << 2 * kPeriods;
+      }
+    }
+  }
 }
 
 }  // namespace
