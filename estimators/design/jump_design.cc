@@ -117,7 +117,12 @@ JumpDesign design_jump_iterative(const ExtendedModel& ext, const std::vector<dou
   }
 
   const HistoryTerms h = history_terms(ext, p0, Nbar);
-  const auto& [Apow, SW, stein, SWinf, tail_noise] = h;
+  // References, not a structured binding: lambdas below capture them (clang 14 refuses bindings).
+  const auto& Apow = h.Apow;
+  const auto& SW = h.SW;
+  const auto& stein = h.stein;
+  const auto& SWinf = h.SWinf;
+  const auto& tail_noise = h.tail_noise;
   const Eigen::MatrixXd& AN = Apow[Nbar];
 
   std::vector<Term> terms;
@@ -235,7 +240,12 @@ JumpDesign evaluate_jump_gains(const ExtendedModel& ext, const std::vector<doubl
     return d;
   }
   const HistoryTerms h = history_terms(ext, p0, Nbar);
-  const auto& [Apow, SW, stein, SWinf, tail_noise] = h;
+  // References, not a structured binding: lambdas below capture them (clang 14 refuses bindings).
+  const auto& Apow = h.Apow;
+  const auto& SW = h.SW;
+  const auto& stein = h.stein;
+  const auto& SWinf = h.SWinf;
+  const auto& tail_noise = h.tail_noise;
   const Eigen::MatrixXd& AN = Apow[Nbar];
   // vec(P) = T vec(P) + vec(U): T = sum w (F A^N (x) F A^N), the tail through the Stein sum.
   const Eigen::Index n2 = nb * nb;
