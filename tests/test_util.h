@@ -49,6 +49,33 @@ inline CommandOutcome run_shell(const std::string& cmd) {
   return o;
 }
 
+// `s` in single quotes for the shell (an embedded ' becomes '\'').
+inline std::string shell_quote(const std::string& s) {
+  std::string out = "'";
+  for (char c : s) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return out + "'";
+}
+
+#ifdef NCOSIM_BINARY
+// The shell command running the ncosim executable with `args`, each quoted.
+inline std::string ncosim_command(const std::vector<std::string>& args) {
+  std::string cmd = shell_quote(NCOSIM_BINARY);
+  for (const auto& a : args) cmd += " " + shell_quote(a);
+  return cmd;
+}
+
+// Runs the ncosim executable with `args`: its exit status and its stdout + stderr.
+inline CommandOutcome run_ncosim(const std::vector<std::string>& args) { return run_shell(ncosim_command(args)); }
+#endif
+
+// `text` split at newlines (no line ends kept).
+inline std::vector<std::string> split_lines(const std::string& text) {
+  std::vector<std::string> out;
+  std::istringstream in(text);
+  for (std::string l; std::getline(in, l);) out.push_back(l);
+  return out;
+}
+
 // Dolz et al. 2014, example 1: A3, Bu, Bw, W and the two sensors.
 inline models::LinearPlant dolz_plant(int system = 3) {
   models::LinearPlant p;

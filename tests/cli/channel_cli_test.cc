@@ -12,48 +12,23 @@
 #include <set>
 #include <sstream>
 
+#include "cli/temp_dir_test.h"
 #include "test_util.h"
 
 namespace {
 
 namespace fs = std::filesystem;
 using Outcome = ncosim::testing::CommandOutcome;
+using ncosim::testing::run_ncosim;
+using ncosim::testing::split_lines;
 
-std::string quote(const std::string& s) {
-  std::string out = "'";
-  for (char c : s) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return out + "'";
-}
-
-Outcome ncosim(const std::vector<std::string>& args) {
-  std::string cmd = quote(NCOSIM_BINARY);
-  for (const auto& a : args) cmd += " " + quote(a);
-  return ncosim::testing::run_shell(cmd);
-}
-
-std::vector<std::string> lines(const std::string& text) {
-  std::vector<std::string> out;
-  std::istringstream in(text);
-  for (std::string l; std::getline(in, l);) out.push_back(l);
-  return out;
-}
-
-class ChannelCli : public ::testing::Test {
+class ChannelCli : public ncosim::testing::TempDirTest {
  protected:
+  ChannelCli() : TempDirTest("ncosim_channel_") {}
   void SetUp() override {
-    std::string tmpl = (fs::temp_directory_path() / "ncosim_channel_XXXXXX").string();
-    ASSERT_NE(::mkdtemp(tmpl.data()), nullptr);
-    dir_ = tmpl;
+    TempDirTest::SetUp();
     out_ = dir_ / "out";
     base_ = ncosim::testing::read_text(std::string(NCOSIM_SOURCE_DIR) + "/tests/cli/data/base.toml");
-  }
-  void TearDown() override {
-    std::error_code ec;
-    fs::remove_all(dir_, ec);
-  }
-  std::string write(const std::string& name, const std::string& text) {
-    std::ofstream(dir_ / name, std::ios::binary) << text;
-    return (dir_ / name).string();
   }
   std::string with_link2(const std::string& link) {
     const std::string from = "name = \"net2\"\nkind = \"bernoulli\"\nloss = 0.2\n";
@@ -62,14 +37,14 @@ class ChannelCli : public ::testing::Test {
     EXPECT_NE(at, std::string::npos);
     return t.replace(at, from.size(), "name = \"net2\"\n" + link);
   }
-  fs::path dir_, out_;
+  fs::path out_;
   std::string base_;
 };
 
 TEST_F(ChannelCli, RunWritesLinksCsvWithARowPerLinkAndSender) {
-  const Outcome o = ncosim({"run", write("s.toml", base_), "--out", out_.string(), "--quiet"});
+  const Outcome o = run_ncosim({"run", write("s.toml", base_), "--out", out_.string(), "--quiet"});
   ASSERT_EQ(o.code, 0) << o.output;
-  const auto l = lines(ncosim::testing::read_text((out_ / "links.csv").string()));
+  const auto l = split_lines(ncosim::testing::read_text((out_ / "links.csv").string()));
   ASSERT_EQ(l.size(), 3u);
   EXPECT_EQ(l[0],
             "link,kind,sender,runs,packets_sent,packets_delivered,delivered_ratio,nominal_delivered_ratio,delay_max,"
@@ -84,10 +59,10 @@ TEST_F(ChannelCli, ZippedSweepsMoveTogetherAndCrossTheOtherAxes) {
                            "\n[[sweep]]\nkey = \"link[1].mean_loss\"\nvalues = [0.05, 0.1, 0.2]\nzip = \"ge\"\n"
                            "\n[[sweep]]\nkey = \"estimator[0].history\"\nvalues = [1, 2]\n"
                            "\n[[sweep]]\nkey = \"link[1].mean_burst\"\nvalues = [1.5, 3.0, 6.0]\nzip = \"ge\"\n";
-  const Outcome o = ncosim({"run", write("s.toml", text), "--out", out_.string(), "--runs", "2", "--periods",
+  const Outcome o = run_ncosim({"run", write("s.toml", text), "--out", out_.string(), "--runs", "2", "--periods",
                             "20000", "--quiet"});
   ASSERT_EQ(o.code, 0) << o.output;
-  const auto l = lines(ncosim::testing::read_text((out_ / "links.csv").string()));
+  const auto l = split_lines(ncosim::testing::read_text((out_ / "links.csv").string()));
   ASSERT_EQ(l.size(), 1u + 6u * 2u);  // 3 zipped x 2 cases, 2 links each
   EXPECT_EQ(l[0].rfind("link[1].mean_loss,estimator[0].history,link[1].mean_burst,link,", 0), 0u) << l[0];
   const std::vector<std::string> expect{"0.05,1,1.5", "0.05,2,1.5", "0.1,1,3.0", "0.1,2,3.0", "0.2,1,6.0", "0.2,2,6.0"};
@@ -107,9 +82,9 @@ TEST_F(ChannelCli, ZippedSweepsOfDifferentLengthsAreRejectedAtTheirLine) {
   const std::string text = base_ + "\n[[sweep]]\nkey = \"link[1].loss\"\nvalues = [0.1, 0.2]\nzip = \"a\"\n"
                                    "\n[[sweep]]\nkey = \"estimator[0].history\"\nvalues = [1, 2, 3]\nzip = \"a\"\n";
   const std::string file = write("s.toml", text);
-  const Outcome o = ncosim({"run", file, "--out", out_.string(), "--quiet"});
+  const Outcome o = run_ncosim({"run", file, "--out", out_.string(), "--quiet"});
   EXPECT_EQ(o.code, 2) << o.output;
-  const auto l = lines(text);
+  const auto l = split_lines(text);
   int line = 0;
   for (std::size_t i = 0; i < l.size(); ++i) {
     if (l[i] == "values = [1, 2, 3]") line = static_cast<int>(i) + 1;
@@ -137,7 +112,7 @@ TEST_F(ChannelCli, GilbertElliottByMeanIsValidated) {
   for (const auto& b : bad) {
     const std::string text = with_link2(b.link);
     const std::string file = write("s.toml", text);
-    const Outcome o = ncosim({"run", file, "--out", out_.string(), "--quiet"});
+    const Outcome o = run_ncosim({"run", file, "--out", out_.string(), "--quiet"});
     EXPECT_EQ(o.code, 2) << o.output;
     EXPECT_NE(o.output.find(file + ":"), std::string::npos) << o.output;
     EXPECT_NE(o.output.find("link[1]." + b.key), std::string::npos) << o.output;
@@ -151,20 +126,20 @@ TEST_F(ChannelCli, FitWritesTheLinkTableAndDiagnosticsAndTheTableRuns) {
   // Bursty: 40 packets delivered, then 10 lost, repeated (with a delay-1 packet now and then).
   for (int i = 0; i < 5000; ++i) trace += fmt::format("{},{}\n", i, i % 50 >= 40 ? "" : (i % 7 == 0 ? "1" : "0"));
   const std::string file = write("trace.csv", trace);
-  const Outcome o = ncosim({"fit", file, "--out", out_.string(), "--family", "delay", "--family", "gilbert_elliott"});
+  const Outcome o = run_ncosim({"fit", file, "--out", out_.string(), "--family", "delay", "--family", "gilbert_elliott"});
   ASSERT_EQ(o.code, 0) << o.output;
   EXPECT_NE(o.output.find("gilbert_elliott"), std::string::npos) << o.output;
   const std::string toml = ncosim::testing::read_text((out_ / "link.toml").string());
   EXPECT_NE(toml.find("[[link]]\nname = \"trace\"\nkind = \"markov\""), std::string::npos) << toml;  // GE + delays
   EXPECT_NE(toml.find("# delay (loglik"), std::string::npos) << toml;
-  const auto csv = lines(ncosim::testing::read_text((out_ / "fit.csv").string()));
+  const auto csv = split_lines(ncosim::testing::read_text((out_ / "fit.csv").string()));
   ASSERT_GT(csv.size(), 20u);
   EXPECT_EQ(csv[0], "family,section,item,estimate,ci95_low,ci95_high,observed");
   EXPECT_NE(std::find(csv.begin(), csv.end(), "gilbert_elliott,fit,selected,1,,,"), csv.end());
   // The table is a valid [[link]]: paste it into a scenario in place of net2.
   std::string link = toml.substr(toml.find("kind ="));
   link = link.substr(0, link.find("\n\n") + 1);
-  const Outcome run = ncosim({"check", write("s.toml", with_link2(link))});
+  const Outcome run = run_ncosim({"check", write("s.toml", with_link2(link))});
   EXPECT_EQ(run.code, 0) << run.output << link;
 }
 
@@ -185,14 +160,14 @@ TEST_F(ChannelCli, FitRejectsBadTracesWithFileLineAndWritesNothing) {
     const std::string file = write("t.csv", b.trace);
     std::vector<std::string> args{"fit", file, "--out", out_.string()};
     args.insert(args.end(), b.args.begin(), b.args.end());
-    const Outcome o = ncosim(args);
+    const Outcome o = run_ncosim(args);
     EXPECT_EQ(o.code, 2) << o.output;
     EXPECT_NE(o.output.find(file + b.where), std::string::npos) << o.output;
     EXPECT_NE(o.output.find(b.message), std::string::npos) << o.output;
     EXPECT_FALSE(fs::exists(out_)) << b.trace;
   }
   const std::string file = write("t.csv", "0,0\n1,\n");
-  const Outcome o = ncosim({"fit", file, "--out", out_.string(), "--family", "hmm"});
+  const Outcome o = run_ncosim({"fit", file, "--out", out_.string(), "--family", "hmm"});
   EXPECT_EQ(o.code, 2);
   EXPECT_NE(o.output.find("--family: expected bernoulli, delay, gilbert_elliott or markov2 .. markov8, got 'hmm'"),
             std::string::npos)

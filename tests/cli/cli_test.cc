@@ -30,25 +30,14 @@ namespace {
 
 namespace fs = std::filesystem;
 
-const std::string kBinary = NCOSIM_BINARY;
 const fs::path kSource = NCOSIM_SOURCE_DIR;
 const fs::path kData = kSource / "tests" / "cli" / "data";
 const fs::path kFlagship = kSource / "scenarios" / "dolz2014_table2.toml";
 
 using Outcome = ncosim::testing::CommandOutcome;
 
-std::string shell_quote(const std::string& s) {
-  std::string out = "'";
-  for (char c : s) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return out + "'";
-}
-
 // Runs ncosim with `args`; captures stdout + stderr and the exit status.
-Outcome ncosim(const std::vector<std::string>& args) {
-  std::string cmd = shell_quote(kBinary);
-  for (const auto& a : args) cmd += " " + shell_quote(a);
-  return ncosim::testing::run_shell(cmd);
-}
+Outcome ncosim(const std::vector<std::string>& args) { return ncosim::testing::run_ncosim(args); }
 
 std::string read_file(const fs::path& p) { return ncosim::testing::read_text(p.string()); }
 

@@ -11,31 +11,15 @@
 #include <fstream>
 #include <sstream>
 
+#include "cli/temp_dir_test.h"
 #include "test_util.h"
 
 namespace {
 
 namespace fs = std::filesystem;
 using Outcome = ncosim::testing::CommandOutcome;
-
-std::string quote(const std::string& s) {
-  std::string out = "'";
-  for (char c : s) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return out + "'";
-}
-
-Outcome ncosim(const std::vector<std::string>& args) {
-  std::string cmd = quote(NCOSIM_BINARY);
-  for (const auto& a : args) cmd += " " + quote(a);
-  return ncosim::testing::run_shell(cmd);
-}
-
-std::vector<std::string> lines(const std::string& text) {
-  std::vector<std::string> out;
-  std::istringstream in(text);
-  for (std::string l; std::getline(in, l);) out.push_back(l);
-  return out;
-}
+using ncosim::testing::run_ncosim;
+using ncosim::testing::split_lines;
 
 std::vector<std::string> split(const std::string& line) {
   std::vector<std::string> out;
@@ -53,18 +37,17 @@ std::string replace(std::string text, const std::string& from, const std::string
 // The runs.csv rows of one estimator, without the timing columns.
 std::vector<std::string> rows_of(const fs::path& runs_csv, const std::string& estimator) {
   std::vector<std::string> out;
-  for (const auto& l : lines(ncosim::testing::read_text(runs_csv.string()))) {
+  for (const auto& l : split_lines(ncosim::testing::read_text(runs_csv.string()))) {
     if (l.find("," + estimator + ",") != std::string::npos) out.push_back(l.substr(0, l.find(",ok,")));
   }
   return out;
 }
 
-class RecordLinkCli : public ::testing::Test {
+class RecordLinkCli : public ncosim::testing::TempDirTest {
  protected:
+  RecordLinkCli() : TempDirTest("ncosim_record_") {}
   void SetUp() override {
-    std::string tmpl = (fs::temp_directory_path() / "ncosim_record_XXXXXX").string();
-    ASSERT_NE(::mkdtemp(tmpl.data()), nullptr);
-    dir_ = tmpl;
+    TempDirTest::SetUp();
     // base.toml with net2 a time-driven Gilbert–Elliott link and y2 sending every 3rd period.
     std::string t = ncosim::testing::read_text(std::string(NCOSIM_SOURCE_DIR) + "/tests/cli/data/base.toml");
     t = replace(t, "kind = \"bernoulli\"\nloss = 0.2\n",
@@ -73,29 +56,20 @@ class RecordLinkCli : public ::testing::Test {
     t = replace(t, "R = [[0.02]]\n", "R = [[0.02]]\nevery = 3\n");
     base_ = t;
   }
-  void TearDown() override {
-    std::error_code ec;
-    fs::remove_all(dir_, ec);
-  }
-  std::string write(const std::string& name, const std::string& text) {
-    std::ofstream(dir_ / name, std::ios::binary) << text;
-    return (dir_ / name).string();
-  }
-  fs::path dir_;
   std::string base_;
 };
 
 TEST_F(RecordLinkCli, RecordsTheCampaignsFatesAndASegmentedReplayReproducesIt) {
   const std::string file = write("s.toml", base_);
-  const Outcome run = ncosim({"run", file, "--out", (dir_ / "run").string(), "--quiet", "--no-timing"});
+  const Outcome run = run_ncosim({"run", file, "--out", (dir_ / "run").string(), "--quiet", "--no-timing"});
   ASSERT_EQ(run.code, 0) << run.output;
-  const auto links = lines(ncosim::testing::read_text((dir_ / "run" / "links.csv").string()));
+  const auto links = split_lines(ncosim::testing::read_text((dir_ / "run" / "links.csv").string()));
   ASSERT_EQ(links.size(), 3u);
   for (const std::string link : {"net1", "net2"}) {
     const fs::path rec = dir_ / ("rec_" + link);
-    const Outcome o = ncosim({"record-link", file, "--link", link, "--out", rec.string(), "--quiet"});
+    const Outcome o = run_ncosim({"record-link", file, "--link", link, "--out", rec.string(), "--quiet"});
     ASSERT_EQ(o.code, 0) << o.output;
-    const auto index = lines(ncosim::testing::read_text((rec / "record.csv").string()));
+    const auto index = split_lines(ncosim::testing::read_text((rec / "record.csv").string()));
     ASSERT_EQ(index.size(), 2u);
     EXPECT_EQ(index[0], "link,file,runs,periods,segment,packets,delivered,delivered_ratio");
     const auto f = split(index[1]);
@@ -106,7 +80,7 @@ TEST_F(RecordLinkCli, RecordsTheCampaignsFatesAndASegmentedReplayReproducesIt) {
     // The delivered count is links.csv's for that link (its 6th column).
     const auto row = split(links[link == "net1" ? 1 : 2]);
     EXPECT_EQ(f[6], row[5]) << index[1] << "\n" << links[link == "net1" ? 1 : 2];
-    const auto trace = lines(ncosim::testing::read_text((rec / (link + ".csv")).string()));
+    const auto trace = split_lines(ncosim::testing::read_text((rec / (link + ".csv")).string()));
     ASSERT_EQ(trace.size(), static_cast<std::size_t>(4 * per_run + 1));
     EXPECT_EQ(trace[0], "seq,delay");
     EXPECT_EQ(trace[5].rfind("4,", 0), 0u);
@@ -119,7 +93,7 @@ TEST_F(RecordLinkCli, RecordsTheCampaignsFatesAndASegmentedReplayReproducesIt) {
                    "loss_bad = 0.9\n",
                    "kind = \"trace\"\nfile = \"rec_net2/net2.csv\"\nsegment = 667\n");
   const Outcome rp =
-      ncosim({"run", write("replay.toml", replay), "--out", (dir_ / "replay").string(), "--quiet", "--no-timing"});
+      run_ncosim({"run", write("replay.toml", replay), "--out", (dir_ / "replay").string(), "--quiet", "--no-timing"});
   ASSERT_EQ(rp.code, 0) << rp.output;
   // The Kalman filter uses what arrives (no design law): the same errors, run by run.
   const auto a = rows_of(dir_ / "run" / "runs.csv", "Kalman");
@@ -127,7 +101,7 @@ TEST_F(RecordLinkCli, RecordsTheCampaignsFatesAndASegmentedReplayReproducesIt) {
   ASSERT_EQ(a.size(), 4u);
   EXPECT_EQ(a, b);
   // Without `segment` every run replays rows 0.. (run 0's packets): runs 1..3 differ.
-  const Outcome whole = ncosim({"run", write("whole.toml", replace(replay, "segment = 2000\n", "")), "--out",
+  const Outcome whole = run_ncosim({"run", write("whole.toml", replace(replay, "segment = 2000\n", "")), "--out",
                                 (dir_ / "whole").string(), "--quiet", "--no-timing"});
   ASSERT_EQ(whole.code, 0) << whole.output;
   const auto c = rows_of(dir_ / "whole" / "runs.csv", "Kalman");
@@ -140,9 +114,9 @@ TEST_F(RecordLinkCli, WritesOneTracePerSweepCase) {
   const std::string file =
       write("s.toml", base_ + "\n[[sweep]]\nkey = \"link[0].pmf\"\nvalues = [[0.5, 0.3], [0.9]]\n");
   const fs::path rec = dir_ / "rec";
-  const Outcome o = ncosim({"record-link", file, "--link", "net1", "--out", rec.string(), "--runs", "2", "--quiet"});
+  const Outcome o = run_ncosim({"record-link", file, "--link", "net1", "--out", rec.string(), "--runs", "2", "--quiet"});
   ASSERT_EQ(o.code, 0) << o.output;
-  const auto index = lines(ncosim::testing::read_text((rec / "record.csv").string()));
+  const auto index = split_lines(ncosim::testing::read_text((rec / "record.csv").string()));
   ASSERT_EQ(index.size(), 3u);
   EXPECT_EQ(index[0], "link[0].pmf,link,file,runs,periods,segment,packets,delivered,delivered_ratio");
   EXPECT_EQ(index[1].rfind("\"[0.5, 0.3]\",net1,net1_case0.csv,2,2000,2000,4000,", 0), 0u) << index[1];
@@ -167,7 +141,7 @@ TEST_F(RecordLinkCli, BadInputIsExit2AndWritesNothing) {
   for (const auto& b : bad) {
     std::vector<std::string> args{"record-link", write("s.toml", b.scenario), "--out", out.string()};
     args.insert(args.end(), b.args.begin(), b.args.end());
-    const Outcome o = ncosim(args);
+    const Outcome o = run_ncosim(args);
     EXPECT_EQ(o.code, 2) << o.output;
     EXPECT_NE(o.output.find(b.message), std::string::npos) << o.output;
     EXPECT_FALSE(fs::exists(out)) << b.message;
@@ -182,7 +156,7 @@ TEST_F(RecordLinkCli, BadInputIsExit2AndWritesNothing) {
                                                         {"1999", "expected a trace segment of at least 2000 packets"}}) {
     const std::string file = write("r.toml", replace(base_, "kind = \"delay\"\npmf = [0.5, 0.3]\n",
                                                      "kind = \"trace\"\nfile = \"t.csv\"\nsegment = " + segment + "\n"));
-    const Outcome o = ncosim({"run", file, "--out", out.string(), "--quiet"});
+    const Outcome o = run_ncosim({"run", file, "--out", out.string(), "--quiet"});
     EXPECT_EQ(o.code, 2) << o.output;
     EXPECT_NE(o.output.find(file + ":"), std::string::npos) << o.output;
     EXPECT_NE(o.output.find("link[0].segment"), std::string::npos) << o.output;

@@ -22,23 +22,10 @@ namespace {
 namespace fs = std::filesystem;
 using Outcome = ncosim::testing::CommandOutcome;
 
-const std::string kBinary = NCOSIM_BINARY;
 const fs::path kSource = NCOSIM_SOURCE_DIR;
 
-std::string quote(const std::string& s) {
-  std::string out = "'";
-  for (char c : s) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return out + "'";
-}
-
-std::string command(const std::vector<std::string>& args) {
-  std::string cmd = quote(kBinary);
-  for (const auto& a : args) cmd += " " + quote(a);
-  return cmd;
-}
-
 Outcome ncosim(const std::vector<std::string>& args, const std::string& prefix = "") {
-  return ncosim::testing::run_shell(prefix + command(args));
+  return ncosim::testing::run_shell(prefix + ncosim::testing::ncosim_command(args));
 }
 
 class Reliability : public ::testing::Test {

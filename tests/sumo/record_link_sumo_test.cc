@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "sumo/sumo_fixture.h"
 #include "test_util.h"
 
 namespace {
@@ -19,61 +20,19 @@ namespace {
 namespace fs = std::filesystem;
 
 // Two vehicles drifting apart on a 5 km road (the slower one behind), 2 realisations.
-constexpr const char* kScenario = R"([run]
-periods = 900
-warmup = 10
-runs = 4
-period = 0.1
-
-[sumo]
-net = "net.net.xml"
-routes = "r.rou.xml"
-step = 0.1
-seeds = 2
-cache = "cache"
-
-[plant]
-kind = "sumo_vehicle"
-vehicle = "leader"
-model = "constant_velocity"
-q = 1.0
-
-[[link]]
-name = "v2v"
-kind = "sumo_distance"
-sender = "leader"
-receiver = "follower"
-preset = "cheng2007"
-
-[[sensor]]
-C = [[1.0, 0.0], [0.0, 1.0]]
-R = [[1.0, 0.0], [0.0, 0.01]]
-link = "v2v"
-
-[[estimator]]
+std::string scenario_text() {
+  return ncosim::testing::sumo_scenario(900, 4, 2, "follower", "cheng2007", R"([[estimator]]
 kind = "kalman_extended"
 max_delay = 1
-)";
+)");
+}
 
 class RecordLinkSumo : public ::testing::Test {
  protected:
   void SetUp() override {
     dir_ = fs::temp_directory_path() / ("ncosim_record_sumo_" + std::to_string(::getpid()));
-    fs::create_directories(dir_);
-    std::ofstream(dir_ / "n.nod.xml") << R"(<nodes><node id="a" x="0" y="0"/><node id="b" x="5000" y="0"/></nodes>)";
-    std::ofstream(dir_ / "e.edg.xml") << R"(<edges><edge id="ab" from="a" to="b" numLanes="2" speed="40"/></edges>)";
-    std::ofstream(dir_ / "r.rou.xml") << R"(<routes>
-  <vType id="fast" maxSpeed="30" sigma="0.5"/>
-  <vType id="slow" maxSpeed="15" sigma="0.5"/>
-  <route id="r" edges="ab"/>
-  <vehicle id="leader" type="fast" route="r" depart="0" departPos="100" departSpeed="max"/>
-  <vehicle id="follower" type="slow" route="r" depart="0" departPos="0" departSpeed="max"/>
-</routes>)";
-    std::ofstream(dir_ / "s.toml") << kScenario;
-    const std::string cmd = "cd '" + dir_.string() +
-                            "' && SUMO_HOME=/usr/share/sumo netconvert -n n.nod.xml -e e.edg.xml -o net.net.xml "
-                            ">/dev/null 2>&1";
-    ok_ = std::system(cmd.c_str()) == 0;
+    ok_ = ncosim::testing::write_sumo_road(dir_, 5000, ncosim::testing::kLeaderAndFollower);
+    std::ofstream(dir_ / "s.toml") << scenario_text();
   }
   void TearDown() override {
     std::error_code ec;
@@ -117,7 +76,7 @@ TEST_F(RecordLinkSumo, ASegmentedReplayOfTheRecordGivesTheCampaignsErrors) {
   const int delivered = std::stoi(field(index[1], 6));
   EXPECT_GT(delivered, 100);
   EXPECT_LT(delivered, 3500);
-  std::string replay = kScenario;
+  std::string replay = scenario_text();
   const std::string from = "kind = \"sumo_distance\"\nsender = \"leader\"\nreceiver = \"follower\"\npreset = \"cheng2007\"\n";
   ASSERT_NE(replay.find(from), std::string::npos);
   replay.replace(replay.find(from), from.size(), "kind = \"trace\"\nfile = \"rec/v2v.csv\"\nsegment = 900\n");

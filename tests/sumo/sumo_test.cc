@@ -23,6 +23,7 @@
 #include "sim/campaign.h"
 #include "sumo/channel.h"
 #include "sumo/mobility.h"
+#include "sumo/sumo_fixture.h"
 #include "test_util.h"
 
 namespace ncosim::sumo {
@@ -140,52 +141,8 @@ struct Road {
   fs::path dir;
   Road() {
     dir = fs::temp_directory_path() / ("ncosim_sumo_test_" + std::to_string(::getpid()));
-    fs::create_directories(dir);
-    std::ofstream(dir / "n.nod.xml") << R"(<nodes><node id="a" x="0" y="0"/><node id="b" x="5000" y="0"/></nodes>)";
-    std::ofstream(dir / "e.edg.xml") << R"(<edges><edge id="ab" from="a" to="b" numLanes="2" speed="40"/></edges>)";
-    std::ofstream(dir / "r.rou.xml") << R"(<routes>
-  <vType id="fast" maxSpeed="30" sigma="0.5"/>
-  <vType id="slow" maxSpeed="15" sigma="0.5"/>
-  <route id="r" edges="ab"/>
-  <vehicle id="leader" type="fast" route="r" depart="0" departPos="100" departSpeed="max"/>
-  <vehicle id="follower" type="slow" route="r" depart="0" departPos="0" departSpeed="max"/>
-</routes>)";
-    const std::string cmd = "cd '" + dir.string() +
-                            "' && SUMO_HOME=/usr/share/sumo netconvert -n n.nod.xml -e e.edg.xml -o net.net.xml "
-                            ">/dev/null 2>&1";
-    ok = std::system(cmd.c_str()) == 0;
-    std::ofstream(dir / "s.toml") << R"([run]
-periods = 600
-warmup = 10
-runs = 6
-period = 0.1
-
-[sumo]
-net = "net.net.xml"
-routes = "r.rou.xml"
-step = 0.1
-seeds = 2
-cache = "cache"
-
-[plant]
-kind = "sumo_vehicle"
-vehicle = "leader"
-model = "constant_velocity"
-q = 1.0
-
-[[link]]
-name = "v2v"
-kind = "sumo_distance"
-sender = "leader"
-receiver = "follower"
-preset = "ns3_vanet"
-
-[[sensor]]
-C = [[1.0, 0.0], [0.0, 1.0]]
-R = [[1.0, 0.0], [0.0, 0.01]]
-link = "v2v"
-
-[[estimator]]
+    ok = testing::write_sumo_road(dir, 5000, testing::kLeaderAndFollower);
+    std::ofstream(dir / "s.toml") << testing::sumo_scenario(600, 6, 2, "follower", "ns3_vanet", R"([[estimator]]
 kind = "kalman_extended"
 max_delay = 1
 
@@ -198,7 +155,7 @@ max_delay = 1
 [[estimator]]
 kind = "open_loop"
 max_delay = 1
-)";
+)");
   }
   ~Road() { fs::remove_all(dir); }
   std::string scenario() const { return (dir / "s.toml").string(); }

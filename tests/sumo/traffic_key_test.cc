@@ -10,6 +10,7 @@
 #include <regex>
 #include <string>
 
+#include "sumo/sumo_fixture.h"
 #include "test_util.h"
 
 namespace {
@@ -21,57 +22,15 @@ struct Road3 {
   bool ok = false;
   Road3() {
     dir = fs::temp_directory_path() / ("ncosim_sumo_traffic_" + std::to_string(::getpid()));
-    fs::create_directories(dir);
-    std::ofstream(dir / "n.nod.xml") << R"(<nodes><node id="a" x="0" y="0"/><node id="b" x="3000" y="0"/></nodes>)";
-    std::ofstream(dir / "e.edg.xml") << R"(<edges><edge id="ab" from="a" to="b" numLanes="2" speed="40"/></edges>)";
-    std::ofstream(dir / "r.rou.xml") << R"(<routes>
-  <vType id="fast" maxSpeed="30" sigma="0.5"/>
-  <vType id="slow" maxSpeed="15" sigma="0.5"/>
-  <route id="r" edges="ab"/>
-  <vehicle id="leader" type="fast" route="r" depart="0" departPos="200" departSpeed="max"/>
+    ok = ncosim::testing::write_sumo_road(dir, 3000, R"(  <vehicle id="leader" type="fast" route="r" depart="0" departPos="200" departSpeed="max"/>
   <vehicle id="near" type="fast" route="r" depart="0" departPos="100" departSpeed="max"/>
   <vehicle id="far" type="slow" route="r" depart="0" departPos="0" departSpeed="max"/>
   <vehicle id="other" type="slow" route="r" depart="0" departPos="50" departSpeed="max"/>
-</routes>)";
-    const std::string cmd = "cd '" + dir.string() +
-                            "' && SUMO_HOME=/usr/share/sumo netconvert -n n.nod.xml -e e.edg.xml -o net.net.xml "
-                            ">/dev/null 2>&1";
-    ok = std::system(cmd.c_str()) == 0;
+)");
   }
   ~Road3() { fs::remove_all(dir); }
   std::string scenario(const std::string& receivers) const {
-    return R"([run]
-periods = 300
-warmup = 10
-runs = 3
-period = 0.1
-
-[sumo]
-net = "net.net.xml"
-routes = "r.rou.xml"
-step = 0.1
-seeds = 3
-cache = "cache"
-
-[plant]
-kind = "sumo_vehicle"
-vehicle = "leader"
-model = "constant_velocity"
-q = 1.0
-
-[[link]]
-name = "v2v"
-kind = "sumo_distance"
-sender = "leader"
-receiver = "near"
-preset = "ns3_vanet"
-
-[[sensor]]
-C = [[1.0, 0.0], [0.0, 1.0]]
-R = [[1.0, 0.0], [0.0, 0.01]]
-link = "v2v"
-
-[[estimator]]
+    return ncosim::testing::sumo_scenario(300, 3, 3, "near", "ns3_vanet", R"([[estimator]]
 kind = "open_loop"
 max_delay = 1
 
@@ -82,7 +41,7 @@ values = )" + receivers + R"(
 [[sweep]]
 key = "link[0].preset"
 values = ["veins_nakagami3", "ns3_vanet"]
-)";
+)");
   }
 };
 
