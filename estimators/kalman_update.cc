@@ -63,7 +63,7 @@ struct FactorArgs {
 };
 
 template <int N>
-Factor factor_loops(const FactorArgs& f, double& half_log_det) {
+Factor factor_loops(const FactorArgs& f) {
   const Index n = N > 0 ? N : f.n;
   const Index m = f.m, ld = f.ld;
   const double *c = f.c, *p = f.p, *x = f.x;
@@ -92,14 +92,12 @@ Factor factor_loops(const FactorArgs& f, double& half_log_det) {
     finite = finite && std::isfinite(w[b]);
   }
   if (!finite) return Factor::kNonFinite;
-  half_log_det = 0.0;
   for (Index j = 0; j < m; ++j) {  // Cholesky S = L L', in place
     double d = l[j * ld + j];
     for (Index k = 0; k < j; ++k) d -= l[k * ld + j] * l[k * ld + j];
     if (!(d > 0.0)) return Factor::kNotPositiveDefinite;
     const double ljj = std::sqrt(d);
     l[j * ld + j] = ljj;
-    half_log_det += std::log(ljj);
     for (Index i = j + 1; i < m; ++i) {
       double s = l[j * ld + i];
       for (Index k = 0; k < j; ++k) s -= l[k * ld + i] * l[k * ld + j];
@@ -174,6 +172,9 @@ void Workspace::reserve(Index n, Index m_max) {
 double Workspace::log_likelihood() const {
   double sq = 0.0;
   for (Index a = 0; a < m; ++a) sq += w(a) * w(a);
+  // log det S / 2 = sum log L_ii, here rather than in factor(): most filters never ask.
+  double half_log_det = 0.0;
+  for (Index j = 0; j < m; ++j) half_log_det += std::log(L(j, j));
   return -0.5 * sq - half_log_det - 0.5 * static_cast<double>(m) * std::log(2.0 * std::numbers::pi);
 }
 
@@ -216,7 +217,7 @@ Index select(const Eigen::MatrixXd& C, const Eigen::MatrixXd& R, const Eigen::Ve
 Factor factor(const Eigen::VectorXd& x, const Eigen::MatrixXd& P, Workspace& ws) {
   const FactorArgs f{x.data(), P.data(), ws.C.data(), ws.R.data(), ws.y.data(), ws.L.data(),
                      ws.U.data(), ws.w.data(), ws.C.rows(), ws.m, P.rows()};
-  return dispatch(P.rows(), [&]<int N>() { return factor_loops<N>(f, ws.half_log_det); });
+  return dispatch(P.rows(), [&]<int N>() { return factor_loops<N>(f); });
 }
 
 void apply(Eigen::VectorXd& x, Eigen::MatrixXd& P, const Workspace& ws) {

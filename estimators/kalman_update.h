@@ -41,12 +41,11 @@ struct Workspace {
   // Results of factor(): L (lower triangle of `L`), w = L^-1 (y - C x), U = L^-1 C P.
   Eigen::MatrixXd L, U;
   Eigen::VectorXd w;
-  double half_log_det = 0.0;  // sum log L_ii
 
   Eigen::MatrixXd T;   // n x n scratch of the prediction
   Eigen::VectorXd xt;  // n scratch
 
-  // log N(y; C x, S) of the last successful factor().
+  // log N(y; C x, S) of the last successful factor() (reads L's diagonal and w).
   double log_likelihood() const;
 };
 

@@ -31,11 +31,11 @@ RunRecorder::RunRecorder(const Scenario& sc, const Estimators& estimators, std::
     if (mode_count_ > 0 && mode_count_ <= kMaxConfusionModes) {
       m.confusion.assign(static_cast<std::size_t>(mode_count_ * mode_count_), 0);
     }
-    m.sensor_taken.assign(sc.model.sensors.size(), 0);
-    m.sensor_sent.assign(sc.model.sensors.size(), 0);
-    for (const auto& sm : sc.model.sensors) m.sensor_virtual_sse.emplace_back(static_cast<std::size_t>(sm.spec.ny()), 0.0);
     metrics_.push_back(std::move(m));
   }
+  sensors_.sensor_taken.assign(sc.model.sensors.size(), 0);
+  sensors_.sensor_sent.assign(sc.model.sensors.size(), 0);
+  for (const auto& sm : sc.model.sensors) sensors_.sensor_virtual_sse.emplace_back(static_cast<std::size_t>(sm.spec.ny()), 0.0);
   // x[-j] = x0: the plant rests at x0 before t = 0.
   history_.assign(static_cast<std::size_t>(max_ext_blocks), sc.model.plant.x0);
 }
@@ -52,18 +52,17 @@ void RunRecorder::on_state(std::int64_t k, const Eigen::VectorXd& x) {
 void RunRecorder::on_sample(std::size_t s, std::int64_t k, bool sent, const Eigen::Ref<const Eigen::VectorXd>& sample,
                             const Eigen::VectorXd* held) {
   if (k < warmup_) return;
-  for (auto& m : metrics_) {
-    ++m.samples_taken;
-    ++m.sensor_taken[s];
-    if (sent) {
-      ++m.sensor_sent[s];
-      continue;
-    }
-    if (held == nullptr) continue;  // a policy that keeps no held value
-    for (Eigen::Index i = 0; i < sample.size(); ++i) {
-      const double d = (*held)(i) - sample(i);
-      m.sensor_virtual_sse[s][static_cast<std::size_t>(i)] += d * d;
-    }
+  // The sensors' counts are the same for every estimator: kept once, copied by finish().
+  ++sensors_.samples_taken;
+  ++sensors_.sensor_taken[s];
+  if (sent) {
+    ++sensors_.sensor_sent[s];
+    return;
+  }
+  if (held == nullptr) return;  // a policy that keeps no held value
+  for (Eigen::Index i = 0; i < sample.size(); ++i) {
+    const double d = (*held)(i) - sample(i);
+    sensors_.sensor_virtual_sse[s][static_cast<std::size_t>(i)] += d * d;
   }
 }
 
@@ -139,6 +138,10 @@ void RunRecorder::score_modes(int true_mode) {
 
 RunMetrics RunRecorder::finish() {
   for (std::size_t e = 0; e < estimators_.size(); ++e) {
+    metrics_[e].samples_taken = sensors_.samples_taken;
+    metrics_[e].sensor_taken = sensors_.sensor_taken;
+    metrics_[e].sensor_sent = sensors_.sensor_sent;
+    metrics_[e].sensor_virtual_sse = sensors_.sensor_virtual_sse;
     metrics_[e].status = estimators_[e]->status();
     if (const auto* c = estimators_[e]->counters()) metrics_[e].counters = *c;
     if (precision_lost_ && metrics_[e].status == "ok") metrics_[e].status = "precision_lost";

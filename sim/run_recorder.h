@@ -46,6 +46,7 @@ class RunRecorder {
   Eigen::VectorXd err_;
   bool precision_lost_ = false;
   RunMetrics metrics_;
+  EstimatorRunMetrics sensors_;  // only the sensor counts: the same for every estimator
 };
 
 }  // namespace ncosim::sim
