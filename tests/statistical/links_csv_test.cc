@@ -400,3 +400,29 @@ TEST(LinksCsv, ActuatorChannelsGetTheirOwnRows) {
 
 }  // namespace
 }  // namespace ncosim::sim
+
+namespace ncosim::sim {
+namespace {
+
+// Sensors on one link that sample at the same period send in the order their samples were
+// scheduled (scenarios/README.md, "Event order within one period"): s2 (every = 2, sampled at
+// k - 2) before s1 (every = 1, sampled at k - 1) at k = 2 and 4. A trace link hands its rows
+// out in sending order: s1 gets rows 0, 2, 4, 5, 7, 8 and s2 rows 1, 3, 6, the only delivered
+// ones. In the sensors' index order s2 would get rows 1, 4, 7 instead.
+TEST(LinksCsv, SensorsDueTogetherSendInTheOrderTheirSamplesWereScheduled) {
+  const auto dir = std::filesystem::temp_directory_path() / fmt::format("ncosim_links_{}", ::getpid());
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir / "order.csv") << "seq,delay\n0,\n1,0\n2,\n3,0\n4,\n5,\n6,0\n7,\n8,\n";
+  const std::string s2 = "[[sensor]]\nname = \"s2\"\nC = [[1.0]]\nR = [[1.0]]\nlink = \"net\"\nevery = 2\n";
+  const Outcome r = run(scenario("kind = \"trace\"\nfile = \"order.csv\"", 6, 1, s2));
+  ASSERT_EQ(r.rows.size(), 2u);
+  EXPECT_EQ(r.rows[0].at("sender"), "s1");
+  EXPECT_EQ(r.rows[0].at("packets_sent"), "6");
+  EXPECT_EQ(r.rows[0].at("packets_delivered"), "0");
+  EXPECT_EQ(r.rows[1].at("sender"), "s2");
+  EXPECT_EQ(r.rows[1].at("packets_sent"), "3");
+  EXPECT_EQ(r.rows[1].at("packets_delivered"), "3");
+}
+
+}  // namespace
+}  // namespace ncosim::sim
