@@ -72,6 +72,7 @@ class SodJumpDesignImpl final : public SodJumpDesign {
     report_.extra["solver_seconds"] = r.seconds;
     if (!r.ok) {
       report_.status = "lmi_" + r.status;
+      if (!r.message.empty()) report_.extra["lmi_message"] = r.message;
       gains_.assign(std::size_t{1} << sys_.ns(), MatrixXd::Zero(sys_.A.rows(), sys_.ny()));
     } else {
       gains_ = r.gains;

@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <iomanip>
 #include <atomic>
 #include <map>
 #include <mutex>
@@ -237,6 +238,9 @@ double asymmetry(const Sparse& M) {
     for (Sparse::InnerIterator it(D, k); it; ++it) m = std::max(m, std::abs(it.value()));
   return m;
 }
+// Above this magnitude, problem data are refused (translate()).
+constexpr double kMaxDataMagnitude = 1e100;
+
 double max_abs(const Sparse& M) {
   double m = 0.0;
   for (int k = 0; k < M.outerSize(); ++k)
@@ -584,6 +588,27 @@ Translation translate(Problem::Impl& p) {
   }
   if (t.matrix_cons.empty() && t.scalar_cons.empty()) {
     t.error = "no constraint involves a variable";
+    return t;
+  }
+  // CSDP multiplies the data with each other and with its iterates; beyond kMaxDataMagnitude
+  // those products overflow, and CSDP 6.2 can then loop without end instead of reporting
+  // NaN or Inf (found by the structured fuzzer: a plant Bw entry of 1e200 in a sod_jump design).
+  auto too_large = [](const std::string& what, double m) {
+    std::ostringstream os;
+    os << what << " has a coefficient of magnitude " << std::setprecision(3) << m << ", above "
+       << kMaxDataMagnitude << ": the solver's arithmetic would overflow (rescale the model: its matrices or units)";
+    return os.str();
+  };
+  for (std::size_t i = 0; i < p.cons.size(); ++i) {
+    double m = p.cons[i].F0.cwiseAbs().maxCoeff();
+    for (const auto& [s, M] : t.coef[i]) m = std::max(m, max_abs(M));
+    if (m > kMaxDataMagnitude) {
+      t.error = too_large(p.cons[i].name, m);
+      return t;
+    }
+  }
+  if (p.has_objective && p.c.size() > 0 && p.c.cwiseAbs().maxCoeff() > kMaxDataMagnitude) {
+    t.error = too_large("the objective", p.c.cwiseAbs().maxCoeff());
     return t;
   }
   for (int r = 0; r < p.nraw; ++r)

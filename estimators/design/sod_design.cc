@@ -144,7 +144,10 @@ SodDesignResult collect(const lmi::Solution& sol, const Vars& v, std::size_t pat
   r.seconds = sol.seconds;
   r.ok = sol.ok();
   r.status = r.ok ? "ok" : lmi::to_string(sol.status);
-  if (!r.ok) return r;
+  if (!r.ok) {
+    r.message = sol.message;
+    return r;
+  }
   r.bound = sol.value(f);
   r.gamma_w = sol.value(v.gw)(0, 0);
   r.gamma_v.resize(static_cast<Eigen::Index>(v.gv.size()));

@@ -50,6 +50,7 @@ struct SodDesignSpec {
 struct SodDesignResult {
   bool ok = false;
   std::string status = "ok";          // "ok" or the solver status
+  std::string message;                 // why, when not ok (lmi::Solution::message)
   double bound = 0.0;                 // guaranteed ||z~||^2_RMS
   std::vector<Eigen::MatrixXd> gains;  // L_j, j = 0 .. 2^ns - 1 (all equal for a constant gain)
   double gamma_w = 0.0;

@@ -300,6 +300,23 @@ TEST_F(Reliability, DegenerateSendOnDeltaDesignsGetAClearStatus) {
   EXPECT_EQ(readme.find("a bug"), std::string::npos);
 }
 
+// Found by the 10^6-mutant structured fuzz campaign: a plant Bw entry of 1e300 in
+// sod_example51 made the sod_jump LMI designs loop in CSDP without end (`check` ran for more
+// than 60 s, the fuzzer's mutant for minutes). The LMI data are now refused above 1e100: the
+// designs end at once with status lmi_invalid_problem and a message that says to rescale.
+TEST_F(Reliability, BadlyScaledModelEndsTheLmiDesignWithAMessage) {
+  const std::string file = (kSource / "scenarios" / "sod_example51.toml").string();
+  const auto t0 = std::chrono::steady_clock::now();
+  const Outcome o = ncosim({"design", file, "--set", "plant.Bw=[[-0.229, 0.023], [0.231, 1e300], [-0.186, 0.245]]",
+                            "--out", (dir_ / "d").string()},
+                           "timeout 60 ");
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(30));
+  ASSERT_EQ(o.code, 0) << o.output;
+  const std::string json = ncosim::testing::read_text((dir_ / "d" / "design.json").string());
+  EXPECT_NE(json.find("\"status\": \"lmi_invalid_problem\""), std::string::npos);
+  EXPECT_NE(json.find("rescale the model"), std::string::npos);
+}
+
 // Finding 4: the result set of `run` is atomic as a whole: a kill before any step of the write
 // sequence leaves the previous set or the complete new one, and the next run cleans up.
 TEST_F(Reliability, KilledRunLeavesThePreviousOrTheNewSet) {

@@ -244,6 +244,33 @@ TEST(Lmi, MalformedProblemsAreAnErrorStatusNotAnExit) {
   }
 }
 
+// CSDP 6.2 can loop without end on data whose products overflow (found by the structured
+// fuzzer: a sod_jump design of a plant with a Bw entry of 1e300, tests/cli/reliability_test.cc);
+// data above 1e100 in magnitude are refused before the solver sees them, naming the constraint.
+TEST(Lmi, DataBeyondTheSolversRangeAreAnInvalidProblem) {
+  MatrixXd A = StableA();
+  const MatrixXd I = MatrixXd::Identity(3, 3);
+  for (const double big : {1e60, 1e101, 1e150}) {  // A' P A: coefficients up to big^2
+    A(0, 1) = big;
+    Problem prob;
+    Var P = prob.symmetric(3, "P");
+    prob.add(lmi(A.transpose() * P * A - P + I <= 0, -1.0, "decay"));
+    prob.add(P > 0);
+    prob.minimize(trace(P));
+    const Solution s = prob.solve();
+    EXPECT_EQ(s.status, Status::kInvalidProblem) << big;
+    EXPECT_NE(s.message.find("decay has a coefficient of magnitude"), std::string::npos) << s.message;
+    EXPECT_NE(s.message.find("rescale the model"), std::string::npos) << s.message;
+  }
+  Problem prob;  // an objective weight beyond the range
+  Var P = prob.symmetric(1, "P");
+  prob.add(P > 0);
+  prob.minimize(1e200 * trace(P));
+  const Solution s = prob.solve();
+  EXPECT_EQ(s.status, Status::kInvalidProblem);
+  EXPECT_NE(s.message.find("the objective has a coefficient"), std::string::npos) << s.message;
+}
+
 TEST(Lmi, ExpressionMistakesThrowAtTheirSource) {
   Problem prob;
   Var P = prob.symmetric(2, "P");
