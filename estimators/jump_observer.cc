@@ -146,6 +146,12 @@ class JumpObserverDesign final : public EstimatorDesign, public JumpDesignAccess
       report_.extra["iterations"] = iterative->iterations;
       if (iterative->stable) report_.extra["predicted_mse_ext_iterative"] = iterative->Pt.trace();
       else report_.extra["status_iterative"] = iterative->status;
+      if (iterative->stalled_relative_change > 0.0) {
+        report_.extra["iteration_message"] = fmt::format(
+            "stopped after {} iterations: the relative change stalled at {:.1e} (tolerance 1e-13), rounding noise "
+            "of a badly scaled model; rescale the plant and sensor matrices",
+            iterative->iterations, iterative->stalled_relative_change);
+      }
     }
     if (ccl) {
       report_.extra["design_seconds_ccl"] = t_ccl;

@@ -34,6 +34,9 @@ struct JumpDesign {
   // follows Pt); kept only to reproduce the paper's Fig. 3 and Fig. 1(a) text (results/README.md).
   Eigen::MatrixXd Pt_paper_eq28_erroneous;
   int iterations = 0;
+  // > 0 when not_converged because the change stopped decreasing before max_iterations: the
+  // smallest relative change of the last window (a floor of rounding noise, far above tolerance).
+  double stalled_relative_change = 0.0;
   bool stable = false;
   std::string status = "ok";
 };

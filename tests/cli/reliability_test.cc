@@ -4,6 +4,7 @@
 // is not bad input, never an abort, a silent status or a mixed result set).
 #include <fmt/format.h>
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -315,6 +316,31 @@ TEST_F(Reliability, BadlyScaledModelEndsTheLmiDesignWithAMessage) {
   const std::string json = ncosim::testing::read_text((dir_ / "d" / "design.json").string());
   EXPECT_NE(json.find("\"status\": \"lmi_invalid_problem\""), std::string::npos);
   EXPECT_NE(json.find("rescale the model"), std::string::npos);
+}
+
+// Found by the 10^6-mutant structured fuzz campaign: a plant Bw entry of 1e6 in Table 2's
+// scenario made two S3 designs iterate to their 200 000-iteration cap (16 s of CPU for `check`,
+// silent, far past the resource estimate's ~50 iterations): the relative change had stalled at
+// ~1e-8, rounding noise of the badly scaled model, far above the 1e-13 tolerance. The iteration
+// now stops when the change no longer decreases (a window of 2000 iterations without a 10 %
+// improvement) and design.json says why.
+TEST_F(Reliability, BadlyScaledModelStopsAStalledJumpIterationWithAMessage) {
+  const std::string file = (kSource / "scenarios" / "dolz2014_table2.toml").string();
+  const auto t0 = std::chrono::steady_clock::now();
+  const Outcome o = ncosim({"design", file, "--set", "plant.Bw=[[0.0121, 0.1347], [1e6, 0.0831]]", "--out",
+                            (dir_ / "d").string()},
+                           "timeout 60 ");
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(8));  // 16 s of CPU before, 0.4 s after
+  ASSERT_EQ(o.code, 0) << o.output;
+  const auto design = nlohmann::json::parse(ncosim::testing::read_text((dir_ / "d" / "design.json").string()));
+  int stalled = 0;
+  for (const auto& e : design["estimators"]) {
+    if (e["status"] != "not_converged") continue;
+    ++stalled;
+    EXPECT_LT(e["iterations"].get<int>(), 200000) << e["name"];
+    EXPECT_NE(e.value("iteration_message", "").find("stalled at"), std::string::npos) << e["name"];
+  }
+  EXPECT_EQ(stalled, 2);  // the two S3 designs; S1, S2 and S4 converge
 }
 
 // Finding 4: the result set of `run` is atomic as a whole: a kill before any step of the write
