@@ -235,10 +235,18 @@ TEST(StoreCli, SigtermAndSigintCommitFinishedRunsWritePartialExportsAndResumeCom
     if (exit == 0) {  // finished before the signal arrived (a very fast machine): nothing to check
       GTEST_SKIP() << "campaign finished before " << name;
     }
-    if (stored_runs(out) == 1500) {  // the signal came after the last run: a complete campaign
-      GTEST_SKIP() << name << " arrived after the last run";
-    }
     ASSERT_EQ(exit, code) << log;
+    if (stored_runs(out) == 1500) {  // the signal came after the last run: a complete campaign, said so
+      EXPECT_NE(log.find(std::string(name) + " arrived after the last run: the campaign is complete"),
+                std::string::npos)
+          << log;
+      const auto man = nlohmann::json::parse(read_text(fs::path(out) / "manifest.json"));
+      EXPECT_EQ(man["complete"], true);
+      EXPECT_EQ(man["stopped"], name);
+      EXPECT_EQ(read_text(fs::path(out) / "summary.md").find("Partial results"), std::string::npos);
+      expect_same_exports(t / "ref", out, std::string("late ") + name);
+      continue;
+    }
     EXPECT_NE(log.find(std::string("stopped by ") + name), std::string::npos) << log;
     const auto man = nlohmann::json::parse(read_text(fs::path(out) / "manifest.json"));
     EXPECT_EQ(man["complete"], false);
@@ -253,6 +261,25 @@ TEST(StoreCli, SigtermAndSigintCommitFinishedRunsWritePartialExportsAndResumeCom
     expect_same_exports(t / "ref", out, std::string("resume after ") + name);
     EXPECT_EQ(nlohmann::json::parse(read_text(fs::path(out) / "manifest.json"))["complete"], true);
   }
+}
+
+// A signal after the last run stops nothing: complete exports, said so, the signal's status.
+TEST(StoreCli, ASignalAfterTheLastRunLeavesACompleteCampaign) {
+  TempDir t("late");
+  const std::string flags = "--runs 6 --periods 400 --no-timing --quiet";
+  auto ref = ncosim(fmt::format("run {} --out {} {}", quote(kBase.string()), quote(t / "ref"), flags));
+  ASSERT_EQ(ref.code, 0) << ref.output;
+  auto r = run_shell(fmt::format("NCOSIM_TEST_RAISE_AFTER_RUNS={} {} run {} --out {} {}", SIGTERM, quote(kBinary),
+                                 quote(kBase.string()), quote(t / "late"), flags));
+  ASSERT_EQ(r.code, 143) << r.output;
+  EXPECT_NE(r.output.find("SIGTERM arrived after the last run: the campaign is complete (6 run(s)"), std::string::npos)
+      << r.output;
+  EXPECT_EQ(r.output.find("partial results written"), std::string::npos) << r.output;
+  const auto man = nlohmann::json::parse(read_text(t / "late/manifest.json"));
+  EXPECT_EQ(man["complete"], true);
+  EXPECT_EQ(man["stopped"], "SIGTERM");
+  EXPECT_EQ(read_text(t / "late/summary.md").find("Partial results"), std::string::npos);
+  expect_same_exports(t / "ref", t / "late", "late SIGTERM");
 }
 
 TEST(StoreCli, SigkillAtRandomMomentsNeverCorruptsAndResumeIsBitIdentical) {
