@@ -148,9 +148,9 @@ class JumpObserverDesign final : public EstimatorDesign, public JumpDesignAccess
       else report_.extra["status_iterative"] = iterative->status;
       if (iterative->stalled_relative_change > 0.0) {
         report_.extra["iteration_message"] = fmt::format(
-            "stopped after {} iterations: the relative change stalled at {:.1e} (tolerance 1e-13), rounding noise "
+            "stopped after {} iterations: the relative change stalled at {:.1e} (tolerance {:g}), rounding noise "
             "of a badly scaled model; rescale the plant and sensor matrices",
-            iterative->iterations, iterative->stalled_relative_change);
+            iterative->iterations, iterative->stalled_relative_change, iterative->tolerance);
       }
     }
     if (ccl) {

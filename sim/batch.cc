@@ -44,8 +44,8 @@ static_assert(std::atomic<int>::is_always_lock_free, "the stop flag is written f
 
 extern "C" void on_stop_signal(int sig) {
   g_stop.store(sig);
-  static const char msg[] = "\nncosim: stopping: finishing the runs in progress, committing them and writing "
-                            "partial results (a second signal aborts at once)\n";
+  static const char msg[] = "\nncosim: stopping: no new run starts; the runs in progress finish and are committed "
+                            "(a second signal aborts at once)\n";
   const ssize_t ignored = ::write(2, msg, sizeof msg - 1);
   (void)ignored;
 }
@@ -694,10 +694,10 @@ int finish_session(const RunCommand& cmd, const std::string& md, const LoadedSce
                            t.skipped > 0 ? fmt::format(" ({} earlier runs resumed)", t.skipped) : "", t.wall,
                            t.threads, cmd.shard.empty() ? "" : fmt::format(", shard {}", cmd.shard), cmd.out);
   if (sig > 0) {
-    // A signal after the last run stopped nothing: the results are complete (the exit status
-    // still says a signal came).
-    std::cerr << (complete ? fmt::format("ncosim: {} arrived after the last run: the campaign is complete ({} run(s) "
-                                         "committed to {})\n",
+    // A signal after the last run had started stopped nothing: the results are complete (the
+    // exit status still says a signal came).
+    std::cerr << (complete ? fmt::format("ncosim: {} stopped nothing (every run had started): the campaign is "
+                                         "complete ({} run(s) committed to {})\n",
                                          signal_name(sig), t.simulated, path)
                            : fmt::format("ncosim: stopped by {}: {} run(s) committed to {}; partial results written; "
                                          "`--resume` continues\n",
@@ -881,7 +881,7 @@ int cmd_run_campaign(const RunCommand& cmd) {
   session.tty = ::isatty(2) != 0;
   StopSignals signals;
   simulate_session(session, store);
-  // Test hook: a signal that comes after the last run (a race the signal tests cannot aim at).
+  // Test hook: a signal that comes after the last run (a moment the signal tests cannot aim at).
   if (const char* raise_after = std::getenv("NCOSIM_TEST_RAISE_AFTER_RUNS")) ::raise(std::atoi(raise_after));
   const int sig = g_stop.load();
   record_session(store, session.totals.wall, session.totals.threads, mpi ? mpi->size() : 1, sig);

@@ -168,14 +168,17 @@ JumpDesign design_jump_iterative(const ExtendedModel& ext, const std::vector<dou
   const Eigen::MatrixXd I = Eigen::MatrixXd::Identity(nb, nb);
   // Stall detection: a badly scaled model (an entry of 1e6 beside entries of 1e-2) reaches a
   // floor of rounding noise far above the tolerance (relative change ~1e-8, not decreasing), and
-  // would go on to max_iterations (seconds per design). Windows of kStallWindow iterations: when a
-  // window's smallest change is not below kStallRatio times the smallest one before it, the
-  // iteration has stopped converging. A converging iteration (change ~ r^k) passes every window
-  // while r^kStallWindow < kStallRatio, i.e. r < 0.99995: slower ones need more than
-  // max_iterations anyway.
+  // would go on to max_iterations (seconds per design). Windows of kStallWindow iterations: when
+  // a window's smallest relative change is below kStallBelow and not below kStallRatio times the
+  // previous window's, the iteration has stopped converging (at iteration 4000 at the earliest).
+  // A converging iteration (change ~ k^j r^k) passes every window while its change falls by 10 %
+  // per window, e.g. r < 0.99994 at j = 0: slower ones need more than max_iterations anyway.
+  // Changes above kStallBelow (a cycling or slowly converging iteration far from its fixed point)
+  // go on to max_iterations as before.
   constexpr int kStallWindow = 2000;
   constexpr double kStallRatio = 0.9;
-  double best_before = std::numeric_limits<double>::infinity();
+  constexpr double kStallBelow = 1e-6;
+  double best_before = std::numeric_limits<double>::infinity();  // the previous window's smallest
   double best_window = std::numeric_limits<double>::infinity();
   for (d.iterations = 1; d.iterations <= max_iterations; ++d.iterations) {
     priors(d.P);
@@ -195,14 +198,15 @@ JumpDesign design_jump_iterative(const ExtendedModel& ext, const std::vector<dou
     const double change = (Pnew - d.P).cwiseAbs().maxCoeff();
     d.P = Pnew;
     if (change <= tolerance * std::max(1.0, d.P.cwiseAbs().maxCoeff())) break;
-    best_window = std::min(best_window, change);
+    best_window = std::min(best_window, change / std::max(1.0, d.P.cwiseAbs().maxCoeff()));
     if (d.iterations % kStallWindow == 0) {
-      if (best_window >= kStallRatio * best_before) {
+      if (best_window < kStallBelow && best_window >= kStallRatio * best_before) {
         d.status = "not_converged";
-        d.stalled_relative_change = best_window / std::max(1.0, d.P.cwiseAbs().maxCoeff());
+        d.stalled_relative_change = best_window;
+        d.tolerance = tolerance;
         return d;
       }
-      best_before = std::min(best_before, best_window);
+      best_before = best_window;
       best_window = std::numeric_limits<double>::infinity();
     }
   }

@@ -37,6 +37,7 @@ struct JumpDesign {
   // > 0 when not_converged because the change stopped decreasing before max_iterations: the
   // smallest relative change of the last window (a floor of rounding noise, far above tolerance).
   double stalled_relative_change = 0.0;
+  double tolerance = 0.0;  // the iteration's relative tolerance (set with stalled_relative_change)
   bool stable = false;
   std::string status = "ok";
 };

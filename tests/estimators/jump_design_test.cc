@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <bit>
+#include <cmath>
 #include <numeric>
 
 #include "estimators/extended_model.h"
@@ -138,6 +139,24 @@ TEST(JumpDesign, UnstableWhenTheNoMeasurementProbabilityIsTooHigh) {
   const JumpDesign jd = design_jump_iterative(ext, pattern_probabilities(d.model, ext), 1, Grouping::kS4);
   EXPECT_FALSE(jd.stable);
   EXPECT_NE(jd.status.find("unstable"), std::string::npos) << jd.status;
+}
+
+TEST(JumpDesign, ASlowButConvergingIterationIsNotTakenForAStall) {
+  // A slowly decaying plant whose sensors say little (R = 1e4): the iteration contracts by about
+  // a^2 per step, so it needs tens of thousands of steps, many stall windows of 2000. Diagonal,
+  // and a Jordan block whose changes first grow (about k^2 a^(2k)). Both must run to their fixed
+  // point, not stop as stalled.
+  for (const bool jordan : {false, true}) {
+    auto d = dolz_model({{1.0}, {1.0}});
+    d.model.plant.A << 0.9997, jordan ? 0.01 : 0.0, 0.0, jordan ? 0.9997 : 0.5;
+    for (auto& sensor : d.model.sensors) sensor.spec.R(0, 0) = 1e4;
+    const ExtendedModel ext = build_extended(d.model, 0);
+    const JumpDesign jd = design_jump_iterative(ext, pattern_probabilities(d.model, ext), 1, Grouping::kS4);
+    EXPECT_EQ(jd.status, "ok") << "jordan " << jordan;
+    EXPECT_EQ(jd.stalled_relative_change, 0.0) << "jordan " << jordan;
+    EXPECT_GT(jd.iterations, 3 * 2000) << "jordan " << jordan << ": not slow enough to cross several stall windows";
+    EXPECT_LT(jd.iterations, 200000) << "jordan " << jordan;
+  }
 }
 
 TEST(JumpDesign, FlopsAreThePaperFormulaForA3) {
