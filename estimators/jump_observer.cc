@@ -146,12 +146,7 @@ class JumpObserverDesign final : public EstimatorDesign, public JumpDesignAccess
       report_.extra["iterations"] = iterative->iterations;
       if (iterative->stable) report_.extra["predicted_mse_ext_iterative"] = iterative->Pt.trace();
       else report_.extra["status_iterative"] = iterative->status;
-      if (iterative->stalled_relative_change > 0.0) {
-        report_.extra["iteration_message"] = fmt::format(
-            "stopped after {} iterations: the relative change stalled at {:.1e} (tolerance {:g}), rounding noise "
-            "of a badly scaled model; rescale the plant and sensor matrices",
-            iterative->iterations, iterative->stalled_relative_change, iterative->tolerance);
-      }
+      if (!iterative->iteration_message.empty()) report_.extra["iteration_message"] = iterative->iteration_message;
     }
     if (ccl) {
       report_.extra["design_seconds_ccl"] = t_ccl;

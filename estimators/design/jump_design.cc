@@ -197,13 +197,16 @@ JumpDesign design_jump_iterative(const ExtendedModel& ext, const std::vector<dou
     }
     const double change = (Pnew - d.P).cwiseAbs().maxCoeff();
     d.P = Pnew;
-    if (change <= tolerance * std::max(1.0, d.P.cwiseAbs().maxCoeff())) break;
-    best_window = std::min(best_window, change / std::max(1.0, d.P.cwiseAbs().maxCoeff()));
+    const double scale = std::max(1.0, d.P.cwiseAbs().maxCoeff());
+    if (change <= tolerance * scale) break;
+    best_window = std::min(best_window, change / scale);
     if (d.iterations % kStallWindow == 0) {
       if (best_window < kStallBelow && best_window >= kStallRatio * best_before) {
         d.status = "not_converged";
-        d.stalled_relative_change = best_window;
-        d.tolerance = tolerance;
+        d.iteration_message = fmt::format(
+            "stopped after {} iterations: the relative change stalled at {:.1e} (tolerance {:g}), rounding noise "
+            "of a badly scaled model; rescale the plant and sensor matrices",
+            d.iterations, best_window, tolerance);
         return d;
       }
       best_before = best_window;

@@ -34,10 +34,9 @@ struct JumpDesign {
   // follows Pt); kept only to reproduce the paper's Fig. 3 and Fig. 1(a) text (results/README.md).
   Eigen::MatrixXd Pt_paper_eq28_erroneous;
   int iterations = 0;
-  // > 0 when not_converged because the change stopped decreasing before max_iterations: the
-  // smallest relative change of the last window (a floor of rounding noise, far above tolerance).
-  double stalled_relative_change = 0.0;
-  double tolerance = 0.0;  // the iteration's relative tolerance (set with stalled_relative_change)
+  // Set when not_converged because the change stopped decreasing before max_iterations (a floor
+  // of rounding noise far above the tolerance): where, at what change, and what to do.
+  std::string iteration_message;
   bool stable = false;
   std::string status = "ok";
 };

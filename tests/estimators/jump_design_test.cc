@@ -153,7 +153,7 @@ TEST(JumpDesign, ASlowButConvergingIterationIsNotTakenForAStall) {
     const ExtendedModel ext = build_extended(d.model, 0);
     const JumpDesign jd = design_jump_iterative(ext, pattern_probabilities(d.model, ext), 1, Grouping::kS4);
     EXPECT_EQ(jd.status, "ok") << "jordan " << jordan;
-    EXPECT_EQ(jd.stalled_relative_change, 0.0) << "jordan " << jordan;
+    EXPECT_EQ(jd.iteration_message, "") << "jordan " << jordan;
     EXPECT_GT(jd.iterations, 3 * 2000) << "jordan " << jordan << ": not slow enough to cross several stall windows";
     EXPECT_LT(jd.iterations, 200000) << "jordan " << jordan;
   }

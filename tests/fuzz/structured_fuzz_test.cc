@@ -10,8 +10,8 @@
 // per mutant under kMutantSeconds of CPU (a long campaign found badly scaled models whose iterative
 // jump designs stalled at rounding noise and ran to their 200 000-iteration cap: 16-24 s of CPU
 // for one mutant; they now stop when the change stalls, Reliability.BadlyScaledModelStops...).
-// A sample of the mutants that load is then run through the executable (`ncosim run --runs 2 --periods 50`): exit 0, the full output set, and no NaN or inf
-// in summary.csv and runs.csv.
+// A sample of the mutants that load is then run through the executable (`ncosim run --runs 2
+// --periods 50`): exit 0, the full output set, and no NaN or inf in summary.csv and runs.csv.
 //
 // Fixed seed, NCOSIM_FUZZ_MUTANTS mutants (default 3000) within NCOSIM_FUZZ_SECONDS (default 60;
 // the test stops early at that budget and reports how far it got). For a long campaign outside
