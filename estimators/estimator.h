@@ -114,6 +114,12 @@ class EstimatorDesign {
   virtual std::optional<double> flops_per_period() const = 0;
   // Size of the delay-extended state (n (dbar+1)), or 0 when it has none.
   virtual Eigen::Index extended_size() const { return 0; }
+  // True when the design's model is Dolz et al.'s fictitious sensors: each (sensor, delay)
+  // sample arrives independently with its marginal probability, one sample per sensor and
+  // period. summary.csv's model_check then also notes sensors that sample every few periods
+  // (the design treats them as a rate) and physical packets that can arrive with one of several
+  // delays (the design assumes an independent copy per delay). Default: false.
+  virtual bool models_independent_fictitious_sensors() const { return false; }
 };
 
 using EstimatorRegistry =

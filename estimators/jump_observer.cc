@@ -188,6 +188,7 @@ class JumpObserverDesign final : public EstimatorDesign, public JumpDesignAccess
     return nb * nb + nb * nu + 2 * nb * nmb + 2 * nb + nmb;
   }
   Eigen::Index extended_size() const override { return ext_.nb; }
+  bool models_independent_fictitious_sensors() const override { return true; }
   const ExtendedModel& extended_model() const override { return ext_; }
   const JumpDesign& jump_design() const override { return design_; }
   const InitialEstimate& initial_estimate() const override { return params_.init; }

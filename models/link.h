@@ -87,6 +87,13 @@ class Link {
     std::string_view noun;
   };
   virtual std::optional<PacketBound> packet_bound() const { return std::nullopt; }
+  // How this link's losses compare with the model of every design (each packet's fate drawn
+  // afresh from one delay law), for summary.csv's model_check note: kIndependent, the model
+  // itself; kCorrelated, bursty or recorded losses of which a design uses only the marginal law
+  // (the default, so that a new kind is never taken for the model unless it says so);
+  // kPosition, losses driven by the vehicles' positions (SUMO), which come in bursts.
+  enum class LossModel { kIndependent, kCorrelated, kPosition };
+  virtual LossModel loss_model() const { return LossModel::kCorrelated; }
 };
 
 // 1 / (1 - p): the mean length of a run of losses of independent packets lost with probability p
@@ -105,6 +112,7 @@ class DelayPmfLink final : public Link {
   bool independent_copies() const override { return independent_; }
   std::vector<double> delay_pmf(int max_delay) const override;
   double loss_probability() const override;
+  LossModel loss_model() const override { return LossModel::kIndependent; }
 
   std::optional<double> mean_loss_burst(std::optional<int>) const override {
     return independent_loss_burst(loss_probability());
@@ -123,6 +131,7 @@ class BernoulliLink final : public Link {
   std::int64_t transmit(sim::Rng& rng) override;
   std::vector<double> delay_pmf(int max_delay) const override;
   double loss_probability() const override { return loss_; }
+  LossModel loss_model() const override { return LossModel::kIndependent; }
 
   std::optional<double> mean_loss_burst(std::optional<int>) const override {
     return independent_loss_burst(loss_probability());
@@ -142,6 +151,7 @@ class NegativeBinomialLink final : public Link {
   std::int64_t transmit(sim::Rng& rng) override;
   std::vector<double> delay_pmf(int max_delay) const override;
   double loss_probability() const override { return loss_; }
+  LossModel loss_model() const override { return LossModel::kIndependent; }
 
   std::optional<double> mean_loss_burst(std::optional<int>) const override {
     return independent_loss_burst(loss_probability());
@@ -161,6 +171,7 @@ class ArrivalCdfLink final : public Link {
   std::int64_t transmit(sim::Rng& rng) override;
   std::vector<double> delay_pmf(int max_delay) const override;
   double loss_probability() const override { return 1.0 - tail_; }
+  LossModel loss_model() const override { return LossModel::kIndependent; }
 
   std::optional<double> mean_loss_burst(std::optional<int>) const override {
     return independent_loss_burst(loss_probability());

@@ -15,12 +15,6 @@ namespace ncosim::sim {
 
 namespace {
 
-// Link kinds whose packets are independent with one delay law (the model of every design):
-// each sample's delay is drawn afresh. Others are bursty, recorded or position-driven.
-bool independent_kind(const std::string& kind) {
-  return kind == "delay" || kind == "bernoulli" || kind == "negative_binomial" || kind == "arrival_cdf";
-}
-
 std::string link_name(const Scenario& sc, int link) {
   const auto& l = sc.links[static_cast<std::size_t>(link)];
   return fmt::format("link '{}' ({})", l.name, l.kind);
@@ -33,7 +27,7 @@ std::string design_model_departure(const Scenario& sc, std::size_t e) {
   if (sc.plant_vehicle >= 0) why.emplace_back("the plant is a SUMO vehicle, not a linear system with Gaussian noise");
   if (!sc.disturbance.empty()) why.emplace_back("a deterministic disturbance the design does not know");
   const auto& entry = sc.estimators[e];
-  const bool jump = entry.kind == "jump";
+  const bool fictitious = entry.design->models_independent_fictitious_sensors();
   const Eigen::Index n = sc.model.plant.n();
   const Eigen::Index ext = entry.design->extended_size();
   const int max_delay = n > 0 && ext > 0 ? static_cast<int>(ext / n) - 1 : 0;
@@ -45,23 +39,24 @@ std::string design_model_departure(const Scenario& sc, std::size_t e) {
                                 spec.policy->name()));
       continue;
     }
-    if (jump && spec.every > 1) {
+    if (fictitious && spec.every > 1) {
       why.push_back(fmt::format("sensor '{}' samples every {} periods (the design treats it as a rate)", spec.name,
                                 spec.every));
     }
     if (spec.link < 0) continue;  // ideal: q[0] = 1
     const auto& l = sc.links[static_cast<std::size_t>(spec.link)];
-    if (l.kind == "sumo_distance") {
+    using LossModel = models::Link::LossModel;  // each kind says how it departs (models/link.h)
+    if (l.link->loss_model() == LossModel::kPosition) {
       why.push_back(fmt::format("SUMO {}: reception depends on the vehicles' distance, losses come in bursts",
                                 link_name(sc, spec.link)));
       continue;
     }
-    if (!independent_kind(l.kind)) {
+    if (l.link->loss_model() != LossModel::kIndependent) {
       why.push_back(fmt::format("{}: bursty or recorded losses; the design uses only the marginal law",
                                 link_name(sc, spec.link)));
       continue;
     }
-    if (!jump || l.link->independent_copies()) continue;  // independent copies: Dolz Remark 2.3, the model itself
+    if (!fictitious || l.link->independent_copies()) continue;  // independent copies: Dolz Remark 2.3, the model itself
     // One copy per sample: the model holds when at most one delay d <= max_delay can occur.
     const auto pmf = l.link->delay_pmf(max_delay);
     int possible = 0;

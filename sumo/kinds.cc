@@ -31,6 +31,7 @@ class DistanceLink final : public models::Link {
         receiver_hash_(receiver_hash) {}
 
   std::unique_ptr<models::Link> clone() const override { return std::make_unique<DistanceLink>(*this); }
+  LossModel loss_model() const override { return LossModel::kPosition; }
 
   void bind_run(const sim::MobilityRun* mobility, std::uint64_t seed, std::uint64_t run) override {
     run_ = mobility;

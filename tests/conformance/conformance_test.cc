@@ -136,6 +136,46 @@ TEST(Conformance, EveryLinkHonoursItsMarginalLaw) {
   }
 }
 
+TEST(Conformance, EveryLinkThatClaimsTheDesignModelLosesPacketsIndependently) {
+  // A kind whose loss_model() is kIndependent is taken by summary.csv's model_check for the
+  // designs' model (sim/validity.cc): its consecutive packets must be lost independently. Over
+  // n = 20000 packets the count of consecutive lost pairs must be within 4.5 sigmas of
+  // (n - 1) p^2 (sigma of a sum of overlapping pair indicators: variance
+  // (n - 1) p^2 (1 - p^2) + 2 (n - 2) (p^3 - p^4)). The bursty kinds of the fixtures break this
+  // bound, so the check can tell them apart: at least one kind must fail it and not claim.
+  int bursty_seen = 0;
+  for (const auto& l : link_registry().entries()) {
+    if (needs_sumo(l.name)) continue;
+    TempDir dir;
+    const auto file = write_scenario(dir, scenario_text("lti", "none", l.name, {"open_loop"}));
+    auto sc = testing::load_one(file);
+    const models::Link& proto = *sc->links.front().link;
+    SCOPED_TRACE(l.name);
+    auto link = proto.clone();
+    Rng rng = make_stream(7, 0, 0);
+    link->reset(rng);
+    const int n = 20000;
+    int pairs = 0;
+    bool previous = false;
+    for (int i = 0; i < n; ++i) {
+      link->advance(i, rng);
+      const bool lost = link->transmit(rng) == models::kLost;
+      pairs += lost && previous;
+      previous = lost;
+    }
+    const double p = proto.loss_probability();
+    const double m = n - 1.0;
+    const double sigma = std::sqrt(m * p * p * (1 - p * p) + 2.0 * (m - 1.0) * (p * p * p - p * p * p * p)) + 1e-9;
+    const bool independent_looking = std::abs(pairs - m * p * p) < 4.5 * sigma + 1;
+    if (proto.loss_model() == models::Link::LossModel::kIndependent) {
+      EXPECT_TRUE(independent_looking) << pairs << " consecutive losses, expected " << m * p * p << " +- " << sigma;
+    } else if (!independent_looking) {
+      ++bursty_seen;
+    }
+  }
+  EXPECT_GE(bursty_seen, 1);
+}
+
 TEST(Conformance, EveryPlantAndInputKindBuildsAndRuns) {
   for (const auto& p : plant_registry().entries()) {
     if (needs_sumo(p.name)) continue;
