@@ -97,15 +97,20 @@ TEST(Conformance, EveryKindRejectsAnUnknownKeyWithADidYouMean) {
   }
 }
 
+// The fixtures' small scenario with both sensors on one link of `kind` (read at load: the
+// temporary folder, with a trace's file, can go once the scenario is loaded).
+auto link_scenario(const std::string& kind) {
+  TempDir dir;
+  return testing::load_one(write_scenario(dir, scenario_text("lti", "none", kind, {"open_loop"})));
+}
+
 TEST(Conformance, EveryLinkHonoursItsMarginalLaw) {
   // For each kind: delay_pmf entries in [0, 1] summing to at most 1 - loss (+1e-12), every
   // transmit is kLost or a delay >= 0, clones replay identically from the same stream, and
   // the empirical loss rate over 20000 packets is within 4.5 binomial sigmas of loss_probability().
   for (const auto& l : link_registry().entries()) {
     if (needs_sumo(l.name)) continue;
-    TempDir dir;
-    const auto file = write_scenario(dir, scenario_text("lti", "none", l.name, {"open_loop"}));
-    auto sc = testing::load_one(file);
+    auto sc = link_scenario(l.name);
     const models::Link& link = *sc->links.front().link;
     SCOPED_TRACE(l.name);
     const auto pmf = link.delay_pmf(40);
@@ -146,9 +151,7 @@ TEST(Conformance, EveryLinkThatClaimsTheDesignModelLosesPacketsIndependently) {
   int bursty_seen = 0;
   for (const auto& l : link_registry().entries()) {
     if (needs_sumo(l.name)) continue;
-    TempDir dir;
-    const auto file = write_scenario(dir, scenario_text("lti", "none", l.name, {"open_loop"}));
-    auto sc = testing::load_one(file);
+    auto sc = link_scenario(l.name);
     const models::Link& proto = *sc->links.front().link;
     SCOPED_TRACE(l.name);
     auto link = proto.clone();
