@@ -94,6 +94,12 @@ class Link {
   // kPosition, losses driven by the vehicles' positions (SUMO), which come in bursts.
   enum class LossModel { kIndependent, kCorrelated, kPosition };
   virtual LossModel loss_model() const { return LossModel::kCorrelated; }
+  // What moves the channel's state, for links.csv (its `step` column and the packet gap of
+  // mean_loss_burst): kNone, no state that moves between packets (the default: memoryless,
+  // replayed or position-driven links); kPacket, one transition per packet sent; kPeriod, one
+  // per control period (advance()).
+  enum class StateStep { kNone, kPacket, kPeriod };
+  virtual StateStep state_step() const { return StateStep::kNone; }
 };
 
 // 1 / (1 - p): the mean length of a run of losses of independent packets lost with probability p
@@ -197,6 +203,7 @@ class MarkovLink final : public Link {
              Step step = Step::kPacket);
   void advance(std::int64_t period, sim::Rng& rng) override;
   Step step() const { return step_; }
+  StateStep state_step() const override { return step_ == Step::kPeriod ? StateStep::kPeriod : StateStep::kPacket; }
   std::unique_ptr<Link> clone() const override;
   void reset(sim::Rng& rng) override;
   std::int64_t transmit(sim::Rng& rng) override;

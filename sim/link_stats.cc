@@ -25,11 +25,12 @@ std::vector<LinkFlow> link_flows(const Scenario& sc) {
       const auto& spec = sc.model.actuators[a].spec;
       if (spec.link == static_cast<int>(l)) flows.push_back({l, true, a, spec.name, true, std::nullopt, ""});
     }
-    const auto* markov = dynamic_cast<const models::MarkovLink*>(sc.links[l].link.get());
-    const bool per_period = markov != nullptr && markov->step() == models::MarkovLink::Step::kPeriod;
+    using StateStep = models::Link::StateStep;  // the link says what moves its state (models/link.h)
+    const StateStep step = sc.links[l].link->state_step();
+    const bool per_period = step == StateStep::kPeriod;
     for (std::size_t f = first; f < flows.size(); ++f) {
       LinkFlow& flow = flows[f];
-      if (markov != nullptr) flow.step = per_period ? "period" : "packet";
+      if (step != StateStep::kNone) flow.step = per_period ? "period" : "packet";
       if (!per_period) {
         if (flow.sole) flow.gap = 1;
       } else if (flow.actuator) {

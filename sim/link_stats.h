@@ -22,11 +22,11 @@ struct LinkFlow {
   std::string sender_name;
   bool sole = true;         // the only sender on this link instance (actuators: always)
   // Channel steps between two consecutive packets of this sender when regular (1 per packet for
-  // a sole sender on a per-packet link; the sender's `every` on a per-period Markov link);
+  // a sole sender on a per-packet link; the sender's `every` on a per-period link);
   // nullopt when irregular (senders interleaving on a per-packet chain, send-on-delta on a
   // per-period chain).
   std::optional<int> gap;
-  std::string step;         // "period" or "packet" for Markov kinds, "" otherwise
+  std::string step;         // "period" or "packet" when the link has a state that moves (Link::state_step), "" otherwise
 };
 std::vector<LinkFlow> link_flows(const Scenario& sc);
 
