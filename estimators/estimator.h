@@ -117,8 +117,9 @@ class EstimatorDesign {
   // True when the design's model is Dolz et al.'s fictitious sensors: each (sensor, delay)
   // sample arrives independently with its marginal probability, one sample per sensor and
   // period. summary.csv's model_check then also notes sensors that sample every few periods
-  // (the design treats them as a rate) and physical packets that can arrive with one of several
-  // delays (the design assumes an independent copy per delay). Default: false.
+  // (the design treats them as a rate), physical packets that can arrive with one of several
+  // delays (the design assumes an independent copy per delay) and buffered re-sends that carry
+  // the same noise (resend_noise = "same"; the design assumes fresh noise). Default: false.
   virtual bool models_independent_fictitious_sensors() const { return false; }
 };
 

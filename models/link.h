@@ -95,9 +95,10 @@ class Link {
   enum class LossModel { kIndependent, kCorrelated, kPosition };
   virtual LossModel loss_model() const { return LossModel::kCorrelated; }
   // What moves the channel's state, for links.csv (its `step` column and the packet gap of
-  // mean_loss_burst): kNone, no state that moves between packets (the default: memoryless,
-  // replayed or position-driven links); kPacket, one transition per packet sent; kPeriod, one
-  // per control period (advance()).
+  // mean_loss_burst): kPacket, one transition per packet sent; kPeriod, one per control period
+  // (advance()); kNone (the default), no chain state to report, counted like kPacket (one step
+  // per packet of a sole sender): memoryless links, a replayed trace (one record per packet),
+  // position-driven links. A link whose state moves with time must say kPeriod.
   enum class StateStep { kNone, kPacket, kPeriod };
   virtual StateStep state_step() const { return StateStep::kNone; }
 };
