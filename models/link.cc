@@ -218,6 +218,12 @@ std::vector<double> ArrivalCdfLink::delay_pmf(int max_delay) const {
   return out;
 }
 
+std::optional<double> Link::mean_loss_burst(std::optional<int> gap) const {
+  (void)gap;
+  if (loss_model() == LossModel::kIndependent) return independent_loss_burst(loss_probability());
+  return std::nullopt;
+}
+
 std::optional<double> independent_loss_burst(double p) {
   if (!(p < 1.0)) return std::nullopt;
   return 1.0 / (1.0 - p);
@@ -261,6 +267,7 @@ MarkovLink::MarkovLink(Eigen::MatrixXd transition, std::vector<double> loss,
       delay_pmf_(std::move(delay_pmf)),
       initial_(std::move(initial)),
       step_(step) {
+  NCOSIM_CHECK(step_ == Step::kPacket || step_ == Step::kPeriod);
   const Eigen::Index n = transition_.rows();
   const auto un = static_cast<std::size_t>(n);
   NCOSIM_CHECK(n >= 1 && transition_.cols() == n);

@@ -72,11 +72,9 @@ class Link {
   // Mean length of a run of consecutive lost packets of one sender whose consecutive packets
   // are `gap` channel steps apart, where the model fixes it (nullopt: it does not, e.g. a
   // mobility-driven link, or a link with memory whose packets of this sender meet the channel
-  // at irregular steps: gap = nullopt). Independent packets: 1 / (1 - loss_probability()).
-  virtual std::optional<double> mean_loss_burst(std::optional<int> gap) const {
-    (void)gap;
-    return std::nullopt;
-  }
+  // at irregular steps: gap = nullopt). Default: 1 / (1 - loss_probability()) for a link whose
+  // loss_model() is kIndependent (any gap), nullopt otherwise.
+  virtual std::optional<double> mean_loss_burst(std::optional<int> gap) const;
   // The most packets one run may send over this link, when bounded (a replayed trace holds a
   // fixed number): the scenario reader refuses, before t = 0, sensors or actuators that would
   // send more, naming the table key `key` and calling the link a `noun` ("trace"). nullopt:
@@ -120,10 +118,6 @@ class DelayPmfLink final : public Link {
   std::vector<double> delay_pmf(int max_delay) const override;
   double loss_probability() const override;
   LossModel loss_model() const override { return LossModel::kIndependent; }
-
-  std::optional<double> mean_loss_burst(std::optional<int>) const override {
-    return independent_loss_burst(loss_probability());
-  }
  private:
   std::vector<double> pmf_;
   std::vector<double> cdf_;
@@ -139,10 +133,6 @@ class BernoulliLink final : public Link {
   std::vector<double> delay_pmf(int max_delay) const override;
   double loss_probability() const override { return loss_; }
   LossModel loss_model() const override { return LossModel::kIndependent; }
-
-  std::optional<double> mean_loss_burst(std::optional<int>) const override {
-    return independent_loss_burst(loss_probability());
-  }
  private:
   double loss_;
   std::int64_t delay_;
@@ -159,10 +149,6 @@ class NegativeBinomialLink final : public Link {
   std::vector<double> delay_pmf(int max_delay) const override;
   double loss_probability() const override { return loss_; }
   LossModel loss_model() const override { return LossModel::kIndependent; }
-
-  std::optional<double> mean_loss_burst(std::optional<int>) const override {
-    return independent_loss_burst(loss_probability());
-  }
  private:
   int successes_;
   double p_;
@@ -179,10 +165,6 @@ class ArrivalCdfLink final : public Link {
   std::vector<double> delay_pmf(int max_delay) const override;
   double loss_probability() const override { return 1.0 - tail_; }
   LossModel loss_model() const override { return LossModel::kIndependent; }
-
-  std::optional<double> mean_loss_burst(std::optional<int>) const override {
-    return independent_loss_burst(loss_probability());
-  }
  private:
   std::vector<double> cdf_;  // non-decreasing, cdf_.back() <= tail_
   double tail_;
@@ -198,13 +180,12 @@ class ArrivalCdfLink final : public Link {
 // Gilbert–Elliott is the two-state case (make_gilbert_elliott).
 class MarkovLink final : public Link {
  public:
-  enum class Step { kPacket, kPeriod };
+  using Step = StateStep;  // kPacket or kPeriod
   MarkovLink(Eigen::MatrixXd transition, std::vector<double> loss,
              std::vector<std::vector<double>> delay_pmf = {}, std::vector<double> initial = {},
              Step step = Step::kPacket);
   void advance(std::int64_t period, sim::Rng& rng) override;
-  Step step() const { return step_; }
-  StateStep state_step() const override { return step_ == Step::kPeriod ? StateStep::kPeriod : StateStep::kPacket; }
+  StateStep state_step() const override { return step_; }
   std::unique_ptr<Link> clone() const override;
   void reset(sim::Rng& rng) override;
   std::int64_t transmit(sim::Rng& rng) override;
