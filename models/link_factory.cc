@@ -1,6 +1,8 @@
 // models/link_factory.cc — [[link]] readers: parameters range-checked, errors at their line.
 #include "models/link_factory.h"
 
+#include "config/input_files.h"
+
 #include <fmt/format.h>
 
 #include <cmath>
@@ -182,6 +184,7 @@ std::unique_ptr<Link> read_trace(const sim::Table& t, const LinkContext& ctx) {
   if (path.is_relative() && !ctx.scenario_dir.empty()) path = std::filesystem::path(ctx.scenario_dir) / path;
   try {
     auto delays = load_trace(path.string());
+    sim::note_input_file(path.string());  // the trace's content is part of the campaign's identity
     if (delays.empty()) t.fail("file", fmt::format("trace '{}' holds no packet", path.string()));
     // `segment`: rows per run (run r replays segment r mod floor(rows / segment)).
     std::size_t segment = 0;

@@ -181,12 +181,15 @@ std::map<std::string, std::string> campaign_meta(const LoadedScenario& loaded, c
   std::error_code ec;
   const auto abs = std::filesystem::absolute(loaded.file, ec);
   const Scenario& sc = *loaded.cases.front().scenario;
+  nlohmann::json inputs = nlohmann::json::object();
+  for (const auto& [file, hash] : loaded.inputs) inputs[file] = hash;
   return {
-      {"format", "2"},  // 2: link counters per run (table link_runs)
+      // "format" is the store's own (RunStore::kFormat, written by RunStore::create).
       {"scenario_file", loaded.file},
       {"scenario_path", ec ? loaded.file : abs.lexically_normal().string()},
       {"scenario_text", loaded.text},
       {"scenario_hash", loaded.hash},
+      {"inputs", json_text(inputs)},  // every file the scenario read: path -> content hash
       {"overrides", json_text(loaded.overrides)},
       {"override_runs", ov.runs > 0 ? std::to_string(ov.runs) : ""},
       {"override_periods", ov.periods > 0 ? std::to_string(ov.periods) : ""},
@@ -205,10 +208,39 @@ std::map<std::string, std::string> campaign_meta(const LoadedScenario& loaded, c
   };
 }
 
+// The input files (campaign table `inputs`: a JSON object path -> content hash) that differ
+// between two campaigns, named with both hashes; "" when none.
+std::string input_files_difference(const std::string& a, const std::string& b) {
+  auto parse = [](const std::string& text) {
+    std::map<std::string, std::string> m;
+    if (text.empty()) return m;  // a store written before inputs were recorded
+    const nlohmann::json j = nlohmann::json::parse(text);
+    for (auto it = j.begin(); it != j.end(); ++it) m[it.key()] = it.value().get<std::string>();
+    return m;
+  };
+  const auto ma = parse(a), mb = parse(b);
+  std::vector<std::string> out;
+  for (const auto& [file, ha] : ma) {
+    const auto it = mb.find(file);
+    if (it == mb.end()) {
+      out.push_back(fmt::format("the input file '{}' (read by one campaign only)", file));
+    } else if (it->second != ha) {
+      out.push_back(fmt::format("the content of the input file '{}' (hash {} vs {})", file, ha, it->second));
+    }
+  }
+  for (const auto& [file, hb] : mb) {
+    if (ma.count(file) == 0) out.push_back(fmt::format("the input file '{}' (read by one campaign only)", file));
+  }
+  std::string text;
+  for (std::size_t i = 0; i < out.size(); ++i) text += (i ? ", " : "") + out[i];
+  return text.empty() ? "the input files" : text;
+}
+
 // The keys that define a campaign's identity, with how to name them in a refusal.
 const std::vector<std::pair<std::string, std::string>>& identity_keys() {
   static const std::vector<std::pair<std::string, std::string>> keys{
       {"scenario_text", "the scenario text"},
+      {"inputs", "the input files"},
       {"overrides", "the --set overrides"},
       {"override_runs", "--runs"},
       {"override_periods", "--periods"},
@@ -236,6 +268,8 @@ std::string identity_difference(const std::map<std::string, std::string>& a, con
     if (va == vb) continue;
     if (key == "scenario_text") {
       diffs.push_back(fmt::format("{} (hash {} vs {})", name, get(a, "scenario_hash"), get(b, "scenario_hash")));
+    } else if (key == "inputs") {
+      diffs.push_back(input_files_difference(va, vb));
     } else {
       diffs.push_back(fmt::format("{} ('{}' vs '{}')", name, va, vb));
     }
@@ -243,6 +277,99 @@ std::string identity_difference(const std::map<std::string, std::string>& a, con
   std::string out;
   for (std::size_t i = 0; i < diffs.size(); ++i) out += (i ? ", " : "") + diffs[i];
   return out;
+}
+
+// Checks every field of a store's campaign table that the commands read, so that a damaged or
+// hand-edited table is refused with the field's name (StoreError) instead of a bare parser
+// exception or a silently different campaign.
+void check_campaign_meta(const std::map<std::string, std::string>& meta, const std::string& path) {
+  auto bad = [&](const std::string& key, const std::string& expected) {
+    const auto it = meta.find(key);
+    std::string got = it == meta.end() ? std::string("nothing (the field is missing)")
+                                       : fmt::format("'{}'", it->second.substr(0, 60));
+    if (it != meta.end() && it->second.size() > 60) got += "...";
+    return StoreError(fmt::format("run store '{}': campaign field '{}': expected {}, got {} (the store is damaged or "
+                                  "was edited; re-run the campaign)",
+                                  path, key, expected, got));
+  };
+  auto text = [&](const std::string& key) -> const std::string& {
+    const auto it = meta.find(key);
+    if (it == meta.end()) throw bad(key, "a value");
+    return it->second;
+  };
+  auto whole = [&](const std::string& key, std::uint64_t min, bool optional) {
+    const auto it = meta.find(key);
+    if (it == meta.end() || it->second.empty()) {
+      if (optional) return;
+      throw bad(key, fmt::format("a whole number >= {}", min));
+    }
+    std::uint64_t v = 0;
+    const auto& t = it->second;
+    const auto r = std::from_chars(t.data(), t.data() + t.size(), v);
+    if (r.ec != std::errc() || r.ptr != t.data() + t.size() || v < min) {
+      throw bad(key, fmt::format("{}a whole number >= {}", optional ? "empty or " : "", min));
+    }
+  };
+  auto json_of = [&](const std::string& key, bool optional, auto&& ok, const char* expected) {
+    const auto it = meta.find(key);
+    if (it == meta.end()) {
+      if (optional) return;
+      throw bad(key, expected);
+    }
+    if (optional && it->second.empty()) return;
+    const auto j = nlohmann::json::parse(it->second, nullptr, false);
+    if (j.is_discarded() || !ok(j)) throw bad(key, expected);
+  };
+  auto strings = [](const nlohmann::json& j) {
+    if (!j.is_array()) return false;
+    return std::all_of(j.begin(), j.end(), [](const nlohmann::json& e) { return e.is_string(); });
+  };
+  for (const char* key : {"scenario_file", "scenario_path", "scenario_text", "ncosim_version", "git_commit"}) {
+    (void)text(key);
+  }
+  const std::string& hash = text("scenario_hash");
+  if (hash.size() != 16 || hash.find_first_not_of("0123456789abcdef") != std::string::npos) {
+    throw bad("scenario_hash", "16 hexadecimal digits");
+  }
+  whole("seed", 0, false);
+  whole("runs", 1, false);
+  whole("periods", 1, false);
+  whole("cases", 1, false);
+  whole("override_runs", 1, true);
+  whole("override_periods", 1, true);
+  whole("override_seed", 0, true);
+  whole("max_runs", 1, true);
+  for (const char* key : {"threads", "ranks"}) {  // absent in stores of older versions, never empty
+    if (meta.count(key) != 0) whole(key, 1, false);
+  }
+  json_of("overrides", false, strings, "a JSON array of strings (the --set overrides)");
+  json_of("merged_from", true, strings, "a JSON array of folder names");
+  json_of("inputs", true, [](const nlohmann::json& j) {
+    if (!j.is_object()) return false;
+    return std::all_of(j.begin(), j.end(), [](const nlohmann::json& v) { return v.is_string(); });
+  }, "a JSON object of input file -> content hash");
+  auto number = [&](const std::string& key, bool optional, double lo, double hi, const char* expected) {
+    const auto it = meta.find(key);
+    if (it == meta.end() || it->second.empty()) {
+      if (optional) return;
+      throw bad(key, expected);
+    }
+    double v = 0.0;
+    const auto& t = it->second;
+    const auto r = std::from_chars(t.data(), t.data() + t.size(), v);
+    if (r.ec != std::errc() || r.ptr != t.data() + t.size() || !std::isfinite(v) || v < lo || v > hi) {
+      throw bad(key, expected);
+    }
+  };
+  number("wall_seconds", true, 0.0, std::numeric_limits<double>::max(), "a finite number of seconds >= 0");
+  number("target_ci", true, std::numeric_limits<double>::min(), 1.0 - 1e-16, "empty or a number in (0, 1)");
+  if (const auto it = meta.find("shard"); it != meta.end() && !it->second.empty()) {
+    try {
+      (void)parse_shard(it->second);
+    } catch (const ScenarioError&) {
+      throw bad("shard", "empty or I/N with 1 <= I <= N");
+    }
+  }
 }
 
 RunOverrides overrides_of(const std::map<std::string, std::string>& meta) {
@@ -258,11 +385,44 @@ RunOverrides overrides_of(const std::map<std::string, std::string>& meta) {
   return ov;
 }
 
-// The scenario of a store, rebuilt from its text (designs included).
-LoadedScenario reload(const std::map<std::string, std::string>& meta) {
+// The scenario of a store, rebuilt from its text (designs included); `path` names the store in
+// messages. The campaign table is checked first (check_campaign_meta), then that the text gives
+// the stored hash, runs, periods, seed and cases, and that every input file it reads still has the
+// content the campaign read. Throws StoreError on a damaged store, ScenarioError otherwise.
+LoadedScenario reload(const std::map<std::string, std::string>& meta, const std::string& path) {
+  check_campaign_meta(meta, path);
   const auto sets = nlohmann::json::parse(meta.at("overrides")).get<std::vector<std::string>>();
-  LoadedScenario loaded = load_cases_text(meta.at("scenario_path"), meta.at("scenario_text"), sets, overrides_of(meta));
+  LoadedScenario loaded;
+  try {
+    loaded = load_cases_text(meta.at("scenario_path"), meta.at("scenario_text"), sets, overrides_of(meta));
+  } catch (const ScenarioError& e) {
+    // The text is the store's, not the file's on disk (which may have changed since).
+    throw ScenarioError(fmt::format("run store '{}': the scenario text stored in it (of {}) does not load: {}", path,
+                                    meta.at("scenario_file"), e.what()));
+  }
   loaded.file = meta.at("scenario_file");
+  const Scenario& sc = *loaded.cases.front().scenario;
+  const std::pair<const char*, std::string> derived[] = {{"scenario_hash", loaded.hash},
+                                                         {"runs", std::to_string(sc.run.runs)},
+                                                         {"periods", std::to_string(sc.run.periods)},
+                                                         {"seed", std::to_string(sc.run.seed)},
+                                                         {"cases", std::to_string(loaded.cases.size())}};
+  for (const auto& [key, value] : derived) {
+    if (meta.at(key) != value) {
+      throw StoreError(fmt::format("run store '{}': campaign field '{}' is '{}' but its stored scenario text and "
+                                   "options give '{}' (the store is damaged or was edited; re-run the campaign)",
+                                   path, key, meta.at(key), value));
+    }
+  }
+  if (const auto it = meta.find("inputs"); it != meta.end()) {
+    nlohmann::json now = nlohmann::json::object();
+    for (const auto& [file, h] : loaded.inputs) now[file] = h;
+    if (json_text(now) != it->second) {
+      throw ScenarioError(fmt::format("run store '{}': {} changed since the campaign ran; restore it to use this "
+                                      "store (the exports would describe other inputs than the runs had)",
+                                      path, input_files_difference(it->second, json_text(now))));
+    }
+  }
   return loaded;
 }
 
@@ -515,6 +675,9 @@ std::vector<std::pair<std::string, std::string>> derive_exports(const LoadedScen
   }
   nlohmann::json man = campaign_manifest(loaded, info.command_line, threads, wall);
   man["store"] = "runs.sqlite";
+  if (const auto it = meta.find("inputs"); it != meta.end() && !it->second.empty()) {
+    man["inputs"] = nlohmann::json::parse(it->second);  // every file the scenario read: path -> content hash
+  }
   man["ranks"] = meta.count("ranks") != 0 ? std::stoi(meta.at("ranks")) : 1;
   man["runs_done"] = done;
   man["runs_expected"] = expected;
@@ -550,17 +713,58 @@ std::vector<std::pair<std::string, std::string>> derive_exports(const LoadedScen
   return files;
 }
 
+// Exports that a set may lack (dropped when the new set does not write them).
 const std::vector<std::string> kStale{"trajectory.csv", "confusion.csv", "links.csv"};
+// Files derived from a campaign's results by `ncosim plot` and `ncosim report`: dropped when a set
+// describes other results than the folder's (a new campaign, a merge, an export from elsewhere).
+const std::vector<std::string> kDerived{"plot_*", "trace.dat", "trace.gp", "trace.png", "trace.svg", "report.html"};
 
-// Derives the exports, closes the store (checkpoint: the folder then holds runs.sqlite alone,
-// no -wal), then writes the exports atomically.
-std::string export_and_close(const LoadedScenario& loaded, RunStore& store, const std::string& out,
-                             const ExportInfo& info) {
+std::vector<std::string> stale_with_derived() {
+  auto out = kStale;
+  out.insert(out.end(), kDerived.begin(), kDerived.end());
+  return out;
+}
+
+// Makes `to` the file `from`: a hard link (same filesystem: the folder's sibling), else a copy.
+void link_or_copy(const std::string& from, const std::filesystem::path& to) {
+  if (::link(from.c_str(), to.c_str()) == 0) return;
+  std::error_code ec;
+  std::filesystem::copy_file(from, to, ec);
+  if (ec) throw std::runtime_error(fmt::format("cannot put the run store '{}' into '{}': {}", from, to.string(), ec.message()));
+}
+
+// Derives the exports of a store built beside the folder (`partial`), finishes it (checkpointed,
+// one file), then swaps the exports and the store in as one set and removes the partial store's
+// name. Until the swap the folder keeps its previous set, store included.
+std::string export_and_install(const LoadedScenario& loaded, RunStore& store, const std::string& out,
+                               const ExportInfo& info) {
   std::string md;
   auto files = derive_exports(loaded, store, info, &md);
+  const std::string partial = store.path();
   store.close();
-  write_files_atomically(out, files, kStale);
+  write_output_set(out, files, stale_with_derived(),
+                   {InstalledFile{"runs.sqlite", [&](const std::filesystem::path& to) { link_or_copy(partial, to); }}});
+  remove_store_files(partial);
   return md;
+}
+
+// The largest run index + 1 that a store of this campaign may hold.
+std::uint64_t run_limit(const LoadedScenario& loaded, const std::map<std::string, std::string>& meta) {
+  const TargetRule rule = target_of(meta, loaded);
+  std::uint64_t limit = rule.on() ? rule.max_runs : 0;
+  for (const auto& c : loaded.cases) limit = std::max(limit, static_cast<std::uint64_t>(c.scenario->run.runs));
+  return limit;
+}
+
+// A partial store that is the very file of the set's runs.sqlite was left by a kill after the
+// swap and before its name was removed: the campaign it holds is finished, so the name goes.
+void settle_partial(const std::string& out) {
+  const std::string partial = partial_store_path(out), live = store_path(out);
+  std::error_code ec;
+  if (std::filesystem::exists(partial, ec) && std::filesystem::exists(live, ec) &&
+      std::filesystem::equivalent(partial, live, ec)) {
+    remove_store_files(partial);
+  }
 }
 
 }  // namespace
@@ -621,27 +825,56 @@ TargetRule target_rule(const RunCommand& cmd, const LoadedScenario& loaded, std:
   return target_of(meta, loaded);
 }
 
-// The run store at `path`: created afresh, or with --resume the stored campaign, which must be
-// this one.
-RunStore open_run_store(const RunCommand& cmd, const std::string& path, const std::map<std::string, std::string>& meta) {
-  if (!cmd.resume) return RunStore::create(path, meta);
+// The run store of the campaign, always built beside the folder (partial_store_path): created
+// afresh, or with --resume the stored campaign, which must be this one: the unfinished one beside
+// the folder if a session was killed, else a copy of the set's store. The folder's set is not
+// touched until the new one is swapped in.
+RunStore open_run_store(const RunCommand& cmd, const LoadedScenario& loaded,
+                        const std::map<std::string, std::string>& meta) {
+  namespace fs = std::filesystem;
+  const std::string partial = partial_store_path(cmd.out), live = store_path(cmd.out);
+  settle_partial(cmd.out);
   std::error_code ec;
-  if (!std::filesystem::exists(path, ec)) {
-    throw ScenarioError(fmt::format("--resume: no run store to resume in '{}' (expected {})", cmd.out, path));
+  if (!cmd.resume) {
+    if (fs::exists(partial, ec)) {
+      std::string runs = "an unknown number of";
+      try {
+        runs = std::to_string(RunStore::open(partial, false).count_runs());
+      } catch (const std::exception&) {
+      }
+      std::cerr << fmt::format("ncosim: replacing the store of an unfinished campaign into '{}' ({}, {} run(s) "
+                               "committed; --resume would have continued it)\n",
+                               cmd.out, partial, runs);
+    }
+    return RunStore::create(partial, meta);
   }
-  RunStore store;
+  auto same_campaign = [&](const RunStore& s, const std::string& what) {
+    const auto stored = s.meta();
+    check_campaign_meta(stored, what);
+    const std::string diff = identity_difference(stored, meta, true);
+    if (!diff.empty()) {
+      throw ScenarioError(fmt::format("--resume: {} holds a different campaign: {} differ(s) (stored vs now); run "
+                                      "without --resume to start afresh, or choose another --out",
+                                      what, diff));
+    }
+  };
   try {
-    store = RunStore::open(path, true);
+    if (!fs::exists(partial, ec)) {
+      if (!fs::exists(live, ec)) {
+        throw ScenarioError(fmt::format("--resume: no run store to resume in '{}' (expected {})", cmd.out, live));
+      }
+      // The finished set's store goes on in a copy beside the folder; the set stays as it is.
+      const RunStore finished = RunStore::open(live, false);
+      same_campaign(finished, live);
+      finished.copy_to(partial);
+    }
+    RunStore store = RunStore::open(partial, true);
+    same_campaign(store, fmt::format("{} (the store of an unfinished campaign into '{}')", partial, cmd.out));
+    store.verify(loaded.cases.size(), run_limit(loaded, store.meta()));
+    return store;
   } catch (const StoreError& e) {
     throw ScenarioError(fmt::format("--resume: {}", e.what()));
   }
-  const std::string diff = identity_difference(store.meta(), meta, true);
-  if (!diff.empty()) {
-    throw ScenarioError(fmt::format("--resume: {} holds a different campaign: {} differ(s) (stored vs now); run "
-                                    "without --resume to start afresh, or choose another --out",
-                                    path, diff));
-  }
-  return store;
 }
 
 // The campaign's totals added to what the store holds from earlier sessions.
@@ -866,15 +1099,15 @@ int cmd_run_campaign(const RunCommand& cmd) {
     mpi->serve(cases);
     return 0;
   }
-  prepare_output_dir(out);  // fail before the campaign, not after it
   const OutputFolderLock folder_lock(out);  // sim/output_set.h: one writer per folder for the whole campaign
+  prepare_output_dir(out);  // fail before the campaign, not after it
   {
     const Scenario& sc0 = *loaded.cases.front().scenario;  // sim/limits.h: the exports hold every run
     check_campaign_resources(loaded.file, 0, sc0.run.runs, loaded.cases.size(), sc0.estimators.size(),
                              sc0.model.plant.n(), sc0.model.sensors.size());
   }
+  RunStore store = open_run_store(cmd, loaded, meta);
   const std::string path = store_path(out);
-  RunStore store = open_run_store(cmd, path, meta);
   RunSession session(cmd, loaded, shard, rule, mpi.get());
   session.stored = register_cases(store, loaded, cmd.resume);
 
@@ -892,25 +1125,49 @@ int cmd_run_campaign(const RunCommand& cmd) {
   info.not_ok = &not_ok;
   bool complete = false;
   info.complete = &complete;
-  const std::string md = export_and_close(loaded, store, out, info);
+  const std::string md = export_and_install(loaded, store, out, info);
   return finish_session(cmd, md, loaded, session.totals, path, sig, complete, not_ok);
 }
 
 int cmd_export(const std::string& dir, const std::string& out, const std::string& command_line) {
   const std::string path = store_path(dir);
+  const std::string target = out.empty() ? dir : out;
   RunStore store;
+  LoadedScenario loaded;
+  std::map<std::string, std::string> meta;
   try {
-    store = RunStore::open(path, true);
+    store = RunStore::open(path, false);  // reading never writes the store
+    meta = store.meta();
+    loaded = reload(meta, path);
+    store.verify(loaded.cases.size(), run_limit(loaded, meta));
   } catch (const StoreError& e) {
     throw ScenarioError(fmt::format("export: {}", e.what()));
   }
-  const auto meta = store.meta();
-  LoadedScenario loaded = reload(meta);
+  bool same_folder = false;
+  {
+    std::error_code ec;
+    same_folder = output_set_folder(dir) == output_set_folder(target) ||
+                  (std::filesystem::exists(target, ec) && std::filesystem::equivalent(dir, target, ec));
+  }
   ExportInfo info;
   info.command_line = command_line;
   info.stopped = meta.count("stopped") != 0 ? meta.at("stopped") : "";
-  const std::string target = out.empty() ? dir : out;
-  export_and_close(loaded, store, target, info);
+  std::vector<std::pair<std::string, std::string>> files;
+  try {
+    files = derive_exports(loaded, store, info, nullptr);
+  } catch (const StoreError& e) {
+    throw ScenarioError(fmt::format("export: {}", e.what()));
+  }
+  if (same_folder) {
+    // The set's own store is carried over as it is; figures derived from it stay valid.
+    write_output_set(target, files, kStale);
+  } else {
+    // Another folder: its set becomes this store's, with a copy of it; what was derived from the
+    // folder's previous results goes.
+    write_output_set(target, files, stale_with_derived(),
+                     {InstalledFile{"runs.sqlite", [&](const std::filesystem::path& to) { store.copy_to(to.string()); }}});
+  }
+  store.close();
   std::cout << fmt::format("exports of {} written to {}/\n", path, target);
   return 0;
 }
@@ -937,10 +1194,11 @@ ShardStores open_shards(const std::string& out, const std::vector<std::string>& 
   for (const auto& d : dirs) {
     try {
       s.stores.push_back(RunStore::open(store_path(d), false));
+      s.metas.push_back(s.stores.back().meta());
+      check_campaign_meta(s.metas.back(), store_path(d));
     } catch (const StoreError& e) {
       throw ScenarioError(fmt::format("merge: {}", e.what()));
     }
-    s.metas.push_back(s.stores.back().meta());
     const std::string diff = identity_difference(s.metas.front(), s.metas.back(), false);
     if (!diff.empty()) {
       throw ScenarioError(fmt::format("merge: {} and {} are shards of different campaigns: {} differ(s)",
@@ -1047,21 +1305,37 @@ void merge_case(ShardStores& shards, RunStore& merged, const Scenario& sc, std::
 int cmd_merge(const std::string& out, const std::vector<std::string>& dirs, const std::string& command_line) {
   if (dirs.empty()) throw ScenarioError("merge: expected at least one shard folder");
   ShardStores shards = open_shards(out, dirs);
-  LoadedScenario loaded = reload(shards.metas.front());
+  LoadedScenario loaded;
+  try {
+    loaded = reload(shards.metas.front(), store_path(dirs.front()));
+    for (std::size_t i = 0; i < shards.stores.size(); ++i) {
+      shards.stores[i].verify(loaded.cases.size(), run_limit(loaded, shards.metas[i]));
+    }
+  } catch (const StoreError& e) {
+    throw ScenarioError(fmt::format("merge: {}", e.what()));
+  }
   // Every (case, run) exactly once.
   const auto owner = run_owners(shards, dirs, loaded);
   check_complete(owner, loaded, target_of(shards.metas.front(), loaded));
-  prepare_output_dir(out);
   const OutputFolderLock folder_lock(out);  // sim/output_set.h
-  RunStore merged = RunStore::create(store_path(out), merged_meta(shards.metas, dirs));
-  for (std::size_t c = 0; c < loaded.cases.size(); ++c) merge_case(shards, merged, *loaded.cases[c].scenario, c);
-  for (auto& store : shards.stores) {
-    for (const auto& [name, content] : store.artifacts()) merged.put_artifact(name, content);
+  prepare_output_dir(out);
+  // Built beside the folder and swapped in with the exports (export_and_install).
+  RunStore merged = RunStore::create(partial_store_path(out), merged_meta(shards.metas, dirs));
+  try {
+    for (std::size_t c = 0; c < loaded.cases.size(); ++c) merge_case(shards, merged, *loaded.cases[c].scenario, c);
+    for (auto& store : shards.stores) {
+      for (const auto& [name, content] : store.artifacts()) merged.put_artifact(name, content);
+    }
+  } catch (...) {  // a write failure (the shards were verified before): no partial store stays
+    const std::string partial = merged.path();
+    merged = RunStore();
+    remove_store_files(partial);
+    throw;
   }
   for (auto& store : shards.stores) store.close();
   ExportInfo info;
   info.command_line = command_line;
-  export_and_close(loaded, merged, out, info);
+  export_and_install(loaded, merged, out, info);
   std::cout << fmt::format("{} store(s) merged: {} runs x {} case(s); results in {}/\n", dirs.size(), owner.size(),
                            loaded.cases.size(), out);
   return 0;

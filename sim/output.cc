@@ -549,6 +549,9 @@ std::string trajectory_csv(const Scenario& sc, const std::vector<TraceRow>& trac
 void prepare_output_dir(const std::string& dir) {
   namespace fs = std::filesystem;
   const fs::path folder = output_set_folder(dir);  // refuses "", "/", the current folder
+  // Under the folder's lock, which first restores a set left aside by an interrupted swap: the
+  // folder created here must never stand in for it.
+  const OutputFolderLock lock(dir);
   std::error_code ec;
   fs::create_directories(folder, ec);
   if (ec) throw std::runtime_error(fmt::format("cannot create the output directory '{}': {}", dir, ec.message()));

@@ -163,24 +163,53 @@ bool is_inner_temp(const std::string& entry) {
   return t != std::string::npos && t > 0 && all_digits(std::string_view(entry).substr(t + 4));
 }
 
+// Under the lock: a previous set moved aside by an interrupted fallback swap (.NAME.old.PID) is put
+// back when the live folder is missing, or is an empty folder that a writer created after the
+// interruption. Returns whether it restored one.
+bool restore_moved_aside(const fs::path& parent, const std::string& name, const fs::path& folder) {
+  std::error_code ec;
+  std::vector<fs::path> olds;
+  for (const auto& e : fs::directory_iterator(parent, ec)) {
+    if (is_sibling_temp(e.path().filename().string(), name, "old")) olds.push_back(e.path());
+  }
+  if (olds.empty()) return false;
+  const auto st = fs::symlink_status(folder, ec);
+  if (fs::exists(st)) {
+    if (!fs::is_directory(st) || !fs::is_empty(folder, ec) || ec) return false;
+    if (::rmdir(folder.c_str()) != 0) return false;
+  }
+  // Killed between "move previous folder aside" and "rename new folder": the previous set is
+  // the one a reader saw last; put it back.
+  if (rename2(olds.front(), folder, RENAME_NOREPLACE) == 0 || ::rename(olds.front().c_str(), folder.c_str()) == 0) {
+    std::cerr << fmt::format("ncosim: restored the previous result set of '{}' (a write was interrupted)\n",
+                             folder.string());
+    return true;
+  }
+  return false;
+}
+
+// Whether `entry` is named by `stale` (exact names, or prefixes written "prefix*").
+bool is_stale(const std::string& entry, const std::vector<std::string>& stale) {
+  for (const auto& s : stale) {
+    if (!s.empty() && s.back() == '*') {
+      if (entry.starts_with(std::string_view(s).substr(0, s.size() - 1))) return true;
+    } else if (entry == s) {
+      return true;
+    }
+  }
+  return false;
+}
+
 // Under the lock: restores a previous set moved aside by an interrupted fallback swap, then
 // removes every leftover temporary sibling. Returns how many were removed.
 int clean_siblings(const fs::path& parent, const std::string& name, const fs::path& folder) {
   std::error_code ec;
+  restore_moved_aside(parent, name, folder);
   std::vector<fs::path> news, olds;
   for (const auto& e : fs::directory_iterator(parent, ec)) {
     const std::string n = e.path().filename().string();
     if (is_sibling_temp(n, name, "new")) news.push_back(e.path());
     if (is_sibling_temp(n, name, "old")) olds.push_back(e.path());
-  }
-  if (!fs::exists(fs::symlink_status(folder, ec)) && !olds.empty()) {
-    // Killed between "move previous folder aside" and "rename new folder": the previous set is
-    // the one a reader saw last; put it back.
-    if (rename2(olds.front(), folder, RENAME_NOREPLACE) == 0 || ::rename(olds.front().c_str(), folder.c_str()) == 0) {
-      std::cerr << fmt::format("ncosim: restored the previous result set of '{}' (a write was interrupted)\n",
-                               folder.string());
-      olds.erase(olds.begin());
-    }
   }
   int removed = 0;
   for (const auto& v : {news, olds}) {
@@ -230,7 +259,7 @@ OutputFolderLock::OutputFolderLock(const std::string& dir) {
   const fs::path parent = folder.parent_path();
   std::error_code ec;
   fs::create_directories(parent, ec);
-  if (ec) throw std::runtime_error(fmt::format("cannot create the folder '{}': {}", parent.string(), ec.message()));
+  if (ec) throw std::runtime_error(fmt::format("cannot create the output directory '{}': {}", dir, ec.message()));
   std::lock_guard<std::mutex> g(lock_mutex());
   auto& held = held_locks()[folder.string()];
   key_ = folder.string();
@@ -267,6 +296,7 @@ OutputFolderLock::OutputFolderLock(const std::string& dir) {
   }
   held.fd = fd;
   held.count = 1;
+  restore_moved_aside(parent, folder.filename().string(), folder);
 }
 
 OutputFolderLock::~OutputFolderLock() {
@@ -281,8 +311,11 @@ OutputFolderLock::~OutputFolderLock() {
 }
 
 int write_output_set(const std::string& dir, const std::vector<std::pair<std::string, std::string>>& files,
-                     const std::vector<std::string>& stale) {
-  for (const auto& [name, content] : files) {
+                     const std::vector<std::string>& stale, const std::vector<InstalledFile>& installs) {
+  std::vector<std::string> names;
+  for (const auto& f : files) names.push_back(f.first);
+  for (const auto& f : installs) names.push_back(f.name);
+  for (const auto& name : names) {
     if (name.empty() || name == "." || name == ".." || name.find('/') != std::string::npos) {
       throw std::invalid_argument(fmt::format("write_output_set: bad file name '{}'", name));
     }
@@ -302,14 +335,18 @@ int write_output_set(const std::string& dir, const std::vector<std::pair<std::st
       throw std::runtime_error(fmt::format("cannot create '{}': {}", tmp.string(), errno_text(errno)));
     }
     for (const auto& [fname, content] : files) write_file(tmp / fname, content, step, fname);
+    for (const auto& f : installs) {
+      step("install " + f.name);
+      f.make(tmp / f.name);
+    }
     const bool exists = fs::is_directory(folder, ec);
     if (exists) {
       struct stat st {};
       if (::stat(folder.c_str(), &st) == 0) ::chmod(tmp.c_str(), st.st_mode & 07777);
       for (const auto& e : fs::directory_iterator(folder)) {
         const std::string n = e.path().filename().string();
-        const bool written = std::any_of(files.begin(), files.end(), [&](const auto& f) { return f.first == n; });
-        if (written || std::find(stale.begin(), stale.end(), n) != stale.end()) continue;
+        const bool written = std::find(names.begin(), names.end(), n) != names.end();
+        if (written || is_stale(n, stale)) continue;
         if (is_inner_temp(n)) {
           ++removed;  // dropped with the previous folder
           continue;

@@ -15,13 +15,17 @@
 // .FILE.tmpPID files of older versions) are removed by the next writer, which reports them.
 #pragma once
 
+#include <filesystem>
+#include <functional>
 #include <string>
 #include <utility>
 #include <vector>
 
 namespace ncosim::sim {
 
-// Holds the lock of output folder `dir` (created if needed) while alive.
+// Holds the lock of output folder `dir` (its parent is created if needed) while alive. Taking it
+// first restores a previous set that an interrupted fallback swap left aside (before anything
+// can create an empty folder in its place), so take it before creating the folder.
 class OutputFolderLock {
  public:
   explicit OutputFolderLock(const std::string& dir);
@@ -33,13 +37,21 @@ class OutputFolderLock {
   std::string key_;
 };
 
-// Writes `files` (name, content) as the new result set of `dir`; entries named in `stale` that the
-// set does not write are dropped, every other existing entry is carried over. Throws
-// std::runtime_error on an I/O failure (the previous set stays, temporaries are removed) and
-// ScenarioError when another process holds the folder's lock. Returns the number of leftover
+// A file of the new set that is not written from memory: `make(path)` creates it at `path` (for
+// the run store: a hard link to the finished store built beside the folder, or a copy).
+struct InstalledFile {
+  std::string name;
+  std::function<void(const std::filesystem::path&)> make;
+};
+
+// Writes `files` (name, content) and `installs` as the new result set of `dir`; entries named in
+// `stale` that the set does not write are dropped (a name ending in '*' drops every entry that
+// starts with what precedes it, e.g. "plot_*"), every other existing entry is carried over.
+// Throws std::runtime_error on an I/O failure (the previous set stays, temporaries are removed)
+// and ScenarioError when another process holds the folder's lock. Returns the number of leftover
 // temporaries of interrupted writers that were removed (also reported on stderr).
 int write_output_set(const std::string& dir, const std::vector<std::pair<std::string, std::string>>& files,
-                     const std::vector<std::string>& stale);
+                     const std::vector<std::string>& stale, const std::vector<InstalledFile>& installs = {});
 
 // The folder that holds the result set of `dir` once symlinks are resolved (absolute).
 std::string output_set_folder(const std::string& dir);

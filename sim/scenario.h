@@ -4,6 +4,8 @@
 // input is reported (ScenarioError) before t = 0 and nothing is written.
 #pragma once
 
+#include "config/input_files.h"
+
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -70,6 +72,9 @@ struct LoadedScenario {
   std::vector<std::string> overrides;
   std::vector<SweepAxis> sweeps;
   std::vector<Case> cases;
+  // Every external file the scenario read (trace, SUMO inputs, ...), path as resolved -> content
+  // hash (config/input_files.h): part of a campaign's identity.
+  InputFiles inputs;
 };
 
 // Command-line overrides applied to [run] after --set (0 / empty: keep the file's).

@@ -4,21 +4,26 @@
 #include <fmt/format.h>
 #include <sqlite3.h>
 
+#include <boost/crc.hpp>
+
 #include <bit>
 #include <cmath>
 #include <cstring>
+#include <algorithm>
 #include <filesystem>
+
+#include "sim/output_set.h"
 
 namespace ncosim::sim {
 
 // Whoever adds a field to EstimatorRunMetrics must add it to serialize_run/deserialize_run
-// (and bump kFormat), or stored campaigns would silently lose it on export, resume and merge.
+// (and bump kRunBlobFormat), or stored campaigns would silently lose it on export, resume and merge.
 static_assert(sizeof(EstimatorRunMetrics) == 264 || sizeof(void*) != 8,
               "EstimatorRunMetrics changed: update serialize_run/deserialize_run in sim/store.cc");
 
 namespace {
 
-constexpr std::uint32_t kFormat = 1;       // version of the run blob
+constexpr std::uint32_t kRunBlobFormat = 1;  // version of the run blob
 constexpr std::uint32_t kLinksFormat = 1;  // version of the link counters blob
 
 class Writer {
@@ -155,14 +160,14 @@ CREATE TABLE campaign (key TEXT PRIMARY KEY, value TEXT NOT NULL) WITHOUT ROWID;
 CREATE TABLE estimators (case_index INTEGER NOT NULL, estimator INTEGER NOT NULL, name TEXT NOT NULL,
                          PRIMARY KEY (case_index, estimator)) WITHOUT ROWID;
 CREATE TABLE runs (case_index INTEGER NOT NULL, run INTEGER NOT NULL, metrics BLOB NOT NULL,
-                   PRIMARY KEY (case_index, run)) WITHOUT ROWID;
+                   checksum INTEGER NOT NULL, PRIMARY KEY (case_index, run)) WITHOUT ROWID;
 CREATE TABLE estimator_runs (case_index INTEGER NOT NULL, run INTEGER NOT NULL, estimator INTEGER NOT NULL,
                              mse REAL, mse_ext REAL, periods INTEGER NOT NULL, samples_used INTEGER NOT NULL,
                              samples_taken INTEGER NOT NULL, diverged INTEGER NOT NULL, status TEXT NOT NULL,
                              PRIMARY KEY (case_index, run, estimator)) WITHOUT ROWID;
 CREATE TABLE timing (case_index INTEGER NOT NULL, estimator INTEGER NOT NULL, ns_per_period REAL,
-                     PRIMARY KEY (case_index, estimator)) WITHOUT ROWID;
-CREATE TABLE artifacts (name TEXT PRIMARY KEY, content BLOB NOT NULL) WITHOUT ROWID;
+                     checksum INTEGER NOT NULL, PRIMARY KEY (case_index, estimator)) WITHOUT ROWID;
+CREATE TABLE artifacts (name TEXT PRIMARY KEY, content BLOB NOT NULL, checksum INTEGER NOT NULL) WITHOUT ROWID;
 CREATE VIEW estimator_runs_named AS
   SELECT r.case_index, r.run, e.name AS estimator, r.mse, r.mse_ext, r.periods, r.samples_used,
          r.samples_taken, r.diverged, r.status
@@ -173,7 +178,41 @@ CREATE VIEW estimator_runs_named AS
 // first put_runs into a store written before link counting (a --resume of one).
 constexpr const char* kLinkTable =
     "CREATE TABLE IF NOT EXISTS link_runs (case_index INTEGER NOT NULL, run INTEGER NOT NULL, "
-    "counters BLOB NOT NULL, PRIMARY KEY (case_index, run)) WITHOUT ROWID;";
+    "counters BLOB NOT NULL, checksum INTEGER NOT NULL, PRIMARY KEY (case_index, run)) WITHOUT ROWID;";
+
+// CRC-32 (boost::crc_32_type) of a row: a tag naming the table, the key as 8-byte little-endian
+// integers and the content. A changed byte anywhere in the row changes it.
+class RowSum {
+ public:
+  explicit RowSum(char tag) { crc_.process_byte(static_cast<unsigned char>(tag)); }
+  RowSum& key(std::int64_t v) {
+    unsigned char b[8];
+    for (int i = 0; i < 8; ++i) b[i] = static_cast<unsigned char>((static_cast<std::uint64_t>(v) >> (8 * i)) & 0xFF);
+    crc_.process_bytes(b, sizeof b);
+    return *this;
+  }
+  RowSum& bytes(const std::string& s) {
+    key(static_cast<std::int64_t>(s.size()));
+    crc_.process_bytes(s.data(), s.size());
+    return *this;
+  }
+  std::int64_t value() const { return static_cast<std::int64_t>(crc_.checksum()); }
+
+ private:
+  boost::crc_32_type crc_;
+};
+
+std::int64_t run_sum(std::int64_t c, std::int64_t k, const std::string& blob) { return RowSum('r').key(c).key(k).bytes(blob).value(); }
+std::int64_t links_sum(std::int64_t c, std::int64_t k, const std::string& blob) {
+  return RowSum('l').key(c).key(k).bytes(blob).value();
+}
+// NaN (not measured) is stored as NULL: summed as an absent value.
+std::int64_t timing_sum(std::int64_t c, std::int64_t e, double ns) {
+  return RowSum('t').key(c).key(e).key(std::isfinite(ns) ? static_cast<std::int64_t>(std::bit_cast<std::uint64_t>(ns)) : -1).value();
+}
+std::int64_t artifact_sum(const std::string& name, const std::string& content) {
+  return RowSum('a').bytes(name).bytes(content).value();
+}
 
 constexpr const char* kApplicationId = "ncosim run store";
 
@@ -181,7 +220,7 @@ constexpr const char* kApplicationId = "ncosim run store";
 
 std::string serialize_run(const RunMetrics& run) {
   Writer w;
-  w.i64(kFormat);
+  w.i64(kRunBlobFormat);
   w.size(run.size());
   for (const EstimatorRunMetrics& m : run) {
     w.f64(m.sse);
@@ -214,8 +253,9 @@ std::string serialize_run(const RunMetrics& run) {
 RunMetrics deserialize_run(const std::string& blob) {
   Reader r(blob);
   const std::int64_t format = r.i64();
-  if (format != kFormat) {
-    throw StoreError(fmt::format("run store: run record format {} (this ncosim reads format {})", format, kFormat));
+  if (format != kRunBlobFormat) {
+    throw StoreError(
+        fmt::format("run store: run record format {} (this ncosim reads format {})", format, kRunBlobFormat));
   }
   RunMetrics run(r.size());
   for (EstimatorRunMetrics& m : run) {
@@ -285,11 +325,23 @@ RunLinks deserialize_links(const std::string& blob) {
 
 std::string store_path(const std::string& dir) { return (std::filesystem::path(dir) / "runs.sqlite").string(); }
 
+std::string partial_store_path(const std::string& dir) {
+  const std::filesystem::path folder = output_set_folder(dir);
+  return (folder.parent_path() / fmt::format(".{}.partial.sqlite", folder.filename().string())).string();
+}
+
+void remove_store_files(const std::string& path) {
+  std::error_code ec;
+  for (const char* suffix : {"", "-wal", "-shm", "-journal"}) std::filesystem::remove(path + suffix, ec);
+}
+
 RunStore& RunStore::operator=(RunStore&& o) noexcept {
   if (this != &o) {
     if (db_ != nullptr) sqlite3_close(db_);
     db_ = o.db_;
     path_ = std::move(o.path_);
+    writable_ = o.writable_;
+    checksums_ = o.checksums_;
     o.db_ = nullptr;
   }
   return *this;
@@ -326,11 +378,11 @@ sqlite3* open_db(const std::string& path, int flags) {
 }  // namespace
 
 RunStore RunStore::create(const std::string& path, const std::map<std::string, std::string>& meta) {
-  namespace fs = std::filesystem;
-  std::error_code ec;
-  for (const char* suffix : {"", "-wal", "-shm", "-journal"}) fs::remove(path + suffix, ec);
+  remove_store_files(path);
   RunStore s;
   s.path_ = path;
+  s.writable_ = true;
+  s.checksums_ = true;
   s.db_ = open_db(path, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE);
   // WAL: readers never block the writer and a crash leaves the last committed state;
   // synchronous=FULL: a commit is on disk (power loss included) before it returns.
@@ -342,7 +394,11 @@ RunStore RunStore::create(const std::string& path, const std::map<std::string, s
     Stmt st(s.db_, "INSERT INTO campaign (key, value) VALUES (?, ?)");
     st.bind(1, std::string("store")).bind(2, std::string(kApplicationId));
     st.step();
+    st.reset();
+    st.bind(1, std::string("format")).bind(2, std::to_string(kFormat));
+    st.step();
     for (const auto& [k, v] : meta) {
+      if (k == "store" || k == "format") continue;
       st.reset();
       st.bind(1, k).bind(2, v);
       st.step();
@@ -352,18 +408,103 @@ RunStore RunStore::create(const std::string& path, const std::map<std::string, s
   return s;
 }
 
+namespace {
+
+// The columns of `table` (empty when it does not exist).
+std::vector<std::string> columns_of(sqlite3* db, const std::string& table) {
+  std::vector<std::string> out;
+  Stmt st(db, fmt::format("PRAGMA table_info({})", table).c_str());
+  while (st.step()) out.push_back(st.text(1));
+  return out;
+}
+
+bool has_column(sqlite3* db, const std::string& table, const std::string& column) {
+  const auto cols = columns_of(db, table);
+  return std::find(cols.begin(), cols.end(), column) != cols.end();
+}
+
+// SQLite's "file:" URI of `path` with `query` (percent-encoding what a URI path cannot hold).
+std::string uri_of(const std::string& path, const std::string& query) {
+  std::string out = "file:";
+  for (const unsigned char c : std::filesystem::absolute(path).string()) {
+    if (c == '%' || c == '?' || c == '#' || c < 0x21 || c >= 0x7F) {
+      out += fmt::format("%{:02X}", c);
+    } else {
+      out += static_cast<char>(c);
+    }
+  }
+  return out + "?" + query;
+}
+
+}  // namespace
+
 RunStore RunStore::open(const std::string& path, bool writable) {
+  namespace fs = std::filesystem;
   std::error_code ec;
-  if (!std::filesystem::exists(path, ec)) throw StoreError(fmt::format("no run store at '{}'", path));
+  if (!fs::exists(path, ec)) throw StoreError(fmt::format("no run store at '{}'", path));
+  if (!fs::is_regular_file(path, ec)) throw StoreError(fmt::format("'{}' is not an ncosim run store (not a regular file)", path));
   RunStore s;
   s.path_ = path;
-  s.db_ = open_db(path, writable ? SQLITE_OPEN_READWRITE : SQLITE_OPEN_READONLY);
+  s.writable_ = writable;
+  // Reading never writes: mode=ro. A store in WAL mode needs its -shm to be read, which read-only
+  // media or an immutable file cannot give; a store without a -wal file is complete on its own and
+  // is then read with immutable=1 (no locks, no -shm).
+  auto read_marker = [&](RunStore& st) {
+    Stmt m(st.db_, "SELECT value FROM campaign WHERE key = 'store'");
+    return m.step() && m.text(0) == kApplicationId;
+  };
+  bool marker = false;
+  std::string why;
   try {
-    if (writable) s.exec("PRAGMA journal_mode=WAL; PRAGMA synchronous=FULL;");
-    Stmt st(s.db_, "SELECT value FROM campaign WHERE key = 'store'");
-    if (!st.step() || st.text(0) != kApplicationId) throw StoreError("");
-  } catch (const StoreError&) {
-    throw StoreError(fmt::format("'{}' is not an ncosim run store", path));
+    s.db_ = writable ? open_db(path, SQLITE_OPEN_READWRITE)
+                     : open_db(uri_of(path, "mode=ro"), SQLITE_OPEN_READONLY | SQLITE_OPEN_URI);
+    marker = read_marker(s);
+  } catch (const StoreError& e) {
+    why = e.what();
+    const int code = s.db_ != nullptr ? sqlite3_errcode(s.db_) : SQLITE_CANTOPEN;
+    if (s.db_ != nullptr) sqlite3_close(s.db_);
+    s.db_ = nullptr;
+    const bool not_a_db = code == SQLITE_NOTADB || why.find("no such table") != std::string::npos;
+    if (not_a_db) throw StoreError(fmt::format("'{}' is not an ncosim run store", path));
+    if (writable || fs::exists(path + "-wal", ec)) {
+      throw StoreError(fmt::format("cannot read the run store '{}': {}", path, why));
+    }
+    try {
+      s.db_ = open_db(uri_of(path, "immutable=1"), SQLITE_OPEN_READONLY | SQLITE_OPEN_URI);
+      marker = read_marker(s);
+    } catch (const StoreError& e2) {
+      const bool not_db2 = s.db_ != nullptr && sqlite3_errcode(s.db_) == SQLITE_NOTADB;
+      throw StoreError(not_db2 ? fmt::format("'{}' is not an ncosim run store", path)
+                               : fmt::format("cannot read the run store '{}': {}", path, e2.what()));
+    }
+  }
+  if (!marker) throw StoreError(fmt::format("'{}' is not an ncosim run store", path));
+  // The format: absent in stores of format 1 (before link counters were stored).
+  int format = 1;
+  {
+    Stmt f(s.db_, "SELECT value FROM campaign WHERE key = 'format'");
+    if (f.step()) {
+      const std::string v = f.text(0);
+      if (v != "1" && v != "2" && v != "3") {
+        throw StoreError(fmt::format("run store '{}': store format '{}' (this ncosim reads formats {} to {}); use "
+                                     "the ncosim that wrote it",
+                                     path, v.substr(0, 40), kOldestFormat, kFormat));
+      }
+      format = v[0] - '0';
+    }
+  }
+  s.checksums_ = format >= 3;
+  if (s.checksums_ && !(has_column(s.db_, "runs", "checksum") && has_column(s.db_, "timing", "checksum") &&
+                        has_column(s.db_, "artifacts", "checksum"))) {
+    throw StoreError(fmt::format("run store '{}': format 3 without its checksum columns (the store is damaged)", path));
+  }
+  if (writable) {
+    if (format != kFormat) {
+      throw StoreError(fmt::format("run store '{}' is of format {}, written by an older ncosim; it can be exported "
+                                   "and merged, not extended (run the campaign afresh)",
+                                   path, format));
+    }
+    s.exec("PRAGMA journal_mode=WAL; PRAGMA synchronous=FULL;");
   }
   return s;
 }
@@ -402,8 +543,8 @@ void RunStore::put_runs(const std::vector<StoredRun>& batch) {
   exec("BEGIN");
   try {
     exec(kLinkTable);
-    Stmt run(db_, "INSERT INTO runs (case_index, run, metrics) VALUES (?, ?, ?)");
-    Stmt links(db_, "INSERT INTO link_runs (case_index, run, counters) VALUES (?, ?, ?)");
+    Stmt run(db_, "INSERT INTO runs (case_index, run, metrics, checksum) VALUES (?, ?, ?, ?)");
+    Stmt links(db_, "INSERT INTO link_runs (case_index, run, counters, checksum) VALUES (?, ?, ?, ?)");
     Stmt est(db_,
              "INSERT INTO estimator_runs (case_index, run, estimator, mse, mse_ext, periods, samples_used, "
              "samples_taken, diverged, status) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
@@ -411,11 +552,13 @@ void RunStore::put_runs(const std::vector<StoredRun>& batch) {
       const auto c = static_cast<std::int64_t>(r.case_index);
       const auto k = static_cast<std::int64_t>(r.run);
       run.reset();
-      run.bind(1, c).bind(2, k).bind_blob(3, serialize_run(r.metrics));
+      const std::string blob = serialize_run(r.metrics);
+      run.bind(1, c).bind(2, k).bind_blob(3, blob).bind(4, run_sum(c, k, blob));
       run.step();
       if (r.links) {
         links.reset();
-        links.bind(1, c).bind(2, k).bind_blob(3, serialize_links(*r.links));
+        const std::string lb = serialize_links(*r.links);
+        links.bind(1, c).bind(2, k).bind_blob(3, lb).bind(4, links_sum(c, k, lb));
         links.step();
       }
       for (std::size_t e = 0; e < r.metrics.size(); ++e) {
@@ -453,9 +596,15 @@ std::int64_t RunStore::count_runs() const {
 
 std::vector<std::pair<std::uint64_t, RunMetrics>> RunStore::load_case(std::size_t case_index) const {
   std::vector<std::pair<std::uint64_t, RunMetrics>> out;
-  Stmt st(db_, "SELECT run, metrics FROM runs WHERE case_index = ? ORDER BY run");
-  st.bind(1, static_cast<std::int64_t>(case_index));
-  while (st.step()) out.emplace_back(static_cast<std::uint64_t>(st.i64(0)), deserialize_run(st.text(1)));
+  Stmt st(db_, checksums_ ? "SELECT run, metrics, checksum FROM runs WHERE case_index = ? ORDER BY run"
+                          : "SELECT run, metrics, 0 FROM runs WHERE case_index = ? ORDER BY run");
+  const auto c = static_cast<std::int64_t>(case_index);
+  st.bind(1, c);
+  while (st.step()) {
+    const std::string blob = st.text(1);
+    if (checksums_) check_sum(run_sum(c, st.i64(0), blob), st.i64(2), fmt::format("run {} of case {}", st.i64(0), c + 1));
+    out.emplace_back(static_cast<std::uint64_t>(st.i64(0)), deserialize_run(blob));
+  }
   return out;
 }
 
@@ -466,19 +615,29 @@ std::vector<std::pair<std::uint64_t, RunLinks>> RunStore::load_case_links(std::s
     t.step();
     if (t.i64(0) == 0) return out;  // a store written before link counting
   }
-  Stmt st(db_, "SELECT run, counters FROM link_runs WHERE case_index = ? ORDER BY run");
-  st.bind(1, static_cast<std::int64_t>(case_index));
-  while (st.step()) out.emplace_back(static_cast<std::uint64_t>(st.i64(0)), deserialize_links(st.text(1)));
+  Stmt st(db_, checksums_ ? "SELECT run, counters, checksum FROM link_runs WHERE case_index = ? ORDER BY run"
+                          : "SELECT run, counters, 0 FROM link_runs WHERE case_index = ? ORDER BY run");
+  const auto c = static_cast<std::int64_t>(case_index);
+  st.bind(1, c);
+  while (st.step()) {
+    const std::string blob = st.text(1);
+    if (checksums_) {
+      check_sum(links_sum(c, st.i64(0), blob), st.i64(2), fmt::format("the link counters of run {} of case {}", st.i64(0), c + 1));
+    }
+    out.emplace_back(static_cast<std::uint64_t>(st.i64(0)), deserialize_links(blob));
+  }
   return out;
 }
 
 void RunStore::put_timing(std::size_t case_index, const std::vector<double>& ns) {
   exec("BEGIN");
   try {
-    Stmt st(db_, "INSERT OR REPLACE INTO timing (case_index, estimator, ns_per_period) VALUES (?, ?, ?)");
+    Stmt st(db_, "INSERT OR REPLACE INTO timing (case_index, estimator, ns_per_period, checksum) VALUES (?, ?, ?, ?)");
     for (std::size_t e = 0; e < ns.size(); ++e) {
       st.reset();
-      st.bind(1, static_cast<std::int64_t>(case_index)).bind(2, static_cast<std::int64_t>(e)).bind(3, ns[e]);
+      const auto c = static_cast<std::int64_t>(case_index);
+      const auto ei = static_cast<std::int64_t>(e);
+      st.bind(1, c).bind(2, ei).bind(3, ns[e]).bind(4, timing_sum(c, ei, ns[e]));
       st.step();
     }
   } catch (...) {
@@ -490,9 +649,15 @@ void RunStore::put_timing(std::size_t case_index, const std::vector<double>& ns)
 
 std::vector<double> RunStore::timing(std::size_t case_index, std::size_t estimators) const {
   std::vector<double> out(estimators, std::nan(""));
-  Stmt st(db_, "SELECT estimator, ns_per_period FROM timing WHERE case_index = ?");
-  st.bind(1, static_cast<std::int64_t>(case_index));
+  Stmt st(db_, checksums_ ? "SELECT estimator, ns_per_period, checksum FROM timing WHERE case_index = ?"
+                          : "SELECT estimator, ns_per_period, 0 FROM timing WHERE case_index = ?");
+  const auto c = static_cast<std::int64_t>(case_index);
+  st.bind(1, c);
   while (st.step()) {
+    if (checksums_) {
+      check_sum(timing_sum(c, st.i64(0), st.f64(1)), st.i64(2),
+                fmt::format("the timing of estimator {} of case {}", st.i64(0) + 1, c + 1));
+    }
     const auto e = static_cast<std::size_t>(st.i64(0));
     if (e < out.size()) out[e] = st.f64(1);
   }
@@ -500,15 +665,18 @@ std::vector<double> RunStore::timing(std::size_t case_index, std::size_t estimat
 }
 
 void RunStore::put_artifact(const std::string& name, const std::string& content) {
-  Stmt st(db_, "INSERT OR REPLACE INTO artifacts (name, content) VALUES (?, ?)");
-  st.bind(1, name).bind_blob(2, content);
+  Stmt st(db_, "INSERT OR REPLACE INTO artifacts (name, content, checksum) VALUES (?, ?, ?)");
+  st.bind(1, name).bind_blob(2, content).bind(3, artifact_sum(name, content));
   st.step();
 }
 
 std::map<std::string, std::string> RunStore::artifacts() const {
   std::map<std::string, std::string> out;
-  Stmt st(db_, "SELECT name, content FROM artifacts");
-  while (st.step()) out[st.text(0)] = st.text(1);
+  Stmt st(db_, checksums_ ? "SELECT name, content, checksum FROM artifacts" : "SELECT name, content, 0 FROM artifacts");
+  while (st.step()) {
+    if (checksums_) check_sum(artifact_sum(st.text(0), st.text(1)), st.i64(2), fmt::format("the stored file '{}'", st.text(0)));
+    out[st.text(0)] = st.text(1);
+  }
   return out;
 }
 
@@ -519,9 +687,70 @@ std::string RunStore::integrity_check() const {
   return out;
 }
 
+void RunStore::check_sum(std::int64_t computed, std::int64_t stored, const std::string& what) const {
+  if (computed != stored) {
+    throw StoreError(fmt::format("run store '{}': {} fails its checksum (stored {}, computed {}): the store is "
+                                 "damaged; re-run the campaign, or the damaged shard",
+                                 path_, what, stored, computed));
+  }
+}
+
+void RunStore::verify(std::size_t cases, std::uint64_t run_limit) const {
+  for (const char* table : {"runs", "link_runs"}) {
+    if (std::string(table) == "link_runs" && columns_of(db_, table).empty()) continue;
+    Stmt st(db_, fmt::format("SELECT case_index, run, {}, {} FROM {}", table == std::string("runs") ? "metrics" : "counters",
+                             checksums_ ? "checksum" : "0", table)
+                     .c_str());
+    const bool is_runs = std::string(table) == "runs";
+    while (st.step()) {
+      const std::int64_t c = st.i64(0), k = st.i64(1);
+      if (c < 0 || static_cast<std::uint64_t>(c) >= cases || k < 0 || static_cast<std::uint64_t>(k) >= run_limit) {
+        throw StoreError(fmt::format("run store '{}': a stored run has case {} and run index {}, outside the campaign's "
+                                     "{} case(s) of runs 0..{}: the store is damaged",
+                                     path_, c + 1, k, cases, run_limit - 1));
+      }
+      if (checksums_) {
+        const std::string blob = st.text(2);
+        const std::int64_t sum = is_runs ? run_sum(c, k, blob) : links_sum(c, k, blob);
+        check_sum(sum, st.i64(3), fmt::format("{}run {} of case {}", is_runs ? "" : "the link counters of ", k, c + 1));
+      }
+    }
+  }
+}
+
+void RunStore::copy_to(const std::string& path) const {
+  remove_store_files(path);
+  char* sql = sqlite3_mprintf("VACUUM INTO %Q", path.c_str());
+  if (sql == nullptr) throw std::bad_alloc();
+  char* err = nullptr;
+  const int rc = sqlite3_exec(db_, sql, nullptr, nullptr, &err);
+  sqlite3_free(sql);
+  if (rc != SQLITE_OK) {
+    const std::string msg = err != nullptr ? err : sqlite3_errmsg(db_);
+    sqlite3_free(err);
+    remove_store_files(path);
+    throw StoreError(fmt::format("cannot copy the run store '{}' to '{}': {}", path_, path, msg));
+  }
+  // The copy is finished: one file in rollback-journal mode (readable on read-only media).
+  sqlite3* db = open_db(path, SQLITE_OPEN_READWRITE);
+  const int jrc = sqlite3_exec(db, "PRAGMA journal_mode=DELETE", nullptr, nullptr, nullptr);
+  sqlite3_close(db);
+  if (jrc != SQLITE_OK) throw StoreError(fmt::format("cannot finish the copy '{}' of the run store", path));
+}
+
 void RunStore::close() {
   if (db_ == nullptr) return;
-  sqlite3_wal_checkpoint_v2(db_, nullptr, SQLITE_CHECKPOINT_TRUNCATE, nullptr, nullptr);
+  if (writable_) {
+    // Finished: the WAL into the file, then back to a rollback journal so that the file alone is
+    // the store (readers on read-only media need no -shm).
+    sqlite3_wal_checkpoint_v2(db_, nullptr, SQLITE_CHECKPOINT_TRUNCATE, nullptr, nullptr);
+    if (sqlite3_exec(db_, "PRAGMA journal_mode=DELETE", nullptr, nullptr, nullptr) != SQLITE_OK) {
+      const std::string msg = sqlite3_errmsg(db_);
+      sqlite3_close(db_);
+      db_ = nullptr;
+      throw StoreError(fmt::format("run store {}: cannot finish it: {}", path_, msg));
+    }
+  }
   const int rc = sqlite3_close(db_);
   db_ = nullptr;
   if (rc != SQLITE_OK) throw StoreError(fmt::format("run store {}: close failed ({})", path_, sqlite3_errstr(rc)));

@@ -5,6 +5,12 @@
 // columns per (case, run, estimator), the estimators' measured time per period, and a
 // campaign table (scenario text, hash, commit, seed and the options that define the
 // campaign's identity). Schema: results/README.md, "runs.sqlite".
+//
+// Integrity (format 3): every row that an export is derived from (runs, link_runs, timing,
+// artifacts) carries a CRC-32 of its key and content, verified whenever the row is read; a damaged
+// row is a StoreError naming it, never a silently changed result. A store is finished by close():
+// WAL checkpointed and the journal mode set back to DELETE, so that a finished store is one file
+// that can be read on read-only media without creating -wal or -shm files. Reading never writes.
 #pragma once
 
 #include <cstdint>
@@ -49,15 +55,32 @@ class RunStore {
   RunStore() = default;
   RunStore(const RunStore&) = delete;
   RunStore& operator=(const RunStore&) = delete;
-  RunStore(RunStore&& o) noexcept : db_(o.db_), path_(std::move(o.path_)) { o.db_ = nullptr; }
+  RunStore(RunStore&& o) noexcept
+      : db_(o.db_), path_(std::move(o.path_)), writable_(o.writable_), checksums_(o.checksums_) {
+    o.db_ = nullptr;
+  }
   RunStore& operator=(RunStore&& o) noexcept;
   ~RunStore();
 
   // A new, empty store at `path` (an existing file and its -wal/-shm are removed first),
   // with the campaign table filled from `meta`. Throws StoreError.
   static RunStore create(const std::string& path, const std::map<std::string, std::string>& meta);
-  // An existing store. Throws StoreError when it is missing or not a run store.
+  // An existing store. Throws StoreError when it is missing, not a run store, of a format this
+  // ncosim does not read, or (writable) of an older format than it writes. A read-only open
+  // never writes: on read-only media or an immutable file it reads the finished store as is.
   static RunStore open(const std::string& path, bool writable);
+
+  // The format this ncosim writes ("3": checksummed rows) and the oldest it reads.
+  static constexpr int kFormat = 3;
+  static constexpr int kOldestFormat = 1;
+
+  // Verifies every stored run: case index below `cases`, run index below `run_limit`, and the
+  // checksums of its rows. Throws StoreError naming the first bad run.
+  void verify(std::size_t cases, std::uint64_t run_limit) const;
+
+  // A consistent, finished copy of this store at `path` (which must not exist), for a result set
+  // elsewhere; works on a read-only store.
+  void copy_to(const std::string& path) const;
 
   const std::string& path() const { return path_; }
   bool is_open() const { return db_ != nullptr; }
@@ -92,11 +115,21 @@ class RunStore {
 
  private:
   void exec(const char* sql) const;
+  // Throws StoreError naming `what` when a row's checksum differs from the stored one.
+  void check_sum(std::int64_t computed, std::int64_t stored, const std::string& what) const;
   sqlite3* db_ = nullptr;
   std::string path_;
+  bool writable_ = false;
+  bool checksums_ = false;  // rows carry checksums (format 3)
 };
 
-// The store of an output folder.
+// The store of an output folder's result set.
 std::string store_path(const std::string& dir);
+// Where a campaign writing into `dir` builds its store until its result set is swapped in:
+// PARENT/.NAME.partial.sqlite beside the folder (NAME once symlinks are resolved). A killed
+// campaign leaves it there for `--resume`; the folder keeps its previous, consistent set.
+std::string partial_store_path(const std::string& dir);
+// Removes the store at `path` with its -wal, -shm and -journal files.
+void remove_store_files(const std::string& path);
 
 }  // namespace ncosim::sim

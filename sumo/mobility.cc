@@ -2,6 +2,8 @@
 // their FCD output, replay, and live runs in worker processes.
 #include "sumo/mobility.h"
 
+#include "config/input_files.h"
+
 #include <dlfcn.h>
 #include <fcntl.h>
 #include <fmt/format.h>
@@ -716,6 +718,7 @@ Mobility::Mobility(const sim::Table& t, const sim::RunSettings& run, const std::
       inputs_.files.push_back(add);
     }
   }
+  for (const auto& f : inputs_.files) sim::note_input_file(f);  // part of the campaign's identity
   line_ = t.line_of(config_key_);
   const double step = t.number_or("step", 0.1);
   const double ms = step * 1000.0;

@@ -1,0 +1,72 @@
+// config/input_files.cc — the external files a scenario reads (see input_files.h).
+#include "config/input_files.h"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdint>
+#include <cstdio>
+
+namespace ncosim::sim {
+
+namespace {
+
+thread_local InputFiles* t_recorder = nullptr;
+
+constexpr std::uint64_t kFnvBasis = 1469598103934665603ULL;  // FNV-1a 64
+
+std::uint64_t fnv1a(std::uint64_t h, const char* p, std::size_t n) {
+  for (std::size_t i = 0; i < n; ++i) {
+    h ^= static_cast<unsigned char>(p[i]);
+    h *= 1099511628211ULL;
+  }
+  return h;
+}
+
+std::string hex(std::uint64_t h) {
+  char buf[17];
+  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(h));
+  return buf;
+}
+
+}  // namespace
+
+InputFileRecorder::InputFileRecorder(InputFiles& files) : previous_(t_recorder) { t_recorder = &files; }
+
+InputFileRecorder::~InputFileRecorder() { t_recorder = previous_; }
+
+std::string content_hash(const std::string& bytes) { return hex(fnv1a(kFnvBasis, bytes.data(), bytes.size())); }
+
+std::string file_content_hash(const std::string& path) {
+  // O_NONBLOCK: a FIFO named by mistake must not block; only regular files are hashed.
+  const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0) return errno == ENOENT ? "missing" : "unreadable";
+  struct stat st {};
+  if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+    ::close(fd);
+    return "unreadable";
+  }
+  std::uint64_t h = kFnvBasis;  // streamed: memory does not grow with the file
+  char buf[1 << 16];
+  for (;;) {
+    const ssize_t n = ::read(fd, buf, sizeof buf);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      ::close(fd);
+      return "unreadable";
+    }
+    if (n == 0) break;
+    h = fnv1a(h, buf, static_cast<std::size_t>(n));
+  }
+  ::close(fd);
+  return hex(h);
+}
+
+void note_input_file(const std::string& path) {
+  if (t_recorder == nullptr) return;
+  (*t_recorder)[path] = file_content_hash(path);
+}
+
+}  // namespace ncosim::sim

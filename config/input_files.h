@@ -1,0 +1,43 @@
+// config/input_files.h — the external files a scenario reads (trace files, SUMO net, route and
+// configuration files, ...), recorded while it loads, with a hash of each one's content.
+//
+// A campaign's identity is its scenario text and options *and* the content of every file that
+// text names: two shards run against different contents of one trace file are different
+// campaigns. Readers that open a file named by a scenario call note_input_file(); the scenario
+// loader (sim/scenario.cc) holds an InputFileRecorder for the duration of a load and keeps what it
+// recorded in LoadedScenario::inputs. Without a recorder the call does nothing.
+#pragma once
+
+#include <map>
+#include <string>
+
+namespace ncosim::sim {
+
+// Path as the reader resolved it -> content hash (16 hex digits, FNV-1a 64 of the bytes).
+using InputFiles = std::map<std::string, std::string>;
+
+// Records into `files` every note_input_file() of this thread while alive (nests: the innermost
+// recorder receives them).
+class InputFileRecorder {
+ public:
+  explicit InputFileRecorder(InputFiles& files);
+  ~InputFileRecorder();
+  InputFileRecorder(const InputFileRecorder&) = delete;
+  InputFileRecorder& operator=(const InputFileRecorder&) = delete;
+
+ private:
+  InputFiles* previous_;
+};
+
+// Records `path` (its content read now) with the recorder of this thread, if any. A file that
+// cannot be read is recorded as "unreadable" (its reader reports the error).
+void note_input_file(const std::string& path);
+
+// The content hash used for input files: FNV-1a 64 of `bytes`, 16 lower-case hex digits.
+std::string content_hash(const std::string& bytes);
+
+// The hash of the file at `path` now: content_hash of its bytes, "missing" when it does not exist,
+// "unreadable" when it cannot be read (a folder, a FIFO, no permission).
+std::string file_content_hash(const std::string& path);
+
+}  // namespace ncosim::sim
