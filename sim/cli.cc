@@ -26,6 +26,7 @@
 #include "sim/compare.h"
 #include "sim/figure_cli.h"
 #include "sim/limits.h"
+#include "sim/mpi_campaign.h"
 #include "sim/output.h"
 #include "sim/output_set.h"
 #include "sim/paired.h"
@@ -524,22 +525,27 @@ int run_cli(int argc, char** argv) {
     }
   }
   set_resource_limits({cl.max_memory_mb * 1e6, cl.max_work_gflop * 1e9});
-  try {
-    return cl.dispatch(command_line);
-  } catch (const ScenarioError& e) {
-    std::cerr << "ncosim: " << e.what() << "\n";
-    return 2;
-  } catch (const lmi::ResourceLimitError& e) {
-    std::cerr << "ncosim: " << e.what() << " (--max-memory / --max-work raise the limits)\n";
-    return 2;
-  } catch (const std::bad_alloc&) {
-    std::cerr << "ncosim: error: out of memory (std::bad_alloc) beyond what the resource estimates foresaw; "
-                 "lower run.runs, run.periods or the model size, or free memory\n";
-    return 1;
-  } catch (const std::exception& e) {
-    std::cerr << "ncosim: error: " << e.what() << "\n";
-    return 1;
-  }
+  const auto code = [&]() -> int {
+    try {
+      return cl.dispatch(command_line);
+    } catch (const ScenarioError& e) {
+      std::cerr << "ncosim: " << e.what() << "\n";
+      return 2;
+    } catch (const lmi::ResourceLimitError& e) {
+      std::cerr << "ncosim: " << e.what() << " (--max-memory / --max-work raise the limits)\n";
+      return 2;
+    } catch (const std::bad_alloc&) {
+      std::cerr << "ncosim: error: out of memory (std::bad_alloc) beyond what the resource estimates foresaw; "
+                   "lower run.runs, run.periods or the model size, or free memory\n";
+      return 1;
+    } catch (const std::exception& e) {
+      std::cerr << "ncosim: error: " << e.what() << "\n";
+      return 1;
+    }
+  }();
+  // Under mpirun (`run`): MPI ends only now, after rank 0 reported its error; every rank exits
+  // with rank 0's code (sim/mpi_campaign.h).
+  return mpi_finish(code);
 }
 
 }  // namespace ncosim::sim

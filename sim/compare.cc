@@ -7,8 +7,9 @@
 
 #include <algorithm>
 #include <charconv>
-#include <cstdio>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -36,7 +37,10 @@ std::optional<double> parse_number(const std::string& s) {
   if (s.empty()) return std::nullopt;
   double v = 0.0;
   const auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
-  if (ec != std::errc() || p != s.data() + s.size()) throw std::invalid_argument(s);
+  if (p != s.data() + s.size()) throw std::invalid_argument(s);
+  // Beyond a double's range: +-inf on overflow (the callers refuse it), 0 or subnormal on underflow.
+  if (ec == std::errc::result_out_of_range) return std::strtod(s.c_str(), nullptr);
+  if (ec != std::errc()) throw std::invalid_argument(s);
   return v;
 }
 
@@ -83,16 +87,23 @@ RunFolder read_run_folder(const std::string& dir, const std::string& metric) {
   if (!fs::exists(runs) && fs::exists(d / "runs.sqlite")) {
     throw CompareInputError(fmt::format("{}: missing; the folder holds a run store: `ncosim export {}` writes it", file, dir));
   }
-  std::vector<CsvRecord> records;
-  try {
-    records = read_csv_records(slurp(runs), file);
-  } catch (const CompareInputError&) {
-    throw;
-  } catch (const ScenarioError& e) {
-    throw CompareInputError(e.what());
-  }
-  if (records.empty()) throw CompareInputError(fmt::format("{}: empty file (expected the runs.csv of `ncosim run`)", file));
-  const auto& head = records.front().fields;
+  // Streamed one record at a time, keeping only the columns compare needs: memory follows the
+  // runs of the metric, not the size of the file.
+  std::ifstream in(runs, std::ios::binary);
+  if (!in) throw CompareInputError(fmt::format("{}: cannot open the file", file));
+  CsvReader reader(in, file);
+  auto next = [&](CsvRecord& r) {
+    try {
+      return reader.next(r);
+    } catch (const CompareInputError&) {
+      throw;
+    } catch (const ScenarioError& e) {
+      throw CompareInputError(e.what());
+    }
+  };
+  CsvRecord r;
+  if (!next(r)) throw CompareInputError(fmt::format("{}: empty file (expected the runs.csv of `ncosim run`)", file));
+  const std::vector<std::string> head = std::move(r.fields);
   auto col = [&](const std::string& name) -> std::size_t {
     const auto it = std::find(head.begin(), head.end(), name);
     return it == head.end() ? head.size() : static_cast<std::size_t>(it - head.begin());
@@ -111,35 +122,79 @@ RunFolder read_run_folder(const std::string& dir, const std::string& metric) {
     }
     throw CompareInputError(fmt::format("--metric: expected a per-run column of {} ({}), got \"{}\"", file, list, metric));
   }
+  std::vector<bool> keep(head.size(), false);
+  for (std::size_t i = 0; i <= c_est; ++i) keep[i] = true;  // sweep labels, run, estimator
+  keep[c_div] = keep[c_metric] = true;
+  reader.keep_only(std::move(keep));
   f.sweep_keys.assign(head.begin(), head.begin() + static_cast<std::ptrdiff_t>(c_run));
   std::map<std::pair<std::vector<std::string>, std::string>, std::size_t> index;
-  for (std::size_t i = 1; i < records.size(); ++i) {
-    const auto& r = records[i];
+  std::vector<std::vector<int>> lines;  // per row, the line of each run (duplicates are found at the end)
+  while (next(r)) {
     if (r.fields.size() != head.size()) {
       throw CompareInputError(
           fmt::format("{}:{}: expected {} fields (the header's), got {}", file, r.line, head.size(), r.fields.size()));
     }
     std::vector<std::string> labels(r.fields.begin(), r.fields.begin() + static_cast<std::ptrdiff_t>(c_run));
-    const auto key = std::make_pair(labels, r.fields[c_est]);
+    auto key = std::make_pair(std::move(labels), r.fields[c_est]);
     auto it = index.find(key);
     if (it == index.end()) {
       it = index.emplace(key, f.rows.size()).first;
-      f.rows.push_back({labels, r.fields[c_est], {}, {}, {}});
+      f.rows.push_back({std::move(key.first), std::move(key.second), {}, {}, {}});
+      lines.emplace_back();
     }
     RunFolder::Row& row = f.rows[it->second];
+    // A run index: an integer 0 .. 2^53 (exact in a double).
+    std::optional<double> run;
     try {
-      const auto run = parse_number(r.fields[c_run]);
-      if (!run || *run < 0 || *run != std::floor(*run)) throw std::invalid_argument(r.fields[c_run]);
-      const std::int64_t ri = static_cast<std::int64_t>(*run);
-      if (std::find(row.run.begin(), row.run.end(), ri) != row.run.end()) {
-        throw CompareInputError(fmt::format("{}:{}: run {} of {} appears twice", file, r.line, ri, row_text(f.sweep_keys, row)));
-      }
-      row.run.push_back(ri);
-      row.value.push_back(parse_number(r.fields[c_metric]));
-      row.diverged.push_back(r.fields[c_div] == "1");
-    } catch (const std::invalid_argument& e) {
-      throw CompareInputError(fmt::format("{}:{}: expected a number, got \"{}\"", file, r.line, e.what()));
+      run = parse_number(r.fields[c_run]);
+    } catch (const std::invalid_argument&) {
     }
+    if (!run || !(*run >= 0.0 && *run <= 9007199254740992.0) || *run != std::floor(*run)) {
+      throw CompareInputError(fmt::format("{}:{}: run: expected a run index (an integer >= 0), got \"{}\"", file, r.line,
+                                          r.fields[c_run]));
+    }
+    // The metric: empty (no value in this run), else a finite number >= 0 (every per-run column
+    // of runs.csv is); nan, inf, a negative value or one beyond a double's range is damaged input.
+    std::optional<double> value;
+    try {
+      value = parse_number(r.fields[c_metric]);
+    } catch (const std::invalid_argument&) {
+      throw CompareInputError(fmt::format("{}:{}: {}: expected a number, got \"{}\"", file, r.line, metric,
+                                          r.fields[c_metric]));
+    }
+    if (value && !(std::isfinite(*value) && *value >= 0.0)) {
+      throw CompareInputError(fmt::format("{}:{}: {}: expected a finite number >= 0, got \"{}\"", file, r.line, metric,
+                                          r.fields[c_metric]));
+    }
+    row.run.push_back(static_cast<std::int64_t>(*run));
+    row.value.push_back(value);
+    row.diverged.push_back(r.fields[c_div] == "1");
+    lines[it->second].push_back(r.line);
+  }
+  // A run twice in one row: the earliest line that repeats a run.
+  int dup_line = 0;
+  std::size_t dup_row = 0;
+  std::int64_t dup_run = 0;
+  for (std::size_t k = 0; k < f.rows.size(); ++k) {
+    const auto& runs_k = f.rows[k].run;
+    std::vector<std::size_t> order(runs_k.size());
+    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+      return runs_k[a] != runs_k[b] ? runs_k[a] < runs_k[b] : a < b;
+    });
+    for (std::size_t i = 1; i < order.size(); ++i) {
+      if (runs_k[order[i]] != runs_k[order[i - 1]]) continue;
+      const int line = lines[k][order[i]];
+      if (dup_line == 0 || line < dup_line) {
+        dup_line = line;
+        dup_row = k;
+        dup_run = runs_k[order[i]];
+      }
+    }
+  }
+  if (dup_line != 0) {
+    throw CompareInputError(fmt::format("{}:{}: run {} of {} appears twice", file, dup_line, dup_run,
+                                        row_text(f.sweep_keys, f.rows[dup_row])));
   }
   if (f.rows.empty()) throw CompareInputError(fmt::format("{}: no runs (expected the runs.csv of `ncosim run`)", file));
   return f;
@@ -181,13 +236,16 @@ void test_row(const RunFolder& bf, const RunFolder::Row& b, const RunFolder& nf,
     out.note = "diverged in both";
     return;
   }
-  std::map<std::int64_t, double> vb, vn;
-  for (std::size_t i = 0; i < b.run.size(); ++i) {
-    if (b.value[i] && std::isfinite(*b.value[i])) vb[b.run[i]] = *b.value[i];
-  }
-  for (std::size_t i = 0; i < n.run.size(); ++i) {
-    if (n.value[i] && std::isfinite(*n.value[i])) vn[n.run[i]] = *n.value[i];
-  }
+  // (run, value) in run order (runs are unique in a row: read_run_folder checks).
+  auto values = [](const RunFolder::Row& r) {
+    std::vector<std::pair<std::int64_t, double>> v;
+    for (std::size_t i = 0; i < r.run.size(); ++i) {
+      if (r.value[i] && std::isfinite(*r.value[i])) v.emplace_back(r.run[i], *r.value[i]);
+    }
+    std::sort(v.begin(), v.end());
+    return v;
+  };
+  auto vb = values(b), vn = values(n);
   if (vb.empty() && vn.empty()) {
     out.note = fmt::format("no {} values", o.metric);
     return;
@@ -196,12 +254,27 @@ void test_row(const RunFolder& bf, const RunFolder::Row& b, const RunFolder& nf,
     out.note = fmt::format("{} only in {}", o.metric, vb.empty() ? "NEW" : "BASE");
     return;
   }
+  // The statistics run on the values times 2^-e, the largest |value| scaled into [0.5, 1): sums,
+  // squares and variances of values up to the largest double cannot overflow, and a power of two
+  // changes no digit (the p-values and the relative change do not depend on the scale).
+  double largest = 0.0;
+  for (const auto* m : {&vb, &vn}) {
+    for (const auto& [run, v] : *m) largest = std::max(largest, std::abs(v));
+  }
+  int e = 0;
+  std::frexp(largest, &e);
+  for (auto* m : {&vb, &vn}) {
+    for (auto& [run, v] : *m) v = std::ldexp(v, -e);
+  }
+  const auto unscaled = [e](double v) { return std::ldexp(v, e); };
   std::vector<double> a, c;
   const bool same_seed = case_seed(bf, b) == case_seed(nf, n);
   if (same_seed) {
+    auto it = vn.begin();
     for (const auto& [run, v] : vb) {
-      const auto it = vn.find(run);
-      if (it == vn.end()) continue;
+      while (it != vn.end() && it->first < run) ++it;
+      if (it == vn.end()) break;
+      if (it->first != run) continue;
       a.push_back(v);
       c.push_back(it->second);
     }
@@ -233,23 +306,43 @@ void test_row(const RunFolder& bf, const RunFolder::Row& b, const RunFolder& nf,
     out.note = "no interval";
     return;
   }
-  out.base_mean = d->base_mean;
-  out.new_mean = d->new_mean;
-  out.diff = d->diff;
-  if (d->diff_half) {
-    out.diff_low = d->diff - *d->diff_half;
-    out.diff_high = d->diff + *d->diff_half;
+  const RelativeTest t = relative_test(a, c, out.test == "paired", o.tolerance);
+  if (!std::isfinite(t.p_worse) || !std::isfinite(t.p_better)) {
+    // Not reached on finite input after the scaling; never let it pass for "unchanged".
+    throw CompareInputError(fmt::format("{}: {}: the test of {} is not finite (p = {}, {})",
+                                        (fs::path(nf.dir) / "runs.csv").string(), row_text(nf.sweep_keys, n), o.metric,
+                                        t.p_worse, t.p_better));
   }
+  out.p_worse = t.p_worse;
+  out.p_better = t.p_better;
+  // Back to the metric's unit; what exceeds a double there (a difference or CI beyond 1.8e308,
+  // a relative change of new / base > 1.8e308) is left empty and said in the note.
+  std::vector<std::string> beyond;
+  out.base_mean = unscaled(d->base_mean);
+  out.new_mean = unscaled(d->new_mean);
+  const double diff = unscaled(d->diff);
+  if (std::isfinite(diff)) out.diff = diff;
+  if (d->diff_half) {
+    const double low = unscaled(d->diff - *d->diff_half), high = unscaled(d->diff + *d->diff_half);
+    if (std::isfinite(low) && std::isfinite(high)) {
+      out.diff_low = low;
+      out.diff_high = high;
+    }
+  }
+  if (!out.diff || (d->diff_half && !out.diff_low)) beyond.emplace_back("difference");
   if (d->ratio) {
-    out.relative = *d->ratio - 1.0;
-    if (d->ratio_half) {
+    if (std::isfinite(*d->ratio - 1.0)) out.relative = *d->ratio - 1.0;
+    if (out.relative && d->ratio_half && std::isfinite(*out.relative - *d->ratio_half) &&
+        std::isfinite(*out.relative + *d->ratio_half)) {
       out.relative_low = *out.relative - *d->ratio_half;
       out.relative_high = *out.relative + *d->ratio_half;
     }
+    if (!out.relative || (d->ratio_half && !out.relative_low)) beyond.emplace_back("relative change");
   }
-  const RelativeTest t = relative_test(a, c, out.test == "paired", o.tolerance);
-  out.p_worse = t.p_worse;
-  out.p_better = t.p_better;
+  if (!beyond.empty()) {
+    out.note += fmt::format("{}{} or its CI beyond the range of a double", out.note.empty() ? "" : "; ",
+                            fmt::join(beyond, " and "));
+  }
 }
 
 }  // namespace
@@ -257,8 +350,20 @@ void test_row(const RunFolder& bf, const RunFolder::Row& b, const RunFolder& nf,
 CompareResult compare_folders(const RunFolder& base, const RunFolder& fresh, const CompareOptions& options) {
   CompareResult res;
   res.options = options;
-  res.base = base;
-  res.fresh = fresh;
+  // The folders' identities; not their rows (the per-run values are read here, not kept).
+  auto identity = [](const RunFolder& f) {
+    RunFolder id;
+    id.dir = f.dir;
+    id.scenario = f.scenario;
+    id.title = f.title;
+    id.scenario_hash = f.scenario_hash;
+    id.seed = f.seed;
+    id.partial = f.partial;
+    id.sweep_keys = f.sweep_keys;
+    return id;
+  };
+  res.base = identity(base);
+  res.fresh = identity(fresh);
   const std::string base_runs = (fs::path(base.dir) / "runs.csv").string();
   const std::string new_runs = (fs::path(fresh.dir) / "runs.csv").string();
   if (base.scenario_hash != fresh.scenario_hash) {

@@ -5,8 +5,9 @@
 // A row is "worse" when its metric is significantly above (1 + tolerance) times the base
 // (one-sided test at level alpha, Holm-corrected over the rows), "better" when significantly
 // below (1 - tolerance) times it, "unchanged" otherwise, "not comparable" when no test applies.
-// Bad input (unreadable or malformed files, different scenarios, missing rows) throws
-// CompareInputError naming the FILE (exit 2).
+// Bad input (unreadable or malformed files, a metric cell that is not a finite number >= 0,
+// different scenarios, missing rows) throws CompareInputError naming the FILE (and LINE) (exit 2).
+// runs.csv is streamed: memory follows the runs of the metric, not the file's size.
 #pragma once
 
 #include <cstdint>
@@ -43,7 +44,7 @@ struct RunFolder {
     std::vector<std::string> labels;  // per sweep key
     std::string estimator;
     std::vector<std::int64_t> run;    // run indices, in file order
-    std::vector<std::optional<double>> value;  // the metric (nullopt: empty cell)
+    std::vector<std::optional<double>> value;  // the metric, finite and >= 0 (nullopt: empty cell)
     std::vector<bool> diverged;
   };
   std::vector<Row> rows;  // in first-appearance order
@@ -66,7 +67,7 @@ struct CompareRow {
 
 struct CompareResult {
   CompareOptions options;
-  RunFolder base, fresh;
+  RunFolder base, fresh;  // the two folders without their rows (dir, scenario, seed, sweep keys, ...)
   std::vector<CompareRow> rows;
   std::size_t tested = 0;  // rows with a test (the Holm family)
   std::size_t worse = 0, better = 0, unchanged = 0, not_comparable = 0;

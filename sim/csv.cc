@@ -3,39 +3,40 @@
 
 #include <fmt/format.h>
 
+#include <sstream>
+
 #include "config/config.h"
 
 namespace ncosim::sim {
 
-std::vector<CsvRecord> read_csv_records(const std::string& text, const std::string& what) {
-  std::vector<CsvRecord> out;
-  CsvRecord rec;
-  rec.line = 1;
+bool CsvReader::next(CsvRecord& rec) {
+  using traits = std::streambuf::traits_type;
+  rec.fields.clear();
+  rec.line = line_;
   std::string field;
   bool quoted = false, any = false;
-  int line = 1;
-  auto end_record = [&] {
-    if (any || !field.empty()) {
+  auto kept = [&] { return keep_.empty() || (rec.fields.size() < keep_.size() && keep_[rec.fields.size()]); };
+  bool keep = kept();
+  while (true) {
+    const auto ci = in_.sbumpc();
+    if (traits::eq_int_type(ci, traits::eof())) {
+      if (quoted) throw ScenarioError(format_error(what_, rec.line, "", "unterminated quoted field"));
+      if (!any && field.empty()) return false;
       rec.fields.push_back(std::move(field));
-      out.push_back(std::move(rec));
+      return true;
     }
-    field.clear();
-    rec = CsvRecord{};
-    any = false;
-  };
-  for (std::size_t i = 0; i < text.size(); ++i) {
-    const char c = text[i];
+    const char c = traits::to_char_type(ci);
     if (quoted) {
       if (c == '"') {
-        if (i + 1 < text.size() && text[i + 1] == '"') {
-          field += '"';
-          ++i;
+        if (traits::eq_int_type(in_.sgetc(), traits::to_int_type('"'))) {
+          if (keep) field += '"';
+          in_.sbumpc();
         } else {
           quoted = false;
         }
       } else {
-        if (c == '\n') ++line;
-        field += c;
+        if (c == '\n') ++line_;
+        if (keep) field += c;
       }
       continue;
     }
@@ -45,18 +46,28 @@ std::vector<CsvRecord> read_csv_records(const std::string& text, const std::stri
     } else if (c == ',') {
       rec.fields.push_back(std::move(field));
       field.clear();
+      keep = kept();
       any = true;
     } else if (c == '\n' || c == '\r') {
-      if (c == '\r' && i + 1 < text.size() && text[i + 1] == '\n') ++i;
-      end_record();
-      rec.line = ++line;
+      if (c == '\r' && traits::eq_int_type(in_.sgetc(), traits::to_int_type('\n'))) in_.sbumpc();
+      ++line_;
+      if (any || !field.empty()) {
+        rec.fields.push_back(std::move(field));
+        return true;
+      }
+      rec.line = line_;  // a blank line: skipped
     } else {
-      field += c;
+      if (keep) field += c;
       any = true;
     }
   }
-  if (quoted) throw ScenarioError(format_error(what, rec.line, "", "unterminated quoted field"));
-  end_record();
+}
+
+std::vector<CsvRecord> read_csv_records(const std::string& text, const std::string& what) {
+  std::istringstream in(text);
+  CsvReader reader(in, what);
+  std::vector<CsvRecord> out;
+  for (CsvRecord rec; reader.next(rec);) out.push_back(std::move(rec));
   return out;
 }
 

@@ -1,8 +1,10 @@
 // sim/csv.h — the CSV files ncosim writes, read back (`plot`, `report`, `compare`): RFC 4180
 // records (quoted fields may hold commas, quotes and line breaks; "" is a quote), each with the
-// line it starts on, and a table view with a header.
+// line it starts on, read all at once or one at a time from a stream, and a table view with a
+// header.
 #pragma once
 
+#include <istream>
 #include <string>
 #include <vector>
 
@@ -15,6 +17,23 @@ struct CsvRecord {
 // Every record of `text`; lines ending in \n or \r\n; blank lines skipped. Throws ScenarioError
 // naming `what` and the line on an unterminated quoted field.
 std::vector<CsvRecord> read_csv_records(const std::string& text, const std::string& what);
+
+// The same records one at a time from a stream: memory for one record, not the file.
+class CsvReader {
+ public:
+  CsvReader(std::istream& in, std::string what) : in_(*in.rdbuf()), what_(std::move(what)) {}
+  // From now on, fields whose index is not true in `keep` are counted but stored empty (a wide
+  // file read for a few columns).
+  void keep_only(std::vector<bool> keep) { keep_ = std::move(keep); }
+  // The next record into `rec` (false at the end). Throws ScenarioError as read_csv_records.
+  bool next(CsvRecord& rec);
+
+ private:
+  std::streambuf& in_;
+  std::string what_;
+  std::vector<bool> keep_;
+  int line_ = 1;
+};
 
 // A CSV file with a header line.
 struct CsvTable {

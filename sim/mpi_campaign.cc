@@ -59,6 +59,13 @@ std::uint64_t get_u64(const std::string& s, std::size_t at) {
 struct MpiSession::Impl {
   boost::mpi::environment env{boost::mpi::threading::serialized};
   boost::mpi::communicator world;
+  int exit_code = 0;  // rank 0: the code sent to the workers; ranks > 0: the code rank 0 sent
+  // Rank 0: every worker stops with exit_code; then MPI_Finalize (env's destructor, after this).
+  ~Impl() {
+    if (world.rank() == 0) {
+      for (int w = 1; w < world.size(); ++w) world.send(w, kStop, exit_code);
+    }
+  }
 };
 
 MpiSession::MpiSession() : impl_(std::make_unique<Impl>()) {
@@ -67,10 +74,26 @@ MpiSession::MpiSession() : impl_(std::make_unique<Impl>()) {
   }
 }
 
-MpiSession::~MpiSession() {
-  if (impl_->world.rank() == 0) {
-    for (int w = 1; w < impl_->world.size(); ++w) impl_->world.send(w, kStop);
+// Not finalized here: the session ends while an error unwinds the stack on rank 0, and
+// Boost.MPI's environment would then MPI_Abort (rc 255, the message lost); mpi_finish ends it
+// once the error is reported and the exit code known.
+MpiSession::~MpiSession() { ended() = std::move(impl_); }
+
+std::unique_ptr<MpiSession::Impl>& MpiSession::ended() {
+  static std::unique_ptr<Impl> impl;  // at exit without mpi_finish: stop with 0, MPI_Finalize
+  return impl;
+}
+
+int MpiSession::finish(int exit_code) {
+  std::unique_ptr<Impl>& impl = ended();
+  if (!impl) return exit_code;
+  if (impl->world.rank() == 0) {
+    impl->exit_code = exit_code;
+  } else if (exit_code == 0) {
+    exit_code = impl->exit_code;
   }
+  impl.reset();
+  return exit_code;
 }
 
 int MpiSession::rank() const { return impl_->world.rank(); }
@@ -185,7 +208,7 @@ void MpiSession::serve(const std::vector<const Scenario*>& cases) {
       continue;
     }
     if (st->tag() == kStop) {
-      world.recv(0, kStop);
+      world.recv(0, kStop, impl_->exit_code);
       return;
     }
     std::vector<std::uint64_t> work;
@@ -216,11 +239,18 @@ MpiSession::MpiSession() {
   throw std::runtime_error("this ncosim was built without MPI support (CMake option NCOSIM_MPI)");
 }
 MpiSession::~MpiSession() = default;
+std::unique_ptr<MpiSession::Impl>& MpiSession::ended() {
+  static std::unique_ptr<Impl> impl;
+  return impl;
+}
+int MpiSession::finish(int exit_code) { return exit_code; }
 int MpiSession::rank() const { return 0; }
 int MpiSession::size() const { return 1; }
 CampaignResult MpiSession::run(const Scenario&, std::size_t, const CampaignOptions&) { return {}; }
 void MpiSession::serve(const std::vector<const Scenario*>&) {}
 
 #endif
+
+int mpi_finish(int exit_code) { return MpiSession::finish(exit_code); }
 
 }  // namespace ncosim::sim

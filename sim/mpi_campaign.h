@@ -18,10 +18,13 @@ namespace ncosim::sim {
 bool mpi_launched();
 bool mpi_available();
 
+// Under mpirun, every rank ends with the exit code of rank 0, and only rank 0 reports an error
+// it found: ranks > 0 wait in serve() for rank 0's word. MPI outlives the session (an error
+// unwinding the stack must not MPI_Abort, which loses rank 0's message): mpi_finish ends it.
 class MpiSession {
  public:
   MpiSession();   // MPI_Init_thread (serialized); throws std::runtime_error without MPI support
-  ~MpiSession();  // rank 0: tells every worker to stop; MPI_Finalize
+  ~MpiSession();  // keeps MPI open for mpi_finish (at the latest, at exit: as mpi_finish(0))
   MpiSession(const MpiSession&) = delete;
   MpiSession& operator=(const MpiSession&) = delete;
 
@@ -31,12 +34,23 @@ class MpiSession {
   // `options.threads` local threads); each result goes to `options.on_run`. No trace; the
   // timing (when asked) replays the first run locally after the distribution.
   CampaignResult run(const Scenario& sc, std::size_t case_index, const CampaignOptions& options);
-  // Ranks > 0: simulate what rank 0 sends until it says stop. `cases` are the loaded cases.
+  // Ranks > 0: simulate what rank 0 sends until it says stop (with rank 0's exit code, which
+  // mpi_finish returns). `cases` are the loaded cases.
   void serve(const std::vector<const Scenario*>& cases);
+
+  // See mpi_finish.
+  static int finish(int exit_code);
 
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
+  static std::unique_ptr<Impl>& ended();  // the Impl of a destroyed session, until finish
 };
+
+// The process's exit code once MPI is done (call it last, after the error, if any, is printed).
+// Without an MPI session: `exit_code`. Rank 0: tells every worker to stop with `exit_code`, then
+// MPI_Finalize; returns `exit_code`. Ranks > 0: MPI_Finalize; returns `exit_code` if not 0, else
+// the exit code rank 0 sent.
+int mpi_finish(int exit_code);
 
 }  // namespace ncosim::sim

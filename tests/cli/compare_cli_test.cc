@@ -3,10 +3,14 @@
 // `codesign` with a status that is not ok.
 #include <fmt/format.h>
 #include <gtest/gtest.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <filesystem>
+#include <fstream>
 #include <string>
+#include <vector>
 
 #include "test_util.h"
 
@@ -39,8 +43,47 @@ class CompareCli : public ::testing::Test {
     ASSERT_EQ(o.code, 0) << o.output;
   }
   std::string path(const std::string& name) const { return (dir_ / name).string(); }
+  // A hand-made output folder dir_/name: manifest.json and a runs.csv of estimators "a" and "b",
+  // `runs` runs each, mse = level (1 + (r mod 7) / 10) ("b": times 1.1), then `extra` columns
+  // rmse_x1.. of 17 characters each (a wide file: a model with many states). Returns runs.csv.
+  std::string hand_made(const std::string& name, int runs, double level, int extra = 1) const {
+    fs::create_directories(dir_ / name);
+    std::ofstream(dir_ / name / "manifest.json") << R"({"scenario": "x.toml", "scenario_hash": "h", "seed": 1})";
+    std::ofstream out(dir_ / name / "runs.csv");
+    std::string line = "run,estimator,mse,mse_ext,periods,samples_used,samples_taken,diverged,status,flops_mean,"
+                       "late_samples,duplicate_samples,mde_percent";
+    for (int i = 1; i <= extra; ++i) line += fmt::format(",rmse_x{}", i);
+    out << line << "\n";
+    std::string tail;
+    for (int i = 0; i < extra; ++i) tail += ",0.123456789012345";
+    for (int r = 0; r < runs; ++r) {
+      for (const auto& [est, f] : {std::pair<const char*, double>{"a", 1.0}, {"b", 1.1}}) {
+        out << fmt::format("{},{},{:.17g},,100,1,1,0,ok,,,,{}\n", r, est, f * level * (1.0 + (r % 7) / 10.0), tail);
+      }
+    }
+    return (dir_ / name / "runs.csv").string();
+  }
   fs::path dir_;
 };
+
+// Runs ncosim with `args` (stdout and stderr to /dev/null): its exit status and peak resident
+// set size in kB (wait4's ru_maxrss of that child alone).
+std::pair<int, long> exit_and_peak_rss_kb(const std::vector<std::string>& args) {
+  std::vector<char*> argv{const_cast<char*>(kBinary.c_str())};
+  for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    std::freopen("/dev/null", "w", stdout);
+    std::freopen("/dev/null", "w", stderr);
+    ::execv(kBinary.c_str(), argv.data());
+    ::_exit(127);
+  }
+  int status = 0;
+  struct rusage ru {};
+  if (pid < 0 || ::wait4(pid, &status, 0, &ru) != pid) return {-1, 0};
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, ru.ru_maxrss};
+}
 
 TEST_F(CompareCli, UnchangedIsExit0AndARegressionExit1WithTheFiles) {
   run("base");
@@ -81,6 +124,36 @@ TEST_F(CompareCli, BadInputIsExit2NamingTheFileOrOption) {
   EXPECT_NE(o.output.find("--correction"), std::string::npos) << o.output;
   o = ncosim(fmt::format("compare '{}'", path("base")));
   EXPECT_EQ(o.code, 2) << o.output;
+}
+
+TEST_F(CompareCli, HandMadeNonFiniteOrHugeValuesAreRefusedOrTested) {
+  hand_made("base", 10, 1.0);
+  // NEW = 1e160 x BASE is a regression (it was "unchanged": the variances overflowed).
+  hand_made("huge", 10, 1e160);
+  Outcome o = ncosim(fmt::format("compare '{}' '{}'", path("base"), path("huge")));
+  EXPECT_EQ(o.code, 1) << o.output;
+  EXPECT_NE(o.output.find("2 worse, 0 better, 0 unchanged, 0 not comparable: exit 1"), std::string::npos) << o.output;
+  // A non-finite, negative or out-of-range cell: exit 2 naming FILE:LINE (nan used to drop the
+  // run; -1e308 gave "-inf [-nan, -nan]" and "unchanged").
+  for (const std::string bad : {"nan", "inf", "-1e308", "1e999"}) {
+    const std::string file = hand_made("bad", 10, 1.0);
+    std::ofstream(file, std::ios::app) << "10,a," << bad << ",,100,1,1,0,ok,,,,,0.1\n";
+    o = ncosim(fmt::format("compare '{}' '{}'", path("base"), path("bad")));
+    EXPECT_EQ(o.code, 2) << bad << ": " << o.output;
+    EXPECT_NE(o.output.find(file + ":22: mse: expected a finite number >= 0, got \"" + bad + "\""), std::string::npos)
+        << o.output;
+  }
+}
+
+TEST_F(CompareCli, MemoryFollowsTheRunsNotTheFileSize) {
+  // A 66 MB runs.csv (400 state columns, 4 500 runs of 2 estimators): compare keeps the run
+  // index and the metric of each run (~30 bytes), not the file (it used to hold the file and
+  // every field as a string, ~6 times its size). Bound: 40 MB of peak RSS, less than the file.
+  const std::string file = hand_made("wide", 4500, 1.0, 400);
+  ASSERT_GT(fs::file_size(file), 60u * 1000 * 1000);
+  const auto [code, kb] = exit_and_peak_rss_kb({"compare", path("wide"), path("wide")});
+  EXPECT_EQ(code, 0);
+  EXPECT_LT(kb, 40 * 1024) << "peak RSS " << kb << " kB";
 }
 
 TEST_F(CompareCli, FailOnStatusListsTheRowsAndExits3) {

@@ -4,10 +4,12 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 #include <functional>
 #include <fstream>
 #include <random>
+#include <sstream>
 
 namespace ncosim::sim {
 namespace {
@@ -16,7 +18,7 @@ namespace fs = std::filesystem;
 
 // A folder with manifest.json and runs.csv: estimators "A, x" and "B" (A's name needs quoting),
 // `runs` runs each with mse = level * (1 + 0.1 z_run) + 0.001 z (a shared run effect, as the
-// common random numbers give), scaled by `scale_b` for B.
+// common random numbers give), scaled by `scale_b` for B; every value times `level`.
 struct Folder {
   fs::path dir;
   explicit Folder(const std::string& name) : dir(fs::temp_directory_path() / ("ncosim_compare_" + name)) {
@@ -28,7 +30,7 @@ struct Folder {
     fs::remove_all(dir, ec);
   }
   void write(const std::string& hash, std::uint64_t seed, int runs, double scale_b, int diverged_b = -1,
-             const std::string& drop = "", std::uint64_t noise_seed = 0) const {
+             const std::string& drop = "", std::uint64_t noise_seed = 0, double level = 1.0) const {
     std::ofstream(dir / "manifest.json") << "{\"scenario\": \"x.toml\", \"scenario_hash\": \"" << hash
                                          << "\", \"seed\": " << seed << ", \"title\": \"t\"}\n";
     std::mt19937_64 g(noise_seed == 0 ? seed : noise_seed);
@@ -38,8 +40,8 @@ struct Folder {
            "duplicate_samples,mde_percent,rmse_x1\n";
     for (int r = 0; r < runs; ++r) {
       const double shared = 1.0 + 0.1 * z(g);
-      const double a = shared + 0.001 * z(g);
-      const double b = scale_b * (shared + 0.001 * z(g));
+      const double a = level * (shared + 0.001 * z(g));
+      const double b = level * scale_b * (shared + 0.001 * z(g));
       if (drop != "A, x") out << r << ",\"A, x\"," << a << ",," << "100,1,1,0,ok,,,,,1\n";
       if (drop != "B") {
         if (r == diverged_b) {
@@ -168,6 +170,70 @@ TEST(Compare, BadInputNamesTheFileOrOption) {
   EXPECT_NE(e.find((n.dir / "manifest.json").string() + ": cannot open"), std::string::npos) << e;
   e = error_of([&] { read_run_folder((n.dir / "nope").string(), "mse"); });
   EXPECT_NE(e.find("not a directory"), std::string::npos) << e;
+}
+
+TEST(Compare, NonFiniteNegativeOrOverflowingValuesAreRefusedAtTheirLine) {
+  // Line 1 is the header; run r of B is on line 3 + 2 r. Each bad cell refuses the folder
+  // (it used to drop the run, or to make the statistics overflow).
+  Folder n("nonfinite");
+  const std::string file = (n.dir / "runs.csv").string();
+  for (const std::string bad : {"nan", "inf", "-inf", "-1e308", "1e400", "-0.5"}) {
+    n.write("h", 7, 5, 1.0);
+    std::string text;
+    {
+      std::ifstream in(n.dir / "runs.csv");
+      std::stringstream ss;
+      ss << in.rdbuf();
+      text = ss.str();
+    }
+    const std::string cell = "\n2,B,";
+    const auto at = text.find(cell);
+    ASSERT_NE(at, std::string::npos);
+    const auto end = text.find(',', at + cell.size());
+    text.replace(at + cell.size(), end - at - cell.size(), bad);
+    std::ofstream(n.dir / "runs.csv") << text;
+    const std::string e = error_of([&] { read_run_folder(n.str(), "mse"); });
+    EXPECT_NE(e.find(file + ":7: mse: expected a finite number >= 0"), std::string::npos) << bad << ": " << e;
+    EXPECT_NE(e.find("\"" + bad + "\""), std::string::npos) << e;
+  }
+  // A run index that is not a small integer (inf used to be cast to an integer).
+  for (const std::string bad : {"inf", "1e300", "nan", "-1", "1.5"}) {
+    n.write("h", 7, 5, 1.0);
+    std::ofstream(n.dir / "runs.csv", std::ios::app) << bad << ",B,0.1,,100,1,1,0,ok,,,,,1\n";
+    const std::string e = error_of([&] { read_run_folder(n.str(), "mse"); });
+    EXPECT_NE(e.find(file + ":12: run: expected a run index"), std::string::npos) << bad << ": " << e;
+  }
+}
+
+TEST(Compare, HugeValuesAreTestedWithoutOverflow) {
+  // NEW = 1e160 x BASE: squares of the differences overflow a double unless scaled; the row
+  // was "unchanged" (p = 0.5 from an infinite standard error).
+  Folder b("huge_b"), n("huge_n");
+  b.write("h", 7, 20, 1.0);
+  n.write("h", 7, 20, 1.0, -1, "", 0, 1e160);
+  auto r = run(b, n);
+  EXPECT_EQ(row(r, "B").verdict, "worse");
+  EXPECT_EQ(row(r, "A, x").verdict, "worse");
+  EXPECT_EQ(r.exit_code(), 1);
+  ASSERT_TRUE(row(r, "B").relative.has_value());
+  EXPECT_NEAR(*row(r, "B").relative / 1e160, 1.0, 0.01);
+  ASSERT_TRUE(row(r, "B").diff.has_value());
+  EXPECT_TRUE(std::isfinite(*row(r, "B").diff));
+  EXPECT_EQ(row(run(n, b), "B").verdict, "better");
+  // Values near the largest double: their sum overflows (the means were inf, the change NaN),
+  // yet B's +1 % is found and measured like at level 1.
+  b.write("h", 7, 20, 1.0, -1, "", 0, 1e307);
+  n.write("h", 7, 20, 1.01, -1, "", 0, 1e307);
+  r = run(b, n);
+  EXPECT_EQ(row(r, "B").verdict, "worse");
+  EXPECT_EQ(row(r, "A, x").verdict, "unchanged");
+  ASSERT_TRUE(row(r, "B").relative.has_value());
+  EXPECT_NEAR(*row(r, "B").relative, 0.01, 0.002);
+  ASSERT_TRUE(row(r, "B").base_mean.has_value());
+  EXPECT_NEAR(*row(r, "B").base_mean / 1e307, 1.0, 0.1);
+  const std::string md = compare_markdown(r);
+  EXPECT_EQ(md.find("nan"), std::string::npos) << md;
+  EXPECT_EQ(md.find("inf"), std::string::npos) << md;
 }
 
 TEST(Compare, CsvAndMarkdownCarryEveryRow) {
