@@ -74,6 +74,11 @@ RunFolder read_run_folder(const std::string& dir, const std::string& metric) {
     f.title = m.value("title", std::string());
     f.scenario_hash = m.at("scenario_hash").get<std::string>();
     f.seed = m.at("seed").get<std::uint64_t>();
+    if (m.contains("inputs")) {
+      std::map<std::string, std::string> in;
+      for (auto it = m["inputs"].begin(); it != m["inputs"].end(); ++it) in[it.key()] = it.value().get<std::string>();
+      f.inputs = std::move(in);
+    }
   } catch (const nlohmann::json::exception& e) {
     throw CompareInputError(fmt::format("{}: expected the fields scenario, scenario_hash and seed of `ncosim run` ({})",
                                         man.string(), e.what()));
@@ -376,6 +381,27 @@ CompareResult compare_folders(const RunFolder& base, const RunFolder& fresh, con
                                           (fs::path(base.dir) / "manifest.json").string(), what));
     }
     res.warnings.push_back(fmt::format("scenarios differ (--allow-scenario-change): {}", what));
+  }
+  if (base.inputs && fresh.inputs && *base.inputs != *fresh.inputs) {
+    // The same scenario text can read input files whose content changed between the campaigns.
+    std::string what;
+    for (const auto& [file, h] : *base.inputs) {
+      const auto it = fresh.inputs->find(file);
+      if (it == fresh.inputs->end() || it->second != h) {
+        what += fmt::format("{}'{}' ({} vs {})", what.empty() ? "" : ", ", file, h,
+                            it == fresh.inputs->end() ? std::string("not read") : it->second);
+      }
+    }
+    for (const auto& [file, h] : *fresh.inputs) {
+      if (base.inputs->count(file) == 0) what += fmt::format("{}'{}' (not read vs {})", what.empty() ? "" : ", ", file, h);
+    }
+    what = "the content of the input file(s) " + what + " differs";
+    if (!options.allow_scenario_change) {
+      throw CompareInputError(fmt::format("{}: {} from {}; pass --allow-scenario-change to compare them anyway",
+                                          (fs::path(fresh.dir) / "manifest.json").string(), what,
+                                          (fs::path(base.dir) / "manifest.json").string()));
+    }
+    res.warnings.push_back(fmt::format("inputs differ (--allow-scenario-change): {}", what));
   }
   if (!base.partial.empty()) res.warnings.push_back(fmt::format("BASE holds {}", base.partial));
   if (!fresh.partial.empty()) res.warnings.push_back(fmt::format("NEW holds {}", fresh.partial));

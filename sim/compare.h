@@ -11,6 +11,7 @@
 #pragma once
 
 #include <cstdint>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -38,6 +39,9 @@ struct RunFolder {
   std::string dir;
   std::string scenario, title, scenario_hash;
   std::uint64_t seed = 0;
+  // manifest.json's `inputs`: every file the scenario read -> content hash (absent in folders of
+  // older versions: then not compared).
+  std::optional<std::map<std::string, std::string>> inputs;
   std::string partial;  // "K of N runs ..." when manifest.json says the campaign is not complete
   std::vector<std::string> sweep_keys;
   struct Row {

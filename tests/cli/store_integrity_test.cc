@@ -232,8 +232,18 @@ TEST(StoreIntegrity, InputFilesArePartOfTheCampaignsIdentity) {
   write(t / "trace.csv", trace(3));
   r = ncosim(fmt::format("export {} --out {}", quote(t / "s1"), quote(t / "e")));
   EXPECT_EQ(r.code, 0) << r.output;
-  // The manifest names the file and its hash (compare reads it).
+  // The manifest names the file and its hash, and compare refuses two campaigns of the same
+  // text over different contents of it, naming the file.
   EXPECT_NE(read_text(t / "e/manifest.json").find("\"inputs\""), std::string::npos);
+  ASSERT_EQ(ncosim(fmt::format("run {} --out {} {}", quote(sc), quote(t / "c1"), flags)).code, 0);
+  write(t / "trace.csv", trace(2));
+  ASSERT_EQ(ncosim(fmt::format("run {} --out {} {}", quote(sc), quote(t / "c2"), flags)).code, 0);
+  r = ncosim(fmt::format("compare {} {}", quote(t / "c1"), quote(t / "c2")));
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("the content of the input file(s) '" + (t / "trace.csv") + "'"), std::string::npos)
+      << r.output;
+  r = ncosim(fmt::format("compare {} {} --allow-scenario-change", quote(t / "c1"), quote(t / "c2")));
+  EXPECT_NE(r.code, 2) << r.output;
 }
 
 // Runs SQL on a store (the test's own connection).
