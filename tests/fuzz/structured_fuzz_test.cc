@@ -11,7 +11,8 @@
 // jump designs stalled at rounding noise and ran to their 200 000-iteration cap: 16-24 s of CPU
 // for one mutant; they now stop when the change stalls, Reliability.BadlyScaledModelStops...).
 // A sample of the mutants that load is then run through the executable (`ncosim run --runs 2
-// --periods 50`): exit 0, the full output set, and no NaN or inf in summary.csv and runs.csv.
+// --periods 50`): exit 0, the full output set (the run store included), no NaN or inf in
+// summary.csv and runs.csv, and `ncosim export` of the store alone reproduces both byte for byte.
 //
 // Fixed seed, NCOSIM_FUZZ_MUTANTS mutants (default 3000) within NCOSIM_FUZZ_SECONDS (default 60;
 // the test stops early at that budget and reports how far it got). For a long campaign outside
@@ -364,10 +365,27 @@ TEST(StructuredFuzz, ShippedScenarioMutantsLoadOrFailWithFileLine) {
       keep(text, fmt::format("run exit {}: {}", o.code, o.output.substr(0, 2000)), m);
       continue;
     }
-    for (const char* f : {"summary.csv", "summary.md", "runs.csv", "transmissions.csv", "design.json", "manifest.json"}) {
+    for (const char* f : {"summary.csv", "summary.md", "runs.csv", "transmissions.csv", "design.json", "manifest.json",
+                          "runs.sqlite"}) {
       if (!fs::exists(out / f)) {
         ++st.failures;
         keep(text, fmt::format("run wrote no {}", f), m);
+      }
+    }
+    // The store is part of the set: re-deriving the exports from it alone gives the same tables.
+    const fs::path again = dir / "again";
+    fs::remove_all(again);
+    const auto e = ncosim::testing::run_shell(
+        fmt::format("timeout 120 '{}' export '{}' --out '{}'", NCOSIM_BINARY, out.string(), again.string()));
+    if (e.code != 0) {
+      ++st.failures;
+      keep(text, fmt::format("export of the run's store: exit {}: {}", e.code, e.output.substr(0, 2000)), m);
+    } else {
+      for (const char* f : {"summary.csv", "runs.csv"}) {
+        if (ncosim::testing::read_text((out / f).string()) != ncosim::testing::read_text((again / f).string())) {
+          ++st.failures;
+          keep(text, fmt::format("{} re-derived from the store differs from the run's", f), m);
+        }
       }
     }
     for (const char* f : {"summary.csv", "runs.csv"}) {
