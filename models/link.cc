@@ -640,8 +640,9 @@ class TraceReader {
 
 }  // namespace
 
-std::vector<std::optional<std::int64_t>> load_trace(const std::string& path) {
+std::vector<std::optional<std::int64_t>> load_trace(const std::string& path, int* first_row_line) {
   TraceReader in(path);
+  if (first_row_line != nullptr) *first_row_line = 1;
 
   std::vector<std::optional<std::int64_t>> delays;
   std::string raw;
@@ -695,6 +696,7 @@ std::vector<std::optional<std::int64_t>> load_trace(const std::string& path) {
                        "expected 'seq,delay' with seq " + std::to_string(expected) +
                            " (consecutive from 0), got '" + std::string(text) + "'");
     }
+    if (delays.empty() && first_row_line != nullptr) *first_row_line = line;
     delays.push_back(delay);
   }
   return delays;

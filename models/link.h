@@ -275,6 +275,8 @@ struct TraceError : std::runtime_error {
   std::string file;
   int line;  // 0 when the file cannot be opened
 };
-std::vector<std::optional<std::int64_t>> load_trace(const std::string& path);
+// `first_row_line`, when given, receives the file line of row 0 (row i is on line
+// first_row_line + i: a header only on line 1, blank lines only at the end).
+std::vector<std::optional<std::int64_t>> load_trace(const std::string& path, int* first_row_line = nullptr);
 
 }  // namespace ncosim::models

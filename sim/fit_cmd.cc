@@ -50,13 +50,23 @@ int cmd_fit(const FitArgs& a) {
   o.link_name = a.name.empty() ? stem : a.name;
 
   std::vector<std::optional<std::int64_t>> trace;
+  int first_row_line = 1;
   try {
-    trace = models::load_trace(a.trace);
+    trace = models::load_trace(a.trace, &first_row_line);
   } catch (const models::TraceError& e) {
     throw ScenarioError(e.line > 0 ? fmt::format("{}:{}: {}", e.file, e.line, e.what()) : std::string(e.what()));
   }
   const int last_line = count_lines(a.trace);
   if (trace.empty()) throw ScenarioError(fmt::format("{}:{}: the trace holds no packet", a.trace, last_line));
+  // The families' laws are dense in the delay: a longer delay is bad input at its line.
+  for (std::size_t i = 0; i < trace.size(); ++i) {
+    if (trace[i] && *trace[i] > models::kMaxFitDelay) {
+      throw ScenarioError(fmt::format("{}:{}: delay: expected at most {} periods (the largest delay the fit "
+                                      "families hold), got {}",
+                                      a.trace, first_row_line + static_cast<std::int64_t>(i), models::kMaxFitDelay,
+                                      *trace[i]));
+    }
+  }
   const std::vector<int> sym = models::fate_symbols(trace);
 
   std::vector<models::FitResult> fits;
