@@ -269,9 +269,10 @@ class TraceLink final : public Link {
 // "seq,delay" with seq = 0, 1, 2, ... consecutive and delay a non-negative integer
 // number of periods or empty (lost). Throws TraceError with the file, line and what
 // is wrong for a missing file or a malformed line.
+// what() is escaped (config/config.h escape_text): a line's bytes (NUL, ESC, invalid UTF-8) are
+// printed as \xNN, never sent raw to the terminal or cut at a NUL.
 struct TraceError : std::runtime_error {
-  TraceError(std::string f, int l, const std::string& what)
-      : std::runtime_error(what), file(std::move(f)), line(l) {}
+  TraceError(std::string f, int l, const std::string& what);
   std::string file;
   int line;  // 0 when the file cannot be opened
 };

@@ -40,6 +40,13 @@ void check_estimator_resources(const Table& t, const toml::table& raw, const std
 void check_campaign_resources(const std::string& file, int line, std::int64_t runs, std::size_t cases,
                               std::size_t estimators, std::int64_t states, std::size_t sensors);
 
+// Before a trace link (kind = "trace") is used: every run counts the delivered packets per delay
+// up to the trace's largest delay `delay` (links.csv's delay histogram, kept per run and in the
+// run store), so memory grows with the delay times the runs. Throws ScenarioError at the
+// trace's `line`, naming the delay, the estimate and the limit, then `named_by` (the scenario key).
+void check_trace_resources(const std::string& trace, int line, std::int64_t delay, std::int64_t runs,
+                           const std::string& named_by);
+
 // Before the cases of a sweep are built: every case holds its parsed document while it is built
 // and its designed scenario until the campaign ends. Throws ScenarioError at the last sweep.
 void check_sweep_resources(const std::string& file, int line, std::size_t cases, std::size_t text_bytes);

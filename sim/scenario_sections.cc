@@ -90,7 +90,10 @@ std::string read_plant(const Table& root, const toml::table& doc, Scenario& sc, 
 }
 
 void read_links(const Table& root, const std::string& dir, Scenario& sc, const models::LinkRegistry& kinds) {
-  const models::LinkContext ctx{dir, sc.run.period, sc.mobility};
+  models::LinkContext ctx{dir, sc.run.period, sc.mobility, {}};
+  ctx.check_trace_delay = [&sc](const std::string& trace, int line, std::int64_t delay, const std::string& named_by) {
+    check_trace_resources(trace, line, delay, sc.run.runs, named_by);  // sim/limits.h
+  };
   for (const Table& t : root.tables("link")) {
     LinkEntry e;
     e.name = t.string("name");
