@@ -30,7 +30,11 @@ constexpr double kNoteFlops = 10e9;
 // 67 GFLOP in 56 s on a 2-core Zen 4 guest).
 constexpr double kFlopsPerSecond = 1.2e9;
 
-std::string gflop(double flops) { return fmt::format("{:.0f} GFLOP", flops / 1e9); }
+// Whole GFLOP from 100 on, else three significant digits (a limit of 0.01 GFLOP is not "0").
+std::string gflop(double flops) {
+  const double g = flops / 1e9;
+  return g >= 100.0 ? fmt::format("{:.0f} GFLOP", g) : fmt::format("{:.3g} GFLOP", g);
+}
 
 // An integer key read without marking it known (the estimator's own reader validates it).
 std::int64_t peek_integer(const toml::table& t, std::string_view key, std::int64_t fallback) {
@@ -121,6 +125,19 @@ void check_estimator_resources(const Table& t, const toml::table& raw, const std
                              t.key_path("kind"), kind, human_bytes(bytes), gflop(flops),
                              static_cast<long>(std::ceil(flops / kFlopsPerSecond)), key);
   }
+}
+
+std::function<void(const lmi::SolveEstimate&)> large_solve_note(const Table& t, const std::string& kind,
+                                                                const std::string& driver) {
+  return [noted = false, path = t.key_path("kind"), kind, driver](const lmi::SolveEstimate& e) mutable {
+    if (noted || (e.bytes <= kNoteBytes && e.flops <= kNoteFlops)) return;
+    noted = true;
+    std::cerr << fmt::format("ncosim: note: {}: the {} design solves an LMI problem of {} scalar variables (largest "
+                             "block {}) that needs an estimated {} and {} (about {} s of one core); its size is "
+                             "driven by {}\n",
+                             path, kind, e.variables, e.largest_block, human_bytes(e.bytes), gflop(e.flops),
+                             static_cast<long>(std::ceil(e.flops / kFlopsPerSecond)), driver);
+  };
 }
 
 void check_campaign_resources(const std::string& file, int line, std::int64_t runs, std::size_t cases,

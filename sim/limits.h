@@ -9,6 +9,7 @@
 
 #include "config/config.h"
 #include "estimators/estimator.h"
+#include "lmi/limits.h"
 
 namespace ncosim::sim {
 
@@ -34,6 +35,12 @@ std::string state_driver(const Table& plant, const toml::table& raw, const est::
 // `raw` is the estimator's TOML table.
 void check_estimator_resources(const Table& t, const toml::table& raw, const std::string& kind,
                                const est::Model& model, const std::string& driver);
+
+// While estimator table `t` is designed: an observer of its LMI solves (lmi::ScopedSolveObserver)
+// that prints, once, the note of a design estimated above 256 MB or 10 GFLOP (the LMI designs'
+// estimate is only known when their problem is built).
+std::function<void(const lmi::SolveEstimate&)> large_solve_note(const Table& t, const std::string& kind,
+                                                                const std::string& driver);
 
 // Before a campaign: the per-run storage of runs x cases x estimators. Throws ScenarioError
 // at run.runs.

@@ -207,11 +207,12 @@ void read_estimators(const Table& root, const toml::table& doc, const std::strin
     check_estimator_resources(t, *doc.get("estimator")->as_array()->get(i)->as_table(), k.name, sc.model,
                               state_driver);  // sim/limits.h
     try {
+      const lmi::ScopedSolveObserver note(large_solve_note(t, k.name, state_driver));  // sim/limits.h
       e.design = k.factory(t, sc.model);
     } catch (const lmi::ResourceLimitError& err) {
-      t.fail("kind", fmt::format("the {} design: {} (--max-memory / --max-work raise the limits); its size is "
-                                 "driven by {}",
-                                 k.name, err.what(), state_driver));
+      t.fail("kind", fmt::format("the {} design: {}{}; its size is driven by {}", k.name, err.what(),
+                                 err.address_space ? "" : " (--max-memory / --max-work raise the limits)",
+                                 state_driver));
     } catch (const lmi::Error& err) {
       // The model's numbers make the LMIs meaningless (e.g. an overflow to inf): bad input.
       t.fail("kind", fmt::format("the {} design cannot be posed for this model: {} (check the magnitudes of the "

@@ -112,6 +112,56 @@ w_rms = 0.1
   EXPECT_LT(s, 20.0);
 }
 
+// Issue 29, finding 11: with raised limits the same design passed the estimate and CSDP, out of
+// address space, ended the process with exit 205 and nothing on stderr (49 s, 3.7 GB under
+// `ulimit -v 6000000`). An estimate above the address-space limit is refused before the solve.
+TEST_F(Reliability, DeadTimeDesignBeyondTheAddressSpaceIsRefusedNotExit205) {
+  const std::string file = write("dead_time.toml", R"([run]
+period = 0.005
+[plant]
+kind = "transfer_function"
+num = [1.0]
+den = [1.0, 1.0]
+dead_time = 1.01
+[[sensor]]
+C = "output"
+R = 0.25
+[[estimator]]
+kind = "sod_jump"
+w_rms = 0.1
+)");
+  const auto t0 = std::chrono::steady_clock::now();
+  const Outcome o = ncosim({"check", file, "--max-memory", "300000", "--max-work", "1e9"},
+                           "ulimit -v 2000000; timeout 120 ");
+  const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  EXPECT_EQ(o.code, 2) << o.output;
+  EXPECT_NE(o.output.find(file + ":12: key 'estimator[0].kind'"), std::string::npos) << o.output;
+  EXPECT_NE(o.output.find("above the process's address-space limit of 2.0 GB (ulimit -v"), std::string::npos)
+      << o.output;
+  EXPECT_LT(s, 20.0);
+}
+
+// Issue 29, finding 11: the note of a design estimated above 256 MB or 10 GFLOP never appeared
+// for send-on-delta (LMI) designs; it is printed before the solve.
+TEST_F(Reliability, SendOnDeltaDesignsGetTheLargeDesignNote) {
+  const Outcome o = ncosim({"check", (kSource / "scenarios" / "sod_example52.toml").string(), "--set",
+                            "plant.dead_time=0.1"});
+  EXPECT_EQ(o.code, 0) << o.output;
+  EXPECT_NE(o.output.find("ncosim: note: estimator[0].kind: the sod_jump design solves an LMI problem of"),
+            std::string::npos)
+      << o.output;
+  EXPECT_NE(o.output.find("its size is driven by plant.dead_time"), std::string::npos) << o.output;
+}
+
+// Issue 29, finding 14: --max-work 0.01 printed "estimated 0 GFLOP, above the work limit of 0 GFLOP".
+TEST_F(Reliability, SmallWorkLimitsArePrintedWithTheirDigits) {
+  write("trace.csv", trace_csv(400));
+  const Outcome o = ncosim({"check", write("small.toml", kSmall), "--max-work", "0.00001"});
+  EXPECT_EQ(o.code, 2) << o.output;
+  EXPECT_NE(o.output.find("needs an estimated 5e-05 GFLOP, above the work limit of 1e-05 GFLOP"), std::string::npos)
+      << o.output;
+}
+
 // Finding 6: valid but large inputs are refused with the key that drives the size; the
 // option raises the limit.
 // Finding 6: a jump S4 design with max_delay 7 passed `check` with an estimate of 37 MB and then
