@@ -9,11 +9,7 @@
 
 namespace ncosim::sim {
 
-namespace {
-
-// `text` safe to print: control characters, DEL and bytes that are not well-formed UTF-8 become
-// \xNN, so a key or value holding NUL or any other byte cannot cut or garble a message.
-std::string escape_text(std::string_view text, bool keep_newlines = false) {
+std::string escape_text(std::string_view text, bool keep_newlines) {
   std::string out;
   out.reserve(text.size());
   std::size_t i = 0;
@@ -48,8 +44,6 @@ std::string escape_text(std::string_view text, bool keep_newlines = false) {
   }
   return out;
 }
-
-}  // namespace
 
 std::string format_error(const std::string& file, int line, const std::string& path,
                          const std::string& message) {

@@ -28,6 +28,10 @@ class ScenarioError : public std::runtime_error {
   explicit ScenarioError(const std::string& message) : std::runtime_error(message) {}
 };
 
+// `text` safe to print: control characters, DEL and bytes that are not well-formed UTF-8 become
+// \xNN (newlines and tabs too unless `keep_newlines`), so no byte can cut or garble a message.
+std::string escape_text(std::string_view text, bool keep_newlines = false);
+
 // "FILE:LINE: key 'PATH': MESSAGE" (FILE:LINE omitted parts when unknown).
 std::string format_error(const std::string& file, int line, const std::string& path,
                          const std::string& message);

@@ -4,6 +4,7 @@
 #include "lmi/limits.h"
 
 #include <sys/mman.h>
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <Eigen/Eigenvalues>
@@ -276,6 +277,8 @@ struct Problem::Impl {
   double block_flops = 0.0; // sum over LMIs of m^3
   int largest_block = 0;
 
+  // The memory and work of a solve (CSDP), estimated from the sizes above.
+  SolveEstimate estimate() const;
   // Throws ResourceLimitError when the estimate of a solve exceeds the process-wide limits.
   void check_resources() const;
 
@@ -498,10 +501,44 @@ ResourceLimits& limits_storage() {
 std::string human(double bytes) {
   char buf[64];
   if (bytes >= 1e9) std::snprintf(buf, sizeof buf, "%.1f GB", bytes / 1e9);
-  else std::snprintf(buf, sizeof buf, "%.0f MB", bytes / 1e6);
+  else std::snprintf(buf, sizeof buf, bytes >= 1e8 ? "%.0f MB" : "%.3g MB", bytes / 1e6);
   return buf;
 }
+
+// Whole GFLOP from 100 on, else three significant digits (a limit of 0.01 GFLOP is not "0").
+std::string gflop(double flops) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, flops >= 1e11 ? "%.0f GFLOP" : "%.3g GFLOP", flops / 1e9);
+  return buf;
+}
+
+thread_local std::function<void(const SolveEstimate&)> t_solve_observer;
+
+// The process's address-space limit in bytes (RLIMIT_AS), 0 when unlimited.
+double address_space_limit() {
+  struct rlimit rl {};
+  if (::getrlimit(RLIMIT_AS, &rl) != 0 || rl.rlim_cur == RLIM_INFINITY) return 0.0;
+  return static_cast<double>(rl.rlim_cur);
+}
+
+// CSDP calls exit(205) when its malloc fails (libsdp: "Storage allocation failed!", printed to
+// the captured stdout): while a solve runs, an exit is turned into exit 1 with a message.
+std::atomic<bool> g_in_csdp{false};
+void exit_during_csdp() {
+  if (!g_in_csdp.load()) return;
+  static const char kMessage[] =
+      "ncosim: error: out of memory in the LMI solver (CSDP ends the process when its allocation fails) beyond "
+      "what the resource estimates foresaw; lower the design's size or free memory\n";
+  (void)!::write(2, kMessage, sizeof kMessage - 1);
+  ::_exit(1);
+}
 }  // namespace
+
+ScopedSolveObserver::ScopedSolveObserver(std::function<void(const SolveEstimate&)> observer)
+    : previous_(std::move(t_solve_observer)) {
+  t_solve_observer = std::move(observer);
+}
+ScopedSolveObserver::~ScopedSolveObserver() { t_solve_observer = std::move(previous_); }
 
 void set_resource_limits(const ResourceLimits& limits) {
   std::lock_guard<std::mutex> g(limits_mutex());
@@ -513,25 +550,37 @@ ResourceLimits resource_limits() {
   return limits_storage();
 }
 
-void Problem::Impl::check_resources() const {
-  const ResourceLimits lim = resource_limits();
+SolveEstimate Problem::Impl::estimate() const {
   const double k = nraw;
   // CSDP: the Schur complement O (k x k) and its factor, k-vectors, and about 11 copies of the
   // block-diagonal X (X, Z, dX, dZ, work matrices); the expanded coefficients.
   const double bytes = 16.0 * k * k + 11.0 * block_bytes + coef_bytes;
   // 50 iterations of: Schur complement k^2 * (largest block), Cholesky k^3 / 3, block work.
   const double flops = 50.0 * (k * k * std::max(1, largest_block) + k * k * k / 3.0 + 10.0 * block_flops);
+  return SolveEstimate{bytes, flops, nraw, largest_block};
+}
+
+void Problem::Impl::check_resources() const {
+  const ResourceLimits lim = resource_limits();
+  const SolveEstimate e = estimate();
+  const double bytes = e.bytes, flops = e.flops;
   const bool over_memory = lim.memory_bytes > 0.0 && bytes > lim.memory_bytes;
   const bool over_work = lim.work_flops > 0.0 && flops > lim.work_flops;
+  const double address_space = address_space_limit();
+  if (!over_memory && address_space > 0.0 && bytes > address_space) {
+    throw ResourceLimitError("an LMI problem of " + std::to_string(nraw) + " scalar variables (largest block " +
+                                 std::to_string(largest_block) + ") needs an estimated " + human(bytes) +
+                                 ", above the process's address-space limit of " + human(address_space) +
+                                 " (ulimit -v; the solver would end the process when its allocation fails)",
+                             bytes, flops, nraw, largest_block, true);
+  }
   if (!over_memory && !over_work) return;
   std::string what = over_memory ? "an LMI problem of " + std::to_string(nraw) + " scalar variables (largest block " +
                                        std::to_string(largest_block) + ") needs an estimated " + human(bytes) +
                                        ", above the memory limit of " + human(lim.memory_bytes)
                                  : "an LMI problem of " + std::to_string(nraw) + " scalar variables (largest block " +
                                        std::to_string(largest_block) + ") needs an estimated " +
-                                       std::to_string(static_cast<long long>(flops / 1e9)) +
-                                       " GFLOP, above the work limit of " +
-                                       std::to_string(static_cast<long long>(lim.work_flops / 1e9)) + " GFLOP";
+                                       gflop(flops) + ", above the work limit of " + gflop(lim.work_flops);
   throw ResourceLimitError(what, bytes, flops, nraw, largest_block);
 }
 
@@ -703,6 +752,7 @@ SdpSize Problem::size() const { return translate(*impl_).size; }
 Solution Problem::solve() const {
   Impl& p = *impl_;
   p.check_resources();
+  if (t_solve_observer) t_solve_observer(p.estimate());
   Solution sol;
   sol.vars_ = p.vars;
   sol.var_offset_ = p.offset;
@@ -825,8 +875,12 @@ Solution Problem::solve() const {
     g_printlevel = p.opt.verbose ? 1 : 0;
     StdoutCapture capture;
     const auto t0 = std::chrono::steady_clock::now();
+    static const bool exit_hook = std::atexit(exit_during_csdp) == 0;
+    (void)exit_hook;
+    g_in_csdp.store(true);
     initsoln(t.size.total_dimension, k, C, ca, cons, &X, &y, &Z);
     code = easy_sdp(t.size.total_dimension, k, C, ca, cons, 0.0, &X, &y, &Z, &pobj, &dobj);
+    g_in_csdp.store(false);
     sol.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     sol.log = capture.finish();
   }

@@ -581,7 +581,13 @@ Eigen::VectorXd FateHmm::stationary() const {
 std::vector<int> fate_symbols(const std::vector<std::optional<std::int64_t>>& trace) {
   std::vector<int> s;
   s.reserve(trace.size());
-  for (const auto& d : trace) s.push_back(d ? static_cast<int>(*d) + 1 : 0);
+  for (const auto& d : trace) {
+    if (d && (*d < 0 || *d > kMaxFitDelay)) {
+      throw std::out_of_range(fmt::format("packet {}: delay {} periods, above the {} the fit families hold", s.size(),
+                                          *d, kMaxFitDelay));
+    }
+    s.push_back(d ? static_cast<int>(*d) + 1 : 0);
+  }
   return s;
 }
 

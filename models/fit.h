@@ -65,7 +65,12 @@ struct FitOptions {
   std::string link_name = "fitted";
 };
 
-// Symbols of a trace (0 = lost, 1 + d = delay d).
+// The largest delay (periods) the families hold: their laws are dense in the delay (a K x
+// (delay + 2) emission matrix), so a longer delay is refused before anything is allocated.
+constexpr std::int64_t kMaxFitDelay = 1'000'000;
+
+// Symbols of a trace (0 = lost, 1 + d = delay d). Throws std::out_of_range for a delay above
+// kMaxFitDelay (callers check first to name the trace line).
 std::vector<int> fate_symbols(const std::vector<std::optional<std::int64_t>>& trace);
 
 // The exact log-likelihood of `symbols` under `hmm` started from its stationary law

@@ -18,6 +18,7 @@
 #include <fstream>
 #include <string_view>
 
+#include "config/config.h"  // escape_text
 #include "kernel/check.h"
 
 namespace ncosim::models {
@@ -583,7 +584,7 @@ class TraceReader {
       throw TraceError(path, 0, "trace file '" + path + "' holds " + std::to_string(st.st_size) +
                                     " bytes; at most " + std::to_string(kMaxTraceBytes) + " are read");
     }
-    ::fcntl(fd_, F_SETFL, 0);
+    // O_NONBLOCK stays: a "regular" file that blocks on read (/proc/kmsg) is refused, not waited on.
   }
   ~TraceReader() {
     if (fd_ >= 0) ::close(fd_);
@@ -600,6 +601,10 @@ class TraceReader {
         const ssize_t n = ::read(fd_, buf_, sizeof buf_);
         if (n < 0) {
           if (errno == EINTR) continue;
+          if (errno == EAGAIN || errno == EWOULDBLOCK) {
+            throw TraceError(path_, 0, "cannot read trace file '" + path_ +
+                                           "' without waiting (a file whose content comes and goes, not a recorded trace)");
+          }
           throw TraceError(path_, line_number, "cannot read trace file '" + path_ + "': " + std::strerror(errno));
         }
         if (n == 0) {
@@ -640,8 +645,12 @@ class TraceReader {
 
 }  // namespace
 
-std::vector<std::optional<std::int64_t>> load_trace(const std::string& path) {
+TraceError::TraceError(std::string f, int l, const std::string& what)
+    : std::runtime_error(sim::escape_text(what)), file(std::move(f)), line(l) {}
+
+std::vector<std::optional<std::int64_t>> load_trace(const std::string& path, int* first_row_line) {
   TraceReader in(path);
+  if (first_row_line != nullptr) *first_row_line = 1;
 
   std::vector<std::optional<std::int64_t>> delays;
   std::string raw;
@@ -695,6 +704,7 @@ std::vector<std::optional<std::int64_t>> load_trace(const std::string& path) {
                        "expected 'seq,delay' with seq " + std::to_string(expected) +
                            " (consecutive from 0), got '" + std::string(text) + "'");
     }
+    if (delays.empty() && first_row_line != nullptr) *first_row_line = line;
     delays.push_back(delay);
   }
   return delays;

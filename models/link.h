@@ -269,12 +269,15 @@ class TraceLink final : public Link {
 // "seq,delay" with seq = 0, 1, 2, ... consecutive and delay a non-negative integer
 // number of periods or empty (lost). Throws TraceError with the file, line and what
 // is wrong for a missing file or a malformed line.
+// what() is escaped (config/config.h escape_text): a line's bytes (NUL, ESC, invalid UTF-8) are
+// printed as \xNN, never sent raw to the terminal or cut at a NUL.
 struct TraceError : std::runtime_error {
-  TraceError(std::string f, int l, const std::string& what)
-      : std::runtime_error(what), file(std::move(f)), line(l) {}
+  TraceError(std::string f, int l, const std::string& what);
   std::string file;
   int line;  // 0 when the file cannot be opened
 };
-std::vector<std::optional<std::int64_t>> load_trace(const std::string& path);
+// `first_row_line`, when given, receives the file line of row 0 (row i is on line
+// first_row_line + i: a header only on line 1, blank lines only at the end).
+std::vector<std::optional<std::int64_t>> load_trace(const std::string& path, int* first_row_line = nullptr);
 
 }  // namespace ncosim::models

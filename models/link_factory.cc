@@ -183,9 +183,21 @@ std::unique_ptr<Link> read_trace(const sim::Table& t, const LinkContext& ctx) {
   std::filesystem::path path(file);
   if (path.is_relative() && !ctx.scenario_dir.empty()) path = std::filesystem::path(ctx.scenario_dir) / path;
   try {
-    auto delays = load_trace(path.string());
+    int first_row_line = 1;
+    auto delays = load_trace(path.string(), &first_row_line);
     sim::note_input_file(path.string());  // the trace's content is part of the campaign's identity
     if (delays.empty()) t.fail("file", fmt::format("trace '{}' holds no packet", path.string()));
+    if (ctx.check_trace_delay) {
+      // The runs count delivered packets per delay up to the largest one (sim/limits.h).
+      std::size_t largest = delays.size();
+      for (std::size_t i = 0; i < delays.size(); ++i) {
+        if (delays[i] && (largest == delays.size() || *delays[i] > *delays[largest])) largest = i;
+      }
+      if (largest < delays.size()) {
+        ctx.check_trace_delay(path.string(), first_row_line + static_cast<int>(largest), *delays[largest],
+                              fmt::format("{}:{}: key '{}'", t.file(), t.line_of("file"), t.key_path("file")));
+      }
+    }
     // `segment`: rows per run (run r replays segment r mod floor(rows / segment)).
     std::size_t segment = 0;
     if (t.has("segment")) {
@@ -201,9 +213,10 @@ std::unique_ptr<Link> read_trace(const sim::Table& t, const LinkContext& ctx) {
       t.fail("file",
              fmt::format("expected a readable trace file, got '{}' ({})", path.string(), e.what()));
     // The error is in the trace: its file and line first, then the key that named it.
-    throw sim::ScenarioError(fmt::format("{}:{}: {} (the trace named by {}:{}: key '{}')", e.file,
-                                         e.line, e.what(), t.file(), t.line_of("file"),
-                                         t.key_path("file")));
+    // format_error escapes every byte that is not printable (file names included).
+    throw sim::ScenarioError(sim::format_error(e.file, e.line, "",
+                                               fmt::format("{} (the trace named by {}:{}: key '{}')", e.what(),
+                                                           t.file(), t.line_of("file"), t.key_path("file"))));
   }
 }
 

@@ -1,6 +1,7 @@
 // models/link_factory.h — readers of [[link]] tables, one per registered link kind.
 #pragma once
 
+#include <functional>
 #include <memory>
 #include <string>
 
@@ -14,6 +15,11 @@ struct LinkContext {
   std::string scenario_dir;  // relative trace paths are resolved from here
   double period = 1.0;       // the control period (s)
   std::shared_ptr<sim::MobilitySource> mobility;  // the [sumo] mobility, null without it
+  // Called by the trace kind with its largest delay, the trace's file and the line of the first
+  // row holding it, and `named_by` ("FILE:LINE: key 'link[0].file'"); throws when the runs
+  // cannot hold it (the scenario reader checks it against the resource limits, sim/limits.h).
+  std::function<void(const std::string& trace, int line, std::int64_t delay, const std::string& named_by)>
+      check_trace_delay;
 };
 
 using LinkRegistry = sim::Registry<std::unique_ptr<Link>, const LinkContext&>;

@@ -50,13 +50,23 @@ int cmd_fit(const FitArgs& a) {
   o.link_name = a.name.empty() ? stem : a.name;
 
   std::vector<std::optional<std::int64_t>> trace;
+  int first_row_line = 1;
   try {
-    trace = models::load_trace(a.trace);
+    trace = models::load_trace(a.trace, &first_row_line);
   } catch (const models::TraceError& e) {
-    throw ScenarioError(e.line > 0 ? fmt::format("{}:{}: {}", e.file, e.line, e.what()) : std::string(e.what()));
+    throw ScenarioError(e.line > 0 ? format_error(e.file, e.line, "", e.what()) : std::string(e.what()));
   }
   const int last_line = count_lines(a.trace);
-  if (trace.empty()) throw ScenarioError(fmt::format("{}:{}: the trace holds no packet", a.trace, last_line));
+  if (trace.empty()) throw ScenarioError(format_error(a.trace, last_line, "", "the trace holds no packet"));
+  // The families' laws are dense in the delay: a longer delay is bad input at its line.
+  for (std::size_t i = 0; i < trace.size(); ++i) {
+    if (trace[i] && *trace[i] > models::kMaxFitDelay) {
+      throw ScenarioError(format_error(a.trace, first_row_line + static_cast<int>(i), "",
+                                       fmt::format("delay: expected at most {} periods (the largest delay the fit "
+                                                   "families hold), got {}",
+                                                   models::kMaxFitDelay, *trace[i])));
+    }
+  }
   const std::vector<int> sym = models::fate_symbols(trace);
 
   std::vector<models::FitResult> fits;
@@ -65,13 +75,14 @@ int cmd_fit(const FitArgs& a) {
     try {
       fits.push_back(models::fit_family(f, sym, o));
     } catch (const std::invalid_argument& e) {
-      throw ScenarioError(fmt::format("{}:{}: {} (choose smaller families with --family)", a.trace, last_line, e.what()));
+      throw ScenarioError(
+          format_error(a.trace, last_line, "", fmt::format("{} (choose smaller families with --family)", e.what())));
     } catch (const std::domain_error& e) {
       if (a.families.empty()) {
         std::cerr << fmt::format("ncosim fit: {} skipped: {}\n", f, e.what());
         continue;
       }
-      throw ScenarioError(fmt::format("{}:{}: --family {}: {}", a.trace, last_line, f, e.what()));
+      throw ScenarioError(format_error(a.trace, last_line, "", fmt::format("--family {}: {}", f, e.what())));
     }
   }
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -30,7 +30,11 @@ constexpr double kNoteFlops = 10e9;
 // 67 GFLOP in 56 s on a 2-core Zen 4 guest).
 constexpr double kFlopsPerSecond = 1.2e9;
 
-std::string gflop(double flops) { return fmt::format("{:.0f} GFLOP", flops / 1e9); }
+// Whole GFLOP from 100 on, else three significant digits (a limit of 0.01 GFLOP is not "0").
+std::string gflop(double flops) {
+  const double g = flops / 1e9;
+  return g >= 100.0 ? fmt::format("{:.0f} GFLOP", g) : fmt::format("{:.3g} GFLOP", g);
+}
 
 // An integer key read without marking it known (the estimator's own reader validates it).
 std::int64_t peek_integer(const toml::table& t, std::string_view key, std::int64_t fallback) {
@@ -123,6 +127,19 @@ void check_estimator_resources(const Table& t, const toml::table& raw, const std
   }
 }
 
+std::function<void(const lmi::SolveEstimate&)> large_solve_note(const Table& t, const std::string& kind,
+                                                                const std::string& driver) {
+  return [noted = false, path = t.key_path("kind"), kind, driver](const lmi::SolveEstimate& e) mutable {
+    if (noted || (e.bytes <= kNoteBytes && e.flops <= kNoteFlops)) return;
+    noted = true;
+    std::cerr << fmt::format("ncosim: note: {}: the {} design solves an LMI problem of {} scalar variables (largest "
+                             "block {}) that needs an estimated {} and {} (about {} s of one core); its size is "
+                             "driven by {}\n",
+                             path, kind, e.variables, e.largest_block, human_bytes(e.bytes), gflop(e.flops),
+                             static_cast<long>(std::ceil(e.flops / kFlopsPerSecond)), driver);
+  };
+}
+
 void check_campaign_resources(const std::string& file, int line, std::int64_t runs, std::size_t cases,
                               std::size_t estimators, std::int64_t states, std::size_t sensors) {
   const ResourceLimits& lim = resource_limits();
@@ -136,6 +153,24 @@ void check_campaign_resources(const std::string& file, int line, std::int64_t ru
         fmt::format("the campaign keeps per-run results of {} runs x {} case(s) x {} estimator(s): an estimated {}, "
                     "above the memory limit of {} (--max-memory)",
                     runs, cases, estimators, human_bytes(bytes), human_bytes(lim.memory_bytes))));
+  }
+}
+
+void check_trace_resources(const std::string& trace, int line, std::int64_t delay, std::int64_t runs,
+                           const std::string& named_by) {
+  const ResourceLimits& lim = resource_limits();
+  // Per period of the largest delay: the per-run counts (8 bytes a run, and their serialised
+  // copies in the store), the summed histogram and links.csv's rows: measured 65 and 165 bytes
+  // (peak RSS) at 4 and 16 runs of tests/cli/data/base.toml with one delay of 10^7 periods; the
+  // constants keep a margin of about 1.5x.
+  constexpr double kBytesPerDelay = 48.0, kBytesPerDelayAndRun = 12.0;
+  const double bytes = static_cast<double>(delay) * (kBytesPerDelay + kBytesPerDelayAndRun * static_cast<double>(std::max<std::int64_t>(runs, 1)));
+  if (lim.memory_bytes > 0.0 && bytes > lim.memory_bytes) {
+    throw ScenarioError(format_error(
+        trace, line, "",
+        fmt::format("delay: {} periods: the runs count delivered packets per delay up to the largest, an estimated "
+                    "{} for {} run(s), above the memory limit of {} (--max-memory) (the trace named by {})",
+                    delay, human_bytes(bytes), runs, human_bytes(lim.memory_bytes), named_by)));
   }
 }
 

@@ -256,8 +256,8 @@ class RunSimulation {
   }
 
   void deliver_copy(std::uint64_t s, std::int64_t k, std::int64_t delay, bool independent) {
+    if (delay >= sc_.run.periods - k) return;  // beyond the horizon (k + delay may not fit)
     const std::int64_t arrival = k + delay;
-    if (arrival >= sc_.run.periods) return;  // beyond the horizon
     std::size_t id;
     if (!free_.empty()) {
       id = free_.back();

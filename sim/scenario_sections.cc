@@ -90,7 +90,10 @@ std::string read_plant(const Table& root, const toml::table& doc, Scenario& sc, 
 }
 
 void read_links(const Table& root, const std::string& dir, Scenario& sc, const models::LinkRegistry& kinds) {
-  const models::LinkContext ctx{dir, sc.run.period, sc.mobility};
+  models::LinkContext ctx{dir, sc.run.period, sc.mobility, {}};
+  ctx.check_trace_delay = [&sc](const std::string& trace, int line, std::int64_t delay, const std::string& named_by) {
+    check_trace_resources(trace, line, delay, sc.run.runs, named_by);  // sim/limits.h
+  };
   for (const Table& t : root.tables("link")) {
     LinkEntry e;
     e.name = t.string("name");
@@ -204,11 +207,12 @@ void read_estimators(const Table& root, const toml::table& doc, const std::strin
     check_estimator_resources(t, *doc.get("estimator")->as_array()->get(i)->as_table(), k.name, sc.model,
                               state_driver);  // sim/limits.h
     try {
+      const lmi::ScopedSolveObserver note(large_solve_note(t, k.name, state_driver));  // sim/limits.h
       e.design = k.factory(t, sc.model);
     } catch (const lmi::ResourceLimitError& err) {
-      t.fail("kind", fmt::format("the {} design: {} (--max-memory / --max-work raise the limits); its size is "
-                                 "driven by {}",
-                                 k.name, err.what(), state_driver));
+      t.fail("kind", fmt::format("the {} design: {}{}; its size is driven by {}", k.name, err.what(),
+                                 err.address_space ? "" : " (--max-memory / --max-work raise the limits)",
+                                 state_driver));
     } catch (const lmi::Error& err) {
       // The model's numbers make the LMIs meaningless (e.g. an overflow to inf): bad input.
       t.fail("kind", fmt::format("the {} design cannot be posed for this model: {} (check the magnitudes of the "

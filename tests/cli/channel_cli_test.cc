@@ -2,7 +2,7 @@
 // in every run, zipped sweep axes, Gilbert–Elliott by mean loss and mean burst (and its errors at
 // FILE:LINE), and `ncosim fit` (its files, and exit 2 with FILE:LINE and nothing written for a
 // trace with no packet, non-consecutive sequence numbers, fewer packets than parameters, and an
-// unknown family).
+// unknown family, a delay beyond what the families hold).
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <stdlib.h>
@@ -173,6 +173,24 @@ TEST_F(ChannelCli, FitRejectsBadTracesWithFileLineAndWritesNothing) {
             std::string::npos)
       << o.output;
   EXPECT_FALSE(fs::exists(out_));
+}
+
+TEST_F(ChannelCli, FitRefusesADelayBeyondWhatTheFamiliesHoldAtItsLine) {
+  // Issue 29: 300 rows of delay 1 and one huge delay crashed (1e12: SIGSEGV; 2^63 - 2: double
+  // free) or was silently counted as lost (2^62 - 1). Bad input at the row's line instead.
+  for (const std::string delay : {"1000000000000", "9223372036854775806", "4611686018427387903", "1000001"}) {
+    std::string trace = "seq,delay\n";
+    for (int i = 0; i < 300; ++i) trace += fmt::format("{},{}\n", i, i == 150 ? delay : "1");
+    const std::string file = write("t.csv", trace);
+    const Outcome o = run_ncosim({"fit", file, "--out", out_.string()});
+    EXPECT_EQ(o.code, 2) << delay << ": " << o.output;
+    // Row 150 is on line 152 (after the header).
+    EXPECT_NE(o.output.find(file + ":152: delay: expected at most 1000000 periods (the largest delay the fit "
+                                   "families hold), got " + delay),
+              std::string::npos)
+        << o.output;
+    EXPECT_FALSE(fs::exists(out_)) << delay;
+  }
 }
 
 }  // namespace

@@ -5,6 +5,8 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
+#include <fcntl.h>
+#include <poll.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
@@ -110,6 +112,56 @@ w_rms = 0.1
   EXPECT_LT(s, 20.0);
 }
 
+// Issue 29, finding 11: with raised limits the same design passed the estimate and CSDP, out of
+// address space, ended the process with exit 205 and nothing on stderr (49 s, 3.7 GB under
+// `ulimit -v 6000000`). An estimate above the address-space limit is refused before the solve.
+TEST_F(Reliability, DeadTimeDesignBeyondTheAddressSpaceIsRefusedNotExit205) {
+  const std::string file = write("dead_time.toml", R"([run]
+period = 0.005
+[plant]
+kind = "transfer_function"
+num = [1.0]
+den = [1.0, 1.0]
+dead_time = 1.01
+[[sensor]]
+C = "output"
+R = 0.25
+[[estimator]]
+kind = "sod_jump"
+w_rms = 0.1
+)");
+  const auto t0 = std::chrono::steady_clock::now();
+  const Outcome o = ncosim({"check", file, "--max-memory", "300000", "--max-work", "1e9"},
+                           "ulimit -v 2000000; timeout 120 ");
+  const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  EXPECT_EQ(o.code, 2) << o.output;
+  EXPECT_NE(o.output.find(file + ":12: key 'estimator[0].kind'"), std::string::npos) << o.output;
+  EXPECT_NE(o.output.find("above the process's address-space limit of 2.0 GB (ulimit -v"), std::string::npos)
+      << o.output;
+  EXPECT_LT(s, 20.0);
+}
+
+// Issue 29, finding 11: the note of a design estimated above 256 MB or 10 GFLOP never appeared
+// for send-on-delta (LMI) designs; it is printed before the solve.
+TEST_F(Reliability, SendOnDeltaDesignsGetTheLargeDesignNote) {
+  const Outcome o = ncosim({"check", (kSource / "scenarios" / "sod_example52.toml").string(), "--set",
+                            "plant.dead_time=0.1"});
+  EXPECT_EQ(o.code, 0) << o.output;
+  EXPECT_NE(o.output.find("ncosim: note: estimator[0].kind: the sod_jump design solves an LMI problem of"),
+            std::string::npos)
+      << o.output;
+  EXPECT_NE(o.output.find("its size is driven by plant.dead_time"), std::string::npos) << o.output;
+}
+
+// Issue 29, finding 14: --max-work 0.01 printed "estimated 0 GFLOP, above the work limit of 0 GFLOP".
+TEST_F(Reliability, SmallWorkLimitsArePrintedWithTheirDigits) {
+  write("trace.csv", trace_csv(400));
+  const Outcome o = ncosim({"check", write("small.toml", kSmall), "--max-work", "0.00001"});
+  EXPECT_EQ(o.code, 2) << o.output;
+  EXPECT_NE(o.output.find("needs an estimated 5e-05 GFLOP, above the work limit of 1e-05 GFLOP"), std::string::npos)
+      << o.output;
+}
+
 // Finding 6: valid but large inputs are refused with the key that drives the size; the
 // option raises the limit.
 // Finding 6: a jump S4 design with max_delay 7 passed `check` with an estimate of 37 MB and then
@@ -209,6 +261,74 @@ TEST_F(Reliability, TraceFilesMustBeRegularAndBounded) {
   o = ncosim({"check", "/dev/zero"}, "timeout 20 ");
   EXPECT_EQ(o.code, 2) << o.output;
   EXPECT_NE(o.output.find("regular scenario file"), std::string::npos) << o.output;
+}
+
+// Issue 29, finding 10: one delay of 10^8 periods passed `check`, then `run` grew 70 bytes per period
+// of delay (links.csv's per-delay counts) to bad_alloc after 2.6 GB, leaving a store behind;
+// 2^63 - 1 gave "vector::_M_fill_insert". The estimate counts it: refused at `check` at the
+// trace's line, naming the delay, and `run` writes nothing.
+TEST_F(Reliability, AHugeTraceDelayIsRefusedAtItsLineBeforeTheRuns) {
+  const std::string file = write("small.toml", kSmall);
+  for (const std::string delay : {"100000000", "9223372036854775807"}) {
+    std::string trace = "seq,delay\n";
+    for (int i = 0; i < 400; ++i) trace += fmt::format("{},{}\n", i, i == 300 ? delay : "1");
+    const std::string csv = write("trace.csv", trace);
+    const auto t0 = std::chrono::steady_clock::now();
+    Outcome o = ncosim({"check", file}, "ulimit -v 2000000; ");
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    EXPECT_EQ(o.code, 2) << o.output;
+    EXPECT_NE(o.output.find(csv + ":302: delay: " + delay + " periods"), std::string::npos) << o.output;
+    EXPECT_NE(o.output.find("above the memory limit of 4.0 GB (--max-memory) (the trace named by " + file +
+                            ":20: key 'link[0].file')"),
+              std::string::npos)
+        << o.output;
+    EXPECT_LT(seconds, 10.0);
+    const fs::path out = dir_ / "out";
+    o = ncosim({"run", file, "--quiet", "--out", out.string()}, "ulimit -v 2000000; ");
+    EXPECT_EQ(o.code, 2) << o.output;
+    EXPECT_FALSE(fs::exists(out)) << delay;
+  }
+  // A raised limit lets a large delay through (it is never delivered within the run).
+  std::string trace = "seq,delay\n";
+  for (int i = 0; i < 400; ++i) trace += fmt::format("{},{}\n", i, i == 300 ? "100000" : "1");
+  write("trace.csv", trace);
+  EXPECT_EQ(ncosim({"check", file}).code, 0);
+}
+
+// Issue 29, finding 10: /proc/kmsg (a regular file of size 0 whose read blocks) hung `check`.
+// Used only when it is readable and holds no pending message (nothing is consumed then).
+TEST_F(Reliability, ATraceFileWhoseReadWouldBlockIsRefused) {
+  const int fd = ::open("/proc/kmsg", O_RDONLY | O_NONBLOCK);
+  if (fd < 0) GTEST_SKIP() << "/proc/kmsg cannot be opened here";
+  pollfd p{fd, POLLIN, 0};
+  const int ready = ::poll(&p, 1, 0);
+  ::close(fd);
+  if (ready != 0) GTEST_SKIP() << "/proc/kmsg holds pending messages (reading would consume them)";
+  std::string text = kSmall;
+  text.replace(text.find("file = \"trace.csv\""), 18, "file = \"/proc/kmsg\"");
+  const std::string file = write("kmsg.toml", text);
+  const Outcome o = ncosim({"check", file}, "timeout 20 ");
+  EXPECT_EQ(o.code, 2) << o.output;
+  EXPECT_NE(o.output.find(file + ":20: key 'link[0].file'"), std::string::npos) << o.output;
+  EXPECT_NE(o.output.find("without waiting"), std::string::npos) << o.output;
+}
+
+// Issue 29, finding 10: trace errors printed a line's raw bytes (ESC sequences, invalid UTF-8)
+// to the terminal and a NUL cut the message; they are escaped as \xNN, in `check` and `fit`.
+TEST_F(Reliability, TraceErrorsEscapeTheBytesOfTheLine) {
+  const std::string file = write("small.toml", kSmall);
+  const std::string bad = std::string("seq,delay\n0,1\n1,\033[31mred\377\376") + '\0' + "tail\n";
+  const std::string csv = write("trace.csv", bad);
+  for (const auto& args : std::vector<std::vector<std::string>>{{"check", file},
+                                                                 {"fit", csv, "--out", (dir_ / "fit").string()}}) {
+    const Outcome o = ncosim(args);
+    EXPECT_EQ(o.code, 2) << o.output;
+    EXPECT_NE(o.output.find(csv + ":3: "), std::string::npos) << o.output;
+    EXPECT_NE(o.output.find("got '1,\\x1b[31mred\\xff\\xfe\\x00tail'"), std::string::npos) << o.output;
+    EXPECT_EQ(o.output.find('\033'), std::string::npos) << o.output;
+    EXPECT_EQ(o.output.find('\377'), std::string::npos) << o.output;
+    EXPECT_EQ(o.output.find('\0'), std::string::npos) << o.output;
+  }
 }
 
 // Finding 7: base values overridden by a sweep were never validated; the message names the

@@ -64,6 +64,14 @@ TEST(Fit, UnknownFamiliesAndTooFewPacketsAreRejected) {
   EXPECT_NO_THROW(fit_family("gilbert_elliott", sym, FitOptions{}));              // 4 <= 5
 }
 
+TEST(Fit, FateSymbolsRefuseADelayBeyondWhatTheFamiliesHold) {
+  // Issue 29: a delay cast to int overflowed (a wrong symbol, or an out-of-bounds write later).
+  EXPECT_EQ(fate_symbols({kMaxFitDelay, std::nullopt, 0}), (std::vector<int>{static_cast<int>(kMaxFitDelay) + 1, 0, 1}));
+  for (const std::int64_t d : {kMaxFitDelay + 1, std::int64_t{4611686018427387903}, std::int64_t{9223372036854775806}}) {
+    EXPECT_THROW(fate_symbols({0, d}), std::out_of_range) << d;
+  }
+}
+
 TEST(Fit, GilbertElliottFitsAShortBurstyTraceAndPrintsAReadableTable) {
   sim::Rng rng = sim::make_stream(5, 0, 0);
   auto link = make_gilbert_elliott(0.02, 0.25, 0.0, 1.0);

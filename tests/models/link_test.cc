@@ -639,8 +639,12 @@ TEST(LoadTrace, ReadsHeaderLostEntriesCrlfAndTrailingBlankLines) {
   const auto trace = load_trace(file.path());
   const std::vector<std::optional<std::int64_t>> expected = {3, std::nullopt, 0, std::nullopt, 12};
   EXPECT_EQ(trace, expected);
+  int first_row_line = 0;
+  EXPECT_EQ(load_trace(file.path(), &first_row_line), expected);
+  EXPECT_EQ(first_row_line, 2);  // after the header
   const TempFile bare("bare.csv", "0,1\n1,0");  // no header, no final newline
-  EXPECT_EQ(load_trace(bare.path()), (std::vector<std::optional<std::int64_t>>{1, 0}));
+  EXPECT_EQ(load_trace(bare.path(), &first_row_line), (std::vector<std::optional<std::int64_t>>{1, 0}));
+  EXPECT_EQ(first_row_line, 1);
   const TempFile header_only("header_only.csv", "seq,delay\n");
   EXPECT_TRUE(load_trace(header_only.path()).empty());
 }
