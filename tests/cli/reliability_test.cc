@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "cli/small_trace_scenario.h"
 #include "test_util.h"
 
 namespace {
@@ -51,37 +52,9 @@ class Reliability : public ::testing::Test {
   fs::path dir_;
 };
 
-const std::string kSmall = R"(title = "small"
-[run]
-periods = 200
-warmup = 10
-runs = 2
-seed = 3
-[plant]
-kind = "lti"
-A = [[0.9, 0.1], [0.0, 0.8]]
-Bw = [[1.0, 0.0], [0.0, 1.0]]
-W = [[0.1, 0.0], [0.0, 0.1]]
-[[sensor]]
-name = "y1"
-C = [[1.0, 0.0]]
-R = [[0.01]]
-link = "net"
-[[link]]
-name = "net"
-kind = "trace"
-file = "trace.csv"
-[[estimator]]
-name = "kf"
-kind = "kalman_extended"
-max_delay = 1
-)";
+const std::string& kSmall = ncosim::testing::kSmallTraceScenario;
 
-std::string trace_csv(int packets) {
-  std::string t = "seq,delay\n";
-  for (int i = 0; i < packets; ++i) t += fmt::format("{},{}\n", i, i % 3 == 0 ? "" : "1");
-  return t;
-}
+std::string trace_csv(int packets) { return ncosim::testing::small_trace_csv(packets); }
 
 // Finding 1: a transfer function with a long dead time made `check` exit 205 with nothing on
 // stderr after 3.7 GB (CSDP's malloc failure exits the process). Now the design is estimated

@@ -20,6 +20,8 @@
 #include <vector>
 
 #include "sim/store.h"
+#include "cli/small_trace_scenario.h"
+#include "cli/temp_dir_test.h"
 #include "test_util.h"
 
 namespace {
@@ -37,23 +39,12 @@ ncosim::testing::CommandOutcome ncosim(const std::string& args, const std::strin
   return run_shell(env + quote(kBinary) + " " + args);
 }
 
-struct TempDir {
-  fs::path path;
-  explicit TempDir(const std::string& name)
-      : path(fs::temp_directory_path() / ("ncosim_integrity_" + name + "_" + std::to_string(::getpid()))) {
-    fs::remove_all(path);
-    fs::create_directories(path);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path, ec);
-  }
-  std::string operator/(const std::string& rel) const { return (path / rel).string(); }
+// Each test in a fresh temporary folder; at("x") is the path of x in it.
+class StoreIntegrity : public ncosim::testing::TempDirTest {
+ protected:
+  StoreIntegrity() : TempDirTest("ncosim_integrity_") {}
+  std::string at(const std::string& rel) const { return (dir_ / rel).string(); }
 };
-
-void write(const std::string& path, const std::string& text) {
-  std::ofstream(path, std::ios::binary) << text;
-}
 
 // The exports `ncosim export` re-derives from the store (the run here is --no-timing; design.json
 // without its design_seconds lines).
@@ -88,19 +79,18 @@ std::string run_cmd(const std::string& out, int seed, const std::string& extra =
 // for run, merge and export into a folder holding a previous set, leaves the previous or the new
 // set, whose store and exports agree; a kill after the campaign's last run and before its exports
 // leaves the previous set intact and the new store resumable beside it.
-TEST(StoreIntegrity, KillsAtEveryStepOfRunMergeAndExportLeaveAStoreAndExportsThatAgree) {
-  TempDir t("kills");
-  const std::string out = t / "out";
+TEST_F(StoreIntegrity, KillsAtEveryStepOfRunMergeAndExportLeaveAStoreAndExportsThatAgree) {
+  const std::string out = at("out");
   // References: the previous set (seed 1) and each command's new set (seed 2).
-  ASSERT_EQ(ncosim(run_cmd(t / "ref1", 1)).code, 0);
-  ASSERT_EQ(ncosim(run_cmd(t / "ref2", 2)).code, 0);
-  ASSERT_EQ(ncosim(run_cmd(t / "s1", 2, " --shard 1/2")).code, 0);
-  ASSERT_EQ(ncosim(run_cmd(t / "s2", 2, " --shard 2/2")).code, 0);
-  const std::string runs1 = read_text(t / "ref1/runs.csv"), runs2 = read_text(t / "ref2/runs.csv");
+  ASSERT_EQ(ncosim(run_cmd(at("ref1"), 1)).code, 0);
+  ASSERT_EQ(ncosim(run_cmd(at("ref2"), 2)).code, 0);
+  ASSERT_EQ(ncosim(run_cmd(at("s1"), 2, " --shard 1/2")).code, 0);
+  ASSERT_EQ(ncosim(run_cmd(at("s2"), 2, " --shard 2/2")).code, 0);
+  const std::string runs1 = read_text(at("ref1/runs.csv")), runs2 = read_text(at("ref2/runs.csv"));
   const std::vector<std::pair<std::string, std::string>> commands{
       {"run", run_cmd(out, 2)},
-      {"merge", fmt::format("merge {} {} {}", quote(out), quote(t / "s1"), quote(t / "s2"))},
-      {"export", fmt::format("export {} --out {}", quote(t / "ref2"), quote(out))},
+      {"merge", fmt::format("merge {} {} {}", quote(out), quote(at("s1")), quote(at("s2")))},
+      {"export", fmt::format("export {} --out {}", quote(at("ref2")), quote(out))},
   };
   for (const auto& [name, cmd] : commands) {
     int kills = 0;
@@ -113,7 +103,7 @@ TEST(StoreIntegrity, KillsAtEveryStepOfRunMergeAndExportLeaveAStoreAndExportsTha
       const std::string what = fmt::format("{} killed before step {}", name, k);
       const std::string runs = read_text(out + "/runs.csv");
       EXPECT_TRUE(runs == runs1 || runs == runs2) << what << ": runs.csv is neither set's";
-      expect_store_and_exports_agree(out, t / "check", what);
+      expect_store_and_exports_agree(out, at("check"), what);
     }
     EXPECT_GE(kills, 10) << name << ": the write sequence has fewer steps than expected";
   }
@@ -124,14 +114,14 @@ TEST(StoreIntegrity, KillsAtEveryStepOfRunMergeAndExportLeaveAStoreAndExportsTha
   auto r = ncosim(run_cmd(out, 2), "NCOSIM_TEST_RAISE_AFTER_RUNS=9 ");
   ASSERT_NE(r.code, 0) << r.output;
   EXPECT_EQ(read_text(out + "/runs.csv"), runs1);
-  expect_store_and_exports_agree(out, t / "check", "killed after the last run");
+  expect_store_and_exports_agree(out, at("check"), "killed after the last run");
   ASSERT_TRUE(fs::exists(ncosim::sim::partial_store_path(out)));
   r = ncosim(run_cmd(out, 2, " --resume"));
   ASSERT_EQ(r.code, 0) << r.output;
   EXPECT_NE(r.output.find("6 earlier runs resumed"), std::string::npos) << r.output;
   EXPECT_EQ(read_text(out + "/runs.csv"), runs2);
   EXPECT_FALSE(fs::exists(ncosim::sim::partial_store_path(out)));
-  expect_store_and_exports_agree(out, t / "check", "resumed");
+  expect_store_and_exports_agree(out, at("check"), "resumed");
   // A new campaign without --resume replaces an unfinished one, and says so.
   r = ncosim(run_cmd(out, 3), "NCOSIM_TEST_RAISE_AFTER_RUNS=9 ");
   r = ncosim(run_cmd(out, 4));
@@ -140,24 +130,22 @@ TEST(StoreIntegrity, KillsAtEveryStepOfRunMergeAndExportLeaveAStoreAndExportsTha
 }
 
 // Finding 3: `export A --out B` gives B A's exports *and* A's store; B's own store is gone.
-TEST(StoreIntegrity, ExportToAnotherFolderTakesTheStoreWithIt) {
-  TempDir t("exportout");
-  ASSERT_EQ(ncosim(run_cmd(t / "a", 1)).code, 0);
-  ASSERT_EQ(ncosim(run_cmd(t / "b", 2)).code, 0);
-  auto r = ncosim(fmt::format("export {} --out {}", quote(t / "a"), quote(t / "b")));
+TEST_F(StoreIntegrity, ExportToAnotherFolderTakesTheStoreWithIt) {
+  ASSERT_EQ(ncosim(run_cmd(at("a"), 1)).code, 0);
+  ASSERT_EQ(ncosim(run_cmd(at("b"), 2)).code, 0);
+  auto r = ncosim(fmt::format("export {} --out {}", quote(at("a")), quote(at("b"))));
   ASSERT_EQ(r.code, 0) << r.output;
-  EXPECT_EQ(read_text(t / "b/runs.csv"), read_text(t / "a/runs.csv"));
+  EXPECT_EQ(read_text(at("b/runs.csv")), read_text(at("a/runs.csv")));
   // Exporting B again must not flip its results back.
-  r = ncosim(fmt::format("export {}", quote(t / "b")));
+  r = ncosim(fmt::format("export {}", quote(at("b"))));
   ASSERT_EQ(r.code, 0) << r.output;
-  EXPECT_EQ(read_text(t / "b/runs.csv"), read_text(t / "a/runs.csv"));
-  expect_store_and_exports_agree(t / "b", t / "check", "export --out");
+  EXPECT_EQ(read_text(at("b/runs.csv")), read_text(at("a/runs.csv")));
+  expect_store_and_exports_agree(at("b"), at("check"), "export --out");
 }
 
 // Finding 4: figures and reports of an earlier campaign do not survive a new one.
-TEST(StoreIntegrity, ANewCampaignDropsWhatWasDerivedFromTheOldOne) {
-  TempDir t("stale");
-  const std::string out = t / "out";
+TEST_F(StoreIntegrity, ANewCampaignDropsWhatWasDerivedFromTheOldOne) {
+  const std::string out = at("out");
   ASSERT_EQ(ncosim(run_cmd(out, 1)).code, 0);
   // What `plot` and `report` write (written by hand here: the test needs no gnuplot).
   for (const char* f : {"plot_mse.dat", "plot_mse.gp", "plot_mse.png", "trace.dat", "report.html"}) write(out + "/" + f, "old");
@@ -174,75 +162,42 @@ TEST(StoreIntegrity, ANewCampaignDropsWhatWasDerivedFromTheOldOne) {
   EXPECT_EQ(read_text(out + "/notes.txt"), "mine");
 }
 
-const std::string kTraceScenario = R"(title = "trace identity"
-[run]
-periods = 200
-warmup = 10
-runs = 4
-seed = 3
-[plant]
-kind = "lti"
-A = [[0.9, 0.1], [0.0, 0.8]]
-Bw = [[1.0, 0.0], [0.0, 1.0]]
-W = [[0.1, 0.0], [0.0, 0.1]]
-[[sensor]]
-name = "y1"
-C = [[1.0, 0.0]]
-R = [[0.01]]
-link = "net"
-[[link]]
-name = "net"
-kind = "trace"
-file = "trace.csv"
-[[estimator]]
-name = "kf"
-kind = "kalman_extended"
-max_delay = 1
-)";
-
-std::string trace(int lost_every) {
-  std::string t = "seq,delay\n";
-  for (int i = 0; i < 300; ++i) t += fmt::format("{},{}\n", i, i % lost_every == 0 ? "" : "1");
-  return t;
-}
-
 // Finding 5: the content of every file a scenario reads is part of the campaign's identity:
 // merge, --resume and export refuse when it differs, naming the file.
-TEST(StoreIntegrity, InputFilesArePartOfTheCampaignsIdentity) {
-  TempDir t("inputs");
-  const std::string sc = t / "sc.toml";
-  write(sc, kTraceScenario);
-  write(t / "trace.csv", trace(3));
+TEST_F(StoreIntegrity, InputFilesArePartOfTheCampaignsIdentity) {
+  const std::string sc = at("sc.toml");
+  write(sc, ncosim::testing::kSmallTraceScenario);
+  write(at("trace.csv"), ncosim::testing::small_trace_csv(300, 3));
   const std::string flags = "--no-timing --quiet";
-  ASSERT_EQ(ncosim(fmt::format("run {} --out {} --shard 1/2 {}", quote(sc), quote(t / "s1"), flags)).code, 0);
-  write(t / "trace.csv", trace(2));
-  ASSERT_EQ(ncosim(fmt::format("run {} --out {} --shard 2/2 {}", quote(sc), quote(t / "s2"), flags)).code, 0);
-  auto r = ncosim(fmt::format("merge {} {} {}", quote(t / "m"), quote(t / "s1"), quote(t / "s2")));
+  ASSERT_EQ(ncosim(fmt::format("run {} --out {} --shard 1/2 {}", quote(sc), quote(at("s1")), flags)).code, 0);
+  write(at("trace.csv"), ncosim::testing::small_trace_csv(300, 2));
+  ASSERT_EQ(ncosim(fmt::format("run {} --out {} --shard 2/2 {}", quote(sc), quote(at("s2")), flags)).code, 0);
+  auto r = ncosim(fmt::format("merge {} {} {}", quote(at("m")), quote(at("s1")), quote(at("s2"))));
   EXPECT_EQ(r.code, 2) << r.output;
-  EXPECT_NE(r.output.find("the content of the input file '" + (t / "trace.csv") + "'"), std::string::npos) << r.output;
-  EXPECT_FALSE(fs::exists(t / "m/summary.csv"));
+  EXPECT_NE(r.output.find("the content of the input file '" + (at("trace.csv")) + "'"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(at("m/summary.csv")));
   // --resume after the file changed: refused, naming it.
-  r = ncosim(fmt::format("run {} --out {} --shard 1/2 --resume {}", quote(sc), quote(t / "s1"), flags));
+  r = ncosim(fmt::format("run {} --out {} --shard 1/2 --resume {}", quote(sc), quote(at("s1")), flags));
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_NE(r.output.find("the content of the input file"), std::string::npos) << r.output;
   // export re-derives from the stored text, which reads the file again: it must be the same file.
-  r = ncosim(fmt::format("export {} --out {}", quote(t / "s1"), quote(t / "e")));
+  r = ncosim(fmt::format("export {} --out {}", quote(at("s1")), quote(at("e"))));
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_NE(r.output.find("changed since the campaign ran"), std::string::npos) << r.output;
-  write(t / "trace.csv", trace(3));
-  r = ncosim(fmt::format("export {} --out {}", quote(t / "s1"), quote(t / "e")));
+  write(at("trace.csv"), ncosim::testing::small_trace_csv(300, 3));
+  r = ncosim(fmt::format("export {} --out {}", quote(at("s1")), quote(at("e"))));
   EXPECT_EQ(r.code, 0) << r.output;
   // The manifest names the file and its hash, and compare refuses two campaigns of the same
   // text over different contents of it, naming the file.
-  EXPECT_NE(read_text(t / "e/manifest.json").find("\"inputs\""), std::string::npos);
-  ASSERT_EQ(ncosim(fmt::format("run {} --out {} {}", quote(sc), quote(t / "c1"), flags)).code, 0);
-  write(t / "trace.csv", trace(2));
-  ASSERT_EQ(ncosim(fmt::format("run {} --out {} {}", quote(sc), quote(t / "c2"), flags)).code, 0);
-  r = ncosim(fmt::format("compare {} {}", quote(t / "c1"), quote(t / "c2")));
+  EXPECT_NE(read_text(at("e/manifest.json")).find("\"inputs\""), std::string::npos);
+  ASSERT_EQ(ncosim(fmt::format("run {} --out {} {}", quote(sc), quote(at("c1")), flags)).code, 0);
+  write(at("trace.csv"), ncosim::testing::small_trace_csv(300, 2));
+  ASSERT_EQ(ncosim(fmt::format("run {} --out {} {}", quote(sc), quote(at("c2")), flags)).code, 0);
+  r = ncosim(fmt::format("compare {} {}", quote(at("c1")), quote(at("c2"))));
   EXPECT_EQ(r.code, 2) << r.output;
-  EXPECT_NE(r.output.find("the content of the input file(s) '" + (t / "trace.csv") + "'"), std::string::npos)
+  EXPECT_NE(r.output.find("the content of the input file(s) '" + (at("trace.csv")) + "'"), std::string::npos)
       << r.output;
-  r = ncosim(fmt::format("compare {} {} --allow-scenario-change", quote(t / "c1"), quote(t / "c2")));
+  r = ncosim(fmt::format("compare {} {} --allow-scenario-change", quote(at("c1")), quote(at("c2"))));
   EXPECT_NE(r.code, 2) << r.output;
 }
 
@@ -259,50 +214,49 @@ void sql(const std::string& store, const std::string& statement) {
 
 // Finding 6: a changed byte inside a stored run is refused by export, merge and resume, naming
 // the run; so are run indices outside the campaign and unknown store formats.
-TEST(StoreIntegrity, DamagedRowsAndIndicesAndFormatsAreRefused) {
-  TempDir t("rows");
-  ASSERT_EQ(ncosim(run_cmd(t / "a", 1)).code, 0);
+TEST_F(StoreIntegrity, DamagedRowsAndIndicesAndFormatsAreRefused) {
+  ASSERT_EQ(ncosim(run_cmd(at("a"), 1)).code, 0);
   auto fresh = [&](const std::string& name) {
-    fs::remove_all(t / name);
-    fs::create_directories(t / name);
-    fs::copy_file(t / "a/runs.sqlite", t / (name + "/runs.sqlite"));
-    return t / (name + "/runs.sqlite");
+    fs::remove_all(at(name));
+    fs::create_directories(at(name));
+    fs::copy_file(at("a/runs.sqlite"), at(name + "/runs.sqlite"));
+    return at(name + "/runs.sqlite");
   };
   // 8 bytes of run 3's blob overwritten (what a bit rot or a stray write does; integrity_check
   // cannot see it).
   std::string store = fresh("b");
   sql(store, "UPDATE runs SET metrics = substr(metrics, 1, 40) || x'0102030405060708' || substr(metrics, 49) "
              "WHERE run = 3");
-  auto r = ncosim(fmt::format("export {}", quote(t / "b")));
+  auto r = ncosim(fmt::format("export {}", quote(at("b"))));
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_NE(r.output.find("run 3 of case 1 fails its checksum"), std::string::npos) << r.output;
-  r = ncosim(fmt::format("merge {} {}", quote(t / "m"), quote(t / "b")));
+  r = ncosim(fmt::format("merge {} {}", quote(at("m")), quote(at("b"))));
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_NE(r.output.find("run 3 of case 1 fails its checksum"), std::string::npos) << r.output;
-  r = ncosim(run_cmd(t / "b", 1, " --resume"));
+  r = ncosim(run_cmd(at("b"), 1, " --resume"));
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_NE(r.output.find("run 3 of case 1 fails its checksum"), std::string::npos) << r.output;
   // The link counters, the timing and the stored files carry checksums too.
   store = fresh("c");
   sql(store, "UPDATE link_runs SET counters = substr(counters, 1, 8) || x'09' || substr(counters, 10) WHERE run = 1");
-  r = ncosim(fmt::format("export {}", quote(t / "c")));
+  r = ncosim(fmt::format("export {}", quote(at("c"))));
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_NE(r.output.find("link counters of run 1 of case 1 fails its checksum"), std::string::npos) << r.output;
   store = fresh("c");
   sql(store, "UPDATE timing SET ns_per_period = 5 WHERE estimator = 0");
-  r = ncosim(fmt::format("export {}", quote(t / "c")));
+  r = ncosim(fmt::format("export {}", quote(at("c"))));
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_NE(r.output.find("fails its checksum"), std::string::npos) << r.output;
   // A run index outside 0..runs-1 (the checksum recomputed: a deliberate edit, not rot).
   store = fresh("d");
   sql(store, "UPDATE runs SET run = 600 WHERE run = 5; UPDATE link_runs SET run = 600 WHERE run = 5");
-  r = ncosim(fmt::format("export {}", quote(t / "d")));
+  r = ncosim(fmt::format("export {}", quote(at("d"))));
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_NE(r.output.find("run index 600, outside the campaign"), std::string::npos) << r.output;
   // Unknown formats.
   store = fresh("e");
   sql(store, "UPDATE campaign SET value = '99' WHERE key = 'format'");
-  r = ncosim(fmt::format("export {}", quote(t / "e")));
+  r = ncosim(fmt::format("export {}", quote(at("e"))));
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_NE(r.output.find("store format '99' (this ncosim reads formats 1 to 3)"), std::string::npos) << r.output;
 }
@@ -310,9 +264,8 @@ TEST(StoreIntegrity, DamagedRowsAndIndicesAndFormatsAreRefused) {
 // Finding 7: every field of the campaign table that the commands read is checked, and a bad one
 // is named (exit 2), never a bare `stoull` / `map::at` / JSON parser message or a silently
 // different campaign.
-TEST(StoreIntegrity, DamagedCampaignFieldsAreNamed) {
-  TempDir t("meta");
-  ASSERT_EQ(ncosim(run_cmd(t / "a", 1)).code, 0);
+TEST_F(StoreIntegrity, DamagedCampaignFieldsAreNamed) {
+  ASSERT_EQ(ncosim(run_cmd(at("a"), 1)).code, 0);
   const std::vector<std::tuple<std::string, std::string, std::string>> cases{
       {"override_periods", "'0'", "campaign field 'override_periods'"},
       {"override_runs", "'x'", "campaign field 'override_runs'"},
@@ -328,29 +281,29 @@ TEST(StoreIntegrity, DamagedCampaignFieldsAreNamed) {
       {"scenario_hash", "'zz'", "campaign field 'scenario_hash'"},
   };
   for (const auto& [key, value, expected] : cases) {
-    fs::remove_all(t / "b");
-    fs::create_directories(t / "b");
-    fs::copy_file(t / "a/runs.sqlite", t / "b/runs.sqlite");
-    sql(t / "b/runs.sqlite", fmt::format("UPDATE campaign SET value = {} WHERE key = '{}'", value, key));
-    const auto r = ncosim(fmt::format("export {}", quote(t / "b")));
+    fs::remove_all(at("b"));
+    fs::create_directories(at("b"));
+    fs::copy_file(at("a/runs.sqlite"), at("b/runs.sqlite"));
+    sql(at("b/runs.sqlite"), fmt::format("UPDATE campaign SET value = {} WHERE key = '{}'", value, key));
+    const auto r = ncosim(fmt::format("export {}", quote(at("b"))));
     EXPECT_EQ(r.code, 2) << key << ": " << r.output;
     EXPECT_NE(r.output.find(expected), std::string::npos) << key << ": " << r.output;
   }
   // A missing field.
-  fs::remove_all(t / "b");
-  fs::create_directories(t / "b");
-  fs::copy_file(t / "a/runs.sqlite", t / "b/runs.sqlite");
-  sql(t / "b/runs.sqlite", "DELETE FROM campaign WHERE key = 'scenario_text'");
-  auto r = ncosim(fmt::format("export {}", quote(t / "b")));
+  fs::remove_all(at("b"));
+  fs::create_directories(at("b"));
+  fs::copy_file(at("a/runs.sqlite"), at("b/runs.sqlite"));
+  sql(at("b/runs.sqlite"), "DELETE FROM campaign WHERE key = 'scenario_text'");
+  auto r = ncosim(fmt::format("export {}", quote(at("b"))));
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_NE(r.output.find("campaign field 'scenario_text': expected a value, got nothing"), std::string::npos)
       << r.output;
   // Finding 14: a stored text that does not load is reported as the store's, not the file's.
-  fs::remove_all(t / "b");
-  fs::create_directories(t / "b");
-  fs::copy_file(t / "a/runs.sqlite", t / "b/runs.sqlite");
-  sql(t / "b/runs.sqlite", "UPDATE campaign SET value = 'title = \"x\"' || char(10) || '[run' WHERE key = 'scenario_text'");
-  r = ncosim(fmt::format("export {}", quote(t / "b")));
+  fs::remove_all(at("b"));
+  fs::create_directories(at("b"));
+  fs::copy_file(at("a/runs.sqlite"), at("b/runs.sqlite"));
+  sql(at("b/runs.sqlite"), "UPDATE campaign SET value = 'title = \"x\"' || char(10) || '[run' WHERE key = 'scenario_text'");
+  r = ncosim(fmt::format("export {}", quote(at("b"))));
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_NE(r.output.find("the scenario text stored in it"), std::string::npos) << r.output;
 }
@@ -359,28 +312,27 @@ TEST(StoreIntegrity, DamagedCampaignFieldsAreNamed) {
 // chattr +i, which binds root too) exports and merges, and leaves no -wal or -shm behind. Where
 // the filesystem has no immutable flag, a read-only bind of the folder is not available to a test
 // either, and the test says so.
-TEST(StoreIntegrity, ReadingAStoreNeverWritesIt) {
-  TempDir t("readonly");
-  ASSERT_EQ(ncosim(run_cmd(t / "a", 1)).code, 0);
-  const std::string store = t / "a/runs.sqlite";
+TEST_F(StoreIntegrity, ReadingAStoreNeverWritesIt) {
+  ASSERT_EQ(ncosim(run_cmd(at("a"), 1)).code, 0);
+  const std::string store = at("a/runs.sqlite");
   const auto chattr = run_shell(fmt::format("chattr +i {} 2>&1", quote(store)));
   if (chattr.code != 0) GTEST_SKIP() << "no immutable flag on this filesystem: " << chattr.output;
   struct Unset {
     std::string path;
     ~Unset() { run_shell(fmt::format("chattr -i '{}'", path)); }
   } unset{store};
-  auto r = ncosim(fmt::format("export {} --out {}", quote(t / "a"), quote(t / "b")));
+  auto r = ncosim(fmt::format("export {} --out {}", quote(at("a")), quote(at("b"))));
   EXPECT_EQ(r.code, 0) << r.output;
-  r = ncosim(fmt::format("merge {} {}", quote(t / "m"), quote(t / "a")));
+  r = ncosim(fmt::format("merge {} {}", quote(at("m")), quote(at("a"))));
   EXPECT_EQ(r.code, 0) << r.output;
   EXPECT_FALSE(fs::exists(store + "-wal"));
   EXPECT_FALSE(fs::exists(store + "-shm"));
-  EXPECT_EQ(read_text(t / "b/runs.csv"), read_text(t / "a/runs.csv"));
-  EXPECT_EQ(read_text(t / "m/runs.csv"), read_text(t / "a/runs.csv"));
+  EXPECT_EQ(read_text(at("b/runs.csv")), read_text(at("a/runs.csv")));
+  EXPECT_EQ(read_text(at("m/runs.csv")), read_text(at("a/runs.csv")));
   // What is not a store is still called so; what cannot be read says why.
-  fs::create_directories(t / "junk");
-  write(t / "junk/runs.sqlite", "not a database, not at all, but long enough to be read as a header....");
-  r = ncosim(fmt::format("export {}", quote(t / "junk")));
+  fs::create_directories(at("junk"));
+  write(at("junk/runs.sqlite"), "not a database, not at all, but long enough to be read as a header....");
+  r = ncosim(fmt::format("export {}", quote(at("junk"))));
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_NE(r.output.find("is not an ncosim run store"), std::string::npos) << r.output;
 }
@@ -388,15 +340,14 @@ TEST(StoreIntegrity, ReadingAStoreNeverWritesIt) {
 // Finding 14: on the fallback path (no RENAME_EXCHANGE), a kill between moving the previous set
 // aside and renaming the new one in, followed by a `run` that is itself killed at its first step,
 // must not lose the previous set.
-TEST(StoreIntegrity, TheFallbackSwapNeverLosesThePreviousSet) {
-  TempDir t("fallback");
-  const std::string out = t / "out";
+TEST_F(StoreIntegrity, TheFallbackSwapNeverLosesThePreviousSet) {
+  const std::string out = at("out");
   ASSERT_EQ(ncosim(run_cmd(out, 1)).code, 0);
   const std::string runs1 = read_text(out + "/runs.csv");
   // Find the step "rename the new folder" of the fallback sequence.
   // (into a folder that exists: the swap is only needed then).
-  ASSERT_EQ(ncosim(run_cmd(t / "probe", 1)).code, 0);
-  const auto steps = ncosim(run_cmd(t / "probe", 2), "NCOSIM_TEST_NO_EXCHANGE=1 NCOSIM_TEST_OUTPUT_STEPS=1 ");
+  ASSERT_EQ(ncosim(run_cmd(at("probe"), 1)).code, 0);
+  const auto steps = ncosim(run_cmd(at("probe"), 2), "NCOSIM_TEST_NO_EXCHANGE=1 NCOSIM_TEST_OUTPUT_STEPS=1 ");
   std::smatch m;
   ASSERT_TRUE(std::regex_search(steps.output, m, std::regex("output step ([0-9]+): rename the new folder")))
       << steps.output;
@@ -410,7 +361,7 @@ TEST(StoreIntegrity, TheFallbackSwapNeverLosesThePreviousSet) {
   EXPECT_NE(r.output.find("restored the previous result set"), std::string::npos) << r.output;
   ASSERT_TRUE(fs::exists(out + "/runs.csv"));
   EXPECT_EQ(read_text(out + "/runs.csv"), runs1);
-  expect_store_and_exports_agree(out, t / "check", "after the fallback recovery");
+  expect_store_and_exports_agree(out, at("check"), "after the fallback recovery");
 }
 
 // Finding 6's probe, kept: 8 random bytes overwritten at a random offset of a 40-run store, 80
@@ -418,26 +369,25 @@ TEST(StoreIntegrity, TheFallbackSwapNeverLosesThePreviousSet) {
 // exactly the original exports (the bytes fell where nothing is read: free space, the readable
 // copy of the metrics, the campaign fields the exports do not show); never different results
 // with exit 0, never a crash.
-TEST(StoreIntegrity, RandomOverwritesNeverChangeResultsSilently) {
-  TempDir t("overwrite");
+TEST_F(StoreIntegrity, RandomOverwritesNeverChangeResultsSilently) {
   ASSERT_EQ(ncosim(fmt::format("run {} --out {} --runs 40 --periods 300 --no-timing --quiet", quote(kBase.string()),
-                               quote(t / "a")))
+                               quote(at("a"))))
                 .code,
             0);
-  const std::string original = t / "a/runs.sqlite";
+  const std::string original = at("a/runs.sqlite");
   const auto size = fs::file_size(original);
   std::mt19937_64 rng(29);
   int refused = 0, same = 0, changed = 0, other = 0;
   for (int trial = 0; trial < 80; ++trial) {
-    fs::remove_all(t / "b");
-    fs::create_directories(t / "b");
-    fs::copy_file(original, t / "b/runs.sqlite");
+    fs::remove_all(at("b"));
+    fs::create_directories(at("b"));
+    fs::copy_file(original, at("b/runs.sqlite"));
     {
-      std::fstream f(t / "b/runs.sqlite", std::ios::in | std::ios::out | std::ios::binary);
+      std::fstream f(at("b/runs.sqlite"), std::ios::in | std::ios::out | std::ios::binary);
       f.seekp(static_cast<std::streamoff>(rng() % (size - 8)));
       for (int i = 0; i < 8; ++i) f.put(static_cast<char>(rng() & 0xFF));
     }
-    const auto r = ncosim(fmt::format("export {} --out {}", quote(t / "b"), quote(t / "c")));
+    const auto r = ncosim(fmt::format("export {} --out {}", quote(at("b")), quote(at("c"))));
     if (r.code == 2) {
       ++refused;
       EXPECT_NE(r.output.find("ncosim: "), std::string::npos) << r.output;
@@ -449,7 +399,7 @@ TEST(StoreIntegrity, RandomOverwritesNeverChangeResultsSilently) {
       continue;
     }
     bool identical = true;
-    for (const auto& f : kExports) identical = identical && comparable(t / ("a/" + f)) == comparable(t / ("c/" + f));
+    for (const auto& f : kExports) identical = identical && comparable(at("a/" + f)) == comparable(at("c/" + f));
     (identical ? same : changed)++;
     EXPECT_TRUE(identical) << "trial " << trial << ": exit 0 with different exports";
   }
@@ -463,16 +413,15 @@ TEST(StoreIntegrity, RandomOverwritesNeverChangeResultsSilently) {
 // SIGXFSZ ignored, makes writes fail with EFBIG as a full disk makes them fail with ENOSPC): the
 // command fails with exit 1 and a message, and the folder keeps its previous set, whose store and
 // exports agree.
-TEST(StoreIntegrity, AFullDiskAtAnyPointLeavesThePreviousSet) {
-  TempDir t("diskfull");
-  const std::string out = t / "out";
-  ASSERT_EQ(ncosim(run_cmd(t / "s1", 2, " --shard 1/2")).code, 0);
-  ASSERT_EQ(ncosim(run_cmd(t / "s2", 2, " --shard 2/2")).code, 0);
-  ASSERT_EQ(ncosim(run_cmd(t / "ref2", 2)).code, 0);
+TEST_F(StoreIntegrity, AFullDiskAtAnyPointLeavesThePreviousSet) {
+  const std::string out = at("out");
+  ASSERT_EQ(ncosim(run_cmd(at("s1"), 2, " --shard 1/2")).code, 0);
+  ASSERT_EQ(ncosim(run_cmd(at("s2"), 2, " --shard 2/2")).code, 0);
+  ASSERT_EQ(ncosim(run_cmd(at("ref2"), 2)).code, 0);
   const std::vector<std::pair<std::string, std::string>> commands{
       {"run", run_cmd(out, 2)},
-      {"merge", fmt::format("merge {} {} {}", quote(out), quote(t / "s1"), quote(t / "s2"))},
-      {"export", fmt::format("export {} --out {}", quote(t / "ref2"), quote(out))},
+      {"merge", fmt::format("merge {} {} {}", quote(out), quote(at("s1")), quote(at("s2")))},
+      {"export", fmt::format("export {} --out {}", quote(at("ref2")), quote(out))},
   };
   int points = 0;
   for (const auto& [name, cmd] : commands) {
@@ -487,7 +436,7 @@ TEST(StoreIntegrity, AFullDiskAtAnyPointLeavesThePreviousSet) {
       EXPECT_EQ(r.code, 1) << what << ": " << r.output;
       EXPECT_NE(r.output.find("ncosim: error: "), std::string::npos) << what << ": " << r.output;
       EXPECT_EQ(read_text(out + "/runs.csv"), runs1) << what;
-      expect_store_and_exports_agree(out, t / "check", what);
+      expect_store_and_exports_agree(out, at("check"), what);
     }
   }
   EXPECT_GE(points, 15);
