@@ -8,12 +8,14 @@
 #include <cerrno>
 #include <cstdint>
 #include <cstdio>
+#include <filesystem>
 
 namespace ncosim::sim {
 
 namespace {
 
 thread_local InputFiles* t_recorder = nullptr;
+thread_local std::string t_dir;  // the recording scenario's folder, absolute and normal
 
 constexpr std::uint64_t kFnvBasis = 1469598103934665603ULL;  // FNV-1a 64
 
@@ -33,9 +35,18 @@ std::string hex(std::uint64_t h) {
 
 }  // namespace
 
-InputFileRecorder::InputFileRecorder(InputFiles& files) : previous_(t_recorder) { t_recorder = &files; }
+InputFileRecorder::InputFileRecorder(InputFiles& files, const std::string& scenario_dir)
+    : previous_(t_recorder), previous_dir_(t_dir) {
+  t_recorder = &files;
+  std::error_code ec;
+  const auto abs = std::filesystem::absolute(scenario_dir.empty() ? "." : scenario_dir, ec);
+  t_dir = (ec ? std::filesystem::path(scenario_dir) : abs).lexically_normal().string();
+}
 
-InputFileRecorder::~InputFileRecorder() { t_recorder = previous_; }
+InputFileRecorder::~InputFileRecorder() {
+  t_recorder = previous_;
+  t_dir = previous_dir_;
+}
 
 std::string content_hash(const std::string& bytes) { return hex(fnv1a(kFnvBasis, bytes.data(), bytes.size())); }
 
@@ -66,7 +77,10 @@ std::string file_content_hash(const std::string& path) {
 
 void note_input_file(const std::string& path) {
   if (t_recorder == nullptr) return;
-  (*t_recorder)[path] = file_content_hash(path);
+  std::error_code ec;
+  const auto abs = std::filesystem::absolute(path, ec).lexically_normal();
+  const auto key = ec ? std::filesystem::path(path) : abs.lexically_relative(t_dir);
+  (*t_recorder)[key.empty() ? path : key.generic_string()] = file_content_hash(path);
 }
 
 }  // namespace ncosim::sim

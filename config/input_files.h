@@ -13,24 +13,30 @@
 
 namespace ncosim::sim {
 
-// Path as the reader resolved it -> content hash (16 hex digits, FNV-1a 64 of the bytes).
+// Path relative to the scenario's folder (whatever the working directory or the folder's own
+// location: shards run from elsewhere and `export` from the stored absolute path agree) ->
+// content hash (16 hex digits, FNV-1a 64 of the bytes).
 using InputFiles = std::map<std::string, std::string>;
 
 // Records into `files` every note_input_file() of this thread while alive (nests: the innermost
 // recorder receives them).
 class InputFileRecorder {
  public:
-  explicit InputFileRecorder(InputFiles& files);
+  // `scenario_dir`: the folder of the scenario file (relative to the working directory or
+  // absolute; "" = the working directory), against which the recorded keys are made relative.
+  InputFileRecorder(InputFiles& files, const std::string& scenario_dir);
   ~InputFileRecorder();
   InputFileRecorder(const InputFileRecorder&) = delete;
   InputFileRecorder& operator=(const InputFileRecorder&) = delete;
 
  private:
   InputFiles* previous_;
+  std::string previous_dir_;
 };
 
-// Records `path` (its content read now) with the recorder of this thread, if any. A file that
-// cannot be read is recorded as "unreadable" (its reader reports the error).
+// Records `path` (as the reader opened it; its content read now) with the recorder of this
+// thread, if any, under its path relative to the scenario's folder. A file that cannot be read is
+// recorded as "unreadable" (its reader reports the error).
 void note_input_file(const std::string& path);
 
 // The content hash used for input files: FNV-1a 64 of `bytes`, 16 lower-case hex digits.

@@ -2,6 +2,7 @@
 #include "sim/batch.h"
 
 #include <fmt/format.h>
+#include <fcntl.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -725,12 +726,31 @@ std::vector<std::string> stale_with_derived() {
   return out;
 }
 
-// Makes `to` the file `from`: a hard link (same filesystem: the folder's sibling), else a copy.
+// Makes `to` the file `from`: a hard link (same filesystem: the folder's sibling), else a copy,
+// synced before the set that holds it is swapped in.
 void link_or_copy(const std::string& from, const std::filesystem::path& to) {
   if (::link(from.c_str(), to.c_str()) == 0) return;
   std::error_code ec;
   std::filesystem::copy_file(from, to, ec);
   if (ec) throw std::runtime_error(fmt::format("cannot put the run store '{}' into '{}': {}", from, to.string(), ec.message()));
+  const int fd = ::open(to.c_str(), O_RDONLY | O_CLOEXEC);
+  const bool synced = fd >= 0 && ::fsync(fd) == 0;
+  if (fd >= 0) ::close(fd);
+  if (!synced) throw std::runtime_error(fmt::format("cannot sync the copy '{}' of the run store", to.string()));
+}
+
+// Before a new store replaces an unfinished campaign's store beside the folder: says so.
+void note_replaced_partial(const std::string& out, const std::string& partial) {
+  std::error_code ec;
+  if (!std::filesystem::exists(partial, ec)) return;
+  std::string runs = "an unknown number of";
+  try {
+    runs = std::to_string(RunStore::open(partial, false).count_runs());
+  } catch (const std::exception&) {
+  }
+  std::cerr << fmt::format("ncosim: replacing the store of an unfinished campaign into '{}' ({}, {} run(s) "
+                           "committed; `run ... --resume` would have continued it)\n",
+                           out, partial, runs);
 }
 
 // Derives the exports of a store built beside the folder (`partial`), finishes it (checkpointed,
@@ -836,16 +856,7 @@ RunStore open_run_store(const RunCommand& cmd, const LoadedScenario& loaded,
   settle_partial(cmd.out);
   std::error_code ec;
   if (!cmd.resume) {
-    if (fs::exists(partial, ec)) {
-      std::string runs = "an unknown number of";
-      try {
-        runs = std::to_string(RunStore::open(partial, false).count_runs());
-      } catch (const std::exception&) {
-      }
-      std::cerr << fmt::format("ncosim: replacing the store of an unfinished campaign into '{}' ({}, {} run(s) "
-                               "committed; --resume would have continued it)\n",
-                               cmd.out, partial, runs);
-    }
+    note_replaced_partial(cmd.out, partial);
     return RunStore::create(partial, meta);
   }
   auto same_campaign = [&](const RunStore& s, const std::string& what) {
@@ -858,6 +869,7 @@ RunStore open_run_store(const RunCommand& cmd, const LoadedScenario& loaded,
                                       what, diff));
     }
   };
+  bool copied = false;  // a copy made here is removed again when it cannot be resumed
   try {
     if (!fs::exists(partial, ec)) {
       if (!fs::exists(live, ec)) {
@@ -866,14 +878,20 @@ RunStore open_run_store(const RunCommand& cmd, const LoadedScenario& loaded,
       // The finished set's store goes on in a copy beside the folder; the set stays as it is.
       const RunStore finished = RunStore::open(live, false);
       same_campaign(finished, live);
+      finished.verify(loaded.cases.size(), run_limit(loaded, finished.meta()));
       finished.copy_to(partial);
+      copied = true;
     }
     RunStore store = RunStore::open(partial, true);
     same_campaign(store, fmt::format("{} (the store of an unfinished campaign into '{}')", partial, cmd.out));
     store.verify(loaded.cases.size(), run_limit(loaded, store.meta()));
     return store;
   } catch (const StoreError& e) {
+    if (copied) remove_store_files(partial);
     throw ScenarioError(fmt::format("--resume: {}", e.what()));
+  } catch (...) {
+    if (copied) remove_store_files(partial);
+    throw;
   }
 }
 
@@ -1132,6 +1150,9 @@ int cmd_run_campaign(const RunCommand& cmd) {
 int cmd_export(const std::string& dir, const std::string& out, const std::string& command_line) {
   const std::string path = store_path(dir);
   const std::string target = out.empty() ? dir : out;
+  // One writer per folder, for the whole command: a set swapped in by another process between
+  // reading the store and writing the exports would otherwise pair its store with these exports.
+  const OutputFolderLock folder_lock(target);
   RunStore store;
   LoadedScenario loaded;
   std::map<std::string, std::string> meta;
@@ -1320,6 +1341,7 @@ int cmd_merge(const std::string& out, const std::vector<std::string>& dirs, cons
   const OutputFolderLock folder_lock(out);  // sim/output_set.h
   prepare_output_dir(out);
   // Built beside the folder and swapped in with the exports (export_and_install).
+  note_replaced_partial(out, partial_store_path(out));
   RunStore merged = RunStore::create(partial_store_path(out), merged_meta(shards.metas, dirs));
   try {
     for (std::size_t c = 0; c < loaded.cases.size(); ++c) merge_case(shards, merged, *loaded.cases[c].scenario, c);

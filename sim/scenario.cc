@@ -255,7 +255,8 @@ Case build_case(toml::table& case_doc, std::size_t c, const std::vector<std::siz
 LoadedScenario load_cases_text(const std::string& file, const std::string& text, const std::vector<std::string>& sets,
                                const RunOverrides& overrides, std::optional<std::size_t> only_case) {
   LoadedScenario out;
-  const InputFileRecorder record_inputs(out.inputs);  // what the readers open, hashed
+  // What the readers open, hashed, keyed relative to the scenario's folder.
+  const InputFileRecorder record_inputs(out.inputs, std::filesystem::path(file).parent_path().string());
   out.file = file;
   out.text = text;
   out.overrides = sets;

@@ -72,8 +72,8 @@ struct LoadedScenario {
   std::vector<std::string> overrides;
   std::vector<SweepAxis> sweeps;
   std::vector<Case> cases;
-  // Every external file the scenario read (trace, SUMO inputs, ...), path as resolved -> content
-  // hash (config/input_files.h): part of a campaign's identity.
+  // Every external file the scenario read (trace, SUMO inputs, ...), path relative to the
+  // scenario's folder -> content hash (config/input_files.h): part of a campaign's identity.
   InputFiles inputs;
 };
 

@@ -208,6 +208,7 @@ std::int64_t links_sum(std::int64_t c, std::int64_t k, const std::string& blob) 
 }
 // NaN (not measured) is stored as NULL: summed as an absent value.
 std::int64_t timing_sum(std::int64_t c, std::int64_t e, double ns) {
+  if (ns == 0.0) ns = 0.0;  // SQLite reads -0.0 back as +0.0
   return RowSum('t').key(c).key(e).key(std::isfinite(ns) ? static_cast<std::int64_t>(std::bit_cast<std::uint64_t>(ns)) : -1).value();
 }
 std::int64_t artifact_sum(const std::string& name, const std::string& content) {
@@ -466,7 +467,11 @@ RunStore RunStore::open(const std::string& path, bool writable) {
     s.db_ = nullptr;
     const bool not_a_db = code == SQLITE_NOTADB || why.find("no such table") != std::string::npos;
     if (not_a_db) throw StoreError(fmt::format("'{}' is not an ncosim run store", path));
-    if (writable || fs::exists(path + "-wal", ec)) {
+    // immutable=1 ignores locks and journals: only for a store that is complete on its own (no
+    // -wal, no hot -journal) which could not be opened because nothing can be written beside it.
+    const int primary = code & 0xFF;
+    if (writable || (primary != SQLITE_CANTOPEN && primary != SQLITE_READONLY) || fs::exists(path + "-wal", ec) ||
+        fs::exists(path + "-journal", ec)) {
       throw StoreError(fmt::format("cannot read the run store '{}': {}", path, why));
     }
     try {
