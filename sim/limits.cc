@@ -108,6 +108,17 @@ void check_estimator_resources(const Table& t, const toml::table& raw, const std
     key = fmt::format("{} and {} ({} x 2^{} terms, {})", t.key_path("history"), t.key_path("max_delay"), history,
                       nf, driver);
   }
+  if (kind == "static_buffer" && n <= 7.0) {
+    // The fourth-moment radius of the oldest slot's recursion (estimators/design/buffer_design.cc,
+    // n <= 7): E[F^{x4}] is an n^4 x n^4 matrix, one dense product per sensor, then an eigenvalue
+    // solve (~6 products: 89 s for n = 7 and one sensor on a 2-core Zen 4 guest, where this
+    // formula gives 10 products, 1.4e11 flops). Five states and 1001 sensors: about 7 minutes.
+    const double big = n * n * n * n;
+    bytes += 8.0 * 4.0 * big * big;
+    flops += (2.0 * sensors + 8.0) * big * big * big;
+    key = fmt::format("{} and the {} sensor(s) (the fourth-moment operator is {:.0f} x {:.0f}, one product per sensor)",
+                      driver, sensors, big, big);
+  }
   if (lim.memory_bytes > 0.0 && bytes > lim.memory_bytes) {
     t.fail("kind", fmt::format("the {} design needs an estimated {}, above the memory limit of {} "
                                "(--max-memory); its size is driven by {}",

@@ -2,6 +2,7 @@
 #include "estimators/design/buffer_design.h"
 
 #include <Eigen/Eigenvalues>
+#include <Eigen/QR>
 #include <chrono>
 #include <cmath>
 #include <fmt/format.h>
@@ -168,8 +169,36 @@ Plant stacked(const Plant& p) {
   return s;
 }
 
+Plant compressed(const Plant& plant) {
+  const Eigen::Index n = plant.A.cols();
+  Eigen::Index rows = 0;
+  for (const auto& c : plant.C) rows += c.rows();
+  if (rows <= n) return stacked(plant);
+  // Whitened rows L_i^-1 C_i (R_i = L_i L_i'), one sensor at a time: O(rows n^2) in all.
+  Eigen::MatrixXd W(rows, n);
+  Eigen::Index r = 0;
+  for (std::size_t i = 0; i < plant.C.size(); ++i) {
+    const Eigen::LLT<Eigen::MatrixXd> llt(plant.R[i]);
+    if (llt.info() != Eigen::Success) return stacked(plant);  // R_i singular: no whitening
+    const Eigen::MatrixXd L = llt.matrixL();
+    if (!(L.diagonal().minCoeff() > 1e-12 * L.diagonal().maxCoeff())) return stacked(plant);
+    W.middleRows(r, plant.C[i].rows()) = llt.matrixL().solve(plant.C[i]);
+    r += plant.C[i].rows();
+  }
+  if (!W.allFinite()) return stacked(plant);
+  // W = Q T (thin QR): C' R^-1 C = W' W = T' T, so (T, I) gives the same Phi and the same row space.
+  const Eigen::HouseholderQR<Eigen::MatrixXd> qr(W);
+  Plant s;
+  s.A = plant.A;
+  s.Q = plant.Q;
+  const Eigen::MatrixXd T = qr.matrixQR().topRows(n).triangularView<Eigen::Upper>();
+  s.C = {T};
+  s.R = {Eigen::MatrixXd::Identity(n, n)};
+  return s;
+}
+
 CriticalProbability critical_probability_start(const Plant& plant, Plant& p) {
-  p = plant.sensors() == 1 ? plant : stacked(plant);
+  p = plant.sensors() == 1 ? plant : compressed(plant);
   CriticalProbability cp;
   const Eigen::VectorXcd eig = p.A.eigenvalues();
   double rho = 0.0, prod = 1.0;

@@ -110,7 +110,14 @@ CriticalProbability critical_probability_sdp(const Plant& p, double tolerance = 
 // The sensors' rows stacked into one sensor (for the critical probability).
 Plant stacked(const Plant& p);
 
-// The start of both lambda_c computations: p with its sensors stacked, and a result holding
+// The sensors' rows stacked and, when they outnumber the states and every R_i is positive
+// definite, compressed to n rows with the same information: C_eq = T from the thin QR of the
+// whitened rows [L_1^-1 C_1; ...] = Q T (R_i = L_i L_i'), R_eq = I. C_eq' C_eq = C' R^-1 C, so
+// Phi_lambda is the same map (and the row space, all the SDP sees, the same): lambda_c is
+// unchanged, at a cost independent of the number of sensors (1001 stacked rows took minutes).
+Plant compressed(const Plant& p);
+
+// The start of both lambda_c computations: p with its sensors stacked (compressed), and a result holding
 // the eigenvalue bounds (lower_bound, upper_bound) of A.
 CriticalProbability critical_probability_start(const Plant& plant, Plant& stacked_plant);
 

@@ -106,6 +106,38 @@ TEST(BufferDesign, CriticalProbabilityBySdpAgreesWithBisection) {
   EXPECT_NEAR(buffer::critical_probability_sdp(d).value, 0.9375, 1e-4);
 }
 
+// Issue 29, finding 12: the sensors' rows, stacked for lambda_c, are compressed to n whitened rows
+// with the same information C' R^-1 C: Phi is the same map and lambda_c the same (by bisection
+// and by the SDP) as on the full stack, for sensors with correlated noise and more rows than states.
+TEST(BufferDesign, CompressedStackGivesTheSamePhiAndCriticalProbability) {
+  std::mt19937_64 gen(29);
+  std::normal_distribution<double> N01(0.0, 1.0);
+  for (int r = 0; r < 4; ++r) {
+    buffer::Plant p;
+    const int n = 2 + r % 2;
+    p.A = Eigen::MatrixXd::NullaryExpr(n, n, [&] { return N01(gen); });
+    p.A *= (1.1 + 0.3 * r) / p.A.eigenvalues().cwiseAbs().maxCoeff();
+    p.Q = Eigen::MatrixXd::Identity(n, n);
+    for (int s = 0; s < 3; ++s) {
+      const int rows = 1 + s % 2;
+      p.C.push_back(Eigen::MatrixXd::NullaryExpr(rows, n, [&] { return N01(gen); }));
+      const Eigen::MatrixXd G = Eigen::MatrixXd::NullaryExpr(rows, rows, [&] { return N01(gen); });
+      p.R.push_back(G * G.transpose() + 0.1 * Eigen::MatrixXd::Identity(rows, rows));
+    }
+    const buffer::Plant full = buffer::stacked(p), small = buffer::compressed(p);
+    ASSERT_EQ(small.C.front().rows(), n);
+    const Eigen::MatrixXd P0 = Eigen::MatrixXd::Identity(n, n);
+    for (double lambda : {0.3, 0.9}) {
+      EXPECT_LT((buffer::phi(full, {lambda}, P0) - buffer::phi(small, {lambda}, P0)).norm(), 1e-10) << "plant " << r;
+    }
+    EXPECT_NEAR(buffer::critical_probability_bisection(p).value, buffer::critical_probability_bisection(full).value,
+                1e-6)
+        << "plant " << r;
+    EXPECT_NEAR(buffer::critical_probability_sdp(p).value, buffer::critical_probability_sdp(full).value, 1e-4)
+        << "plant " << r;
+  }
+}
+
 TEST(BufferDesign, StableExactlyForNAbove1MotorAndAbove7Pendulum) {
   for (int N = 1; N <= 16; ++N) {
     EXPECT_EQ(buffer::design_static_gains(example(1.0), {paper_lambda(N)}).stable, N > 1) << "motor N=" << N;
