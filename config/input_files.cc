@@ -17,7 +17,7 @@ namespace {
 thread_local InputFiles* t_recorder = nullptr;
 thread_local std::string t_dir;  // the recording scenario's folder, absolute and normal
 
-constexpr std::uint64_t kFnvBasis = 1469598103934665603ULL;  // FNV-1a 64
+constexpr std::uint64_t kFnvBasis = 0xcbf29ce484222325ULL;  // FNV-1a 64: offset basis
 
 std::uint64_t fnv1a(std::uint64_t h, const char* p, std::size_t n) {
   for (std::size_t i = 0; i < n; ++i) {

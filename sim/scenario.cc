@@ -14,14 +14,7 @@
 
 namespace ncosim::sim {
 
-std::string fnv1a_hex(const std::string& text) {
-  std::uint64_t h = 0xcbf29ce484222325ULL;
-  for (unsigned char c : text) {
-    h ^= c;
-    h *= 0x100000001b3ULL;
-  }
-  return fmt::format("{:016x}", h);
-}
+std::string fnv1a_hex(const std::string& text) { return content_hash(text); }  // config/input_files.h
 
 namespace {
 
