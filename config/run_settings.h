@@ -16,6 +16,7 @@ struct RunSettings {
   std::uint64_t seed = 1;
   double period = 1.0;  // seconds
   std::string recentre = "auto";  // auto | always | never
+  bool error_curve = false;       // the run-averaged error against time (error_curve.csv)
 };
 
 }  // namespace ncosim::sim

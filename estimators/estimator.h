@@ -14,6 +14,7 @@
 
 #include "config/config.h"
 #include "config/registry.h"
+#include "estimators/kalman_update.h"
 #include "models/actuator.h"
 #include "models/link.h"
 #include "models/packet.h"
@@ -91,6 +92,11 @@ class Estimator {
     std::int64_t duplicates = 0;   // samples that arrived again: ignored
   };
   virtual const RunCounters* counters() const { return nullptr; }
+  // Filters whose update whitens an innovation nu with its own covariance S: the normalised
+  // innovations of every update since period 0 (kalman::Innovations), for the consistency check
+  // (NIS); nullptr for the others.
+  using Innovations = kalman::Innovations;
+  virtual const Innovations* innovations() const { return nullptr; }
 };
 
 // Offline part, reported in design.json.

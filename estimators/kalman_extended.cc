@@ -53,7 +53,7 @@ class KalmanExtended final : public Estimator {
       for (Eigen::Index r = 0; r < f.rows; ++r) rows_[m++] = f.row + r;
     }
     kalman::select(ext_.C, ext_.V, window_.values(), rows_.data(), m, ws_);
-    if (!kalman::update(x_, P_, ws_)) {
+    if (!kalman::update(x_, P_, ws_, &innovations_)) {
       failed_ = true;
       return;
     }
@@ -64,6 +64,7 @@ class KalmanExtended final : public Estimator {
   const Eigen::VectorXd* extended() const override { return &x_; }
   const Eigen::MatrixXd* covariance() const override { return &P_; }
   std::string status() const override { return failed_ ? "numerical_failure" : "ok"; }
+  const Innovations* innovations() const override { return &innovations_; }
 
  private:
   const ExtendedModel& ext_;
@@ -72,6 +73,7 @@ class KalmanExtended final : public Estimator {
   Eigen::MatrixXd P_;
   kalman::Workspace ws_;
   std::vector<Eigen::Index> rows_;
+  Innovations innovations_;
   bool failed_ = false;
 };
 

@@ -240,9 +240,14 @@ void apply_pseudo_inverse(Eigen::VectorXd& x, Eigen::MatrixXd& P, const Workspac
   P = 0.5 * (P + P.transpose()).eval();
 }
 
-bool update(Eigen::VectorXd& x, Eigen::MatrixXd& P, Workspace& ws) {
+bool update(Eigen::VectorXd& x, Eigen::MatrixXd& P, Workspace& ws, Innovations* counted) {
   switch (factor(x, P, ws)) {
     case Factor::kOk:
+      if (counted != nullptr) {
+        counted->nis += ws.w.head(ws.m).squaredNorm();
+        counted->dof += ws.m;
+        ++counted->updates;
+      }
       apply(x, P, ws);
       return true;
     case Factor::kNotPositiveDefinite:

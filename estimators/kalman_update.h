@@ -23,6 +23,7 @@
 #pragma once
 
 #include <Eigen/Dense>
+#include <cstdint>
 
 namespace ncosim::est::kalman {
 
@@ -75,6 +76,15 @@ void apply_pseudo_inverse(Eigen::VectorXd& x, Eigen::MatrixXd& P, const Workspac
 // definite, the pseudo-inverse gain when it is only semidefinite (R singular, or P = 0 with
 // R = 0: rows without information get no weight). Returns false, leaving (x, P) untouched, when
 // the innovation or S is not finite.
-bool update(Eigen::VectorXd& x, Eigen::MatrixXd& P, Workspace& ws);
+//
+// With `counted`, a positive definite S also adds its normalised innovation |w|^2 = nu' S^-1 nu
+// (chi-square with m degrees of freedom for a consistent filter) to *counted; the pseudo-inverse
+// path has no such S and adds nothing.
+struct Innovations {
+  double nis = 0.0;          // sum over the counted updates of nu' S^-1 nu
+  std::int64_t dof = 0;      // sum of their rows (the chi-square degrees of freedom)
+  std::int64_t updates = 0;  // updates counted
+};
+bool update(Eigen::VectorXd& x, Eigen::MatrixXd& P, Workspace& ws, Innovations* counted = nullptr);
 
 }  // namespace ncosim::est::kalman

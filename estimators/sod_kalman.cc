@@ -61,7 +61,7 @@ class SodKalman final : public Estimator {
         if (!sent) ws_.R(row, row) += p_.virtual_var(hold_.offset(s) + i);
       }
     }
-    if (!kalman::update(x_, P_, ws_)) {
+    if (!kalman::update(x_, P_, ws_, &innovations_)) {
       failed_ = true;
       return;
     }
@@ -71,6 +71,7 @@ class SodKalman final : public Estimator {
   StateView state() const override { return StateView(x_.data(), x_.size()); }
   const Eigen::MatrixXd* covariance() const override { return &P_; }
   std::string status() const override { return failed_ ? "numerical_failure" : "ok"; }
+  const Innovations* innovations() const override { return &innovations_; }
 
  private:
   // Sensor s takes part in this period's update: a fresh sample, or a held value of a
@@ -86,6 +87,7 @@ class SodKalman final : public Estimator {
   Eigen::MatrixXd P_;
   kalman::Workspace ws_;
   std::vector<Eigen::Index> rows_;
+  Innovations innovations_;
   bool failed_ = false;
 };
 

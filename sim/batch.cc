@@ -577,6 +577,31 @@ struct ExportInfo {
   bool* complete = nullptr;                      // receives manifest.json's `complete`
 };
 
+// The stored error curve of case c restricted to the runs the exports use: runs that the stored
+// curve lacks (a campaign killed between committing its runs and its curve) are simulated again
+// (the realisations are a function of the seed and run index); a curve that holds runs beyond
+// them (--target-ci's stopping point) is rebuilt from those runs alone.
+ErrorCurve error_curve_for(const LoadedScenario& loaded, const RunStore& store, std::size_t c, const CampaignResult& res) {
+  const Scenario& sc = *loaded.cases[c].scenario;
+  ErrorCurve curve = store.curve(c);
+  std::vector<std::uint64_t> covered = curve.runs();
+  std::sort(covered.begin(), covered.end());
+  std::vector<std::uint64_t> used = res.run_ids;
+  std::sort(used.begin(), used.end());
+  if (!std::includes(used.begin(), used.end(), covered.begin(), covered.end())) {
+    curve = ErrorCurve();
+    covered.clear();
+  }
+  std::vector<std::uint64_t> missing;
+  std::set_difference(used.begin(), used.end(), covered.begin(), covered.end(), std::back_inserter(missing));
+  if (!missing.empty()) {
+    ErrorCurve extra = error_curve_of(sc);
+    for (std::uint64_t run : missing) simulate_run(sc, run, nullptr, nullptr, nullptr, &extra);
+    curve.merge(extra);
+  }
+  return curve;
+}
+
 // Every export of the store, built by the functions of sim/output.h from the stored runs.
 std::vector<std::pair<std::string, std::string>> derive_exports(const LoadedScenario& loaded, const RunStore& store,
                                                                 const ExportInfo& info, std::string* markdown) {
@@ -710,12 +735,17 @@ std::vector<std::pair<std::string, std::string>> derive_exports(const LoadedScen
   if (const auto it = art.find("trajectory.csv"); it != art.end()) files.emplace_back("trajectory.csv", it->second);
   const std::string confusion = confusion_csv(loaded.sweeps, rows);
   if (confusion.find('\n') + 1 < confusion.size()) files.emplace_back("confusion.csv", confusion);
+  if (first.run.error_curve) {
+    std::vector<ErrorCurve> curves;
+    for (std::size_t c = 0; c < loaded.cases.size(); ++c) curves.push_back(error_curve_for(loaded, store, c, results[c]));
+    files.emplace_back("error_curve.csv", error_curve_csv(loaded.sweeps, labels, scs, curves));
+  }
   if (markdown != nullptr) *markdown = std::move(md);
   return files;
 }
 
 // Exports that a set may lack (dropped when the new set does not write them).
-const std::vector<std::string> kStale{"trajectory.csv", "confusion.csv", "links.csv"};
+const std::vector<std::string> kStale{"trajectory.csv", "confusion.csv", "links.csv", "error_curve.csv"};
 // Files derived from a campaign's results by `ncosim plot` and `ncosim report`: dropped when a set
 // describes other results than the folder's (a new campaign, a merge, an export from elsewhere).
 const std::vector<std::string> kDerived{"plot_*", "trace.dat", "trace.gp", "trace.png", "trace.svg", "report.html"};
@@ -1029,6 +1059,9 @@ void run_case_batch(RunSession& session, StoreSink& sink, std::size_t c, std::ui
   };
   CampaignResult res = session.mpi ? session.mpi->run(sc, c, opt) : run_campaign(sc, opt);
   sink.flush();
+  // After its runs are committed: a kill in between leaves runs that the stored curve lacks,
+  // which the export simulates again (error_curve_for).
+  if (!res.curve.empty()) sink.with_store([&](RunStore& s) { s.add_curve(c, res.curve); });
   session.totals.wall += res.wall_seconds;
   session.totals.threads = res.threads;
   session.totals.simulated += res.runs_done;
@@ -1308,6 +1341,7 @@ void merge_case(ShardStores& shards, RunStore& merged, const Scenario& sc, std::
     }
   }
   merged.put_runs(batch);
+  for (auto& store : shards.stores) merged.add_curve(c, store.curve(c));
   std::vector<double> ns(sc.estimators.size(), std::nan(""));
   for (auto& store : shards.stores) {
     const auto t = store.timing(c, sc.estimators.size());

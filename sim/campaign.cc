@@ -121,10 +121,16 @@ void keep_completed(const std::vector<std::uint64_t>& todo, const std::vector<ch
 
 }  // namespace
 
+ErrorCurve error_curve_of(const Scenario& sc) {
+  return ErrorCurve(sc.run.periods, sc.estimators.size(), sc.model.plant.n());
+}
+
 RunMetrics simulate_run(const Scenario& sc, std::uint64_t run, std::vector<TraceRow>* trace,
-                        std::vector<double>* ns_per_period, std::vector<models::LinkCounters>* links) {
+                        std::vector<double>* ns_per_period, std::vector<models::LinkCounters>* links,
+                        ErrorCurve* curve) {
   ReplayLog log;
-  RunMetrics m = execute_run(sc, run, trace, ns_per_period != nullptr ? &log : nullptr, links);
+  RunMetrics m = execute_run(sc, run, trace, ns_per_period != nullptr ? &log : nullptr, links, curve);
+  if (curve != nullptr) curve->add_run(run);
   if (ns_per_period != nullptr) *ns_per_period = time_estimators(sc, log, std::chrono::milliseconds(200));
   return m;
 }
@@ -163,8 +169,16 @@ CampaignResult run_campaign(const Scenario& sc, const CampaignOptions& options) 
   std::mutex error_mutex, sink_mutex;
   std::atomic<bool> failed{false};
   std::vector<char> completed(keep ? runs : 0, 0);
+  // [run] error_curve: one curve per thread (allocated by the thread), summed after the join.
+  std::vector<ErrorCurve> curves(static_cast<std::size_t>(threads));
+  std::atomic<std::size_t> slots{0};
   auto stop_requested = [&] { return options.stop != nullptr && options.stop->load() != 0; };
   auto worker = [&] {
+    ErrorCurve* curve = nullptr;
+    if (sc.run.error_curve) {
+      curve = &curves[slots.fetch_add(1)];
+      *curve = error_curve_of(sc);
+    }
     while (true) {
       if (stop_requested()) return;
       const std::size_t i = next.fetch_add(1);
@@ -174,7 +188,8 @@ CampaignResult run_campaign(const Scenario& sc, const CampaignOptions& options) 
         ReplayLog* lg = i == 0 && options.time_estimators ? &log : nullptr;
         RunLinks links;
         RunMetrics m = execute_run(sc, r, r == 0 && options.trace ? &result.trace : nullptr, lg,
-                                   options.link_counters ? &links : nullptr);
+                                   options.link_counters ? &links : nullptr, curve);
+        if (curve != nullptr) curve->add_run(r);
         if (keep) {
           result.runs[i] = std::move(m);
           if (options.link_counters) result.link_runs[i] = std::move(links);
@@ -200,6 +215,7 @@ CampaignResult run_campaign(const Scenario& sc, const CampaignOptions& options) 
     for (auto& t : pool) t.join();
   }
   if (error) std::rethrow_exception(error);
+  for (const ErrorCurve& c : curves) result.curve.merge(c);
   result.runs_done = done.load();
   result.stopped = result.runs_done < runs;
   if (keep && result.stopped) keep_completed(todo, completed, options.link_counters, result);

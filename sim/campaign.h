@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "models/link_stats.h"
+#include "sim/error_curve.h"
 #include "sim/scenario.h"
 
 namespace ncosim::sim {
@@ -38,6 +39,14 @@ struct EstimatorRunMetrics {
   std::vector<std::int64_t> confusion;
   // FLOPs spent and packet bookkeeping, for estimators that count them (kalman_buffer).
   std::optional<est::Estimator::RunCounters> counters;
+  // Filter consistency over k >= warmup (results/README.md, "nees and nis"): for estimators with
+  // a covariance, the sum of e' P^-1 e (e = x - xhat, P the state block of covariance()) over the
+  // periods where P is positive definite, and their count; for estimators with innovations
+  // (est::Estimator::innovations), the sums over the updates of those periods.
+  double nees = 0.0;
+  std::int64_t nees_count = 0;
+  double nis = 0.0;
+  std::int64_t nis_dof = 0, nis_count = 0;
 };
 
 inline constexpr int kMaxConfusionModes = 64;
@@ -90,13 +99,18 @@ struct CampaignResult {
   std::vector<RunLinks> link_runs;
   double wall_seconds = 0.0;
   int threads = 1;
+  // [run] error_curve: the runs completed by this call, summed (sim/error_curve.h); else empty.
+  ErrorCurve curve;
 };
 
 // Simulates run `run` of the scenario. `trace` (optional) receives run 0's rows.
 // `links` (optional) receives the run's link counters, one per flow (sim/link_stats.h).
+// `curve` (optional, of the scenario's shape: error_curve_of) receives the run's errors.
 RunMetrics simulate_run(const Scenario& sc, std::uint64_t run, std::vector<TraceRow>* trace = nullptr,
                         std::vector<double>* ns_per_period = nullptr,
-                        RunLinks* links = nullptr);
+                        RunLinks* links = nullptr, ErrorCurve* curve = nullptr);
+// An empty error curve of the scenario's shape (periods x estimators x plant states).
+ErrorCurve error_curve_of(const Scenario& sc);
 
 CampaignResult run_campaign(const Scenario& sc, const CampaignOptions& options);
 

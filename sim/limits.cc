@@ -6,6 +6,7 @@
 #include <cmath>
 #include <iostream>
 #include <mutex>
+#include <thread>
 
 #include "lmi/limits.h"
 
@@ -164,6 +165,24 @@ void check_campaign_resources(const std::string& file, int line, std::int64_t ru
         fmt::format("the campaign keeps per-run results of {} runs x {} case(s) x {} estimator(s): an estimated {}, "
                     "above the memory limit of {} (--max-memory)",
                     runs, cases, estimators, human_bytes(bytes), human_bytes(lim.memory_bytes))));
+  }
+}
+
+void check_error_curve_resources(const std::string& file, int line, std::int64_t periods, std::size_t estimators,
+                                 std::int64_t states) {
+  const ResourceLimits& lim = resource_limits();
+  // 16 bytes a cell (a compensated sum: hi and lo), n + 1 cells per period and estimator, in one
+  // copy per worker thread plus the merged one and the stored one it is added to.
+  const double copies = static_cast<double>(std::max(1U, std::thread::hardware_concurrency())) + 2.0;
+  const double bytes = 16.0 * static_cast<double>(periods) * static_cast<double>(estimators) *
+                       static_cast<double>(states + 1) * copies;
+  if (lim.memory_bytes > 0.0 && bytes > lim.memory_bytes) {
+    throw ScenarioError(format_error(
+        file, line, "run.error_curve",
+        fmt::format("the error curve keeps {} periods x {} estimator(s) x {} cells in {:.0f} copies (one per thread, "
+                    "their sum, the stored one): an estimated {}, above the memory limit of {} (--max-memory); "
+                    "fewer periods, or error_curve = false",
+                    periods, estimators, states + 1, copies, human_bytes(bytes), human_bytes(lim.memory_bytes))));
   }
 }
 

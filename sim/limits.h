@@ -47,6 +47,11 @@ std::function<void(const lmi::SolveEstimate&)> large_solve_note(const Table& t, 
 void check_campaign_resources(const std::string& file, int line, std::int64_t runs, std::size_t cases,
                               std::size_t estimators, std::int64_t states, std::size_t sensors);
 
+// [run] error_curve = true: the curve of every period, estimator and state, in one copy per worker
+// thread, their sum and the stored copy it is merged with. Throws ScenarioError at run.error_curve.
+void check_error_curve_resources(const std::string& file, int line, std::int64_t periods, std::size_t estimators,
+                                 std::int64_t states);
+
 // Before a trace link (kind = "trace") is used: every run counts the delivered packets per delay
 // up to the trace's largest delay `delay` (links.csv's delay histogram, kept per run and in the
 // run store), so memory grows with the delay times the runs. Throws ScenarioError at the

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <map>
 #include <mutex>
 #include <stdexcept>
 #include <string>
@@ -44,6 +45,8 @@ constexpr int kResult = 2;  // worker -> rank 0: 8 bytes case, 8 bytes run, 8 by
                             // serialized metrics, the serialized link counters (empty: not counted)
 constexpr int kError = 3;   // worker -> rank 0: what failed
 constexpr int kStop = 4;    // rank 0 -> worker: no more work
+constexpr int kCurve = 5;   // rank 0 -> worker: {case}; the reply: its error curve of that case
+                            // (serialized, empty when none), which it then starts afresh
 
 void put_u64(std::string& s, std::uint64_t v) {
   for (int i = 0; i < 8; ++i) s.push_back(static_cast<char>((v >> (8 * i)) & 0xFF));
@@ -122,13 +125,22 @@ CampaignResult MpiSession::run(const Scenario& sc, std::size_t case_index, const
     options.on_run(run, std::move(m), std::move(links));
     done.fetch_add(1);
   };
+  // [run] error_curve: one curve per local thread; the worker ranks' curves are collected after
+  // the case (kCurve), so the result covers exactly the runs delivered.
+  std::vector<ErrorCurve> curves(static_cast<std::size_t>(threads));
+  std::atomic<std::size_t> slots{0};
   auto local = [&] {
+    ErrorCurve* curve = nullptr;
+    if (sc.run.error_curve) {
+      curve = &curves[slots.fetch_add(1)];
+      *curve = error_curve_of(sc);
+    }
     while (!stop_requested()) {
       const std::size_t i = next.fetch_add(1);
       if (i >= n) return;
       try {
         RunLinks links;
-        RunMetrics m = simulate_run(sc, todo[i], nullptr, nullptr, options.link_counters ? &links : nullptr);
+        RunMetrics m = simulate_run(sc, todo[i], nullptr, nullptr, options.link_counters ? &links : nullptr, curve);
         deliver(todo[i], std::move(m), std::move(links));
       } catch (...) {
         std::lock_guard<std::mutex> lock(error_mutex);
@@ -191,6 +203,15 @@ CampaignResult MpiSession::run(const Scenario& sc, std::size_t case_index, const
   }
   for (auto& t : pool) t.join();
   if (error) std::rethrow_exception(error);
+  if (sc.run.error_curve) {
+    for (const ErrorCurve& c : curves) result.curve.merge(c);
+    for (int w = 1; w < world.size(); ++w) {
+      world.send(w, kCurve, static_cast<std::uint64_t>(case_index));
+      std::string blob;
+      world.recv(w, kCurve, blob);
+      if (!blob.empty()) result.curve.merge(ErrorCurve::deserialize(blob));
+    }
+  }
   result.runs_done = done.load();
   result.stopped = result.runs_done < n;
   result.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -201,6 +222,7 @@ CampaignResult MpiSession::run(const Scenario& sc, std::size_t case_index, const
 
 void MpiSession::serve(const std::vector<const Scenario*>& cases) {
   auto& world = impl_->world;
+  std::map<std::uint64_t, ErrorCurve> curves;  // per case: the runs of this rank ([run] error_curve)
   while (true) {
     auto st = world.iprobe(0, boost::mpi::any_tag);
     if (!st) {
@@ -211,12 +233,27 @@ void MpiSession::serve(const std::vector<const Scenario*>& cases) {
       world.recv(0, kStop, impl_->exit_code);
       return;
     }
+    if (st->tag() == kCurve) {
+      std::uint64_t c = 0;
+      world.recv(0, kCurve, c);
+      const auto it = curves.find(c);
+      world.send(0, kCurve, it == curves.end() ? std::string() : it->second.serialize());
+      if (it != curves.end()) curves.erase(it);
+      continue;
+    }
     std::vector<std::uint64_t> work;
     world.recv(0, kWork, work);
     try {
       if (work.size() != 3 || work[0] >= cases.size()) throw std::runtime_error("malformed work message");
       RunLinks links;
-      const RunMetrics m = simulate_run(*cases[work[0]], work[1], nullptr, nullptr, work[2] != 0 ? &links : nullptr);
+      const Scenario& sc = *cases[work[0]];
+      ErrorCurve* curve = nullptr;
+      if (sc.run.error_curve) {
+        auto [it, fresh] = curves.try_emplace(work[0]);
+        if (fresh) it->second = error_curve_of(sc);
+        curve = &it->second;
+      }
+      const RunMetrics m = simulate_run(sc, work[1], nullptr, nullptr, work[2] != 0 ? &links : nullptr, curve);
       std::string msg;
       put_u64(msg, work[0]);
       put_u64(msg, work[1]);

@@ -38,6 +38,16 @@ std::optional<double> finite(double v) {
   return v;
 }
 
+void add_consistency(ConsistencySums& s, const EstimatorRunMetrics& m) {
+  if (m.diverged) return;
+  s.nees += m.nees;
+  s.nees_count += m.nees_count;
+  if (m.nees_count > 0) ++s.nees_runs;
+  s.nis += m.nis;
+  s.nis_dof += m.nis_dof;
+  s.nis_count += m.nis_count;
+}
+
 double mean_of(const std::vector<double>& v) {
   double s = 0.0;
   for (double x : v) s += x;
@@ -65,8 +75,10 @@ std::vector<SummaryRow> summarise(const Scenario& sc, const CampaignResult& resu
     double flops = 0.0, flop_periods = 0.0;
     const std::string design_status = rep.status == "ok" ? "ok" : "design_" + rep.status;
     std::string run_status = "ok";  // the first non-ok status of a run that did not diverge
+    ConsistencySums consistency;
     for (const auto& run : result.runs) {
       const EstimatorRunMetrics& m = run[e];
+      add_consistency(consistency, m);
       used += m.samples_used;
       taken += m.samples_taken;
       if (m.counters) {
@@ -141,6 +153,11 @@ std::vector<SummaryRow> summarise(const Scenario& sc, const CampaignResult& resu
       row.per_run.run.push_back(r < result.run_ids.size() ? result.run_ids[r] : r);
     }
     row.model_check = model_check_note(sc, e, row);
+    if (diverged == 0) {
+      row.nees = nees_stat(consistency, n);
+      row.nis = nis_stat(consistency);
+      row.consistency = consistency_note(row.nees, row.nis);
+    }
     rows.push_back(std::move(row));
   }
   add_paired_within(rows, reference_estimator_index(sc));
@@ -175,6 +192,7 @@ std::vector<std::string> summary_columns(const std::vector<SweepAxis>& sweeps, E
   for (Eigen::Index i = 0; i < n; ++i) cols.push_back(fmt::format("ermse_x{}_ci95", i + 1));
   for (auto& c : paired_column_names(!sweeps.empty())) cols.push_back(std::move(c));
   cols.emplace_back("model_check");
+  for (const char* c : {"nees", "nees_lo", "nees_hi", "nis", "nis_lo", "nis_hi", "consistency"}) cols.push_back(c);
   return cols;
 }
 
@@ -205,6 +223,12 @@ std::vector<std::string> row_cells(const SummaryRow& r) {
   for (const auto& v : r.ermse_ci95) cells.push_back(fmt_number(v));
   for (auto& c : paired_cells(r.paired, !r.sweep_labels.empty())) cells.push_back(std::move(c));
   cells.push_back(r.model_check);
+  for (const auto& st : {r.nees, r.nis}) {
+    cells.push_back(st ? fmt_number(st->mean) : "");
+    cells.push_back(st ? fmt_number(st->lo) : "");
+    cells.push_back(st ? fmt_number(st->hi) : "");
+  }
+  cells.push_back(r.consistency);
   return cells;
 }
 
@@ -351,7 +375,7 @@ std::string runs_csv(const std::vector<SweepAxis>& sweeps, const std::vector<std
   out += "run,estimator,mse,mse_ext,periods,samples_used,samples_taken,diverged,status,flops_mean,late_samples,"
          "duplicate_samples,mde_percent";
   for (Eigen::Index i = 0; i < n; ++i) out += fmt::format(",rmse_x{}", i + 1);
-  out += "\n";
+  out += ",nees,nis\n";
   for (std::size_t c = 0; c < scenarios.size(); ++c) {
     const Scenario& sc = *scenarios[c];
     for (std::size_t r = 0; r < results[c]->runs.size(); ++r) {
@@ -375,6 +399,9 @@ std::string runs_csv(const std::vector<SweepAxis>& sweeps, const std::vector<std
           out += "," + (ok ? fmt_number(std::sqrt(m.sse_state[static_cast<std::size_t>(i)] / static_cast<double>(m.count)))
                            : std::string());
         }
+        // The run's average NEES per period and NIS per update (sim/consistency.h).
+        out += "," + (ok && m.nees_count > 0 ? fmt_number(m.nees / static_cast<double>(m.nees_count)) : std::string());
+        out += "," + (ok && m.nis_count > 0 ? fmt_number(m.nis / static_cast<double>(m.nis_count)) : std::string());
         out += "\n";
       }
     }

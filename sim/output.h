@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "sim/campaign.h"
+#include "sim/consistency.h"
 #include "sim/paired.h"
 #include "sim/scenario.h"
 
@@ -43,7 +44,11 @@ struct SummaryRow {
   // After the ermse columns: paired differences against the reference (sim/paired.h).
   PairedColumns paired;
   PerRunValues per_run;  // the per-run values the paired columns use (not written)
-  std::string model_check;  // last column: the prediction against the simulation (sim/validity.h)
+  std::string model_check;  // the prediction against the simulation (sim/validity.h)
+  // After model_check (appended): filter consistency (sim/consistency.h), for estimators with a
+  // covariance (NEES) or innovations (NIS); `consistency` is "ok" or what is out of bounds.
+  std::optional<ConsistencyStat> nees, nis;
+  std::string consistency;
 };
 
 // Half-width of the 95% confidence interval of the mean of `values` (Student t, n-1
@@ -71,6 +76,10 @@ std::string transmissions_csv(const std::vector<SweepAxis>& sweeps, const std::v
                               const std::vector<const Scenario*>& scenarios,
                               const std::vector<const CampaignResult*>& results);
 std::string trajectory_csv(const Scenario& sc, const std::vector<TraceRow>& trace);
+// error_curve.csv ([run] error_curve): per case, estimator and period, the run-averaged squared
+// error with its 95 % CI half-width and per state (sim/error_curve.h); curves[c] of case c.
+std::string error_curve_csv(const std::vector<SweepAxis>& sweeps, const std::vector<std::vector<std::string>>& labels,
+                            const std::vector<const Scenario*>& scenarios, const std::vector<ErrorCurve>& curves);
 
 // Writes every (name, content) as the new result set of `dir`, atomically as a whole (a sibling
 // folder fsynced and swapped in; see sim/output_set.h). Creates `dir` if needed. Throws

@@ -705,6 +705,13 @@ Figure trace_figure(const std::string& dir, const PlotOptions& opt) {
 
 }  // namespace
 
+std::string gnuplot_script(const std::string& name, const std::string& what, int width, int height,
+                           const std::string& body) {
+  return script(name, what, width, height, body);
+}
+
+std::string gnuplot_colour(std::size_t e) { return colour_of(e); }
+
 FigureKind summary_figure_kind(const CsvTable& summary, const PlotOptions& opt) {
   Summary s;
   s.t = summary;
@@ -729,6 +736,7 @@ std::vector<Figure> build_figures(const std::string& dir, const PlotOptions& opt
     out.push_back(summary_figure(dir, s, po));
   }
   if (opt.trace) out.push_back(trace_figure(dir, opt));
+  if (auto curve = error_curve_figure(dir)) out.push_back(std::move(*curve));
   return out;
 }
 

@@ -6,6 +6,7 @@
 // unknown metric or key) is a ScenarioError; a failing gnuplot is a std::runtime_error.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -51,6 +52,17 @@ std::vector<Figure> build_figures(const std::string& dir, const PlotOptions& opt
 // Returns the image paths written.
 std::vector<std::string> render_figures(const std::string& dir, const std::vector<Figure>& figures,
                                         const std::vector<std::string>& formats);
+
+// The error-curve figure (`plot_error_curve`) of a folder with error_curve.csv ([run] error_curve):
+// per estimator the run-averaged squared error against time, its 95 % band shaded; one panel per
+// case (at most six). nullopt when the folder has no error_curve.csv. (sim/plot_curve.cc)
+std::optional<Figure> error_curve_figure(const std::string& dir);
+
+// The gnuplot script of figure `name` around `body` (one pass per output format), and the line
+// colour of the e-th series: shared by every figure of `ncosim plot`.
+std::string gnuplot_script(const std::string& name, const std::string& what, int width, int height,
+                           const std::string& body);
+std::string gnuplot_colour(std::size_t e);
 
 // Quoted gnuplot string literal (single quotes, '' for a quote; line breaks become spaces).
 std::string gnuplot_quote(const std::string& s);

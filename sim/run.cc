@@ -83,14 +83,14 @@ class ActuationPath {
 class RunSimulation {
  public:
   RunSimulation(const Scenario& sc, std::uint64_t run, std::vector<TraceRow>* trace, ReplayLog* log,
-                std::vector<models::LinkCounters>* link_counters)
+                std::vector<models::LinkCounters>* link_counters, ErrorCurve* curve)
       : sc_(sc),
         period_ns_(seconds_to_time(sc.run.period)),
         log_(log),
         link_out_(link_counters),
         mobility_(sc.mobility ? sc.mobility->start(run) : nullptr),
         actuation_(sc, run),
-        recorder_(sc, estimators_, trace),
+        recorder_(sc, estimators_, trace, curve),
         open_handler_(this),
         arrival_handler_(this),
         close_handler_(this) {
@@ -352,8 +352,8 @@ class RunSimulation {
 }  // namespace
 
 RunMetrics execute_run(const Scenario& sc, std::uint64_t run, std::vector<TraceRow>* trace, ReplayLog* log,
-                       std::vector<models::LinkCounters>* links) {
-  RunSimulation sim(sc, run, trace, log, links);
+                       std::vector<models::LinkCounters>* links, ErrorCurve* curve) {
+  RunSimulation sim(sc, run, trace, log, links, curve);
   return sim.execute();
 }
 

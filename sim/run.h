@@ -27,9 +27,10 @@ struct ReplayLog {
   std::size_t limit = kReplayPeriods;     // periods logged
 };
 
-// Simulates run `run`; `trace`, `log` and `links` are optional outputs.
+// Simulates run `run`; `trace`, `log`, `links` and `curve` (the error curve the run's errors are
+// added to) are optional outputs.
 RunMetrics execute_run(const Scenario& sc, std::uint64_t run, std::vector<TraceRow>* trace, ReplayLog* log,
-                       std::vector<models::LinkCounters>* links);
+                       std::vector<models::LinkCounters>* links, ErrorCurve* curve = nullptr);
 
 // Replays a logged run into a fresh instance of each estimator and times it alone: the median
 // over repetitions of (wall time / periods). At least one repetition, at most 15, more only

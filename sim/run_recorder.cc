@@ -13,14 +13,19 @@ constexpr double kPrecisionLimit = 1e10;
 
 }  // namespace
 
-RunRecorder::RunRecorder(const Scenario& sc, const Estimators& estimators, std::vector<TraceRow>* trace)
+RunRecorder::RunRecorder(const Scenario& sc, const Estimators& estimators, std::vector<TraceRow>* trace,
+                         ErrorCurve* curve)
     : sc_(sc),
       estimators_(estimators),
       trace_(trace),
+      curve_(curve),
       warmup_(sc.run.warmup),
       mode_count_(sc.model.mode_count()),
       arrivals_(sc.model.sensors.size(), 0),
-      err_(sc.model.plant.n()) {
+      err_(sc.model.plant.n()),
+      llt_(sc.model.plant.n()),
+      whitened_(sc.model.plant.n()),
+      nis_start_(sc.estimators.size()) {
   const Eigen::Index n = sc.model.plant.n();
   int max_ext_blocks = 1;
   for (const auto& e : sc.estimators) {
@@ -73,12 +78,22 @@ void RunRecorder::on_period(std::int64_t k, const Eigen::VectorXd& x, int true_m
   // |x| > 1e10: x - xhat has lost 10 of its 16 significant digits to rounding (an unstable
   // plant left without feedback or re-centring); the errors are no longer trustworthy.
   if (!precision_lost_ && x.cwiseAbs().maxCoeff() > kPrecisionLimit) precision_lost_ = true;
-  if (k < warmup_) return;
+  if (k == warmup_ - 1) {  // the innovations counted from here on are those of k >= warmup
+    for (std::size_t e = 0; e < estimators_.size(); ++e) {
+      if (const auto* in = estimators_[e]->innovations()) nis_start_[e] = *in;
+    }
+  }
+  const bool scored = k >= warmup_;
+  if (!scored && curve_ == nullptr) return;
   const Eigen::Index n = x.size();
   for (std::size_t e = 0; e < estimators_.size(); ++e) {
     EstimatorRunMetrics& m = metrics_[e];
-    if (m.diverged) continue;
+    if (m.diverged && curve_ == nullptr) continue;
     err_ = x - estimators_[e]->state();
+    // The error curve takes every period from k = 0 (the start-up transient is the point) and
+    // every estimator, diverged or not (its cells become non-finite: empty in the file).
+    if (curve_ != nullptr) curve_->add(k, e, err_.data());
+    if (!scored || m.diverged) continue;
     const double e2 = err_.squaredNorm();
     double e2_ext = e2;
     if (const Eigen::VectorXd* xb = estimators_[e]->extended()) {
@@ -94,8 +109,9 @@ void RunRecorder::on_period(std::int64_t k, const Eigen::VectorXd& x, int true_m
     m.sse_ext += e2_ext;
     for (Eigen::Index i = 0; i < n; ++i) m.sse_state[static_cast<std::size_t>(i)] += err_(i) * err_(i);
     ++m.count;
+    score_consistency(m, *estimators_[e], n);
   }
-  if (k >= 1) score_modes(true_mode);
+  if (scored && k >= 1) score_modes(true_mode);
 }
 
 void RunRecorder::trace_row(std::int64_t k, const Eigen::VectorXd& x, int true_mode, const Eigen::VectorXd& u,
@@ -118,6 +134,21 @@ void RunRecorder::trace_row(std::int64_t k, const Eigen::VectorXd& x, int true_m
   }
   row.reference = reference;
   trace_->push_back(std::move(row));
+}
+
+// NEES of period k: e' P^-1 e = |L^-1 e|^2 with P = L L' the state block of the estimator's own
+// covariance; a P that is not positive definite (e.g. P0 = 0 before the first packet) is skipped.
+void RunRecorder::score_consistency(EstimatorRunMetrics& m, const est::Estimator& e, Eigen::Index n) {
+  const Eigen::MatrixXd* P = e.covariance();
+  if (P == nullptr) return;
+  llt_.compute(P->topLeftCorner(n, n));
+  if (llt_.info() != Eigen::Success) return;
+  whitened_ = err_;
+  llt_.matrixL().solveInPlace(whitened_);
+  const double nees = whitened_.squaredNorm();
+  if (!std::isfinite(nees)) return;
+  m.nees += nees;
+  ++m.nees_count;
 }
 
 // Mode detection (Moayedi et al. eq. 27a-b): after the update of period k >= 1, each mode
@@ -144,6 +175,11 @@ RunMetrics RunRecorder::finish() {
     metrics_[e].sensor_virtual_sse = sensors_.sensor_virtual_sse;
     metrics_[e].status = estimators_[e]->status();
     if (const auto* c = estimators_[e]->counters()) metrics_[e].counters = *c;
+    if (const auto* in = estimators_[e]->innovations(); in != nullptr && !metrics_[e].diverged) {
+      metrics_[e].nis = in->nis - nis_start_[e].nis;
+      metrics_[e].nis_dof = in->dof - nis_start_[e].dof;
+      metrics_[e].nis_count = in->updates - nis_start_[e].updates;
+    }
     if (precision_lost_ && metrics_[e].status == "ok") metrics_[e].status = "precision_lost";
   }
   return std::move(metrics_);

@@ -15,7 +15,8 @@ namespace ncosim::sim {
 class RunRecorder {
  public:
   using Estimators = std::vector<std::unique_ptr<est::Estimator>>;
-  RunRecorder(const Scenario& sc, const Estimators& estimators, std::vector<TraceRow>* trace);
+  // `curve` (optional): the error curve every period's errors are added to ([run] error_curve).
+  RunRecorder(const Scenario& sc, const Estimators& estimators, std::vector<TraceRow>* trace, ErrorCurve* curve = nullptr);
 
   // The true state moved to x[k] (k = 0: the plant's first state, every history slot).
   void on_state(std::int64_t k, const Eigen::VectorXd& x);
@@ -35,15 +36,20 @@ class RunRecorder {
  private:
   void trace_row(std::int64_t k, const Eigen::VectorXd& x, int true_mode, const Eigen::VectorXd& u, double reference);
   void score_modes(int true_mode);
+  void score_consistency(EstimatorRunMetrics& m, const est::Estimator& e, Eigen::Index n);
 
   const Scenario& sc_;
   const Estimators& estimators_;
   std::vector<TraceRow>* trace_;
+  ErrorCurve* curve_;
   std::int64_t warmup_;
   int mode_count_;
   std::vector<Eigen::VectorXd> history_;  // true x[k], x[k-1], ... (x[-j] = x0)
   std::vector<int> arrivals_;             // per sensor, this period
   Eigen::VectorXd err_;
+  Eigen::LLT<Eigen::MatrixXd> llt_;  // of the state block of an estimator's covariance (NEES)
+  Eigen::VectorXd whitened_;         // L^-1 err_
+  std::vector<est::Estimator::Innovations> nis_start_;  // per estimator: at the end of warm-up
   bool precision_lost_ = false;
   RunMetrics metrics_;
   EstimatorRunMetrics sensors_;  // only the sensor counts: the same for every estimator

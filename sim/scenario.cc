@@ -52,6 +52,10 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
     const auto rt = root.opt_table("run");
     check_campaign_resources(file, rt ? rt->line_of("runs") : 1, sc->run.runs, 1, sc->estimators.size(),
                              sc->model.plant.n(), sc->model.sensors.size());  // sim/limits.h
+    if (sc->run.error_curve) {
+      check_error_curve_resources(file, rt ? rt->line_of("error_curve") : 1, sc->run.periods, sc->estimators.size(),
+                                  sc->model.plant.n());
+    }
   }
   sc->paired = read_paired(root, doc, *sc);
   root.finish();

@@ -65,6 +65,7 @@ RunSettings read_run(const Table& root) {
                                   r.periods, r.period));
   }
   r.recentre = t->choice_or("recentre", "auto", {"auto", "always", "never"});
+  r.error_curve = t->boolean_or("error_curve", false);
   t->finish();
   return r;
 }

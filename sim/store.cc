@@ -18,12 +18,12 @@ namespace ncosim::sim {
 
 // Whoever adds a field to EstimatorRunMetrics must add it to serialize_run/deserialize_run
 // (and bump kRunBlobFormat), or stored campaigns would silently lose it on export, resume and merge.
-static_assert(sizeof(EstimatorRunMetrics) == 264 || sizeof(void*) != 8,
+static_assert(sizeof(EstimatorRunMetrics) == 304 || sizeof(void*) != 8,
               "EstimatorRunMetrics changed: update serialize_run/deserialize_run in sim/store.cc");
 
 namespace {
 
-constexpr std::uint32_t kRunBlobFormat = 1;  // version of the run blob
+constexpr std::uint32_t kRunBlobFormat = 2;  // version of the run blob (2: NEES and NIS sums)
 constexpr std::uint32_t kLinksFormat = 1;  // version of the link counters blob
 
 class Writer {
@@ -180,6 +180,12 @@ constexpr const char* kLinkTable =
     "CREATE TABLE IF NOT EXISTS link_runs (case_index INTEGER NOT NULL, run INTEGER NOT NULL, "
     "counters BLOB NOT NULL, checksum INTEGER NOT NULL, PRIMARY KEY (case_index, run)) WITHOUT ROWID;";
 
+// Per case: the run-averaged error against time ([run] error_curve, sim/error_curve.h), summed
+// over the runs it names. Created by the first add_curve (absent from stores written before it).
+constexpr const char* kCurveTable =
+    "CREATE TABLE IF NOT EXISTS curves (case_index INTEGER NOT NULL PRIMARY KEY, curve BLOB NOT NULL, "
+    "checksum INTEGER NOT NULL);";
+
 // CRC-32 (boost::crc_32_type) of a row: a tag naming the table, the key as 8-byte little-endian
 // integers and the content. A changed byte anywhere in the row changes it.
 class RowSum {
@@ -211,6 +217,7 @@ std::int64_t timing_sum(std::int64_t c, std::int64_t e, double ns) {
   if (ns == 0.0) ns = 0.0;  // SQLite reads -0.0 back as +0.0
   return RowSum('t').key(c).key(e).key(std::isfinite(ns) ? static_cast<std::int64_t>(std::bit_cast<std::uint64_t>(ns)) : -1).value();
 }
+std::int64_t curve_sum(std::int64_t c, const std::string& blob) { return RowSum('c').key(c).bytes(blob).value(); }
 std::int64_t artifact_sum(const std::string& name, const std::string& content) {
   return RowSum('a').bytes(name).bytes(content).value();
 }
@@ -247,6 +254,11 @@ std::string serialize_run(const RunMetrics& run) {
       w.i64(m.counters->late);
       w.i64(m.counters->duplicates);
     }
+    w.f64(m.nees);
+    w.i64(m.nees_count);
+    w.f64(m.nis);
+    w.i64(m.nis_dof);
+    w.i64(m.nis_count);
   }
   return w.take();
 }
@@ -254,9 +266,9 @@ std::string serialize_run(const RunMetrics& run) {
 RunMetrics deserialize_run(const std::string& blob) {
   Reader r(blob);
   const std::int64_t format = r.i64();
-  if (format != kRunBlobFormat) {
+  if (format < 1 || format > kRunBlobFormat) {  // format 1 has no NEES/NIS sums (counts 0: no column)
     throw StoreError(
-        fmt::format("run store: run record format {} (this ncosim reads format {})", format, kRunBlobFormat));
+        fmt::format("run store: run record format {} (this ncosim reads formats 1 to {})", format, kRunBlobFormat));
   }
   RunMetrics run(r.size());
   for (EstimatorRunMetrics& m : run) {
@@ -283,6 +295,13 @@ RunMetrics deserialize_run(const std::string& blob) {
       c.late = r.i64();
       c.duplicates = r.i64();
       m.counters = c;
+    }
+    if (format >= 2) {
+      m.nees = r.f64();
+      m.nees_count = r.i64();
+      m.nis = r.f64();
+      m.nis_dof = r.i64();
+      m.nis_count = r.i64();
     }
   }
   if (!r.at_end()) throw StoreError("run store: corrupt run record (trailing bytes)");
@@ -667,6 +686,41 @@ std::vector<double> RunStore::timing(std::size_t case_index, std::size_t estimat
     if (e < out.size()) out[e] = st.f64(1);
   }
   return out;
+}
+
+void RunStore::add_curve(std::size_t case_index, const ErrorCurve& curve) {
+  if (curve.empty()) return;
+  exec("BEGIN");
+  try {
+    exec(kCurveTable);
+    ErrorCurve merged = this->curve(case_index);
+    merged.merge(curve);
+    const auto c = static_cast<std::int64_t>(case_index);
+    const std::string blob = merged.serialize();
+    Stmt st(db_, "INSERT OR REPLACE INTO curves (case_index, curve, checksum) VALUES (?, ?, ?)");
+    st.bind(1, c).bind_blob(2, blob).bind(3, curve_sum(c, blob));
+    st.step();
+  } catch (...) {
+    exec("ROLLBACK");
+    throw;
+  }
+  exec("COMMIT");
+}
+
+ErrorCurve RunStore::curve(std::size_t case_index) const {
+  Stmt exists(db_, "SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = 'curves'");
+  if (!exists.step()) return {};
+  Stmt st(db_, "SELECT curve, checksum FROM curves WHERE case_index = ?");
+  const auto c = static_cast<std::int64_t>(case_index);
+  st.bind(1, c);
+  if (!st.step()) return {};
+  const std::string blob = st.text(0);
+  check_sum(curve_sum(c, blob), st.i64(1), fmt::format("the error curve of case {}", case_index + 1));
+  try {
+    return ErrorCurve::deserialize(blob);
+  } catch (const std::runtime_error& e) {
+    throw StoreError(fmt::format("run store {}: the error curve of case {}: {}", path_, case_index + 1, e.what()));
+  }
 }
 
 void RunStore::put_artifact(const std::string& name, const std::string& content) {

@@ -104,6 +104,10 @@ class RunStore {
   // Measured ns per period per estimator (NaN: not measured); empty when never stored.
   void put_timing(std::size_t case_index, const std::vector<double>& ns);
   std::vector<double> timing(std::size_t case_index, std::size_t estimators) const;
+  // The run-averaged error curve of a case ([run] error_curve): `curve` is added to the stored one
+  // in one transaction (its runs must not be in it yet). curve() is empty when none is stored.
+  void add_curve(std::size_t case_index, const ErrorCurve& curve);
+  ErrorCurve curve(std::size_t case_index) const;
   // Named text artefacts (e.g. trajectory.csv of a --trace run).
   void put_artifact(const std::string& name, const std::string& content);
   std::map<std::string, std::string> artifacts() const;

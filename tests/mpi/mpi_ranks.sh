@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # tests/mpi/mpi_ranks.sh NCOSIM SOURCE_DIR RANKS — `mpirun -n RANKS ncosim run` gives exports
-# bit-identical to one process with --threads 1 (links.csv included): on the flagship (fewer periods), on a sweep
+# bit-identical to one process with --threads 1 (links.csv included; error_curve.csv on the sweep): on the flagship (fewer periods), on a sweep
 # scenario, and with --target-ci (same stopping point and numbers; stopped by --max-runs on the
 # flagship, whose S1 row is heavy-tailed, and by the target on the small test scenario). Label `mpi` in ctest.
 set -euo pipefail
@@ -12,7 +12,7 @@ fail=0
 same() {  # same REF OTHER WHAT: every export but the timing fields
   local f
   [[ -e $1/links.csv ]] || { echo "FAIL ($3): no links.csv"; fail=1; }
-  for f in summary.csv summary.md runs.csv transmissions.csv confusion.csv links.csv; do
+  for f in summary.csv summary.md runs.csv transmissions.csv confusion.csv links.csv error_curve.csv; do
     if [[ -e $1/$f || -e $2/$f ]] && ! cmp -s "$1/$f" "$2/$f"; then
       echo "FAIL ($3): $f differs"; diff "$1/$f" "$2/$f" | head -5; fail=1
     fi
@@ -27,8 +27,11 @@ common=(--no-timing --quiet)
 same "$tmp/ref" "$tmp/mpi" "flagship"
 
 { cat "$src/tests/cli/data/base.toml"; printf '\n[[sweep]]\nkey = "link[1].loss"\nvalues = [0.1, 0.4]\n'; } > "$tmp/sweep.toml"
-"$ncosim" run "$tmp/sweep.toml" --runs 7 --periods 800 "${common[@]}" --threads 1 --out "$tmp/sref" >/dev/null
-"${mpi[@]}" "$ncosim" run "$tmp/sweep.toml" --runs 7 --periods 800 "${common[@]}" --out "$tmp/smpi" >/dev/null
+# With the error curve: the worker ranks' curves are collected by rank 0 after each case.
+curve=(--set run.error_curve=true)
+"$ncosim" run "$tmp/sweep.toml" --runs 7 --periods 800 "${common[@]}" "${curve[@]}" --threads 1 --out "$tmp/sref" >/dev/null
+"${mpi[@]}" "$ncosim" run "$tmp/sweep.toml" --runs 7 --periods 800 "${common[@]}" "${curve[@]}" --out "$tmp/smpi" >/dev/null
+[[ -s $tmp/smpi/error_curve.csv ]] || { echo "FAIL (sweep): no error_curve.csv"; fail=1; }
 same "$tmp/sref" "$tmp/smpi" "sweep"
 
 target=(--runs 10 --periods 2000 --target-ci 0.05 --max-runs 200)
