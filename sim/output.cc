@@ -141,6 +141,7 @@ std::vector<SummaryRow> summarise(const Scenario& sc, const CampaignResult& resu
       row.per_run.run.push_back(r < result.run_ids.size() ? result.run_ids[r] : r);
     }
     row.model_check = model_check_note(sc, e, row);
+    row.expected_status = entry.expected_status;
     rows.push_back(std::move(row));
   }
   add_paired_within(rows, reference_estimator_index(sc));
@@ -210,20 +211,41 @@ std::vector<std::string> row_cells(const SummaryRow& r) {
 
 }  // namespace
 
-std::string summary_csv(const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows, Eigen::Index n) {
-  std::string out;
+std::vector<std::string> summary_csv_columns(const std::vector<SweepAxis>& sweeps, Eigen::Index n, bool stop) {
   auto cols = summary_columns(sweeps, n);
+  if (stop) cols.emplace_back("stop");  // --target-ci campaigns only
+  cols.emplace_back("expected_status");
+  return cols;
+}
+
+SummaryText summary_text(const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows, Eigen::Index n) {
   const bool stop = std::any_of(rows.begin(), rows.end(), [](const SummaryRow& r) { return !r.stop.empty(); });
-  if (stop) cols.push_back("stop");  // --target-ci campaigns only
-  for (std::size_t i = 0; i < cols.size(); ++i) out += (i ? "," : "") + csv_field(cols[i]);
-  out += "\n";
+  SummaryText t{summary_csv_columns(sweeps, n, stop), {}};
   for (const auto& r : rows) {
     auto cells = row_cells(r);
     if (stop) cells.push_back(r.stop);
-    for (std::size_t i = 0; i < cells.size(); ++i) out += (i ? "," : "") + csv_field(cells[i]);
-    out += "\n";
+    cells.push_back(r.expected_status);
+    t.cells.push_back(std::move(cells));
   }
+  return t;
+}
+
+std::string summary_csv(const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows, Eigen::Index n) {
+  const SummaryText t = summary_text(sweeps, rows, n);
+  auto line = [](const std::vector<std::string>& cells) {
+    std::string out;
+    for (std::size_t i = 0; i < cells.size(); ++i) out += (i ? "," : "") + csv_field(cells[i]);
+    return out + "\n";
+  };
+  std::string out = line(t.header);
+  for (const auto& c : t.cells) out += line(c);
   return out;
+}
+
+std::string status_text(const SummaryRow& r) {
+  if (r.expected_status.empty()) return r.status;
+  if (status_as_expected(r.status, r.expected_status)) return r.status == "ok" ? r.status : r.status + " (expected)";
+  return fmt::format("{} (expected {})", r.status, r.expected_status);
 }
 
 std::string confusion_csv(const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows) {
@@ -294,7 +316,7 @@ std::string summary_markdown(const std::string& title, const std::vector<SweepAx
     c.push_back(r.stored_gains ? std::to_string(*r.stored_gains) : "–");
     c.push_back(num(r.ns_per_period, "{:.0f}"));
     c.push_back(num(r.delivered_ratio, "{:.3f}"));
-    c.push_back(r.status);
+    c.push_back(status_text(r));
     c.push_back(pm(r.paired.mse.diff, r.paired.mse.diff_ci95));
     c.push_back(pm(r.paired.mse.ratio, r.paired.mse.ratio_ci95));
     if (modes) c.push_back(pm(r.paired.mde.diff, r.paired.mde.diff_ci95));
