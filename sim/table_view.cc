@@ -198,8 +198,10 @@ std::string fit_table(std::vector<ViewColumn> cols, const std::vector<std::strin
   if (!left_out.empty()) {
     std::string names;
     for (const auto& n : left_out) names += (names.empty() ? "" : ", ") + n;
-    out += fmt::format("\nLeft out to fit {} columns: {} (`--columns` picks any; summary.csv has every column).\n",
-                       width, names);
+    out += "\n" + wrap_text(fmt::format("Left out to fit {} columns: {} (`--columns` picks any; summary.csv has every "
+                                       "column).",
+                                       width, names),
+                           width, 4);
   }
   return out;
 }
@@ -245,7 +247,8 @@ std::vector<ViewColumn> default_columns(const std::vector<SweepAxis>& sweeps, co
   }
   add("status", "status", 1, [](const SummaryRow& r) { return status_text(r); });
   if (any_row(rows, [](const SummaryRow& r) { return r.paired.mse.diff.has_value(); })) {
-    add("mse_diff", "Δmse vs ref ± CI", 5, [](const SummaryRow& r) { return pm(r.paired.mse.diff, r.paired.mse.diff_ci95); });
+    add("mse_diff", "Δmse vs ref ± CI", 5,
+        [](const SummaryRow& r) { return pm(r.paired.mse.diff, r.paired.mse.diff_ci95); });
   }
   if (!sweeps.empty() && any_row(rows, [](const SummaryRow& r) { return r.paired.case_mse.diff.has_value(); })) {
     add("case_mse_diff", "Δmse vs ref case ± CI", 6,

@@ -41,8 +41,8 @@ struct ViewColumn {
 // The columns as a table of at most `width` characters per line (none left out when
 // `can_drop` is false): footnotes for notes and for cells longer than kLongCell, one per
 // distinct text (a note's row-specific tail after its last ": " listed per row, by
-// `row_labels`), and one line naming the columns left out. Never wraps a table row. `kept`
-// (optional) receives the names of the columns shown.
+// `row_labels`), and a line (wrapped at `width`) naming the columns left out. Never wraps a
+// table row. `kept` (optional) receives the names of the columns shown.
 inline constexpr std::size_t kLongCell = 28;
 std::string fit_table(std::vector<ViewColumn> cols, const std::vector<std::string>& row_labels, std::size_t width,
                       bool can_drop, std::vector<std::string>* kept = nullptr);

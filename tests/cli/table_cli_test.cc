@@ -59,7 +59,8 @@ class TableCli : public ::testing::Test {
   std::string path(const std::string& name) const { return (dir_ / name).string(); }
   // A short flagship campaign into dir_/name: stdout alone.
   Outcome flagship(const std::string& name, const std::string& extra = "") {
-    return ncosim_stdout(fmt::format("run '{}' --out '{}' --runs 3 --periods 1500 --quiet {}", kTable2, path(name), extra));
+    return ncosim_stdout(
+        fmt::format("run '{}' --out '{}' --runs 3 --periods 1500 --quiet {}", kTable2, path(name), extra));
   }
   fs::path dir_;
 };
@@ -167,7 +168,8 @@ TEST_F(TableCli, EveryKindAcceptsExpectedStatus) {
 TEST_F(TableCli, CompareCountsAnExpectedDivergenceAsNoRegression) {
   // BASE: the open-loop row replaced by a Kalman filter of the same name (it never diverges);
   // NEW: the shipped flagship (it diverges, as declared). The other rows run on the same seed.
-  const std::string base_opts = "--set 'estimator[6].kind=\"kalman_extended\"' --set 'estimator[6].expected_status=\"ok\"'";
+  const std::string base_opts =
+      "--set 'estimator[6].kind=\"kalman_extended\"' --set 'estimator[6].expected_status=\"ok\"'";
   ASSERT_EQ(flagship("base", base_opts).code, 0);
   ASSERT_EQ(flagship("new").code, 0);
   Outcome o = ncosim(fmt::format("compare '{}' '{}' --allow-scenario-change", path("base"), path("new")));
