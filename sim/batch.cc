@@ -34,6 +34,7 @@
 #include "sim/paired.h"
 #include "sim/output_set.h"
 #include "sim/store.h"
+#include "sim/table_view.h"
 
 namespace ncosim::sim {
 
@@ -573,8 +574,9 @@ LinkCoverage load_link_runs(const RunStore& store, std::vector<CampaignResult>& 
 struct ExportInfo {
   std::string command_line;
   std::string stopped;  // why the campaign stopped early ("" when it did not)
-  std::vector<std::string>* not_ok = nullptr;  // receives "case, \"estimator\": status" of rows not ok
+  std::vector<std::string>* not_ok = nullptr;  // receives "case, \"estimator\": status" of rows not as expected
   bool* complete = nullptr;                      // receives manifest.json's `complete`
+  const TableRequest* table = nullptr;  // `run`: the markdown out-parameter receives its stdout table
 };
 
 // The stored error curve of case c restricted to the runs the exports use: runs that the stored
@@ -655,12 +657,12 @@ std::vector<std::pair<std::string, std::string>> derive_exports(const LoadedScen
   add_paired_across_cases(rows, loaded, reference_case_index(loaded));  // sim/paired.h
   if (info.not_ok != nullptr) {
     for (const auto& r : rows) {
-      if (r.status == "ok") continue;
+      if (status_as_expected(r.status, r.expected_status)) continue;  // [[estimator]] expected_status
       std::string where;
       for (std::size_t i = 0; i < r.sweep_labels.size(); ++i) {
         where += fmt::format("{} = {}, ", loaded.sweeps[i].key, r.sweep_labels[i]);
       }
-      info.not_ok->push_back(fmt::format("{}\"{}\": {}", where, r.estimator, r.status));
+      info.not_ok->push_back(fmt::format("{}\"{}\": {}", where, r.estimator, status_text(r)));
     }
   }
   const Scenario& first = *loaded.cases.front().scenario;
@@ -675,9 +677,10 @@ std::vector<std::pair<std::string, std::string>> derive_exports(const LoadedScen
   }
   const bool complete = decision.decided || (!rule.on() && done == expected);
   if (info.complete != nullptr) *info.complete = complete;
-  std::string md = summary_markdown(first.title, loaded.sweeps, rows, n);
+  const std::string table_md = summary_markdown(first.title, loaded.sweeps, rows, n);
+  std::string extras;  // the lines under the table
   if (decision.decided) {
-    md += decision.reason == "target_ci"
+    extras += decision.reason == "target_ci"
               ? fmt::format("\nStopped at {} runs per case: every row's 95 % CI half-width of mse is within {:g} % of "
                             "its mean (`--target-ci {:g}`, batches of {}).\n",
                             decision.runs, 100.0 * rule.rel, rule.rel, rule.batch)
@@ -686,12 +689,13 @@ std::vector<std::pair<std::string, std::string>> derive_exports(const LoadedScen
                             decision.runs, 100.0 * rule.rel, rule.rel);
   }
   if (!complete || shard.count > 1) {
-    md += fmt::format("\n**Partial results**: {} of {} runs{}{}.\n", done, expected,
+    extras += fmt::format("\n**Partial results**: {} of {} runs{}{}.\n", done, expected,
                       shard.count > 1 ? fmt::format(" of shard {}/{}", shard.index + 1, shard.count) : "",
                       info.stopped.empty() ? "" : fmt::format(" (stopped by {})", info.stopped));
-    if (!complete) md += "`ncosim run FILE --out DIR --resume` (same options) runs the missing ones.\n";
-    if (shard.count > 1) md += "`ncosim merge OUT DIR...` combines the shards' stores into the whole campaign.\n";
+    if (!complete) extras += "`ncosim run FILE --out DIR --resume` (same options) runs the missing ones.\n";
+    if (shard.count > 1) extras += "`ncosim merge OUT DIR...` combines the shards' stores into the whole campaign.\n";
   }
+  const std::string md = table_md + extras;
   double wall = 0.0;
   int threads = 1;
   try {
@@ -740,7 +744,12 @@ std::vector<std::pair<std::string, std::string>> derive_exports(const LoadedScen
     for (std::size_t c = 0; c < loaded.cases.size(); ++c) curves.push_back(error_curve_for(loaded, store, c, results[c]));
     files.emplace_back("error_curve.csv", error_curve_csv(loaded.sweeps, labels, scs, curves));
   }
-  if (markdown != nullptr) *markdown = std::move(md);
+  if (markdown != nullptr) {  // what `run` prints (sim/table_view.h), else summary.md
+    // csv and json keep stdout to the data: the lines under the table go to stderr.
+    if (info.table != nullptr && info.table->machine() && !extras.empty()) std::cerr << extras.substr(1);
+    *markdown = info.table != nullptr ? stdout_table(*info.table, first.title, loaded.sweeps, rows, n, table_md, extras)
+                                      : md;
+  }
   return files;
 }
 
@@ -965,12 +974,14 @@ std::vector<std::uint64_t> runs_to_do(const std::vector<std::uint64_t>& done, st
 }
 
 // The summary table and closing line on stdout; the exit status (a stop signal's, or
-// kExitFlagged with --fail-on-status and rows not ok).
+// kExitFlagged with --fail-on-status and rows whose status is not the expected one).
 int finish_session(const RunCommand& cmd, const std::string& md, const LoadedScenario& loaded, const SessionTotals& t,
                    const std::string& path, int sig, bool complete, const std::vector<std::string>& not_ok) {
   const Scenario& first = *loaded.cases.front().scenario;
-  std::cout << md
-            << fmt::format("\n{} runs x {} periods x {} case(s){} in {:.2f} s on {} thread(s){}; results in {}/\n",
+  std::cout << md << std::flush;
+  // With --format csv|json stdout holds the data alone: the closing line goes to stderr.
+  (cmd.format == "csv" || cmd.format == "json" ? std::cerr : std::cout)
+      << fmt::format("\n{} runs x {} periods x {} case(s){} in {:.2f} s on {} thread(s){}; results in {}/\n",
                            t.simulated, first.run.periods, loaded.cases.size(),
                            t.skipped > 0 ? fmt::format(" ({} earlier runs resumed)", t.skipped) : "", t.wall,
                            t.threads, cmd.shard.empty() ? "" : fmt::format(", shard {}", cmd.shard), cmd.out);
@@ -988,8 +999,9 @@ int finish_session(const RunCommand& cmd, const std::string& md, const LoadedSce
   if (cmd.fail_on_status && !not_ok.empty()) {
     std::string list;
     for (const auto& r : not_ok) list += "  " + r + "\n";
-    std::cerr << fmt::format("ncosim: --fail-on-status: {} row(s) not ok (results written to {}/):\n{}", not_ok.size(),
-                             cmd.out, list);
+    std::cerr << fmt::format("ncosim: --fail-on-status: {} row(s) with an unexpected status (results written to "
+                             "{}/):\n{}",
+                             not_ok.size(), cmd.out, list);
     return kExitFlagged;
   }
   return 0;
@@ -1142,6 +1154,9 @@ int cmd_run_campaign(const RunCommand& cmd) {
   const std::string& out = cmd.out;
   auto meta = campaign_meta(loaded, cmd.overrides, cmd.shard.empty() ? "" : fmt::format("{}/{}", shard.index + 1, shard.count));
   const TargetRule rule = target_rule(cmd, loaded, meta);
+  const TableRequest table{cmd.columns, cmd.format};  // sim/table_view.h: bad --columns before t = 0
+  check_table_request(table, summary_csv_columns(loaded.sweeps, loaded.cases.front().scenario->model.plant.n(),
+                                                 rule.on()));
   // Under mpirun: ranks > 0 simulate what rank 0 hands out; rank 0 goes on alone from here.
   const std::unique_ptr<MpiSession> mpi = start_mpi();
   if (mpi && mpi->rank() > 0) {
@@ -1176,6 +1191,7 @@ int cmd_run_campaign(const RunCommand& cmd) {
   info.not_ok = &not_ok;
   bool complete = false;
   info.complete = &complete;
+  info.table = &table;
   const std::string md = export_and_install(loaded, store, out, info);
   return finish_session(cmd, md, loaded, session.totals, path, sig, complete, not_ok);
 }

@@ -27,7 +27,9 @@ struct RunCommand {
   std::optional<double> target_ci;  // --target-ci REL
   std::int64_t max_runs = 0;        // --max-runs N
   std::string command_line;
-  bool fail_on_status = false;  // exit kExitFlagged when a row's status is not ok
+  std::vector<std::string> columns;  // --columns: the summary.csv columns on stdout (sim/table_view.h)
+  std::string format;                // --format md|csv|json ("" = the table fitted to 120 columns)
+  bool fail_on_status = false;  // exit kExitFlagged when a row's status is not its expected one
 };
 
 // Exit status of a command that completed but whose result is flagged (`run --fail-on-status`

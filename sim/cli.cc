@@ -32,6 +32,7 @@
 #include "sim/paired.h"
 #include "sim/registries.h"
 #include "sim/scenario.h"
+#include "sim/table_view.h"
 
 #if NCOSIM_HAVE_SUMO
 #include "sumo/channel.h"
@@ -284,6 +285,7 @@ struct CommandLine {
   double max_work_gflop = resource_limits().work_flops / 1e9;
   std::vector<CLI::Option*> out_options;
   RunCommand run_cmd;
+  std::string columns_text;  // --columns a,b,c
   std::string export_dir, export_out;
   std::string merge_out;
   std::vector<std::string> merge_dirs;
@@ -346,8 +348,14 @@ struct CommandLine {
     merge = app.add_subcommand("merge", "combine the run stores of a campaign's shards and export");
     merge->add_option("OUT", merge_out, "output folder of the merged campaign")->required();
     merge->add_option("DIR", merge_dirs, "output folders of the shards (each with runs.sqlite)")->required();
+    run->add_option("--columns", columns_text,
+                    "the summary.csv columns printed on stdout, comma-separated (default: those that fit 120 columns)");
+    run->add_option("--format", run_cmd.format,
+                    "what stdout gets: md (the Markdown table), csv (summary.csv's text) or json (an array of rows); "
+                    "default: the table fitted to 120 columns");
     run->add_flag("--fail-on-status", run_cmd.fail_on_status,
-                  "exit 3 (after writing the results) when any row's status is not ok, listing those rows");
+                  "exit 3 (after writing the results) when any row's status is not its expected one (default ok; "
+                  "[[estimator]] expected_status), listing those rows");
   }
 
   // design, find, codesign: offline design.
@@ -441,6 +449,7 @@ struct CommandLine {
       run_cmd.trace = trace;
       run_cmd.quiet = quiet;
       run_cmd.command_line = command_line;
+      if (run->count("--columns") != 0) run_cmd.columns = parse_column_list(columns_text);  // sim/table_view.h
       return cmd_run(a, run_cmd);
     }
     if (export_cmd->parsed()) return cmd_export(export_dir, export_out, command_line);

@@ -221,6 +221,22 @@ std::uint64_t case_seed(const RunFolder& f, const RunFolder::Row& r) {
   return f.seed;
 }
 
+// The row's status from summary.csv (null when read_row_statuses found none).
+const RunFolder::RowStatus* status_of(const RunFolder& f, const RunFolder::Row& r) {
+  const auto i = static_cast<std::size_t>(&r - f.rows.data());
+  return i < f.statuses.size() && !f.statuses[i].status.empty() ? &f.statuses[i] : nullptr;
+}
+
+// A status that differs between the folders, in the row's note: expected or not by NEW's row.
+void note_status_change(const RunFolder& bf, const RunFolder::Row& b, const RunFolder& nf, const RunFolder::Row& n,
+                        CompareRow& out) {
+  const auto *sb = status_of(bf, b), *sn = status_of(nf, n);
+  if (sb == nullptr || sn == nullptr || sb->status == sn->status) return;
+  const bool expected = status_as_expected(sn->status, sn->expected_status);  // sim/scenario.h
+  out.note += fmt::format("{}status {} -> {} ({})", out.note.empty() ? "" : "; ", sb->status, sn->status,
+                          expected ? "expected" : "unexpected");
+}
+
 void test_row(const RunFolder& bf, const RunFolder::Row& b, const RunFolder& nf, const RunFolder::Row& n,
               const CompareOptions& o, CompareRow& out) {
   out.runs_base = b.run.size();
@@ -228,8 +244,12 @@ void test_row(const RunFolder& bf, const RunFolder::Row& b, const RunFolder& nf,
   const auto div_b = std::count(b.diverged.begin(), b.diverged.end(), true);
   const auto div_n = std::count(n.diverged.begin(), n.diverged.end(), true);
   if (div_n > 0 && div_b == 0) {
-    out.verdict = "worse";
-    out.note = fmt::format("diverged in {} of {} NEW runs, none in BASE", div_n, n.run.size());
+    // A row whose scenario expects it to diverge (the open-loop reference) is no regression.
+    const auto* st = status_of(nf, n);
+    const bool expected = st != nullptr && st->expected_status == "diverged";
+    if (!expected) out.verdict = "worse";
+    out.note = fmt::format("diverged in {} of {} NEW runs, none in BASE{}", div_n, n.run.size(),
+                           expected ? " (expected_status = diverged)" : "");
     return;
   }
   if (div_b > 0 && div_n == 0) {
@@ -427,6 +447,7 @@ CompareResult compare_folders(const RunFolder& base, const RunFolder& fresh, con
     } else {
       used[it->second] = true;
       test_row(base, b, fresh, fresh.rows[it->second], options, row);
+      note_status_change(base, b, fresh, fresh.rows[it->second], row);
     }
     res.rows.push_back(std::move(row));
   }
@@ -547,6 +568,37 @@ std::string compare_markdown(const CompareResult& r) {
   return out;
 }
 
+void read_row_statuses(RunFolder& f) {
+  const fs::path file = fs::path(f.dir) / "summary.csv";
+  std::error_code ec;
+  if (!fs::exists(file, ec)) return;
+  CsvTable t;
+  try {
+    t = parse_csv(slurp(file), file.string());
+  } catch (const CompareInputError&) {
+    throw;
+  } catch (const ScenarioError& e) {
+    throw CompareInputError(e.what());
+  }
+  const int c_est = t.column("estimator"), c_status = t.column("status"), c_exp = t.column("expected_status");
+  if (c_est < 0 || c_status < 0) return;
+  std::map<std::pair<std::vector<std::string>, std::string>, std::size_t> index;
+  for (std::size_t i = 0; i < f.rows.size(); ++i) index[{f.rows[i].labels, f.rows[i].estimator}] = i;
+  f.statuses.assign(f.rows.size(), {});
+  for (const auto& cells : t.rows) {
+    std::vector<std::string> labels;
+    for (const auto& k : f.sweep_keys) {
+      const int c = t.column(k);
+      labels.push_back(c < 0 ? "" : cells[static_cast<std::size_t>(c)]);
+    }
+    const auto it = index.find({labels, cells[static_cast<std::size_t>(c_est)]});
+    if (it == index.end()) continue;
+    auto& st = f.statuses[it->second];
+    st.status = cells[static_cast<std::size_t>(c_status)];
+    if (c_exp >= 0) st.expected_status = cells[static_cast<std::size_t>(c_exp)];
+  }
+}
+
 int run_compare_command(const CompareCommand& c) {
   CompareOptions o = c.options;
   if (!(o.alpha > 0.0 && o.alpha < 1.0)) {
@@ -557,8 +609,10 @@ int run_compare_command(const CompareCommand& c) {
   }
   o.holm = c.correction == "holm";
   if (!c.out.empty()) prepare_output_dir(c.out);
-  const RunFolder base = read_run_folder(c.base, o.metric);
-  const RunFolder fresh = read_run_folder(c.fresh, o.metric);
+  RunFolder base = read_run_folder(c.base, o.metric);
+  RunFolder fresh = read_run_folder(c.fresh, o.metric);
+  read_row_statuses(base);  // expected and unexpected status changes
+  read_row_statuses(fresh);
   const CompareResult r = compare_folders(base, fresh, o);
   const std::string md = compare_markdown(r);
   if (!c.out.empty()) write_files_atomically(c.out, {{"compare.csv", compare_csv(r)}, {"compare.md", md}});

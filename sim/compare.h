@@ -52,10 +52,21 @@ struct RunFolder {
     std::vector<bool> diverged;
   };
   std::vector<Row> rows;  // in first-appearance order
+  // Per row, from summary.csv (read_row_statuses; empty without it): the row's status and the
+  // status its scenario expects ([[estimator]] expected_status; empty: "ok").
+  struct RowStatus {
+    std::string status, expected_status;
+  };
+  std::vector<RowStatus> statuses;
 };
 
 // Reads DIR/manifest.json and DIR/runs.csv for `metric`. Throws CompareInputError.
 RunFolder read_run_folder(const std::string& dir, const std::string& metric);
+// Fills each row's status and expected_status from DIR/summary.csv (left empty when the file, a
+// column or the row is missing: folders of older versions). Throws CompareInputError on a
+// malformed file. Divergence in NEW only is "worse" unless NEW's row expects `diverged`; a
+// status that changed is said in the row's note, "(unexpected)" when NEW's row does not expect it.
+void read_row_statuses(RunFolder& f);
 
 struct CompareRow {
   std::vector<std::string> labels;

@@ -158,6 +158,7 @@ std::vector<SummaryRow> summarise(const Scenario& sc, const CampaignResult& resu
       row.nis = nis_stat(consistency);
       row.consistency = consistency_note(row.nees, row.nis);
     }
+    row.expected_status = entry.expected_status;
     rows.push_back(std::move(row));
   }
   add_paired_within(rows, reference_estimator_index(sc));
@@ -192,7 +193,6 @@ std::vector<std::string> summary_columns(const std::vector<SweepAxis>& sweeps, E
   for (Eigen::Index i = 0; i < n; ++i) cols.push_back(fmt::format("ermse_x{}_ci95", i + 1));
   for (auto& c : paired_column_names(!sweeps.empty())) cols.push_back(std::move(c));
   cols.emplace_back("model_check");
-  for (const char* c : {"nees", "nees_lo", "nees_hi", "nis", "nis_lo", "nis_hi", "consistency"}) cols.push_back(c);
   return cols;
 }
 
@@ -223,31 +223,53 @@ std::vector<std::string> row_cells(const SummaryRow& r) {
   for (const auto& v : r.ermse_ci95) cells.push_back(fmt_number(v));
   for (auto& c : paired_cells(r.paired, !r.sweep_labels.empty())) cells.push_back(std::move(c));
   cells.push_back(r.model_check);
-  for (const auto& st : {r.nees, r.nis}) {
-    cells.push_back(st ? fmt_number(st->mean) : "");
-    cells.push_back(st ? fmt_number(st->lo) : "");
-    cells.push_back(st ? fmt_number(st->hi) : "");
-  }
-  cells.push_back(r.consistency);
   return cells;
 }
 
 }  // namespace
 
-std::string summary_csv(const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows, Eigen::Index n) {
-  std::string out;
+std::vector<std::string> summary_csv_columns(const std::vector<SweepAxis>& sweeps, Eigen::Index n, bool stop) {
   auto cols = summary_columns(sweeps, n);
+  if (stop) cols.emplace_back("stop");  // --target-ci campaigns only
+  cols.emplace_back("expected_status");
+  for (const char* c : {"nees", "nees_lo", "nees_hi", "nis", "nis_lo", "nis_hi", "consistency"}) cols.push_back(c);
+  return cols;
+}
+
+SummaryText summary_text(const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows, Eigen::Index n) {
   const bool stop = std::any_of(rows.begin(), rows.end(), [](const SummaryRow& r) { return !r.stop.empty(); });
-  if (stop) cols.push_back("stop");  // --target-ci campaigns only
-  for (std::size_t i = 0; i < cols.size(); ++i) out += (i ? "," : "") + csv_field(cols[i]);
-  out += "\n";
+  SummaryText t{summary_csv_columns(sweeps, n, stop), {}};
   for (const auto& r : rows) {
     auto cells = row_cells(r);
     if (stop) cells.push_back(r.stop);
-    for (std::size_t i = 0; i < cells.size(); ++i) out += (i ? "," : "") + csv_field(cells[i]);
-    out += "\n";
+    cells.push_back(r.expected_status);
+    for (const auto& st : {r.nees, r.nis}) {  // filter consistency (sim/consistency.h)
+      cells.push_back(st ? fmt_number(st->mean) : "");
+      cells.push_back(st ? fmt_number(st->lo) : "");
+      cells.push_back(st ? fmt_number(st->hi) : "");
+    }
+    cells.push_back(r.consistency);
+    t.cells.push_back(std::move(cells));
   }
+  return t;
+}
+
+std::string summary_csv(const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows, Eigen::Index n) {
+  const SummaryText t = summary_text(sweeps, rows, n);
+  auto line = [](const std::vector<std::string>& cells) {
+    std::string out;
+    for (std::size_t i = 0; i < cells.size(); ++i) out += (i ? "," : "") + csv_field(cells[i]);
+    return out + "\n";
+  };
+  std::string out = line(t.header);
+  for (const auto& c : t.cells) out += line(c);
   return out;
+}
+
+std::string status_text(const SummaryRow& r) {
+  if (r.expected_status.empty()) return r.status;
+  if (status_as_expected(r.status, r.expected_status)) return r.status == "ok" ? r.status : r.status + " (expected)";
+  return fmt::format("{} (expected {})", r.status, r.expected_status);
 }
 
 std::string confusion_csv(const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows) {
@@ -318,7 +340,7 @@ std::string summary_markdown(const std::string& title, const std::vector<SweepAx
     c.push_back(r.stored_gains ? std::to_string(*r.stored_gains) : "–");
     c.push_back(num(r.ns_per_period, "{:.0f}"));
     c.push_back(num(r.delivered_ratio, "{:.3f}"));
-    c.push_back(r.status);
+    c.push_back(status_text(r));
     c.push_back(pm(r.paired.mse.diff, r.paired.mse.diff_ci95));
     c.push_back(pm(r.paired.mse.ratio, r.paired.mse.ratio_ci95));
     if (modes) c.push_back(pm(r.paired.mde.diff, r.paired.mde.diff_ci95));

@@ -45,7 +45,9 @@ struct SummaryRow {
   PairedColumns paired;
   PerRunValues per_run;  // the per-run values the paired columns use (not written)
   std::string model_check;  // the prediction against the simulation (sim/validity.h)
-  // After model_check (appended): filter consistency (sim/consistency.h), for estimators with a
+  // After model_check (and stop): [[estimator]] expected_status, "" when not declared ("ok").
+  std::string expected_status;
+  // After expected_status: filter consistency (sim/consistency.h), for estimators with a
   // covariance (NEES) or innovations (NIS); `consistency` is "ok" or what is out of bounds.
   std::optional<ConsistencyStat> nees, nis;
   std::string consistency;
@@ -62,6 +64,15 @@ std::vector<std::string> summary_columns(const std::vector<SweepAxis>& sweeps, E
 // confusion.csv: one row per (sweep case, mode estimator, true mode, estimated mode).
 std::string confusion_csv(const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows);
 
+// summary.csv as text: the header and every row's cells, every column in file order.
+struct SummaryText {
+  std::vector<std::string> header;
+  std::vector<std::vector<std::string>> cells;
+};
+SummaryText summary_text(const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows, Eigen::Index n);
+// The columns of summary_text: summary_columns, then `stop` (with --target-ci) and
+// `expected_status`.
+std::vector<std::string> summary_csv_columns(const std::vector<SweepAxis>& sweeps, Eigen::Index n, bool stop);
 std::string summary_csv(const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows, Eigen::Index n);
 std::string summary_markdown(const std::string& title, const std::vector<SweepAxis>& sweeps,
                              const std::vector<SummaryRow>& rows, Eigen::Index n);
@@ -94,6 +105,10 @@ void write_files_atomically(const std::string& dir, const std::vector<std::pair<
 // before any work: throws std::runtime_error (ScenarioError for an empty folder name, the root or
 // the current directory).
 void prepare_output_dir(const std::string& dir);
+
+// The status as the tables show it: `diverged (expected)` when the scenario expects it,
+// `ok (expected diverged)` when it expected another; the bare status without expected_status.
+std::string status_text(const SummaryRow& r);
 
 // CSV field quoting (RFC 4180) and number formatting (empty for nullopt / non-finite).
 std::string csv_field(const std::string& s);

@@ -34,8 +34,17 @@ struct LinkEntry {
 struct EstimatorEntry {
   std::string name;
   std::string kind;
+  // [[estimator]] expected_status: the row status the scenario expects ("" = not declared, i.e.
+  // "ok"); `run --fail-on-status` and the tables treat only other statuses as a problem.
+  std::string expected_status;
   std::unique_ptr<est::EstimatorDesign> design;
 };
+
+// The values [[estimator]] expected_status accepts: the row statuses of summary.csv
+// (results/README.md `### status`), "design_failed" standing for every design_<status>.
+const std::vector<std::string>& expected_status_values();
+// Whether a row's `status` is the one its scenario expects (`expected` empty: "ok").
+bool status_as_expected(const std::string& status, const std::string& expected);
 
 struct Scenario {
   std::string file;

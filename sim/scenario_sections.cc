@@ -192,6 +192,24 @@ std::optional<Table> read_input(const Table& root, Scenario& sc) {
   return input;
 }
 
+namespace {
+
+// [[estimator]] expected_status (every kind): one of the row statuses of summary.csv
+// (results/README.md `### status`); "design_failed" stands for every design_<status>.
+std::string read_expected_status(const Table& t) {
+  if (!t.has("expected_status")) return "";
+  const std::string v = t.string("expected_status");
+  const auto& valid = expected_status_values();
+  if (std::find(valid.begin(), valid.end(), v) != valid.end()) return v;
+  std::string list;
+  for (const auto& s : valid) list += (list.empty() ? "" : ", ") + fmt::format("\"{}\"", s);
+  const std::string hint = did_you_mean(v, valid);
+  t.fail("expected_status", fmt::format("expected one of {}, got \"{}\"{}", list, v,
+                                        hint.empty() ? "" : fmt::format(" (did you mean \"{}\"?)", hint)));
+}
+
+}  // namespace
+
 void read_estimators(const Table& root, const toml::table& doc, const std::string& state_driver, Scenario& sc) {
   const auto est_tables = root.tables("estimator");
   if (est_tables.empty()) root.fail("estimator", "expected at least one [[estimator]] table, got none");
@@ -205,6 +223,7 @@ void read_estimators(const Table& root, const toml::table& doc, const std::strin
     if (!est_names.insert(e.name).second) {
       t.fail("name", fmt::format("expected a unique estimator name, got \"{}\" twice", e.name));
     }
+    e.expected_status = read_expected_status(t);
     check_estimator_resources(t, *doc.get("estimator")->as_array()->get(i)->as_table(), k.name, sc.model,
                               state_driver);  // sim/limits.h
     try {

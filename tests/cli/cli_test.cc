@@ -196,6 +196,16 @@ TEST_F(Cli, UnknownKeyIsReportedWithDidYouMean) {
                        {"unknown key (did you mean 'history'?)"});
 }
 
+TEST_F(Cli, ExpectedStatusMustBeARowStatus) {
+  // [[estimator]] expected_status (issue 28, part 5): one of the row statuses, at its line.
+  expect_edit_rejected("history = 2", "expected_status = \"diverge\"\nhistory = 2", "estimator[0].expected_status",
+                       {"expected one of \"ok\", \"diverged\", \"precision_lost\", \"numerical_failure\", "
+                        "\"heavy_tail\", \"design_failed\", \"ci_target_not_met\", got \"diverge\" (did you mean "
+                        "\"diverged\"?)"});
+  expect_edit_rejected("history = 2", "expected_status = 1\nhistory = 2", "estimator[0].expected_status",
+                       {"expected a string"});
+}
+
 TEST_F(Cli, MisspeltTopLevelTableIsAnUnknownKeyNotAMissingTable) {
   // Both [[sensor]] tables misspelt: the root check runs before "at least one [[sensor]]", at
   // the first [[sensr]].
@@ -756,7 +766,15 @@ TEST_F(Cli, RunWritesTheContractFilesAndNothingElse) {
                                          "mde_diff_ci95",
                                          "mde_ratio",
                                          "mde_ratio_ci95",
-                                         "model_check"};
+                                         "model_check",
+                                         "expected_status",
+                                         "nees",
+                                         "nees_lo",
+                                         "nees_hi",
+                                         "nis",
+                                         "nis_lo",
+                                         "nis_hi",
+                                         "consistency"};
   EXPECT_EQ(s.header, columns);
   // Paired against the default reference, the Kalman row; its own paired cells are empty.
   EXPECT_EQ(s.at(0, "paired_reference"), "Kalman");
