@@ -66,6 +66,7 @@ nlohmann::json manifest(const LoadedScenario& loaded, const std::string& command
   j["scenario"] = loaded.file;
   j["title"] = sc.title;
   j["scenario_hash"] = loaded.hash;
+  j["scenario_text_hash"] = loaded.text_hash;  // without --runs/--periods/--seed: what `compare` matches
   j["overrides"] = loaded.overrides;
   j["seed"] = sc.run.seed;
   j["runs"] = sc.run.runs;
@@ -404,7 +405,8 @@ struct CommandLine {
     compare->add_option("--correction", cmp.correction, "multiple-testing correction over the rows (default holm)")
         ->check(CLI::IsMember({"holm", "none"}));
     compare->add_flag("--allow-scenario-change", cmp.options.allow_scenario_change,
-                      "compare folders of different scenarios or overrides; rows in one folder only are not comparable");
+                      "compare folders of another scenario text, --set or input files (other --runs, --periods or "
+                      "--seed need no option); rows in one folder only are not comparable");
     compare->add_option("--out", cmp.out, "also write compare.csv and compare.md into this directory");
     check = app.add_subcommand("check", "parse and validate only");
     add_common(check, false);

@@ -1,5 +1,6 @@
 // sim/compare.cc — `ncosim compare`: reading two output folders, matching and testing rows.
 #include "sim/compare.h"
+#include "sim/compare_manifest.h"
 #include "sim/csv.h"
 
 #include <fmt/format.h>
@@ -83,6 +84,7 @@ RunFolder read_run_folder(const std::string& dir, const std::string& metric) {
     throw CompareInputError(fmt::format("{}: expected the fields scenario, scenario_hash and seed of `ncosim run` ({})",
                                         man.string(), e.what()));
   }
+  read_folder_identity(m, f);
   if (m.contains("complete") && m["complete"].is_boolean() && !m["complete"].get<bool>()) {
     f.partial = fmt::format("{} of {} runs (a partial campaign: stopped, or one shard)", m.value("runs_done", 0),
                             m.value("runs_expected", 0));
@@ -370,6 +372,22 @@ void test_row(const RunFolder& bf, const RunFolder::Row& b, const RunFolder& nf,
   }
 }
 
+// The refusal's tail: each differing manifest field on its own line, and why a folder of an
+// older ncosim cannot tell other runs or seeds from another scenario.
+std::string what_differs(const RunFolder& base, const RunFolder& fresh, const std::vector<std::string>& differences,
+                         bool scenario) {
+  std::string out = "; what differs (BASE -> NEW):";
+  for (const auto& d : differences) out += "\n  " + d;
+  for (const auto* f : {&base, &fresh}) {
+    if (!scenario || f->text_hash) continue;
+    out += fmt::format("\n  ({} {}: a manifest.json without scenario_text_hash (an older ncosim) and no run store; "
+                       "its scenario_hash also covers --runs, --periods and --seed, so other runs or seeds cannot be "
+                       "told from another scenario there: re-run it with this ncosim)",
+                       f == &base ? "BASE" : "NEW", f->dir);
+  }
+  return out;
+}
+
 }  // namespace
 
 CompareResult compare_folders(const RunFolder& base, const RunFolder& fresh, const CompareOptions& options) {
@@ -391,14 +409,16 @@ CompareResult compare_folders(const RunFolder& base, const RunFolder& fresh, con
   res.fresh = identity(fresh);
   const std::string base_runs = (fs::path(base.dir) / "runs.csv").string();
   const std::string new_runs = (fs::path(fresh.dir) / "runs.csv").string();
-  if (base.scenario_hash != fresh.scenario_hash) {
+  res.differences = manifest_differences(base, fresh);
+  const std::string base_man = (fs::path(base.dir) / "manifest.json").string();
+  const std::string new_man = (fs::path(fresh.dir) / "manifest.json").string();
+  if (!same_scenario_text(base, fresh)) {
     const std::string what = fmt::format("BASE {} (scenario_hash {}) and NEW {} (scenario_hash {})", base.scenario,
                                          base.scenario_hash, fresh.scenario, fresh.scenario_hash);
     if (!options.allow_scenario_change) {
-      throw CompareInputError(fmt::format("{}: a different scenario or different overrides than {}: {}; pass "
-                                          "--allow-scenario-change to compare them anyway",
-                                          (fs::path(fresh.dir) / "manifest.json").string(),
-                                          (fs::path(base.dir) / "manifest.json").string(), what));
+      throw CompareInputError(fmt::format("{}: a different scenario or different overrides than {}; pass "
+                                          "--allow-scenario-change to compare them anyway{}",
+                                          new_man, base_man, what_differs(base, fresh, res.differences, true)));
     }
     res.warnings.push_back(fmt::format("scenarios differ (--allow-scenario-change): {}", what));
   }
@@ -417,9 +437,8 @@ CompareResult compare_folders(const RunFolder& base, const RunFolder& fresh, con
     }
     what = "the content of the input file(s) " + what + " differs";
     if (!options.allow_scenario_change) {
-      throw CompareInputError(fmt::format("{}: {} from {}; pass --allow-scenario-change to compare them anyway",
-                                          (fs::path(fresh.dir) / "manifest.json").string(), what,
-                                          (fs::path(base.dir) / "manifest.json").string()));
+      throw CompareInputError(fmt::format("{}: {} from {}; pass --allow-scenario-change to compare them anyway{}",
+                                          new_man, what, base_man, what_differs(base, fresh, res.differences, false)));
     }
     res.warnings.push_back(fmt::format("inputs differ (--allow-scenario-change): {}", what));
   }
@@ -524,6 +543,22 @@ std::string md_cell(const std::string& s) {
   return out;
 }
 
+// Which test the rows use and why: paired where run r of both folders drew the same random
+// numbers (the same seed), Welch's unpaired test where they did not.
+std::string pairing_text(const CompareResult& r) {
+  const bool swept_seed =
+      std::find(r.base.sweep_keys.begin(), r.base.sweep_keys.end(), "run.seed") != r.base.sweep_keys.end();
+  const std::string paired =
+      "paired on the runs both folders have (run r of both drew the same random numbers: common random numbers)";
+  if (swept_seed) {
+    return "test: per case, " + paired + " where the case's run.seed is the same in both, else Welch's unpaired test";
+  }
+  if (r.base.seed == r.fresh.seed) return fmt::format("test: {}; same seed {}", paired, r.base.seed);
+  return fmt::format("test: Welch's unpaired test: the seeds differ ({} -> {}), so run r is another realisation in "
+                     "each folder",
+                     r.base.seed, r.fresh.seed);
+}
+
 }  // namespace
 
 std::string compare_markdown(const CompareResult& r) {
@@ -537,6 +572,11 @@ std::string compare_markdown(const CompareResult& r) {
                      "{} tested row(s); CI: two-sided {:g} %\n",
                      o.metric, o.tolerance, o.alpha, o.holm ? "Holm-corrected" : "no correction", r.tested,
                      100.0 * (1.0 - o.alpha));
+  if (!r.differences.empty()) {
+    out += "- BASE -> NEW differ in:\n";
+    for (const auto& d : r.differences) out += fmt::format("  - {}\n", d);
+  }
+  out += fmt::format("- {}\n", pairing_text(r));
   for (const auto& w : r.warnings) out += fmt::format("- warning: {}\n", w);
   out += "\n|";
   for (const auto& k : r.base.sweep_keys) out += fmt::format(" {} |", md_cell(k));

@@ -2,6 +2,9 @@
 // row by row (sweep case, estimator) on one per-run metric of runs.csv, as a CI gate.
 // Runs are matched by (seed, run index): where both folders ran the same seed the test is
 // paired on the runs they share (common random numbers), otherwise Welch's unpaired test.
+// Folders of the same scenario text and --set (scenario_text_hash) compare whatever their
+// --runs, --periods or --seed; another text or other inputs need --allow-scenario-change. Every
+// manifest field that differs is named, one line each (sim/compare_manifest.h).
 // A row is "worse" when its metric is significantly above (1 + tolerance) times the base
 // (one-sided test at level alpha, Holm-corrected over the rows), "better" when significantly
 // below (1 - tolerance) times it, "unchanged" otherwise, "not comparable" when no test applies.
@@ -31,7 +34,7 @@ struct CompareOptions {
   double tolerance = 0.0;      // relative: a change smaller than this is never a regression
   double alpha = 0.05;         // significance level of each one-sided test (family-wise with Holm)
   bool holm = true;            // Holm's correction over every tested row
-  bool allow_scenario_change = false;  // compare folders whose scenario_hash differs
+  bool allow_scenario_change = false;  // compare folders of another scenario text, --set or inputs
 };
 
 // One output folder as compare reads it.
@@ -43,6 +46,12 @@ struct RunFolder {
   // older versions: then not compared).
   std::optional<std::map<std::string, std::string>> inputs;
   std::string partial;  // "K of N runs ..." when manifest.json says the campaign is not complete
+  // manifest.json's top-level fields (strings bare, the rest as compact JSON), for what differs.
+  std::map<std::string, std::string> fields;
+  // The hash of the scenario text and --set (manifest's scenario_text_hash, else from the run
+  // store's text); nullopt in a folder of an older ncosim without a readable store.
+  std::optional<std::string> text_hash;
+  std::optional<std::string> text;  // the scenario text the campaign ran (runs.sqlite), if readable
   std::vector<std::string> sweep_keys;
   struct Row {
     std::vector<std::string> labels;  // per sweep key
@@ -87,6 +96,7 @@ struct CompareResult {
   std::size_t tested = 0;  // rows with a test (the Holm family)
   std::size_t worse = 0, better = 0, unchanged = 0, not_comparable = 0;
   std::vector<std::string> warnings;
+  std::vector<std::string> differences;  // every differing manifest field, "field: BASE -> NEW"
   int exit_code() const { return worse > 0 ? 1 : 0; }
 };
 

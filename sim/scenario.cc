@@ -32,6 +32,20 @@ bool status_as_expected(const std::string& status, const std::string& expected) 
 
 namespace {
 
+std::string text_and_sets(const std::string& text, const std::vector<std::string>& sets) {
+  std::string hashed = text;
+  for (const auto& s : sets) hashed += "\n--set " + s;
+  return hashed;
+}
+
+}  // namespace
+
+std::string scenario_text_hash(const std::string& text, const std::vector<std::string>& sets) {
+  return fnv1a_hex(text_and_sets(text, sets));
+}
+
+namespace {
+
 // The largest scenario file read (bytes; documented in scenarios/README.md).
 constexpr std::uintmax_t kMaxScenarioBytes = 64'000'000;
 
@@ -271,8 +285,10 @@ LoadedScenario load_cases_text(const std::string& file, const std::string& text,
   out.file = file;
   out.text = text;
   out.overrides = sets;
-  std::string hashed = out.text;
-  for (const auto& s : sets) hashed += "\n--set " + s;
+  // The campaign's hash also covers the [run] overrides (resume and merge identity, committed
+  // references' manifests); the text hash does not (results/README.md, manifest.json).
+  std::string hashed = text_and_sets(out.text, sets);
+  out.text_hash = fnv1a_hex(hashed);
   if (overrides.runs > 0) hashed += "\n--runs " + std::to_string(overrides.runs);
   if (overrides.periods > 0) hashed += "\n--periods " + std::to_string(overrides.periods);
   if (overrides.seed) hashed += "\n--seed " + std::to_string(*overrides.seed);

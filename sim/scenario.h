@@ -77,7 +77,8 @@ struct Case {
 struct LoadedScenario {
   std::string file;
   std::string text;      // the file's text
-  std::string hash;      // FNV-1a 64 of the text and the overrides, hex
+  std::string hash;      // FNV-1a 64 of the text, the --set and the --runs/--periods/--seed given, hex
+  std::string text_hash;  // scenario_text_hash(text, overrides): the same without --runs/--periods/--seed
   std::vector<std::string> overrides;
   std::vector<SweepAxis> sweeps;
   std::vector<Case> cases;
@@ -111,5 +112,12 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
                                          const std::string& dir);
 
 std::string fnv1a_hex(const std::string& text);
+
+// FNV-1a 64 (hex) of a scenario's text followed by "\n--set A" for each --set assignment: what
+// the campaign simulates, without the --runs/--periods/--seed that `hash` also covers (so two
+// campaigns of one scenario with other runs or seeds share it; `ncosim compare` reads it from
+// manifest.json's scenario_text_hash). `hash` hashes the same input followed by "\n--runs N",
+// "\n--periods N", "\n--seed N" for those given.
+std::string scenario_text_hash(const std::string& text, const std::vector<std::string>& sets);
 
 }  // namespace ncosim::sim

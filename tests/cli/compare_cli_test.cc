@@ -7,6 +7,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -100,12 +101,95 @@ TEST_F(CompareCli, UnchangedIsExit0AndARegressionExit1WithTheFiles) {
   EXPECT_NE(o.output.find(path("worse") + "/manifest.json: a different scenario or different overrides"),
             std::string::npos)
       << o.output;
+  EXPECT_NE(o.output.find("\n  overrides: [] -> [\"estimator[4].grouping=\\\"S1\\\"\"]"), std::string::npos)
+      << o.output;
   o = ncosim(fmt::format("compare '{}' '{}' --allow-scenario-change --metric mse_ext", path("base"), path("worse")));
   EXPECT_EQ(o.code, 1) << o.output;
   EXPECT_NE(o.output.find("| S4, 60 gains | **worse** | paired | 6 |"), std::string::npos) << o.output;
   // A bigger tolerance than the change: not a regression.
   o = ncosim(fmt::format("compare '{}' '{}' --allow-scenario-change --tolerance 0.99", path("base"), path("worse")));
   EXPECT_EQ(o.code, 0) << o.output;
+}
+
+TEST_F(CompareCli, AnotherSeedOrMoreRunsOfTheSameScenarioCompareWithoutTheOption) {
+  // The same scenario text with --seed 99, or with --runs 8: compared without
+  // --allow-scenario-change (both were exit 2, naming nothing), every differing field listed.
+  run("base");
+  run("seed", "--seed 99");
+  Outcome o = ncosim(fmt::format("compare '{}' '{}' --out '{}'", path("base"), path("seed"), path("cmp")));
+  EXPECT_EQ(o.code, 0) << o.output;
+  EXPECT_NE(o.output.find("  - seed: 2014 -> 99\n"), std::string::npos) << o.output;
+  EXPECT_NE(o.output.find("- test: Welch's unpaired test: the seeds differ (2014 -> 99)"), std::string::npos)
+      << o.output;
+  EXPECT_NE(o.output.find("| Kalman | unchanged | welch | 6 / 6 |"), std::string::npos) << o.output;
+  EXPECT_NE(ncosim::testing::read_text(path("cmp") + "/compare.csv").find(",welch,6,6,0,"), std::string::npos);
+  EXPECT_NE(o.output.find("different seeds: unpaired"), std::string::npos) << o.output;
+  // The manifests: scenario_text_hash is the same (text and --set), scenario_hash is not (it
+  // also covers --seed, as results/README.md says).
+  const std::string mb = ncosim::testing::read_text(path("base") + "/manifest.json");
+  const std::string ms = ncosim::testing::read_text(path("seed") + "/manifest.json");
+  auto field = [](const std::string& m, const std::string& key) {
+    const auto at = m.find("\"" + key + "\": \"");
+    return at == std::string::npos ? std::string("missing") : m.substr(at + key.size() + 5, 16);
+  };
+  EXPECT_EQ(field(mb, "scenario_text_hash"), field(ms, "scenario_text_hash"));
+  EXPECT_NE(field(mb, "scenario_text_hash"), "missing");
+  EXPECT_NE(field(mb, "scenario_hash"), field(ms, "scenario_hash"));
+  // A manifest without scenario_text_hash (an older ncosim's): the text hash comes from the run
+  // store's scenario text and --set, so the seeds still compare.
+  const auto line = mb.find("  \"scenario_text_hash\"");
+  ASSERT_NE(line, std::string::npos);
+  std::ofstream(path("base") + "/manifest.json") << mb.substr(0, line) + mb.substr(mb.find('\n', line) + 1);
+  o = ncosim(fmt::format("compare '{}' '{}'", path("base"), path("seed")));
+  EXPECT_EQ(o.code, 0) << o.output;
+  EXPECT_NE(o.output.find("  - scenario_text_hash: (absent) -> "), std::string::npos) << o.output;
+  fs::remove(path("base") + "/runs.sqlite");  // and without a store: by scenario_hash, refused
+  o = ncosim(fmt::format("compare '{}' '{}'", path("base"), path("seed")));
+  EXPECT_EQ(o.code, 2) << o.output;
+  EXPECT_NE(o.output.find("a manifest.json without scenario_text_hash (an older ncosim) and no run store"),
+            std::string::npos)
+      << o.output;
+  std::ofstream(path("base") + "/manifest.json") << mb;
+
+  // --runs 8 (same seed): runs 0..5 are the same realisations, paired on them.
+  o = ncosim(fmt::format("run '{}' --out '{}' --runs 8 --periods 3000 --quiet", kTable2.string(), path("more")));
+  ASSERT_EQ(o.code, 0) << o.output;
+  o = ncosim(fmt::format("compare '{}' '{}'", path("base"), path("more")));
+  EXPECT_EQ(o.code, 0) << o.output;
+  EXPECT_NE(o.output.find("  - runs: 6 -> 8\n"), std::string::npos) << o.output;
+  EXPECT_NE(o.output.find("- test: paired on the runs both folders have"), std::string::npos) << o.output;
+  EXPECT_NE(o.output.find("| Kalman | unchanged | paired | 6 |"), std::string::npos) << o.output;
+  EXPECT_NE(o.output.find("paired on the 6 runs both have"), std::string::npos) << o.output;
+}
+
+TEST_F(CompareCli, AnotherScenarioTextIsRefusedWithItsFirstDifferingLine) {
+  // A copy of the flagship with one line changed: exit 2, the line and the fields named.
+  std::string text = ncosim::testing::read_text(kTable2.string());
+  const auto title = text.find("title = ");
+  ASSERT_NE(title, std::string::npos);
+  const auto eol = text.find('\n', title);
+  const std::string old_line = text.substr(title, eol - title);
+  text.replace(title, eol - title, "title = \"edited\"");
+  const int line = 1 + static_cast<int>(std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(title), '\n'));
+  const fs::path copy = dir_ / "edited.toml";
+  std::ofstream(copy) << text;
+  run("base");
+  const Outcome made = ncosim(fmt::format("run '{}' --out '{}' --runs 6 --periods 3000 --quiet", copy.string(),
+                                          path("edited")));
+  fs::remove(copy);
+  ASSERT_EQ(made.code, 0) << made.output;
+  const Outcome o = ncosim(fmt::format("compare '{}' '{}'", path("base"), path("edited")));
+  EXPECT_EQ(o.code, 2) << o.output;
+  EXPECT_NE(o.output.find(path("edited") + "/manifest.json: a different scenario or different overrides"),
+            std::string::npos)
+      << o.output;
+  EXPECT_NE(o.output.find(fmt::format("\n  scenario text: line {}: `{}` -> `title = \"edited\"`", line, old_line)),
+            std::string::npos)
+      << o.output;
+  EXPECT_NE(o.output.find("\n  scenario_text_hash: "), std::string::npos) << o.output;
+  EXPECT_NE(o.output.find("\n  title: "), std::string::npos) << o.output;
+  EXPECT_NE(o.output.find("\n  scenario: "), std::string::npos) << o.output;
+  EXPECT_EQ(o.output.find("\n  seed: "), std::string::npos) << o.output;  // the same in both
 }
 
 TEST_F(CompareCli, BadInputIsExit2NamingTheFileOrOption) {

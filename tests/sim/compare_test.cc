@@ -3,6 +3,7 @@
 #include "sim/compare.h"
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include <cmath>
 #include <filesystem>
@@ -10,6 +11,9 @@
 #include <fstream>
 #include <random>
 #include <sstream>
+
+#include "sim/compare_manifest.h"
+#include "sim/scenario.h"
 
 namespace ncosim::sim {
 namespace {
@@ -53,6 +57,13 @@ struct Folder {
     }
   }
   std::string str() const { return dir.string(); }
+  // Adds (or replaces) fields of manifest.json, as `ncosim run` writes them.
+  void add_to_manifest(const nlohmann::json& fields) const {
+    nlohmann::json m;
+    std::ifstream(dir / "manifest.json") >> m;
+    m.update(fields);
+    std::ofstream(dir / "manifest.json") << m.dump(2) << "\n";
+  }
 };
 
 CompareResult run(const Folder& b, const Folder& n, CompareOptions o = {}) {
@@ -250,6 +261,126 @@ TEST(Compare, CsvAndMarkdownCarryEveryRow) {
   const std::string md = compare_markdown(r);
   EXPECT_NE(md.find("| B | **worse** | paired | 10 |"), std::string::npos) << md;
   EXPECT_NE(md.find("1 worse, 0 better, 1 unchanged, 0 not comparable: exit 1"), std::string::npos) << md;
+}
+
+TEST(CompareIdentity, SameScenarioWithAnotherSeedIsComparedUnpairedWithoutTheOption) {
+  // Same text and --set (scenario_text_hash), --seed 8 in NEW: scenario_hash differs (it covers
+  // --seed), yet no --allow-scenario-change is needed (it was exit 2); Welch, and it says why.
+  Folder b("seed_b"), n("seed_n");
+  b.write("h7", 7, 20, 1.0);
+  n.write("h8", 8, 20, 1.0);
+  b.add_to_manifest({{"scenario_text_hash", "t"}, {"runs", 20}, {"date", "2026-01-01T00:00:00Z"}});
+  n.add_to_manifest({{"scenario_text_hash", "t"}, {"runs", 20}, {"date", "2026-02-02T00:00:00Z"}});
+  const auto r = run(b, n);
+  EXPECT_EQ(row(r, "B").test, "welch");
+  EXPECT_EQ(row(r, "B").note, "different seeds: unpaired");
+  EXPECT_TRUE(r.warnings.empty());
+  const std::vector<std::string> diff{"scenario_hash: h7 -> h8", "seed: 7 -> 8"};  // not `date`
+  EXPECT_EQ(r.differences, diff);
+  const std::string md = compare_markdown(r);
+  EXPECT_NE(md.find("- BASE -> NEW differ in:\n  - scenario_hash: h7 -> h8\n  - seed: 7 -> 8\n"), std::string::npos)
+      << md;
+  EXPECT_NE(md.find("- test: Welch's unpaired test: the seeds differ (7 -> 8)"), std::string::npos) << md;
+}
+
+TEST(CompareIdentity, OtherRunsWithTheSameSeedArePairedOnTheCommonRuns) {
+  // --runs 30 in NEW: runs 0..19 are the same realisations in both (same seed), so paired on them.
+  Folder b("runs_b"), n("runs_n");
+  b.write("h20", 7, 20, 1.0);
+  n.write("h30", 7, 30, 1.01);
+  b.add_to_manifest({{"scenario_text_hash", "t"}, {"runs", 20}});
+  n.add_to_manifest({{"scenario_text_hash", "t"}, {"runs", 30}});
+  const auto r = run(b, n);
+  EXPECT_EQ(row(r, "B").test, "paired");
+  EXPECT_EQ(row(r, "B").pairs, 20u);
+  EXPECT_EQ(row(r, "B").note, "paired on the 20 runs both have");
+  EXPECT_EQ(row(r, "B").verdict, "worse");  // the +1 % that only pairing finds
+  const std::vector<std::string> diff{"runs: 20 -> 30", "scenario_hash: h20 -> h30"};
+  EXPECT_EQ(r.differences, diff);
+  EXPECT_NE(compare_markdown(r).find("- test: paired on the runs both folders have"), std::string::npos);
+}
+
+TEST(CompareIdentity, AnotherScenarioTextIsRefusedNamingEveryDifferingField) {
+  Folder b("text_b"), n("text_n");
+  b.write("h1", 7, 5, 1.0);
+  n.write("h2", 8, 5, 1.0);
+  const std::string long_title(100, 'x');
+  b.add_to_manifest({{"scenario_text_hash", "t1"}, {"overrides", nlohmann::json::array()}, {"git_commit", "abc"},
+                     {"inputs", {{"trace.csv", "1111"}, {"net.xml", "3333"}}}, {"threads", 1}});
+  n.add_to_manifest({{"scenario_text_hash", "t2"}, {"overrides", {"plant.W=[[2.0]]"}}, {"git_commit", "def"},
+                     {"inputs", {{"trace.csv", "2222"}, {"net.xml", "3333"}}}, {"threads", 2}, {"title", long_title}});
+  const std::string e = error_of([&] { run(b, n); });
+  EXPECT_NE(e.find((n.dir / "manifest.json").string() + ": a different scenario or different overrides than " +
+                   (b.dir / "manifest.json").string()),
+            std::string::npos)
+      << e;
+  EXPECT_NE(e.find("--allow-scenario-change"), std::string::npos) << e;
+  for (const std::string& line : std::vector<std::string>{
+           "\n  git_commit: abc -> def", "\n  overrides: [] -> [\"plant.W=[[2.0]]\"]", "\n  scenario_hash: h1 -> h2",
+        "\n  scenario_text_hash: t1 -> t2", "\n  seed: 7 -> 8", "\n  inputs 'trace.csv': 1111 -> 2222",
+        "\n  title: t -> " + long_title.substr(0, 77) + "..."}) {
+    EXPECT_NE(e.find(line), std::string::npos) << line << " not in: " << e;
+  }
+  EXPECT_EQ(e.find("threads"), std::string::npos) << e;   // how it ran, not what
+  EXPECT_EQ(e.find("net.xml"), std::string::npos) << e;   // the same content in both
+  EXPECT_EQ(e.find("older ncosim"), std::string::npos) << e;
+  // With the option: compared (Welch: other seeds), the differences listed in compare.md.
+  CompareOptions allow;
+  allow.allow_scenario_change = true;
+  const auto r = run(b, n, allow);
+  EXPECT_EQ(row(r, "B").test, "welch");
+  EXPECT_NE(compare_markdown(r).find("  - scenario_text_hash: t1 -> t2\n"), std::string::npos);
+  // Same text, other inputs: refused, the file named on its own line too.
+  n.add_to_manifest({{"scenario_text_hash", "t1"}});
+  const std::string in = error_of([&] { run(b, n); });
+  EXPECT_NE(in.find("the content of the input file(s) 'trace.csv' (1111 vs 2222) differs"), std::string::npos) << in;
+  EXPECT_NE(in.find("\n  inputs 'trace.csv': 1111 -> 2222"), std::string::npos) << in;
+}
+
+TEST(CompareIdentity, AManifestWithoutTheTextHashGoesByTheScenarioHashAndSaysWhy) {
+  // A folder of an older ncosim (no scenario_text_hash, no store): its scenario_hash covers
+  // --seed, so another seed cannot be told from another scenario; the message says so.
+  Folder b("old_b"), n("old_n");
+  b.write("h7", 7, 5, 1.0);
+  n.write("h8", 8, 5, 1.0);
+  n.add_to_manifest({{"scenario_text_hash", "t"}});
+  const std::string e = error_of([&] { run(b, n); });
+  EXPECT_NE(e.find("(BASE " + b.str() + ": a manifest.json without scenario_text_hash (an older ncosim) and no run "
+                                        "store; its scenario_hash also covers --runs, --periods and --seed"),
+            std::string::npos)
+      << e;
+  EXPECT_EQ(e.find("(NEW "), std::string::npos) << e;
+  b.write("h8", 7, 5, 1.0);  // the same scenario_hash: the same scenario, as before
+  EXPECT_EQ(row(run(b, n), "B").test, "welch");
+}
+
+TEST(CompareIdentity, FirstDifferingLineOfTwoTexts) {
+  EXPECT_EQ(first_differing_line("a\nb\nc\n", "a\nb\nc\n"), "");
+  EXPECT_EQ(first_differing_line("a\nb = 1\nc\n", "a\nb = 2\nc\n"), "line 2: `b = 1` -> `b = 2`");
+  EXPECT_EQ(first_differing_line("a\n", "a\nb\n"), "line 2: `` -> `b`");
+  EXPECT_EQ(first_differing_line("a", "a\nb"), "line 2: (end of file) -> `b`");
+  // Lines that differ after their first 57 characters still differ (shown shortened).
+  const std::string head(70, 'k');
+  EXPECT_EQ(first_differing_line(head + "1", head + "2"),
+            "line 1: `" + head.substr(0, 57) + "...` -> `" + head.substr(0, 57) + "...`");
+}
+
+TEST(CompareIdentity, TheTextHashCoversTheTextAndSetOnlyTheScenarioHashAlsoTheRunOptions) {
+  // results/README.md, manifest.json: scenario_hash = FNV-1a of text + "\n--set A"... + "\n--runs N"
+  // + "\n--periods N" + "\n--seed N" for the options given; scenario_text_hash without the last three.
+  const std::string text = "title = \"t\"\n[run]\nperiods = 50\nruns = 2\n[plant]\nA = [[0.5]]\nW = [[1.0]]\n"
+                           "[[sensor]]\nC = [[1.0]]\nR = [[1.0]]\n[[estimator]]\nname = \"ol\"\nkind = \"open_loop\"\n";
+  const std::vector<std::string> sets{"run.warmup=1"};
+  RunOverrides ov;
+  ov.runs = 3;
+  ov.seed = 9;
+  const auto plain = load_cases_text("x.toml", text, sets);
+  const auto with = load_cases_text("x.toml", text, sets, ov);
+  EXPECT_EQ(plain.text_hash, fnv1a_hex(text + "\n--set run.warmup=1"));
+  EXPECT_EQ(plain.hash, plain.text_hash);
+  EXPECT_EQ(with.text_hash, plain.text_hash);
+  EXPECT_EQ(with.hash, fnv1a_hex(text + "\n--set run.warmup=1\n--runs 3\n--seed 9"));
+  EXPECT_EQ(scenario_text_hash(text, sets), plain.text_hash);
 }
 
 }  // namespace
