@@ -32,6 +32,7 @@
 #include "sim/link_stats.h"
 #include "sim/output.h"
 #include "sim/paired.h"
+#include "sim/progress.h"
 #include "sim/output_set.h"
 #include "sim/store.h"
 
@@ -913,8 +914,39 @@ void record_session(RunStore& store, double wall, int used_threads, int ranks, i
 struct SessionTotals {
   double wall = 0.0;
   int threads = 1;
+  int ranks = 1;  // MPI ranks (1 without mpirun)
   std::uint64_t simulated = 0, skipped = 0;
+  std::vector<std::uint64_t> case_runs;  // per case: runs stored before and simulated now
 };
+
+// "3 cases x 20 runs x 5000 periods = 60 runs" (one case: "20 runs x 5000 periods"; cases of
+// different sizes: "20..40 runs").
+std::string campaign_size(const LoadedScenario& loaded, const std::vector<std::uint64_t>& case_runs) {
+  std::uint64_t total = 0, rlo = std::numeric_limits<std::uint64_t>::max(), rhi = 0;
+  std::int64_t plo = std::numeric_limits<std::int64_t>::max(), phi = 0;
+  for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
+    const std::uint64_t r = c < case_runs.size() ? case_runs[c] : 0;
+    total += r;
+    rlo = std::min(rlo, r);
+    rhi = std::max(rhi, r);
+    plo = std::min(plo, loaded.cases[c].scenario->run.periods);
+    phi = std::max(phi, loaded.cases[c].scenario->run.periods);
+  }
+  auto range = [](auto lo, auto hi) { return lo == hi ? fmt::format("{}", lo) : fmt::format("{}..{}", lo, hi); };
+  if (loaded.cases.size() == 1) return fmt::format("{} runs x {} periods", total, plo);
+  return fmt::format("{} cases x {} runs x {} periods = {} runs", loaded.cases.size(), range(rlo, rhi), range(plo, phi),
+                     total);
+}
+
+// The closing line: "ncosim: 3 cases x 20 runs x 5000 periods = 60 runs in 8.7 s on 2 threads
+// [x 3 MPI ranks][, shard I/N]; results in DIR/", with the runs stored before when resumed.
+std::string closing_line(const RunCommand& cmd, const LoadedScenario& loaded, const SessionTotals& t) {
+  return fmt::format("ncosim: {}{} in {} s on {} thread{}{}{}; results in {}/\n", campaign_size(loaded, t.case_runs),
+                     t.skipped > 0 ? fmt::format(" ({} stored before, {} simulated now)", t.skipped, t.simulated) : "",
+                     t.wall >= 10.0 ? fmt::format("{:.1f}", t.wall) : fmt::format("{:.2f}", t.wall), t.threads,
+                     t.threads == 1 ? "" : "s", t.ranks > 1 ? fmt::format(" x {} MPI ranks", t.ranks) : "",
+                     cmd.shard.empty() ? "" : fmt::format(", shard {}", cmd.shard), cmd.out);
+}
 
 // The runs lo..limit-1 of this shard that the store does not hold yet (`done`, sorted); the
 // others are counted in `skipped`.
@@ -938,12 +970,7 @@ std::vector<std::uint64_t> runs_to_do(const std::vector<std::uint64_t>& done, st
 // kExitFlagged with --fail-on-status and rows not ok).
 int finish_session(const RunCommand& cmd, const std::string& md, const LoadedScenario& loaded, const SessionTotals& t,
                    const std::string& path, int sig, bool complete, const std::vector<std::string>& not_ok) {
-  const Scenario& first = *loaded.cases.front().scenario;
-  std::cout << md
-            << fmt::format("\n{} runs x {} periods x {} case(s){} in {:.2f} s on {} thread(s){}; results in {}/\n",
-                           t.simulated, first.run.periods, loaded.cases.size(),
-                           t.skipped > 0 ? fmt::format(" ({} earlier runs resumed)", t.skipped) : "", t.wall,
-                           t.threads, cmd.shard.empty() ? "" : fmt::format(", shard {}", cmd.shard), cmd.out);
+  std::cout << md << "\n" << closing_line(cmd, loaded, t);
   if (sig > 0) {
     // A signal after the last run had started stopped nothing: the results are complete (the
     // exit status still says a signal came).
@@ -991,14 +1018,17 @@ std::vector<std::vector<std::uint64_t>> register_cases(RunStore& store, const Lo
 // One `run` session on rank 0: the campaign's fixed inputs and what its batches accumulate.
 struct RunSession {
   RunSession(const RunCommand& c, const LoadedScenario& l, const Shard& sh, const TargetRule& r, MpiSession* m)
-      : cmd(c), loaded(l), shard(sh), rule(r), mpi(m), timed(l.cases.size(), 0), ran(l.cases.size(), 0) {}
+      : cmd(c), loaded(l), shard(sh), rule(r), mpi(m), timed(l.cases.size(), 0), ran(l.cases.size(), 0) {
+    totals.case_runs.assign(l.cases.size(), 0);
+    totals.ranks = m != nullptr ? m->size() : 1;
+  }
 
   const RunCommand& cmd;
   const LoadedScenario& loaded;
   const Shard shard;
   const TargetRule rule;
   MpiSession* const mpi;  // under mpirun, else null
-  bool tty = false;       // stderr is a terminal: a progress line, else (without --quiet) a progress log
+  CampaignProgress* progress = nullptr;  // the campaign's progress line (sim/progress.h), or null
   std::vector<std::vector<std::uint64_t>> stored;  // per case: the runs the store held at the start
   SessionTotals totals;
   std::vector<char> timed, ran;  // per case: ns_per_period stored / a campaign of it ran in this session
@@ -1011,17 +1041,18 @@ void run_case_batch(RunSession& session, StoreSink& sink, std::size_t c, std::ui
   const RunCommand& cmd = session.cmd;
   const std::size_t cases = session.loaded.cases.size();
   const Scenario& sc = *session.loaded.cases[c].scenario;
+  const std::uint64_t skipped = session.totals.skipped;
   std::vector<std::uint64_t> todo = runs_to_do(session.stored[c], lo, limit, session.shard, session.totals.skipped);
+  session.totals.case_runs[c] += session.totals.skipped - skipped;
   if (todo.empty()) return;
   CampaignOptions opt;
   opt.threads = session.mpi && cmd.threads == 0 ? 1 : cmd.threads;  // one thread per rank unless asked
-  opt.progress = session.tty && !cmd.quiet;
-  opt.progress_log = !session.tty && !cmd.quiet;
   opt.trace = cmd.trace && c == 0;
   opt.time_estimators = cmd.timing && session.timed[c] == 0;
-  std::string label = cases > 1 ? fmt::format("case {}/{}", c + 1, cases) : "";
-  if (session.rule.on()) label += fmt::format("{}runs {}..{}", label.empty() ? "" : ", ", lo, limit - 1);
-  opt.progress_label = label.empty() ? "" : label + ":";
+  if (session.progress != nullptr) {
+    session.progress->set_case(c, cases, session.rule.on() ? fmt::format("runs {}..{}", lo, limit - 1) : "");
+    opt.progress = session.progress;
+  }
   opt.only_runs = std::move(todo);
   opt.stop = &g_stop;
   opt.on_run = [&sink, c](std::uint64_t run, RunMetrics&& m, RunLinks&& links) {
@@ -1032,6 +1063,7 @@ void run_case_batch(RunSession& session, StoreSink& sink, std::size_t c, std::ui
   session.totals.wall += res.wall_seconds;
   session.totals.threads = res.threads;
   session.totals.simulated += res.runs_done;
+  session.totals.case_runs[c] += res.runs_done;
   session.ran[c] = 1;
   if (!res.trace.empty()) session.trace = std::move(res.trace);
   if (opt.time_estimators && !res.stopped) {
@@ -1091,6 +1123,20 @@ void store_timing_and_trace(RunSession& session, StoreSink& sink) {
   }
 }
 
+// The campaign's runs over every case (this shard's; with --target-ci up to --max-runs per case,
+// an upper bound) and how many of them the store held at the start, for the progress line.
+void set_progress_total(const RunSession& session, CampaignProgress& progress) {
+  const Shard& shard = session.shard;
+  std::uint64_t total = 0, stored = 0;
+  for (std::size_t c = 0; c < session.loaded.cases.size(); ++c) {
+    const std::uint64_t limit = session.rule.on() ? session.rule.max_runs
+                                                  : static_cast<std::uint64_t>(session.loaded.cases[c].scenario->run.runs);
+    total += limit / shard.count + (shard.index < limit % shard.count ? 1 : 0);
+    for (std::uint64_t r : session.stored[c]) stored += r < limit && shard.owns(r) ? 1 : 0;
+  }
+  progress.set_total(total, stored, session.rule.on());
+}
+
 // Simulates the session's runs into the store, committed by a writer thread as they complete.
 void simulate_session(RunSession& session, RunStore& store) {
   StoreSink sink(store);
@@ -1129,13 +1175,20 @@ int cmd_run_campaign(const RunCommand& cmd) {
   RunSession session(cmd, loaded, shard, rule, mpi.get());
   session.stored = register_cases(store, loaded, cmd.resume);
 
-  session.tty = ::isatty(2) != 0;
+  // One progress line for the whole campaign: redrawn on a terminal, a line every 5 s in a log.
+  CampaignProgress progress(cmd.quiet     ? CampaignProgress::Mode::off
+                            : ::isatty(2) ? CampaignProgress::Mode::terminal
+                                          : CampaignProgress::Mode::log);
+  set_progress_total(session, progress);
+  session.progress = &progress;
+  progress.start();
   StopSignals signals;
   simulate_session(session, store);
+  progress.finish();
   // Test hook: a signal that comes after the last run (a moment the signal tests cannot aim at).
   if (const char* raise_after = std::getenv("NCOSIM_TEST_RAISE_AFTER_RUNS")) ::raise(std::atoi(raise_after));
   const int sig = g_stop.load();
-  record_session(store, session.totals.wall, session.totals.threads, mpi ? mpi->size() : 1, sig);
+  record_session(store, session.totals.wall, session.totals.threads, session.totals.ranks, sig);
   ExportInfo info;
   info.command_line = cmd.command_line;
   info.stopped = sig > 0 ? signal_name(sig) : "";
