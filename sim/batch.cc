@@ -810,8 +810,11 @@ Shard parse_shard(const std::string& text) {
 
 namespace {
 
-// --target-ci and --max-runs checked before the scenario is read.
+// --target-ci, --max-runs and --replace checked before the scenario is read.
 void check_target_options(const RunCommand& cmd) {
+  if (cmd.replace && cmd.resume) {
+    throw ScenarioError("--replace: not with --resume (--resume continues the stored campaign, --replace discards it)");
+  }
   if (!cmd.target_ci && cmd.max_runs > 0) throw ScenarioError("--max-runs: only with --target-ci");
   if (cmd.target_ci && (!std::isfinite(*cmd.target_ci) || *cmd.target_ci <= 0.0 || *cmd.target_ci >= 1.0)) {
     throw ScenarioError(fmt::format("--target-ci: expected a relative half-width in (0, 1), e.g. 0.01, got {}",
@@ -846,6 +849,69 @@ TargetRule target_rule(const RunCommand& cmd, const LoadedScenario& loaded, std:
   return target_of(meta, loaded);
 }
 
+// What a new campaign would replace in the folder: a store holding finished runs of a different
+// campaign, or of this one unfinished.
+struct ReplacedStore {
+  std::string path;
+  std::int64_t runs = 0;
+  std::string diff;         // what differs (stored vs now); "" for the same campaign
+  bool unfinished = false;  // the store beside the folder, or the folder's without every run
+};
+
+// Whether the folder's store of this very campaign holds every run it owns (with --target-ci:
+// it was not stopped before the target or --max-runs decided).
+bool store_finished(const RunStore& store, const LoadedScenario& loaded, const std::map<std::string, std::string>& meta) {
+  if (target_of(meta, loaded).on()) return meta.count("stopped") == 0 || meta.at("stopped").empty();
+  const Shard shard = shard_of(meta);
+  for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
+    if (store.done_runs(c).size() < owned_runs(*loaded.cases[c].scenario, shard)) return false;
+  }
+  return true;
+}
+
+// The store at `path` if replacing it would lose runs (`partial`: the unfinished store beside
+// the folder); nothing for no store, no run, the same finished campaign or an unreadable store.
+std::optional<ReplacedStore> replaced_store(const std::string& path, bool partial, const LoadedScenario& loaded,
+                                            const std::map<std::string, std::string>& meta) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) return std::nullopt;
+  ReplacedStore r{path, 0, "", partial};
+  try {
+    const RunStore store = RunStore::open(path, false);
+    r.runs = store.count_runs();
+    if (r.runs == 0) return std::nullopt;
+    const auto stored = store.meta();
+    check_campaign_meta(stored, path);
+    r.diff = identity_difference(stored, meta, true);
+    if (!partial && r.diff.empty()) r.unfinished = !store_finished(store, loaded, stored);
+  } catch (const StoreError&) {
+    return std::nullopt;  // damaged: nothing in it can be resumed or exported (as before: replaced)
+  }
+  if (r.diff.empty() && !r.unfinished) return std::nullopt;  // the same campaign again: identical results
+  return r;
+}
+
+// Without --resume: refuses (exit 2, nothing written) to replace a store of the folder that holds
+// finished runs of a different or unfinished campaign, unless --replace says so (then says what
+// it replaces; true).
+bool check_replace(const RunCommand& cmd, const LoadedScenario& loaded, const std::map<std::string, std::string>& meta) {
+  std::optional<ReplacedStore> r = replaced_store(partial_store_path(cmd.out), true, loaded, meta);
+  if (!r) r = replaced_store(store_path(cmd.out), false, loaded, meta);
+  if (!r) return false;
+  if (cmd.replace) {
+    std::cerr << fmt::format("ncosim: --replace: replacing {} finished run(s) of {} campaign in {}\n", r->runs,
+                             r->diff.empty() ? "an unfinished" : "a different", r->path);
+    return true;
+  }
+  const std::string what = r->diff.empty() ? "an unfinished campaign"
+                                           : r->unfinished ? "a different, unfinished campaign" : "a different campaign";
+  throw ScenarioError(fmt::format(
+      "--out: '{}' holds {} finished run(s) of {} ({}){}; {}`--replace` starts afresh and replaces them, or choose "
+      "another --out",
+      cmd.out, r->runs, what, r->path, r->diff.empty() ? "" : fmt::format(": {} differ(s) (stored vs now)", r->diff),
+      r->diff.empty() ? "`--resume` continues it, " : ""));
+}
+
 // The run store of the campaign, always built beside the folder (partial_store_path): created
 // afresh, or with --resume the stored campaign, which must be this one: the unfinished one beside
 // the folder if a session was killed, else a copy of the set's store. The folder's set is not
@@ -857,7 +923,7 @@ RunStore open_run_store(const RunCommand& cmd, const LoadedScenario& loaded,
   settle_partial(cmd.out);
   std::error_code ec;
   if (!cmd.resume) {
-    note_replaced_partial(cmd.out, partial);
+    if (!check_replace(cmd, loaded, meta)) note_replaced_partial(cmd.out, partial);
     return RunStore::create(partial, meta);
   }
   auto same_campaign = [&](const RunStore& s, const std::string& what) {
