@@ -41,8 +41,9 @@ build() {  # build DIR [cmake options...]: configure and build quietly, show the
 if [[ $mode == run ]]; then
   echo "ncosim: building (Release)..."
   build build -DCMAKE_BUILD_TYPE=Release -DNCOSIM_BUILD_TESTS=OFF -DNCOSIM_BUILD_BENCH=OFF
-  # Into build/ so that the committed reference results/dolz2014_table2/ stays as committed.
-  exec build/sim/ncosim run scenarios/dolz2014_table2.toml --out build/results/dolz2014_table2
+  # Into build/ so that the committed reference results/dolz2014_table2/ stays as committed;
+  # --replace: a re-run after an update replaces the previous demo campaign.
+  exec build/sim/ncosim run scenarios/dolz2014_table2.toml --out build/results/dolz2014_table2 --replace
 fi
 
 echo "ncosim: building (Release)..."

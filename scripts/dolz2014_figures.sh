@@ -16,8 +16,8 @@ methods() { awk -F, 'NR > 1 { print $1 }' "$1" | sort -u; }
 for s in a b c; do
   out=results/dolz2014_fig1/$s
   run "$NCOSIM" design scenarios/dolz2014_fig1$s.toml --out "$out"
-  run "$NCOSIM" run scenarios/dolz2014_fig1$s.toml --out "$out/physical" --quiet
-  run "$NCOSIM" run scenarios/dolz2014_fig1$s.toml --out "$out/independent" --quiet \
+  run "$NCOSIM" run scenarios/dolz2014_fig1$s.toml --out "$out/physical" --quiet --replace
+  run "$NCOSIM" run scenarios/dolz2014_fig1$s.toml --out "$out/independent" --quiet --replace \
     --set 'link[0].independent=true' --set 'link[1].independent=true'
   # plot data, one file per design method (column 1): per grouping, gains, predicted ratio,
   # simulated ratios and CIs (extended state).
@@ -53,8 +53,8 @@ done
 # the FLOPs as the paper counted them for Fig. 3 (nbar_m = 2 whatever dbar, see results/README.md).
 out=results/dolz2014_fig3
 run "$NCOSIM" design scenarios/dolz2014_fig3.toml --out "$out"
-run "$NCOSIM" run scenarios/dolz2014_fig3.toml --out "$out/physical" --quiet
-run "$NCOSIM" run scenarios/dolz2014_fig3.toml --out "$out/independent" --quiet --set 'sensor[0].link="net1_independent"'
+run "$NCOSIM" run scenarios/dolz2014_fig3.toml --out "$out/physical" --quiet --replace
+run "$NCOSIM" run scenarios/dolz2014_fig3.toml --out "$out/independent" --quiet --replace --set 'sensor[0].link="net1_independent"'
 rm -f "$out"/plot_*.dat
 for m in $(methods "$out/design.csv"); do
 awk -F, -v M="$m" -v D="$out/design.csv" -v P="$out/physical/summary.csv" -v I="$out/independent/summary.csv" '
@@ -74,8 +74,8 @@ done
 # Fig. 4: A3, buffered packets, dbar = b = 0..3, Nbar = 1..7.
 out=results/dolz2014_fig4
 run "$NCOSIM" design scenarios/dolz2014_fig4.toml --out "$out"
-run "$NCOSIM" run scenarios/dolz2014_fig4.toml --out "$out/physical" --quiet
-run "$NCOSIM" run scenarios/dolz2014_fig4.toml --out "$out/fresh" --quiet \
+run "$NCOSIM" run scenarios/dolz2014_fig4.toml --out "$out/physical" --quiet --replace
+run "$NCOSIM" run scenarios/dolz2014_fig4.toml --out "$out/fresh" --quiet --replace \
   --set 'sensor[0].resend_noise="fresh"' --set 'sensor[1].resend_noise="fresh"'
 rm -f "$out"/plot_*.dat
 for m in $(methods "$out/design.csv"); do
@@ -94,8 +94,8 @@ done
 # Fig. 5: A3, sensor 1, buffered packets; tr(Pt) against delivery; thresholds by ncosim find.
 out=results/dolz2014_fig5
 run "$NCOSIM" design scenarios/dolz2014_fig5.toml --out "$out"
-run "$NCOSIM" run scenarios/dolz2014_fig5.toml --out "$out/physical" --quiet
-run "$NCOSIM" run scenarios/dolz2014_fig5.toml --out "$out/fresh" --quiet --set 'sensor[0].resend_noise="fresh"'
+run "$NCOSIM" run scenarios/dolz2014_fig5.toml --out "$out/physical" --quiet --replace
+run "$NCOSIM" run scenarios/dolz2014_fig5.toml --out "$out/fresh" --quiet --replace --set 'sensor[0].resend_noise="fresh"'
 run "$NCOSIM" find scenarios/dolz2014_fig5.toml --key 'link[0].delivery' --target 'predicted_mse<=0.03' \
   --lo 0.5 --hi 1 --tol 1e-5 --out "$out/find"
 awk -F, -v D="$out/design.csv" -v P="$out/physical/summary.csv" -v F="$out/fresh/summary.csv" '
@@ -111,12 +111,12 @@ awk -F, -v D="$out/design.csv" -v P="$out/physical/summary.csv" -v F="$out/fresh
 
 # Table 2: physical packets (the committed reference) and the independent copies of the design model.
 out=results/dolz2014_table2
-run "$NCOSIM" run scenarios/dolz2014_table2.toml --out "$out" --quiet
-run "$NCOSIM" run scenarios/dolz2014_table2.toml --out "$out/independent" --quiet \
+run "$NCOSIM" run scenarios/dolz2014_table2.toml --out "$out" --quiet --replace
+run "$NCOSIM" run scenarios/dolz2014_table2.toml --out "$out/independent" --quiet --replace \
   --set 'link[0].independent=true' --set 'link[1].independent=true'
 # The same campaign with the paper's design method (CCL + bisection on CSDP) for every jump row.
 ccl_sets=(); for i in 0 1 2 3 4; do ccl_sets+=(--set "estimator[$i].design=\"ccl\""); done
-run "$NCOSIM" run scenarios/dolz2014_table2.toml --out "$out/ccl" --quiet "${ccl_sets[@]}"
+run "$NCOSIM" run scenarios/dolz2014_table2.toml --out "$out/ccl" --quiet --replace "${ccl_sets[@]}"
 awk -F, -v I="$out/independent/summary.csv" -v C="$out/ccl/summary.csv" '
   function field(line, i,   f, n, q, c, s) { # CSV with quoted names: split respecting quotes
     n = 0; s = ""; q = 0

@@ -20,7 +20,7 @@ for mu in $MUS; do
     "$BIN" codesign "$SC" --estimator "$est" --mu "$mu" --out "$TMP/cd" --quiet > /dev/null
     J="$TMP/cd/codesign.json"
     d1=$(jq -r '.[0].delta[0]' "$J"); d2=$(jq -r '.[0].delta[1]' "$J")
-    "$BIN" run "$SC" --quiet --out "$TMP/run" --set "sensor[0].delta=$d1" --set "sensor[1].delta=$d2" > /dev/null
+    "$BIN" run "$SC" --quiet --replace --out "$TMP/run" --set "sensor[0].delta=$d1" --set "sensor[1].delta=$d2" > /dev/null
     row=$(awk -F, -v e="$est" 'NR == 1 { for (i = 1; i <= NF; ++i) c[$i] = i } NR > 1 && $1 == e { print $c["mse"] "," $c["mse_ci95"] "," $c["sent_per_period"] "," $c["status"] }' "$TMP/run/summary.csv")
     IFS=, read -r mse ci spp status <<< "$row"
     b1=$(awk -F, 'NR == 2 { print $7 }' "$TMP/run/transmissions.csv"); b2=$(awk -F, 'NR == 3 { print $7 }' "$TMP/run/transmissions.csv")
@@ -36,7 +36,7 @@ SUH="$TMP/suh.csv"
 echo "filter_W,delta1,delta2,simulated_mse,simulated_mse_ci95,sent_per_period,paper" > "$SUH"
 for spec in "0.1 0.9 0.5 0.4174" "0.02 0.236 0.098 1.5*z0"; do
   read -r w d1 d2 paper <<< "$spec"
-  "$BIN" run "$SC" --quiet --out "$TMP/suh" --set "sensor[0].delta=$d1" --set "sensor[1].delta=$d2" --set "estimator[0].W=$w" > /dev/null
+  "$BIN" run "$SC" --quiet --replace --out "$TMP/suh" --set "sensor[0].delta=$d1" --set "sensor[1].delta=$d2" --set "estimator[0].W=$w" > /dev/null
   awk -F, -v w="$w" -v d1="$d1" -v d2="$d2" -v p="$paper" 'NR == 1 { for (i = 1; i <= NF; ++i) c[$i] = i } NR > 1 && $2 == "sod_kalman" { print w "," d1 "," d2 "," $c["mse"] "," $c["mse_ci95"] "," $c["sent_per_period"] "," p }' "$TMP/suh/summary.csv" >> "$SUH"
 done
 cp "$CSV" "$OUT/sweep.csv"

@@ -32,6 +32,7 @@
 #include "sim/link_stats.h"
 #include "sim/output.h"
 #include "sim/paired.h"
+#include "sim/progress.h"
 #include "sim/output_set.h"
 #include "sim/store.h"
 #include "sim/table_view.h"
@@ -848,8 +849,11 @@ Shard parse_shard(const std::string& text) {
 
 namespace {
 
-// --target-ci and --max-runs checked before the scenario is read.
+// --target-ci, --max-runs and --replace checked before the scenario is read.
 void check_target_options(const RunCommand& cmd) {
+  if (cmd.replace && cmd.resume) {
+    throw ScenarioError("--replace: not with --resume (--resume continues the stored campaign, --replace discards it)");
+  }
   if (!cmd.target_ci && cmd.max_runs > 0) throw ScenarioError("--max-runs: only with --target-ci");
   if (cmd.target_ci && (!std::isfinite(*cmd.target_ci) || *cmd.target_ci <= 0.0 || *cmd.target_ci >= 1.0)) {
     throw ScenarioError(fmt::format("--target-ci: expected a relative half-width in (0, 1), e.g. 0.01, got {}",
@@ -884,6 +888,69 @@ TargetRule target_rule(const RunCommand& cmd, const LoadedScenario& loaded, std:
   return target_of(meta, loaded);
 }
 
+// What a new campaign would replace in the folder: a store holding finished runs of a different
+// campaign, or of this one unfinished.
+struct ReplacedStore {
+  std::string path;
+  std::int64_t runs = 0;
+  std::string diff;         // what differs (stored vs now); "" for the same campaign
+  bool unfinished = false;  // the store beside the folder, or the folder's without every run
+};
+
+// Whether the folder's store of this very campaign holds every run it owns (with --target-ci:
+// it was not stopped before the target or --max-runs decided).
+bool store_finished(const RunStore& store, const LoadedScenario& loaded, const std::map<std::string, std::string>& meta) {
+  if (target_of(meta, loaded).on()) return meta.count("stopped") == 0 || meta.at("stopped").empty();
+  const Shard shard = shard_of(meta);
+  for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
+    if (store.done_runs(c).size() < owned_runs(*loaded.cases[c].scenario, shard)) return false;
+  }
+  return true;
+}
+
+// The store at `path` if replacing it would lose runs (`partial`: the unfinished store beside
+// the folder); nothing for no store, no run, the same finished campaign or an unreadable store.
+std::optional<ReplacedStore> replaced_store(const std::string& path, bool partial, const LoadedScenario& loaded,
+                                            const std::map<std::string, std::string>& meta) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) return std::nullopt;
+  ReplacedStore r{path, 0, "", partial};
+  try {
+    const RunStore store = RunStore::open(path, false);
+    r.runs = store.count_runs();
+    if (r.runs == 0) return std::nullopt;
+    const auto stored = store.meta();
+    check_campaign_meta(stored, path);
+    r.diff = identity_difference(stored, meta, true);
+    if (!partial && r.diff.empty()) r.unfinished = !store_finished(store, loaded, stored);
+  } catch (const StoreError&) {
+    return std::nullopt;  // damaged: nothing in it can be resumed or exported (as before: replaced)
+  }
+  if (r.diff.empty() && !r.unfinished) return std::nullopt;  // the same campaign again: identical results
+  return r;
+}
+
+// Without --resume: refuses (exit 2, nothing written) to replace a store of the folder that holds
+// finished runs of a different or unfinished campaign, unless --replace says so (then says what
+// it replaces; true).
+bool check_replace(const RunCommand& cmd, const LoadedScenario& loaded, const std::map<std::string, std::string>& meta) {
+  std::optional<ReplacedStore> r = replaced_store(partial_store_path(cmd.out), true, loaded, meta);
+  if (!r) r = replaced_store(store_path(cmd.out), false, loaded, meta);
+  if (!r) return false;
+  if (cmd.replace) {
+    std::cerr << fmt::format("ncosim: --replace: replacing {} finished run(s) of {} campaign in {}\n", r->runs,
+                             r->diff.empty() ? "an unfinished" : "a different", r->path);
+    return true;
+  }
+  const std::string what = r->diff.empty() ? "an unfinished campaign"
+                                           : r->unfinished ? "a different, unfinished campaign" : "a different campaign";
+  throw ScenarioError(fmt::format(
+      "--out: '{}' holds {} finished run(s) of {} ({}){}; {}`--replace` starts afresh and replaces them, or choose "
+      "another --out",
+      cmd.out, r->runs, what, r->path, r->diff.empty() ? "" : fmt::format(": {} differ(s) (stored vs now)", r->diff),
+      r->diff.empty() ? "`--resume` continues it, " : ""));
+}
+
 // The run store of the campaign, always built beside the folder (partial_store_path): created
 // afresh, or with --resume the stored campaign, which must be this one: the unfinished one beside
 // the folder if a session was killed, else a copy of the set's store. The folder's set is not
@@ -895,7 +962,7 @@ RunStore open_run_store(const RunCommand& cmd, const LoadedScenario& loaded,
   settle_partial(cmd.out);
   std::error_code ec;
   if (!cmd.resume) {
-    note_replaced_partial(cmd.out, partial);
+    if (!check_replace(cmd, loaded, meta)) note_replaced_partial(cmd.out, partial);
     return RunStore::create(partial, meta);
   }
   auto same_campaign = [&](const RunStore& s, const std::string& what) {
@@ -952,8 +1019,39 @@ void record_session(RunStore& store, double wall, int used_threads, int ranks, i
 struct SessionTotals {
   double wall = 0.0;
   int threads = 1;
+  int ranks = 1;  // MPI ranks (1 without mpirun)
   std::uint64_t simulated = 0, skipped = 0;
+  std::vector<std::uint64_t> case_runs;  // per case: runs stored before and simulated now
 };
+
+// "3 cases x 20 runs x 5000 periods = 60 runs" (one case: "20 runs x 5000 periods"; cases of
+// different sizes: "20..40 runs").
+std::string campaign_size(const LoadedScenario& loaded, const std::vector<std::uint64_t>& case_runs) {
+  std::uint64_t total = 0, rlo = std::numeric_limits<std::uint64_t>::max(), rhi = 0;
+  std::int64_t plo = std::numeric_limits<std::int64_t>::max(), phi = 0;
+  for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
+    const std::uint64_t r = c < case_runs.size() ? case_runs[c] : 0;
+    total += r;
+    rlo = std::min(rlo, r);
+    rhi = std::max(rhi, r);
+    plo = std::min(plo, loaded.cases[c].scenario->run.periods);
+    phi = std::max(phi, loaded.cases[c].scenario->run.periods);
+  }
+  auto range = [](auto lo, auto hi) { return lo == hi ? fmt::format("{}", lo) : fmt::format("{}..{}", lo, hi); };
+  if (loaded.cases.size() == 1) return fmt::format("{} runs x {} periods", total, plo);
+  return fmt::format("{} cases x {} runs x {} periods = {} runs", loaded.cases.size(), range(rlo, rhi), range(plo, phi),
+                     total);
+}
+
+// The closing line: "ncosim: 3 cases x 20 runs x 5000 periods = 60 runs in 8.7 s on 2 threads
+// [x 3 MPI ranks][, shard I/N]; results in DIR/", with the runs stored before when resumed.
+std::string closing_line(const RunCommand& cmd, const LoadedScenario& loaded, const SessionTotals& t) {
+  return fmt::format("ncosim: {}{} in {} s on {} thread{}{}{}; results in {}/\n", campaign_size(loaded, t.case_runs),
+                     t.skipped > 0 ? fmt::format(" ({} stored before, {} simulated now)", t.skipped, t.simulated) : "",
+                     t.wall >= 10.0 ? fmt::format("{:.1f}", t.wall) : fmt::format("{:.2f}", t.wall), t.threads,
+                     t.threads == 1 ? "" : "s", t.ranks > 1 ? fmt::format(" x {} MPI ranks", t.ranks) : "",
+                     cmd.shard.empty() ? "" : fmt::format(", shard {}", cmd.shard), cmd.out);
+}
 
 // The runs lo..limit-1 of this shard that the store does not hold yet (`done`, sorted); the
 // others are counted in `skipped`.
@@ -977,14 +1075,9 @@ std::vector<std::uint64_t> runs_to_do(const std::vector<std::uint64_t>& done, st
 // kExitFlagged with --fail-on-status and rows whose status is not the expected one).
 int finish_session(const RunCommand& cmd, const std::string& md, const LoadedScenario& loaded, const SessionTotals& t,
                    const std::string& path, int sig, bool complete, const std::vector<std::string>& not_ok) {
-  const Scenario& first = *loaded.cases.front().scenario;
   std::cout << md << std::flush;
   // With --format csv|json stdout holds the data alone: the closing line goes to stderr.
-  (cmd.format == "csv" || cmd.format == "json" ? std::cerr : std::cout)
-      << fmt::format("\n{} runs x {} periods x {} case(s){} in {:.2f} s on {} thread(s){}; results in {}/\n",
-                           t.simulated, first.run.periods, loaded.cases.size(),
-                           t.skipped > 0 ? fmt::format(" ({} earlier runs resumed)", t.skipped) : "", t.wall,
-                           t.threads, cmd.shard.empty() ? "" : fmt::format(", shard {}", cmd.shard), cmd.out);
+  (cmd.format == "csv" || cmd.format == "json" ? std::cerr : std::cout) << "\n" << closing_line(cmd, loaded, t);
   if (sig > 0) {
     // A signal after the last run had started stopped nothing: the results are complete (the
     // exit status still says a signal came).
@@ -1033,14 +1126,17 @@ std::vector<std::vector<std::uint64_t>> register_cases(RunStore& store, const Lo
 // One `run` session on rank 0: the campaign's fixed inputs and what its batches accumulate.
 struct RunSession {
   RunSession(const RunCommand& c, const LoadedScenario& l, const Shard& sh, const TargetRule& r, MpiSession* m)
-      : cmd(c), loaded(l), shard(sh), rule(r), mpi(m), timed(l.cases.size(), 0), ran(l.cases.size(), 0) {}
+      : cmd(c), loaded(l), shard(sh), rule(r), mpi(m), timed(l.cases.size(), 0), ran(l.cases.size(), 0) {
+    totals.case_runs.assign(l.cases.size(), 0);
+    totals.ranks = m != nullptr ? m->size() : 1;
+  }
 
   const RunCommand& cmd;
   const LoadedScenario& loaded;
   const Shard shard;
   const TargetRule rule;
   MpiSession* const mpi;  // under mpirun, else null
-  bool tty = false;       // stderr is a terminal: a progress line, else (without --quiet) a progress log
+  CampaignProgress* progress = nullptr;  // the campaign's progress line (sim/progress.h), or null
   std::vector<std::vector<std::uint64_t>> stored;  // per case: the runs the store held at the start
   SessionTotals totals;
   std::vector<char> timed, ran;  // per case: ns_per_period stored / a campaign of it ran in this session
@@ -1053,17 +1149,18 @@ void run_case_batch(RunSession& session, StoreSink& sink, std::size_t c, std::ui
   const RunCommand& cmd = session.cmd;
   const std::size_t cases = session.loaded.cases.size();
   const Scenario& sc = *session.loaded.cases[c].scenario;
+  const std::uint64_t skipped = session.totals.skipped;
   std::vector<std::uint64_t> todo = runs_to_do(session.stored[c], lo, limit, session.shard, session.totals.skipped);
+  session.totals.case_runs[c] += session.totals.skipped - skipped;
   if (todo.empty()) return;
   CampaignOptions opt;
   opt.threads = session.mpi && cmd.threads == 0 ? 1 : cmd.threads;  // one thread per rank unless asked
-  opt.progress = session.tty && !cmd.quiet;
-  opt.progress_log = !session.tty && !cmd.quiet;
   opt.trace = cmd.trace && c == 0;
   opt.time_estimators = cmd.timing && session.timed[c] == 0;
-  std::string label = cases > 1 ? fmt::format("case {}/{}", c + 1, cases) : "";
-  if (session.rule.on()) label += fmt::format("{}runs {}..{}", label.empty() ? "" : ", ", lo, limit - 1);
-  opt.progress_label = label.empty() ? "" : label + ":";
+  if (session.progress != nullptr) {
+    session.progress->set_case(c, cases, session.rule.on() ? fmt::format("runs {}..{}", lo, limit - 1) : "");
+    opt.progress = session.progress;
+  }
   opt.only_runs = std::move(todo);
   opt.stop = &g_stop;
   opt.on_run = [&sink, c](std::uint64_t run, RunMetrics&& m, RunLinks&& links) {
@@ -1077,6 +1174,7 @@ void run_case_batch(RunSession& session, StoreSink& sink, std::size_t c, std::ui
   session.totals.wall += res.wall_seconds;
   session.totals.threads = res.threads;
   session.totals.simulated += res.runs_done;
+  session.totals.case_runs[c] += res.runs_done;
   session.ran[c] = 1;
   if (!res.trace.empty()) session.trace = std::move(res.trace);
   if (opt.time_estimators && !res.stopped) {
@@ -1136,6 +1234,20 @@ void store_timing_and_trace(RunSession& session, StoreSink& sink) {
   }
 }
 
+// The campaign's runs over every case (this shard's; with --target-ci up to --max-runs per case,
+// an upper bound) and how many of them the store held at the start, for the progress line.
+void set_progress_total(const RunSession& session, CampaignProgress& progress) {
+  const Shard& shard = session.shard;
+  std::uint64_t total = 0, stored = 0;
+  for (std::size_t c = 0; c < session.loaded.cases.size(); ++c) {
+    const std::uint64_t limit = session.rule.on() ? session.rule.max_runs
+                                                  : static_cast<std::uint64_t>(session.loaded.cases[c].scenario->run.runs);
+    total += limit / shard.count + (shard.index < limit % shard.count ? 1 : 0);
+    for (std::uint64_t r : session.stored[c]) stored += r < limit && shard.owns(r) ? 1 : 0;
+  }
+  progress.set_total(total, stored, session.rule.on());
+}
+
 // Simulates the session's runs into the store, committed by a writer thread as they complete.
 void simulate_session(RunSession& session, RunStore& store) {
   StoreSink sink(store);
@@ -1177,13 +1289,20 @@ int cmd_run_campaign(const RunCommand& cmd) {
   RunSession session(cmd, loaded, shard, rule, mpi.get());
   session.stored = register_cases(store, loaded, cmd.resume);
 
-  session.tty = ::isatty(2) != 0;
+  // One progress line for the whole campaign: redrawn on a terminal, a line every 5 s in a log.
+  CampaignProgress progress(cmd.quiet     ? CampaignProgress::Mode::off
+                            : ::isatty(2) ? CampaignProgress::Mode::terminal
+                                          : CampaignProgress::Mode::log);
+  set_progress_total(session, progress);
+  session.progress = &progress;
+  progress.start();
   StopSignals signals;
   simulate_session(session, store);
+  progress.finish();
   // Test hook: a signal that comes after the last run (a moment the signal tests cannot aim at).
   if (const char* raise_after = std::getenv("NCOSIM_TEST_RAISE_AFTER_RUNS")) ::raise(std::atoi(raise_after));
   const int sig = g_stop.load();
-  record_session(store, session.totals.wall, session.totals.threads, mpi ? mpi->size() : 1, sig);
+  record_session(store, session.totals.wall, session.totals.threads, session.totals.ranks, sig);
   ExportInfo info;
   info.command_line = cmd.command_line;
   info.stopped = sig > 0 ? signal_name(sig) : "";

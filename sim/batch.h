@@ -22,6 +22,7 @@ struct RunCommand {
   bool trace = false;
   bool quiet = false;
   bool resume = false;
+  bool replace = false;    // --replace: replace a store of a different or unfinished campaign
   bool timing = true;      // false: --no-timing
   std::string shard;       // "I/N" or empty
   std::optional<double> target_ci;  // --target-ci REL

@@ -1,89 +1,24 @@
-// sim/campaign.cc — the campaign: runs (sim/run.h) distributed over threads, with progress and stop.
+// sim/campaign.cc — the campaign: runs (sim/run.h) distributed over threads, counting progress (sim/progress.h), with stop.
 #include "sim/campaign.h"
 
 #include <fmt/format.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
-#include <cstdio>
 #include <exception>
-#include <condition_variable>
 #include <mutex>
 #include <system_error>
 #include <thread>
 
 #include "kernel/check.h"
+#include "sim/progress.h"
 #include "sim/run.h"
 
 namespace ncosim::sim {
 
 namespace {
-
-std::string format_duration(double s) {
-  if (!std::isfinite(s) || s < 0) return "?";
-  const auto t = static_cast<long>(s + 0.5);
-  if (t >= 3600) return fmt::format("{}h{:02}m", t / 3600, (t / 60) % 60);
-  if (t >= 60) return fmt::format("{}m{:02}s", t / 60, t % 60);
-  return fmt::format("{}s", t);
-}
-
-// The progress line on stderr (CampaignOptions::progress: redrawn in place; progress_log: a line
-// every 5 s), from its own thread while the runs go on; the closing line when destroyed.
-class Progress {
- public:
-  Progress(const CampaignOptions& options, std::size_t runs, const std::atomic<std::size_t>& done,
-           std::chrono::steady_clock::time_point start)
-      : options_(options), runs_(runs), done_(done), start_(start) {
-    if (options.progress || options.progress_log) thread_ = std::thread([this] { loop(); });
-  }
-  Progress(const Progress&) = delete;
-  Progress& operator=(const Progress&) = delete;
-  ~Progress() {
-    if (!thread_.joinable()) return;
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      finished_ = true;
-    }
-    cv_.notify_all();
-    thread_.join();
-    if (options_.progress) {
-      std::fprintf(stderr, "\r%s %zu runs done in %.1f s      \n", options_.progress_label.c_str(), done_.load(),
-                   std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count());
-    }
-  }
-
- private:
-  void loop() {
-    const auto interval = options_.progress ? std::chrono::milliseconds(200) : std::chrono::milliseconds(5000);
-    std::unique_lock<std::mutex> lock(mutex_);
-    while (!cv_.wait_for(lock, interval, [&] { return finished_; })) {
-      const double el = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
-      const std::size_t d = done_.load();
-      const double rate = el > 0 ? static_cast<double>(d) / el : 0.0;
-      const std::string eta = d > 0 ? format_duration(static_cast<double>(runs_ - d) / rate) : "?";
-      const char* label = options_.progress_label.c_str();
-      if (options_.progress) {
-        std::fprintf(stderr, "\r%s run %zu/%zu  %.1f s  ETA %s   ", label, d, runs_, el, eta.c_str());
-      } else {
-        std::fprintf(stderr, "ncosim: %s%s%zu/%zu runs, %.2f runs/s, %.0f s elapsed, ETA %s\n", label,
-                     options_.progress_label.empty() ? "" : " ", d, runs_, rate, el, eta.c_str());
-      }
-      std::fflush(stderr);
-    }
-  }
-
-  const CampaignOptions& options_;
-  std::size_t runs_;
-  const std::atomic<std::size_t>& done_;
-  std::chrono::steady_clock::time_point start_;
-  std::mutex mutex_;
-  std::condition_variable cv_;
-  bool finished_ = false;
-  std::thread thread_;
-};
 
 // `count` threads running `worker`. When one cannot be created: `stop` (no new run), join those
 // started, and fail with a message (never the abort of a joinable std::thread destroyed).
@@ -206,14 +141,12 @@ CampaignResult run_campaign(const Scenario& sc, const CampaignOptions& options) 
         return;
       }
       done.fetch_add(1);
+      if (options.progress != nullptr) options.progress->add_done();
     }
   };
   std::vector<std::thread> pool = start_workers(threads - 1, worker, [&] { next = runs; });
-  {
-    Progress progress(options, runs, done, start);
-    worker();
-    for (auto& t : pool) t.join();
-  }
+  worker();
+  for (auto& t : pool) t.join();
   if (error) std::rethrow_exception(error);
   for (const ErrorCurve& c : curves) result.curve.merge(c);
   result.runs_done = done.load();

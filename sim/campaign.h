@@ -17,6 +17,8 @@
 
 namespace ncosim::sim {
 
+class CampaignProgress;  // sim/progress.h
+
 // Metrics of one estimator in one run (sums over the periods k >= warmup).
 struct EstimatorRunMetrics {
   double sse = 0.0;                 // sum |x - xhat|^2
@@ -70,11 +72,11 @@ struct TraceRow {
 
 struct CampaignOptions {
   int threads = 0;           // 0: all cores
-  bool progress = false;     // progress line on stderr, redrawn in place (a terminal), with ETA
-  bool progress_log = false; // a progress line every few seconds (stderr not a terminal: CI logs)
+  // The campaign-wide progress line (sim/progress.h), owned by the caller: each completed run is
+  // counted there (null: none).
+  CampaignProgress* progress = nullptr;
   bool trace = false;        // record run 0 period by period
   bool time_estimators = true;  // measure ns_per_period by replaying the first run simulated
-  std::string progress_label;
   // The run indices to simulate, ascending (nullopt: 0 .. runs-1). Resume and shards.
   std::optional<std::vector<std::uint64_t>> only_runs;
   // Count what every link does to every sender's packets (CampaignResult::link_runs, or the

@@ -337,6 +337,9 @@ struct CommandLine {
     run->add_flag("--quiet", quiet, "no progress line");
     run->add_flag("--resume", run_cmd.resume,
                   "continue the campaign whose run store (runs.sqlite) is in --out: only the missing runs");
+    run->add_flag("--replace", run_cmd.replace,
+                  "start afresh and replace the run store in --out even when it holds runs of a different or "
+                  "unfinished campaign");
     run->add_flag("!--no-timing", run_cmd.timing, "do not measure ns_per_period (no replay after the campaign)");
     run->add_option("--shard", run_cmd.shard, "run the shard I of N (1-based): the runs r with r % N == I-1");
     run->add_option("--target-ci", run_cmd.target_ci,

@@ -15,6 +15,7 @@
 #include <thread>
 #include <vector>
 
+#include "sim/progress.h"
 #include "sim/store.h"
 
 #if NCOSIM_HAVE_MPI
@@ -124,6 +125,7 @@ CampaignResult MpiSession::run(const Scenario& sc, std::size_t case_index, const
     std::lock_guard<std::mutex> lock(sink_mutex);
     options.on_run(run, std::move(m), std::move(links));
     done.fetch_add(1);
+    if (options.progress != nullptr) options.progress->add_done();  // rank 0 reports (sim/progress.h)
   };
   // [run] error_curve: one curve per local thread; the worker ranks' curves are collected after
   // the case (kCurve), so the result covers exactly the runs delivered.
@@ -166,7 +168,6 @@ CampaignResult MpiSession::run(const Scenario& sc, std::size_t case_index, const
     give(w);
     give(w);
   }
-  auto last_log = start;
   while (outstanding > 0) {
     if (auto st = world.iprobe(boost::mpi::any_source, boost::mpi::any_tag)) {
       std::string msg;
@@ -193,12 +194,6 @@ CampaignResult MpiSession::run(const Scenario& sc, std::size_t case_index, const
       give(st->source());
     } else {
       std::this_thread::sleep_for(std::chrono::microseconds(200));
-    }
-    if (options.progress_log && std::chrono::steady_clock::now() - last_log > std::chrono::seconds(5)) {
-      last_log = std::chrono::steady_clock::now();
-      const double el = std::chrono::duration<double>(last_log - start).count();
-      std::fprintf(stderr, "ncosim: %s%s%zu/%zu runs on %d ranks, %.1f s elapsed\n", options.progress_label.c_str(),
-                   options.progress_label.empty() ? "" : " ", done.load(), n, world.size(), el);
     }
   }
   for (auto& t : pool) t.join();

@@ -7,7 +7,7 @@ set -eu
 NCOSIM=${1:-build/sim/ncosim}
 OUT=results/schenato2008_fig6
 for ex in motor pendulum; do
-  "$NCOSIM" run "scenarios/schenato2008_$ex.toml" --out "$OUT/$ex" --quiet
+  "$NCOSIM" run "scenarios/schenato2008_$ex.toml" --out "$OUT/$ex" --quiet --replace
   # Ideal network (every sample at delay 0): the static design with N = 1 and lambda_0 = 1 is the
   # stationary Kalman filter.
   "$NCOSIM" design "scenarios/schenato2008_$ex.toml" --out "$OUT/$ex/ideal" \

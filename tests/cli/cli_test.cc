@@ -589,8 +589,9 @@ TEST_F(Cli, FlagshipResultsDoNotDependOnTheThreadCount) {
   const Outcome oa = ncosim(a), ob = ncosim(b);
   ASSERT_EQ(oa.code, 0) << oa.output;
   ASSERT_EQ(ob.code, 0) << ob.output;
-  EXPECT_NE(oa.output.find("on 1 thread(s)"), std::string::npos) << oa.output;
-  EXPECT_NE(ob.output.find("on 2 thread(s)"), std::string::npos) << ob.output;
+  EXPECT_NE(oa.output.find("ncosim: 6 runs x 5000 periods in "), std::string::npos) << oa.output;
+  EXPECT_NE(oa.output.find(" s on 1 thread; results in "), std::string::npos) << oa.output;
+  EXPECT_NE(ob.output.find(" s on 2 threads; results in "), std::string::npos) << ob.output;
   EXPECT_EQ(read_file(one / "runs.csv"), read_file(two / "runs.csv"));
   Csv sa = read_csv(one / "summary.csv"), sb = read_csv(two / "summary.csv");
   ASSERT_EQ(sa.header, sb.header);

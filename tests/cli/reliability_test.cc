@@ -543,7 +543,8 @@ TEST_F(Reliability, KilledRunLeavesThePreviousOrTheNewSet) {
   const std::string file = write("small.toml", kSmall);
   const fs::path out = dir_ / "out";
   auto run = [&](const std::string& seed, const std::string& env) {
-    return ncosim({"run", file, "--seed", seed, "--quiet", "--out", out.string()}, env);
+    // --replace: each run deliberately replaces the other seed's campaign (issue 28, part 3).
+    return ncosim({"run", file, "--seed", seed, "--quiet", "--replace", "--out", out.string()}, env);
   };
   // A set is identified by its files' inodes (every write makes new files; timing columns make
   // contents differ between identical campaigns) and by runs.csv, which depends on the seed only.

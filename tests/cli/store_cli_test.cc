@@ -355,7 +355,7 @@ TEST(StoreCli, ResumeRefusesADifferentCampaignNamingWhatDiffers) {
   ASSERT_EQ(ncosim(base).code, 0);
   r = ncosim(base + " --resume");
   EXPECT_EQ(r.code, 0) << r.output;
-  EXPECT_NE(r.output.find("3 earlier runs resumed"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("3 runs x 300 periods (3 stored before, 0 simulated now) in "), std::string::npos) << r.output;
   for (const auto& [extra, what] : std::vector<std::pair<std::string, std::string>>{
            {" --seed 8", "--seed"}, {" --set run.warmup=50", "--set overrides"}, {" --shard 1/2", "--shard"}}) {
     r = ncosim(base + " --resume" + extra);

@@ -88,15 +88,15 @@ TEST_F(StoreIntegrity, KillsAtEveryStepOfRunMergeAndExportLeaveAStoreAndExportsT
   ASSERT_EQ(ncosim(run_cmd(at("s2"), 2, " --shard 2/2")).code, 0);
   const std::string runs1 = read_text(at("ref1/runs.csv")), runs2 = read_text(at("ref2/runs.csv"));
   const std::vector<std::pair<std::string, std::string>> commands{
-      {"run", run_cmd(out, 2)},
+      {"run", run_cmd(out, 2, " --replace")},  // replaces the seed-1 campaign deliberately
       {"merge", fmt::format("merge {} {} {}", quote(out), quote(at("s1")), quote(at("s2")))},
       {"export", fmt::format("export {} --out {}", quote(at("ref2")), quote(out))},
   };
   for (const auto& [name, cmd] : commands) {
     int kills = 0;
     for (int k = 1; k < 200; ++k) {
-      fs::remove_all(out);
-      ASSERT_EQ(ncosim(run_cmd(out, 1)).code, 0);
+      fs::remove_all(out);  // a killed run's unfinished store beside it is replaced deliberately
+      ASSERT_EQ(ncosim(run_cmd(out, 1, " --replace")).code, 0);
       const auto r = ncosim(cmd, fmt::format("NCOSIM_TEST_KILL_AT={} ", k));
       if (r.code == 0) break;
       ++kills;
@@ -111,22 +111,29 @@ TEST_F(StoreIntegrity, KillsAtEveryStepOfRunMergeAndExportLeaveAStoreAndExportsT
   // and --resume finishes the new campaign from the store beside the folder.
   fs::remove_all(out);
   ASSERT_EQ(ncosim(run_cmd(out, 1)).code, 0);
-  auto r = ncosim(run_cmd(out, 2), "NCOSIM_TEST_RAISE_AFTER_RUNS=9 ");
+  auto r = ncosim(run_cmd(out, 2, " --replace"), "NCOSIM_TEST_RAISE_AFTER_RUNS=9 ");
   ASSERT_NE(r.code, 0) << r.output;
   EXPECT_EQ(read_text(out + "/runs.csv"), runs1);
   expect_store_and_exports_agree(out, at("check"), "killed after the last run");
   ASSERT_TRUE(fs::exists(ncosim::sim::partial_store_path(out)));
   r = ncosim(run_cmd(out, 2, " --resume"));
   ASSERT_EQ(r.code, 0) << r.output;
-  EXPECT_NE(r.output.find("6 earlier runs resumed"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("6 runs x 300 periods (6 stored before, 0 simulated now)"), std::string::npos) << r.output;
   EXPECT_EQ(read_text(out + "/runs.csv"), runs2);
   EXPECT_FALSE(fs::exists(ncosim::sim::partial_store_path(out)));
   expect_store_and_exports_agree(out, at("check"), "resumed");
-  // A new campaign without --resume replaces an unfinished one, and says so.
-  r = ncosim(run_cmd(out, 3), "NCOSIM_TEST_RAISE_AFTER_RUNS=9 ");
+  // A new campaign without --resume does not replace an unfinished one (issue 28, part 3): it is
+  // refused naming --replace, which replaces it and says so.
+  r = ncosim(run_cmd(out, 3, " --replace"), "NCOSIM_TEST_RAISE_AFTER_RUNS=9 ");
+  ASSERT_TRUE(fs::exists(ncosim::sim::partial_store_path(out))) << r.output;
   r = ncosim(run_cmd(out, 4));
+  ASSERT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("holds 6 finished run(s) of a different, unfinished campaign"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("`--replace` starts afresh"), std::string::npos) << r.output;
+  r = ncosim(run_cmd(out, 4, " --replace"));
   ASSERT_EQ(r.code, 0) << r.output;
-  EXPECT_NE(r.output.find("replacing the store of an unfinished campaign"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("--replace: replacing 6 finished run(s) of a different campaign"), std::string::npos)
+      << r.output;
 }
 
 // Finding 3: `export A --out B` gives B A's exports *and* A's store; B's own store is gone.
@@ -155,7 +162,7 @@ TEST_F(StoreIntegrity, ANewCampaignDropsWhatWasDerivedFromTheOldOne) {
   EXPECT_TRUE(fs::exists(out + "/plot_mse.png"));
   EXPECT_TRUE(fs::exists(out + "/report.html"));
   // ... a new campaign does not; a file that ncosim does not derive stays.
-  ASSERT_EQ(ncosim(run_cmd(out, 2)).code, 0);
+  ASSERT_EQ(ncosim(run_cmd(out, 2, " --replace")).code, 0);
   for (const char* f : {"plot_mse.dat", "plot_mse.gp", "plot_mse.png", "trace.dat", "report.html"}) {
     EXPECT_FALSE(fs::exists(out + "/" + f)) << f;
   }
@@ -360,16 +367,18 @@ TEST_F(StoreIntegrity, TheFallbackSwapNeverLosesThePreviousSet) {
   // Find the step "rename the new folder" of the fallback sequence.
   // (into a folder that exists: the swap is only needed then).
   ASSERT_EQ(ncosim(run_cmd(at("probe"), 1)).code, 0);
-  const auto steps = ncosim(run_cmd(at("probe"), 2), "NCOSIM_TEST_NO_EXCHANGE=1 NCOSIM_TEST_OUTPUT_STEPS=1 ");
+  const auto steps =
+      ncosim(run_cmd(at("probe"), 2, " --replace"), "NCOSIM_TEST_NO_EXCHANGE=1 NCOSIM_TEST_OUTPUT_STEPS=1 ");
   std::smatch m;
   ASSERT_TRUE(std::regex_search(steps.output, m, std::regex("output step ([0-9]+): rename the new folder")))
       << steps.output;
   const int rename_step = std::stoi(m[1]);
-  auto r = ncosim(run_cmd(out, 2), fmt::format("NCOSIM_TEST_NO_EXCHANGE=1 NCOSIM_TEST_KILL_AT={} ", rename_step));
+  auto r = ncosim(run_cmd(out, 2, " --replace"),
+                  fmt::format("NCOSIM_TEST_NO_EXCHANGE=1 NCOSIM_TEST_KILL_AT={} ", rename_step));
   ASSERT_NE(r.code, 0) << r.output;
   ASSERT_FALSE(fs::exists(out)) << "the kill should leave the previous set moved aside";
   // The next writer is a run, killed at the first step of its own write.
-  r = ncosim(run_cmd(out, 3), "NCOSIM_TEST_NO_EXCHANGE=1 NCOSIM_TEST_KILL_AT=1 ");
+  r = ncosim(run_cmd(out, 3, " --replace"), "NCOSIM_TEST_NO_EXCHANGE=1 NCOSIM_TEST_KILL_AT=1 ");
   ASSERT_NE(r.code, 0) << r.output;
   EXPECT_NE(r.output.find("restored the previous result set"), std::string::npos) << r.output;
   ASSERT_TRUE(fs::exists(out + "/runs.csv"));
@@ -432,15 +441,15 @@ TEST_F(StoreIntegrity, AFullDiskAtAnyPointLeavesThePreviousSet) {
   ASSERT_EQ(ncosim(run_cmd(at("s2"), 2, " --shard 2/2")).code, 0);
   ASSERT_EQ(ncosim(run_cmd(at("ref2"), 2)).code, 0);
   const std::vector<std::pair<std::string, std::string>> commands{
-      {"run", run_cmd(out, 2)},
+      {"run", run_cmd(out, 2, " --replace")},  // replaces the seed-1 campaign deliberately
       {"merge", fmt::format("merge {} {} {}", quote(out), quote(at("s1")), quote(at("s2")))},
       {"export", fmt::format("export {} --out {}", quote(at("ref2")), quote(out))},
   };
   int points = 0;
   for (const auto& [name, cmd] : commands) {
     for (int kb : {1, 4, 8, 16, 24, 32, 48, 64, 96, 128, 192}) {
-      fs::remove_all(out);
-      ASSERT_EQ(ncosim(run_cmd(out, 1)).code, 0);
+      fs::remove_all(out);  // a killed run's unfinished store beside it is replaced deliberately
+      ASSERT_EQ(ncosim(run_cmd(out, 1, " --replace")).code, 0);
       const std::string runs1 = read_text(out + "/runs.csv");
       const auto r = run_shell(fmt::format("trap '' XFSZ; ulimit -f {}; {} {}", kb, quote(kBinary), cmd));
       if (r.code == 0) continue;  // the limit was above what the command writes
