@@ -131,7 +131,8 @@ std::unique_ptr<EstimatorDesign> read_sod_kalman(const sim::Table& t, const Mode
   if (t.has("R")) {
     const Eigen::VectorXd r = t.vector("R");
     if (r.size() != ny || !r.allFinite() || r.minCoeff() < 0.0) {
-      t.fail("R", fmt::format("expected {} non-negative variances (one per output, replacing the sensors' R), got [{}]",
+      t.fail("R", fmt::format("expected {} non-negative variances (one per output, replacing the "
+                              "sensors' R), got [{}]",
                               ny, fmt::join(r.data(), r.data() + r.size(), ", ")));
     }
     p.R = r.asDiagonal();

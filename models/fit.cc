@@ -472,8 +472,8 @@ Eigen::MatrixXd covariance(const FateHmm& h, const Coordinates& c, const std::ve
 // A reported quantity of the model and its Wald interval (delta method on the coordinates).
 // The interval is clipped to [lo, hi] (probabilities: [0, 1]).
 template <class G>
-FitParameter wald(const std::string& name, const FateHmm& h, const Coordinates& c, const Eigen::MatrixXd& cov, G g,
-                  double lo = 0.0, double hi = 1.0) {
+FitParameter wald(const std::string& name, const FateHmm& h, const Coordinates& c,
+                  const Eigen::MatrixXd& cov, G g, double lo = 0.0, double hi = 1.0) {
   FitParameter p;
   p.name = name;
   p.estimate = g(h);
@@ -736,7 +736,8 @@ FitResult fit_family(const std::string& family, const std::vector<int>& sym, con
       const Eigen::VectorXd e = h.emission.col(0);
       return std::make_pair(pi.dot(e), pi.cwiseProduct(e).dot(h.transition * e));
     };
-    r.derived.push_back(wald("mean_loss", b, c, cov, [&](const FateHmm& h) { return loss_pair(h).first; }));
+    r.derived.push_back(
+        wald("mean_loss", b, c, cov, [&](const FateHmm& h) { return loss_pair(h).first; }));
     r.derived.push_back(wald(
         "mean_burst", b, c, cov,
         [&](const FateHmm& h) {

@@ -33,8 +33,9 @@ std::string opt(double v) { return std::isfinite(v) ? fmt::format("{:.9g}", v) :
 // "  NAME  ESTIMATE  [LOW, HIGH]" (the interval left out where none could be computed).
 std::string parameter_line(const models::FitParameter& p) {
   const bool ci = std::isfinite(p.ci_low) && std::isfinite(p.ci_high);
-  return fmt::format("  {:<18} {:>12.6g}  {}\n", p.name, p.estimate,
-                     ci ? fmt::format("[{:.6g}, {:.6g}]", p.ci_low, p.ci_high) : std::string("(no interval)"));
+  return fmt::format(
+      "  {:<18} {:>12.6g}  {}\n", p.name, p.estimate,
+      ci ? fmt::format("[{:.6g}, {:.6g}]", p.ci_low, p.ci_high) : std::string("(no interval)"));
 }
 
 // The selected family's parameters with their 95 % intervals (as in fit.csv), and the mean loss
@@ -44,8 +45,9 @@ std::string parameters_text(const std::vector<models::FitResult>& fits, std::siz
   for (const auto& p : fits[best].params) s += parameter_line(p);
   for (const auto& r : fits) {
     if (r.derived.empty()) continue;
-    s += fmt::format("{} as mean_loss and mean_burst (the keys of a gilbert_elliott [[link]]), 95 % interval:\n",
-                     r.family);
+    s += fmt::format(
+        "{} as mean_loss and mean_burst (the keys of a gilbert_elliott [[link]]), 95 % interval:\n",
+        r.family);
     for (const auto& p : r.derived) s += parameter_line(p);
   }
   return s;

@@ -359,8 +359,10 @@ void plot_per_estimator(const Summary& s, const MetricColumns& mc, const std::st
     return number(r[static_cast<std::size_t>(mc.value)]).has_value();
   });
   if (!any_value) {  // no point to draw (gnuplot would warn): say so in the figure
-    p.body += fmt::format("  set label 1 {} at graph 0.5, graph 0.5 center\n  set yrange [1:10]\n  plot 1/0 notitle\n",
-                          gnuplot_quote(fmt::format("no finite {} in any row", mc.metric)));
+    p.body += fmt::format(
+        "  set label 1 {} at graph 0.5, graph 0.5 center\n  set yrange [1:10]\n  plot 1/0 "
+        "notitle\n",
+        gnuplot_quote(fmt::format("no finite {} in any row", mc.metric)));
     return;
   }
   p.body += fmt::format("  plot '{}.dat' using {} with {} pt 7 ps 1.2 lc rgb '#1f77b4' title {}", name,
@@ -445,31 +447,35 @@ struct BlockContent {
   std::string status;
 };
 
-BlockContent block_content(const Summary& s, const MetricColumns& mc, const KeyAxes& a, std::size_t p, std::size_t e) {
+BlockContent block_content(const Summary& s, const MetricColumns& mc, const KeyAxes& a,
+                           std::size_t p, std::size_t e) {
   BlockContent b;
   const int st = s.t.column("status");
   for (const auto& r : s.t.rows) {
-    if (r[static_cast<std::size_t>(s.est_col)] != s.estimators[e] || a.panel_of(r) != a.panels[p]) continue;
+    if (r[static_cast<std::size_t>(s.est_col)] != s.estimators[e] || a.panel_of(r) != a.panels[p])
+      continue;
     b.value = b.value || number(r[static_cast<std::size_t>(mc.value)]).has_value();
     b.pred = b.pred || (mc.pred >= 0 && number(r[static_cast<std::size_t>(mc.pred)]).has_value());
-    if (b.status.empty() && st >= 0 && r[static_cast<std::size_t>(st)] != "ok") b.status = r[static_cast<std::size_t>(st)];
+    if (b.status.empty() && st >= 0 && r[static_cast<std::size_t>(st)] != "ok")
+      b.status = r[static_cast<std::size_t>(st)];
   }
   return b;
 }
 
 // A legend entry (no data) saying why a series is not drawn: gnuplot warns about a data series
 // without a valid point ("Skipping data file with no valid points"), so an empty one is left out.
-std::string empty_series_entry(const std::string& label, const std::string& metric, const std::string& status,
-                               const std::string& style) {
+std::string empty_series_entry(const std::string& label, const std::string& metric,
+                               const std::string& status, const std::string& style) {
   return fmt::format("keyentry with points {} title {}", style,
-                     gnuplot_quote(fmt::format("{}: no finite {}{}", label, metric, status.empty() ? "" : ": " + status)));
+                     gnuplot_quote(fmt::format("{}: no finite {}{}", label, metric,
+                                               status.empty() ? "" : ": " + status)));
 }
 
 // The `plot` command of panel p: one curve per estimator, its prediction dashed in the same colour;
 // an estimator without a finite value in the panel is a legend entry saying so, and a panel with
 // nothing to draw says so in its middle (its y range fixed, so that gnuplot has one).
-std::string panel_plot(const Summary& s, const MetricColumns& mc, const KeyAxes& a, const std::string& name, bool logy,
-                       std::size_t p, bool shared_yrange) {
+std::string panel_plot(const Summary& s, const MetricColumns& mc, const KeyAxes& a,
+                       const std::string& name, bool logy, std::size_t p, bool shared_yrange) {
   const std::size_t E = s.estimators.size();
   std::string plot;
   bool drawn = false;
@@ -484,9 +490,10 @@ std::string panel_plot(const Summary& s, const MetricColumns& mc, const KeyAxes&
     drawn = true;
     // Categorical x: estimators side by side around each tic so their bars do not overlap.
     const std::string x = a.numeric_x ? "1" : fmt::format("($1{:+.3f})", (static_cast<double>(e) - (E - 1) / 2.0) * 0.06);
-    plot += fmt::format("{}'{}.dat' index {} using {} with {} {} ps 1.0 title {}", sep, name, b,
-                        errorbar_using(x, mc.ci >= 0, logy), mc.ci >= 0 ? "yerrorlines" : "linespoints",
-                        palette_style(e), gnuplot_quote(s.estimators[e]));
+    plot +=
+        fmt::format("{}'{}.dat' index {} using {} with {} {} ps 1.0 title {}", sep, name, b,
+                    errorbar_using(x, mc.ci >= 0, logy), mc.ci >= 0 ? "yerrorlines" : "linespoints",
+                    palette_style(e), gnuplot_quote(s.estimators[e]));
     if (bc.pred) {
       plot += fmt::format(", \\\n       '' index {} using {}:4 with lines dt 2 {} title {}", b, x, colour_of(e),
                           gnuplot_quote(s.estimators[e] + ", predicted"));
@@ -677,14 +684,16 @@ std::string trace_dat(const Trajectory& tr, const std::vector<const std::vector<
 
 // Whether column c holds a finite number in some row of the window.
 bool any_finite(const std::vector<const std::vector<std::string>*>& window, int c) {
-  return std::any_of(window.begin(), window.end(),
-                     [&](const auto* r) { return number((*r)[static_cast<std::size_t>(c)]).has_value(); });
+  return std::any_of(window.begin(), window.end(), [&](const auto* r) {
+    return number((*r)[static_cast<std::size_t>(c)]).has_value();
+  });
 }
 
 // The trace gnuplot body: one panel per shown state (true x and every estimate), then one of
 // the arrivals per sensor (dots where packets arrived, crosses where none did).
-std::string trace_body(const Trajectory& tr, const std::vector<const std::vector<std::string>*>& window, std::size_t shown,
-                       const std::string& title) {
+std::string trace_body(const Trajectory& tr,
+                       const std::vector<const std::vector<std::string>*>& window,
+                       std::size_t shown, const std::string& title) {
   const std::size_t n = tr.x.size();
   std::string body = fmt::format("  set multiplot layout {},1 title {}\n", shown + (tr.sensors.empty() ? 0 : 1),
                                  gnuplot_quote(title));
@@ -699,9 +708,13 @@ std::string trace_body(const Trajectory& tr, const std::vector<const std::vector
     body += fmt::format("  set ylabel {}\n", gnuplot_quote(fmt::format("x{}", i + 1)));
     // A series without a finite value in the window (a diverged estimate) is a legend entry saying
     // so: gnuplot warns about a data series without a valid point.
-    std::string plot = any_finite(window, tr.x[i])
-                           ? fmt::format("'trace.dat' using 1:{} with lines lw 2 lc rgb 'black' title 'true x{}'", 2 + i, i + 1)
-                           : fmt::format("keyentry with lines lw 2 lc rgb 'black' title 'true x{}: no finite value'", i + 1);
+    std::string plot =
+        any_finite(window, tr.x[i])
+            ? fmt::format("'trace.dat' using 1:{} with lines lw 2 lc rgb 'black' title 'true x{}'",
+                          2 + i, i + 1)
+            : fmt::format(
+                  "keyentry with lines lw 2 lc rgb 'black' title 'true x{}: no finite value'",
+                  i + 1);
     bool drawn = any_finite(window, tr.x[i]);  // the last series read trace.dat ('' reads it again)
     for (std::size_t e = 0; e < tr.estimators.size(); ++e) {
       if (i >= tr.xhat[e].size()) continue;
@@ -710,11 +723,13 @@ std::string trace_body(const Trajectory& tr, const std::vector<const std::vector
                             gnuplot_quote(tr.estimators[e] + ": no finite value (diverged)"));
         continue;
       }
-      plot += fmt::format(", \\\n       {} using 1:{} with lines {} title {}", drawn ? "''" : "'trace.dat'",
-                          first_col[e] + i, colour_of(e), gnuplot_quote(tr.estimators[e]));
+      plot += fmt::format(", \\\n       {} using 1:{} with lines {} title {}",
+                          drawn ? "''" : "'trace.dat'", first_col[e] + i, colour_of(e),
+                          gnuplot_quote(tr.estimators[e]));
       drawn = true;
     }
-    body += drawn ? "  plot " + plot + "\n" : "  set yrange [1:10]\n  plot " + plot + ", 1/0 notitle\n  set autoscale y\n";
+    body += drawn ? "  plot " + plot + "\n"
+                  : "  set yrange [1:10]\n  plot " + plot + ", 1/0 notitle\n  set autoscale y\n";
   }
   if (!tr.sensors.empty()) {
     body += "  set ylabel 'packets'\n  set xlabel 'period'\n";
@@ -757,7 +772,8 @@ Figure trace_figure(const std::string& dir, const PlotOptions& opt) {
                         title0.empty() ? "" : " — " + title0);
   f.dat = trace_dat(tr, window, physical, f.title);
   if (n > shown) f.dat += fmt::format("# the figure shows x1..x{} of {} states\n", shown, n);
-  f.gp = script(f.name, f.title, 1000, static_cast<int>(260 * (shown + 1) + 60), trace_body(tr, window, shown, f.title));
+  f.gp = script(f.name, f.title, 1000, static_cast<int>(260 * (shown + 1) + 60),
+                trace_body(tr, window, shown, f.title));
   return f;
 }
 

@@ -325,11 +325,12 @@ std::string warnings_section(const std::string& dir, const SummaryTable& tb, con
   }
   if (man.contains("recentred") && man["recentred"].is_boolean() && man["recentred"].get<bool>()) {
     // trajectory.csv only where this folder has one (a run without --trace writes none).
-    h += fmt::format("<p class=\"sub\">The plant was simulated re-centred (scenarios/README.md); metrics are "
-                     "unaffected{}.</p>\n",
-                     fs::exists(fs::path(dir) / "trajectory.csv")
-                         ? ", trajectory.csv carries the physical state in its x*_physical columns"
-                         : "");
+    h += fmt::format(
+        "<p class=\"sub\">The plant was simulated re-centred (scenarios/README.md); metrics are "
+        "unaffected{}.</p>\n",
+        fs::exists(fs::path(dir) / "trajectory.csv")
+            ? ", trajectory.csv carries the physical state in its x*_physical columns"
+            : "");
   }
   return h;
 }
@@ -449,18 +450,22 @@ std::optional<StoredScenario> stored_scenario(const std::string& dir) {
 std::string disk_note(const StoredScenario& st) {
   const auto now = st.path.empty() ? std::nullopt : try_read(st.path);
   if (!now) {
-    return fmt::format("<p class=\"warn\" id=\"scenario-disk\">The scenario file {} is no longer there; the text "
-                       "below is the one the campaign ran.</p>\n",
-                       html_escape(st.path.empty() ? "(path not stored)" : st.path));
+    return fmt::format(
+        "<p class=\"warn\" id=\"scenario-disk\">The scenario file {} is no longer there; the text "
+        "below is the one the campaign ran.</p>\n",
+        html_escape(st.path.empty() ? "(path not stored)" : st.path));
   }
   if (*now != st.text) {
-    return fmt::format("<p class=\"warn\" id=\"scenario-disk\">The scenario file {} has changed since the campaign "
-                       "ran; the text below is the one the campaign ran, not the file as it is now.</p>\n",
-                       html_escape(st.path));
+    return fmt::format(
+        "<p class=\"warn\" id=\"scenario-disk\">The scenario file {} has changed since the "
+        "campaign "
+        "ran; the text below is the one the campaign ran, not the file as it is now.</p>\n",
+        html_escape(st.path));
   }
-  return fmt::format("<p class=\"sub\" id=\"scenario-disk\">The scenario file {} is unchanged since the campaign "
-                     "ran.</p>\n",
-                     html_escape(st.path));
+  return fmt::format(
+      "<p class=\"sub\" id=\"scenario-disk\">The scenario file {} is unchanged since the campaign "
+      "ran.</p>\n",
+      html_escape(st.path));
 }
 
 std::string overrides_note(const nlohmann::json& man) {
@@ -475,20 +480,26 @@ std::string overrides_note(const nlohmann::json& man) {
 std::string scenario_section(const std::string& dir, const nlohmann::json& man) {
   std::string h = "<h2 id=\"scenario\">Scenario</h2>\n";
   if (const auto st = stored_scenario(dir)) {
-    h += fmt::format("<p class=\"sub\">The scenario text the campaign ran, from runs.sqlite{}</p>\n", overrides_note(man));
+    h +=
+        fmt::format("<p class=\"sub\">The scenario text the campaign ran, from runs.sqlite{}</p>\n",
+                    overrides_note(man));
     return h + disk_note(*st) + fmt::format("<pre>{}</pre>\n", html_escape(st->text));
   }
   const std::string sname = man.contains("scenario") ? json_text(man["scenario"]) : "";
   if (const auto sc = scenario_text(dir, sname)) {
-    h += fmt::format("<p class=\"warn\" id=\"scenario-disk\">No run store (runs.sqlite) in this folder: the "
-                     "scenario file {} as read when this report was written{}, which may differ from the text the "
-                     "campaign ran.</p>\n<pre>{}</pre>\n",
-                     html_escape(sc->first), overrides_note(man), html_escape(sc->second));
+    h += fmt::format(
+        "<p class=\"warn\" id=\"scenario-disk\">No run store (runs.sqlite) in this folder: the "
+        "scenario file {} as read when this report was written{}, which may differ from the text "
+        "the "
+        "campaign ran.</p>\n<pre>{}</pre>\n",
+        html_escape(sc->first), overrides_note(man), html_escape(sc->second));
   } else {
-    h += fmt::format("<p class=\"warn\" id=\"scenario-disk\">No run store (runs.sqlite) in this folder, and the "
-                     "scenario file '{}' was not found from here (relative paths are read from the current folder and "
-                     "the folders above the output folder).</p>\n",
-                     html_escape(sname));
+    h += fmt::format(
+        "<p class=\"warn\" id=\"scenario-disk\">No run store (runs.sqlite) in this folder, and the "
+        "scenario file '{}' was not found from here (relative paths are read from the current "
+        "folder and "
+        "the folders above the output folder).</p>\n",
+        html_escape(sname));
   }
   return h;
 }

@@ -193,7 +193,8 @@ std::string error_key(const std::string& what) {
 
 // Whether path `a` is `b` or lies inside it ("link[0].loss" in "link[0]").
 bool inside(const std::string& a, const std::string& b) {
-  return a == b || (a.size() > b.size() && a.compare(0, b.size(), b) == 0 && (a[b.size()] == '.' || a[b.size()] == '['));
+  return a == b || (a.size() > b.size() && a.compare(0, b.size(), b) == 0 &&
+                    (a[b.size()] == '.' || a[b.size()] == '['));
 }
 
 // Whether an error of one variant of a swept scenario (a case, or the values written outside
@@ -212,7 +213,8 @@ bool concerns_sweep(const std::string& what, const LoadedScenario& out,
 }
 
 // The error of building `doc` (nullopt when it builds).
-std::optional<std::string> build_error(toml::table& doc, const std::string& file, const std::string& dir) {
+std::optional<std::string> build_error(toml::table& doc, const std::string& file,
+                                       const std::string& dir) {
   try {
     (void)build_scenario(doc, file, dir);
   } catch (const ScenarioError& e) {
@@ -225,8 +227,10 @@ std::optional<std::string> build_error(toml::table& doc, const std::string& file
 
 // The swept values of case `c` (the first axis varying slowest) moved into `case_doc`; returns
 // the case's labels, one per axis.
-std::vector<std::string> apply_case(toml::table& case_doc, std::size_t c, const std::vector<std::size_t>& axis_sizes,
-                                    const std::vector<std::size_t>& axis_dim, const LoadedScenario& out) {
+std::vector<std::string> apply_case(toml::table& case_doc, std::size_t c,
+                                    const std::vector<std::size_t>& axis_sizes,
+                                    const std::vector<std::size_t>& axis_dim,
+                                    const LoadedScenario& out) {
   std::size_t rem = c;
   std::vector<std::size_t> idx(axis_sizes.size());
   for (std::size_t a = axis_sizes.size(); a-- > 0;) {
@@ -254,7 +258,8 @@ struct SweepShape {
 };
 
 // The error of case `c` built afresh (nullopt when it builds).
-std::optional<std::string> case_error(std::size_t c, const SweepShape& shape, const LoadedScenario& out) {
+std::optional<std::string> case_error(std::size_t c, const SweepShape& shape,
+                                      const LoadedScenario& out) {
   toml::table doc = parse_document(out.text, out.file, *shape.sets, *shape.overrides);
   try {
     (void)apply_case(doc, c, shape.axis_sizes, shape.axis_dim, out);
@@ -267,7 +272,8 @@ std::optional<std::string> case_error(std::size_t c, const SweepShape& shape, co
 // The base values of swept keys are validated too (as one whole scenario) when one of them is
 // not among its swept values: a value in the file must be valid even when a sweep replaces it.
 // Axes without a base value take their first value.
-void check_base_scenario(const toml::table& doc, const LoadedScenario& out, const SweepShape& shape) {
+void check_base_scenario(const toml::table& doc, const LoadedScenario& out,
+                         const SweepShape& shape) {
   std::vector<std::size_t> missing;
   bool unchecked = false;
   for (std::size_t a = 0; a < out.sweeps.size(); ++a) {
@@ -297,7 +303,8 @@ void check_base_scenario(const toml::table& doc, const LoadedScenario& out, cons
 
 // Case `c` of the sweeps built from `case_doc`; errors that concern the sweep name the case's
 // swept values.
-Case build_case(toml::table& case_doc, std::size_t c, const SweepShape& shape, const LoadedScenario& out) {
+Case build_case(toml::table& case_doc, std::size_t c, const SweepShape& shape,
+                const LoadedScenario& out) {
   Case cs;
   cs.labels = apply_case(case_doc, c, shape.axis_sizes, shape.axis_dim, out);
   try {
