@@ -162,7 +162,8 @@ std::unique_ptr<EstimatorDesign> read_sod_jump(const sim::Table& t, const Model&
   }
   if (sys.Cz.cols() != n) t.fail("Cz", fmt::format("expected {} columns (the state size), got {}", n, sys.Cz.cols()));
   sys.w_rms = t.number("w_rms");
-  if (!(sys.w_rms >= 0.0) || !std::isfinite(sys.w_rms)) t.fail("w_rms", "expected ||w||_RMS >= 0");
+  if (!(sys.w_rms >= 0.0) || !std::isfinite(sys.w_rms))
+    t.fail("w_rms", fmt::format("expected ||w||_RMS >= 0, got {}", sys.w_rms));
   sys.v_rms = t.has("v_rms") ? per_output(t, "v_rms", ny) : VectorXd(R.diagonal().cwiseSqrt());
 
   sod::SodDesignSpec spec;
@@ -209,7 +210,10 @@ std::unique_ptr<EstimatorDesign> read_sod_jump(const sim::Table& t, const Model&
     } else {
       cd.r = per_output(t, "sigma", ny);
     }
-    if (cd.r.minCoeff() <= 0.0) t.fail(cd.assumption == sod::Assumption::kUniform ? "r" : "sigma", "expected values > 0");
+    if (cd.r.minCoeff() <= 0.0)
+      t.fail(cd.assumption == sod::Assumption::kUniform ? "r" : "sigma",
+             fmt::format("expected values > 0, got {}",
+                         fmt::join(cd.r.data(), cd.r.data() + cd.r.size(), ", ")));
     sod::CodesignSpec tmp;
     tmp.approach = spec.approach;
     tmp.assumption = cd.assumption;
@@ -225,7 +229,9 @@ std::unique_ptr<EstimatorDesign> read_sod_jump(const sim::Table& t, const Model&
     cd.mu = c->number("mu");
     if (!(cd.mu >= 1.0) || !std::isfinite(cd.mu)) c->fail("mu", fmt::format("expected mu >= 1, got {}", cd.mu));
     cd.epsilon = c->number_or("epsilon", 0.0);
-    if (!(cd.epsilon >= 0.0) || cd.epsilon >= 1.0) c->fail("epsilon", "expected a step in (0, 1) (0: the default)");
+    if (!(cd.epsilon >= 0.0) || cd.epsilon >= 1.0)
+      c->fail("epsilon",
+              fmt::format("expected a step in (0, 1) (0: the default), got {}", cd.epsilon));
     cd.relative = c->choice_or("step", spec.approach == sod::Approach::kDeterministic ? "relative" : "absolute",
                                {"relative", "absolute"}) == "relative";
     if (c->has("delta0")) cd.delta0 = per_output(*c, "delta0", ny);

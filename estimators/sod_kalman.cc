@@ -133,7 +133,9 @@ std::unique_ptr<EstimatorDesign> read_sod_kalman(const sim::Table& t, const Mode
   if (t.has("R")) {
     const Eigen::VectorXd r = t.vector("R");
     if (r.size() != ny || !r.allFinite() || r.minCoeff() < 0.0) {
-      t.fail("R", fmt::format("expected {} non-negative variances (one per output, replacing the sensors' R)", ny));
+      t.fail("R", fmt::format("expected {} non-negative variances (one per output, replacing the "
+                              "sensors' R), got [{}]",
+                              ny, fmt::join(r.data(), r.data() + r.size(), ", ")));
     }
     p.R = r.asDiagonal();
   }
@@ -141,7 +143,8 @@ std::unique_ptr<EstimatorDesign> read_sod_kalman(const sim::Table& t, const Mode
   if (t.has("delta")) {
     delta = t.vector("delta");
     if (delta.size() != ny || !delta.allFinite() || delta.minCoeff() < 0.0) {
-      t.fail("delta", fmt::format("expected {} thresholds >= 0 (one per output)", ny));
+      t.fail("delta", fmt::format("expected {} thresholds >= 0 (one per output), got [{}]", ny,
+                                  fmt::join(delta.data(), delta.data() + delta.size(), ", ")));
     }
   }
   const double factor = t.number_or("virtual_variance_factor", 1.0 / 3.0);

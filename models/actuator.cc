@@ -16,7 +16,7 @@ ActuatorSpec read_actuator(const sim::Table& t, const std::vector<std::string>& 
                   ? ActuatorSpec::OnLoss::kHold
                   : ActuatorSpec::OnLoss::kZero;
   a.u0 = t.number_or("u0", 0.0);
-  if (!std::isfinite(a.u0)) t.fail("u0", "expected a finite number");
+  if (!std::isfinite(a.u0)) t.fail("u0", fmt::format("expected a finite number, got {}", a.u0));
   return a;
 }
 

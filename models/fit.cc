@@ -470,8 +470,10 @@ Eigen::MatrixXd covariance(const FateHmm& h, const Coordinates& c, const std::ve
 }
 
 // A reported quantity of the model and its Wald interval (delta method on the coordinates).
+// The interval is clipped to [lo, hi] (probabilities: [0, 1]).
 template <class G>
-FitParameter wald(const std::string& name, const FateHmm& h, const Coordinates& c, const Eigen::MatrixXd& cov, G g) {
+FitParameter wald(const std::string& name, const FateHmm& h, const Coordinates& c,
+                  const Eigen::MatrixXd& cov, G g, double lo = 0.0, double hi = 1.0) {
   FitParameter p;
   p.name = name;
   p.estimate = g(h);
@@ -488,8 +490,9 @@ FitParameter wald(const std::string& name, const FateHmm& h, const Coordinates& 
     grad(k) = (up - g(moved(h, c, d))) / (2.0 * s);
   }
   const double se = F > 0 ? std::sqrt(std::max(0.0, grad.dot(cov * grad))) : 0.0;
-  p.ci_low = std::max(0.0, p.estimate - 1.959963985 * se);
-  p.ci_high = std::min(1.0, p.estimate + 1.959963985 * se);
+  if (!std::isfinite(p.estimate) || !std::isfinite(se)) return p;
+  p.ci_low = std::max(lo, p.estimate - 1.959963985 * se);
+  p.ci_high = std::min(hi, p.estimate + 1.959963985 * se);
   return p;
 }
 
@@ -726,6 +729,22 @@ FitResult fit_family(const std::string& family, const std::vector<int>& sym, con
     ge("p_bad_to_good", [](const FateHmm& h) { return h.transition(1, 0); });
     ge("loss_good", [](const FateHmm& h) { return h.emission(0, 0); });
     ge("loss_bad", [](const FateHmm& h) { return h.emission(1, 0); });
+    // Mean loss P(L) = pi' e and mean burst P(L) / (P(L) - P(L, L)), P(L, L) = pi' diag(e) T e
+    // (e: the loss probability per state), smooth in the free coordinates: delta method.
+    const auto loss_pair = [](const FateHmm& h) {
+      const Eigen::VectorXd pi = h.stationary();
+      const Eigen::VectorXd e = h.emission.col(0);
+      return std::make_pair(pi.dot(e), pi.cwiseProduct(e).dot(h.transition * e));
+    };
+    r.derived.push_back(
+        wald("mean_loss", b, c, cov, [&](const FateHmm& h) { return loss_pair(h).first; }));
+    r.derived.push_back(wald(
+        "mean_burst", b, c, cov,
+        [&](const FateHmm& h) {
+          const auto [pl, pll] = loss_pair(h);
+          return pl > 0.0 && pl > pll ? pl / (pl - pll) : std::nan("");
+        },
+        1.0, INFINITY));
     if (D > 0) {
       for (int d = 0; d <= D; ++d) r.params.push_back(binomial(fmt::format("delay_pmf[{}]", d), q[static_cast<std::size_t>(d)], delivered));
     }

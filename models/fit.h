@@ -47,6 +47,10 @@ struct FitResult {
   int starts = 0;
   bool converged = true;
   std::vector<FitParameter> params;
+  // gilbert_elliott: the stationary loss probability (`mean_loss`) and the mean loss-run length
+  // (`mean_burst`), the keys by which a [[link]] of kind gilbert_elliott is written, with Wald 95 %
+  // intervals by the delta method on the same covariance as `params` (mean_burst in [1, inf)).
+  std::vector<FitParameter> derived;
   std::string link_toml;  // a [[link]] table reproducing the fitted model
   // Goodness of fit: P(loss run = L), L = 1..burst_observed.size(), and the autocorrelation
   // of the loss indicator at lags 1..acf_observed.size(), observed and under the model.

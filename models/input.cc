@@ -93,7 +93,9 @@ InputSpec read_white(const sim::Table& t, const LinearPlant& plant) {
                       : fmt::format("expected 1 or {} entries (the input size), got {}", plant.nu(),
                                     std.size()));
   }
-  if (std.minCoeff() < 0) t.fail("std", "expected non-negative standard deviations");
+  if (std.minCoeff() < 0)
+    t.fail("std", fmt::format("expected non-negative standard deviations, got {}",
+                              fmt::join(std.data(), std.data() + std.size(), ", ")));
   return with(std::make_shared<WhiteInputDesign>(std::move(std)));
 }
 

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstddef>
 #include <fcntl.h>
+#include <fmt/format.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -434,12 +435,21 @@ GilbertElliottByMean gilbert_elliott_by_mean(double mean_loss, double mean_burst
     return out;
   };
   const double P = mean_loss, b = mean_burst, lg = loss_good, lb = loss_bad;
-  if (!(lg < lb)) return fail("loss_bad", "expected loss_good < loss_bad with mean_loss and mean_burst");
-  if (!(P > lg && P < lb)) {
-    return fail("mean_loss", "expected loss_good < mean_loss < loss_bad (" + std::to_string(lg) + " < " +
-                                 std::to_string(P) + " < " + std::to_string(lb) + " fails)");
+  if (!(lg < lb)) {
+    return fail(
+        "loss_bad",
+        fmt::format("expected loss_good < loss_bad with mean_loss and mean_burst, got {} >= {}", lg,
+                    lb));
   }
-  if (!(std::isfinite(b) && b >= 1.0)) return fail("mean_burst", "expected a finite mean burst length >= 1");
+  if (!(P > lg && P < lb)) {
+    return fail(
+        "mean_loss",
+        fmt::format("expected loss_good < mean_loss < loss_bad, got mean_loss = {} ({} < {} < {} "
+                    "fails)",
+                    P, lg, P, lb));
+  }
+  if (!(std::isfinite(b) && b >= 1.0))
+    return fail("mean_burst", fmt::format("expected a finite mean burst length >= 1, got {}", b));
   const double pi_b = (P - lg) / (lb - lg);
   const double v = pi_b * (1.0 - pi_b) * (lb - lg) * (lb - lg);
   const double lambda = P * (1.0 - P - 1.0 / b) / v;
@@ -448,14 +458,17 @@ GilbertElliottByMean gilbert_elliott_by_mean(double mean_loss, double mean_burst
   // The burst lengths that these bounds allow: b = P / (P (1 - P) - lambda V).
   const auto burst_at = [&](double l) { return P / (P * (1.0 - P) - l * v); };
   if (!(lambda < 1.0)) {
-    return fail("mean_burst", "expected mean_burst < " + std::to_string(burst_at(1.0)) +
-                                  " (the longest mean burst these loss_good, loss_bad and mean_loss allow), got " +
-                                  std::to_string(b));
+    return fail(
+        "mean_burst",
+        fmt::format("expected mean_burst < {} (the longest mean burst these loss_good, loss_bad "
+                    "and mean_loss allow), got {}",
+                    burst_at(1.0), b));
   }
   if (lambda < lambda_min) {
-    return fail("mean_burst", "expected mean_burst >= " + std::to_string(burst_at(lambda_min)) +
-                                  " (the shortest mean burst these loss_good, loss_bad and mean_loss allow), got " +
-                                  std::to_string(b));
+    return fail("mean_burst",
+                fmt::format("expected mean_burst >= {} (the shortest mean burst these loss_good, "
+                            "loss_bad and mean_loss allow), got {}",
+                            burst_at(lambda_min), b));
   }
   out.p_good_to_bad = std::clamp(pi_b * (1.0 - lambda), 0.0, 1.0);
   out.p_bad_to_good = std::clamp((1.0 - pi_b) * (1.0 - lambda), 0.0, 1.0);

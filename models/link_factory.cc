@@ -122,7 +122,10 @@ std::unique_ptr<Link> read_gilbert_elliott(const sim::Table& t, const LinkContex
   const double bg = t.number("p_bad_to_good");
   sim::require_probability(t, "p_bad_to_good", bg);
   if (gb + bg <= 0.0) {
-    t.fail("p_bad_to_good", "expected p_good_to_bad + p_bad_to_good > 0 (a chain that can move)");
+    t.fail("p_bad_to_good",
+           fmt::format(
+               "expected p_good_to_bad + p_bad_to_good > 0 (a chain that can move), got {} + {}",
+               gb, bg));
   }
   return make_gilbert_elliott(gb, bg, lg, lb, step);
 }

@@ -245,7 +245,10 @@ LinearPlant read_jump_linear(const sim::Table& t, double period) {
   if (t.has("initial_mode")) {
     p.mode_initial = t.vector("initial_mode");
     if (p.mode_initial.size() != s || p.mode_initial.minCoeff() < 0.0 || std::abs(p.mode_initial.sum() - 1.0) > 1e-9) {
-      t.fail("initial_mode", fmt::format("expected {} non-negative entries summing to 1", s));
+      t.fail("initial_mode",
+             fmt::format("expected {} non-negative entries summing to 1, got [{}]", s,
+                         fmt::join(p.mode_initial.data(),
+                                   p.mode_initial.data() + p.mode_initial.size(), ", ")));
     }
   } else {
     p.mode_initial = stationary_law(p.mode_transition);

@@ -63,7 +63,9 @@ std::shared_ptr<const SendPolicyDesign> read_send_on_delta(const sim::Table& t, 
   if (delta.size() != s.ny()) {
     t.fail("delta", fmt::format("expected 1 or {} entries (one threshold per output), got {}", s.ny(), delta.size()));
   }
-  if (!delta.allFinite() || delta.minCoeff() < 0.0) t.fail("delta", "expected finite thresholds >= 0");
+  if (!delta.allFinite() || delta.minCoeff() < 0.0)
+    t.fail("delta", fmt::format("expected finite thresholds >= 0, got {}",
+                                fmt::join(delta.data(), delta.data() + delta.size(), ", ")));
   if (s.buffer > 0) t.fail("buffer", fmt::format("expected buffer = 0 with policy = \"send_on_delta\", got {}", s.buffer));
   return std::make_shared<SendOnDeltaDesign>(std::move(delta));
 }

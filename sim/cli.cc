@@ -55,6 +55,20 @@ std::string utc_now() {
 
 // out/<stem>: git-ignored, so a user's first `ncosim run scenarios/X.toml` never modifies the
 // committed reference results/X/ (references are made with an explicit --out).
+// CLI::Range for a double, with its bounds and the value as written (CLI::Range prints
+// "Value 0.5 not in range 1.000000 to 1000000.000000"): "--mu: expected a number in [1, 1000000],
+// got 0.5".
+CLI::Validator number_range(double lo, double hi) {
+  return CLI::Validator(
+      [lo, hi](std::string& s) -> std::string {
+        double v = 0.0;
+        if (!CLI::detail::lexical_cast(s, v)) return fmt::format("expected a number, got '{}'", s);
+        if (!(v >= lo && v <= hi)) return fmt::format("expected a number in [{}, {}], got {}", lo, hi, s);
+        return std::string();
+      },
+      fmt::format("NUMBER in [{}, {}]", lo, hi));
+}
+
 std::string default_out(const std::string& file) {
   return (std::filesystem::path("out") / std::filesystem::path(file).stem()).string();
 }
@@ -313,11 +327,11 @@ struct CommandLine {
     sub->add_option("--max-memory", max_memory_mb,
                     fmt::format("memory limit in MB of a design or campaign, estimated before it starts (default {:.0f})",
                                 max_memory_mb))
-        ->check(CLI::Range(1.0, 1e9));
+        ->check(number_range(1.0, 1e9));
     sub->add_option("--max-work", max_work_gflop,
                     fmt::format("work limit in GFLOP of one design, estimated before it starts (default {:.0f})",
                                 max_work_gflop))
-        ->check(CLI::Range(1e-9, 1e12));
+        ->check(number_range(1e-9, 1e12));
   }
 
   // run, export, merge: the campaign and its run store.
@@ -389,7 +403,7 @@ struct CommandLine {
     add_common(codesign, true);
     codesign->add_option("--estimator", cd_opt.estimator, "only this sod_jump estimator");
     codesign->add_option("--mu", cd_opt.mu, "prescribed bound mu * z~0 (overrides [codesign] mu)")
-        ->check(CLI::Range(1.0, 1e6));
+        ->check(number_range(1.0, 1e6));
     codesign->add_flag("--quiet", quiet, "no progress lines");
   }
 

@@ -25,7 +25,8 @@ nlohmann::json run_codesign(const Scenario& sc, const CodesignOptions& options) 
     found = true;
     const double mu = options.mu > 0.0 ? options.mu : d->mu();
     if (!(mu >= 1.0)) {
-      throw ScenarioError(format_error(sc.file, 0, e.name, "expected mu >= 1 ([codesign] mu or --mu)"));
+      throw ScenarioError(format_error(
+          sc.file, 0, e.name, fmt::format("expected mu >= 1 ([codesign] mu or --mu), got {}", mu)));
     }
     const est::sod::SodDesignResult z0 = est::sod::design_all_measurements(d->system());
     if (!z0.ok) throw std::runtime_error(fmt::format("{}: the z~0 LMI failed ({})", e.name, z0.status));

@@ -30,6 +30,29 @@ int count_lines(const std::string& path) {
 
 std::string opt(double v) { return std::isfinite(v) ? fmt::format("{:.9g}", v) : ""; }
 
+// "  NAME  ESTIMATE  [LOW, HIGH]" (the interval left out where none could be computed).
+std::string parameter_line(const models::FitParameter& p) {
+  const bool ci = std::isfinite(p.ci_low) && std::isfinite(p.ci_high);
+  return fmt::format(
+      "  {:<18} {:>12.6g}  {}\n", p.name, p.estimate,
+      ci ? fmt::format("[{:.6g}, {:.6g}]", p.ci_low, p.ci_high) : std::string("(no interval)"));
+}
+
+// The selected family's parameters with their 95 % intervals (as in fit.csv), and the mean loss
+// and mean burst of the Gilbert–Elliott fit (how a gilbert_elliott [[link]] is written).
+std::string parameters_text(const std::vector<models::FitResult>& fits, std::size_t best) {
+  std::string s = fmt::format("\n{} parameters, estimate and 95 % interval:\n", fits[best].family);
+  for (const auto& p : fits[best].params) s += parameter_line(p);
+  for (const auto& r : fits) {
+    if (r.derived.empty()) continue;
+    s += fmt::format(
+        "{} as mean_loss and mean_burst (the keys of a gilbert_elliott [[link]]), 95 % interval:\n",
+        r.family);
+    for (const auto& p : r.derived) s += parameter_line(p);
+  }
+  return s;
+}
+
 }  // namespace
 
 int cmd_fit(const FitArgs& a) {
@@ -146,6 +169,7 @@ int cmd_fit(const FitArgs& a) {
                              r.parameters, r.aic, r.bic, r.iterations, r.burst_tv, r.acf_rmse,
                              i == best ? "  <- " + a.criterion : std::string());
   }
+  std::cout << parameters_text(fits, best);
   std::cout << fmt::format("\n{}\nfitted in {:.2f} s; fit.csv and link.toml written to {}/\n", fits[best].link_toml,
                            seconds, out);
   return 0;

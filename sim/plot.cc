@@ -355,6 +355,16 @@ void plot_per_estimator(const Summary& s, const MetricColumns& mc, const std::st
   p.body += fmt::format("  set xtics rotate by -25 {}\n  set xrange [-0.6:{}]\n  set bmargin 9\n", tics(labels),
                         static_cast<double>(s.t.rows.size()) - 0.4);
   p.body += "  set key outside bottom center horizontal\n";
+  const bool any_value = std::any_of(s.t.rows.begin(), s.t.rows.end(), [&](const auto& r) {
+    return number(r[static_cast<std::size_t>(mc.value)]).has_value();
+  });
+  if (!any_value) {  // no point to draw (gnuplot would warn): say so in the figure
+    p.body += fmt::format(
+        "  set label 1 {} at graph 0.5, graph 0.5 center\n  set yrange [1:10]\n  plot 1/0 "
+        "notitle\n",
+        gnuplot_quote(fmt::format("no finite {} in any row", mc.metric)));
+    return;
+  }
   p.body += fmt::format("  plot '{}.dat' using {} with {} pt 7 ps 1.2 lc rgb '#1f77b4' title {}", name,
                         errorbar_using("1", mc.ci >= 0, logy), mc.ci >= 0 ? "yerrorbars" : "points",
                         gnuplot_quote(mc.ci >= 0 ? "simulated, 95 % CI" : "simulated"));
@@ -430,35 +440,72 @@ std::string against_key_dat(const Summary& s, const MetricColumns& mc, const Key
   return dat;
 }
 
-// Per estimator (in s.estimators' order): whether any of its rows has a prediction.
-std::vector<bool> estimators_with_prediction(const Summary& s, const MetricColumns& mc) {
-  std::vector<bool> out(s.estimators.size(), false);
+// What panel p holds of estimator e: a finite value, a finite prediction, and the first status
+// that is not ok (why a series without finite values is empty).
+struct BlockContent {
+  bool value = false, pred = false;
+  std::string status;
+};
+
+BlockContent block_content(const Summary& s, const MetricColumns& mc, const KeyAxes& a,
+                           std::size_t p, std::size_t e) {
+  BlockContent b;
+  const int st = s.t.column("status");
   for (const auto& r : s.t.rows) {
-    if (mc.pred < 0 || !number(r[static_cast<std::size_t>(mc.pred)])) continue;
-    const auto& name = r[static_cast<std::size_t>(s.est_col)];
-    out[static_cast<std::size_t>(std::find(s.estimators.begin(), s.estimators.end(), name) - s.estimators.begin())] = true;
+    if (r[static_cast<std::size_t>(s.est_col)] != s.estimators[e] || a.panel_of(r) != a.panels[p])
+      continue;
+    b.value = b.value || number(r[static_cast<std::size_t>(mc.value)]).has_value();
+    b.pred = b.pred || (mc.pred >= 0 && number(r[static_cast<std::size_t>(mc.pred)]).has_value());
+    if (b.status.empty() && st >= 0 && r[static_cast<std::size_t>(st)] != "ok")
+      b.status = r[static_cast<std::size_t>(st)];
   }
-  return out;
+  return b;
 }
 
-// The `plot` command of panel p: one curve per estimator, its prediction dashed in the same colour.
-std::string panel_plot(const Summary& s, const MetricColumns& mc, const KeyAxes& a, const std::string& name, bool logy,
-                       std::size_t p, const std::vector<bool>& est_pred) {
+// A legend entry (no data) saying why a series is not drawn: gnuplot warns about a data series
+// without a valid point ("Skipping data file with no valid points"), so an empty one is left out.
+std::string empty_series_entry(const std::string& label, const std::string& metric,
+                               const std::string& status, const std::string& style) {
+  return fmt::format("keyentry with points {} title {}", style,
+                     gnuplot_quote(fmt::format("{}: no finite {}{}", label, metric,
+                                               status.empty() ? "" : ": " + status)));
+}
+
+// The `plot` command of panel p: one curve per estimator, its prediction dashed in the same colour;
+// an estimator without a finite value in the panel is a legend entry saying so, and a panel with
+// nothing to draw says so in its middle (its y range fixed, so that gnuplot has one).
+std::string panel_plot(const Summary& s, const MetricColumns& mc, const KeyAxes& a,
+                       const std::string& name, bool logy, std::size_t p, bool shared_yrange) {
   const std::size_t E = s.estimators.size();
   std::string plot;
+  bool drawn = false;
   for (std::size_t e = 0; e < E; ++e) {
     const std::size_t b = p * E + e;
+    const BlockContent bc = block_content(s, mc, a, p, e);
+    const std::string sep = plot.empty() ? "" : ", \\\n       ";
+    if (!bc.value) {
+      plot += sep + empty_series_entry(s.estimators[e], mc.metric, bc.status, palette_style(e));
+      continue;
+    }
+    drawn = true;
     // Categorical x: estimators side by side around each tic so their bars do not overlap.
     const std::string x = a.numeric_x ? "1" : fmt::format("($1{:+.3f})", (static_cast<double>(e) - (E - 1) / 2.0) * 0.06);
-    plot += fmt::format("{}'{}.dat' index {} using {} with {} {} ps 1.0 title {}", plot.empty() ? "" : ", \\\n       ",
-                        name, b, errorbar_using(x, mc.ci >= 0, logy), mc.ci >= 0 ? "yerrorlines" : "linespoints",
-                        palette_style(e), gnuplot_quote(s.estimators[e]));
-    if (est_pred[e]) {
+    plot +=
+        fmt::format("{}'{}.dat' index {} using {} with {} {} ps 1.0 title {}", sep, name, b,
+                    errorbar_using(x, mc.ci >= 0, logy), mc.ci >= 0 ? "yerrorlines" : "linespoints",
+                    palette_style(e), gnuplot_quote(s.estimators[e]));
+    if (bc.pred) {
       plot += fmt::format(", \\\n       '' index {} using {}:4 with lines dt 2 {} title {}", b, x, colour_of(e),
                           gnuplot_quote(s.estimators[e] + ", predicted"));
     }
   }
-  return "  plot " + plot + "\n";
+  if (drawn) return "  plot " + plot + "\n";
+  std::string h = fmt::format("  set label 1 {} at graph 0.5, graph 0.5 center\n",
+                              gnuplot_quote(fmt::format("no finite {} in this panel", mc.metric)));
+  if (!shared_yrange) h += "  set yrange [1:10]\n";
+  h += "  plot " + plot + ", \\\n       1/0 notitle\n  unset label 1\n";
+  if (!shared_yrange) h += "  set autoscale y\n";
+  return h;
 }
 
 // Against a sweep key: one curve per estimator, in one panel per value of the panel keys (a
@@ -489,13 +536,13 @@ void plot_against_key(const Summary& s, const MetricColumns& mc, const Choice& c
   } else {
     p.body += "  set key outside right top\n";
   }
-  const std::vector<bool> est_pred = estimators_with_prediction(s, mc);
+  const bool shared_yrange = P > 1 && !yr.empty();
   for (std::size_t i = 0; i < P; ++i) {
     if (P > 1) {
       p.body += fmt::format("  set title {}\n", gnuplot_quote(a.panels[i]));
       if (i == 1) p.body += "  unset key\n";
     }
-    p.body += panel_plot(s, mc, a, name, logy, i, est_pred);
+    p.body += panel_plot(s, mc, a, name, logy, i, shared_yrange);
   }
 }
 
@@ -635,9 +682,18 @@ std::string trace_dat(const Trajectory& tr, const std::vector<const std::vector<
   return dat;
 }
 
+// Whether column c holds a finite number in some row of the window.
+bool any_finite(const std::vector<const std::vector<std::string>*>& window, int c) {
+  return std::any_of(window.begin(), window.end(), [&](const auto* r) {
+    return number((*r)[static_cast<std::size_t>(c)]).has_value();
+  });
+}
+
 // The trace gnuplot body: one panel per shown state (true x and every estimate), then one of
 // the arrivals per sensor (dots where packets arrived, crosses where none did).
-std::string trace_body(const Trajectory& tr, std::size_t shown, const std::string& title) {
+std::string trace_body(const Trajectory& tr,
+                       const std::vector<const std::vector<std::string>*>& window,
+                       std::size_t shown, const std::string& title) {
   const std::size_t n = tr.x.size();
   std::string body = fmt::format("  set multiplot layout {},1 title {}\n", shown + (tr.sensors.empty() ? 0 : 1),
                                  gnuplot_quote(title));
@@ -650,13 +706,30 @@ std::string trace_body(const Trajectory& tr, std::size_t shown, const std::strin
   }
   for (std::size_t i = 0; i < shown; ++i) {
     body += fmt::format("  set ylabel {}\n", gnuplot_quote(fmt::format("x{}", i + 1)));
-    std::string plot = fmt::format("'trace.dat' using 1:{} with lines lw 2 lc rgb 'black' title 'true x{}'", 2 + i, i + 1);
+    // A series without a finite value in the window (a diverged estimate) is a legend entry saying
+    // so: gnuplot warns about a data series without a valid point.
+    std::string plot =
+        any_finite(window, tr.x[i])
+            ? fmt::format("'trace.dat' using 1:{} with lines lw 2 lc rgb 'black' title 'true x{}'",
+                          2 + i, i + 1)
+            : fmt::format(
+                  "keyentry with lines lw 2 lc rgb 'black' title 'true x{}: no finite value'",
+                  i + 1);
+    bool drawn = any_finite(window, tr.x[i]);  // the last series read trace.dat ('' reads it again)
     for (std::size_t e = 0; e < tr.estimators.size(); ++e) {
       if (i >= tr.xhat[e].size()) continue;
-      plot += fmt::format(", \\\n       '' using 1:{} with lines {} title {}", first_col[e] + i, colour_of(e),
+      if (!any_finite(window, tr.xhat[e][i])) {
+        plot += fmt::format(", \\\n       keyentry with lines {} title {}", colour_of(e),
+                            gnuplot_quote(tr.estimators[e] + ": no finite value (diverged)"));
+        continue;
+      }
+      plot += fmt::format(", \\\n       {} using 1:{} with lines {} title {}",
+                          drawn ? "''" : "'trace.dat'", first_col[e] + i, colour_of(e),
                           gnuplot_quote(tr.estimators[e]));
+      drawn = true;
     }
-    body += "  plot " + plot + "\n";
+    body += drawn ? "  plot " + plot + "\n"
+                  : "  set yrange [1:10]\n  plot " + plot + ", 1/0 notitle\n  set autoscale y\n";
   }
   if (!tr.sensors.empty()) {
     body += "  set ylabel 'packets'\n  set xlabel 'period'\n";
@@ -699,7 +772,8 @@ Figure trace_figure(const std::string& dir, const PlotOptions& opt) {
                         title0.empty() ? "" : " — " + title0);
   f.dat = trace_dat(tr, window, physical, f.title);
   if (n > shown) f.dat += fmt::format("# the figure shows x1..x{} of {} states\n", shown, n);
-  f.gp = script(f.name, f.title, 1000, static_cast<int>(260 * (shown + 1) + 60), trace_body(tr, shown, f.title));
+  f.gp = script(f.name, f.title, 1000, static_cast<int>(260 * (shown + 1) + 60),
+                trace_body(tr, window, shown, f.title));
   return f;
 }
 

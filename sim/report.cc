@@ -16,6 +16,7 @@
 
 #include "config/config.h"
 #include "sim/output.h"
+#include "sim/store.h"
 
 namespace ncosim::sim {
 
@@ -300,7 +301,8 @@ std::string page_head(const std::string& dir, const nlohmann::json& man, const s
 
 // Warnings: every row whose status is not ok (or a line saying there is none), and the
 // re-centring note.
-std::string warnings_section(const SummaryTable& tb, const Cases& cases, const nlohmann::json& man) {
+std::string warnings_section(const std::string& dir, const SummaryTable& tb, const Cases& cases,
+                             const nlohmann::json& man) {
   const CsvTable& t = tb.t;
   std::string warn;
   if (tb.status >= 0) {
@@ -322,8 +324,13 @@ std::string warnings_section(const SummaryTable& tb, const Cases& cases, const n
     h += "<p class=\"ok\" id=\"warnings\">Every row has status ok.</p>\n";
   }
   if (man.contains("recentred") && man["recentred"].is_boolean() && man["recentred"].get<bool>()) {
-    h += "<p class=\"sub\">The plant was simulated re-centred (scenarios/README.md); metrics are unaffected, "
-         "trajectory.csv carries the physical state in its x*_physical columns.</p>\n";
+    // trajectory.csv only where this folder has one (a run without --trace writes none).
+    h += fmt::format(
+        "<p class=\"sub\">The plant was simulated re-centred (scenarios/README.md); metrics are "
+        "unaffected{}.</p>\n",
+        fs::exists(fs::path(dir) / "trajectory.csv")
+            ? ", trajectory.csv carries the physical state in its x*_physical columns"
+            : "");
   }
   return h;
 }
@@ -418,21 +425,81 @@ std::string manifest_section(const nlohmann::json& man) {
   return h + "</table>\n";
 }
 
-// The scenario file named in the manifest, as read now, or a warning when it is not found.
+// The scenario the campaign ran, from the run store's campaign table (scenario_text, and
+// scenario_path to compare with the file on disk now); nullopt without a readable store (a
+// folder written before the run store).
+struct StoredScenario {
+  std::string text, path;
+};
+
+std::optional<StoredScenario> stored_scenario(const std::string& dir) {
+  const std::string sp = store_path(dir);
+  if (!fs::exists(sp)) return std::nullopt;
+  try {
+    const auto meta = RunStore::open(sp, false).meta();
+    const auto text = meta.find("scenario_text");
+    if (text == meta.end()) return std::nullopt;
+    const auto path = meta.find("scenario_path");
+    return StoredScenario{text->second, path == meta.end() ? "" : path->second};
+  } catch (const StoreError&) {
+    return std::nullopt;
+  }
+}
+
+// One sentence comparing the stored text with the file at its path now.
+std::string disk_note(const StoredScenario& st) {
+  const auto now = st.path.empty() ? std::nullopt : try_read(st.path);
+  if (!now) {
+    return fmt::format(
+        "<p class=\"warn\" id=\"scenario-disk\">The scenario file {} is no longer there; the text "
+        "below is the one the campaign ran.</p>\n",
+        html_escape(st.path.empty() ? "(path not stored)" : st.path));
+  }
+  if (*now != st.text) {
+    return fmt::format(
+        "<p class=\"warn\" id=\"scenario-disk\">The scenario file {} has changed since the "
+        "campaign "
+        "ran; the text below is the one the campaign ran, not the file as it is now.</p>\n",
+        html_escape(st.path));
+  }
+  return fmt::format(
+      "<p class=\"sub\" id=\"scenario-disk\">The scenario file {} is unchanged since the campaign "
+      "ran.</p>\n",
+      html_escape(st.path));
+}
+
+std::string overrides_note(const nlohmann::json& man) {
+  return man.contains("overrides") && !man["overrides"].empty()
+             ? ", before the overrides " + html_escape(json_text(man["overrides"]))
+             : "";
+}
+
+// The scenario text the campaign ran (from runs.sqlite) with whether the file on disk still
+// holds it; without a store, the file named in the manifest as read now (or a warning when it is
+// not found), saying that it may not be what the campaign ran.
 std::string scenario_section(const std::string& dir, const nlohmann::json& man) {
   std::string h = "<h2 id=\"scenario\">Scenario</h2>\n";
+  if (const auto st = stored_scenario(dir)) {
+    h +=
+        fmt::format("<p class=\"sub\">The scenario text the campaign ran, from runs.sqlite{}</p>\n",
+                    overrides_note(man));
+    return h + disk_note(*st) + fmt::format("<pre>{}</pre>\n", html_escape(st->text));
+  }
   const std::string sname = man.contains("scenario") ? json_text(man["scenario"]) : "";
   if (const auto sc = scenario_text(dir, sname)) {
-    h += fmt::format("<p class=\"sub\">{} as read when this report was written{}</p>\n<pre>{}</pre>\n",
-                     html_escape(sc->first),
-                     man.contains("overrides") && !man["overrides"].empty()
-                         ? ", before the overrides " + html_escape(json_text(man["overrides"]))
-                         : "",
-                     html_escape(sc->second));
+    h += fmt::format(
+        "<p class=\"warn\" id=\"scenario-disk\">No run store (runs.sqlite) in this folder: the "
+        "scenario file {} as read when this report was written{}, which may differ from the text "
+        "the "
+        "campaign ran.</p>\n<pre>{}</pre>\n",
+        html_escape(sc->first), overrides_note(man), html_escape(sc->second));
   } else {
-    h += fmt::format("<p class=\"warn\">The scenario file '{}' was not found from here (relative paths are read "
-                     "from the current folder and the folders above the output folder).</p>\n",
-                     html_escape(sname));
+    h += fmt::format(
+        "<p class=\"warn\" id=\"scenario-disk\">No run store (runs.sqlite) in this folder, and the "
+        "scenario file '{}' was not found from here (relative paths are read from the current "
+        "folder and "
+        "the folders above the output folder).</p>\n",
+        html_escape(sname));
   }
   return h;
 }
@@ -486,7 +553,7 @@ std::string build_report(const std::string& dir, const std::vector<ReportFigure>
   std::string h;
   h.reserve(64 * 1024);
   h += page_head(dir, man, title, cases);
-  h += warnings_section(tb, cases, man);
+  h += warnings_section(dir, tb, cases, man);
   h += contents_nav(!extra_cols.empty());
   h += figures_section(figures);
   h += summary_section(tb, cases, main_cols);

@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <functional>
+#include <optional>
 #include <sstream>
 
 #include "sim/limits.h"
@@ -213,11 +215,97 @@ int read_sweeps(toml::table& doc, const std::string& file, LoadedScenario& out, 
   return last_sweep_line;
 }
 
+// The key path an error names (format_error's "key 'PATH': "), or "" when it names none.
+std::string error_key(const std::string& what) {
+  const auto a = what.find("key '");
+  if (a == std::string::npos) return "";
+  const auto b = what.find('\'', a + 5);
+  return b == std::string::npos ? "" : what.substr(a + 5, b - a - 5);
+}
+
+// Whether path `a` is `b` or lies inside it ("link[0].loss" in "link[0]").
+bool inside(const std::string& a, const std::string& b) {
+  return a == b || (a.size() > b.size() && a.compare(0, b.size(), b) == 0 &&
+                    (a[b.size()] == '.' || a[b.size()] == '['));
+}
+
+// Whether an error of one variant of a swept scenario (a case, or the values written outside
+// [[sweep]]) concerns the sweep: it names a swept key (or a key inside or around one), or the
+// same scenario with other swept values (`other`: its error, nullopt when it builds) does not
+// fail alike. A typo elsewhere fails every variant alike: a suffix about the sweep would only send
+// the user looking in the wrong place.
+bool concerns_sweep(const std::string& what, const LoadedScenario& out,
+                    const std::function<std::optional<std::string>()>& other) {
+  const std::string key = error_key(what);
+  for (const auto& axis : out.sweeps) {
+    if (!key.empty() && (inside(key, axis.key) || inside(axis.key, key))) return true;
+  }
+  const auto other_error = other();
+  return !other_error || *other_error != what;
+}
+
+// The error of building `doc` (nullopt when it builds).
+std::optional<std::string> build_error(toml::table& doc, const std::string& file,
+                                       const std::string& dir) {
+  try {
+    (void)build_scenario(doc, file, dir);
+  } catch (const ScenarioError& e) {
+    return std::string(e.what());
+  } catch (const std::exception& e) {
+    return std::string("other: ") + e.what();
+  }
+  return std::nullopt;
+}
+
+// The swept values of case `c` (the first axis varying slowest) moved into `case_doc`; returns
+// the case's labels, one per axis.
+std::vector<std::string> apply_case(toml::table& case_doc, std::size_t c,
+                                    const std::vector<std::size_t>& axis_sizes,
+                                    const std::vector<std::size_t>& axis_dim,
+                                    const LoadedScenario& out) {
+  std::size_t rem = c;
+  std::vector<std::size_t> idx(axis_sizes.size());
+  for (std::size_t a = axis_sizes.size(); a-- > 0;) {
+    idx[a] = rem % axis_sizes[a];
+    rem /= axis_sizes[a];
+  }
+  std::vector<std::string> labels;
+  for (std::size_t a = 0; a < axis_dim.size(); ++a) {
+    // Moved, not copied: an error at the swept value then points at its line in `values`.
+    const std::size_t i = idx[axis_dim[a]];
+    toml::node& value = *sweep_values(case_doc, a).get(i);
+    set_path(case_doc, out.sweeps[a].key, std::move(value), out.file, 0);
+    labels.push_back(out.sweeps[a].labels[i]);
+  }
+  return labels;
+}
+
+// What the sweep's sizes and the options that parse a document are, for building other cases.
+struct SweepShape {
+  std::vector<std::size_t> axis_sizes, axis_dim;
+  std::size_t total = 1;
+  const std::vector<std::string>* sets = nullptr;
+  const RunOverrides* overrides = nullptr;
+  std::string dir;
+};
+
+// The error of case `c` built afresh (nullopt when it builds).
+std::optional<std::string> case_error(std::size_t c, const SweepShape& shape,
+                                      const LoadedScenario& out) {
+  toml::table doc = parse_document(out.text, out.file, *shape.sets, *shape.overrides);
+  try {
+    (void)apply_case(doc, c, shape.axis_sizes, shape.axis_dim, out);
+  } catch (const ScenarioError& e) {
+    return std::string(e.what());
+  }
+  return build_error(doc, out.file, shape.dir);
+}
+
 // The base values of swept keys are validated too (as one whole scenario) when one of them is
 // not among its swept values: a value in the file must be valid even when a sweep replaces it.
 // Axes without a base value take their first value.
-void check_base_scenario(const toml::table& doc, const LoadedScenario& out, const std::vector<std::string>& sets,
-                         const RunOverrides& overrides, const std::string& dir) {
+void check_base_scenario(const toml::table& doc, const LoadedScenario& out,
+                         const SweepShape& shape) {
   std::vector<std::size_t> missing;
   bool unchecked = false;
   for (std::size_t a = 0; a < out.sweeps.size(); ++a) {
@@ -230,42 +318,36 @@ void check_base_scenario(const toml::table& doc, const LoadedScenario& out, cons
     unchecked = unchecked || std::find(labels.begin(), labels.end(), sweep_label(*base)) == labels.end();
   }
   if (!unchecked) return;
-  toml::table base_doc = parse_document(out.text, out.file, sets, overrides);
+  toml::table base_doc = parse_document(out.text, out.file, *shape.sets, *shape.overrides);
   for (const std::size_t a : missing) {
     toml::node& value = *sweep_values(base_doc, a).get(0);
     set_path(base_doc, out.sweeps[a].key, std::move(value), out.file, 0);
   }
   try {
-    (void)build_scenario(base_doc, out.file, dir);
+    (void)build_scenario(base_doc, out.file, shape.dir);
   } catch (const ScenarioError& e) {
+    if (!concerns_sweep(e.what(), out, [&] { return case_error(0, shape, out); })) throw;
     throw ScenarioError(fmt::format("{} (in the base scenario: the values written outside [[sweep]] must be "
                                     "valid too, even where a sweep replaces them)",
                                     e.what()));
   }
 }
 
-// Case `c` of the sweeps (the first axis varying slowest) built from `case_doc`; errors name the
-// case's swept values.
-Case build_case(toml::table& case_doc, std::size_t c, const std::vector<std::size_t>& axis_sizes,
-                const std::vector<std::size_t>& axis_dim, const LoadedScenario& out, const std::string& dir) {
+// Case `c` of the sweeps built from `case_doc`; errors that concern the sweep name the case's
+// swept values.
+Case build_case(toml::table& case_doc, std::size_t c, const SweepShape& shape,
+                const LoadedScenario& out) {
   Case cs;
-  std::size_t rem = c;
-  std::vector<std::size_t> idx(axis_sizes.size());
-  for (std::size_t a = axis_sizes.size(); a-- > 0;) {
-    idx[a] = rem % axis_sizes[a];
-    rem /= axis_sizes[a];
-  }
-  for (std::size_t a = 0; a < axis_dim.size(); ++a) {
-    // Moved, not copied: an error at the swept value then points at its line in `values`.
-    const std::size_t i = idx[axis_dim[a]];
-    toml::node& value = *sweep_values(case_doc, a).get(i);
-    set_path(case_doc, out.sweeps[a].key, std::move(value), out.file, 0);
-    cs.labels.push_back(out.sweeps[a].labels[i]);
-  }
+  cs.labels = apply_case(case_doc, c, shape.axis_sizes, shape.axis_dim, out);
   try {
-    cs.scenario = build_scenario(case_doc, out.file, dir);
+    cs.scenario = build_scenario(case_doc, out.file, shape.dir);
   } catch (const ScenarioError& e) {
     if (cs.labels.empty()) throw;
+    const auto other = [&]() -> std::optional<std::string> {
+      if (shape.total < 2) return std::string(e.what());  // no other case: the key decides
+      return case_error(c == 0 ? 1 : 0, shape, out);
+    };
+    if (!concerns_sweep(e.what(), out, other)) throw;
     std::string where;
     for (std::size_t a = 0; a < cs.labels.size(); ++a) {
       where += fmt::format("{}{} = {}", a ? ", " : "", out.sweeps[a].key, cs.labels[a]);
@@ -309,7 +391,8 @@ LoadedScenario load_cases_text(const std::string& file, const std::string& text,
   }
   check_sweep_resources(file, last_sweep_line, total, out.text.size());  // sim/limits.h
   const std::string dir = std::filesystem::path(file).parent_path().string();
-  if (!out.sweeps.empty() && !only_case) check_base_scenario(doc, out, sets, overrides, dir);
+  const SweepShape shape{axis_sizes, axis_dim, total, &sets, &overrides, dir};
+  if (!out.sweeps.empty() && !only_case) check_base_scenario(doc, out, shape);
   if (only_case && *only_case >= total) {
     throw ScenarioError(format_error(file, 0, "sweep",
                                      fmt::format("expected a case index below {}, got {}", total, *only_case)));
@@ -338,7 +421,7 @@ LoadedScenario load_cases_text(const std::string& file, const std::string& text,
   for (std::size_t c = 0; c < total; ++c) {
     if (only_case && c != *only_case) continue;
     toml::table case_doc = c == 0 ? std::move(doc) : parse_document(out.text, file, sets, overrides);
-    out.cases.push_back(build_case(case_doc, c, axis_sizes, axis_dim, out, dir));
+    out.cases.push_back(build_case(case_doc, c, shape, out));
   }
   return out;
 }

@@ -205,8 +205,10 @@ Channel read_channel(const sim::Table& t) {
   Channel c = make_preset(preset);
   c.tx_power_dbm = t.number_or("tx_power", c.tx_power_dbm);
   c.threshold_dbm = t.number_or("threshold", c.threshold_dbm);
-  if (!std::isfinite(c.tx_power_dbm)) t.fail("tx_power", "expected a finite power in dBm");
-  if (!std::isfinite(c.threshold_dbm)) t.fail("threshold", "expected a finite power in dBm");
+  if (!std::isfinite(c.tx_power_dbm))
+    t.fail("tx_power", fmt::format("expected a finite power in dBm, got {}", c.tx_power_dbm));
+  if (!std::isfinite(c.threshold_dbm))
+    t.fail("threshold", fmt::format("expected a finite power in dBm, got {}", c.threshold_dbm));
   if (t.has("fading")) {
     const std::string f = t.choice_or("fading", "nakagami", {"none", "lognormal", "nakagami"});
     c.fading = Fading{};
@@ -238,7 +240,8 @@ Channel read_channel(const sim::Table& t) {
     }
     for (std::size_t i = 0; i < c.fading.m_bounds.size(); ++i) {
       if (!(c.fading.m_bounds[i] > 0.0) || (i > 0 && c.fading.m_bounds[i] <= c.fading.m_bounds[i - 1])) {
-        t.fail("m_bounds", "expected increasing positive distances (m)");
+        t.fail("m_bounds", fmt::format("expected increasing positive distances (m), got {}",
+                                       fmt::join(c.fading.m_bounds, ", ")));
       }
     }
   }

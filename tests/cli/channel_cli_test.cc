@@ -103,9 +103,14 @@ TEST_F(ChannelCli, GilbertElliottByMeanIsValidated) {
       {"kind = \"gilbert_elliott\"\nmean_loss = 0.1\nmean_burst = 2.0\np_good_to_bad = 0.1\n", "p_good_to_bad",
        "expected either p_good_to_bad or mean_loss and mean_burst, got both"},
       {"kind = \"gilbert_elliott\"\nmean_loss = 0.6\nmean_burst = 2.0\nloss_bad = 0.5\n", "mean_loss",
-       "expected loss_good < mean_loss < loss_bad"},
+       "expected loss_good < mean_loss < loss_bad, got mean_loss = 0.6 (0 < 0.6 < 0.5 fails)"},
       {"kind = \"gilbert_elliott\"\nmean_loss = 0.1\nmean_burst = 40.0\nloss_good = 0.05\nloss_bad = 0.2\n",
        "mean_burst", "expected mean_burst <"},
+      // Numbers as written (before: 40.000000), and every range error says what it got.
+      {"kind = \"gilbert_elliott\"\nmean_loss = 0.1\nmean_burst = 40\nloss_good = 0.05\nloss_bad = 0.2\n",
+       "mean_burst", "allow), got 40"},
+      {"kind = \"gilbert_elliott\"\nmean_loss = 0.1\nmean_burst = 0.5\n", "mean_burst",
+       "expected a finite mean burst length >= 1, got 0.5"},
       {"kind = \"gilbert_elliott\"\nmean_loss = 0.1\n", "mean_burst", "required"},
       {"kind = \"markov\"\ntransition = [[1.0]]\nloss = [0.1]\nstep = \"tick\"\n", "step", "tick"},
   };
@@ -129,6 +134,22 @@ TEST_F(ChannelCli, FitWritesTheLinkTableAndDiagnosticsAndTheTableRuns) {
   const Outcome o = run_ncosim({"fit", file, "--out", out_.string(), "--family", "delay", "--family", "gilbert_elliott"});
   ASSERT_EQ(o.code, 0) << o.output;
   EXPECT_NE(o.output.find("gilbert_elliott"), std::string::npos) << o.output;
+  // Each parameter with its 95 % interval, and the mean loss / mean burst of the Gilbert–Elliott
+  // fit (issue 28): 10 of every 50 packets lost in runs of 10.
+  EXPECT_NE(o.output.find("parameters, estimate and 95 % interval:"), std::string::npos) << o.output;
+  EXPECT_NE(o.output.find("gilbert_elliott as mean_loss and mean_burst"), std::string::npos) << o.output;
+  for (const auto& [name, truth] : {std::pair<std::string, double>{"mean_loss", 0.2}, {"mean_burst", 10.0}}) {
+    const auto at = o.output.find("  " + name + " ");
+    ASSERT_NE(at, std::string::npos) << o.output;
+    std::istringstream line(o.output.substr(at, o.output.find('\n', at) - at));
+    std::string n;
+    double est = 0, lo = 0, hi = 0;
+    char c = 0;
+    line >> n >> est >> c >> lo >> c >> hi;
+    EXPECT_NEAR(est, truth, 0.02 * truth) << o.output;
+    EXPECT_LT(lo, est) << o.output;
+    EXPECT_GT(hi, est) << o.output;
+  }
   const std::string toml = ncosim::testing::read_text((out_ / "link.toml").string());
   EXPECT_NE(toml.find("[[link]]\nname = \"trace\"\nkind = \"markov\""), std::string::npos) << toml;  // GE + delays
   EXPECT_NE(toml.find("# delay (loglik"), std::string::npos) << toml;

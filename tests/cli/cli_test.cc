@@ -461,6 +461,29 @@ TEST_F(Cli, BadSweptValueIsReportedAtItsLineWithTheCase) {
                           "(in the sweep case estimator[0].history = 0)"});
 }
 
+// A typo outside the swept keys fails every case alike: the message names the key and its line
+// without a suffix about the sweep (before: "(in the sweep case ...)" or, when a base value is not
+// among the swept values, the long "(in the base scenario: ...)" suffix).
+TEST_F(Cli, TypoInASweptScenarioGetsNoSweepSuffix) {
+  for (const std::string values : {"[1, 2]", "[2, 3]"}) {  // the base value 1 among them, or not
+    const std::string text = replace_once(base_, "history = 2", "histroy = 2") +
+                             "\n[[sweep]]\nkey = \"estimator[1].max_delay\"\nvalues = " + values + "\n";
+    const std::string file = scenario(text);
+    const std::string out = expect_bad_input(file, {at(file, text, "histroy = 2", "estimator[0].histroy"), "unknown key"});
+    EXPECT_EQ(out.find("sweep case"), std::string::npos) << out;
+    EXPECT_EQ(out.find("base scenario"), std::string::npos) << out;
+  }
+}
+
+// A base value of a swept key that no case uses keeps the suffix that says why it is checked.
+TEST_F(Cli, BadBaseValueOfASweptKeyKeepsTheBaseScenarioSuffix) {
+  const std::string text = replace_once(base_, "history = 2", "history = 0") +
+                           "\n[[sweep]]\nkey = \"estimator[0].history\"\nvalues = [1, 2]\n";
+  const std::string file = scenario(text);
+  expect_bad_input(file, {at(file, text, "history = 0", "estimator[0].history"), "got 0",
+                          "(in the base scenario: the values written outside [[sweep]] must be valid too"});
+}
+
 TEST_F(Cli, UnknownCommandLineOptionIsBadInput) {
   const std::string out = expect_bad_input(scenario(base_), {"--frobnicate"}, {"--frobnicate"});
   EXPECT_NE(out.find("not expected"), std::string::npos) << out;
@@ -868,6 +891,10 @@ TEST_F(Cli, CodesignWritesThresholdsUnderTheTarget) {
   const Outcome bad = ncosim({"codesign", file, "--out", out_.string(), "--estimator", "suh_w0.02", "--quiet"});
   EXPECT_EQ(bad.code, 2) << bad.output;
   EXPECT_NE(bad.output.find("expected a sod_jump estimator named \"suh_w0.02\""), std::string::npos) << bad.output;
+  // A range error says what it got, as written (issue 28).
+  const Outcome low = ncosim({"codesign", file, "--out", out_.string(), "--estimator", "C4", "--mu", "0.5", "--quiet"});
+  EXPECT_EQ(low.code, 2) << low.output;
+  EXPECT_NE(low.output.find("--mu: expected a number in [1, 1000000], got 0.5"), std::string::npos) << low.output;
 }
 
 }  // namespace

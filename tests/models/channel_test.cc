@@ -64,6 +64,36 @@ TEST(Fit, UnknownFamiliesAndTooFewPacketsAreRejected) {
   EXPECT_NO_THROW(fit_family("gilbert_elliott", sym, FitOptions{}));              // 4 <= 5
 }
 
+// The mean loss and mean burst of a Gilbert–Elliott fit (issue 28): the values a gilbert_elliott
+// [[link]] written with mean_loss and mean_burst would have, i.e. the fitted chain's stationary
+// loss and mean loss-run length (link.cc), with delta-method 95 % intervals that hold the truth
+// (P = 0.02 / 0.27 = 0.074, burst 1 / 0.25 = 4 for a classic Gilbert chain; 20000 packets).
+TEST(Fit, GilbertElliottReportsMeanLossAndMeanBurstWithIntervals) {
+  sim::Rng rng = sim::make_stream(5, 0, 0);
+  auto truth = make_gilbert_elliott(0.02, 0.25, 0.0, 1.0);
+  truth->reset(rng);
+  std::vector<int> sym;
+  for (int i = 0; i < 20000; ++i) sym.push_back(truth->transmit(rng) == kLost ? 0 : 1);
+  const FitResult r = fit_family("gilbert_elliott", sym, FitOptions{});
+  ASSERT_EQ(r.derived.size(), 2u);
+  const FitParameter& loss = r.derived[0];
+  const FitParameter& burst = r.derived[1];
+  EXPECT_EQ(loss.name, "mean_loss");
+  EXPECT_EQ(burst.name, "mean_burst");
+  const auto fitted = make_gilbert_elliott(r.model.transition(0, 1), r.model.transition(1, 0), r.model.emission(0, 0),
+                                           r.model.emission(1, 0));
+  EXPECT_NEAR(loss.estimate, fitted->loss_probability(), 1e-9);
+  EXPECT_NEAR(burst.estimate, fitted->mean_loss_burst(1).value(), 1e-6);
+  EXPECT_LT(loss.ci_low, loss.estimate);
+  EXPECT_GT(loss.ci_high, loss.estimate);
+  EXPECT_LE(loss.ci_low, 0.02 / 0.27);
+  EXPECT_GE(loss.ci_high, 0.02 / 0.27);
+  EXPECT_LT(burst.ci_low, burst.estimate);
+  EXPECT_GE(burst.ci_low, 1.0);
+  EXPECT_LE(burst.ci_low, 4.0);
+  EXPECT_GE(burst.ci_high, 4.0);
+}
+
 TEST(Fit, FateSymbolsRefuseADelayBeyondWhatTheFamiliesHold) {
   // Issue 29: a delay cast to int overflowed (a wrong symbol, or an out-of-bounds write later).
   EXPECT_EQ(fate_symbols({kMaxFitDelay, std::nullopt, 0}), (std::vector<int>{static_cast<int>(kMaxFitDelay) + 1, 0, 1}));
@@ -118,6 +148,7 @@ TEST(GilbertElliottByMean, ConvertsExactlyAndRejectsWhatNoChainReaches) {
   EXPECT_NEAR(g.p_good_to_bad, 0.1 * 0.25 / 0.9, 1e-12);
   EXPECT_EQ(gilbert_elliott_by_mean(0.5, 4.0, 0.0, 0.4).error_key, "mean_loss");
   EXPECT_EQ(gilbert_elliott_by_mean(0.1, 0.5, 0.0, 1.0).error_key, "mean_burst");
+  EXPECT_NE(gilbert_elliott_by_mean(0.1, 0.5, 0.0, 1.0).error.find("got 0.5"), std::string::npos);
   // lg = 0.05, lb = 0.2, P = 0.1: the loss indicator's runs cannot be long.
   const auto longest = gilbert_elliott_by_mean(0.1, 50.0, 0.05, 0.2);
   EXPECT_EQ(longest.error_key, "mean_burst");

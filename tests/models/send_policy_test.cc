@@ -77,6 +77,10 @@ TEST(SendPolicy, ReadersNameTheKeyAndTheValidValues) {
             std::string::npos);
   EXPECT_NE(error_of("C = [[1.0, 0.0]]\nR = [[0.01]]\npolicy = \"send_on_delta\"\ndelta = -0.1\n").find("key 'sensor[0].delta'"),
             std::string::npos);
+  // A range error says what it got, as written (issue 28).
+  EXPECT_NE(error_of("C = [[1.0, 0.0]]\nR = [[0.01]]\npolicy = \"send_on_delta\"\ndelta = -0.1\n")
+                .find("expected finite thresholds >= 0, got -0.1"),
+            std::string::npos);
   EXPECT_NE(error_of("C = [[1.0, 0.0]]\nR = [[0.01]]\npolicy = \"send_on_delta\"\ndelta = 0.1\nbuffer = 2\n")
                 .find("expected buffer = 0 with policy = \"send_on_delta\""),
             std::string::npos);

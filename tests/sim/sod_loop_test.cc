@@ -260,6 +260,14 @@ TEST(SodKalman, VirtualNoiseHelpsOnHeldMeasurements) {
   }
   EXPECT_LT(suh, 0.95 * naive);
   EXPECT_THROW(from_text(kTwoSensors, {"estimator[1].delta=[0.1]"}), ScenarioError);
+  // A range error says what it got, as written (issue 28).
+  try {
+    (void)from_text(kTwoSensors, {"estimator[1].delta=[0.1, -0.5]"});
+    ADD_FAILURE() << "a negative threshold was accepted";
+  } catch (const ScenarioError& e) {
+    EXPECT_NE(std::string(e.what()).find("thresholds >= 0 (one per output), got [0.1, -0.5]"), std::string::npos)
+        << e.what();
+  }
 }
 
 }  // namespace

@@ -524,6 +524,12 @@ TEST(SumoCampaign, SumoErrorsExitTwoWithAClearMessage) {
     EXPECT_TRUE(o.out.empty()) << o.out;
     EXPECT_FALSE(fs::exists(road().dir / "bad")) << "results written on failure";
   }
+  // A range error says what it got, as written (issue 28).
+  const Output bounds = run_ncosim(
+      "run s.toml --out bad --quiet --set \"link[0].fading='nakagami'\" --set 'link[0].m=[1.0, 2.0]' "
+      "--set 'link[0].m_bounds=[-5.0]' --set 'sumo.cache=\"cache_bad\"'");
+  EXPECT_EQ(bounds.code, 2) << bounds.err;
+  EXPECT_NE(bounds.err.find("expected increasing positive distances (m), got -5"), std::string::npos) << bounds.err;
   // No `sumo` binary anywhere: exit 2 saying so, and no recording left behind.
   const Output nobin =
       run_ncosim("run s.toml --out bad --quiet --set 'sumo.cache=\"cache_nobin\"'", "PATH=/nonexistent SUMO_HOME= ");
