@@ -679,7 +679,7 @@ std::vector<std::pair<std::string, std::string>> derive_exports(const LoadedScen
   const bool complete = decision.decided || (!rule.on() && done == expected);
   if (info.complete != nullptr) *info.complete = complete;
   const std::string table_md = summary_markdown(first.title, loaded.sweeps, rows, n);
-  std::string extras;  // the lines under the table
+  std::string extras = consistency_notes(loaded.sweeps, rows);  // the lines under the table
   if (decision.decided) {
     extras += decision.reason == "target_ci"
               ? fmt::format("\nStopped at {} runs per case: every row's 95 % CI half-width of mse is within {:g} % of "

@@ -2,6 +2,9 @@
 #include "sim/consistency.h"
 
 #include <boost/math/distributions/chi_squared.hpp>
+#include <fmt/format.h>
+
+#include "sim/output.h"
 
 namespace ncosim::sim {
 
@@ -46,6 +49,26 @@ std::string consistency_note(const std::optional<ConsistencyStat>& nees, const s
   if (nees && !nees->inside()) out = side("NEES", *nees);
   if (nis && !nis->inside()) out += (out.empty() ? "" : "; ") + side("NIS", *nis);
   return out.empty() ? "ok" : out;
+}
+
+std::string consistency_notes(const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows) {
+  std::string out;
+  auto stat = [](const char* name, const std::optional<ConsistencyStat>& s) {
+    return s ? fmt::format("{} {:.4g} in [{:.4g}, {:.4g}]", name, s->mean, s->lo, s->hi) : std::string();
+  };
+  for (const auto& r : rows) {
+    if (r.consistency.empty() || r.consistency == "ok") continue;
+    std::string where;
+    for (std::size_t i = 0; i < r.sweep_labels.size() && i < sweeps.size(); ++i) {
+      where += fmt::format("{} = {}, ", sweeps[i].key, r.sweep_labels[i]);
+    }
+    std::string stats = stat("NEES", r.nees);
+    if (r.nis) stats += (stats.empty() ? "" : ", ") + stat("NIS", r.nis);
+    out += fmt::format("- {}\"{}\": {} ({}).\n", where, r.estimator, r.consistency, stats);
+  }
+  if (out.empty()) return out;
+  return "\nFilter consistency (average NEES / NIS against their two-sided 95 % chi-square bounds; "
+         "results/README.md, \"nees and nis\"):\n" + out;
 }
 
 }  // namespace ncosim::sim

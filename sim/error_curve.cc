@@ -34,8 +34,7 @@ std::uint64_t get_u64(const std::string& in, std::size_t& pos) {
 ErrorCurve::ErrorCurve(std::int64_t periods, std::size_t estimators, Eigen::Index n)
     : periods_(periods), estimators_(estimators), n_(n) {
   const std::size_t cells = static_cast<std::size_t>(periods) * estimators * static_cast<std::size_t>(n + 1);
-  hi_.assign(cells, 0.0);
-  lo_.assign(cells, 0.0);
+  sums_.assign(2 * cells, 0.0);
 }
 
 void ErrorCurve::merge(const ErrorCurve& other) {
@@ -47,9 +46,9 @@ void ErrorCurve::merge(const ErrorCurve& other) {
   if (other.periods_ != periods_ || other.estimators_ != estimators_ || other.n_ != n_) {
     throw std::runtime_error("error curve: merging curves of different shapes");
   }
-  for (std::size_t c = 0; c < hi_.size(); ++c) {  // (hi, lo) + (hi', lo'): TwoSum of the his
-    lo_[c] += other.lo_[c];
-    add_to(hi_[c], lo_[c], other.hi_[c]);
+  for (std::size_t c = 0; c < sums_.size(); c += 2) {  // (hi, lo) + (hi', lo'): TwoSum of the his
+    sums_[c + 1] += other.sums_[c + 1];
+    add_to(sums_[c], sums_[c + 1], other.sums_[c]);
   }
   runs_.insert(runs_.end(), other.runs_.begin(), other.runs_.end());
 }
@@ -79,17 +78,14 @@ double ErrorCurve::ci95(std::int64_t k, std::size_t e) const {
 
 std::string ErrorCurve::serialize() const {
   std::string out;
-  out.reserve(8 * (5 + 2 * hi_.size() + runs_.size()));
+  out.reserve(8 * (5 + sums_.size() + runs_.size()));
   put_u64(out, kCurveFormat);
   put_u64(out, static_cast<std::uint64_t>(periods_));
   put_u64(out, estimators_);
   put_u64(out, static_cast<std::uint64_t>(n_));
   put_u64(out, runs_.size());
   for (auto r : runs_) put_u64(out, r);
-  for (std::size_t c = 0; c < hi_.size(); ++c) {
-    put_u64(out, std::bit_cast<std::uint64_t>(hi_[c]));
-    put_u64(out, std::bit_cast<std::uint64_t>(lo_[c]));
-  }
+  for (double v : sums_) put_u64(out, std::bit_cast<std::uint64_t>(v));
   return out;
 }
 
@@ -108,10 +104,7 @@ ErrorCurve ErrorCurve::deserialize(const std::string& blob) {
   ErrorCurve c(static_cast<std::int64_t>(periods), estimators, static_cast<Eigen::Index>(n));
   c.runs_.resize(runs);
   for (auto& r : c.runs_) r = get_u64(blob, pos);
-  for (std::size_t i = 0; i < c.hi_.size(); ++i) {
-    c.hi_[i] = std::bit_cast<double>(get_u64(blob, pos));
-    c.lo_[i] = std::bit_cast<double>(get_u64(blob, pos));
-  }
+  for (double& v : c.sums_) v = std::bit_cast<double>(get_u64(blob, pos));
   return c;
 }
 

@@ -29,16 +29,14 @@ class ErrorCurve {
 
   // Run-time path: estimator e's error x[k] - xhat[k] (n) at period k of the current run.
   void add(std::int64_t k, std::size_t e, const double* err) {
-    const std::size_t c = cell(k, e, 0);
-    double* hi = hi_.data() + c;
-    double* lo = lo_.data() + c;
+    double* s = sums_.data() + 2 * cell(k, e, 0);
     double total = 0.0;
-    for (Eigen::Index i = 0; i < n_; ++i) {
+    for (Eigen::Index i = 0; i < n_; ++i, s += 2) {
       const double v = err[i] * err[i];
       total += v;
-      add_to(hi[i], lo[i], v);
+      add_to(s[0], s[1], v);
     }
-    add_to(hi[n_], lo[n_], total * total);
+    add_to(s[0], s[1], total * total);
   }
   // Marks run `run` as added (once per run, after its last period).
   void add_run(std::uint64_t run) { runs_.push_back(run); }
@@ -63,7 +61,7 @@ class ErrorCurve {
     return (static_cast<std::size_t>(k) * estimators_ + e) * static_cast<std::size_t>(n_ + 1) +
            static_cast<std::size_t>(c);
   }
-  double value(std::size_t c) const { return hi_[c] + lo_[c]; }
+  double value(std::size_t c) const { return sums_[2 * c] + sums_[2 * c + 1]; }
   // Knuth's TwoSum: hi + v = s + err exactly; the rounding error is kept in lo.
   static void add_to(double& hi, double& lo, double v) {
     const double s = hi + v;
@@ -76,8 +74,9 @@ class ErrorCurve {
   std::int64_t periods_ = 0;
   std::size_t estimators_ = 0;
   Eigen::Index n_ = 0;
-  // Per (k, e): n cells of squared state errors, then one of the squared total (for the band).
-  std::vector<double> hi_, lo_;
+  // Per (k, e): n cells of squared state errors, then one of the squared total (for the band);
+  // each cell a pair (hi, lo) side by side.
+  std::vector<double> sums_;
   std::vector<std::uint64_t> runs_;
   // ci95() caches the Student t quantile of the current run count (not for concurrent calls).
   mutable std::size_t t_runs_ = 0;

@@ -254,8 +254,7 @@ SummaryText summary_text(const std::vector<SweepAxis>& sweeps, const std::vector
   return t;
 }
 
-std::string summary_csv(const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows, Eigen::Index n) {
-  const SummaryText t = summary_text(sweeps, rows, n);
+std::string summary_text_csv(const SummaryText& t) {
   auto line = [](const std::vector<std::string>& cells) {
     std::string out;
     for (std::size_t i = 0; i < cells.size(); ++i) out += (i ? "," : "") + csv_field(cells[i]);
@@ -264,6 +263,10 @@ std::string summary_csv(const std::vector<SweepAxis>& sweeps, const std::vector<
   std::string out = line(t.header);
   for (const auto& c : t.cells) out += line(c);
   return out;
+}
+
+std::string summary_csv(const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows, Eigen::Index n) {
+  return summary_text_csv(summary_text(sweeps, rows, n));
 }
 
 std::string status_text(const SummaryRow& r) {

@@ -70,10 +70,15 @@ struct SummaryText {
   std::vector<std::vector<std::string>> cells;
 };
 SummaryText summary_text(const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows, Eigen::Index n);
-// The columns of summary_text: summary_columns, then `stop` (with --target-ci) and
-// `expected_status`.
+// The text of a SummaryText as CSV (RFC 4180 quoting): summary.csv, and `run --format csv`.
+std::string summary_text_csv(const SummaryText& t);
+// The columns of summary_text: summary_columns, then `stop` (with --target-ci),
+// `expected_status` and the filter-consistency columns (nees .. consistency).
 std::vector<std::string> summary_csv_columns(const std::vector<SweepAxis>& sweeps, Eigen::Index n, bool stop);
 std::string summary_csv(const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows, Eigen::Index n);
+// The lines under the table for the rows whose filter is inconsistent (`consistency` neither
+// empty nor "ok"): one per row with its NEES/NIS and bounds; empty when there is none.
+std::string consistency_notes(const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows);
 std::string summary_markdown(const std::string& title, const std::vector<SweepAxis>& sweeps,
                              const std::vector<SummaryRow>& rows, Eigen::Index n);
 std::string runs_csv(const std::vector<SweepAxis>& sweeps, const std::vector<std::vector<std::string>>& labels,

@@ -591,7 +591,9 @@ int report_command(const std::string& dir, const ReportOptions& opt) {
     if (!po.trace && fs::exists(fs::path(dir) / "trajectory.csv")) {
       PlotOptions pt = po;
       pt.trace = true;
-      figs.push_back(build_figures(dir, pt).back());
+      for (auto& f : build_figures(dir, pt)) {
+        if (f.kind == FigureKind::kTrace) figs.push_back(std::move(f));
+      }
     }
   }
   const auto t1 = clock::now();

@@ -47,8 +47,8 @@ class RunRecorder {
   std::vector<Eigen::VectorXd> history_;  // true x[k], x[k-1], ... (x[-j] = x0)
   std::vector<int> arrivals_;             // per sensor, this period
   Eigen::VectorXd err_;
-  Eigen::LLT<Eigen::MatrixXd> llt_;  // of the state block of an estimator's covariance (NEES)
-  Eigen::VectorXd whitened_;         // L^-1 err_
+  std::vector<double> chol_;   // Cholesky factor of the state block of a covariance (NEES)
+  Eigen::VectorXd whitened_;   // L^-1 err_
   std::vector<est::Estimator::Innovations> nis_start_;  // per estimator: at the end of warm-up
   bool precision_lost_ = false;
   RunMetrics metrics_;

@@ -306,16 +306,6 @@ std::string json_rows(const SummaryText& t, const std::vector<SweepAxis>& sweeps
   return arr.dump(2) + "\n";
 }
 
-std::string csv_text(const SummaryText& t) {
-  auto line = [](const std::vector<std::string>& cells) {
-    std::string out;
-    for (std::size_t i = 0; i < cells.size(); ++i) out += (i ? "," : "") + csv_field(cells[i]);
-    return out + "\n";
-  };
-  std::string out = line(t.header);
-  for (const auto& c : t.cells) out += line(c);
-  return out;
-}
 
 std::vector<ViewColumn> text_columns(const SummaryText& t) {
   std::vector<ViewColumn> cols;
@@ -342,7 +332,7 @@ std::string stdout_table(const TableRequest& req, const std::string& title, cons
                          const std::vector<SummaryRow>& rows, Eigen::Index n, const std::string& summary_md,
                          const std::string& extras) {
   const SummaryText chosen = select_columns(summary_text(sweeps, rows, n), req.columns);
-  if (req.format == "csv") return csv_text(chosen);
+  if (req.format == "csv") return summary_text_csv(chosen);
   if (req.format == "json") return json_rows(chosen, sweeps);
   if (req.format == "md" && req.columns.empty()) return summary_md + extras;
   const std::string head = fmt::format("# {}\n\n", title);

@@ -72,7 +72,7 @@ TEST_F(ErrorCurveCli, OffByDefaultAndPlotDrawsItWithoutWarnings) {
   ASSERT_EQ(off.code, 0) << off.output;
   EXPECT_FALSE(fs::exists(out("off") + "/error_curve.csv"));
   // 1500 periods: the open loop's squared error overflows (1.3^1350 > 1e154) to empty cells.
-  const auto on = run({"run", scenario(), "--out", out("on"), "--runs", "3", "--periods", "1500", "--quiet"});
+  const auto on = run({"run", scenario(), "--out", out("on"), "--runs", "3", "--periods", "1500", "--quiet", "--trace"});
   ASSERT_EQ(on.code, 0) << on.output;
   const std::string csv = read_text(out("on") + "/error_curve.csv");
   EXPECT_NE(csv.find("open loop,1499,1499,3,,,,"), std::string::npos) << csv.substr(csv.size() - 200);
@@ -80,6 +80,13 @@ TEST_F(ErrorCurveCli, OffByDefaultAndPlotDrawsItWithoutWarnings) {
   ASSERT_EQ(plot.code, 0) << plot.output;
   EXPECT_TRUE(fs::exists(out("on") + "/plot_error_curve.png")) << plot.output;
   EXPECT_EQ(plot.output.find("Skipping"), std::string::npos) << plot.output;
+  // The report holds the figure beside the trace (both are figures of their own).
+  const auto report = run({"report", out("on")});
+  ASSERT_EQ(report.code, 0) << report.output;
+  EXPECT_EQ(report.output.find("Skipping"), std::string::npos) << report.output;
+  const std::string html = read_text(out("on") + "/report.html");
+  EXPECT_NE(html.find("run-averaged squared error"), std::string::npos);
+  EXPECT_NE(html.find("run 0, periods"), std::string::npos);
   // A series without one finite value (here: the open loop's rows emptied by hand) is left out
   // of the figure and named in its panel's title, so gnuplot never meets an empty series.
   std::string emptied;

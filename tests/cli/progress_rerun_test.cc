@@ -23,6 +23,7 @@
 
 #include "sim/store.h"
 #include "temp_dir_test.h"
+#include "spawn_ncosim.h"
 #include "test_util.h"
 
 extern char** environ;
@@ -139,20 +140,7 @@ TEST_F(ProgressRerun, TheSameFinishedCampaignReRunsAsBefore) {
 
 // Starts ncosim with `args` (stdout and stderr to `log`); returns its pid (as in
 // tests/cli/store_cli_test.cc).
-pid_t spawn(std::vector<std::string> args, const std::string& log) {
-  args.insert(args.begin(), kBinary);
-  std::vector<char*> argv;
-  for (auto& a : args) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  posix_spawn_file_actions_t fa;
-  posix_spawn_file_actions_init(&fa);
-  posix_spawn_file_actions_addopen(&fa, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  posix_spawn_file_actions_adddup2(&fa, 1, 2);
-  pid_t pid = -1;
-  const int rc = posix_spawn(&pid, kBinary.c_str(), &fa, nullptr, argv.data(), environ);
-  posix_spawn_file_actions_destroy(&fa);
-  return rc == 0 ? pid : -1;
-}
+pid_t spawn(const std::vector<std::string>& args, const std::string& log) { return ncosim::testing::spawn_ncosim(args, log); }
 
 std::int64_t stored_runs(const std::string& store) {
   try {

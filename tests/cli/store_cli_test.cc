@@ -25,6 +25,7 @@
 
 #include "sim/store.h"
 #include <sqlite3.h>
+#include "spawn_ncosim.h"
 #include "test_util.h"
 
 extern char** environ;
@@ -87,21 +88,7 @@ void expect_same_exports(const std::string& a, const std::string& b, const std::
 }
 
 // Starts ncosim with `args` (stdout and stderr to `log`); returns its pid.
-pid_t spawn(const std::vector<std::string>& args, const std::string& log) {
-  std::vector<std::string> all{kBinary};
-  all.insert(all.end(), args.begin(), args.end());
-  std::vector<char*> argv;
-  for (auto& a : all) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  posix_spawn_file_actions_t fa;
-  posix_spawn_file_actions_init(&fa);
-  posix_spawn_file_actions_addopen(&fa, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  posix_spawn_file_actions_adddup2(&fa, 1, 2);
-  pid_t pid = -1;
-  const int rc = posix_spawn(&pid, kBinary.c_str(), &fa, nullptr, argv.data(), environ);
-  posix_spawn_file_actions_destroy(&fa);
-  return rc == 0 ? pid : -1;
-}
+pid_t spawn(const std::vector<std::string>& args, const std::string& log) { return ncosim::testing::spawn_ncosim(args, log); }
 
 int wait_exit(pid_t pid) {
   int status = 0;

@@ -170,6 +170,7 @@ TEST(ExpectedStatus, MatchesTheDeclaredStatusOrOkByDefault) {
   EXPECT_EQ(status_text(r), "ok");
 }
 
+// expected_status follows model_check and stop; the filter-consistency columns come after it.
 TEST(ExpectedStatus, IsTheLastColumnOfSummaryCsvAfterStop) {
   SummaryRow a, b;
   a.estimator = "a";
@@ -180,12 +181,15 @@ TEST(ExpectedStatus, IsTheLastColumnOfSummaryCsvAfterStop) {
   const std::string csv = summary_csv({}, {a, b}, 1);
   const auto lines = lines_of(csv);
   ASSERT_EQ(lines.size(), 3u);
-  EXPECT_TRUE(lines[0].ends_with(",model_check,expected_status")) << lines[0];
-  EXPECT_TRUE(lines[1].ends_with(",")) << lines[1];  // not declared: empty
-  EXPECT_TRUE(lines[2].ends_with(",diverged")) << lines[2];
+  const std::string consistency = ",nees,nees_lo,nees_hi,nis,nis_lo,nis_hi,consistency";
+  const std::string no_statistic = ",,,,,,,";  // seven empty consistency cells
+  EXPECT_TRUE(lines[0].ends_with(",model_check,expected_status" + consistency)) << lines[0];
+  EXPECT_TRUE(lines[1].ends_with("," + no_statistic)) << lines[1];  // not declared: empty
+  EXPECT_TRUE(lines[2].ends_with(",diverged" + no_statistic)) << lines[2];
   a.stop = b.stop = "target_ci";
-  EXPECT_TRUE(lines_of(summary_csv({}, {a, b}, 1))[0].ends_with(",model_check,stop,expected_status"));
-  EXPECT_EQ(summary_csv_columns({}, 1, true).back(), "expected_status");
+  EXPECT_TRUE(lines_of(summary_csv({}, {a, b}, 1))[0].ends_with(",model_check,stop,expected_status" + consistency));
+  const auto cols = summary_csv_columns({}, 1, true);
+  EXPECT_EQ(cols[cols.size() - 8], "expected_status");
 }
 
 }  // namespace

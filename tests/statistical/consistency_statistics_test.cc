@@ -44,6 +44,12 @@ R = [[0.3]]
 link = "l2"
 )";
 
+// Sensor 1's link loses `loss` of its packets, sensor 2's none; no delay.
+std::string links(double loss) {
+  return fmt::format("\n[[link]]\nname = \"l1\"\nkind = \"bernoulli\"\nloss = {}\n\n"
+                     "[[link]]\nname = \"l2\"\nkind = \"bernoulli\"\nloss = 0.0\n", loss);
+}
+
 std::string write_scenario(const std::string& name, const std::string& text) {
   const auto dir = std::filesystem::temp_directory_path() / "ncosim_consistency_test";
   std::filesystem::create_directories(dir);
@@ -80,17 +86,7 @@ warmup = 1
 runs = 3000
 seed = 11
 error_curve = true
-)") + kPlant + R"(
-[[link]]
-name = "l1"
-kind = "bernoulli"
-loss = 0.0
-
-[[link]]
-name = "l2"
-kind = "bernoulli"
-loss = 0.0
-
+)") + kPlant + links(0.0) + R"(
 [[estimator]]
 name = "Kalman"
 kind = "kalman_extended"
@@ -126,17 +122,7 @@ periods = 3000
 warmup = 100
 runs = 30
 seed = 12
-)") + kPlant + R"(
-[[link]]
-name = "l1"
-kind = "bernoulli"
-loss = 0.3
-
-[[link]]
-name = "l2"
-kind = "bernoulli"
-loss = 0.0
-
+)") + kPlant + links(0.3) + R"(
 [[estimator]]
 name = "Kalman"
 kind = "kalman_extended"
