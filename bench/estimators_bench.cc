@@ -135,9 +135,12 @@ void BM_DesignS4N4(benchmark::State& state) {
 }
 BENCHMARK(BM_DesignS4N4)->Unit(benchmark::kMillisecond);
 
-// The whole flagship scenario on one thread: 20 runs x 20000 periods x 7 estimators.
+// The whole flagship scenario on one thread: 20 runs x 20000 periods x 7 estimators; with
+// argument 1, also the run-averaged error curve ([run] error_curve = true, issue 28).
 void BM_FlagshipScenario(benchmark::State& state) {
-  auto sc = std::move(sim::load_cases(kTable2, {}).cases.front().scenario);
+  const std::vector<std::string> sets = state.range(0) != 0 ? std::vector<std::string>{"run.error_curve=true"}
+                                                            : std::vector<std::string>{};
+  auto sc = std::move(sim::load_cases(kTable2, sets).cases.front().scenario);
   sim::CampaignOptions opt;
   opt.threads = 1;
   opt.time_estimators = false;
@@ -149,7 +152,7 @@ void BM_FlagshipScenario(benchmark::State& state) {
                           static_cast<std::int64_t>(sc->estimators.size()));
   state.SetLabel("items = periods x runs x estimators");
 }
-BENCHMARK(BM_FlagshipScenario)->Unit(benchmark::kMillisecond)->Iterations(3);
+BENCHMARK(BM_FlagshipScenario)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->Iterations(3);
 
 }  // namespace
 }  // namespace ncosim

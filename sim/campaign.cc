@@ -148,7 +148,7 @@ CampaignResult run_campaign(const Scenario& sc, const CampaignOptions& options) 
   worker();
   for (auto& t : pool) t.join();
   if (error) std::rethrow_exception(error);
-  for (const ErrorCurve& c : curves) result.curve.merge(c);
+  for (ErrorCurve& c : curves) result.curve.merge(std::move(c));
   result.runs_done = done.load();
   result.stopped = result.runs_done < runs;
   if (keep && result.stopped) keep_completed(todo, completed, options.link_counters, result);

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <utility>
 
 #include "sim/output.h"
 
@@ -35,6 +36,14 @@ ErrorCurve::ErrorCurve(std::int64_t periods, std::size_t estimators, Eigen::Inde
     : periods_(periods), estimators_(estimators), n_(n) {
   const std::size_t cells = static_cast<std::size_t>(periods) * estimators * static_cast<std::size_t>(n + 1);
   sums_.assign(2 * cells, 0.0);
+}
+
+void ErrorCurve::merge(ErrorCurve&& other) {
+  if (empty()) {
+    *this = std::move(other);
+    return;
+  }
+  merge(static_cast<const ErrorCurve&>(other));
 }
 
 void ErrorCurve::merge(const ErrorCurve& other) {

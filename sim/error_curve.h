@@ -40,8 +40,10 @@ class ErrorCurve {
   }
   // Marks run `run` as added (once per run, after its last period).
   void add_run(std::uint64_t run) { runs_.push_back(run); }
-  // Adds another curve of the same shape (its runs must be disjoint from these).
+  // Adds another curve of the same shape (its runs must be disjoint from these); an empty curve
+  // takes the other's sums (moved when given an rvalue).
   void merge(const ErrorCurve& other);
+  void merge(ErrorCurve&& other);
 
   // The runs added, in the order they were added.
   const std::vector<std::uint64_t>& runs() const { return runs_; }

@@ -199,7 +199,7 @@ CampaignResult MpiSession::run(const Scenario& sc, std::size_t case_index, const
   for (auto& t : pool) t.join();
   if (error) std::rethrow_exception(error);
   if (sc.run.error_curve) {
-    for (const ErrorCurve& c : curves) result.curve.merge(c);
+    for (ErrorCurve& c : curves) result.curve.merge(std::move(c));
     for (int w = 1; w < world.size(); ++w) {
       world.send(w, kCurve, static_cast<std::uint64_t>(case_index));
       std::string blob;
