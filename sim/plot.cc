@@ -17,6 +17,8 @@
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <sstream>
+#include <string_view>
+#include <vector>
 
 #include "config/config.h"
 #include "sim/output.h"
@@ -816,12 +818,34 @@ std::vector<Figure> build_figures(const std::string& dir, const PlotOptions& opt
 
 namespace {
 
+// The environment of gnuplot: ours with LC_ALL=C.UTF-8. The scripts say `set encoding utf8`; under
+// a C or POSIX locale (a fresh Debian root, a CI container) gnuplot warns "iconv failed to convert
+// degree sign" on every script. C.UTF-8 is built into glibc, and keeps '.' as the decimal point.
+std::vector<std::string> gnuplot_environment() {
+  std::vector<std::string> env;
+  for (char** e = environ; e != nullptr && *e != nullptr; ++e) {
+    if (std::string_view(*e).starts_with("LC_ALL=")) continue;
+    env.emplace_back(*e);
+  }
+  env.emplace_back("LC_ALL=C.UTF-8");
+  return env;
+}
+
 // Runs `gnuplot -e "formats='...'" NAME.gp` in `dir`; throws with gnuplot's messages on failure
 // and passes its warnings on to stderr.
 void run_gnuplot(const std::string& dir, const std::string& gp, const std::string& formats) {
   int pipefd[2];
   if (::pipe(pipefd) != 0) throw std::runtime_error(fmt::format("pipe: {}", std::strerror(errno)));
   const std::string expr = fmt::format("formats='{}'", formats);
+  // Built before fork: the child may only call async-signal-safe functions.
+  std::vector<std::string> env = gnuplot_environment();
+  std::vector<char*> envp;
+  for (auto& e : env) envp.push_back(e.data());
+  envp.push_back(nullptr);
+  std::vector<std::string> args{"gnuplot", "-e", expr, gp};
+  std::vector<char*> argv;
+  for (auto& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
   const pid_t pid = ::fork();
   if (pid < 0) throw std::runtime_error(fmt::format("fork: {}", std::strerror(errno)));
   if (pid == 0) {
@@ -833,7 +857,7 @@ void run_gnuplot(const std::string& dir, const std::string& gp, const std::strin
       ::dup2(devnull, 1);
     }
     if (::chdir(dir.c_str()) != 0) ::_exit(126);
-    ::execlp("gnuplot", "gnuplot", "-e", expr.c_str(), gp.c_str(), static_cast<char*>(nullptr));
+    ::execvpe("gnuplot", argv.data(), envp.data());
     ::_exit(127);
   }
   ::close(pipefd[1]);

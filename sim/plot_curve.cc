@@ -1,8 +1,8 @@
 // sim/plot_curve.cc — the error-curve figure of `ncosim plot`: error_curve.csv ([run]
 // error_curve) as one curve per estimator against the period, its 95 % band shaded, one panel
-// per case. The numbers are copied from the CSV as written; a series without a single finite
-// value (an estimator that diverged from the start) is left out and named in the panel's title,
-// so gnuplot never meets an empty series.
+// per case. The numbers are copied from the CSV as written (values above 1e150, a diverged
+// estimator, are drawn as missing); a series without a single such value is left out and named
+// in the panel's title, so gnuplot never meets an empty series.
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -22,6 +22,9 @@ namespace ncosim::sim {
 namespace {
 
 constexpr std::size_t kMaxPanels = 6;
+// Values above this are drawn as missing: the run recorder's divergence threshold (|e|^2 > 1e150),
+// and far beyond it gnuplot's axis range overflows ("y axis range undefined or overflow").
+constexpr double kLargest = 1e150;
 
 struct Series {
   std::string estimator;
@@ -66,7 +69,9 @@ std::vector<Panel> read_panels(const CsvTable& t) {
   return panels;
 }
 
-std::string number_or_missing(double v) { return std::isfinite(v) ? fmt::format("{}", v) : "?"; }
+std::string number_or_missing(double v) { return std::isfinite(v) && v <= kLargest ? fmt::format("{}", v) : "?"; }
+
+bool drawable(double v) { return std::isfinite(v) && v > 0.0 && v <= kLargest; }
 
 // One data block per drawn series (gnuplot `index`); the band's lower edge is drawn to mean/1000
 // where mean - half-width is not positive (the axis is logarithmic).
@@ -74,7 +79,7 @@ std::string panel_dat(const Panel& p, std::size_t& index, std::vector<std::size_
   std::string dat;
   for (std::size_t s = 0; s < p.series.size(); ++s) {
     const auto& pts = p.series[s].points;
-    const bool any = std::any_of(pts.begin(), pts.end(), [](const auto& q) { return std::isfinite(q[1]) && q[1] > 0.0; });
+    const bool any = std::any_of(pts.begin(), pts.end(), [](const auto& q) { return drawable(q[1]); });
     if (!any) {
       left_out += (left_out.empty() ? "" : ", ") + p.series[s].estimator;
       continue;
@@ -84,8 +89,9 @@ std::string panel_dat(const Panel& p, std::size_t& index, std::vector<std::size_
     for (const auto& q : pts) {
       const double lo = std::isfinite(q[2]) ? (q[1] - q[2] > 0.0 ? q[1] - q[2] : q[1] / 1000.0) : std::nan("");
       const double hi = std::isfinite(q[2]) ? q[1] + q[2] : std::nan("");
-      dat += fmt::format("{} {} {} {}\n", number_or_missing(q[0]), q[1] > 0.0 ? number_or_missing(q[1]) : "?",
-                         number_or_missing(lo), number_or_missing(hi));
+      const bool band = drawable(q[1]) && drawable(hi);
+      dat += fmt::format("{} {} {} {}\n", number_or_missing(q[0]), drawable(q[1]) ? number_or_missing(q[1]) : "?",
+                         band ? number_or_missing(lo) : "?", band ? number_or_missing(hi) : "?");
     }
     dat += "\n\n";
     drawn.push_back(s);
@@ -110,7 +116,7 @@ std::optional<Figure> error_curve_figure(const std::string& dir) {
   f.title = "run-averaged squared error |x - xhat|^2 against time, 95 % band";
   f.dat = fmt::format("# {} (from error_curve.csv)\n", f.title);
   std::string body = fmt::format("  set multiplot layout {},1 title {}\n", panels, gnuplot_quote(f.title));
-  body += "  set grid\n  set logscale y\n  set key outside right top font ',8'\n  set xlabel 'period'\n"
+  body += "  set grid\n  set logscale y\n  set format y '%g'\n  set key outside right top font ',8'\n  set xlabel 'period'\n"
           "  set ylabel 'mean |x - xhat|^2'\n  set style fill transparent solid 0.2 noborder\n";
   std::size_t index = 0;
   for (std::size_t p = 0; p < panels; ++p) {
