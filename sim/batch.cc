@@ -587,6 +587,13 @@ struct ExportInfo {
 ErrorCurve error_curve_for(const LoadedScenario& loaded, const RunStore& store, std::size_t c, const CampaignResult& res) {
   const Scenario& sc = *loaded.cases[c].scenario;
   ErrorCurve curve = store.curve(c);
+  if (!curve.empty() && (curve.periods() != sc.run.periods || curve.estimators() != sc.estimators.size() ||
+                         curve.states() != sc.model.plant.n())) {
+    throw StoreError(fmt::format("run store {}: the error curve of case {} has {} periods x {} estimators x {} states, "
+                                 "the scenario {} x {} x {}",
+                                 store.path(), c + 1, curve.periods(), curve.estimators(), curve.states(),
+                                 sc.run.periods, sc.estimators.size(), sc.model.plant.n()));
+  }
   std::vector<std::uint64_t> covered = curve.runs();
   std::sort(covered.begin(), covered.end());
   std::vector<std::uint64_t> used = res.run_ids;
@@ -597,10 +604,13 @@ ErrorCurve error_curve_for(const LoadedScenario& loaded, const RunStore& store, 
   }
   std::vector<std::uint64_t> missing;
   std::set_difference(used.begin(), used.end(), covered.begin(), covered.end(), std::back_inserter(missing));
-  if (!missing.empty()) {
-    ErrorCurve extra = error_curve_of(sc);
-    for (std::uint64_t run : missing) simulate_run(sc, run, nullptr, nullptr, nullptr, &extra);
-    curve.merge(extra);
+  if (!missing.empty()) {  // on every core, as a campaign of those runs
+    CampaignOptions opt;
+    opt.time_estimators = false;
+    opt.link_counters = false;
+    opt.only_runs = std::move(missing);
+    opt.on_run = [](std::uint64_t, RunMetrics&&, RunLinks&&) {};
+    curve.merge(run_campaign(sc, opt).curve);
   }
   return curve;
 }

@@ -76,8 +76,12 @@ double ErrorCurve::ci95(std::int64_t k, std::size_t e) const {
   const auto runs = static_cast<double>(runs_.size());
   if (runs_.size() < 2) return std::numeric_limits<double>::quiet_NaN();
   const double m = mean(k, e);
-  const double var = (value(cell(k, e, n_)) - runs * m * m) / (runs - 1.0);
+  const double s2 = value(cell(k, e, n_));
+  double var = (s2 - runs * m * m) / (runs - 1.0);
   if (!std::isfinite(m) || !std::isfinite(var)) return std::numeric_limits<double>::quiet_NaN();
+  // S2 - R m^2 cancels when every run has the same error (k = 0 from an exact start): what is
+  // left below a few roundings of S2 is rounding, not spread.
+  if (std::abs(var) * (runs - 1.0) <= 8.0 * std::numeric_limits<double>::epsilon() * s2) var = 0.0;
   if (t_runs_ != runs_.size()) {  // one quantile for every cell: the runs are the same
     t_runs_ = runs_.size();
     t975_ = boost::math::quantile(boost::math::complement(boost::math::students_t(runs - 1.0), 0.025));

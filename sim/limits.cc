@@ -176,6 +176,14 @@ void check_error_curve_resources(const std::string& file, int line, std::int64_t
   const double copies = static_cast<double>(std::max(1U, std::thread::hardware_concurrency())) + 2.0;
   const double bytes = 16.0 * static_cast<double>(periods) * static_cast<double>(estimators) *
                        static_cast<double>(states + 1) * copies;
+  const double blob = 16.0 * static_cast<double>(periods) * static_cast<double>(estimators) * static_cast<double>(states + 1);
+  if (blob > 9e8) {  // SQLite's largest blob is 1e9 bytes (SQLITE_MAX_LENGTH)
+    throw ScenarioError(format_error(file, line, "run.error_curve",
+                                     fmt::format("the error curve of {} periods x {} estimator(s) x {} cells is {}, "
+                                                 "above the run store's 900 MB for one case; fewer periods, or "
+                                                 "error_curve = false",
+                                                 periods, estimators, states + 1, human_bytes(blob))));
+  }
   if (lim.memory_bytes > 0.0 && bytes > lim.memory_bytes) {
     throw ScenarioError(format_error(
         file, line, "run.error_curve",

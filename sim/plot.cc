@@ -276,6 +276,13 @@ MetricColumns metric_columns(const Summary& s, const std::string& metric, const 
     throw ScenarioError(fmt::format("--metric '{}': not a column of {} (columns: {})", metric, what, valid));
   }
   mc.ci = s.t.column(metric + "_ci95");
+  // A CI column without a single value (one run: no spread) is drawn as absent: error bars of
+  // '?' only would be a series without a valid point (a gnuplot warning, and the points missing).
+  if (mc.ci >= 0 && std::none_of(s.t.rows.begin(), s.t.rows.end(), [&](const auto& r) {
+        return number(r[static_cast<std::size_t>(mc.ci)]).has_value();
+      })) {
+    mc.ci = -1;
+  }
   mc.pred_name = prediction_column(s.t, metric);
   mc.pred = mc.pred_name.empty() ? -1 : s.t.column(mc.pred_name);
   mc.paired = metric.size() > 5 && metric.ends_with("_diff") && s.t.column("paired_reference") >= 0;

@@ -75,7 +75,8 @@ bool drawable(double v) { return std::isfinite(v) && v > 0.0 && v <= kLargest; }
 
 // One data block per drawn series (gnuplot `index`); the band's lower edge is drawn to mean/1000
 // where mean - half-width is not positive (the axis is logarithmic).
-std::string panel_dat(const Panel& p, std::size_t& index, std::vector<std::size_t>& drawn, std::string& left_out) {
+std::string panel_dat(const Panel& p, std::size_t& index, std::vector<std::size_t>& drawn, std::vector<bool>& banded,
+                      std::string& left_out) {
   std::string dat;
   for (std::size_t s = 0; s < p.series.size(); ++s) {
     const auto& pts = p.series[s].points;
@@ -95,6 +96,9 @@ std::string panel_dat(const Panel& p, std::size_t& index, std::vector<std::size_
     }
     dat += "\n\n";
     drawn.push_back(s);
+    banded.push_back(std::any_of(pts.begin(), pts.end(), [](const auto& q) {
+      return drawable(q[1]) && std::isfinite(q[2]) && drawable(q[1] + q[2]);
+    }));
   }
   return dat;
 }
@@ -121,9 +125,10 @@ std::optional<Figure> error_curve_figure(const std::string& dir) {
   std::size_t index = 0;
   for (std::size_t p = 0; p < panels; ++p) {
     std::vector<std::size_t> drawn;
+    std::vector<bool> banded;  // per drawn series: a band with at least one point (not R = 1)
     std::string left_out;
     const std::size_t first = index;
-    f.dat += panel_dat(all[p], index, drawn, left_out);
+    f.dat += panel_dat(all[p], index, drawn, banded, left_out);
     std::string title = all[p].label;
     if (!left_out.empty()) title += fmt::format("{}no finite values (diverged): {}", title.empty() ? "" : "; ", left_out);
     body += fmt::format("  set title {}\n", gnuplot_quote(title));
@@ -137,9 +142,12 @@ std::optional<Figure> error_curve_figure(const std::string& dir) {
       const auto i = first + d;
       const std::string colour = gnuplot_colour(drawn[d]);
       const std::string name = gnuplot_quote(all[p].series[drawn[d]].estimator);
-      plot += fmt::format("{}'plot_error_curve.dat' index {} using 1:3:4 with filledcurves {} notitle, \\\n"
-                          "       '' index {} using 1:2 with lines lw 1.5 {} title {}",
-                          plot.empty() ? "" : ", \\\n       ", i, colour, i, colour, name);
+      if (banded[d]) {
+        plot += fmt::format("{}'plot_error_curve.dat' index {} using 1:3:4 with filledcurves {} notitle",
+                            plot.empty() ? "" : ", \\\n       ", i, colour);
+      }
+      plot += fmt::format("{}'plot_error_curve.dat' index {} using 1:2 with lines lw 1.5 {} title {}",
+                          plot.empty() ? "" : ", \\\n       ", i, colour, name);
     }
     body += "  plot " + plot + "\n";
   }

@@ -91,7 +91,8 @@ void RunRecorder::on_period(std::int64_t k, const Eigen::VectorXd& x, int true_m
     if (m.diverged && curve_ == nullptr) continue;
     err_ = x - estimators_[e]->state();
     // The error curve takes every period from k = 0 (the start-up transient is the point) and
-    // every estimator, diverged or not (its cells become non-finite: empty in the file).
+    // every estimator, diverged or not (a squared error that overflows makes its cell non-finite:
+    // empty in the file).
     if (curve_ != nullptr) curve_->add(k, e, err_.data());
     if (!scored || m.diverged) continue;
     const double e2 = err_.squaredNorm();
@@ -142,7 +143,7 @@ void RunRecorder::trace_row(std::int64_t k, const Eigen::VectorXd& x, int true_m
 // n = 2, about 7 % of the flagship's whole run.)
 void RunRecorder::score_consistency(EstimatorRunMetrics& m, const est::Estimator& e, Eigen::Index n) {
   const Eigen::MatrixXd* P = e.covariance();
-  if (P == nullptr) return;
+  if (P == nullptr || P->rows() < n || P->cols() < n) return;
   const double* p = P->data();
   const Eigen::Index ld = P->rows();
   double* L = chol_.data();  // column-major n x n, lower triangle

@@ -422,6 +422,12 @@ LoadedScenario load_cases_text(const std::string& file, const std::string& text,
     if (only_case && c != *only_case) continue;
     toml::table case_doc = c == 0 ? std::move(doc) : parse_document(out.text, file, sets, overrides);
     out.cases.push_back(build_case(case_doc, c, shape, out));
+    // error_curve.csv is one file for every case (and every case's curve is in the store).
+    if (out.cases.back().scenario->run.error_curve != out.cases.front().scenario->run.error_curve) {
+      throw ScenarioError(format_error(file, last_sweep_line, "run.error_curve",
+                                       "expected the same value in every sweep case (error_curve.csv covers them "
+                                       "all), got both true and false"));
+    }
   }
   return out;
 }

@@ -123,6 +123,26 @@ TEST_F(ErrorCurveCli, BadValueAndTooMuchMemoryAreRefusedWithTheirLocation) {
   EXPECT_NE(big.output.find("run.error_curve"), std::string::npos) << big.output;
   EXPECT_NE(big.output.find("error curve keeps 2000000 periods x 3 estimator(s)"), std::string::npos) << big.output;
   EXPECT_FALSE(fs::exists(out("big")));
+  // One file covers every case: the key cannot be swept to different values.
+  text = read_text(source_path("tests/cli/data/base.toml")) + "\n[[sweep]]\nkey = \"run.error_curve\"\nvalues = [false, true]\n";
+  const auto swept = run({"run", write("swept.toml", text), "--out", out("swept"), "--quiet"});
+  EXPECT_EQ(swept.code, 2) << swept.output;
+  EXPECT_NE(swept.output.find("run.error_curve': expected the same value in every sweep case"), std::string::npos)
+      << swept.output;
+  EXPECT_FALSE(fs::exists(out("swept")));
+}
+
+// One run: no band (no spread to estimate), so the figure draws the curves alone and gnuplot
+// never meets a band without a point.
+TEST_F(ErrorCurveCli, OneRunDrawsCurvesWithoutABandOrAWarning) {
+  const auto one = run({"run", scenario(), "--out", out("one"), "--runs", "1", "--periods", "200", "--quiet"});
+  ASSERT_EQ(one.code, 0) << one.output;
+  EXPECT_NE(read_text(out("one") + "/error_curve.csv").find("Kalman,5,5,1,"), std::string::npos);
+  const auto plot = run_shell("LC_ALL=C " + ncosim_command({"plot", out("one")}));
+  ASSERT_EQ(plot.code, 0) << plot.output;
+  EXPECT_EQ(plot.output.find("Skipping"), std::string::npos) << plot.output;
+  EXPECT_EQ(plot.output.find("warning"), std::string::npos) << plot.output;
+  EXPECT_EQ(read_text(out("one") + "/plot_error_curve.gp").find("filledcurves"), std::string::npos);
 }
 
 }  // namespace

@@ -73,6 +73,13 @@ TEST(ErrorCurve, MeanBandAndStatesOfKnownErrors) {
   const double sd = std::sqrt(((1 - m) * (1 - m) + (4 - m) * (4 - m) + (2 - m) * (2 - m)) / 2.0);
   const double t = boost::math::quantile(boost::math::complement(boost::math::students_t(2.0), 0.025));
   EXPECT_NEAR(c.ci95(0, 0), t * sd / std::sqrt(3.0), 1e-12);
+  // Every run with the same error (an exact start): no spread, a band of exactly 0.
+  ErrorCurve same(1, 1, 2);
+  for (std::size_t r = 0; r < 7; ++r) {
+    add(same, 0, 0, Eigen::Vector2d(0.1, 0.3));
+    same.add_run(r);
+  }
+  EXPECT_EQ(same.ci95(0, 0), 0.0);
   ErrorCurve one(1, 1, 1);
   add(one, 0, 0, Eigen::VectorXd::Ones(1));
   one.add_run(0);
