@@ -30,13 +30,13 @@ class ErrorCurve {
   // Run-time path: estimator e's error x[k] - xhat[k] (n) at period k of the current run.
   void add(std::int64_t k, std::size_t e, const double* err) {
     double* s = sums_.data() + 2 * cell(k, e, 0);
-    switch (n_) {  // small state sizes unrolled (the same operations in the same order)
-      case 1: return add_cells<1>(s, err);
-      case 2: return add_cells<2>(s, err);
-      case 3: return add_cells<3>(s, err);
-      case 4: return add_cells<4>(s, err);
-      default: return add_cells<0>(s, err);
+    double total = 0.0;
+    for (Eigen::Index i = 0; i < n_; ++i, s += 2) {
+      const double v = err[i] * err[i];
+      total += v;
+      add_to(s[0], s[1], v);
     }
+    add_to(s[0], s[1], total * total);
   }
   // Marks run `run` as added (once per run, after its last period).
   void add_run(std::uint64_t run) { runs_.push_back(run); }
@@ -64,17 +64,6 @@ class ErrorCurve {
            static_cast<std::size_t>(c);
   }
   double value(std::size_t c) const { return sums_[2 * c] + sums_[2 * c + 1]; }
-  template <int N>
-  void add_cells(double* s, const double* err) const {
-    const Eigen::Index n = N > 0 ? N : n_;
-    double total = 0.0;
-    for (Eigen::Index i = 0; i < n; ++i, s += 2) {
-      const double v = err[i] * err[i];
-      total += v;
-      add_to(s[0], s[1], v);
-    }
-    add_to(s[0], s[1], total * total);
-  }
   // Knuth's TwoSum: hi + v = s + err exactly; the rounding error is kept in lo.
   static void add_to(double& hi, double& lo, double v) {
     const double s = hi + v;
