@@ -10,15 +10,12 @@ namespace ncosim::sim {
 
 namespace {
 
-// The average of `count` terms whose sum is chi2(dof) for a consistent filter: bounds = the
-// 2.5 % and 97.5 % quantiles of chi2(dof), divided by `count`.
-ConsistencyStat bounded(double sum, double count, double dof) {
+// The two-sided 95 % bounds of the average of `count` terms whose sum is chi2(dof) for a
+// consistent filter: the 2.5 % and 97.5 % quantiles of chi2(dof), divided by `count`.
+ConsistencyStat bounded(double mean, double count, double dof) {
   const boost::math::chi_squared dist(dof);
-  ConsistencyStat s;
-  s.mean = sum / count;
-  s.lo = boost::math::quantile(dist, 0.025) / count;
-  s.hi = boost::math::quantile(boost::math::complement(dist, 0.025)) / count;
-  return s;
+  return ConsistencyStat{mean, boost::math::quantile(dist, 0.025) / count,
+                         boost::math::quantile(boost::math::complement(dist, 0.025)) / count};
 }
 
 std::string side(const char* name, const ConsistencyStat& s) {
@@ -33,14 +30,13 @@ std::string side(const char* name, const ConsistencyStat& s) {
 std::optional<ConsistencyStat> nees_stat(const ConsistencySums& s, std::int64_t n) {
   if (s.nees_count <= 0 || s.nees_runs <= 0 || n <= 0) return std::nullopt;
   const double runs = static_cast<double>(s.nees_runs);
-  ConsistencyStat st = bounded(0.0, runs, runs * static_cast<double>(n));
-  st.mean = s.nees / static_cast<double>(s.nees_count);
-  return st;
+  return bounded(s.nees / static_cast<double>(s.nees_count), runs, runs * static_cast<double>(n));
 }
 
 std::optional<ConsistencyStat> nis_stat(const ConsistencySums& s) {
   if (s.nis_count <= 0 || s.nis_dof <= 0) return std::nullopt;
-  return bounded(s.nis, static_cast<double>(s.nis_count), static_cast<double>(s.nis_dof));
+  const auto updates = static_cast<double>(s.nis_count);
+  return bounded(s.nis / updates, updates, static_cast<double>(s.nis_dof));
 }
 
 std::string consistency_note(const std::optional<ConsistencyStat>& nees, const std::optional<ConsistencyStat>& nis) {
