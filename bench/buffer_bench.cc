@@ -13,7 +13,8 @@
 namespace ncosim {
 namespace {
 
-const std::string kPendulum = std::string(NCOSIM_SOURCE_DIR) + "/scenarios/schenato2008_pendulum.toml";
+const std::string kPendulum =
+    std::string(NCOSIM_SOURCE_DIR) + "/scenarios/schenato2008_pendulum.toml";
 constexpr int kPeriods = 4096;
 
 // Packets of 4096 periods from the paper's link (lambda_h = 0.05 h, 0.75 beyond), replayed
@@ -46,10 +47,12 @@ Stream& stream() {
   return s;
 }
 
-std::unique_ptr<est::EstimatorDesign> design(const std::string& kind, const std::string& key, int value) {
+std::unique_ptr<est::EstimatorDesign> design(const std::string& kind, const std::string& key,
+                                             int value) {
   const auto& model = stream().sc->model;
   toml::table t{{key, value}};
-  return sim::estimator_registry().find(kind)->factory(sim::Table(t, "estimator[0]", "bench"), model);
+  return sim::estimator_registry().find(kind)->factory(sim::Table(t, "estimator[0]", "bench"),
+                                                       model);
 }
 
 void replay(benchmark::State& state, const est::EstimatorDesign& d) {
@@ -103,13 +106,15 @@ void BM_StaticGainsDesign(benchmark::State& state) {
   const auto p = pendulum();
   std::vector<double> lambda;
   for (int h = 0; h < state.range(0); ++h) lambda.push_back(0.05 * h);
-  for (auto _ : state) benchmark::DoNotOptimize(est::buffer::design_static_gains(p, {lambda}).trace_V0);
+  for (auto _ : state)
+    benchmark::DoNotOptimize(est::buffer::design_static_gains(p, {lambda}).trace_V0);
 }
 BENCHMARK(BM_StaticGainsDesign)->Arg(8)->Arg(16)->Unit(benchmark::kMicrosecond);
 
 void BM_CriticalProbabilityBisection(benchmark::State& state) {
   const auto p = pendulum();
-  for (auto _ : state) benchmark::DoNotOptimize(est::buffer::critical_probability_bisection(p).value);
+  for (auto _ : state)
+    benchmark::DoNotOptimize(est::buffer::critical_probability_bisection(p).value);
 }
 void BM_CriticalProbabilitySdp(benchmark::State& state) {
   const auto p = pendulum();

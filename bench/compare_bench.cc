@@ -39,9 +39,11 @@ BENCHMARK(BM_CompareFlagship)->Unit(benchmark::kMillisecond);
 std::string synthetic(int cases, const std::string& name) {
   const fs::path dir = fs::temp_directory_path() / ("ncosim_compare_bench_" + name);
   fs::create_directories(dir);
-  std::ofstream(dir / "manifest.json") << R"({"scenario": "s.toml", "scenario_hash": "h", "seed": 1})";
+  std::ofstream(dir / "manifest.json")
+      << R"({"scenario": "s.toml", "scenario_hash": "h", "seed": 1})";
   std::ofstream out(dir / "runs.csv");
-  out << "link[0].delivery,run,estimator,mse,mse_ext,periods,samples_used,samples_taken,diverged,status,flops_mean,"
+  out << "link[0].delivery,run,estimator,mse,mse_ext,periods,samples_used,samples_taken,diverged,"
+         "status,flops_mean,"
          "late_samples,duplicate_samples,mde_percent,rmse_x1,rmse_x2\n";
   std::mt19937_64 g(1);
   std::uniform_real_distribution<double> u(0.02, 0.05);

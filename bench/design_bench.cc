@@ -24,9 +24,10 @@ struct A3 {
 const A3& a3() {
   static A3 a = [] {
     A3 x;
-    x.sc = std::move(sim::load_cases(std::string(NCOSIM_SOURCE_DIR) + "/scenarios/dolz2014_table2.toml", {})
-                         .cases.front()
-                         .scenario);
+    x.sc = std::move(
+        sim::load_cases(std::string(NCOSIM_SOURCE_DIR) + "/scenarios/dolz2014_table2.toml", {})
+            .cases.front()
+            .scenario);
     x.ext = est::build_extended(x.sc->model, 1);
     x.prob = est::pattern_probabilities(x.sc->model, x.ext);
     return x;
@@ -83,9 +84,11 @@ void Sizes(benchmark::internal::Benchmark* b, int max_nbar) {
     for (int n = 1; n <= max_nbar; ++n) b->Args({g, n});
 }
 
-BENCHMARK(BM_DesignIterative)->Apply([](auto* b) { Sizes(b, 7); })->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_DesignCcl)->Apply([](auto* b) { Sizes(b, 7); })->Unit(benchmark::kMillisecond)->Iterations(1);
-BENCHMARK(BM_DesignCclLiteral)->Apply([](auto* b) { Sizes(b, 1); })->Unit(benchmark::kMillisecond)->Iterations(1);
+BENCHMARK(BM_DesignIterative)->Apply([](auto* b) { Sizes(b, 7); }) -> Unit(benchmark::kMillisecond);
+BENCHMARK(BM_DesignCcl)
+    ->Apply([](auto* b) { Sizes(b, 7); }) -> Unit(benchmark::kMillisecond) -> Iterations(1);
+BENCHMARK(BM_DesignCclLiteral)
+    ->Apply([](auto* b) { Sizes(b, 1); }) -> Unit(benchmark::kMillisecond) -> Iterations(1);
 
 }  // namespace
 }  // namespace ncosim

@@ -99,10 +99,12 @@ R = [[1.0]]
 kind = "kalman_extended"
 max_delay = 0
 )";
-  const auto sc = sim::build_scenario(toml::parse(text, std::string_view("cv2.toml")), "cv2.toml", ".");
+  const auto sc =
+      sim::build_scenario(toml::parse(text, std::string_view("cv2.toml")), "cv2.toml", ".");
   auto est = sc->estimators.front().design->instantiate();
   std::vector<double> zs(256);
-  for (std::size_t i = 0; i < zs.size(); ++i) zs[i] = 0.5 * static_cast<double>(i) + std::sin(static_cast<double>(i));
+  for (std::size_t i = 0; i < zs.size(); ++i)
+    zs[i] = 0.5 * static_cast<double>(i) + std::sin(static_cast<double>(i));
   const Eigen::VectorXd u = Eigen::VectorXd::Zero(0), drive = Eigen::VectorXd::Zero(2);
   const est::PeriodInput in{u, drive};
   est::Packet p;
@@ -138,8 +140,9 @@ BENCHMARK(BM_DesignS4N4)->Unit(benchmark::kMillisecond);
 // The whole flagship scenario on one thread: 20 runs x 20000 periods x 7 estimators; with
 // argument 1, also the run-averaged error curve ([run] error_curve = true, issue 28).
 void BM_FlagshipScenario(benchmark::State& state) {
-  const std::vector<std::string> sets = state.range(0) != 0 ? std::vector<std::string>{"run.error_curve=true"}
-                                                            : std::vector<std::string>{};
+  const std::vector<std::string> sets = state.range(0) != 0
+                                            ? std::vector<std::string>{"run.error_curve=true"}
+                                            : std::vector<std::string>{};
   auto sc = std::move(sim::load_cases(kTable2, sets).cases.front().scenario);
   sim::CampaignOptions opt;
   opt.threads = 1;

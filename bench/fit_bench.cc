@@ -4,10 +4,10 @@
 // scenarios/dolz2014_table2.toml on one thread, without (0) and with (1) the counters).
 #include <benchmark/benchmark.h>
 
+#include "kernel/rng.h"
 #include "models/fit.h"
 #include "models/link.h"
 #include "sim/campaign.h"
-#include "kernel/rng.h"
 #include "sim/scenario.h"
 
 namespace ncosim {
@@ -35,17 +35,22 @@ void BM_FitGilbertElliott(benchmark::State& state) {
   }
   state.counters["em_iterations"] = iterations;
 }
-BENCHMARK(BM_FitGilbertElliott)->Args({1000000, 0})->Args({1000000, 1})->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_FitGilbertElliott)
+    ->Args({1000000, 0})
+    ->Args({1000000, 1})
+    ->Unit(benchmark::kMillisecond);
 
 void BM_FlagshipLinkCounters(benchmark::State& state) {
-  auto sc = std::move(sim::load_cases(std::string(NCOSIM_SOURCE_DIR) + "/scenarios/dolz2014_table2.toml", {})
-                          .cases.front()
-                          .scenario);
+  auto sc = std::move(
+      sim::load_cases(std::string(NCOSIM_SOURCE_DIR) + "/scenarios/dolz2014_table2.toml", {})
+          .cases.front()
+          .scenario);
   const bool count = state.range(0) != 0;
   for (auto _ : state) {
     for (std::int64_t r = 0; r < sc->run.runs; ++r) {
       std::vector<models::LinkCounters> links;
-      auto m = sim::simulate_run(*sc, static_cast<std::uint64_t>(r), nullptr, nullptr, count ? &links : nullptr);
+      auto m = sim::simulate_run(*sc, static_cast<std::uint64_t>(r), nullptr, nullptr,
+                                 count ? &links : nullptr);
       benchmark::DoNotOptimize(m.data());
       benchmark::DoNotOptimize(links.data());
     }

@@ -46,8 +46,8 @@ void BM_LinkCountersShare(benchmark::State& state) {
         const bool count = (pass + r + iteration) % 2 == 0;  // which goes first alternates
         const auto t0 = Clock::now();
         sim::RunLinks links;
-        const sim::RunMetrics m = sim::simulate_run(sc, static_cast<std::uint64_t>(r), nullptr, nullptr,
-                                                    count ? &links : nullptr);
+        const sim::RunMetrics m = sim::simulate_run(sc, static_cast<std::uint64_t>(r), nullptr,
+                                                    nullptr, count ? &links : nullptr);
         std::string blob = sim::serialize_run(m);
         if (count) blob += sim::serialize_links(links);
         benchmark::DoNotOptimize(blob.data());
@@ -79,7 +79,8 @@ void BM_LinksCsvDerivation(benchmark::State& state) {
   for (auto _ : state) {
     sim::CampaignResult res;
     for (const auto& b : blobs) res.link_runs.push_back(sim::deserialize_links(b));
-    const std::string csv = sim::links_csv(loaded.sweeps, {loaded.cases.front().labels}, {&sc}, {&res});
+    const std::string csv =
+        sim::links_csv(loaded.sweeps, {loaded.cases.front().labels}, {&sc}, {&res});
     benchmark::DoNotOptimize(csv.data());
   }
 }

@@ -35,7 +35,8 @@ void BM_SodLmi(benchmark::State& state) {
   for (int i = 0; i < 2; ++i) {
     spec.sigma2_delta.resize(2);
     spec.beta_lower.resize(2);
-    spec.sigma2_delta(i) = spec.approach == Approach::kDeterministic ? d(i) * d(i) / 3 : uniform_sigma2(d(i), r(i));
+    spec.sigma2_delta(i) =
+        spec.approach == Approach::kDeterministic ? d(i) * d(i) / 3 : uniform_sigma2(d(i), r(i));
     spec.beta_lower(i) = uniform_beta(d(i), r(i));
   }
   SodDesignResult res;
@@ -46,7 +47,8 @@ void BM_SodLmi(benchmark::State& state) {
   state.counters["lmis"] = res.lmis;
   state.counters["sdp_dimension"] = res.size.total_dimension;
   state.counters["sdp_variables"] = res.size.variables;
-  state.SetLabel(spec.approach == Approach::kDeterministic ? "LMI (11), 16 blocks" : "LMI (20), 4 vertices");
+  state.SetLabel(spec.approach == Approach::kDeterministic ? "LMI (11), 16 blocks"
+                                                           : "LMI (20), 4 vertices");
 }
 BENCHMARK(BM_SodLmi)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
 
@@ -80,7 +82,12 @@ void BM_SodCodesign(benchmark::State& state) {
   state.counters["per_lmi_ms"] = 1e3 * r.lmi_seconds / r.lmi_problems;
   state.SetLabel(state.range(0) == 0 ? "C1, mu = 1.2" : "C3, mu = 1.2");
 }
-BENCHMARK(BM_SodCodesign)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(3);
+BENCHMARK(BM_SodCodesign)
+    ->Arg(0)
+    ->Arg(1)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->Iterations(3);
 
 }  // namespace
 }  // namespace ncosim

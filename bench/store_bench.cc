@@ -1,7 +1,7 @@
 // bench/store_bench.cc — the run store's cost per run (bench/README.md, "Run store"): the
 // serialization of one flagship run (5 estimators, 2 sensors) and commits of batches of such
-// runs (with their link counters) to runs.sqlite (WAL, synchronous=FULL: each commit waits for the disk), against the
-// simulation of one flagship run.
+// runs (with their link counters) to runs.sqlite (WAL, synchronous=FULL: each commit waits for the
+// disk), against the simulation of one flagship run.
 #include <benchmark/benchmark.h>
 #include <unistd.h>
 
@@ -51,7 +51,8 @@ BENCHMARK(BM_SerializeRun);
 // Commits of `batch` runs each (one transaction per commit), per run.
 void BM_StoreCommit(benchmark::State& state) {
   const auto batch = static_cast<std::size_t>(state.range(0));
-  const auto dir = std::filesystem::temp_directory_path() / ("ncosim_store_bench_" + std::to_string(::getpid()));
+  const auto dir =
+      std::filesystem::temp_directory_path() / ("ncosim_store_bench_" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir);
   RunStore store = RunStore::create(store_path(dir.string()), {{"scenario_text", flagship().text}});
   std::uint64_t next = 0;

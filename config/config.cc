@@ -22,11 +22,15 @@ std::string escape_text(std::string_view text, bool keep_newlines) {
     }
     // A well-formed UTF-8 sequence (no overlongs, no surrogates) stays as it is.
     std::size_t len = 0;
-    if (c >= 0xC2 && c <= 0xDF) len = 2;
-    else if (c >= 0xE0 && c <= 0xEF) len = 3;
-    else if (c >= 0xF0 && c <= 0xF4) len = 4;
+    if (c >= 0xC2 && c <= 0xDF)
+      len = 2;
+    else if (c >= 0xE0 && c <= 0xEF)
+      len = 3;
+    else if (c >= 0xF0 && c <= 0xF4)
+      len = 4;
     bool ok = len > 0 && i + len <= text.size();
-    for (std::size_t k = 1; ok && k < len; ++k) ok = (static_cast<unsigned char>(text[i + k]) & 0xC0) == 0x80;
+    for (std::size_t k = 1; ok && k < len; ++k)
+      ok = (static_cast<unsigned char>(text[i + k]) & 0xC0) == 0x80;
     if (ok && len >= 3) {
       const auto c1 = static_cast<unsigned char>(text[i + 1]);
       if (c == 0xE0 && c1 < 0xA0) ok = false;
@@ -48,7 +52,8 @@ std::string escape_text(std::string_view text, bool keep_newlines) {
 std::string format_error(const std::string& file, int line, const std::string& path,
                          const std::string& message) {
   std::string out;
-  if (!file.empty()) out += line > 0 ? fmt::format("{}:{}: ", escape_text(file), line) : escape_text(file) + ": ";
+  if (!file.empty())
+    out += line > 0 ? fmt::format("{}:{}: ", escape_text(file), line) : escape_text(file) + ": ";
   if (!path.empty()) out += fmt::format("key '{}': ", escape_text(path));
   out += message;
   return escape_text(out, true);  // any byte of a key, value or file name survives
@@ -112,7 +117,8 @@ std::string compact_toml(const toml::node& node) {
 }
 
 std::string describe(const toml::node& node) {
-  if (auto s = node.value_exact<std::string>()) return fmt::format("a string \"{}\"", escape_text(*s));
+  if (auto s = node.value_exact<std::string>())
+    return fmt::format("a string \"{}\"", escape_text(*s));
   if (node.is_boolean() || node.is_integer() || node.is_floating_point()) return compact_toml(node);
   if (node.is_table()) return "a table";
   if (node.is_array()) {
@@ -183,7 +189,8 @@ void Table::fail_here(const std::string& message) const {
 
 void Table::type_error(std::string_view key, const std::string& expected) const {
   const toml::node* n = table_->get(key);
-  if (n == nullptr) fail(key, fmt::format("expected {}, got nothing (the key is required)", expected));
+  if (n == nullptr)
+    fail(key, fmt::format("expected {}, got nothing (the key is required)", expected));
   fail(key, fmt::format("expected {}, got {}", expected, describe(*n)));
 }
 
@@ -325,7 +332,8 @@ Eigen::MatrixXd Table::matrix(std::string_view key) const {
   const toml::array* arr = n->as_array();
   if (arr == nullptr || arr->empty()) type_error(key, "a matrix [[...], ...]");
   if (!(*arr)[0].is_array()) {
-    fail(key, fmt::format("expected a matrix [[...], ...] (an array of rows), got {}", describe(*n)));
+    fail(key,
+         fmt::format("expected a matrix [[...], ...] (an array of rows), got {}", describe(*n)));
   }
   const auto rows = ragged(key);
   const std::size_t cols = rows[0].size();
@@ -378,15 +386,15 @@ void Table::finish() const {
     const auto [file, l] = location(v);
     std::string list;
     for (const auto& c : known) list += (list.empty() ? "" : ", ") + escape_text(c);
-    throw ScenarioError(format_error(file, l, key_path(k.str()),
-                                     hint.empty()
-                                         ? fmt::format("unknown key (valid keys here: {})", list)
-                                         : fmt::format("unknown key (did you mean '{}'?)", escape_text(hint))));
+    throw ScenarioError(format_error(
+        file, l, key_path(k.str()),
+        hint.empty() ? fmt::format("unknown key (valid keys here: {})", list)
+                     : fmt::format("unknown key (did you mean '{}'?)", escape_text(hint))));
   }
 }
 
-void require_shape(const Table& t, std::string_view key, const Eigen::MatrixXd& m, Eigen::Index rows,
-                   Eigen::Index cols) {
+void require_shape(const Table& t, std::string_view key, const Eigen::MatrixXd& m,
+                   Eigen::Index rows, Eigen::Index cols) {
   if (m.rows() != rows || m.cols() != cols) {
     t.fail(key, fmt::format("expected a {}x{} matrix, got {}x{}", rows, cols, m.rows(), m.cols()));
   }
@@ -410,7 +418,8 @@ void require_psd(const Table& t, std::string_view key, const Eigen::MatrixXd& m)
 }
 
 void require_probability(const Table& t, std::string_view key, double p) {
-  if (!(p >= 0.0 && p <= 1.0)) t.fail(key, fmt::format("expected a probability in [0, 1], got {}", p));
+  if (!(p >= 0.0 && p <= 1.0))
+    t.fail(key, fmt::format("expected a probability in [0, 1], got {}", p));
 }
 
 void require_subprobability(const Table& t, std::string_view key, const std::vector<double>& pmf) {

@@ -6,6 +6,8 @@
 // (`--set: key 'PATH': ...`): its node's source path is the option name (kCommandLineOrigin).
 #pragma once
 
+#include <toml++/toml.h>
+
 #include <Eigen/Dense>
 #include <cstdint>
 #include <memory>
@@ -16,9 +18,6 @@
 #include <string_view>
 #include <utility>
 #include <vector>
-
-#include <toml++/toml.h>
-
 
 namespace ncosim::sim {
 
@@ -116,8 +115,8 @@ std::string describe(const toml::node& node);
 std::string compact_toml(const toml::node& node);
 
 // Range/shape helpers raising ScenarioError at `key`.
-void require_shape(const Table& t, std::string_view key, const Eigen::MatrixXd& m, Eigen::Index rows,
-                   Eigen::Index cols);
+void require_shape(const Table& t, std::string_view key, const Eigen::MatrixXd& m,
+                   Eigen::Index rows, Eigen::Index cols);
 void require_psd(const Table& t, std::string_view key, const Eigen::MatrixXd& m);
 void require_probability(const Table& t, std::string_view key, double p);
 // Non-negative entries summing to at most 1 (+1e-9).

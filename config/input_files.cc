@@ -48,7 +48,9 @@ InputFileRecorder::~InputFileRecorder() {
   t_dir = previous_dir_;
 }
 
-std::string content_hash(const std::string& bytes) { return hex(fnv1a(kFnvBasis, bytes.data(), bytes.size())); }
+std::string content_hash(const std::string& bytes) {
+  return hex(fnv1a(kFnvBasis, bytes.data(), bytes.size()));
+}
 
 std::string file_content_hash(const std::string& path) {
   // O_NONBLOCK: a FIFO named by mistake must not block; only regular files are hashed.

@@ -9,7 +9,6 @@
 #include <string_view>
 
 #include "config/config.h"
-
 #include "kernel/time.h"
 
 namespace ncosim::sim {

@@ -47,7 +47,8 @@ class Registry {
     const std::string kind = t.has(key) || fallback.empty() ? t.string(key) : std::string(fallback);
     if (const Entry* e = find(kind)) return *e;
     std::string list;
-    for (const auto& e : entries_) list += (list.empty() ? "" : ", ") + fmt::format("\"{}\"", e.name);
+    for (const auto& e : entries_)
+      list += (list.empty() ? "" : ", ") + fmt::format("\"{}\"", e.name);
     const std::string hint = did_you_mean(kind, names());
     t.fail(key, fmt::format("expected one of {}, got \"{}\"{}", list, kind,
                             hint.empty() ? "" : fmt::format(" (did you mean \"{}\"?)", hint)));

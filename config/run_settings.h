@@ -14,7 +14,7 @@ struct RunSettings {
   std::int64_t warmup = 100;
   std::int64_t runs = 10;
   std::uint64_t seed = 1;
-  double period = 1.0;  // seconds
+  double period = 1.0;            // seconds
   std::string recentre = "auto";  // auto | always | never
   bool error_curve = false;       // the run-averaged error against time (error_curve.csv)
 };

@@ -72,7 +72,8 @@ toml::table& parent_of(toml::table& doc, const std::string& path,
       }
       toml::table* t = (*arr)[*seg.index].as_table();
       if (t == nullptr) {
-        throw ScenarioError(format_error(origin, line, path, fmt::format("'{}' is not an array of tables", walked)));
+        throw ScenarioError(format_error(origin, line, path,
+                                         fmt::format("'{}' is not an array of tables", walked)));
       }
       cur = t;
       walked += fmt::format("[{}]", *seg.index);
@@ -82,7 +83,8 @@ toml::table& parent_of(toml::table& doc, const std::string& path,
         n = cur->get(seg.key);
       }
       if (!n->is_table()) {
-        throw ScenarioError(format_error(origin, line, path, fmt::format("'{}' is not a table", walked)));
+        throw ScenarioError(
+            format_error(origin, line, path, fmt::format("'{}' is not a table", walked)));
       }
       cur = n->as_table();
     }
@@ -109,7 +111,8 @@ void set_path(toml::table& doc, const std::string& path, toml::node&& value,
 void apply_set(toml::table& doc, const std::string& assignment, const std::string& origin) {
   const std::size_t eq = assignment.find('=');
   if (eq == std::string::npos || eq == 0) {
-    throw ScenarioError(format_error(origin, 0, "", fmt::format("expected KEY=VALUE, got '{}'", assignment)));
+    throw ScenarioError(
+        format_error(origin, 0, "", fmt::format("expected KEY=VALUE, got '{}'", assignment)));
   }
   std::string key = assignment.substr(0, eq);
   while (!key.empty() && key.back() == ' ') key.pop_back();

@@ -3,9 +3,9 @@
 // (the file and line, or the option) and the path.
 #pragma once
 
-#include <string>
-
 #include <toml++/toml.h>
+
+#include <string>
 
 namespace ncosim::sim {
 

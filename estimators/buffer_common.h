@@ -23,9 +23,11 @@ inline int read_buffer(const sim::Table& t) {
   t.allow("buffer");
   t.allow("max_delay");
   if (t.has("max_delay")) {
-    if (t.has("buffer")) t.fail("max_delay", "expected either buffer or max_delay (= buffer - 1), got both");
+    if (t.has("buffer"))
+      t.fail("max_delay", "expected either buffer or max_delay (= buffer - 1), got both");
     const auto d = t.integer_or("max_delay", 0);
-    if (d < 0 || d > 999) t.fail("max_delay", fmt::format("expected an integer in 0..999, got {}", d));
+    if (d < 0 || d > 999)
+      t.fail("max_delay", fmt::format("expected an integer in 0..999, got {}", d));
     return static_cast<int>(d) + 1;
   }
   const auto n = t.integer_or("buffer", 1);
@@ -70,7 +72,8 @@ inline void report_critical_probability(const buffer::Plant& p, nlohmann::json& 
   std::string key;
   auto add = [&key](const Eigen::MatrixXd& m) {
     key += std::to_string(m.rows()) + "x" + std::to_string(m.cols()) + ":";
-    key.append(reinterpret_cast<const char*>(m.data()), static_cast<std::size_t>(m.size()) * sizeof(double));
+    key.append(reinterpret_cast<const char*>(m.data()),
+               static_cast<std::size_t>(m.size()) * sizeof(double));
   };
   add(p.A);
   for (std::size_t i = 0; i < p.C.size(); ++i) {
@@ -82,14 +85,18 @@ inline void report_critical_probability(const buffer::Plant& p, nlohmann::json& 
     std::lock_guard<std::mutex> lock(mutex);
     auto it = cache.find(key);
     if (it == cache.end()) {
-      it = cache.emplace(key, Both{buffer::critical_probability_sdp(p), buffer::critical_probability_bisection(p)}).first;
+      it = cache
+               .emplace(key, Both{buffer::critical_probability_sdp(p),
+                                  buffer::critical_probability_bisection(p)})
+               .first;
     }
     both = it->second;
   }
   const bool sdp_ok = std::isfinite(both.sdp.value);
   extra["critical_probability"] = sdp_ok ? both.sdp.value : both.bisection.value;
   extra["critical_probability_method"] = sdp_ok ? "sdp" : "bisection";
-  extra["critical_probability_sdp"] = sdp_ok ? nlohmann::json(both.sdp.value) : nlohmann::json(nullptr);
+  extra["critical_probability_sdp"] =
+      sdp_ok ? nlohmann::json(both.sdp.value) : nlohmann::json(nullptr);
   extra["critical_probability_sdp_seconds"] = both.sdp.seconds;
   extra["critical_probability_bisection"] = both.bisection.value;
   extra["critical_probability_bisection_seconds"] = both.bisection.seconds;

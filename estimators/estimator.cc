@@ -34,7 +34,8 @@ InitialEstimate read_initial(const sim::Table& t, const Model& model) {
   if (t.has("xhat0")) {
     init.xhat0 = t.vector("xhat0");
     if (init.xhat0.size() != n) {
-      t.fail("xhat0", fmt::format("expected {} entries (the state size), got {}", n, init.xhat0.size()));
+      t.fail("xhat0",
+             fmt::format("expected {} entries (the state size), got {}", n, init.xhat0.size()));
     }
   }
   if (t.has("P0")) {

@@ -42,7 +42,7 @@ struct Model {
   models::LinearPlant plant;
   std::vector<SensorModel> sensors;
   std::vector<ActuatorModel> actuators;  // empty, or one per input channel
-  double period = 1.0;  // seconds
+  double period = 1.0;                   // seconds
   Eigen::Index total_outputs() const;
   // Number of modes scored by mode_detection (0: none): the jump_linear plant's modes, or
   // 2^r with r actuators (delivery patterns, models/actuator.h numbering).
@@ -54,7 +54,7 @@ using Packet = models::Packet;
 
 // What every estimator knows at the update of period k.
 struct PeriodInput {
-  const Eigen::VectorXd& u;      // input sent at k-1 (nu)
+  const Eigen::VectorXd& u;  // input sent at k-1 (nu)
   // Known part of x[k] - A x[k-1] - Bw w[k-1] (n): Bu u + re-centring. With actuator links or a
   // jump_linear plant it is the nominal Bu times the *sent* u (what the estimators know).
   const Eigen::VectorXd& drive;
@@ -85,11 +85,11 @@ class Estimator {
   // Work and packet bookkeeping of the run so far, for estimators whose cost varies from
   // period to period (kalman_buffer); nullptr for the others.
   struct RunCounters {
-    double flops = 0.0;            // FLOPs spent since period 0 (flops_per_period's formula per step)
-    double flops_worst = 0.0;      // the most spent in one period
-    std::int64_t periods = 0;      // updates done
-    std::int64_t late = 0;         // samples that arrived too late for the buffer: discarded
-    std::int64_t duplicates = 0;   // samples that arrived again: ignored
+    double flops = 0.0;        // FLOPs spent since period 0 (flops_per_period's formula per step)
+    double flops_worst = 0.0;  // the most spent in one period
+    std::int64_t periods = 0;  // updates done
+    std::int64_t late = 0;     // samples that arrived too late for the buffer: discarded
+    std::int64_t duplicates = 0;  // samples that arrived again: ignored
   };
   virtual const RunCounters* counters() const { return nullptr; }
   // Filters whose update whitens an innovation nu with its own covariance S: the normalised
@@ -101,13 +101,13 @@ class Estimator {
 
 // Offline part, reported in design.json.
 struct DesignReport {
-  std::string method;             // e.g. "iterative", "none"
+  std::string method;  // e.g. "iterative", "none"
   double design_seconds = 0.0;
   std::optional<long> stored_gains;
   std::optional<double> predicted_mse;      // tr of the plant-state block of Pt
   std::optional<double> predicted_mse_ext;  // tr(Pt) over the extended state
   std::optional<bool> stable;
-  std::string status = "ok";                // "ok" or why the design failed
+  std::string status = "ok";                        // "ok" or why the design failed
   nlohmann::json extra = nlohmann::json::object();  // kind-specific fields
 };
 
@@ -129,8 +129,7 @@ class EstimatorDesign {
   virtual bool models_independent_fictitious_sensors() const { return false; }
 };
 
-using EstimatorRegistry =
-    sim::Registry<std::unique_ptr<EstimatorDesign>, const Model&>;
+using EstimatorRegistry = sim::Registry<std::unique_ptr<EstimatorDesign>, const Model&>;
 void register_estimators(EstimatorRegistry& registry);
 
 // Common keys of every estimator: xhat0 (default: the plant's x0) and P0 (default 0).

@@ -14,11 +14,11 @@ namespace ncosim::est {
 
 std::string c_identifier(const std::string& name, std::vector<std::string>& taken) {
   static const std::vector<std::string> keywords{
-      "auto",     "break",  "case",     "char",   "const",    "continue", "default",  "do",
-      "double",   "else",   "enum",     "extern", "float",    "for",      "goto",     "if",
-      "inline",   "int",    "long",     "register", "restrict", "return", "short",    "signed",
-      "sizeof",   "static", "struct",   "switch", "typedef",  "union",    "unsigned", "void",
-      "volatile", "while",  "_bool",    "_complex", "_imaginary"};
+      "auto",     "break",  "case",   "char",     "const",     "continue", "default",  "do",
+      "double",   "else",   "enum",   "extern",   "float",     "for",      "goto",     "if",
+      "inline",   "int",    "long",   "register", "restrict",  "return",   "short",    "signed",
+      "sizeof",   "static", "struct", "switch",   "typedef",   "union",    "unsigned", "void",
+      "volatile", "while",  "_bool",  "_complex", "_imaginary"};
   std::string id;
   for (const char ch : name) {
     const auto u = static_cast<unsigned char>(ch);
@@ -76,10 +76,12 @@ std::string header(const CExportItem& it, const std::string& generator) {
   std::string sensors;
   for (int i = 0; i < e.sensors; ++i) {
     const auto& f = e.fict[static_cast<std::size_t>(e.index(i, 0))];
-    sensors += fmt::format(" *     sensor {}: {} value(s) per sample, fictitious sensors j = {}..{}\n", i, f.rows,
-                           e.index(i, 0), e.index(i, e.dbar));
+    sensors +=
+        fmt::format(" *     sensor {}: {} value(s) per sample, fictitious sensors j = {}..{}\n", i,
+                    f.rows, e.index(i, 0), e.index(i, e.dbar));
   }
-  std::string h = fmt::format(R"(/* {P}.h — jump observer "{name}" ({grouping}, history Nbar = {Nbar}, max delay dbar = {dbar}),
+  std::string h = fmt::format(
+      R"(/* {P}.h — jump observer "{name}" ({grouping}, history Nbar = {Nbar}, max delay dbar = {dbar}),
  * exported by {generator} from {origin}.
  * Dolz, Penarrocha & Sanchis (2014), eqs. (6), (10), (16): self-contained C99, no allocation,
  * no library (not even libm), no global state: every observer instance is a {P}_state.
@@ -146,28 +148,36 @@ int {P}_receive({P}_state *s, int sensor, int delay, const double *y);
    first step), then the correction with the samples received since the previous step. */
 void {P}_step({P}_state *s, const double *drive);
 )",
-      fmt::arg("P", P), fmt::arg("U", U), fmt::arg("name", it.name), fmt::arg("grouping", grouping_name(d.grouping)),
-      fmt::arg("Nbar", d.Nbar), fmt::arg("dbar", e.dbar), fmt::arg("generator", generator),
-      fmt::arg("origin", it.origin), fmt::arg("period", it.period),
-      fmt::arg("ny_note", "values (the sensor's outputs, in order)"), fmt::arg("sensors", sensors),
+      fmt::arg("P", P), fmt::arg("U", U), fmt::arg("name", it.name),
+      fmt::arg("grouping", grouping_name(d.grouping)), fmt::arg("Nbar", d.Nbar),
+      fmt::arg("dbar", e.dbar), fmt::arg("generator", generator), fmt::arg("origin", it.origin),
+      fmt::arg("period", it.period), fmt::arg("ny_note", "values (the sensor's outputs, in order)"),
+      fmt::arg("sensors", sensors),
       fmt::arg("group_rule",
-               d.grouping == Grouping::kS1   ? std::string("0 (S1: one gain per N)")
-               : d.grouping == Grouping::kS2 ? std::string("number of real sensors in the pattern - 1 (S2)")
-               : d.grouping == Grouping::kS3 ? std::string("number of fictitious sensors in the pattern - 1 (S3)")
-                                             : std::string("pattern - 1 (S4: one gain per pattern)")),
+               d.grouping == Grouping::kS1 ? std::string("0 (S1: one gain per N)")
+               : d.grouping == Grouping::kS2
+                   ? std::string("number of real sensors in the pattern - 1 (S2)")
+               : d.grouping == Grouping::kS3
+                   ? std::string("number of fictitious sensors in the pattern - 1 (S3)")
+                   : std::string("pattern - 1 (S4: one gain per pattern)")),
       fmt::arg("table_bytes", table_bytes), fmt::arg("other_bytes", other_bytes),
-      fmt::arg("state_bytes", (e.nb + e.nmb) * 8 + 16), fmt::arg("flops", [&] {
-        const double nb = static_cast<double>(e.nb), nu = static_cast<double>(e.nu), nmb = static_cast<double>(e.nmb);
-        return nb * nb + nb * nu + 2 * nb * nmb + 2 * nb + nmb;
-      }()),
+      fmt::arg("state_bytes", (e.nb + e.nmb) * 8 + 16),
+      fmt::arg("flops",
+               [&] {
+                 const double nb = static_cast<double>(e.nb), nu = static_cast<double>(e.nu),
+                              nmb = static_cast<double>(e.nmb);
+                 return nb * nb + nb * nu + 2 * nb * nmb + 2 * nb + nmb;
+               }()),
       fmt::arg("pred_ext", d.stable ? num(d.Pt.trace()) : "none"),
-      fmt::arg("pred", d.stable ? num(d.Pt.topLeftCorner(e.n, e.n).trace()) : "none"), fmt::arg("n", e.n),
-      fmt::arg("nu", e.nu), fmt::arg("nb", e.nb), fmt::arg("sens", e.sensors), fmt::arg("nf", e.fictitious_count()),
-      fmt::arg("nmb", e.nmb), fmt::arg("groups", groups_per_N(d.grouping, e)), fmt::arg("gains", gains));
+      fmt::arg("pred", d.stable ? num(d.Pt.topLeftCorner(e.n, e.n).trace()) : "none"),
+      fmt::arg("n", e.n), fmt::arg("nu", e.nu), fmt::arg("nb", e.nb), fmt::arg("sens", e.sensors),
+      fmt::arg("nf", e.fictitious_count()), fmt::arg("nmb", e.nmb),
+      fmt::arg("groups", groups_per_N(d.grouping, e)), fmt::arg("gains", gains));
   if (e.nu > 0) {
-    h += fmt::format("/* As {P}_step with drive = Bu u ({U}_NU values of u[k-1]). */\n"
-                     "void {P}_step_input({P}_state *s, const double *u);\n",
-                     fmt::arg("P", P), fmt::arg("U", U));
+    h += fmt::format(
+        "/* As {P}_step with drive = Bu u ({U}_NU values of u[k-1]). */\n"
+        "void {P}_step_input({P}_state *s, const double *u);\n",
+        fmt::arg("P", P), fmt::arg("U", U));
   }
   h += fmt::format(R"(/* xhat[k|k] after the last step: {U}_N values (the first block of s->x). */
 const double *{P}_estimate(const {P}_state *s);
@@ -188,7 +198,8 @@ std::string source(const CExportItem& it) {
   const Eigen::Index n = e.n;
   // Per fictitious output row: the plant-output row it measures, its delay block, its sensor j.
   Eigen::MatrixXd crow(e.nmb, n);
-  std::vector<int> row_delay(static_cast<std::size_t>(e.nmb)), row_fict(static_cast<std::size_t>(e.nmb));
+  std::vector<int> row_delay(static_cast<std::size_t>(e.nmb)),
+      row_fict(static_cast<std::size_t>(e.nmb));
   for (int j = 0; j < e.fictitious_count(); ++j) {
     const auto& f = e.fict[static_cast<std::size_t>(j)];
     for (Eigen::Index r = 0; r < f.rows; ++r) {
@@ -208,19 +219,22 @@ std::string source(const CExportItem& it) {
     fict_rows.push_back(static_cast<int>(f.rows));
     fict_sensor.push_back(f.sensor);
   }
-  std::string s = fmt::format(R"(/* {P}.c — see {P}.h. Generated: edit the scenario and re-export instead. */
+  std::string s = fmt::format(
+      R"(/* {P}.c — see {P}.h. Generated: edit the scenario and re-export instead. */
 #include "{P}.h"
 
 /* Plant A (n x n): the first block of Abar. */
 static const double {P}_a[{U}_N][{U}_N] = {{
 {a}}};
 )",
-                              fmt::arg("P", P), fmt::arg("U", U), fmt::arg("a", matrix_init(it.plant->A, "  ")));
+      fmt::arg("P", P), fmt::arg("U", U), fmt::arg("a", matrix_init(it.plant->A, "  ")));
   if (e.nu > 0) {
-    s += fmt::format("/* Plant Bu (n x nu). */\nstatic const double {P}_bu[{U}_N][{U}_NU] = {{\n{b}}};\n",
-                     fmt::arg("P", P), fmt::arg("U", U), fmt::arg("b", matrix_init(it.plant->Bu, "  ")));
+    s += fmt::format(
+        "/* Plant Bu (n x nu). */\nstatic const double {P}_bu[{U}_N][{U}_NU] = {{\n{b}}};\n",
+        fmt::arg("P", P), fmt::arg("U", U), fmt::arg("b", matrix_init(it.plant->Bu, "  ")));
   }
-  s += fmt::format(R"(/* Per fictitious output row: the sensor's C row, the delay block it reads, its fictitious sensor. */
+  s += fmt::format(
+      R"(/* Per fictitious output row: the sensor's C row, the delay block it reads, its fictitious sensor. */
 static const double {P}_crow[{U}_NMB][{U}_N] = {{
 {c}}};
 static const unsigned char {P}_row_delay[{U}_NMB] = {{{rd}}};
@@ -234,14 +248,14 @@ static const double {P}_xhat0[{U}_N] = {{{x0}}};
 /* Gains L[index][extended state][fictitious row]. */
 static const double {P}_gain[{U}_GAINS][{U}_NB][{U}_NMB] = {{
 )",
-                   fmt::arg("P", P), fmt::arg("U", U), fmt::arg("c", matrix_init(crow, "  ")),
-                   fmt::arg("rd", int_list(row_delay)), fmt::arg("rf", int_list(row_fict)),
-                   fmt::arg("fr", int_list(fict_row)), fmt::arg("frs", int_list(fict_rows)), fmt::arg("x0", [&] {
-                     std::string x;
-                     const Eigen::VectorXd& v = it.jump->initial_estimate().xhat0;
-                     for (Eigen::Index i = 0; i < v.size(); ++i) x += (i ? ", " : "") + num(v(i));
-                     return x;
-                   }()));
+      fmt::arg("P", P), fmt::arg("U", U), fmt::arg("c", matrix_init(crow, "  ")),
+      fmt::arg("rd", int_list(row_delay)), fmt::arg("rf", int_list(row_fict)),
+      fmt::arg("fr", int_list(fict_row)), fmt::arg("frs", int_list(fict_rows)), fmt::arg("x0", [&] {
+        std::string x;
+        const Eigen::VectorXd& v = it.jump->initial_estimate().xhat0;
+        for (Eigen::Index i = 0; i < v.size(); ++i) x += (i ? ", " : "") + num(v(i));
+        return x;
+      }()));
   for (std::size_t g = 0; g < d.gains.size(); ++g) {
     s += fmt::format("  {{ /* {} */\n{}  }}{}\n", g, matrix_init(d.gains[g], "    "),
                      g + 1 < d.gains.size() ? "," : "");
@@ -250,19 +264,26 @@ static const double {P}_gain[{U}_GAINS][{U}_NB][{U}_NMB] = {{
   // Group rule, as group_of() in estimators/design/jump_design.cc.
   std::string group;
   switch (d.grouping) {
-    case Grouping::kS1: group = "  group = 0;\n"; break;
+    case Grouping::kS1:
+      group = "  group = 0;\n";
+      break;
     case Grouping::kS2:
       group = fmt::format(
           "  {{\n    int i, count = 0;\n    for (i = 0; i < {U}_SENSORS; ++i) {{\n"
-          "      if ((pattern >> (i * ({U}_DBAR + 1))) & ((1UL << ({U}_DBAR + 1)) - 1UL)) ++count;\n    }}\n"
+          "      if ((pattern >> (i * ({U}_DBAR + 1))) & ((1UL << ({U}_DBAR + 1)) - 1UL)) "
+          "++count;\n    }}\n"
           "    group = count - 1;\n  }}\n",
           fmt::arg("U", U));
       break;
     case Grouping::kS3:
-      group = "  {\n    unsigned long m = pattern;\n    int count = 0;\n    while (m) {\n      m &= m - 1UL;\n"
-              "      ++count;\n    }\n    group = count - 1;\n  }\n";
+      group =
+          "  {\n    unsigned long m = pattern;\n    int count = 0;\n    while (m) {\n      m &= m "
+          "- 1UL;\n"
+          "      ++count;\n    }\n    group = count - 1;\n  }\n";
       break;
-    case Grouping::kS4: group = "  group = (int)pattern - 1;\n"; break;
+    case Grouping::kS4:
+      group = "  group = (int)pattern - 1;\n";
+      break;
   }
   s += fmt::format(R"(int {P}_gain_index(unsigned int N, unsigned long pattern) {{
   int group;
@@ -364,13 +385,15 @@ std::vector<std::pair<std::string, std::string>> export_c(const std::vector<CExp
     const ExtendedModel& e = it.jump->extended_model();
     if (!d.stable) {
       throw std::invalid_argument(
-          fmt::format("estimator \"{}\": the design failed ({}); there are no gains to export", it.name, d.status));
+          fmt::format("estimator \"{}\": the design failed ({}); there are no gains to export",
+                      it.name, d.status));
     }
     // The C selection rule must agree with the table JumpObserver uses.
     const int per_N = groups_per_N(d.grouping, e);
     for (int N = 1; N <= d.Nbar; ++N) {
       for (std::size_t m = 1; m < d.gain_of[static_cast<std::size_t>(N - 1)].size(); ++m) {
-        NCOSIM_CHECK(d.gain_of[static_cast<std::size_t>(N - 1)][m] == (N - 1) * per_N + group_of(d.grouping, e, m));
+        NCOSIM_CHECK(d.gain_of[static_cast<std::size_t>(N - 1)][m] ==
+                     (N - 1) * per_N + group_of(d.grouping, e, m));
       }
     }
     files.emplace_back(it.prefix + ".h", header(it, generator));

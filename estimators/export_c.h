@@ -19,8 +19,8 @@ namespace ncosim::est {
 std::string c_identifier(const std::string& name, std::vector<std::string>& taken);
 
 struct CExportItem {
-  std::string name;     // estimator name (for the comments)
-  std::string prefix;   // c_identifier() of it: file and symbol prefix
+  std::string name;    // estimator name (for the comments)
+  std::string prefix;  // c_identifier() of it: file and symbol prefix
   const JumpDesignAccess* jump = nullptr;
   const models::LinearPlant* plant = nullptr;
   double period = 1.0;  // seconds

@@ -22,10 +22,10 @@ struct ExtendedModel {
   Eigen::Index nmb = 0;  // total fictitious output rows: (sum of ny) (dbar + 1)
   Eigen::Index nu = 0;
   Eigen::Index nw = 0;
-  Eigen::MatrixXd A;      // Abar (nb x nb)
-  Eigen::MatrixXd Q;      // Bbar_w W Bbar_w' (nb x nb)
-  Eigen::MatrixXd C;      // Cbar (nmb x nb)
-  Eigen::MatrixXd V;      // block-diagonal noise covariance of the fictitious rows (nmb x nmb)
+  Eigen::MatrixXd A;  // Abar (nb x nb)
+  Eigen::MatrixXd Q;  // Bbar_w W Bbar_w' (nb x nb)
+  Eigen::MatrixXd C;  // Cbar (nmb x nb)
+  Eigen::MatrixXd V;  // block-diagonal noise covariance of the fictitious rows (nmb x nmb)
   struct Fictitious {
     int sensor;
     int delay;

@@ -4,6 +4,8 @@
 // gain selected by the periods since the previous update (clamped to Nbar) and the grouping
 // S1..S4 of the delivered fictitious sensors. Never throws on a step; a failed design is
 // reported at construction (design.json) and on every row (status).
+#include "estimators/jump_observer.h"
+
 #include <fmt/format.h>
 
 #include <bit>
@@ -16,7 +18,6 @@
 #include "estimators/design/ccl_design.h"
 #include "estimators/design/jump_design.h"
 #include "estimators/extended_model.h"
-#include "estimators/jump_observer.h"
 #include "estimators/kinds.h"
 
 namespace ncosim::est {
@@ -28,7 +29,7 @@ struct JumpParams {
   int Nbar;
   int dbar;
   std::string design = "iterative";  // "iterative", "ccl" or "both"
-  std::string ccl_start = "s4";      // "s4" (anchored at the exact S4 design) or "paper" (as printed)
+  std::string ccl_start = "s4";  // "s4" (anchored at the exact S4 design) or "paper" (as printed)
   bool verbose = false;
   InitialEstimate init;
 };
@@ -123,8 +124,9 @@ class JumpObserverDesign final : public EstimatorDesign, public JumpDesignAccess
       ccl = design_jump_ccl(ext_, probs, params_.Nbar, params_.grouping, o, &info);
       t_ccl = seconds(start, clock());
     }
-    const bool use_ccl = !iterative || (ccl && ccl->stable &&
-                                        (!iterative->stable || ccl->Pt.trace() < iterative->Pt.trace()));
+    const bool use_ccl =
+        !iterative ||
+        (ccl && ccl->stable && (!iterative->stable || ccl->Pt.trace() < iterative->Pt.trace()));
     design_ = use_ccl ? *ccl : *iterative;
     report_.method = use_ccl ? "ccl" : "iterative";
     report_.design_seconds = t_iter + t_ccl;
@@ -134,24 +136,31 @@ class JumpObserverDesign final : public EstimatorDesign, public JumpDesignAccess
     if (design_.stable) {
       report_.predicted_mse_ext = design_.Pt.trace();
       report_.predicted_mse = design_.Pt.topLeftCorner(ext_.n, ext_.n).trace();
-      // The paper's printed eq. (28), which is wrong: only to reproduce its Fig. 3 (results/README.md).
+      // The paper's printed eq. (28), which is wrong: only to reproduce its Fig. 3
+      // (results/README.md).
       report_.extra["predicted_mse_paper_eq28_erroneous"] =
           design_.Pt_paper_eq28_erroneous.topLeftCorner(ext_.n, ext_.n).trace();
-      report_.extra["predicted_mse_ext_paper_eq28_erroneous"] = design_.Pt_paper_eq28_erroneous.trace();
+      report_.extra["predicted_mse_ext_paper_eq28_erroneous"] =
+          design_.Pt_paper_eq28_erroneous.trace();
     }
     report_.extra["design"] = params_.design;
     if (ccl) report_.extra["ccl_start"] = params_.ccl_start;
     if (iterative) {
       report_.extra["design_seconds_iterative"] = t_iter;
       report_.extra["iterations"] = iterative->iterations;
-      if (iterative->stable) report_.extra["predicted_mse_ext_iterative"] = iterative->Pt.trace();
-      else report_.extra["status_iterative"] = iterative->status;
-      if (!iterative->iteration_message.empty()) report_.extra["iteration_message"] = iterative->iteration_message;
+      if (iterative->stable)
+        report_.extra["predicted_mse_ext_iterative"] = iterative->Pt.trace();
+      else
+        report_.extra["status_iterative"] = iterative->status;
+      if (!iterative->iteration_message.empty())
+        report_.extra["iteration_message"] = iterative->iteration_message;
     }
     if (ccl) {
       report_.extra["design_seconds_ccl"] = t_ccl;
-      if (ccl->stable) report_.extra["predicted_mse_ext_ccl"] = ccl->Pt.trace();
-      else report_.extra["status_ccl"] = ccl->status;
+      if (ccl->stable)
+        report_.extra["predicted_mse_ext_ccl"] = ccl->Pt.trace();
+      else
+        report_.extra["status_ccl"] = ccl->status;
       report_.extra["sdp"] = {{"variables", info.size.variables},
                               {"blocks", info.size.blocks},
                               {"block_sizes", info.size.block_sizes},
@@ -206,7 +215,8 @@ std::unique_ptr<EstimatorDesign> read_jump(const sim::Table& t, const Model& mod
   const std::string g = t.choice_or("grouping", "S4", {"S1", "S2", "S3", "S4"});
   p.grouping = static_cast<Grouping>(g[1] - '1');
   const auto Nbar = t.integer_or("history", 1);
-  if (Nbar < 1 || Nbar > 1000) t.fail("history", fmt::format("expected an integer in 1..1000, got {}", Nbar));
+  if (Nbar < 1 || Nbar > 1000)
+    t.fail("history", fmt::format("expected an integer in 1..1000, got {}", Nbar));
   p.Nbar = static_cast<int>(Nbar);
   p.dbar = read_max_delay(t, 0);
   p.design = t.choice_or("design", "iterative", {"iterative", "ccl", "both"});
@@ -223,13 +233,15 @@ std::unique_ptr<EstimatorDesign> read_jump(const sim::Table& t, const Model& mod
   }
   // The design sums over every (N, pattern) term at each iteration: bound the work.
   if (static_cast<double>(p.Nbar) * std::ldexp(1.0, nf) > 262144.0) {
-    t.fail("history", fmt::format("the design has history x 2^(fictitious sensors) = {} x 2^{} terms; "
-                                  "at most 2^18 are supported (reduce history, max_delay or sensors)",
-                                  p.Nbar, nf));
+    t.fail("history",
+           fmt::format("the design has history x 2^(fictitious sensors) = {} x 2^{} terms; "
+                       "at most 2^18 are supported (reduce history, max_delay or sensors)",
+                       p.Nbar, nf));
   }
   if (p.grouping == Grouping::kS4 && nf > 16) {
     t.fail("grouping", fmt::format("S4 stores (2^{} - 1) gains per N; use S1..S3 or fewer "
-                                   "delays (at most 16 fictitious sensors for S4)", nf));
+                                   "delays (at most 16 fictitious sensors for S4)",
+                                   nf));
   }
   return std::make_unique<JumpObserverDesign>(model, std::move(p));
 }

@@ -135,9 +135,9 @@ class KalmanBuffer final : public Estimator {
     std::int64_t stamp = kNone;
     Eigen::VectorXd drive, xprior, xpost;
     Eigen::MatrixXd Pprior, Ppost;
-    std::vector<char> seen;      // per sensor: its sample of this period was used
-    std::vector<int> sensor;     // the sensor of each stored sample, in arrival order
-    Eigen::VectorXd values;      // their values, stacked
+    std::vector<char> seen;   // per sensor: its sample of this period was used
+    std::vector<int> sensor;  // the sensor of each stored sample, in arrival order
+    Eigen::VectorXd values;   // their values, stacked
     Eigen::Index rows = 0;
   };
 
@@ -211,7 +211,9 @@ class KalmanBufferDesign final : public EstimatorDesign {
     report_.extra["flops_per_period_worst"] = worst_;
     if (!model.sensors.empty()) report_critical_probability(buffer_plant(model), report_.extra);
   }
-  std::unique_ptr<Estimator> instantiate() const override { return std::make_unique<KalmanBuffer>(sh_, init_); }
+  std::unique_ptr<Estimator> instantiate() const override {
+    return std::make_unique<KalmanBuffer>(sh_, init_);
+  }
   const DesignReport& report() const override { return report_; }
   // The worst case: every one of the N slots re-run, each with every sensor's sample (the mean
   // over a run is the summary's flops_mean).

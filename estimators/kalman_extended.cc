@@ -4,9 +4,10 @@
 // rows of the fictitious sensors delivered this period (estimators/kalman_update.h). An innovation
 // covariance that is only semidefinite uses its pseudo-inverse; a non-finite innovation or
 // estimate marks the run "numerical_failure".
+#include <fmt/format.h>
+
 #include <Eigen/Cholesky>
 #include <bit>
-#include <fmt/format.h>
 
 #include "estimators/delay_window.h"
 #include "estimators/extended_model.h"
@@ -93,9 +94,8 @@ class KalmanExtendedDesign final : public EstimatorDesign {
     //   + 2 nb^2 + nb nu + 2 nb nmb + nmb^2 + 2 nb + nmb.
     const double nb = static_cast<double>(ext_.nb), nu = static_cast<double>(ext_.nu);
     const double nw = static_cast<double>(ext_.nw), nmb = static_cast<double>(ext_.nmb);
-    return 2 * nb * nb * nb + nb * nb * nw + nb * nw * nw + 4 * nb * nb * nmb +
-           2 * nb * nmb * nmb + 5 * nmb * nmb * nmb + 2 * nb * nb + nb * nu + 2 * nb * nmb +
-           nmb * nmb + 2 * nb + nmb;
+    return 2 * nb * nb * nb + nb * nb * nw + nb * nw * nw + 4 * nb * nb * nmb + 2 * nb * nmb * nmb +
+           5 * nmb * nmb * nmb + 2 * nb * nb + nb * nu + 2 * nb * nmb + nmb * nmb + 2 * nb + nmb;
   }
   Eigen::Index extended_size() const override { return ext_.nb; }
 
@@ -109,9 +109,10 @@ std::unique_ptr<EstimatorDesign> read_kalman_extended(const sim::Table& t, const
   const int dbar = read_max_delay(t, 0);
   const auto nf = static_cast<long>(model.sensors.size()) * (dbar + 1);
   if (nf > 64) {
-    t.fail("max_delay", fmt::format("expected at most 64 fictitious sensors (sensors x (max_delay + 1)), "
-                                    "got {} x {} = {}",
-                                    model.sensors.size(), dbar + 1, nf));
+    t.fail("max_delay",
+           fmt::format("expected at most 64 fictitious sensors (sensors x (max_delay + 1)), "
+                       "got {} x {} = {}",
+                       model.sensors.size(), dbar + 1, nf));
   }
   return std::make_unique<KalmanExtendedDesign>(model, dbar, read_initial(t, model));
 }

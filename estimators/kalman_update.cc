@@ -142,15 +142,24 @@ void apply_loops(double* x, double* p, const double* u, const double* w, Index l
 template <class Body>
 decltype(auto) dispatch(Index n, Body&& body) {
   switch (n) {
-    case 1: return body.template operator()<1>();
-    case 2: return body.template operator()<2>();
-    case 3: return body.template operator()<3>();
-    case 4: return body.template operator()<4>();
-    case 5: return body.template operator()<5>();
-    case 6: return body.template operator()<6>();
-    case 7: return body.template operator()<7>();
-    case 8: return body.template operator()<8>();
-    default: return body.template operator()<0>();
+    case 1:
+      return body.template operator()<1>();
+    case 2:
+      return body.template operator()<2>();
+    case 3:
+      return body.template operator()<3>();
+    case 4:
+      return body.template operator()<4>();
+    case 5:
+      return body.template operator()<5>();
+    case 6:
+      return body.template operator()<6>();
+    case 7:
+      return body.template operator()<7>();
+    case 8:
+      return body.template operator()<8>();
+    default:
+      return body.template operator()<0>();
   }
 }
 
@@ -194,7 +203,9 @@ void predict_covariance(const Eigen::MatrixXd& A, const Eigen::MatrixXd& Q, Eige
     }
     return;
   }
-  dispatch(n, [&]<int N>() { predict_covariance_loops<N>(A.data(), Q.data(), P.data(), ws.T.data(), n); });
+  dispatch(n, [&]<int N>() {
+    predict_covariance_loops<N>(A.data(), Q.data(), P.data(), ws.T.data(), n);
+  });
 }
 
 void predict_state(const Eigen::MatrixXd& A, Eigen::VectorXd& x, Workspace& ws) {
@@ -215,8 +226,8 @@ Index select(const Eigen::MatrixXd& C, const Eigen::MatrixXd& R, const Eigen::Ve
 }
 
 Factor factor(const Eigen::VectorXd& x, const Eigen::MatrixXd& P, Workspace& ws) {
-  const FactorArgs f{x.data(), P.data(), ws.C.data(), ws.R.data(), ws.y.data(), ws.L.data(),
-                     ws.U.data(), ws.w.data(), ws.C.rows(), ws.m, P.rows()};
+  const FactorArgs f{x.data(),    P.data(),    ws.C.data(), ws.R.data(), ws.y.data(), ws.L.data(),
+                     ws.U.data(), ws.w.data(), ws.C.rows(), ws.m,        P.rows()};
   return dispatch(P.rows(), [&]<int N>() { return factor_loops<N>(f); });
 }
 

@@ -75,7 +75,9 @@ class Lags {
     head_ = 0;
   }
   // Lag i (0: the newest).
-  const Eigen::VectorXd& operator[](std::size_t i) const { return ring_[(head_ + i) % ring_.size()]; }
+  const Eigen::VectorXd& operator[](std::size_t i) const {
+    return ring_[(head_ + i) % ring_.size()];
+  }
   // Makes the oldest the newest and returns it for the caller to overwrite.
   Eigen::VectorXd& push() {
     head_ = (head_ + ring_.size() - 1) % ring_.size();
@@ -139,7 +141,8 @@ class ModeIo final : public Estimator {
       for (Eigen::Index i = 1; i <= n; ++i)
         ybar_ -= io_.a(i) * ylag_[static_cast<std::size_t>(i - 1)];
       for (Eigen::Index l = 2; l <= n; ++l)
-        ybar_.noalias() += io_.G[static_cast<std::size_t>(l - 1)] * glag_[static_cast<std::size_t>(l - 2)];
+        ybar_.noalias() +=
+            io_.G[static_cast<std::size_t>(l - 1)] * glag_[static_cast<std::size_t>(l - 2)];
       const bool lags_known = k >= n;
       const Eigen::Index rows = kf_.rows();
       if (rows > 0 && !lags_known && io_.startup == IoModel::Startup::kState) {
@@ -223,7 +226,7 @@ class ModeIo final : public Estimator {
   Eigen::VectorXd p_, e_, loglik_, u_ext_;
   Eigen::VectorXd uhat_, uhat_prev_;  // applied input estimates uhat[k-1], uhat[k-2]
   Eigen::VectorXd g_, ybar_, yj_, ys_;
-  kalman::Workspace sigma_;           // the Sigma factor of the likelihoods (no state)
+  kalman::Workspace sigma_;  // the Sigma factor of the likelihoods (no state)
   Eigen::VectorXd x_none_;
   Eigen::MatrixXd P_none_;
   Lags ylag_, glag_;  // y[k-1..k-n]; Bu uhat + d at k-1..k-n

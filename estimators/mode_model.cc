@@ -203,7 +203,13 @@ Eigen::Index CurrentMeasurement::take(std::int64_t k) {
 }
 
 ModeKalman::ModeKalman(const ModeModel& mm, const Eigen::VectorXd& x0, const Eigen::MatrixXd& P0)
-    : mm_(&mm), x_(x0), xp_(x0), P_(P0), Pp_(P0), ws_(mm.na, mm.m), rows_(static_cast<std::size_t>(mm.m)) {}
+    : mm_(&mm),
+      x_(x0),
+      xp_(x0),
+      P_(P0),
+      Pp_(P0),
+      ws_(mm.na, mm.m),
+      rows_(static_cast<std::size_t>(mm.m)) {}
 
 Eigen::Index ModeKalman::select(const Eigen::VectorXd& mask) {
   used_ = 0;

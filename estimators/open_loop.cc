@@ -12,14 +12,19 @@ namespace {
 class OpenLoop final : public Estimator {
  public:
   OpenLoop(const Eigen::MatrixXd& A, const Eigen::VectorXd& xhat0, int dbar)
-      : A_(A), n_(A.rows()), dbar_(dbar), x_(A.rows() * (dbar < 0 ? 1 : dbar + 1)), head_(A.rows()) {
+      : A_(A),
+        n_(A.rows()),
+        dbar_(dbar),
+        x_(A.rows() * (dbar < 0 ? 1 : dbar + 1)),
+        head_(A.rows()) {
     for (Eigen::Index b = 0; b < x_.size() / n_; ++b) x_.segment(b * n_, n_) = xhat0;
   }
   int on_packet(const Packet&, std::int64_t) override { return 0; }
   void on_period(std::int64_t k, const PeriodInput& in) override {
     if (k == 0) return;
     head_.noalias() = A_.lazyProduct(x_.head(n_));  // lazy: small sizes
-    for (Eigen::Index b = x_.size() / n_ - 1; b >= 1; --b) x_.segment(b * n_, n_) = x_.segment((b - 1) * n_, n_);
+    for (Eigen::Index b = x_.size() / n_ - 1; b >= 1; --b)
+      x_.segment(b * n_, n_) = x_.segment((b - 1) * n_, n_);
     x_.head(n_) = head_ + in.drive;
   }
   StateView state() const override { return StateView(x_.data(), n_); }

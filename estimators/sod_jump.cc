@@ -20,8 +20,8 @@ using Eigen::VectorXd;
 
 class SodJump final : public Estimator {
  public:
-  SodJump(const MatrixXd& A, const MatrixXd& C, const std::vector<MatrixXd>& gains, const Model& model,
-          const VectorXd& xhat0)
+  SodJump(const MatrixXd& A, const MatrixXd& C, const std::vector<MatrixXd>& gains,
+          const Model& model, const VectorXd& xhat0)
       : A_(A), C_(C), gains_(gains), hold_(model), x_(xhat0), innov_(C.rows()), pred_(A.rows()) {}
 
   int on_packet(const Packet& p, std::int64_t k) override { return hold_.accept(p, k); }
@@ -58,13 +58,19 @@ struct CodesignKeys {
 
 class SodJumpDesignImpl final : public SodJumpDesign {
  public:
-  SodJumpDesignImpl(const Model& model, sod::SodSystem sys, sod::SodDesignSpec spec, CodesignKeys cd,
-                    VectorXd xhat0, nlohmann::json extra)
-      : model_(model), sys_(std::move(sys)), spec_(std::move(spec)), cd_(std::move(cd)), xhat0_(std::move(xhat0)) {
+  SodJumpDesignImpl(const Model& model, sod::SodSystem sys, sod::SodDesignSpec spec,
+                    CodesignKeys cd, VectorXd xhat0, nlohmann::json extra)
+      : model_(model),
+        sys_(std::move(sys)),
+        spec_(std::move(spec)),
+        cd_(std::move(cd)),
+        xhat0_(std::move(xhat0)) {
     const auto t0 = std::chrono::steady_clock::now();
     const sod::SodDesignResult r = sod::design_sod(sys_, spec_);
-    report_.design_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    report_.method = spec_.approach == sod::Approach::kDeterministic ? "lmi_deterministic" : "lmi_stochastic";
+    report_.design_seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    report_.method =
+        spec_.approach == sod::Approach::kDeterministic ? "lmi_deterministic" : "lmi_stochastic";
     report_.extra = std::move(extra);
     report_.extra["lmis"] = r.lmis;
     report_.extra["sdp_variables"] = r.size.variables;
@@ -76,13 +82,16 @@ class SodJumpDesignImpl final : public SodJumpDesign {
       gains_.assign(std::size_t{1} << sys_.ns(), MatrixXd::Zero(sys_.A.rows(), sys_.ny()));
     } else {
       gains_ = r.gains;
-      report_.extra["guaranteed_bound"] = r.bound;  // >= ||z~||^2_RMS under the design's assumptions
+      report_.extra["guaranteed_bound"] =
+          r.bound;  // >= ||z~||^2_RMS under the design's assumptions
       report_.extra["gamma_w"] = r.gamma_w;
-      report_.extra["gamma_v"] = std::vector<double>(r.gamma_v.data(), r.gamma_v.data() + r.gamma_v.size());
+      report_.extra["gamma_v"] =
+          std::vector<double>(r.gamma_v.data(), r.gamma_v.data() + r.gamma_v.size());
       report_.extra["gamma_delta"] =
           std::vector<double>(r.gamma_delta.data(), r.gamma_delta.data() + r.gamma_delta.size());
       // Spectral radius of the constant-gain / pattern-all error dynamics (I - L C) A.
-      const MatrixXd Aall = (MatrixXd::Identity(sys_.A.rows(), sys_.A.rows()) - gains_.back() * sys_.C) * sys_.A;
+      const MatrixXd Aall =
+          (MatrixXd::Identity(sys_.A.rows(), sys_.A.rows()) - gains_.back() * sys_.C) * sys_.A;
       report_.stable = Aall.eigenvalues().cwiseAbs().maxCoeff() < 1.0;
     }
     report_.stored_gains = spec_.jump ? static_cast<long>(gains_.size()) : 1L;
@@ -131,7 +140,8 @@ VectorXd per_output(const sim::Table& t, std::string_view key, Eigen::Index ny) 
   VectorXd v = t.vector(key);
   if (v.size() == 1 && ny > 1) v = VectorXd::Constant(ny, v(0));
   if (v.size() != ny || !v.allFinite() || v.minCoeff() < 0.0) {
-    t.fail(key, fmt::format("expected 1 or {} non-negative values (one per output), got {}", ny, v.size()));
+    t.fail(key, fmt::format("expected 1 or {} non-negative values (one per output), got {}", ny,
+                            v.size()));
   }
   return v;
 }
@@ -152,7 +162,8 @@ std::unique_ptr<EstimatorDesign> read_sod_jump(const sim::Table& t, const Model&
   }
   const Eigen::Index ny = sys.ny(), n = sys.A.rows();
   if (model.sensors.size() > 6) {
-    t.fail("kind", fmt::format("expected at most 6 sensors (2^ns gains and (2^ns)^2 LMIs), got {}", model.sensors.size()));
+    t.fail("kind", fmt::format("expected at most 6 sensors (2^ns gains and (2^ns)^2 LMIs), got {}",
+                               model.sensors.size()));
   }
   if (t.is_string("Cz")) {
     t.choice_or("Cz", "output", {"output"});
@@ -160,19 +171,24 @@ std::unique_ptr<EstimatorDesign> read_sod_jump(const sim::Table& t, const Model&
   } else {
     sys.Cz = t.has("Cz") ? t.matrix("Cz") : MatrixXd::Identity(n, n);
   }
-  if (sys.Cz.cols() != n) t.fail("Cz", fmt::format("expected {} columns (the state size), got {}", n, sys.Cz.cols()));
+  if (sys.Cz.cols() != n)
+    t.fail("Cz", fmt::format("expected {} columns (the state size), got {}", n, sys.Cz.cols()));
   sys.w_rms = t.number("w_rms");
   if (!(sys.w_rms >= 0.0) || !std::isfinite(sys.w_rms))
     t.fail("w_rms", fmt::format("expected ||w||_RMS >= 0, got {}", sys.w_rms));
   sys.v_rms = t.has("v_rms") ? per_output(t, "v_rms", ny) : VectorXd(R.diagonal().cwiseSqrt());
 
   sod::SodDesignSpec spec;
-  const std::string approach = t.choice_or("design", "deterministic", {"deterministic", "stochastic"});
-  spec.approach = approach == "deterministic" ? sod::Approach::kDeterministic : sod::Approach::kStochastic;
+  const std::string approach =
+      t.choice_or("design", "deterministic", {"deterministic", "stochastic"});
+  spec.approach =
+      approach == "deterministic" ? sod::Approach::kDeterministic : sod::Approach::kStochastic;
   spec.jump = t.choice_or("gain", "jump", {"jump", "constant"}) == "jump";
   if (!spec.jump && !all_sod) {
-    t.fail("gain", "expected gain = \"jump\" with periodic sensors (a constant gain would use their stale held "
-                   "values), got \"constant\"");
+    t.fail("gain",
+           "expected gain = \"jump\" with periodic sensors (a constant gain would use their stale "
+           "held "
+           "values), got \"constant\"");
   }
   VectorXd delta = t.has("delta") ? per_output(t, "delta", ny) : stacked_delta(model);
 
@@ -191,7 +207,8 @@ std::unique_ptr<EstimatorDesign> read_sod_jump(const sim::Table& t, const Model&
   } else {
     if (!all_sod) t.fail("design", "expected send_on_delta sensors only for the stochastic design");
     if (static_cast<Eigen::Index>(model.sensors.size()) != ny) {
-      t.fail("design", "expected one output per sensor for the stochastic design (beta is per output)");
+      t.fail("design",
+             "expected one output per sensor for the stochastic design (beta is per output)");
     }
     const std::string vert = t.choice_or("vertices", "all", {"all", "lower"});
     spec.vertices = vert == "all" ? sod::Vertices::kAll : sod::Vertices::kLower;
@@ -205,7 +222,9 @@ std::unique_ptr<EstimatorDesign> read_sod_jump(const sim::Table& t, const Model&
         const VectorXd v_inf = per_output(t, "v_inf", ny);
         cd.r = sod::uniform_range(sys.C, sys.Bw, w_inf, v_inf);
       } else {
-        t.fail("r", "expected the uniform range r (one per output) or w_inf and v_inf to compute it by (28)");
+        t.fail("r",
+               "expected the uniform range r (one per output) or w_inf and v_inf to compute it by "
+               "(28)");
       }
     } else {
       cd.r = per_output(t, "sigma", ny);
@@ -219,21 +238,27 @@ std::unique_ptr<EstimatorDesign> read_sod_jump(const sim::Table& t, const Model&
     tmp.assumption = cd.assumption;
     tmp.r = cd.r;
     sod::codesign_bounds(tmp, delta, spec.sigma2_delta, spec.beta_lower);
-    extra["vertices"] = vert == "all" ? "all (robust over the probability box)" : "lower (beta = beta' only)";
+    extra["vertices"] =
+        vert == "all" ? "all (robust over the probability box)" : "lower (beta = beta' only)";
     extra["assumption"] = as;
-    extra[cd.assumption == sod::Assumption::kUniform ? "r" : "sigma"] = std::vector<double>(cd.r.data(), cd.r.data() + ny);
+    extra[cd.assumption == sod::Assumption::kUniform ? "r" : "sigma"] =
+        std::vector<double>(cd.r.data(), cd.r.data() + ny);
     extra["beta_lower"] = std::vector<double>(spec.beta_lower.data(), spec.beta_lower.data() + ny);
   }
-  extra["sigma2_delta"] = std::vector<double>(spec.sigma2_delta.data(), spec.sigma2_delta.data() + ny);
+  extra["sigma2_delta"] =
+      std::vector<double>(spec.sigma2_delta.data(), spec.sigma2_delta.data() + ny);
   if (const auto c = t.opt_table("codesign")) {
     cd.mu = c->number("mu");
-    if (!(cd.mu >= 1.0) || !std::isfinite(cd.mu)) c->fail("mu", fmt::format("expected mu >= 1, got {}", cd.mu));
+    if (!(cd.mu >= 1.0) || !std::isfinite(cd.mu))
+      c->fail("mu", fmt::format("expected mu >= 1, got {}", cd.mu));
     cd.epsilon = c->number_or("epsilon", 0.0);
     if (!(cd.epsilon >= 0.0) || cd.epsilon >= 1.0)
       c->fail("epsilon",
               fmt::format("expected a step in (0, 1) (0: the default), got {}", cd.epsilon));
-    cd.relative = c->choice_or("step", spec.approach == sod::Approach::kDeterministic ? "relative" : "absolute",
-                               {"relative", "absolute"}) == "relative";
+    cd.relative =
+        c->choice_or("step",
+                     spec.approach == sod::Approach::kDeterministic ? "relative" : "absolute",
+                     {"relative", "absolute"}) == "relative";
     if (c->has("delta0")) cd.delta0 = per_output(*c, "delta0", ny);
     c->finish();
   }
@@ -246,9 +271,12 @@ std::unique_ptr<EstimatorDesign> read_sod_jump(const sim::Table& t, const Model&
 
 void register_sod_jump(EstimatorRegistry& registry) {
   registry.add("sod_jump",
-               "send-on-delta jump observer, H-infinity LMI design (send-on-delta co-design paper): design = "
-               "\"deterministic\" (LMI 11) | \"stochastic\" (LMI 20 at the vertices), gain = \"jump\" | \"constant\", "
-               "w_rms, v_rms, virtual_noise, r | w_inf + v_inf | sigma, assumption, vertices, delta, Cz, [codesign]",
+               "send-on-delta jump observer, H-infinity LMI design (send-on-delta co-design "
+               "paper): design = "
+               "\"deterministic\" (LMI 11) | \"stochastic\" (LMI 20 at the vertices), gain = "
+               "\"jump\" | \"constant\", "
+               "w_rms, v_rms, virtual_noise, r | w_inf + v_inf | sigma, assumption, vertices, "
+               "delta, Cz, [codesign]",
                read_sod_jump);
 }
 

@@ -1,7 +1,7 @@
 // estimators/sod_jump.h — the send-on-delta jump observer (the send-on-delta co-design paper,
-// eq. (3), (7)): x^[t-] = A x^[t-1] + (known input), x^[t] = x^[t-] + L(alpha[t]) (m[t] - C x^[t-]),
-// with m the held measurements and alpha[t] the sensors that sent at t; gains from the H-infinity
-// LMI designs (estimators/design/sod_design.h). Its design also carries the threshold
+// eq. (3), (7)): x^[t-] = A x^[t-1] + (known input), x^[t] = x^[t-] + L(alpha[t]) (m[t] - C
+// x^[t-]), with m the held measurements and alpha[t] the sensors that sent at t; gains from the
+// H-infinity LMI designs (estimators/design/sod_design.h). Its design also carries the threshold
 // co-design parameters, run by `ncosim codesign` (sim/cli.cc).
 #pragma once
 

@@ -19,8 +19,8 @@ namespace ncosim::est {
 namespace {
 
 struct SodKalmanParams {
-  Eigen::MatrixXd A, Q, C, R;  // Q = Bw W Bw' (the filter's W)
-  Eigen::VectorXd virtual_var;  // factor * delta^2 per stacked output
+  Eigen::MatrixXd A, Q, C, R;       // Q = Bw W Bw' (the filter's W)
+  Eigen::VectorXd virtual_var;      // factor * delta^2 per stacked output
   std::vector<bool> send_on_delta;  // per sensor
   InitialEstimate init;
 };
@@ -48,7 +48,8 @@ class SodKalman final : public Estimator {
     Eigen::Index m = 0;
     for (std::size_t s = 0; s < hold_.sensors(); ++s) {
       if (!use(s, fresh)) continue;
-      for (Eigen::Index i = 0; i < hold_.ny(s); ++i) rows_[static_cast<std::size_t>(m++)] = hold_.offset(s) + i;
+      for (Eigen::Index i = 0; i < hold_.ny(s); ++i)
+        rows_[static_cast<std::size_t>(m++)] = hold_.offset(s) + i;
     }
     if (m == 0) return;
     kalman::select(p_.C, p_.R, hold_.m(), rows_.data(), m, ws_);
@@ -93,22 +94,27 @@ class SodKalman final : public Estimator {
 
 class SodKalmanDesign final : public EstimatorDesign {
  public:
-  SodKalmanDesign(SodKalmanParams p, const Model& model, double factor) : p_(std::move(p)), model_(model) {
+  SodKalmanDesign(SodKalmanParams p, const Model& model, double factor)
+      : p_(std::move(p)), model_(model) {
     report_.method = "online";
     report_.stored_gains = 0;
     report_.extra["virtual_variance_factor"] = factor;
     report_.extra["delta"] = std::vector<double>(p_.virtual_var.size());
     for (Eigen::Index i = 0; i < p_.virtual_var.size(); ++i) {
-      report_.extra["delta"][static_cast<std::size_t>(i)] = factor > 0 ? std::sqrt(p_.virtual_var(i) / factor) : 0.0;
+      report_.extra["delta"][static_cast<std::size_t>(i)] =
+          factor > 0 ? std::sqrt(p_.virtual_var(i) / factor) : 0.0;
     }
   }
-  std::unique_ptr<Estimator> instantiate() const override { return std::make_unique<SodKalman>(p_, model_); }
+  std::unique_ptr<Estimator> instantiate() const override {
+    return std::make_unique<SodKalman>(p_, model_);
+  }
   const DesignReport& report() const override { return report_; }
   std::optional<double> flops_per_period() const override {
     // Predict (2n^3 + n^2 + n: A P A' + Q, A x) and the update with all ny rows (as
     // kalman_extended: 4 n^2 ny + 2 n ny^2 + 5 ny^3 + 2 n ny + ny^2 + ny).
     const double n = static_cast<double>(p_.A.rows()), ny = static_cast<double>(p_.C.rows());
-    return 2 * n * n * n + 2 * n * n + n + 4 * n * n * ny + 2 * n * ny * ny + 5 * ny * ny * ny + 2 * n * ny + ny * ny + ny;
+    return 2 * n * n * n + 2 * n * n + n + 4 * n * n * ny + 2 * n * ny * ny + 5 * ny * ny * ny +
+           2 * n * ny + ny * ny + ny;
   }
 
  private:
@@ -124,7 +130,8 @@ std::unique_ptr<EstimatorDesign> read_sod_kalman(const sim::Table& t, const Mode
   Eigen::MatrixXd W = model.plant.W;
   if (t.has("W")) {
     W = t.matrix("W");
-    if (W.size() == 1 && model.plant.nw() > 1) W = W(0, 0) * Eigen::MatrixXd::Identity(model.plant.nw(), model.plant.nw());
+    if (W.size() == 1 && model.plant.nw() > 1)
+      W = W(0, 0) * Eigen::MatrixXd::Identity(model.plant.nw(), model.plant.nw());
     sim::require_shape(t, "W", W, model.plant.nw(), model.plant.nw());
     sim::require_psd(t, "W", W);
   }
@@ -161,7 +168,8 @@ std::unique_ptr<EstimatorDesign> read_sod_kalman(const sim::Table& t, const Mode
 
 void register_sod_kalman(EstimatorRegistry& registry) {
   registry.add("sod_kalman",
-               "Kalman filter on held send-on-delta measurements with virtual noise (Suh et al. 2007): W, R, "
+               "Kalman filter on held send-on-delta measurements with virtual noise (Suh et al. "
+               "2007): W, R, "
                "delta (default: the sensors' thresholds), virtual_variance_factor (default 1/3)",
                read_sod_kalman);
 }

@@ -1,12 +1,12 @@
 // estimators/static_buffer.cc
 // The constant-gain estimator with a buffer of N periods of Schenato (2008), eqs. (23)–(25),
 // with the optimal gains of Theorem 3 (estimators/design/buffer_design.h, gain indexing of
-// the gain indexing of scenarios/README.md). At period t the slot of period t-N+1 closes: its estimate is predicted from
-// the closed slot before it and corrected with K_{N-1} if its sample arrived (delay <= N-1);
-// then the open slots t-N+2 .. t are re-predicted from it, the slot of delay k corrected
-// with K_k if its sample has arrived. Several sensors are corrected one after the other in
-// scenario order, each with its own gain. The cost is N prediction-corrections of the plant
-// state, without covariances.
+// the gain indexing of scenarios/README.md). At period t the slot of period t-N+1 closes: its
+// estimate is predicted from the closed slot before it and corrected with K_{N-1} if its sample
+// arrived (delay <= N-1); then the open slots t-N+2 .. t are re-predicted from it, the slot of
+// delay k corrected with K_k if its sample has arrived. Several sensors are corrected one after the
+// other in scenario order, each with its own gain. The cost is N prediction-corrections of the
+// plant state, without covariances.
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -69,7 +69,8 @@ class StaticBuffer final : public Estimator {
     const std::int64_t c = t - sh_.N + 1;  // the slot that closes now (delay N-1)
     if (c >= 0) step(base_, c, sh_.N - 1);
     xi_ = base_;
-    for (std::int64_t s = std::max<std::int64_t>(c + 1, 0); s <= t; ++s) step(xi_, s, static_cast<int>(t - s));
+    for (std::int64_t s = std::max<std::int64_t>(c + 1, 0); s <= t; ++s)
+      step(xi_, s, static_cast<int>(t - s));
     if (!xi_.allFinite()) failed_ = true;
   }
 
@@ -126,7 +127,8 @@ class StaticBufferDesign final : public EstimatorDesign {
     const auto plant = buffer_plant(model);
     const auto lambda = arrival_probabilities(model, N);
     const auto g = buffer::design_static_gains(plant, lambda);
-    report_.design_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    report_.design_seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     sh_.N = N;
     sh_.n = model.plant.n();
     sh_.A = model.plant.A;
@@ -149,8 +151,9 @@ class StaticBufferDesign final : public EstimatorDesign {
     x["lambda"] = lambda;  // per sensor: lambda_0 .. lambda_{N-1}
     x["trace_V0"] = g.stable ? nlohmann::json(g.trace_V0) : nlohmann::json(nullptr);
     x["second_moment_radius"] = g.second_moment_radius;
-    x["fourth_moment_radius"] =
-        std::isfinite(g.fourth_moment_radius) ? nlohmann::json(g.fourth_moment_radius) : nlohmann::json(nullptr);
+    x["fourth_moment_radius"] = std::isfinite(g.fourth_moment_radius)
+                                    ? nlohmann::json(g.fourth_moment_radius)
+                                    : nlohmann::json(nullptr);
     x["heavy_tail"] = sh_.heavy_tail;
     nlohmann::json K = nlohmann::json::array();  // K[k][i] = the gain of delay k, sensor i (n x ny)
     for (const auto& gk : g.K) {
@@ -159,7 +162,8 @@ class StaticBufferDesign final : public EstimatorDesign {
         nlohmann::json rows = nlohmann::json::array();
         for (Eigen::Index r = 0; r < m.rows(); ++r) {
           nlohmann::json row = nlohmann::json::array();
-          for (Eigen::Index c = 0; c < m.cols(); ++c) row.push_back(std::isfinite(m(r, c)) ? m(r, c) : 0.0);
+          for (Eigen::Index c = 0; c < m.cols(); ++c)
+            row.push_back(std::isfinite(m(r, c)) ? m(r, c) : 0.0);
           rows.push_back(row);
         }
         per.push_back(rows);
@@ -171,10 +175,13 @@ class StaticBufferDesign final : public EstimatorDesign {
     double rows = 0.0;
     for (auto r : sh_.ny) rows += static_cast<double>(r);
     const double n = static_cast<double>(sh_.n), nu = static_cast<double>(model.plant.nu());
-    // Per slot: A x (2n^2) + drive (n) + per row 2n (C x) + 1 + 2n (K r) + n... ~ 2n^2 + n + 4 n rows.
+    // Per slot: A x (2n^2) + drive (n) + per row 2n (C x) + 1 + 2n (K r) + n... ~ 2n^2 + n + 4 n
+    // rows.
     flops_ = N * (2 * n * n + n + n * nu + 4 * n * rows + rows);
   }
-  std::unique_ptr<Estimator> instantiate() const override { return std::make_unique<StaticBuffer>(sh_, init_); }
+  std::unique_ptr<Estimator> instantiate() const override {
+    return std::make_unique<StaticBuffer>(sh_, init_);
+  }
   const DesignReport& report() const override { return report_; }
   std::optional<double> flops_per_period() const override { return flops_; }
 
@@ -190,8 +197,10 @@ std::unique_ptr<EstimatorDesign> read_static_buffer(const sim::Table& t, const M
   if (model.sensors.empty()) t.fail("kind", "static_buffer needs at least one [[sensor]]");
   for (const auto& s : model.sensors) {
     if (s.spec.every != 1) {
-      t.fail("kind", fmt::format("static_buffer needs sensors sampled every period; sensor '{}' has every = {}",
-                                 s.spec.name, s.spec.every));
+      t.fail("kind",
+             fmt::format(
+                 "static_buffer needs sensors sampled every period; sensor '{}' has every = {}",
+                 s.spec.name, s.spec.every));
     }
   }
   return std::make_unique<StaticBufferDesign>(model, N, read_initial(t, model));
@@ -200,9 +209,10 @@ std::unique_ptr<EstimatorDesign> read_static_buffer(const sim::Table& t, const M
 }  // namespace
 
 void register_static_buffer(EstimatorRegistry& registry) {
-  registry.add("static_buffer",
-               "constant optimal gains over a buffer of N periods (Schenato 2008, Theorem 3): buffer",
-               read_static_buffer);
+  registry.add(
+      "static_buffer",
+      "constant optimal gains over a buffer of N periods (Schenato 2008, Theorem 3): buffer",
+      read_static_buffer);
 }
 
 }  // namespace ncosim::est

@@ -1,4 +1,5 @@
-// kernel/event_queue.cc — radix heap on time over a block pool, binary heap for the current instant.
+// kernel/event_queue.cc — radix heap on time over a block pool, binary heap for the current
+// instant.
 #include "kernel/event_queue.h"
 
 #include <algorithm>

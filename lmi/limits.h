@@ -24,8 +24,8 @@ ResourceLimits resource_limits();
 // fails, so a solve that cannot fit is refused before it starts (`address_space` is then true).
 class ResourceLimitError : public std::runtime_error {
  public:
-  ResourceLimitError(const std::string& what, double estimated_bytes, double estimated_flops, int scalar_variables,
-                     int largest, bool over_address_space = false)
+  ResourceLimitError(const std::string& what, double estimated_bytes, double estimated_flops,
+                     int scalar_variables, int largest, bool over_address_space = false)
       : std::runtime_error(what),
         bytes(estimated_bytes),
         flops(estimated_flops),

@@ -1,24 +1,24 @@
 // lmi/lmi.cc — expression algebra, validation, and the translation to CSDP (see lmi.h).
 #include "lmi/lmi.h"
 
-#include "lmi/limits.h"
-
 #include <sys/mman.h>
 #include <sys/resource.h>
 #include <unistd.h>
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/SparseCore>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <iomanip>
-#include <atomic>
 #include <map>
 #include <mutex>
 #include <numeric>
 #include <sstream>
+
+#include "lmi/limits.h"
 
 extern "C" {
 #include <csdp/declarations.h>
@@ -47,12 +47,18 @@ namespace ncosim::lmi {
 
 const char* to_string(Status s) {
   switch (s) {
-    case Status::kOptimal: return "optimal";
-    case Status::kInaccurate: return "inaccurate";
-    case Status::kInfeasible: return "infeasible";
-    case Status::kUnbounded: return "unbounded";
-    case Status::kNumericalTrouble: return "numerical_trouble";
-    case Status::kInvalidProblem: return "invalid_problem";
+    case Status::kOptimal:
+      return "optimal";
+    case Status::kInaccurate:
+      return "inaccurate";
+    case Status::kInfeasible:
+      return "infeasible";
+    case Status::kUnbounded:
+      return "unbounded";
+    case Status::kNumericalTrouble:
+      return "numerical_trouble";
+    case Status::kInvalidProblem:
+      return "invalid_problem";
   }
   return "invalid_problem";
 }
@@ -71,7 +77,8 @@ Expr::Expr(const Var& v) {
 Expr Expr::transpose() const {
   Expr r;
   r.constant_ = constant_.transpose();
-  for (const auto& t : terms_) r.terms_.push_back({t.var, t.problem, !t.transposed, t.R.transpose(), t.L.transpose()});
+  for (const auto& t : terms_)
+    r.terms_.push_back({t.var, t.problem, !t.transposed, t.R.transpose(), t.L.transpose()});
   return r;
 }
 
@@ -112,20 +119,22 @@ Expr Expr::lmul(const Eigen::MatrixXd& m, const Expr& e) {
   }
   Expr r;
   r.constant_ = m * e.constant();
-  for (const auto& t : e.terms()) r.terms_.push_back({t.var, t.problem, t.transposed, m * t.L, t.R});
+  for (const auto& t : e.terms())
+    r.terms_.push_back({t.var, t.problem, t.transposed, m * t.L, t.R});
   return r;
 }
 
 Expr Expr::rmul(const Expr& e, const Eigen::MatrixXd& m) {
   if (e.cols() != m.rows()) {
     std::ostringstream s;
-    s << "lmi: product of a " << e.rows() << "x" << e.cols() << " expression and a " << m.rows() << "x"
-      << m.cols() << " matrix";
+    s << "lmi: product of a " << e.rows() << "x" << e.cols() << " expression and a " << m.rows()
+      << "x" << m.cols() << " matrix";
     throw Error(s.str());
   }
   Expr r;
   r.constant_ = e.constant() * m;
-  for (const auto& t : e.terms()) r.terms_.push_back({t.var, t.problem, t.transposed, t.L, t.R * m});
+  for (const auto& t : e.terms())
+    r.terms_.push_back({t.var, t.problem, t.transposed, t.L, t.R * m});
   return r;
 }
 
@@ -134,7 +143,8 @@ Expr block(const std::vector<std::vector<Expr>>& rows) {
   const std::size_t nc = rows.front().size();
   std::vector<int> heights(rows.size()), widths(nc);
   for (std::size_t i = 0; i < rows.size(); ++i) {
-    if (rows[i].size() != nc) throw Error("lmi: block matrix rows have different numbers of blocks");
+    if (rows[i].size() != nc)
+      throw Error("lmi: block matrix rows have different numbers of blocks");
     heights[i] = rows[i][0].rows();
   }
   for (std::size_t j = 0; j < nc; ++j) widths[j] = rows[0][j].cols();
@@ -142,8 +152,8 @@ Expr block(const std::vector<std::vector<Expr>>& rows) {
     for (std::size_t j = 0; j < nc; ++j)
       if (rows[i][j].rows() != heights[i] || rows[i][j].cols() != widths[j]) {
         std::ostringstream s;
-        s << "lmi: block (" << i << "," << j << ") is " << rows[i][j].rows() << "x" << rows[i][j].cols()
-          << ", expected " << heights[i] << "x" << widths[j];
+        s << "lmi: block (" << i << "," << j << ") is " << rows[i][j].rows() << "x"
+          << rows[i][j].cols() << ", expected " << heights[i] << "x" << widths[j];
         throw Error(s.str());
       }
   const int H = std::accumulate(heights.begin(), heights.end(), 0);
@@ -213,10 +223,22 @@ void require_zero(double z) {
   if (z != 0.0) throw Error("lmi: compare an expression with 0 or with another expression");
 }
 }  // namespace
-Constraint operator>=(const Expr& a, double z) { require_zero(z); return Constraint{a, false, -1.0, {}}; }
-Constraint operator>(const Expr& a, double z) { require_zero(z); return Constraint{a, true, -1.0, {}}; }
-Constraint operator<=(const Expr& a, double z) { require_zero(z); return Constraint{-a, false, -1.0, {}}; }
-Constraint operator<(const Expr& a, double z) { require_zero(z); return Constraint{-a, true, -1.0, {}}; }
+Constraint operator>=(const Expr& a, double z) {
+  require_zero(z);
+  return Constraint{a, false, -1.0, {}};
+}
+Constraint operator>(const Expr& a, double z) {
+  require_zero(z);
+  return Constraint{a, true, -1.0, {}};
+}
+Constraint operator<=(const Expr& a, double z) {
+  require_zero(z);
+  return Constraint{-a, false, -1.0, {}};
+}
+Constraint operator<(const Expr& a, double z) {
+  require_zero(z);
+  return Constraint{-a, true, -1.0, {}};
+}
 
 Constraint lmi(Constraint c, double margin, std::string name) {
   if (margin >= 0.0) {
@@ -272,9 +294,9 @@ struct Problem::Impl {
   double objective_sign = 1.0;
   Eigen::VectorXd c;  // raw objective coefficients (of the minimised form)
   double c0 = 0.0;
-  double coef_bytes = 0.0;  // estimated memory of the expanded coefficients (resource limits)
-  double block_bytes = 0.0; // sum over LMIs of 8 m^2
-  double block_flops = 0.0; // sum over LMIs of m^3
+  double coef_bytes = 0.0;   // estimated memory of the expanded coefficients (resource limits)
+  double block_bytes = 0.0;  // sum over LMIs of 8 m^2
+  double block_flops = 0.0;  // sum over LMIs of m^3
   int largest_block = 0;
 
   // The memory and work of a solve (CSDP), estimated from the sizes above.
@@ -355,8 +377,10 @@ struct Problem::Impl {
   void expand(const Expr& e, std::map<int, Sparse>& out) const {
     for_each_coefficient(e, [&](int k, Sparse&& M) {
       auto it = out.find(k);
-      if (it == out.end()) out.emplace(k, std::move(M));
-      else it->second += M;
+      if (it == out.end())
+        out.emplace(k, std::move(M));
+      else
+        it->second += M;
     });
   }
 
@@ -365,8 +389,10 @@ struct Problem::Impl {
     c0 = sign * f.constant;
     for (const auto& part : f.parts) {
       const auto& e = part.first;
-      const auto& w = part.second;  // a reference, not a structured binding: lambdas capture it (clang 14)
-      if (w.rows() != e.rows() || w.cols() != e.cols()) throw Error("lmi: objective weight shape mismatch");
+      const auto& w =
+          part.second;  // a reference, not a structured binding: lambdas capture it (clang 14)
+      if (w.rows() != e.rows() || w.cols() != e.cols())
+        throw Error("lmi: objective weight shape mismatch");
       for (const auto& t : e.terms())
         if (t.problem != serial) throw Error("lmi: objective uses a variable of another problem");
       c0 += sign * (w.array() * e.constant().array()).sum();
@@ -430,7 +456,8 @@ void Problem::equal(const Var& x, const Var& y) {
 int Problem::add(Constraint c) {
   const Expr& e = c.expr;
   for (const auto& t : e.terms())
-    if (t.problem != impl_->serial) throw Error("lmi: constraint uses a variable of another problem");
+    if (t.problem != impl_->serial)
+      throw Error("lmi: constraint uses a variable of another problem");
   if (e.rows() != e.cols()) {
     std::ostringstream s;
     s << "lmi: an LMI needs a square expression, got " << e.rows() << "x" << e.cols();
@@ -471,7 +498,8 @@ int Problem::add(Constraint c) {
     const double m = max_abs(M);
     if (!std::isfinite(m)) throw Error("lmi: " + x.name + " has a non-finite coefficient");
     if (asymmetry(M) > tol * std::max(1.0, m))
-      throw Error("lmi: " + x.name + " is not symmetric (coefficient of " + impl_->describe(k) + ")");
+      throw Error("lmi: " + x.name + " is not symmetric (coefficient of " + impl_->describe(k) +
+                  ")");
     M = 0.5 * (M + Sparse(M.transpose()));
     M.prune(0.0);
   }
@@ -500,8 +528,10 @@ ResourceLimits& limits_storage() {
 }
 std::string human(double bytes) {
   char buf[64];
-  if (bytes >= 1e9) std::snprintf(buf, sizeof buf, "%.1f GB", bytes / 1e9);
-  else std::snprintf(buf, sizeof buf, bytes >= 1e8 ? "%.0f MB" : "%.3g MB", bytes / 1e6);
+  if (bytes >= 1e9)
+    std::snprintf(buf, sizeof buf, "%.1f GB", bytes / 1e9);
+  else
+    std::snprintf(buf, sizeof buf, bytes >= 1e8 ? "%.0f MB" : "%.3g MB", bytes / 1e6);
   return buf;
 }
 
@@ -527,7 +557,8 @@ std::atomic<bool> g_in_csdp{false};
 void exit_during_csdp() {
   if (!g_in_csdp.load()) return;
   static const char kMessage[] =
-      "ncosim: error: out of memory in the LMI solver (CSDP ends the process when its allocation fails) beyond "
+      "ncosim: error: out of memory in the LMI solver (CSDP ends the process when its allocation "
+      "fails) beyond "
       "what the resource estimates foresaw; lower the design's size or free memory\n";
   (void)!::write(2, kMessage, sizeof kMessage - 1);
   ::_exit(1);
@@ -556,7 +587,8 @@ SolveEstimate Problem::Impl::estimate() const {
   // block-diagonal X (X, Z, dX, dZ, work matrices); the expanded coefficients.
   const double bytes = 16.0 * k * k + 11.0 * block_bytes + coef_bytes;
   // 50 iterations of: Schur complement k^2 * (largest block), Cholesky k^3 / 3, block work.
-  const double flops = 50.0 * (k * k * std::max(1, largest_block) + k * k * k / 3.0 + 10.0 * block_flops);
+  const double flops =
+      50.0 * (k * k * std::max(1, largest_block) + k * k * k / 3.0 + 10.0 * block_flops);
   return SolveEstimate{bytes, flops, nraw, largest_block};
 }
 
@@ -568,19 +600,22 @@ void Problem::Impl::check_resources() const {
   const bool over_work = lim.work_flops > 0.0 && flops > lim.work_flops;
   const double address_space = address_space_limit();
   if (!over_memory && address_space > 0.0 && bytes > address_space) {
-    throw ResourceLimitError("an LMI problem of " + std::to_string(nraw) + " scalar variables (largest block " +
-                                 std::to_string(largest_block) + ") needs an estimated " + human(bytes) +
-                                 ", above the process's address-space limit of " + human(address_space) +
-                                 " (ulimit -v; the solver would end the process when its allocation fails)",
-                             bytes, flops, nraw, largest_block, true);
+    throw ResourceLimitError(
+        "an LMI problem of " + std::to_string(nraw) + " scalar variables (largest block " +
+            std::to_string(largest_block) + ") needs an estimated " + human(bytes) +
+            ", above the process's address-space limit of " + human(address_space) +
+            " (ulimit -v; the solver would end the process when its allocation fails)",
+        bytes, flops, nraw, largest_block, true);
   }
   if (!over_memory && !over_work) return;
-  std::string what = over_memory ? "an LMI problem of " + std::to_string(nraw) + " scalar variables (largest block " +
-                                       std::to_string(largest_block) + ") needs an estimated " + human(bytes) +
-                                       ", above the memory limit of " + human(lim.memory_bytes)
-                                 : "an LMI problem of " + std::to_string(nraw) + " scalar variables (largest block " +
-                                       std::to_string(largest_block) + ") needs an estimated " +
-                                       gflop(flops) + ", above the work limit of " + gflop(lim.work_flops);
+  std::string what =
+      over_memory
+          ? "an LMI problem of " + std::to_string(nraw) + " scalar variables (largest block " +
+                std::to_string(largest_block) + ") needs an estimated " + human(bytes) +
+                ", above the memory limit of " + human(lim.memory_bytes)
+          : "an LMI problem of " + std::to_string(nraw) + " scalar variables (largest block " +
+                std::to_string(largest_block) + ") needs an estimated " + gflop(flops) +
+                ", above the work limit of " + gflop(lim.work_flops);
   throw ResourceLimitError(what, bytes, flops, nraw, largest_block);
 }
 
@@ -588,11 +623,11 @@ void Problem::Impl::check_resources() const {
 
 namespace {
 struct Translation {
-  std::vector<int> solver_of;          // raw -> solver var (-1 unused)
-  int k = 0;                           // solver vars
-  std::vector<int> matrix_cons;        // constraint indices in matrix blocks
-  std::vector<int> scalar_cons;        // 1x1 constraints in the diagonal block
-  std::vector<int> constant_cons;      // variable-free constraints
+  std::vector<int> solver_of;      // raw -> solver var (-1 unused)
+  int k = 0;                       // solver vars
+  std::vector<int> matrix_cons;    // constraint indices in matrix blocks
+  std::vector<int> scalar_cons;    // 1x1 constraints in the diagonal block
+  std::vector<int> constant_cons;  // variable-free constraints
   // per constraint: solver var -> coefficient (aliases summed)
   std::vector<std::map<int, Sparse>> coef;
   SdpSize size;
@@ -623,17 +658,26 @@ Translation translate(Problem::Impl& p) {
     for (const auto& [r, M] : c.F) {
       const int s = t.solver_of[r];
       auto it = t.coef[i].find(s);
-      if (it == t.coef[i].end()) t.coef[i].emplace(s, M);
-      else it->second += M;
+      if (it == t.coef[i].end())
+        t.coef[i].emplace(s, M);
+      else
+        it->second += M;
     }
     for (auto it = t.coef[i].begin(); it != t.coef[i].end();) {
       it->second.prune(0.0);
-      if (it->second.nonZeros() == 0) it = t.coef[i].erase(it);
-      else { used[it->first] = true; ++it; }
+      if (it->second.nonZeros() == 0)
+        it = t.coef[i].erase(it);
+      else {
+        used[it->first] = true;
+        ++it;
+      }
     }
-    if (t.coef[i].empty()) t.constant_cons.push_back(static_cast<int>(i));
-    else if (c.F0.rows() == 1) t.scalar_cons.push_back(static_cast<int>(i));
-    else t.matrix_cons.push_back(static_cast<int>(i));
+    if (t.coef[i].empty())
+      t.constant_cons.push_back(static_cast<int>(i));
+    else if (c.F0.rows() == 1)
+      t.scalar_cons.push_back(static_cast<int>(i));
+    else
+      t.matrix_cons.push_back(static_cast<int>(i));
   }
   if (t.matrix_cons.empty() && t.scalar_cons.empty()) {
     t.error = "no constraint involves a variable";
@@ -645,7 +689,8 @@ Translation translate(Problem::Impl& p) {
   auto too_large = [](const std::string& what, double m) {
     std::ostringstream os;
     os << what << " has a coefficient of magnitude " << std::setprecision(3) << m << ", above "
-       << kMaxDataMagnitude << ": the solver's arithmetic would overflow (rescale the model: its matrices or units)";
+       << kMaxDataMagnitude
+       << ": the solver's arithmetic would overflow (rescale the model: its matrices or units)";
     return os.str();
   };
   for (std::size_t i = 0; i < p.cons.size(); ++i) {
@@ -732,17 +777,28 @@ class StdoutCapture {
 
 const char* csdp_code_text(int code) {
   switch (code) {
-    case 0: return "solved";
-    case 1: return "primal infeasible (the LMI objective is unbounded below)";
-    case 2: return "dual infeasible (the LMIs are infeasible)";
-    case 3: return "partial success: solution of reduced accuracy";
-    case 4: return "maximum iterations reached";
-    case 5: return "stuck at the edge of primal feasibility";
-    case 6: return "stuck at the edge of dual infeasibility";
-    case 7: return "lack of progress";
-    case 8: return "X, Z or O singular";
-    case 9: return "NaN or Inf detected";
-    default: return "unknown CSDP failure";
+    case 0:
+      return "solved";
+    case 1:
+      return "primal infeasible (the LMI objective is unbounded below)";
+    case 2:
+      return "dual infeasible (the LMIs are infeasible)";
+    case 3:
+      return "partial success: solution of reduced accuracy";
+    case 4:
+      return "maximum iterations reached";
+    case 5:
+      return "stuck at the edge of primal feasibility";
+    case 6:
+      return "stuck at the edge of dual infeasibility";
+    case 7:
+      return "lack of progress";
+    case 8:
+      return "X, Z or O singular";
+    case 9:
+      return "NaN or Inf detected";
+    default:
+      return "unknown CSDP failure";
   }
 }
 }  // namespace
@@ -817,7 +873,8 @@ Solution Problem::solve() const {
       for (int o = 0; o < M.outerSize(); ++o)
         for (Sparse::InnerIterator it(M, o); it; ++it)
           if (it.row() <= it.col() && it.value() != 0.0)
-            ent.emplace_back(static_cast<int>(it.row()) + 1, static_cast<int>(it.col()) + 1, it.value());
+            ent.emplace_back(static_cast<int>(it.row()) + 1, static_cast<int>(it.col()) + 1,
+                             it.value());
       if (!ent.empty()) per_var[s].emplace_back(static_cast<int>(b) + 1, std::move(ent));
     }
   if (t.size.diagonal_block) {
@@ -895,13 +952,25 @@ Solution Problem::solve() const {
   sol.objective = s * (0.5 * (pobj + dobj) + p.c0);
   if (!p.has_objective) sol.objective = sol.primal_objective = sol.dual_objective = 0.0;
   switch (code) {
-    case 0: sol.status = Status::kOptimal; break;
-    case 1: sol.status = Status::kUnbounded; break;
-    case 2: sol.status = Status::kInfeasible; break;
-    case 3: sol.status = Status::kInaccurate; break;
-    default: sol.status = Status::kNumericalTrouble; break;
+    case 0:
+      sol.status = Status::kOptimal;
+      break;
+    case 1:
+      sol.status = Status::kUnbounded;
+      break;
+    case 2:
+      sol.status = Status::kInfeasible;
+      break;
+    case 3:
+      sol.status = Status::kInaccurate;
+      break;
+    default:
+      sol.status = Status::kNumericalTrouble;
+      break;
   }
-  if (code != 0) sol.message = std::string("CSDP: ") + csdp_code_text(code) + " (code " + std::to_string(code) + ")";
+  if (code != 0)
+    sol.message =
+        std::string("CSDP: ") + csdp_code_text(code) + " (code " + std::to_string(code) + ")";
   if (!sol.y_.allFinite() && sol.ok()) {
     sol.status = Status::kNumericalTrouble;
     sol.message = "CSDP returned a non-finite solution";
@@ -920,7 +989,8 @@ Solution Problem::solve() const {
 // ---------------------------------------------------------------- values
 
 Eigen::MatrixXd Solution::value(const Var& v) const {
-  if (v.id < 0 || v.id >= static_cast<int>(vars_.size()) || vars_[v.id].problem != v.problem || y_.size() == 0)
+  if (v.id < 0 || v.id >= static_cast<int>(vars_.size()) || vars_[v.id].problem != v.problem ||
+      y_.size() == 0)
     throw Error("lmi: value() of an unknown variable or of an unsolved problem");
   Eigen::MatrixXd M(v.rows, v.cols);
   for (int b = 0; b < v.cols; ++b)

@@ -65,10 +65,12 @@ struct Var {
 class Expr {
  public:
   Expr() = default;
-  Expr(const Eigen::MatrixXd& constant);  // NOLINT(google-explicit-constructor): constants mix freely
-  Expr(const Var& v);                     // NOLINT(google-explicit-constructor)
+  Expr(const Eigen::MatrixXd&
+           constant);  // NOLINT(google-explicit-constructor): constants mix freely
+  Expr(const Var& v);  // NOLINT(google-explicit-constructor)
   template <typename D>
-  Expr(const Eigen::MatrixBase<D>& m) : Expr(Eigen::MatrixXd(m)) {}  // NOLINT(google-explicit-constructor)
+  Expr(const Eigen::MatrixBase<D>& m)
+      : Expr(Eigen::MatrixXd(m)) {}  // NOLINT(google-explicit-constructor)
 
   int rows() const { return static_cast<int>(constant_.rows()); }
   int cols() const { return static_cast<int>(constant_.cols()); }
@@ -149,10 +151,10 @@ Constraint operator<(const Expr& a, double zero);
 Constraint lmi(Constraint c, double margin = -1.0, std::string name = {});
 
 struct Options {
-  double strict_margin = 1e-8;  // default margin of a strict LMI
-  int max_iterations = 100;     // CSDP maxiter
-  double tolerance = 1e-8;      // CSDP axtol, atytol, objtol
-  bool verbose = false;         // CSDP printlevel 1 (log captured in Solution::log)
+  double strict_margin = 1e-8;       // default margin of a strict LMI
+  int max_iterations = 100;          // CSDP maxiter
+  double tolerance = 1e-8;           // CSDP axtol, atytol, objtol
+  bool verbose = false;              // CSDP printlevel 1 (log captured in Solution::log)
   double symmetry_tolerance = 1e-9;  // relative asymmetry of an LMI coefficient that is an error
 };
 
@@ -173,9 +175,9 @@ class Solution {
   double objective = 0.0;  // primal-dual average of the objective (with its constant)
   double primal_objective = 0.0, dual_objective = 0.0;
   double min_eigenvalue = 0.0;  // min over LMIs of lambda_min(F(y)) - margin (>= ~0 feasible)
-  double seconds = 0.0;    // wall time of the CSDP call
+  double seconds = 0.0;         // wall time of the CSDP call
   SdpSize size;
-  std::string log;         // CSDP's output (printlevel 1 when Options::verbose)
+  std::string log;  // CSDP's output (printlevel 1 when Options::verbose)
 
   bool ok() const { return status == Status::kOptimal || status == Status::kInaccurate; }
   Eigen::MatrixXd value(const Var& v) const;

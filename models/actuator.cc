@@ -1,10 +1,11 @@
 // models/actuator.cc — [[actuator]] reader and the per-run actuator stage.
 #include "models/actuator.h"
-#include "models/sensor.h"  // read_link_ref
 
 #include <fmt/format.h>
 
 #include <algorithm>
+
+#include "models/sensor.h"  // read_link_ref
 
 namespace ncosim::models {
 

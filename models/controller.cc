@@ -20,8 +20,8 @@ namespace {
 
 enum class Signal { kTrue, kMeasured, kReceived, kEstimate };
 
-Signal read_signal(const sim::Table& t, std::string_view key, std::string_view fallback, bool allow_estimate,
-                   std::string* estimator) {
+Signal read_signal(const sim::Table& t, std::string_view key, std::string_view fallback,
+                   bool allow_estimate, std::string* estimator) {
   const std::string v = t.string_or(key, fallback);
   if (v == "true") return Signal::kTrue;
   if (v == "measured") return Signal::kMeasured;
@@ -34,12 +34,17 @@ Signal read_signal(const sim::Table& t, std::string_view key, std::string_view f
 }
 
 // The feedback value of sensor `s`, output `i`.
-double signal_value(Signal sig, const ControlContext& c, std::size_t s, Eigen::Index i, const Eigen::MatrixXd& C) {
+double signal_value(Signal sig, const ControlContext& c, std::size_t s, Eigen::Index i,
+                    const Eigen::MatrixXd& C) {
   switch (sig) {
-    case Signal::kTrue: return (*c.true_output)[s](i);
-    case Signal::kMeasured: return (*c.measured)[s](i);
-    case Signal::kReceived: return (*c.received)[s](i);
-    case Signal::kEstimate: return C.row(i).dot(*c.estimate);
+    case Signal::kTrue:
+      return (*c.true_output)[s](i);
+    case Signal::kMeasured:
+      return (*c.measured)[s](i);
+    case Signal::kReceived:
+      return (*c.received)[s](i);
+    case Signal::kEstimate:
+      return C.row(i).dot(*c.estimate);
   }
   return 0.0;
 }
@@ -79,17 +84,21 @@ class RelayDesign final : public ControllerDesign {
     p_.channels.clear();
     if (outputs_.empty()) {
       if (static_cast<Eigen::Index>(all.size()) != nu_) {
-        t.fail("kind", fmt::format("expected as many sensor outputs as plant inputs for a relay (output i drives "
-                                   "input i; or set outputs), got {} outputs and {} inputs",
-                                   all.size(), nu_));
+        t.fail("kind",
+               fmt::format(
+                   "expected as many sensor outputs as plant inputs for a relay (output i drives "
+                   "input i; or set outputs), got {} outputs and {} inputs",
+                   all.size(), nu_));
       }
       p_.channels = all;
       return;
     }
     for (const auto o : outputs_) {
       if (o < 0 || o >= static_cast<std::int64_t>(all.size())) {
-        t.fail("outputs", fmt::format("expected output indices in 0..{} (the sensors' outputs stacked), got {}",
-                                      all.size() - 1, o));
+        t.fail(
+            "outputs",
+            fmt::format("expected output indices in 0..{} (the sensors' outputs stacked), got {}",
+                        all.size() - 1, o));
       }
       p_.channels.push_back(all[static_cast<std::size_t>(o)]);
     }
@@ -128,7 +137,8 @@ class Pi final : public Controller {
     const double sat = std::clamp(v, p_.u_min, p_.u_max);
     // Conditional integration (anti-windup): hold the integral while saturated and the error
     // would push further into the limit.
-    if (sat == v || (v > p_.u_max && e < 0.0) || (v < p_.u_min && e > 0.0)) integral_ += p_.ki * c.period * e;
+    if (sat == v || (v > p_.u_max && e < 0.0) || (v < p_.u_min && e > 0.0))
+      integral_ += p_.ki * c.period * e;
     u.setZero();
     u(0) = sat;
   }
@@ -146,24 +156,28 @@ class PiDesign final : public ControllerDesign {
     if (p_.sensor_name.empty()) {
       p_.sensor = 0;
     } else {
-      auto it = std::find_if(sensors.begin(), sensors.end(), [&](const SensorSpec& s) { return s.name == p_.sensor_name; });
+      auto it = std::find_if(sensors.begin(), sensors.end(),
+                             [&](const SensorSpec& s) { return s.name == p_.sensor_name; });
       if (it == sensors.end()) {
         std::vector<std::string> names;
         for (const auto& s : sensors) names.push_back(s.name);
         const std::string hint = sim::did_you_mean(p_.sensor_name, names);
-        t.fail("sensor", fmt::format("expected the name of a [[sensor]], got \"{}\"{}", p_.sensor_name,
-                                     hint.empty() ? "" : fmt::format(" (did you mean \"{}\"?)", hint)));
+        t.fail("sensor",
+               fmt::format("expected the name of a [[sensor]], got \"{}\"{}", p_.sensor_name,
+                           hint.empty() ? "" : fmt::format(" (did you mean \"{}\"?)", hint)));
       }
       p_.sensor = static_cast<std::size_t>(it - sensors.begin());
     }
     const SensorSpec& s = sensors[p_.sensor];
     if (p_.output >= s.ny()) {
-      t.fail("output", fmt::format("expected an output index in 0..{} of sensor \"{}\", got {}", s.ny() - 1, s.name,
-                                   p_.output));
+      t.fail("output", fmt::format("expected an output index in 0..{} of sensor \"{}\", got {}",
+                                   s.ny() - 1, s.name, p_.output));
     }
     p_.C = s.C;
   }
-  std::string estimate_source() const override { return p_.feedback == Signal::kEstimate ? p_.estimator : ""; }
+  std::string estimate_source() const override {
+    return p_.feedback == Signal::kEstimate ? p_.estimator : "";
+  }
   std::unique_ptr<Controller> instantiate() const override { return std::make_unique<Pi>(p_); }
 
  private:
@@ -180,9 +194,11 @@ Reference read_reference(const sim::Table& t) {
     r.low = ref.number("low");
     r.high = ref.number("high");
     r.period = ref.number("period");
-    if (!(r.period > 0.0) || !std::isfinite(r.period)) ref.fail("period", fmt::format("expected a period > 0 s, got {}", r.period));
+    if (!(r.period > 0.0) || !std::isfinite(r.period))
+      ref.fail("period", fmt::format("expected a period > 0 s, got {}", r.period));
   }
-  if (!std::isfinite(r.low) || !std::isfinite(r.high)) ref.fail_here("expected finite reference values");
+  if (!std::isfinite(r.low) || !std::isfinite(r.high))
+    ref.fail_here("expected finite reference values");
   ref.finish();
   return r;
 }
@@ -199,17 +215,20 @@ std::shared_ptr<ControllerDesign> read_relay(const sim::Table& t, Eigen::Index n
   RelayParams p;
   p.level = finite_number(t, "level", 1.0);
   p.dead_zone = finite_number(t, "dead_zone", 0.0);
-  if (p.dead_zone < 0.0) t.fail("dead_zone", fmt::format("expected a dead zone >= 0, got {}", p.dead_zone));
+  if (p.dead_zone < 0.0)
+    t.fail("dead_zone", fmt::format("expected a dead zone >= 0, got {}", p.dead_zone));
   std::string unused;
   p.sees = read_signal(t, "sees", "measured", false, &unused);
   auto design = std::make_shared<RelayDesign>(std::move(p), nu);
   if (t.has("outputs")) {
     for (const double v : t.numbers("outputs")) {
-      if (v != std::floor(v)) t.fail("outputs", fmt::format("expected integer output indices, got {}", v));
+      if (v != std::floor(v))
+        t.fail("outputs", fmt::format("expected integer output indices, got {}", v));
       design->outputs_.push_back(static_cast<std::int64_t>(v));
     }
     if (static_cast<Eigen::Index>(design->outputs_.size()) != nu) {
-      t.fail("outputs", fmt::format("expected {} output indices (one per plant input), got {}", nu, design->outputs_.size()));
+      t.fail("outputs", fmt::format("expected {} output indices (one per plant input), got {}", nu,
+                                    design->outputs_.size()));
     }
   }
   return design;
@@ -222,7 +241,8 @@ std::shared_ptr<ControllerDesign> read_pi(const sim::Table& t, Eigen::Index nu) 
   p.b = finite_number(t, "b", 1.0);
   if (t.has("u_min")) p.u_min = finite_number(t, "u_min", 0.0);
   if (t.has("u_max")) p.u_max = finite_number(t, "u_max", 0.0);
-  if (p.u_min >= p.u_max) t.fail("u_max", fmt::format("expected u_max > u_min ({}), got {}", p.u_min, p.u_max));
+  if (p.u_min >= p.u_max)
+    t.fail("u_max", fmt::format("expected u_max > u_min ({}), got {}", p.u_min, p.u_max));
   p.ref = read_reference(t);
   p.feedback = read_signal(t, "feedback", "received", true, &p.estimator);
   p.sensor_name = t.string_or("sensor", "");

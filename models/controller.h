@@ -21,9 +21,9 @@
 namespace ncosim::models {
 
 struct ControlContext {
-  std::int64_t k = 0;   // period
-  double t = 0.0;       // k * period, seconds
-  double period = 1.0;  // seconds
+  std::int64_t k = 0;                  // period
+  double t = 0.0;                      // k * period, seconds
+  double period = 1.0;                 // seconds
   const Eigen::VectorXd* x = nullptr;  // true plant state x[k]
   // Per sensor: C x[k] (true output), the newest sample taken (C x + v, at its last sampling)
   // and the newest value received over the sensor's link (zero before the first arrival).

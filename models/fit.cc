@@ -13,7 +13,6 @@
 
 namespace ncosim::models {
 
-
 namespace {
 
 constexpr double kTiny = 1e-300;
@@ -48,8 +47,8 @@ class LogProduct {
 // The two-state case of e_step (Gilbert–Elliott: every EM iteration of `ncosim fit`'s default
 // family): the same recursions with the model in registers, the inverse scales stored so that
 // the backward pass multiplies instead of dividing (bench/README.md, "ncosim fit").
-double e_step2(const FateHmm& h, const std::vector<int>& sym, Eigen::MatrixXd* A, Eigen::MatrixXd* B,
-               std::vector<double>& alpha, std::vector<double>& inv_scale) {
+double e_step2(const FateHmm& h, const std::vector<int>& sym, Eigen::MatrixXd* A,
+               Eigen::MatrixXd* B, std::vector<double>& alpha, std::vector<double>& inv_scale) {
   const int M = static_cast<int>(h.emission.cols());
   const std::size_t N = sym.size();
   const Eigen::VectorXd pi = h.stationary();
@@ -186,7 +185,8 @@ double e_step(const FateHmm& h, const std::vector<int>& sym, Eigen::MatrixXd* A,
     // w_j = e_j(o_t) beta_t(j) / c_t; xi_{t-1}(i, j) = alpha_{t-1}(i) T_ij w_j.
     const double* e = &E[static_cast<std::size_t>(sym[t] * K)];
     const double inv = 1.0 / scale[t];
-    for (int j = 0; j < K; ++j) w[static_cast<std::size_t>(j)] = e[j] * beta[static_cast<std::size_t>(j)] * inv;
+    for (int j = 0; j < K; ++j)
+      w[static_cast<std::size_t>(j)] = e[j] * beta[static_cast<std::size_t>(j)] * inv;
     const double* ap = &alpha[(t - 1) * static_cast<std::size_t>(K)];
     for (int i = 0; i < K; ++i) {
       double s = 0.0;
@@ -224,8 +224,9 @@ struct EmOutcome {
 };
 
 // One EM step: the log-likelihood of `h` and the updated model.
-double em_map(const FateHmm& h, const std::vector<int>& sym, FateHmm& next, std::vector<double>& alpha,
-              std::vector<double>& scale, Eigen::MatrixXd& A, Eigen::MatrixXd& B) {
+double em_map(const FateHmm& h, const std::vector<int>& sym, FateHmm& next,
+              std::vector<double>& alpha, std::vector<double>& scale, Eigen::MatrixXd& A,
+              Eigen::MatrixXd& B) {
   const double ll = e_step(h, sym, &A, &B, alpha, scale);
   normalise_rows(A);
   normalise_rows(B);
@@ -291,13 +292,15 @@ void sort_states(FateHmm& h) {
   const Eigen::Index K = h.transition.rows();
   std::vector<Eigen::Index> order(static_cast<std::size_t>(K));
   std::iota(order.begin(), order.end(), 0);
-  std::stable_sort(order.begin(), order.end(),
-                   [&](Eigen::Index a, Eigen::Index b) { return h.emission(a, 0) < h.emission(b, 0); });
+  std::stable_sort(order.begin(), order.end(), [&](Eigen::Index a, Eigen::Index b) {
+    return h.emission(a, 0) < h.emission(b, 0);
+  });
   FateHmm s = h;
   for (Eigen::Index i = 0; i < K; ++i) {
     s.emission.row(i) = h.emission.row(order[static_cast<std::size_t>(i)]);
     for (Eigen::Index j = 0; j < K; ++j) {
-      s.transition(i, j) = h.transition(order[static_cast<std::size_t>(i)], order[static_cast<std::size_t>(j)]);
+      s.transition(i, j) =
+          h.transition(order[static_cast<std::size_t>(i)], order[static_cast<std::size_t>(j)]);
     }
   }
   h = s;
@@ -309,7 +312,8 @@ std::vector<std::int64_t> loss_runs(const std::vector<int>& sym) {
   std::int64_t open = 0;
   auto close = [&] {
     if (open == 0) return;
-    if (static_cast<std::size_t>(open) > runs.size()) runs.resize(static_cast<std::size_t>(open), 0);
+    if (static_cast<std::size_t>(open) > runs.size())
+      runs.resize(static_cast<std::size_t>(open), 0);
     ++runs[static_cast<std::size_t>(open - 1)];
     open = 0;
   };
@@ -324,7 +328,8 @@ std::vector<std::int64_t> loss_runs(const std::vector<int>& sym) {
   return runs;
 }
 
-std::vector<double> hmm_start_emission(int K, int M, const std::vector<double>& freq, double spread) {
+std::vector<double> hmm_start_emission(int K, int M, const std::vector<double>& freq,
+                                       double spread) {
   // State s: loss between P (1 - spread) and P + spread (1 - P), delays tilted towards short
   // (good) or long (bad) ones.
   const double P = freq[0];
@@ -362,13 +367,17 @@ EmOutcome fit_hidden(int K, const std::vector<int>& sym, const FitOptions& o, in
   const double spreads[] = {0.9, 0.5, 0.99, 0.3, 0.7, 0.95};
   // A moment-matched start for two states: Gilbert's chain with the trace's loss and mean run.
   if (K == 2 && freq[0] > 0.0 && freq[0] < 1.0) {
-    const GilbertElliottByMean g = gilbert_elliott_by_mean(freq[0], std::max(mean_burst, 1.0), 0.0, 1.0);
+    const GilbertElliottByMean g =
+        gilbert_elliott_by_mean(freq[0], std::max(mean_burst, 1.0), 0.0, 1.0);
     if (g.error.empty() && g.p_good_to_bad > 0.0 && g.p_bad_to_good > 0.0) {
       FateHmm h;
       h.transition.resize(2, 2);
-      h.transition << 1.0 - g.p_good_to_bad, g.p_good_to_bad, g.p_bad_to_good, 1.0 - g.p_bad_to_good;
+      h.transition << 1.0 - g.p_good_to_bad, g.p_good_to_bad, g.p_bad_to_good,
+          1.0 - g.p_bad_to_good;
       const std::vector<double> e = hmm_start_emission(2, Mm, freq, 0.9);
-      h.emission = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(e.data(), 2, Mm);
+      h.emission =
+          Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
+              e.data(), 2, Mm);
       starts.push_back(h);
     }
   }
@@ -378,7 +387,9 @@ EmOutcome fit_hidden(int K, const std::vector<int>& sym, const FitOptions& o, in
     h.transition = Eigen::MatrixXd::Constant(K, K, (1.0 - stay) / std::max(1, K - 1));
     h.transition.diagonal().setConstant(K == 1 ? 1.0 : stay);
     const std::vector<double> e = hmm_start_emission(K, Mm, freq, spread);
-    h.emission = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(e.data(), K, Mm);
+    h.emission =
+        Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
+            e.data(), K, Mm);
     starts.push_back(h);
   }
   starts_used = static_cast<int>(starts.size());
@@ -460,8 +471,8 @@ Eigen::MatrixXd covariance(const FateHmm& h, const Coordinates& c, const std::ve
   for (Eigen::Index a = 0; a < F; ++a) {
     H(a, a) = (f(a, 1, -1, 0) - 2.0 * f0 + f(a, -1, -1, 0)) / (step(a) * step(a));
     for (Eigen::Index b = 0; b < a; ++b) {
-      H(a, b) = H(b, a) =
-          (f(a, 1, b, 1) - f(a, 1, b, -1) - f(a, -1, b, 1) + f(a, -1, b, -1)) / (4.0 * step(a) * step(b));
+      H(a, b) = H(b, a) = (f(a, 1, b, 1) - f(a, 1, b, -1) - f(a, -1, b, 1) + f(a, -1, b, -1)) /
+                          (4.0 * step(a) * step(b));
     }
   }
   Eigen::LLT<Eigen::MatrixXd> llt(-H);
@@ -533,7 +544,9 @@ void goodness_of_fit(FitResult& r, const std::vector<int>& sym, int lags) {
   const std::vector<std::int64_t> runs = loss_runs(sym);
   std::int64_t total = 0;
   for (const auto n : runs) total += n;
-  for (const auto n : runs) r.burst_observed.push_back(total > 0 ? static_cast<double>(n) / static_cast<double>(total) : 0.0);
+  for (const auto n : runs)
+    r.burst_observed.push_back(total > 0 ? static_cast<double>(n) / static_cast<double>(total)
+                                         : 0.0);
   // Model: w = P(state at the first loss of a run), then P(run = L) = w (T L)^{L-1} T d.
   Eigen::RowVectorXd w = (pi.cwiseProduct(d)).transpose() * h.transition;
   w = w.cwiseProduct(l.transpose());
@@ -549,7 +562,8 @@ void goodness_of_fit(FitResult& r, const std::vector<int>& sym, int lags) {
     model_mass += p;
   }
   r.burst_tv = 0.5 * std::max(0.0, 1.0 - model_mass);
-  for (std::size_t i = 0; i < runs.size(); ++i) r.burst_tv += 0.5 * std::abs(r.burst_observed[i] - r.burst_model[i]);
+  for (std::size_t i = 0; i < runs.size(); ++i)
+    r.burst_tv += 0.5 * std::abs(r.burst_observed[i] - r.burst_model[i]);
   // Autocorrelation of the loss indicator.
   const auto N = static_cast<std::int64_t>(sym.size());
   double P = 0.0;
@@ -562,8 +576,10 @@ void goodness_of_fit(FitResult& r, const std::vector<int>& sym, int lags) {
   int used = 0;
   for (int k = 1; k <= lags && k < N; ++k) {
     std::int64_t both = 0;
-    for (std::int64_t t = 0; t + k < N; ++t) both += (sym[static_cast<std::size_t>(t)] == 0) & (sym[static_cast<std::size_t>(t + k)] == 0);
-    const double obs = (static_cast<double>(both) / static_cast<double>(N - k) - P * P) / (P * (1.0 - P));
+    for (std::int64_t t = 0; t + k < N; ++t)
+      both += (sym[static_cast<std::size_t>(t)] == 0) & (sym[static_cast<std::size_t>(t + k)] == 0);
+    const double obs =
+        (static_cast<double>(both) / static_cast<double>(N - k) - P * P) / (P * (1.0 - P));
     v = v * h.transition;
     const double mod = (v.dot(l.transpose()) - Pm * Pm) / (Pm * (1.0 - Pm));
     r.acf_observed.push_back(obs);
@@ -586,8 +602,9 @@ std::vector<int> fate_symbols(const std::vector<std::optional<std::int64_t>>& tr
   s.reserve(trace.size());
   for (const auto& d : trace) {
     if (d && (*d < 0 || *d > kMaxFitDelay)) {
-      throw std::out_of_range(fmt::format("packet {}: delay {} periods, above the {} the fit families hold", s.size(),
-                                          *d, kMaxFitDelay));
+      throw std::out_of_range(
+          fmt::format("packet {}: delay {} periods, above the {} the fit families hold", s.size(),
+                      *d, kMaxFitDelay));
     }
     s.push_back(d ? static_cast<int>(*d) + 1 : 0);
   }
@@ -646,13 +663,15 @@ FitResult fit_family(const std::string& family, const std::vector<int>& sym, con
   const int K = family_states(family);
   if (K == 0) {
     throw std::invalid_argument(fmt::format(
-        "unknown family '{}' (expected bernoulli, delay, gilbert_elliott or markov2 .. markov8)", family));
+        "unknown family '{}' (expected bernoulli, delay, gilbert_elliott or markov2 .. markov8)",
+        family));
   }
   r.states = K;
   if (family == "bernoulli") {
     r.parameters = 1;
     if (delay_outcomes > 1) {
-      throw std::domain_error("the delivered packets have different delays; a bernoulli link has one fixed delay");
+      throw std::domain_error(
+          "the delivered packets have different delays; a bernoulli link has one fixed delay");
     }
   } else if (family == "delay") {
     r.parameters = M - 1;
@@ -662,8 +681,9 @@ FitResult fit_family(const std::string& family, const std::vector<int>& sym, con
     r.parameters = K * (K - 1) + K * (M - 1);
   }
   if (N < r.parameters) {
-    throw std::invalid_argument(fmt::format("{} packet(s), fewer than the {} parameters of the {} family",
-                                            sym.size(), r.parameters, family));
+    throw std::invalid_argument(
+        fmt::format("{} packet(s), fewer than the {} parameters of the {} family", sym.size(),
+                    r.parameters, family));
   }
   const std::vector<std::int64_t> runs = loss_runs(sym);
   double run_count = 0.0;
@@ -674,7 +694,8 @@ FitResult fit_family(const std::string& family, const std::vector<int>& sym, con
     r.model.transition = Eigen::MatrixXd::Ones(1, 1);
     r.model.emission = Eigen::MatrixXd::Zero(1, M);
     r.model.emission(0, 0) = lost / N;
-    for (int d = 0; d <= D; ++d) r.model.emission(0, d + 1) = counts[static_cast<std::size_t>(d + 1)] / N;
+    for (int d = 0; d <= D; ++d)
+      r.model.emission(0, d + 1) = counts[static_cast<std::size_t>(d + 1)] / N;
     r.loglik = loss_ll + delay_ll;
     r.params.push_back(binomial("loss", lost / N, N));
     if (family == "bernoulli") {
@@ -682,7 +703,8 @@ FitResult fit_family(const std::string& family, const std::vector<int>& sym, con
       for (int d = 0; d <= D; ++d) {
         if (counts[static_cast<std::size_t>(d + 1)] > 0.0) delay = d;
       }
-      r.link_toml = fmt::format("kind = \"bernoulli\"\nloss = {}\ndelay = {}\n", num(lost / N), delay);
+      r.link_toml =
+          fmt::format("kind = \"bernoulli\"\nloss = {}\ndelay = {}\n", num(lost / N), delay);
     } else {
       std::vector<double> pmf;
       for (int d = 0; d <= D; ++d) {
@@ -716,7 +738,8 @@ FitResult fit_family(const std::string& family, const std::vector<int>& sym, con
     r.model.emission = Eigen::MatrixXd::Zero(2, M);
     for (int s = 0; s < 2; ++s) {
       r.model.emission(s, 0) = b.emission(s, 0);
-      for (int d = 0; d <= D; ++d) r.model.emission(s, d + 1) = (1.0 - b.emission(s, 0)) * q[static_cast<std::size_t>(d)];
+      for (int d = 0; d <= D; ++d)
+        r.model.emission(s, d + 1) = (1.0 - b.emission(s, 0)) * q[static_cast<std::size_t>(d)];
     }
     Coordinates c;
     Eigen::MatrixXd cov;
@@ -746,20 +769,26 @@ FitResult fit_family(const std::string& family, const std::vector<int>& sym, con
         },
         1.0, INFINITY));
     if (D > 0) {
-      for (int d = 0; d <= D; ++d) r.params.push_back(binomial(fmt::format("delay_pmf[{}]", d), q[static_cast<std::size_t>(d)], delivered));
+      for (int d = 0; d <= D; ++d)
+        r.params.push_back(
+            binomial(fmt::format("delay_pmf[{}]", d), q[static_cast<std::size_t>(d)], delivered));
     }
     if (D == 0) {
       r.link_toml = fmt::format(
-          "kind = \"gilbert_elliott\"\nstep = \"packet\"\np_good_to_bad = {}\np_bad_to_good = {}\nloss_good = {}\n"
+          "kind = \"gilbert_elliott\"\nstep = \"packet\"\np_good_to_bad = {}\np_bad_to_good = "
+          "{}\nloss_good = {}\n"
           "loss_bad = {}\n",
-          num(b.transition(0, 1)), num(b.transition(1, 0)), num(b.emission(0, 0)), num(b.emission(1, 0)));
+          num(b.transition(0, 1)), num(b.transition(1, 0)), num(b.emission(0, 0)),
+          num(b.emission(1, 0)));
     } else {
       const std::vector<double> qq = law(q);
       r.link_toml = fmt::format(
-          "kind = \"markov\"  # Gilbert–Elliott with state-independent delays\nstep = \"packet\"\ntransition = [{}, {}]\n"
+          "kind = \"markov\"  # Gilbert–Elliott with state-independent delays\nstep = "
+          "\"packet\"\ntransition = [{}, {}]\n"
           "loss = [{}, {}]\ndelay_pmf = [{}, {}]\n",
-          list(law({b.transition(0, 0), b.transition(0, 1)})), list(law({b.transition(1, 0), b.transition(1, 1)})),
-          num(b.emission(0, 0)), num(b.emission(1, 0)), list(qq), list(qq));
+          list(law({b.transition(0, 0), b.transition(0, 1)})),
+          list(law({b.transition(1, 0), b.transition(1, 1)})), num(b.emission(0, 0)),
+          num(b.emission(1, 0)), list(qq), list(qq));
     }
   } else {
     EmOutcome em = fit_hidden(K, sym, o, r.starts, mean_burst);
@@ -776,8 +805,10 @@ FitResult fit_family(const std::string& family, const std::vector<int>& sym, con
     Eigen::MatrixXd cov;
     if (o.intervals) {
       c = free_coordinates(r.model);
-      if (c.entries.size() <= 30) cov = covariance(r.model, c, sym);
-      else c.entries.clear(), cov.resize(0, 0);
+      if (c.entries.size() <= 30)
+        cov = covariance(r.model, c, sym);
+      else
+        c.entries.clear(), cov.resize(0, 0);
     }
     const bool have_ci = cov.size() > 0 || (o.intervals && c.entries.empty());
     auto add = [&](const std::string& name, auto g) {
@@ -786,9 +817,12 @@ FitResult fit_family(const std::string& family, const std::vector<int>& sym, con
       r.params.push_back(p);
     };
     for (int i = 0; i < K; ++i) {
-      for (int j = 0; j < K; ++j) add(fmt::format("transition[{}][{}]", i, j), [i, j](const FateHmm& h) { return h.transition(i, j); });
+      for (int j = 0; j < K; ++j)
+        add(fmt::format("transition[{}][{}]", i, j),
+            [i, j](const FateHmm& h) { return h.transition(i, j); });
     }
-    for (int i = 0; i < K; ++i) add(fmt::format("loss[{}]", i), [i](const FateHmm& h) { return h.emission(i, 0); });
+    for (int i = 0; i < K; ++i)
+      add(fmt::format("loss[{}]", i), [i](const FateHmm& h) { return h.emission(i, 0); });
     for (int i = 0; i < K; ++i) {
       for (int d = 0; d <= D; ++d) {
         add(fmt::format("delay_pmf[{}][{}]", i, d), [i, d](const FateHmm& h) {
@@ -799,7 +833,8 @@ FitResult fit_family(const std::string& family, const std::vector<int>& sym, con
     }
     std::string rows, loss, pmfs;
     for (int i = 0; i < K; ++i) {
-      std::vector<double> row(r.model.transition.row(i).data(), r.model.transition.row(i).data() + 0);
+      std::vector<double> row(r.model.transition.row(i).data(),
+                              r.model.transition.row(i).data() + 0);
       row.clear();
       for (int j = 0; j < K; ++j) row.push_back(r.model.transition(i, j));
       std::vector<double> pmf;
@@ -809,8 +844,9 @@ FitResult fit_family(const std::string& family, const std::vector<int>& sym, con
       loss += (i ? ", " : "") + num(r.model.emission(i, 0));
       pmfs += (i ? ", " : "") + list(law(pmf));
     }
-    r.link_toml = fmt::format("kind = \"markov\"\nstep = \"packet\"\ntransition = [{}]\nloss = [{}]\ndelay_pmf = [{}]\n",
-                              rows, loss, pmfs);
+    r.link_toml = fmt::format(
+        "kind = \"markov\"\nstep = \"packet\"\ntransition = [{}]\nloss = [{}]\ndelay_pmf = [{}]\n",
+        rows, loss, pmfs);
   }
   r.aic = 2.0 * r.parameters - 2.0 * r.loglik;
   r.bic = r.parameters * std::log(N) - 2.0 * r.loglik;

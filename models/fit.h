@@ -37,13 +37,13 @@ struct FitParameter {
 };
 
 struct FitResult {
-  std::string family;   // bernoulli | delay | gilbert_elliott | markov<K>
+  std::string family;  // bernoulli | delay | gilbert_elliott | markov<K>
   int states = 1;
-  FateHmm model;        // the fitted law of the fates (iid families: one state)
+  FateHmm model;  // the fitted law of the fates (iid families: one state)
   double loglik = 0.0;
   int parameters = 0;
   double aic = 0.0, bic = 0.0;
-  int iterations = 0;   // EM iterations of the best start (0: closed form)
+  int iterations = 0;  // EM iterations of the best start (0: closed form)
   int starts = 0;
   bool converged = true;
   std::vector<FitParameter> params;
@@ -55,13 +55,13 @@ struct FitResult {
   // Goodness of fit: P(loss run = L), L = 1..burst_observed.size(), and the autocorrelation
   // of the loss indicator at lags 1..acf_observed.size(), observed and under the model.
   std::vector<double> burst_observed, burst_model, acf_observed, acf_model;
-  double burst_tv = 0.0;   // total variation distance between the two run-length laws
-  double acf_rmse = 0.0;   // root mean square difference of the autocorrelations
+  double burst_tv = 0.0;  // total variation distance between the two run-length laws
+  double acf_rmse = 0.0;  // root mean square difference of the autocorrelations
 };
 
 struct FitOptions {
   std::vector<std::string> families{"bernoulli", "delay", "gilbert_elliott", "markov2", "markov3"};
-  int starts = 4;          // EM starts per hidden family
+  int starts = 4;  // EM starts per hidden family
   int max_iterations = 2000;
   double tolerance = 1e-9;  // stop when an EM step raises LL by less than tolerance * N
   int acf_lags = 20;
@@ -83,7 +83,8 @@ double hmm_loglik(const FateHmm& hmm, const std::vector<int>& symbols);
 
 // Fits one family (names as above). Throws std::invalid_argument for an unknown family and
 // when the trace has fewer packets than the family has parameters.
-FitResult fit_family(const std::string& family, const std::vector<int>& symbols, const FitOptions& options);
+FitResult fit_family(const std::string& family, const std::vector<int>& symbols,
+                     const FitOptions& options);
 
 // The number of hidden states of a family name (1 for bernoulli and delay), 0 when unknown.
 int family_states(const std::string& family);

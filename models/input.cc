@@ -44,7 +44,9 @@ class WhiteInputDesign final : public ControllerDesign {
   explicit WhiteInputDesign(Eigen::VectorXd std) : std_(std::move(std)) {}
   bool closes_loop() const override { return false; }
   bool sees_outputs() const override { return false; }
-  std::unique_ptr<Controller> instantiate() const override { return std::make_unique<WhiteInput>(std_); }
+  std::unique_ptr<Controller> instantiate() const override {
+    return std::make_unique<WhiteInput>(std_);
+  }
 
  private:
   Eigen::VectorXd std_;
@@ -63,11 +65,14 @@ class StateFeedback final : public Controller {
 };
 class StateFeedbackDesign final : public ControllerDesign {
  public:
-  StateFeedbackDesign(Eigen::MatrixXd K, std::string source) : K_(std::move(K)), source_(std::move(source)) {}
+  StateFeedbackDesign(Eigen::MatrixXd K, std::string source)
+      : K_(std::move(K)), source_(std::move(source)) {}
   std::string estimate_source() const override { return source_ == "plant" ? "" : source_; }
   const char* source_key() const override { return "source"; }
   bool sees_outputs() const override { return false; }
-  std::unique_ptr<Controller> instantiate() const override { return std::make_unique<StateFeedback>(K_); }
+  std::unique_ptr<Controller> instantiate() const override {
+    return std::make_unique<StateFeedback>(K_);
+  }
 
  private:
   Eigen::MatrixXd K_;
@@ -109,7 +114,8 @@ InputSpec read_state_feedback(const sim::Table& t, const LinearPlant& plant) {
 }
 
 InputSpec read_controller(const sim::Table& t, const LinearPlant& plant,
-                          std::shared_ptr<ControllerDesign> (*reader)(const sim::Table&, Eigen::Index)) {
+                          std::shared_ptr<ControllerDesign> (*reader)(const sim::Table&,
+                                                                      Eigen::Index)) {
   require_input_channel(t, plant);
   return with(reader(t, plant.nu()));
 }
@@ -128,15 +134,18 @@ void register_inputs(InputRegistry& registry) {
                "u = -K x on the true state (source = \"plant\") or on an estimator's estimate "
                "(source = its name): K, source",
                read_state_feedback);
-  registry.add("relay",
-               "relay with dead zone, output i drives input i: u_i = -level if y_i > dead_zone, +level if "
-               "y_i < -dead_zone, else 0; sees = \"true\" | \"measured\" | \"received\"",
-               [](const sim::Table& t, const LinearPlant& p) { return read_controller(t, p, read_relay); });
-  registry.add("pi",
-               "discrete PI with reference weighting on one sensor output: u = kp (b r - y) + ki T sum(r - y); "
-               "kp, ki, b, reference = {kind = \"square\", low, high, period} or {value}, feedback = "
-               "\"received\" | \"measured\" | \"true\" | an estimator name, sensor, output, u_min, u_max",
-               [](const sim::Table& t, const LinearPlant& p) { return read_controller(t, p, read_pi); });
+  registry.add(
+      "relay",
+      "relay with dead zone, output i drives input i: u_i = -level if y_i > dead_zone, +level if "
+      "y_i < -dead_zone, else 0; sees = \"true\" | \"measured\" | \"received\"",
+      [](const sim::Table& t, const LinearPlant& p) { return read_controller(t, p, read_relay); });
+  registry.add(
+      "pi",
+      "discrete PI with reference weighting on one sensor output: u = kp (b r - y) + ki T sum(r - "
+      "y); "
+      "kp, ki, b, reference = {kind = \"square\", low, high, period} or {value}, feedback = "
+      "\"received\" | \"measured\" | \"true\" | an estimator name, sensor, output, u_min, u_max",
+      [](const sim::Table& t, const LinearPlant& p) { return read_controller(t, p, read_pi); });
 }
 
 }  // namespace ncosim::models

@@ -7,9 +7,8 @@
 #pragma once
 
 #include <Eigen/Dense>
-#include <string>
-
 #include <memory>
+#include <string>
 
 #include "config/config.h"
 #include "config/registry.h"
@@ -23,8 +22,8 @@ std::shared_ptr<ControllerDesign> no_input();
 
 struct InputSpec {
   std::shared_ptr<ControllerDesign> controller = no_input();
-  std::string source;    // the estimator whose estimate the controller reads ("": none)
-  int source_index = -1; // resolved estimator index (-1: none)
+  std::string source;       // the estimator whose estimate the controller reads ("": none)
+  int source_index = -1;    // resolved estimator index (-1: none)
   int actuation_delay = 0;  // periods between computing u[k] and its first effect beyond x[k+1]
 };
 

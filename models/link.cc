@@ -1,26 +1,26 @@
 // models/link.cc — the link kinds of models/link.h and the trace reader.
 #include "models/link.h"
-#include "models/plant.h"  // stationary_law
 
-#include <algorithm>
-#include <boost/math/distributions/negative_binomial.hpp>
-#include <boost/random/negative_binomial_distribution.hpp>
-#include <boost/random/uniform_01.hpp>
-#include <charconv>
-#include <cmath>
-#include <cstddef>
 #include <fcntl.h>
 #include <fmt/format.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <boost/math/distributions/negative_binomial.hpp>
+#include <boost/random/negative_binomial_distribution.hpp>
+#include <boost/random/uniform_01.hpp>
 #include <cerrno>
+#include <charconv>
+#include <cmath>
+#include <cstddef>
 #include <cstring>
 #include <fstream>
 #include <string_view>
 
 #include "config/config.h"  // escape_text
 #include "kernel/check.h"
+#include "models/plant.h"  // stationary_law
 
 namespace ncosim::models {
 namespace {
@@ -263,7 +263,8 @@ Eigen::VectorXd stationary_law(const Eigen::MatrixXd& transition) {
 }
 
 MarkovLink::MarkovLink(Eigen::MatrixXd transition, std::vector<double> loss,
-                       std::vector<std::vector<double>> delay_pmf, std::vector<double> initial, Step step)
+                       std::vector<std::vector<double>> delay_pmf, std::vector<double> initial,
+                       Step step)
     : transition_(std::move(transition)),
       loss_(std::move(loss)),
       delay_pmf_(std::move(delay_pmf)),
@@ -418,12 +419,14 @@ std::optional<double> MarkovLink::mean_loss_burst(std::optional<int> gap) const 
 }
 
 std::unique_ptr<MarkovLink> make_gilbert_elliott(double p_good_to_bad, double p_bad_to_good,
-                                                 double loss_good, double loss_bad, MarkovLink::Step step) {
+                                                 double loss_good, double loss_bad,
+                                                 MarkovLink::Step step) {
   NCOSIM_CHECK(is_probability(p_good_to_bad) && is_probability(p_bad_to_good));
   Eigen::MatrixXd t(2, 2);
   t << 1.0 - p_good_to_bad, p_good_to_bad, p_bad_to_good, 1.0 - p_bad_to_good;
   return std::make_unique<MarkovLink>(std::move(t), std::vector<double>{loss_good, loss_bad},
-                                      std::vector<std::vector<double>>{}, std::vector<double>{}, step);
+                                      std::vector<std::vector<double>>{}, std::vector<double>{},
+                                      step);
 }
 
 GilbertElliottByMean gilbert_elliott_by_mean(double mean_loss, double mean_burst, double loss_good,
@@ -493,7 +496,8 @@ std::unique_ptr<Link> TraceLink::clone() const {
 
 void TraceLink::bind_run(const sim::MobilityRun* mobility, std::uint64_t seed, std::uint64_t run) {
   (void)mobility, (void)seed;
-  start_ = segment_ > 0 ? static_cast<std::size_t>(run % (delays_.size() / segment_)) * segment_ : 0;
+  start_ =
+      segment_ > 0 ? static_cast<std::size_t>(run % (delays_.size() / segment_)) * segment_ : 0;
 }
 
 void TraceLink::reset(sim::Rng& rng) {
@@ -577,27 +581,32 @@ constexpr std::int64_t kMaxTracePackets = 50'000'000;
 class TraceReader {
  public:
   explicit TraceReader(const std::string& path) : path_(path) {
-    fd_ = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);  // a FIFO must not block the open
-    if (fd_ < 0) throw TraceError(path, 0, "cannot open trace file '" + path + "': " + std::strerror(errno));
+    fd_ =
+        ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);  // a FIFO must not block the open
+    if (fd_ < 0)
+      throw TraceError(path, 0, "cannot open trace file '" + path + "': " + std::strerror(errno));
     struct stat st {};
     if (::fstat(fd_, &st) != 0 || !S_ISREG(st.st_mode)) {
-      const char* what = S_ISFIFO(st.st_mode)  ? "a FIFO"
-                         : S_ISCHR(st.st_mode) ? "a character device"
-                         : S_ISBLK(st.st_mode) ? "a block device"
-                         : S_ISDIR(st.st_mode) ? "a folder"
+      const char* what = S_ISFIFO(st.st_mode)   ? "a FIFO"
+                         : S_ISCHR(st.st_mode)  ? "a character device"
+                         : S_ISBLK(st.st_mode)  ? "a block device"
+                         : S_ISDIR(st.st_mode)  ? "a folder"
                          : S_ISSOCK(st.st_mode) ? "a socket"
                                                 : "not a regular file";
       ::close(fd_);
       fd_ = -1;
-      throw TraceError(path, 0, "expected a regular file, got " + std::string(what) + " '" + path + "'");
+      throw TraceError(path, 0,
+                       "expected a regular file, got " + std::string(what) + " '" + path + "'");
     }
     if (st.st_size > kMaxTraceBytes) {
       ::close(fd_);
       fd_ = -1;
-      throw TraceError(path, 0, "trace file '" + path + "' holds " + std::to_string(st.st_size) +
-                                    " bytes; at most " + std::to_string(kMaxTraceBytes) + " are read");
+      throw TraceError(path, 0,
+                       "trace file '" + path + "' holds " + std::to_string(st.st_size) +
+                           " bytes; at most " + std::to_string(kMaxTraceBytes) + " are read");
     }
-    // O_NONBLOCK stays: a "regular" file that blocks on read (/proc/kmsg) is refused, not waited on.
+    // O_NONBLOCK stays: a "regular" file that blocks on read (/proc/kmsg) is refused, not waited
+    // on.
   }
   ~TraceReader() {
     if (fd_ >= 0) ::close(fd_);
@@ -615,10 +624,13 @@ class TraceReader {
         if (n < 0) {
           if (errno == EINTR) continue;
           if (errno == EAGAIN || errno == EWOULDBLOCK) {
-            throw TraceError(path_, 0, "cannot read trace file '" + path_ +
-                                           "' without waiting (a file whose content comes and goes, not a recorded trace)");
+            throw TraceError(path_, 0,
+                             "cannot read trace file '" + path_ +
+                                 "' without waiting (a file whose content comes and goes, not a "
+                                 "recorded trace)");
           }
-          throw TraceError(path_, line_number, "cannot read trace file '" + path_ + "': " + std::strerror(errno));
+          throw TraceError(path_, line_number,
+                           "cannot read trace file '" + path_ + "': " + std::strerror(errno));
         }
         if (n == 0) {
           eof_ = true;
@@ -628,15 +640,18 @@ class TraceReader {
         len_ = static_cast<std::size_t>(n);
         total_ += n;
         if (total_ > kMaxTraceBytes) {
-          throw TraceError(path_, line_number, "trace file '" + path_ + "' grew beyond " +
-                                                   std::to_string(kMaxTraceBytes) + " bytes while it was read");
+          throw TraceError(path_, line_number,
+                           "trace file '" + path_ + "' grew beyond " +
+                               std::to_string(kMaxTraceBytes) + " bytes while it was read");
         }
       }
       const char* start = buf_ + pos_;
       const void* nl = std::memchr(start, '\n', len_ - pos_);
-      const std::size_t take = nl ? static_cast<std::size_t>(static_cast<const char*>(nl) - start) : len_ - pos_;
+      const std::size_t take =
+          nl ? static_cast<std::size_t>(static_cast<const char*>(nl) - start) : len_ - pos_;
       if (line.size() + take > kMaxTraceLineBytes) {
-        throw TraceError(path_, line_number, "line longer than " + std::to_string(kMaxTraceLineBytes) + " bytes");
+        throw TraceError(path_, line_number,
+                         "line longer than " + std::to_string(kMaxTraceLineBytes) + " bytes");
       }
       line.append(start, take);
       pos_ += take;
@@ -672,7 +687,9 @@ std::vector<std::optional<std::int64_t>> load_trace(const std::string& path, int
   while (in.next(raw, line + 1)) {
     ++line;
     if (static_cast<std::int64_t>(delays.size()) >= kMaxTracePackets) {
-      throw TraceError(path, line, "more than " + std::to_string(kMaxTracePackets) + " packets (the limit of a trace)");
+      throw TraceError(
+          path, line,
+          "more than " + std::to_string(kMaxTracePackets) + " packets (the limit of a trace)");
     }
     std::string_view text = raw;
     if (line == 1 && text.starts_with("\xEF\xBB\xBF")) text.remove_prefix(3);  // UTF-8 BOM

@@ -118,6 +118,7 @@ class DelayPmfLink final : public Link {
   std::vector<double> delay_pmf(int max_delay) const override;
   double loss_probability() const override;
   LossModel loss_model() const override { return LossModel::kIndependent; }
+
  private:
   std::vector<double> pmf_;
   std::vector<double> cdf_;
@@ -133,6 +134,7 @@ class BernoulliLink final : public Link {
   std::vector<double> delay_pmf(int max_delay) const override;
   double loss_probability() const override { return loss_; }
   LossModel loss_model() const override { return LossModel::kIndependent; }
+
  private:
   double loss_;
   std::int64_t delay_;
@@ -149,6 +151,7 @@ class NegativeBinomialLink final : public Link {
   std::vector<double> delay_pmf(int max_delay) const override;
   double loss_probability() const override { return loss_; }
   LossModel loss_model() const override { return LossModel::kIndependent; }
+
  private:
   int successes_;
   double p_;
@@ -165,6 +168,7 @@ class ArrivalCdfLink final : public Link {
   std::vector<double> delay_pmf(int max_delay) const override;
   double loss_probability() const override { return 1.0 - tail_; }
   LossModel loss_model() const override { return LossModel::kIndependent; }
+
  private:
   std::vector<double> cdf_;  // non-decreasing, cdf_.back() <= tail_
   double tail_;
@@ -254,7 +258,8 @@ class TraceLink final : public Link {
   std::optional<double> mean_loss_burst(std::optional<int> gap) const override;
   std::size_t size() const { return delays_.size(); }
   std::optional<PacketBound> packet_bound() const override {
-    if (segment_ > 0) return PacketBound{static_cast<std::int64_t>(segment_), "segment", "trace segment"};
+    if (segment_ > 0)
+      return PacketBound{static_cast<std::int64_t>(segment_), "segment", "trace segment"};
     return PacketBound{static_cast<std::int64_t>(delays_.size()), "file", "trace"};
   }
 
@@ -278,6 +283,7 @@ struct TraceError : std::runtime_error {
 };
 // `first_row_line`, when given, receives the file line of row 0 (row i is on line
 // first_row_line + i: a header only on line 1, blank lines only at the end).
-std::vector<std::optional<std::int64_t>> load_trace(const std::string& path, int* first_row_line = nullptr);
+std::vector<std::optional<std::int64_t>> load_trace(const std::string& path,
+                                                    int* first_row_line = nullptr);
 
 }  // namespace ncosim::models

@@ -1,12 +1,12 @@
 // models/link_factory.cc — [[link]] readers: parameters range-checked, errors at their line.
 #include "models/link_factory.h"
 
-#include "config/input_files.h"
-
 #include <fmt/format.h>
 
 #include <cmath>
 #include <filesystem>
+
+#include "config/input_files.h"
 
 namespace ncosim::models {
 
@@ -37,7 +37,8 @@ std::vector<double> read_delivery(const sim::Table& t) {
   double sum = 0.0;
   for (std::size_t d = 0; d < shape.size(); ++d) {
     if (!(shape[d] >= 0.0 && std::isfinite(shape[d]))) {
-      t.fail("shape", fmt::format("expected non-negative finite weights, got {} at index {}", shape[d], d));
+      t.fail("shape",
+             fmt::format("expected non-negative finite weights, got {} at index {}", shape[d], d));
     }
     sum += shape[d];
   }
@@ -65,15 +66,18 @@ std::unique_ptr<Link> read_delay(const sim::Table& t, const LinkContext&) {
 std::unique_ptr<Link> read_bernoulli(const sim::Table& t, const LinkContext&) {
   const double loss = read_probability(t, "loss", 0.0);
   const auto delay = t.integer_or("delay", 0);
-  if (delay < 0 || delay > 1'000'000) t.fail("delay", fmt::format("expected an integer in 0..1000000, got {}", delay));
+  if (delay < 0 || delay > 1'000'000)
+    t.fail("delay", fmt::format("expected an integer in 0..1000000, got {}", delay));
   return std::make_unique<BernoulliLink>(loss, delay);
 }
 
 std::unique_ptr<Link> read_negative_binomial(const sim::Table& t, const LinkContext&) {
   const auto r = t.integer("successes");
-  if (r < 1 || r > 10000) t.fail("successes", fmt::format("expected an integer in 1..10000, got {}", r));
+  if (r < 1 || r > 10000)
+    t.fail("successes", fmt::format("expected an integer in 1..10000, got {}", r));
   const double p = t.number("p");
-  if (!(p > 0.0 && p <= 1.0)) t.fail("p", fmt::format("expected a probability in (0, 1], got {}", p));
+  if (!(p > 0.0 && p <= 1.0))
+    t.fail("p", fmt::format("expected a probability in (0, 1], got {}", p));
   const double loss = read_probability(t, "loss", 0.0);
   return std::make_unique<NegativeBinomialLink>(static_cast<int>(r), p, loss);
 }
@@ -86,8 +90,9 @@ std::unique_ptr<Link> read_arrival_cdf(const sim::Table& t, const LinkContext&) 
       t.fail("cdf", fmt::format("expected probabilities in [0, 1], got {} at h = {}", cdf[h], h));
     }
     if (h > 0 && cdf[h] < cdf[h - 1]) {
-      t.fail("cdf", fmt::format("expected a non-decreasing P[delay <= h], got {} after {} at h = {}",
-                                cdf[h], cdf[h - 1], h));
+      t.fail("cdf",
+             fmt::format("expected a non-decreasing P[delay <= h], got {} after {} at h = {}",
+                         cdf[h], cdf[h - 1], h));
     }
   }
   const double tail = t.number_or("tail", cdf.back());
@@ -100,8 +105,9 @@ std::unique_ptr<Link> read_arrival_cdf(const sim::Table& t, const LinkContext&) 
 
 // `step`: "period" (default: the chain moves once per control period) or "packet".
 MarkovLink::Step read_step(const sim::Table& t) {
-  return t.choice_or("step", "period", {"period", "packet"}) == "packet" ? MarkovLink::Step::kPacket
-                                                                          : MarkovLink::Step::kPeriod;
+  return t.choice_or("step", "period", {"period", "packet"}) == "packet"
+             ? MarkovLink::Step::kPacket
+             : MarkovLink::Step::kPeriod;
 }
 
 std::unique_ptr<Link> read_gilbert_elliott(const sim::Table& t, const LinkContext&) {
@@ -111,9 +117,11 @@ std::unique_ptr<Link> read_gilbert_elliott(const sim::Table& t, const LinkContex
   const bool by_mean = t.has("mean_loss") || t.has("mean_burst");
   if (by_mean) {
     for (const char* key : {"p_good_to_bad", "p_bad_to_good"}) {
-      if (t.has(key)) t.fail(key, fmt::format("expected either {} or mean_loss and mean_burst, got both", key));
+      if (t.has(key))
+        t.fail(key, fmt::format("expected either {} or mean_loss and mean_burst, got both", key));
     }
-    const GilbertElliottByMean ge = gilbert_elliott_by_mean(t.number("mean_loss"), t.number("mean_burst"), lg, lb);
+    const GilbertElliottByMean ge =
+        gilbert_elliott_by_mean(t.number("mean_loss"), t.number("mean_burst"), lg, lb);
     if (!ge.error.empty()) t.fail(ge.error_key, ge.error);
     return make_gilbert_elliott(ge.p_good_to_bad, ge.p_bad_to_good, lg, lb, step);
   }
@@ -139,8 +147,9 @@ std::unique_ptr<Link> read_markov(const sim::Table& t, const LinkContext&) {
   const Eigen::Index s = T.rows();
   for (Eigen::Index i = 0; i < s; ++i) {
     if (T.row(i).minCoeff() < 0.0 || std::abs(T.row(i).sum() - 1.0) > 1e-9) {
-      t.fail("transition", fmt::format("expected non-negative rows summing to 1, got row {} summing to {}",
-                                       i, T.row(i).sum()));
+      t.fail("transition",
+             fmt::format("expected non-negative rows summing to 1, got row {} summing to {}", i,
+                         T.row(i).sum()));
     }
   }
   std::vector<double> loss = t.numbers("loss");
@@ -148,7 +157,8 @@ std::unique_ptr<Link> read_markov(const sim::Table& t, const LinkContext&) {
     t.fail("loss", fmt::format("expected {} per-state loss probabilities, got {}", s, loss.size()));
   }
   for (double p : loss) {
-    if (!(p >= 0.0 && p <= 1.0)) t.fail("loss", fmt::format("expected probabilities in [0, 1], got {}", p));
+    if (!(p >= 0.0 && p <= 1.0))
+      t.fail("loss", fmt::format("expected probabilities in [0, 1], got {}", p));
   }
   std::vector<std::vector<double>> delay;
   if (t.has("delay_pmf")) {
@@ -159,11 +169,15 @@ std::unique_ptr<Link> read_markov(const sim::Table& t, const LinkContext&) {
     for (const auto& pmf : delay) {
       double sum = 0.0;
       for (double p : pmf) {
-        if (p < 0.0) t.fail("delay_pmf", fmt::format("probabilities must be non-negative, got {}", p));
+        if (p < 0.0)
+          t.fail("delay_pmf", fmt::format("probabilities must be non-negative, got {}", p));
         sum += p;
       }
       if (std::abs(sum - 1.0) > 1e-9) {
-        t.fail("delay_pmf", fmt::format("expected each state's delay pmf to sum to 1 (loss is `loss`), got {:.6g}", sum));
+        t.fail(
+            "delay_pmf",
+            fmt::format("expected each state's delay pmf to sum to 1 (loss is `loss`), got {:.6g}",
+                        sum));
       }
     }
   }
@@ -176,15 +190,18 @@ std::unique_ptr<Link> read_markov(const sim::Table& t, const LinkContext&) {
     sim::require_subprobability(t, "initial", initial);
     double sum = 0.0;
     for (double p : initial) sum += p;
-    if (std::abs(sum - 1.0) > 1e-9) t.fail("initial", fmt::format("expected probabilities summing to 1, got {:.6g}", sum));
+    if (std::abs(sum - 1.0) > 1e-9)
+      t.fail("initial", fmt::format("expected probabilities summing to 1, got {:.6g}", sum));
   }
-  return std::make_unique<MarkovLink>(T, std::move(loss), std::move(delay), std::move(initial), step);
+  return std::make_unique<MarkovLink>(T, std::move(loss), std::move(delay), std::move(initial),
+                                      step);
 }
 
 std::unique_ptr<Link> read_trace(const sim::Table& t, const LinkContext& ctx) {
   const std::string file = t.string("file");
   std::filesystem::path path(file);
-  if (path.is_relative() && !ctx.scenario_dir.empty()) path = std::filesystem::path(ctx.scenario_dir) / path;
+  if (path.is_relative() && !ctx.scenario_dir.empty())
+    path = std::filesystem::path(ctx.scenario_dir) / path;
   try {
     int first_row_line = 1;
     auto delays = load_trace(path.string(), &first_row_line);
@@ -197,8 +214,9 @@ std::unique_ptr<Link> read_trace(const sim::Table& t, const LinkContext& ctx) {
         if (delays[i] && (largest == delays.size() || *delays[i] > *delays[largest])) largest = i;
       }
       if (largest < delays.size()) {
-        ctx.check_trace_delay(path.string(), first_row_line + static_cast<int>(largest), *delays[largest],
-                              fmt::format("{}:{}: key '{}'", t.file(), t.line_of("file"), t.key_path("file")));
+        ctx.check_trace_delay(
+            path.string(), first_row_line + static_cast<int>(largest), *delays[largest],
+            fmt::format("{}:{}: key '{}'", t.file(), t.line_of("file"), t.key_path("file")));
       }
     }
     // `segment`: rows per run (run r replays segment r mod floor(rows / segment)).
@@ -206,7 +224,8 @@ std::unique_ptr<Link> read_trace(const sim::Table& t, const LinkContext& ctx) {
     if (t.has("segment")) {
       const auto s = t.integer("segment");
       if (s < 1 || s > static_cast<std::int64_t>(delays.size())) {
-        t.fail("segment", fmt::format("expected an integer in 1..{} (the trace's rows), got {}", delays.size(), s));
+        t.fail("segment", fmt::format("expected an integer in 1..{} (the trace's rows), got {}",
+                                      delays.size(), s));
       }
       segment = static_cast<std::size_t>(s);
     }
@@ -217,16 +236,19 @@ std::unique_ptr<Link> read_trace(const sim::Table& t, const LinkContext& ctx) {
              fmt::format("expected a readable trace file, got '{}' ({})", path.string(), e.what()));
     // The error is in the trace: its file and line first, then the key that named it.
     // format_error escapes every byte that is not printable (file names included).
-    throw sim::ScenarioError(sim::format_error(e.file, e.line, "",
-                                               fmt::format("{} (the trace named by {}:{}: key '{}')", e.what(),
-                                                           t.file(), t.line_of("file"), t.key_path("file"))));
+    throw sim::ScenarioError(
+        sim::format_error(e.file, e.line, "",
+                          fmt::format("{} (the trace named by {}:{}: key '{}')", e.what(), t.file(),
+                                      t.line_of("file"), t.key_path("file"))));
   }
 }
 
 }  // namespace
 
 void register_links(LinkRegistry& registry) {
-  registry.add("delay", "delay d periods with probability pmf[d], lost otherwise: pmf (or delivery, shape), independent",
+  registry.add("delay",
+               "delay d periods with probability pmf[d], lost otherwise: pmf (or delivery, shape), "
+               "independent",
                read_delay);
   registry.add("bernoulli", "lost with probability loss, else delayed `delay` periods: loss, delay",
                read_bernoulli);
@@ -239,9 +261,12 @@ void register_links(LinkRegistry& registry) {
                "two-state Markov loss: p_good_to_bad, p_bad_to_good (or mean_loss, mean_burst), "
                "loss_good, loss_bad, step",
                read_gilbert_elliott);
-  registry.add("markov", "finite Markov chain (per period or per packet): transition, loss, delay_pmf, initial, step",
-               read_markov);
-  registry.add("trace", "replay a recorded CSV of seq,delay (empty delay = lost): file[, segment]", read_trace);
+  registry.add(
+      "markov",
+      "finite Markov chain (per period or per packet): transition, loss, delay_pmf, initial, step",
+      read_markov);
+  registry.add("trace", "replay a recorded CSV of seq,delay (empty delay = lost): file[, segment]",
+               read_trace);
 }
 
 }  // namespace ncosim::models

@@ -61,7 +61,8 @@ Disturbance read_disturbance(const sim::Table& plant_table, Eigen::Index nw) {
     Eigen::VectorXd v = tt.vector(key);
     if (v.size() == 1 && nw > 1) v = Eigen::VectorXd::Constant(nw, v(0));
     if (v.size() != nw) {
-      tt.fail(key, fmt::format("expected 1 or {} entries (the disturbance size nw), got {}", nw, v.size()));
+      tt.fail(key, fmt::format("expected 1 or {} entries (the disturbance size nw), got {}", nw,
+                               v.size()));
     }
     if (!v.allFinite()) tt.fail(key, "expected finite values");
     return v;
@@ -72,7 +73,8 @@ Disturbance read_disturbance(const sim::Table& plant_table, Eigen::Index nw) {
     s.amplitude = read_channels(st, "amplitude");
     s.omega = st.number("omega");
     s.phase = st.number_or("phase", 0.0);
-    if (!std::isfinite(s.omega) || !std::isfinite(s.phase)) st.fail_here("expected a finite omega and phase");
+    if (!std::isfinite(s.omega) || !std::isfinite(s.phase))
+      st.fail_here("expected a finite omega and phase");
     st.finish();
     d.sines.push_back(std::move(s));
   }
@@ -80,8 +82,9 @@ Disturbance read_disturbance(const sim::Table& plant_table, Eigen::Index nw) {
   return d;
 }
 
-LinearPlant discretise_transfer_function(const std::vector<double>& num, const std::vector<double>& den,
-                                         double dead_time, double period) {
+LinearPlant discretise_transfer_function(const std::vector<double>& num,
+                                         const std::vector<double>& den, double dead_time,
+                                         double period) {
   const auto m = static_cast<Eigen::Index>(den.size()) - 1;
   // Controllable canonical form of num/den (den monic after scaling).
   Eigen::MatrixXd Ac = Eigen::MatrixXd::Zero(m, m);
@@ -127,7 +130,7 @@ LinearPlant discretise_transfer_function(const std::vector<double>& num, const s
   zoh(period - f, Phi_a, G_a);  // G0 = int_0^{T-f} e^{As} ds B
   zoh(f, Phi_b, G_b);
   const Eigen::VectorXd G0 = G_a;
-  const Eigen::VectorXd G1 = Phi_a * G_b;  // e^{A(T-f)} int_0^f e^{As} ds B
+  const Eigen::VectorXd G1 = Phi_a * G_b;      // e^{A(T-f)} int_0^f e^{As} ds B
   const Eigen::Index D = f > 0.0 ? d + 1 : d;  // held past inputs u[k-1] .. u[k-D]
   const Eigen::Index n = m + D;
   LinearPlant p;
@@ -169,7 +172,8 @@ Eigen::MatrixXd read_square(const sim::Table& t, std::string_view key) {
 Eigen::VectorXd read_x0(const sim::Table& t, Eigen::Index n) {
   if (!t.has("x0")) return Eigen::VectorXd::Zero(n);
   Eigen::VectorXd x0 = t.vector("x0");
-  if (x0.size() != n) t.fail("x0", fmt::format("expected {} entries (the state size), got {}", n, x0.size()));
+  if (x0.size() != n)
+    t.fail("x0", fmt::format("expected {} entries (the state size), got {}", n, x0.size()));
   return x0;
 }
 
@@ -239,12 +243,14 @@ LinearPlant read_jump_linear(const sim::Table& t, double period) {
   for (Eigen::Index i = 0; i < s; ++i) {
     const auto row = p.mode_transition.row(i);
     if (row.minCoeff() < 0.0 || std::abs(row.sum() - 1.0) > 1e-9) {
-      t.fail("transition", fmt::format("expected non-negative rows summing to 1, row {} sums to {}", i, row.sum()));
+      t.fail("transition", fmt::format("expected non-negative rows summing to 1, row {} sums to {}",
+                                       i, row.sum()));
     }
   }
   if (t.has("initial_mode")) {
     p.mode_initial = t.vector("initial_mode");
-    if (p.mode_initial.size() != s || p.mode_initial.minCoeff() < 0.0 || std::abs(p.mode_initial.sum() - 1.0) > 1e-9) {
+    if (p.mode_initial.size() != s || p.mode_initial.minCoeff() < 0.0 ||
+        std::abs(p.mode_initial.sum() - 1.0) > 1e-9) {
       t.fail("initial_mode",
              fmt::format("expected {} non-negative entries summing to 1, got [{}]", s,
                          fmt::join(p.mode_initial.data(),
@@ -261,23 +267,32 @@ LinearPlant read_transfer_function(const sim::Table& t, double period) {
   const std::vector<double> num = t.numbers("num");
   const std::vector<double> den = t.numbers("den");
   if (den.size() < 2 || den[0] == 0.0) {
-    t.fail("den", "expected the denominator's coefficients in descending powers of s, of degree >= 1 with a "
-                  "non-zero leading coefficient");
+    t.fail(
+        "den",
+        "expected the denominator's coefficients in descending powers of s, of degree >= 1 with a "
+        "non-zero leading coefficient");
   }
   if (num.empty() || num.size() >= den.size()) {
-    t.fail("num", fmt::format("expected a strictly proper transfer function (1..{} numerator coefficients), got {}",
-                              den.size() - 1, num.size()));
+    t.fail(
+        "num",
+        fmt::format(
+            "expected a strictly proper transfer function (1..{} numerator coefficients), got {}",
+            den.size() - 1, num.size()));
   }
-  for (double v : num) if (!std::isfinite(v)) t.fail("num", "expected finite coefficients");
-  for (double v : den) if (!std::isfinite(v)) t.fail("den", "expected finite coefficients");
+  for (double v : num)
+    if (!std::isfinite(v)) t.fail("num", "expected finite coefficients");
+  for (double v : den)
+    if (!std::isfinite(v)) t.fail("den", "expected finite coefficients");
   const double dead_time = t.number_or("dead_time", 0.0);
   if (!(dead_time >= 0.0) || dead_time > 1000.0 * period) {
-    t.fail("dead_time", fmt::format("expected a dead time in [0, 1000 periods] seconds, got {}", dead_time));
+    t.fail("dead_time",
+           fmt::format("expected a dead time in [0, 1000 periods] seconds, got {}", dead_time));
   }
   LinearPlant p = discretise_transfer_function(num, den, dead_time, period);
   // The input disturbance: variance of the held disturbance on the input channel.
   p.W = Eigen::MatrixXd::Constant(1, 1, t.number_or("W", 0.0));
-  if (!(p.W(0, 0) >= 0.0) || !std::isfinite(p.W(0, 0))) t.fail("W", fmt::format("expected a variance >= 0, got {}", p.W(0, 0)));
+  if (!(p.W(0, 0) >= 0.0) || !std::isfinite(p.W(0, 0)))
+    t.fail("W", fmt::format("expected a variance >= 0, got {}", p.W(0, 0)));
   return p;
 }
 
@@ -289,14 +304,17 @@ void register_plants(PlantRegistry& registry) {
                "continuous LTI plant discretised at the period: Ac, Bc, Gc (default I), Wc "
                "(noise intensity), x0 (ZOH, Van Loan)",
                read_lti_continuous);
-  registry.add("jump_linear",
-               "Markov jump linear plant: the lti keys as base, [[plant.mode]] tables overriding A, Bu, "
-               "Bw, W, transition (mode chain), initial_mode (default: stationary)",
-               read_jump_linear);
-  registry.add("transfer_function",
-               "continuous SISO transfer function with dead time, ZOH at the period: num, den (descending "
-               "powers of s), dead_time (s), W (variance of the input disturbance); sensors use C = \"output\"",
-               read_transfer_function);
+  registry.add(
+      "jump_linear",
+      "Markov jump linear plant: the lti keys as base, [[plant.mode]] tables overriding A, Bu, "
+      "Bw, W, transition (mode chain), initial_mode (default: stationary)",
+      read_jump_linear);
+  registry.add(
+      "transfer_function",
+      "continuous SISO transfer function with dead time, ZOH at the period: num, den (descending "
+      "powers of s), dead_time (s), W (variance of the input disturbance); sensors use C = "
+      "\"output\"",
+      read_transfer_function);
 }
 
 }  // namespace ncosim::models

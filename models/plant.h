@@ -20,7 +20,8 @@ struct LinearPlant;
 class PlantProcess;
 struct PlantRun;
 // Makes the per-run process of a plant (models/plant_process.h).
-using PlantProcessFactory = std::function<std::unique_ptr<PlantProcess>(const LinearPlant&, const PlantRun&)>;
+using PlantProcessFactory =
+    std::function<std::unique_ptr<PlantProcess>(const LinearPlant&, const PlantRun&)>;
 
 // One mode of a jump_linear plant: its own A, Bu, Bw, W.
 struct PlantMode {
@@ -81,8 +82,9 @@ Disturbance read_disturbance(const sim::Table& plant_table, Eigen::Index nw);
 // proper), realised in controllable canonical form and discretised by zero-order hold at
 // `period`, the dead time as extra input-delay states (a fractional part split between two
 // held inputs). Input disturbance: Bw = the undelayed ZOH input matrix (one channel).
-LinearPlant discretise_transfer_function(const std::vector<double>& num, const std::vector<double>& den,
-                                         double dead_time, double period);
+LinearPlant discretise_transfer_function(const std::vector<double>& num,
+                                         const std::vector<double>& den, double dead_time,
+                                         double period);
 
 // Symmetric square root S (S S' = M) of a PSD matrix by eigen-decomposition.
 Eigen::MatrixXd psd_sqrt(const Eigen::MatrixXd& M);

@@ -16,8 +16,8 @@ namespace {
 // kernel's call and blocking set-up, most of its cost at plant sizes (bench: BM_FlagshipRun).
 // Eigen takes other paths for a single row (an inner product) and for 128 columns or more
 // (column blocks); those stay with Eigen.
-[[gnu::noinline]] void eigen_product(Eigen::VectorXd& dst, const Eigen::MatrixXd& M, const Eigen::VectorXd& v,
-                                     double alpha, bool add) {
+[[gnu::noinline]] void eigen_product(Eigen::VectorXd& dst, const Eigen::MatrixXd& M,
+                                     const Eigen::VectorXd& v, double alpha, bool add) {
   if (alpha == 1.0) {
     add ? (dst.noalias() += M * v) : (dst.noalias() = M * v);
   } else {
@@ -25,8 +25,8 @@ namespace {
   }
 }
 
-inline void product(Eigen::VectorXd& dst, const Eigen::MatrixXd& M, const Eigen::VectorXd& v, double alpha,
-                    bool add) {
+inline void product(Eigen::VectorXd& dst, const Eigen::MatrixXd& M, const Eigen::VectorXd& v,
+                    double alpha, bool add) {
   const Eigen::Index rows = M.rows(), cols = M.cols();
   if ((rows == 1 && cols != 1) || cols >= 128) {
     eigen_product(dst, M, v, alpha, add);
@@ -57,7 +57,8 @@ class LinearProcess : public PlantProcess {
   bool step(std::int64_t k, const Eigen::VectorXd& u_applied, PlantSignals& s) override {
     if (k == 0) return false;
     draw_standard_normal(rng_, w_);
-    if (recentre_) product(s.recentre, plant_.A, s.x, -1.0, false);  // deadbeat: known to every estimator
+    if (recentre_)
+      product(s.recentre, plant_.A, s.x, -1.0, false);  // deadbeat: known to every estimator
     advance(k, u_applied, s);
     s.x.swap(next_);
     return true;
@@ -88,7 +89,8 @@ class LinearProcess : public PlantProcess {
 class JumpLinearProcess final : public LinearProcess {
  public:
   JumpLinearProcess(const LinearPlant& plant, const PlantRun& run)
-      : LinearProcess(plant, run), mode_rng_(sim::make_stream(run.seed, run.run, sim::stream_id(sim::StreamKind::kPlant, 1))) {
+      : LinearProcess(plant, run),
+        mode_rng_(sim::make_stream(run.seed, run.run, sim::stream_id(sim::StreamKind::kPlant, 1))) {
     for (const auto& pm : plant.modes) mode_w_sqrt_.push_back(psd_sqrt(pm.W));
   }
 

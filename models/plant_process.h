@@ -30,8 +30,8 @@ struct PlantRun {
 
 // The signals a plant step writes (owned by the run, sized by it: n, nu).
 struct PlantSignals {
-  Eigen::VectorXd x;         // x[k]
-  Eigen::VectorXd drive;     // the applied known part of x[k] - A_m x[k-1] - Bw_m w: Bu_m u + recentre
+  Eigen::VectorXd x;      // x[k]
+  Eigen::VectorXd drive;  // the applied known part of x[k] - A_m x[k-1] - Bw_m w: Bu_m u + recentre
   Eigen::VectorXd recentre;  // the re-centring term -A x[k-1] (zero without re-centring)
   int mode = -1;             // theta[k-1] of a jump plant (-1: none)
 };

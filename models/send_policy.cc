@@ -24,7 +24,8 @@ class PeriodicDesign final : public SendPolicyDesign {
 // |y_i - y_i(last sent)| >= delta_i for some output i; the first sample is always sent.
 class SendOnDelta final : public SendPolicy {
  public:
-  explicit SendOnDelta(const Eigen::VectorXd& delta) : delta_(delta), last_(Eigen::VectorXd::Zero(delta.size())) {}
+  explicit SendOnDelta(const Eigen::VectorXd& delta)
+      : delta_(delta), last_(Eigen::VectorXd::Zero(delta.size())) {}
   bool decide(const Eigen::Ref<const Eigen::VectorXd>& sample) override {
     const bool send = !has_sent_ || ((sample - last_).cwiseAbs().array() >= delta_.array()).any();
     if (send) {
@@ -44,7 +45,9 @@ class SendOnDelta final : public SendPolicy {
 class SendOnDeltaDesign final : public SendPolicyDesign {
  public:
   explicit SendOnDeltaDesign(Eigen::VectorXd delta) : delta_(std::move(delta)) {}
-  std::unique_ptr<SendPolicy> instantiate() const override { return std::make_unique<SendOnDelta>(delta_); }
+  std::unique_ptr<SendPolicy> instantiate() const override {
+    return std::make_unique<SendOnDelta>(delta_);
+  }
   std::string name() const override { return "send_on_delta"; }
   const Eigen::VectorXd* deadband() const override { return &delta_; }
 
@@ -53,20 +56,26 @@ class SendOnDeltaDesign final : public SendPolicyDesign {
 };
 
 std::shared_ptr<const SendPolicyDesign> read_periodic(const sim::Table& t, const SensorSpec&) {
-  if (t.has("delta")) t.fail("delta", "expected no threshold with policy = \"periodic\" (set policy = \"send_on_delta\")");
+  if (t.has("delta"))
+    t.fail("delta",
+           "expected no threshold with policy = \"periodic\" (set policy = \"send_on_delta\")");
   return periodic_policy();
 }
 
-std::shared_ptr<const SendPolicyDesign> read_send_on_delta(const sim::Table& t, const SensorSpec& s) {
+std::shared_ptr<const SendPolicyDesign> read_send_on_delta(const sim::Table& t,
+                                                           const SensorSpec& s) {
   Eigen::VectorXd delta = t.vector("delta");
   if (delta.size() == 1 && s.ny() > 1) delta = Eigen::VectorXd::Constant(s.ny(), delta(0));
   if (delta.size() != s.ny()) {
-    t.fail("delta", fmt::format("expected 1 or {} entries (one threshold per output), got {}", s.ny(), delta.size()));
+    t.fail("delta", fmt::format("expected 1 or {} entries (one threshold per output), got {}",
+                                s.ny(), delta.size()));
   }
   if (!delta.allFinite() || delta.minCoeff() < 0.0)
     t.fail("delta", fmt::format("expected finite thresholds >= 0, got {}",
                                 fmt::join(delta.data(), delta.data() + delta.size(), ", ")));
-  if (s.buffer > 0) t.fail("buffer", fmt::format("expected buffer = 0 with policy = \"send_on_delta\", got {}", s.buffer));
+  if (s.buffer > 0)
+    t.fail("buffer",
+           fmt::format("expected buffer = 0 with policy = \"send_on_delta\", got {}", s.buffer));
   return std::make_shared<SendOnDeltaDesign>(std::move(delta));
 }
 
@@ -80,7 +89,8 @@ std::shared_ptr<const SendPolicyDesign> periodic_policy() {
 void register_send_policies(SendPolicyRegistry& registry) {
   registry.add("periodic", "every sample is sent (default)", read_periodic);
   registry.add("send_on_delta",
-               "a sample is sent when |y_i - y_i(last sent)| >= delta_i for some output i (the first is always "
+               "a sample is sent when |y_i - y_i(last sent)| >= delta_i for some output i (the "
+               "first is always "
                "sent): delta (one threshold, or one per output); buffer = 0",
                read_send_on_delta);
 }

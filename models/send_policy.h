@@ -23,7 +23,8 @@ class SendPolicy {
   // Whether the sensor sends its newest sample (ny entries, taken at this period).
   virtual bool decide(const Eigen::Ref<const Eigen::VectorXd>& sample) = 0;
   // The value of each output that the receiver holds (the last sample sent), for the error of
-  // the samples not sent (transmissions.csv, `virtual_noise_rms`); nullptr for a policy that sends every sample.
+  // the samples not sent (transmissions.csv, `virtual_noise_rms`); nullptr for a policy that sends
+  // every sample.
   virtual const Eigen::VectorXd* held() const { return nullptr; }
 };
 
@@ -43,7 +44,8 @@ class SendPolicyDesign {
 
 // Factories read the policy's keys from the [[sensor]] table; the SensorSpec holds what was
 // read before the policy (C, R, every, buffer).
-using SendPolicyRegistry = sim::Registry<std::shared_ptr<const SendPolicyDesign>, const SensorSpec&>;
+using SendPolicyRegistry =
+    sim::Registry<std::shared_ptr<const SendPolicyDesign>, const SensorSpec&>;
 void register_send_policies(SendPolicyRegistry& registry);
 
 // The built-in periodic policy (the default of every sensor).

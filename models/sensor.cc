@@ -23,13 +23,18 @@ int read_link_ref(const sim::Table& t, const std::vector<std::string>& links) {
 }
 
 SensorSpec read_sensor(const sim::Table& t, const LinearPlant& plant,
-                       const std::vector<std::string>& links, int index, const SendPolicyRegistry& policies) {
+                       const std::vector<std::string>& links, int index,
+                       const SendPolicyRegistry& policies) {
   SensorSpec s;
   s.name = t.string_or("name", fmt::format("y{}", index + 1));
   if (t.is_string("C")) {
     const std::string which = t.choice_or("C", "output", {"output"});
     if (plant.C_out.size() == 0) {
-      t.fail("C", fmt::format("expected a matrix: C = \"{}\" needs a plant kind with an output (transfer_function)", which));
+      t.fail(
+          "C",
+          fmt::format(
+              "expected a matrix: C = \"{}\" needs a plant kind with an output (transfer_function)",
+              which));
     }
     s.C = plant.C_out;
   } else {
@@ -44,10 +49,12 @@ SensorSpec read_sensor(const sim::Table& t, const LinearPlant& plant,
   sim::require_psd(t, "R", s.R);
   s.link = read_link_ref(t, links);
   const auto every = t.integer_or("every", 1);
-  if (every < 1 || every > 1'000'000) t.fail("every", fmt::format("expected an integer in 1..1000000 (1e6), got {}", every));
+  if (every < 1 || every > 1'000'000)
+    t.fail("every", fmt::format("expected an integer in 1..1000000 (1e6), got {}", every));
   s.every = static_cast<int>(every);
   const auto buffer = t.integer_or("buffer", 0);
-  if (buffer < 0 || buffer > 62) t.fail("buffer", fmt::format("expected an integer in 0..62, got {}", buffer));
+  if (buffer < 0 || buffer > 62)
+    t.fail("buffer", fmt::format("expected an integer in 0..62, got {}", buffer));
   s.buffer = static_cast<int>(buffer);
   s.fresh_resend_noise = t.choice_or("resend_noise", "same", {"same", "fresh"}) == "fresh";
   const std::string noise = t.choice_or("noise", "gaussian", {"gaussian", "uniform"});

@@ -39,6 +39,7 @@ struct SensorSpec {
 int read_link_ref(const sim::Table& t, const std::vector<std::string>& links);
 
 SensorSpec read_sensor(const sim::Table& t, const LinearPlant& plant,
-                       const std::vector<std::string>& links, int index, const SendPolicyRegistry& policies);
+                       const std::vector<std::string>& links, int index,
+                       const SendPolicyRegistry& policies);
 
 }  // namespace ncosim::models

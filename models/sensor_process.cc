@@ -23,10 +23,12 @@ void draw_noise(sim::Rng& rng, SensorSpec::Noise kind, Eigen::VectorXd& out) {
 
 }  // namespace
 
-SensorProcess::SensorProcess(const SensorSpec& spec, int index, std::uint64_t seed, std::uint64_t run)
+SensorProcess::SensorProcess(const SensorSpec& spec, int index, std::uint64_t seed,
+                             std::uint64_t run)
     : spec_(spec),
       index_(index),
-      rng_(sim::make_stream(seed, run, sim::stream_id(sim::StreamKind::kSensor, static_cast<std::uint64_t>(index)))),
+      rng_(sim::make_stream(
+          seed, run, sim::stream_id(sim::StreamKind::kSensor, static_cast<std::uint64_t>(index)))),
       r_sqrt_(psd_sqrt(spec.R)),
       noise_(spec.ny()),
       stamps_(static_cast<std::size_t>(spec.buffer) + 1, 0),

@@ -39,9 +39,10 @@ class SensorProcess {
   sim::Rng rng_;
   Eigen::MatrixXd r_sqrt_;
   Eigen::VectorXd noise_;
-  std::vector<std::int64_t> stamps_;  // ring of the last buffer+1 sampling periods (newest at head_)
-  Eigen::MatrixXd values_;            // column per ring slot
-  Eigen::MatrixXd clean_;             // C x of each slot (resend_noise = "fresh" only)
+  std::vector<std::int64_t>
+      stamps_;              // ring of the last buffer+1 sampling periods (newest at head_)
+  Eigen::MatrixXd values_;  // column per ring slot
+  Eigen::MatrixXd clean_;   // C x of each slot (resend_noise = "fresh" only)
   int head_ = -1;
   int filled_ = 0;
   std::unique_ptr<SendPolicy> policy_;

@@ -1,23 +1,23 @@
 // sim/batch.cc — campaigns on the command line (see batch.h).
 #include "sim/batch.h"
 
-#include <fmt/format.h>
 #include <fcntl.h>
+#include <fmt/format.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <charconv>
 #include <chrono>
-#include <cstdlib>
+#include <cmath>
 #include <condition_variable>
 #include <csignal>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <iostream>
 #include <limits>
-#include <algorithm>
-#include <cmath>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -27,13 +27,13 @@
 #include "ncosim_version.h"
 #include "sim/campaign.h"
 #include "sim/cli.h"
-#include "sim/mpi_campaign.h"
 #include "sim/limits.h"
 #include "sim/link_stats.h"
+#include "sim/mpi_campaign.h"
 #include "sim/output.h"
+#include "sim/output_set.h"
 #include "sim/paired.h"
 #include "sim/progress.h"
-#include "sim/output_set.h"
 #include "sim/store.h"
 #include "sim/table_view.h"
 
@@ -43,12 +43,14 @@ namespace {
 
 // Set by SIGINT/SIGTERM (the signal number) or by a failing store writer (-1): no new run starts.
 std::atomic<int> g_stop{0};
-static_assert(std::atomic<int>::is_always_lock_free, "the stop flag is written from a signal handler");
+static_assert(std::atomic<int>::is_always_lock_free,
+              "the stop flag is written from a signal handler");
 
 extern "C" void on_stop_signal(int sig) {
   g_stop.store(sig);
-  static const char msg[] = "\nncosim: stopping: no new run starts; the runs in progress finish and are committed "
-                            "(a second signal aborts at once)\n";
+  static const char msg[] =
+      "\nncosim: stopping: no new run starts; the runs in progress finish and are committed "
+      "(a second signal aborts at once)\n";
   const ssize_t ignored = ::write(2, msg, sizeof msg - 1);
   (void)ignored;
 }
@@ -88,7 +90,8 @@ std::string signal_name(int sig) {
 // completed since the last commit. The store is used by one thread at a time (`with_store`).
 class StoreSink {
  public:
-  explicit StoreSink(RunStore& store) : store_(store), interval_(commit_interval()), thread_([this] { loop(); }) {}
+  explicit StoreSink(RunStore& store)
+      : store_(store), interval_(commit_interval()), thread_([this] { loop(); }) {}
   ~StoreSink() {
     try {
       finish();
@@ -179,8 +182,8 @@ class StoreSink {
 std::string json_text(const nlohmann::json& j) { return j.dump(); }
 
 // The campaign table of a new store.
-std::map<std::string, std::string> campaign_meta(const LoadedScenario& loaded, const RunOverrides& ov,
-                                                 const std::string& shard) {
+std::map<std::string, std::string> campaign_meta(const LoadedScenario& loaded,
+                                                 const RunOverrides& ov, const std::string& shard) {
   std::error_code ec;
   const auto abs = std::filesystem::absolute(loaded.file, ec);
   const Scenario& sc = *loaded.cases.front().scenario;
@@ -228,11 +231,13 @@ std::string input_files_difference(const std::string& a, const std::string& b) {
     if (it == mb.end()) {
       out.push_back(fmt::format("the input file '{}' (read by one campaign only)", file));
     } else if (it->second != ha) {
-      out.push_back(fmt::format("the content of the input file '{}' (hash {} vs {})", file, ha, it->second));
+      out.push_back(
+          fmt::format("the content of the input file '{}' (hash {} vs {})", file, ha, it->second));
     }
   }
   for (const auto& [file, hb] : mb) {
-    if (ma.count(file) == 0) out.push_back(fmt::format("the input file '{}' (read by one campaign only)", file));
+    if (ma.count(file) == 0)
+      out.push_back(fmt::format("the input file '{}' (read by one campaign only)", file));
   }
   std::string text;
   for (std::size_t i = 0; i < out.size(); ++i) text += (i ? ", " : "") + out[i];
@@ -257,8 +262,8 @@ const std::vector<std::pair<std::string, std::string>>& identity_keys() {
 }
 
 // Empty when `a` and `b` are the same campaign; else what differs.
-std::string identity_difference(const std::map<std::string, std::string>& a, const std::map<std::string, std::string>& b,
-                                bool with_shard) {
+std::string identity_difference(const std::map<std::string, std::string>& a,
+                                const std::map<std::string, std::string>& b, bool with_shard) {
   auto get = [](const std::map<std::string, std::string>& m, const std::string& k) {
     const auto it = m.find(k);
     return it == m.end() ? std::string() : it->second;
@@ -270,7 +275,8 @@ std::string identity_difference(const std::map<std::string, std::string>& a, con
     const std::string va = get(a, key), vb = get(b, key);
     if (va == vb) continue;
     if (key == "scenario_text") {
-      diffs.push_back(fmt::format("{} (hash {} vs {})", name, get(a, "scenario_hash"), get(b, "scenario_hash")));
+      diffs.push_back(fmt::format("{} (hash {} vs {})", name, get(a, "scenario_hash"),
+                                  get(b, "scenario_hash")));
     } else if (key == "inputs") {
       diffs.push_back(input_files_difference(va, vb));
     } else {
@@ -291,9 +297,10 @@ void check_campaign_meta(const std::map<std::string, std::string>& meta, const s
     std::string got = it == meta.end() ? std::string("nothing (the field is missing)")
                                        : fmt::format("'{}'", it->second.substr(0, 60));
     if (it != meta.end() && it->second.size() > 60) got += "...";
-    return StoreError(fmt::format("run store '{}': campaign field '{}': expected {}, got {} (the store is damaged or "
-                                  "was edited; re-run the campaign)",
-                                  path, key, expected, got));
+    return StoreError(fmt::format(
+        "run store '{}': campaign field '{}': expected {}, got {} (the store is damaged or "
+        "was edited; re-run the campaign)",
+        path, key, expected, got));
   };
   auto text = [&](const std::string& key) -> const std::string& {
     const auto it = meta.find(key);
@@ -327,7 +334,8 @@ void check_campaign_meta(const std::map<std::string, std::string>& meta, const s
     if (!j.is_array()) return false;
     return std::all_of(j.begin(), j.end(), [](const nlohmann::json& e) { return e.is_string(); });
   };
-  for (const char* key : {"scenario_file", "scenario_path", "scenario_text", "ncosim_version", "git_commit"}) {
+  for (const char* key :
+       {"scenario_file", "scenario_path", "scenario_text", "ncosim_version", "git_commit"}) {
     (void)text(key);
   }
   const std::string& hash = text("scenario_hash");
@@ -347,11 +355,16 @@ void check_campaign_meta(const std::map<std::string, std::string>& meta, const s
   }
   json_of("overrides", false, strings, "a JSON array of strings (the --set overrides)");
   json_of("merged_from", true, strings, "a JSON array of folder names");
-  json_of("inputs", true, [](const nlohmann::json& j) {
-    if (!j.is_object()) return false;
-    return std::all_of(j.begin(), j.end(), [](const nlohmann::json& v) { return v.is_string(); });
-  }, "a JSON object of input file -> content hash");
-  auto number = [&](const std::string& key, bool optional, double lo, double hi, const char* expected) {
+  json_of(
+      "inputs", true,
+      [](const nlohmann::json& j) {
+        if (!j.is_object()) return false;
+        return std::all_of(j.begin(), j.end(),
+                           [](const nlohmann::json& v) { return v.is_string(); });
+      },
+      "a JSON object of input file -> content hash");
+  auto number = [&](const std::string& key, bool optional, double lo, double hi,
+                    const char* expected) {
     const auto it = meta.find(key);
     if (it == meta.end() || it->second.empty()) {
       if (optional) return;
@@ -360,12 +373,15 @@ void check_campaign_meta(const std::map<std::string, std::string>& meta, const s
     double v = 0.0;
     const auto& t = it->second;
     const auto r = std::from_chars(t.data(), t.data() + t.size(), v);
-    if (r.ec != std::errc() || r.ptr != t.data() + t.size() || !std::isfinite(v) || v < lo || v > hi) {
+    if (r.ec != std::errc() || r.ptr != t.data() + t.size() || !std::isfinite(v) || v < lo ||
+        v > hi) {
       throw bad(key, expected);
     }
   };
-  number("wall_seconds", true, 0.0, std::numeric_limits<double>::max(), "a finite number of seconds >= 0");
-  number("target_ci", true, std::numeric_limits<double>::min(), 1.0 - 1e-16, "empty or a number in (0, 1)");
+  number("wall_seconds", true, 0.0, std::numeric_limits<double>::max(),
+         "a finite number of seconds >= 0");
+  number("target_ci", true, std::numeric_limits<double>::min(), 1.0 - 1e-16,
+         "empty or a number in (0, 1)");
   if (const auto it = meta.find("shard"); it != meta.end() && !it->second.empty()) {
     try {
       (void)parse_shard(it->second);
@@ -397,33 +413,38 @@ LoadedScenario reload(const std::map<std::string, std::string>& meta, const std:
   const auto sets = nlohmann::json::parse(meta.at("overrides")).get<std::vector<std::string>>();
   LoadedScenario loaded;
   try {
-    loaded = load_cases_text(meta.at("scenario_path"), meta.at("scenario_text"), sets, overrides_of(meta));
+    loaded = load_cases_text(meta.at("scenario_path"), meta.at("scenario_text"), sets,
+                             overrides_of(meta));
   } catch (const ScenarioError& e) {
     // The text is the store's, not the file's on disk (which may have changed since).
-    throw ScenarioError(fmt::format("run store '{}': the scenario text stored in it (of {}) does not load: {}", path,
-                                    meta.at("scenario_file"), e.what()));
+    throw ScenarioError(
+        fmt::format("run store '{}': the scenario text stored in it (of {}) does not load: {}",
+                    path, meta.at("scenario_file"), e.what()));
   }
   loaded.file = meta.at("scenario_file");
   const Scenario& sc = *loaded.cases.front().scenario;
-  const std::pair<const char*, std::string> derived[] = {{"scenario_hash", loaded.hash},
-                                                         {"runs", std::to_string(sc.run.runs)},
-                                                         {"periods", std::to_string(sc.run.periods)},
-                                                         {"seed", std::to_string(sc.run.seed)},
-                                                         {"cases", std::to_string(loaded.cases.size())}};
+  const std::pair<const char*, std::string> derived[] = {
+      {"scenario_hash", loaded.hash},
+      {"runs", std::to_string(sc.run.runs)},
+      {"periods", std::to_string(sc.run.periods)},
+      {"seed", std::to_string(sc.run.seed)},
+      {"cases", std::to_string(loaded.cases.size())}};
   for (const auto& [key, value] : derived) {
     if (meta.at(key) != value) {
-      throw StoreError(fmt::format("run store '{}': campaign field '{}' is '{}' but its stored scenario text and "
-                                   "options give '{}' (the store is damaged or was edited; re-run the campaign)",
-                                   path, key, meta.at(key), value));
+      throw StoreError(fmt::format(
+          "run store '{}': campaign field '{}' is '{}' but its stored scenario text and "
+          "options give '{}' (the store is damaged or was edited; re-run the campaign)",
+          path, key, meta.at(key), value));
     }
   }
   if (const auto it = meta.find("inputs"); it != meta.end()) {
     nlohmann::json now = nlohmann::json::object();
     for (const auto& [file, h] : loaded.inputs) now[file] = h;
     if (json_text(now) != it->second) {
-      throw ScenarioError(fmt::format("run store '{}': {} changed since the campaign ran; restore it to use this "
-                                      "store (the exports would describe other inputs than the runs had)",
-                                      path, input_files_difference(it->second, json_text(now))));
+      throw ScenarioError(
+          fmt::format("run store '{}': {} changed since the campaign ran; restore it to use this "
+                      "store (the exports would describe other inputs than the runs had)",
+                      path, input_files_difference(it->second, json_text(now))));
     }
   }
   return loaded;
@@ -465,13 +486,14 @@ TargetRule target_of(const std::map<std::string, std::string>& meta, const Loade
 
 struct TargetDecision {
   bool decided = false;
-  std::uint64_t runs = 0;                 // runs per case the exports use (when decided)
-  std::string reason;                     // "target_ci" or "max_runs"
-  std::vector<std::vector<char>> met;     // [case][estimator]: 1 met, 0 not met, 2 excluded
+  std::uint64_t runs = 0;              // runs per case the exports use (when decided)
+  std::string reason;                  // "target_ci" or "max_runs"
+  std::vector<std::vector<char>> met;  // [case][estimator]: 1 met, 0 not met, 2 excluded
 };
 
 // Whether each row meets the target on the first n runs of each case.
-std::vector<std::vector<char>> target_met(const LoadedScenario& loaded, const std::vector<CampaignResult>& results,
+std::vector<std::vector<char>> target_met(const LoadedScenario& loaded,
+                                          const std::vector<CampaignResult>& results,
                                           std::uint64_t n, double rel) {
   std::vector<std::vector<char>> met(loaded.cases.size());
   for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
@@ -515,8 +537,8 @@ std::vector<std::vector<char>> target_met(const LoadedScenario& loaded, const st
   return met;
 }
 
-TargetDecision decide_target(const LoadedScenario& loaded, const std::vector<CampaignResult>& results,
-                             const TargetRule& rule) {
+TargetDecision decide_target(const LoadedScenario& loaded,
+                             const std::vector<CampaignResult>& results, const TargetRule& rule) {
   std::uint64_t avail = std::numeric_limits<std::uint64_t>::max();
   for (const auto& res : results) {
     std::uint64_t i = 0;
@@ -524,7 +546,8 @@ TargetDecision decide_target(const LoadedScenario& loaded, const std::vector<Cam
     avail = std::min(avail, i);
   }
   TargetDecision d;
-  for (std::uint64_t n = std::min(rule.batch, rule.max_runs);; n = std::min(n + rule.batch, rule.max_runs)) {
+  for (std::uint64_t n = std::min(rule.batch, rule.max_runs);;
+       n = std::min(n + rule.batch, rule.max_runs)) {
     if (n > avail) return d;
     d.met = target_met(loaded, results, n, rule.rel);
     bool all = true;
@@ -575,24 +598,29 @@ LinkCoverage load_link_runs(const RunStore& store, std::vector<CampaignResult>& 
 struct ExportInfo {
   std::string command_line;
   std::string stopped;  // why the campaign stopped early ("" when it did not)
-  std::vector<std::string>* not_ok = nullptr;  // receives "case, \"estimator\": status" of rows not as expected
-  bool* complete = nullptr;                      // receives manifest.json's `complete`
-  const TableRequest* table = nullptr;  // `run`: the markdown out-parameter receives its stdout table
+  std::vector<std::string>* not_ok =
+      nullptr;               // receives "case, \"estimator\": status" of rows not as expected
+  bool* complete = nullptr;  // receives manifest.json's `complete`
+  const TableRequest* table =
+      nullptr;  // `run`: the markdown out-parameter receives its stdout table
 };
 
 // The stored error curve of case c restricted to the runs the exports use: runs that the stored
 // curve lacks (a campaign killed between committing its runs and its curve) are simulated again
 // (the realisations are a function of the seed and run index); a curve that holds runs beyond
 // them (--target-ci's stopping point) is rebuilt from those runs alone.
-ErrorCurve error_curve_for(const LoadedScenario& loaded, const RunStore& store, std::size_t c, const CampaignResult& res) {
+ErrorCurve error_curve_for(const LoadedScenario& loaded, const RunStore& store, std::size_t c,
+                           const CampaignResult& res) {
   const Scenario& sc = *loaded.cases[c].scenario;
   ErrorCurve curve = store.curve(c);
-  if (!curve.empty() && (curve.periods() != sc.run.periods || curve.estimators() != sc.estimators.size() ||
-                         curve.states() != sc.model.plant.n())) {
-    throw StoreError(fmt::format("run store {}: the error curve of case {} has {} periods x {} estimators x {} states, "
-                                 "the scenario {} x {} x {}",
-                                 store.path(), c + 1, curve.periods(), curve.estimators(), curve.states(),
-                                 sc.run.periods, sc.estimators.size(), sc.model.plant.n()));
+  if (!curve.empty() &&
+      (curve.periods() != sc.run.periods || curve.estimators() != sc.estimators.size() ||
+       curve.states() != sc.model.plant.n())) {
+    throw StoreError(fmt::format(
+        "run store {}: the error curve of case {} has {} periods x {} estimators x {} states, "
+        "the scenario {} x {} x {}",
+        store.path(), c + 1, curve.periods(), curve.estimators(), curve.states(), sc.run.periods,
+        sc.estimators.size(), sc.model.plant.n()));
   }
   std::vector<std::uint64_t> covered = curve.runs();
   std::sort(covered.begin(), covered.end());
@@ -603,7 +631,8 @@ ErrorCurve error_curve_for(const LoadedScenario& loaded, const RunStore& store, 
     covered.clear();
   }
   std::vector<std::uint64_t> missing;
-  std::set_difference(used.begin(), used.end(), covered.begin(), covered.end(), std::back_inserter(missing));
+  std::set_difference(used.begin(), used.end(), covered.begin(), covered.end(),
+                      std::back_inserter(missing));
   if (!missing.empty()) {  // on every core, as a campaign of those runs
     CampaignOptions opt;
     opt.time_estimators = false;
@@ -616,8 +645,10 @@ ErrorCurve error_curve_for(const LoadedScenario& loaded, const RunStore& store, 
 }
 
 // Every export of the store, built by the functions of sim/output.h from the stored runs.
-std::vector<std::pair<std::string, std::string>> derive_exports(const LoadedScenario& loaded, const RunStore& store,
-                                                                const ExportInfo& info, std::string* markdown) {
+std::vector<std::pair<std::string, std::string>> derive_exports(const LoadedScenario& loaded,
+                                                                const RunStore& store,
+                                                                const ExportInfo& info,
+                                                                std::string* markdown) {
   const auto meta = store.meta();
   const Shard shard = shard_of(meta);
   const TargetRule rule = target_of(meta, loaded);
@@ -653,7 +684,8 @@ std::vector<std::pair<std::string, std::string>> derive_exports(const LoadedScen
       expected += decision.runs;
     } else if (rule.on()) {
       expected += shard.count <= 1 ? rule.max_runs
-                                   : rule.max_runs / shard.count + (shard.index < rule.max_runs % shard.count ? 1 : 0);
+                                   : rule.max_runs / shard.count +
+                                         (shard.index < rule.max_runs % shard.count ? 1 : 0);
     } else {
       expected += owned_runs(sc, shard);
     }
@@ -661,14 +693,16 @@ std::vector<std::pair<std::string, std::string>> derive_exports(const LoadedScen
     for (std::size_t e = 0; e < case_rows.size(); ++e) {
       if (!decision.decided) continue;
       case_rows[e].stop = decision.reason;
-      if (decision.met[c][e] == 0 && case_rows[e].status == "ok") case_rows[e].status = "ci_target_not_met";
+      if (decision.met[c][e] == 0 && case_rows[e].status == "ok")
+        case_rows[e].status = "ci_target_not_met";
     }
     rows.insert(rows.end(), case_rows.begin(), case_rows.end());
   }
   add_paired_across_cases(rows, loaded, reference_case_index(loaded));  // sim/paired.h
   if (info.not_ok != nullptr) {
     for (const auto& r : rows) {
-      if (status_as_expected(r.status, r.expected_status)) continue;  // [[estimator]] expected_status
+      if (status_as_expected(r.status, r.expected_status))
+        continue;  // [[estimator]] expected_status
       std::string where;
       for (std::size_t i = 0; i < r.sweep_labels.size(); ++i) {
         where += fmt::format("{} = {}, ", loaded.sweeps[i].key, r.sweep_labels[i]);
@@ -692,19 +726,26 @@ std::vector<std::pair<std::string, std::string>> derive_exports(const LoadedScen
   std::string extras = consistency_notes(loaded.sweeps, rows);  // the lines under the table
   if (decision.decided) {
     extras += decision.reason == "target_ci"
-              ? fmt::format("\nStopped at {} runs per case: every row's 95 % CI half-width of mse is within {:g} % of "
-                            "its mean (`--target-ci {:g}`, batches of {}).\n",
-                            decision.runs, 100.0 * rule.rel, rule.rel, rule.batch)
-              : fmt::format("\nStopped at `--max-runs {}`: the rows with status `ci_target_not_met` did not reach "
-                            "the 95 % CI half-width target of {:g} % of mse (`--target-ci {:g}`).\n",
-                            decision.runs, 100.0 * rule.rel, rule.rel);
+                  ? fmt::format(
+                        "\nStopped at {} runs per case: every row's 95 % CI half-width of mse is "
+                        "within {:g} % of "
+                        "its mean (`--target-ci {:g}`, batches of {}).\n",
+                        decision.runs, 100.0 * rule.rel, rule.rel, rule.batch)
+                  : fmt::format(
+                        "\nStopped at `--max-runs {}`: the rows with status `ci_target_not_met` "
+                        "did not reach "
+                        "the 95 % CI half-width target of {:g} % of mse (`--target-ci {:g}`).\n",
+                        decision.runs, 100.0 * rule.rel, rule.rel);
   }
   if (!complete || shard.count > 1) {
-    extras += fmt::format("\n**Partial results**: {} of {} runs{}{}.\n", done, expected,
-                      shard.count > 1 ? fmt::format(" of shard {}/{}", shard.index + 1, shard.count) : "",
-                      info.stopped.empty() ? "" : fmt::format(" (stopped by {})", info.stopped));
-    if (!complete) extras += "`ncosim run FILE --out DIR --resume` (same options) runs the missing ones.\n";
-    if (shard.count > 1) extras += "`ncosim merge OUT DIR...` combines the shards' stores into the whole campaign.\n";
+    extras += fmt::format(
+        "\n**Partial results**: {} of {} runs{}{}.\n", done, expected,
+        shard.count > 1 ? fmt::format(" of shard {}/{}", shard.index + 1, shard.count) : "",
+        info.stopped.empty() ? "" : fmt::format(" (stopped by {})", info.stopped));
+    if (!complete)
+      extras += "`ncosim run FILE --out DIR --resume` (same options) runs the missing ones.\n";
+    if (shard.count > 1)
+      extras += "`ncosim merge OUT DIR...` combines the shards' stores into the whole campaign.\n";
   }
   const std::string md = table_md + extras;
   double wall = 0.0;
@@ -717,7 +758,8 @@ std::vector<std::pair<std::string, std::string>> derive_exports(const LoadedScen
   nlohmann::json man = campaign_manifest(loaded, info.command_line, threads, wall);
   man["store"] = "runs.sqlite";
   if (const auto it = meta.find("inputs"); it != meta.end() && !it->second.empty()) {
-    man["inputs"] = nlohmann::json::parse(it->second);  // every file the scenario read: path -> content hash
+    man["inputs"] =
+        nlohmann::json::parse(it->second);  // every file the scenario read: path -> content hash
   }
   man["ranks"] = meta.count("ranks") != 0 ? std::stoi(meta.at("ranks")) : 1;
   man["runs_done"] = done;
@@ -726,16 +768,18 @@ std::vector<std::pair<std::string, std::string>> derive_exports(const LoadedScen
   man["stopped"] = info.stopped.empty() ? nlohmann::json(nullptr) : nlohmann::json(info.stopped);
   man["shard"] = shard.count > 1 ? nlohmann::json(meta.at("shard")) : nlohmann::json(nullptr);
   if (rule.on()) {
-    man["target_ci"] = {{"rel", rule.rel},
-                        {"max_runs", rule.max_runs},
-                        {"batch", rule.batch},
-                        {"runs", decision.decided ? nlohmann::json(decision.runs) : nlohmann::json(nullptr)},
-                        {"stop", decision.decided ? nlohmann::json(decision.reason) : nlohmann::json(nullptr)}};
+    man["target_ci"] = {
+        {"rel", rule.rel},
+        {"max_runs", rule.max_runs},
+        {"batch", rule.batch},
+        {"runs", decision.decided ? nlohmann::json(decision.runs) : nlohmann::json(nullptr)},
+        {"stop", decision.decided ? nlohmann::json(decision.reason) : nlohmann::json(nullptr)}};
   }
   if (!links.complete) {
-    man["links_csv"] = fmt::format("not written: {} of the {} stored runs have no link counters (a store written "
-                                   "before ncosim counted them)",
-                                   links.missing, links.missing + links.present);
+    man["links_csv"] = fmt::format(
+        "not written: {} of the {} stored runs have no link counters (a store written "
+        "before ncosim counted them)",
+        links.missing, links.missing + links.present);
   }
   std::vector<std::pair<std::string, std::string>> files{
       {"summary.csv", summary_csv(loaded.sweeps, rows, n)},
@@ -747,28 +791,34 @@ std::vector<std::pair<std::string, std::string>> derive_exports(const LoadedScen
   };
   if (links.complete) files.emplace_back("links.csv", links_csv(loaded.sweeps, labels, scs, res));
   const auto art = store.artifacts();
-  if (const auto it = art.find("trajectory.csv"); it != art.end()) files.emplace_back("trajectory.csv", it->second);
+  if (const auto it = art.find("trajectory.csv"); it != art.end())
+    files.emplace_back("trajectory.csv", it->second);
   const std::string confusion = confusion_csv(loaded.sweeps, rows);
   if (confusion.find('\n') + 1 < confusion.size()) files.emplace_back("confusion.csv", confusion);
   if (first.run.error_curve) {
     std::vector<ErrorCurve> curves;
-    for (std::size_t c = 0; c < loaded.cases.size(); ++c) curves.push_back(error_curve_for(loaded, store, c, results[c]));
+    for (std::size_t c = 0; c < loaded.cases.size(); ++c)
+      curves.push_back(error_curve_for(loaded, store, c, results[c]));
     files.emplace_back("error_curve.csv", error_curve_csv(loaded.sweeps, labels, scs, curves));
   }
   if (markdown != nullptr) {  // what `run` prints (sim/table_view.h), else summary.md
     // csv and json keep stdout to the data: the lines under the table go to stderr.
-    if (info.table != nullptr && info.table->machine() && !extras.empty()) std::cerr << extras.substr(1);
-    *markdown = info.table != nullptr ? stdout_table(*info.table, first.title, loaded.sweeps, rows, n, table_md, extras)
+    if (info.table != nullptr && info.table->machine() && !extras.empty())
+      std::cerr << extras.substr(1);
+    *markdown = info.table != nullptr ? stdout_table(*info.table, first.title, loaded.sweeps, rows,
+                                                     n, table_md, extras)
                                       : md;
   }
   return files;
 }
 
 // Exports that a set may lack (dropped when the new set does not write them).
-const std::vector<std::string> kStale{"trajectory.csv", "confusion.csv", "links.csv", "error_curve.csv"};
+const std::vector<std::string> kStale{"trajectory.csv", "confusion.csv", "links.csv",
+                                      "error_curve.csv"};
 // Files derived from a campaign's results by `ncosim plot` and `ncosim report`: dropped when a set
 // describes other results than the folder's (a new campaign, a merge, an export from elsewhere).
-const std::vector<std::string> kDerived{"plot_*", "trace.dat", "trace.gp", "trace.png", "trace.svg", "report.html"};
+const std::vector<std::string> kDerived{"plot_*",    "trace.dat", "trace.gp",
+                                        "trace.png", "trace.svg", "report.html"};
 
 std::vector<std::string> stale_with_derived() {
   auto out = kStale;
@@ -782,11 +832,15 @@ void link_or_copy(const std::string& from, const std::filesystem::path& to) {
   if (::link(from.c_str(), to.c_str()) == 0) return;
   std::error_code ec;
   std::filesystem::copy_file(from, to, ec);
-  if (ec) throw std::runtime_error(fmt::format("cannot put the run store '{}' into '{}': {}", from, to.string(), ec.message()));
+  if (ec)
+    throw std::runtime_error(fmt::format("cannot put the run store '{}' into '{}': {}", from,
+                                         to.string(), ec.message()));
   const int fd = ::open(to.c_str(), O_RDONLY | O_CLOEXEC);
   const bool synced = fd >= 0 && ::fsync(fd) == 0;
   if (fd >= 0) ::close(fd);
-  if (!synced) throw std::runtime_error(fmt::format("cannot sync the copy '{}' of the run store", to.string()));
+  if (!synced)
+    throw std::runtime_error(
+        fmt::format("cannot sync the copy '{}' of the run store", to.string()));
 }
 
 // Before a new store replaces an unfinished campaign's store beside the folder: says so.
@@ -798,31 +852,36 @@ void note_replaced_partial(const std::string& out, const std::string& partial) {
     runs = std::to_string(RunStore::open(partial, false).count_runs());
   } catch (const std::exception&) {
   }
-  std::cerr << fmt::format("ncosim: replacing the store of an unfinished campaign into '{}' ({}, {} run(s) "
-                           "committed; `run ... --resume` would have continued it)\n",
-                           out, partial, runs);
+  std::cerr << fmt::format(
+      "ncosim: replacing the store of an unfinished campaign into '{}' ({}, {} run(s) "
+      "committed; `run ... --resume` would have continued it)\n",
+      out, partial, runs);
 }
 
 // Derives the exports of a store built beside the folder (`partial`), finishes it (checkpointed,
 // one file), then swaps the exports and the store in as one set and removes the partial store's
 // name. Until the swap the folder keeps its previous set, store included.
-std::string export_and_install(const LoadedScenario& loaded, RunStore& store, const std::string& out,
-                               const ExportInfo& info) {
+std::string export_and_install(const LoadedScenario& loaded, RunStore& store,
+                               const std::string& out, const ExportInfo& info) {
   std::string md;
   auto files = derive_exports(loaded, store, info, &md);
   const std::string partial = store.path();
   store.close();
   write_output_set(out, files, stale_with_derived(),
-                   {InstalledFile{"runs.sqlite", [&](const std::filesystem::path& to) { link_or_copy(partial, to); }}});
+                   {InstalledFile{"runs.sqlite", [&](const std::filesystem::path& to) {
+                                    link_or_copy(partial, to);
+                                  }}});
   remove_store_files(partial);
   return md;
 }
 
 // The largest run index + 1 that a store of this campaign may hold.
-std::uint64_t run_limit(const LoadedScenario& loaded, const std::map<std::string, std::string>& meta) {
+std::uint64_t run_limit(const LoadedScenario& loaded,
+                        const std::map<std::string, std::string>& meta) {
   const TargetRule rule = target_of(meta, loaded);
   std::uint64_t limit = rule.on() ? rule.max_runs : 0;
-  for (const auto& c : loaded.cases) limit = std::max(limit, static_cast<std::uint64_t>(c.scenario->run.runs));
+  for (const auto& c : loaded.cases)
+    limit = std::max(limit, static_cast<std::uint64_t>(c.scenario->run.runs));
   return limit;
 }
 
@@ -841,7 +900,8 @@ void settle_partial(const std::string& out) {
 
 Shard parse_shard(const std::string& text) {
   const auto bad = [&] {
-    return ScenarioError(fmt::format("--shard: expected I/N with 1 <= I <= N (e.g. 2/4), got '{}'", text));
+    return ScenarioError(
+        fmt::format("--shard: expected I/N with 1 <= I <= N (e.g. 2/4), got '{}'", text));
   };
   const auto slash = text.find('/');
   if (slash == std::string::npos) throw bad();
@@ -850,8 +910,8 @@ Shard parse_shard(const std::string& text) {
   const char* e = text.data() + text.size();
   auto r1 = std::from_chars(b, b + slash, i);
   auto r2 = std::from_chars(b + slash + 1, e, n);
-  if (r1.ec != std::errc() || r1.ptr != b + slash || r2.ec != std::errc() || r2.ptr != e || i < 1 || n < 1 || i > n ||
-      n > 1'000'000) {
+  if (r1.ec != std::errc() || r1.ptr != b + slash || r2.ec != std::errc() || r2.ptr != e || i < 1 ||
+      n < 1 || i > n || n > 1'000'000) {
     throw bad();
   }
   return Shard{i - 1, n};
@@ -862,37 +922,47 @@ namespace {
 // --target-ci, --max-runs and --replace checked before the scenario is read.
 void check_target_options(const RunCommand& cmd) {
   if (cmd.replace && cmd.resume) {
-    throw ScenarioError("--replace: not with --resume (--resume continues the stored campaign, --replace discards it)");
+    throw ScenarioError(
+        "--replace: not with --resume (--resume continues the stored campaign, --replace discards "
+        "it)");
   }
   if (!cmd.target_ci && cmd.max_runs > 0) throw ScenarioError("--max-runs: only with --target-ci");
-  if (cmd.target_ci && (!std::isfinite(*cmd.target_ci) || *cmd.target_ci <= 0.0 || *cmd.target_ci >= 1.0)) {
-    throw ScenarioError(fmt::format("--target-ci: expected a relative half-width in (0, 1), e.g. 0.01, got {}",
-                                    *cmd.target_ci));
+  if (cmd.target_ci &&
+      (!std::isfinite(*cmd.target_ci) || *cmd.target_ci <= 0.0 || *cmd.target_ci >= 1.0)) {
+    throw ScenarioError(
+        fmt::format("--target-ci: expected a relative half-width in (0, 1), e.g. 0.01, got {}",
+                    *cmd.target_ci));
   }
   if (cmd.target_ci && cmd.max_runs <= 0) {
-    throw ScenarioError("--target-ci: --max-runs N is required (the most runs per case before giving up)");
+    throw ScenarioError(
+        "--target-ci: --max-runs N is required (the most runs per case before giving up)");
   }
 }
 
 // The --target-ci rule of the campaign (off without the option), checked against its cases and
 // recorded in `meta`.
-TargetRule target_rule(const RunCommand& cmd, const LoadedScenario& loaded, std::map<std::string, std::string>& meta) {
+TargetRule target_rule(const RunCommand& cmd, const LoadedScenario& loaded,
+                       std::map<std::string, std::string>& meta) {
   if (!cmd.target_ci) return TargetRule{};
   const auto batch = loaded.cases.front().scenario->run.runs;
   for (const auto& c : loaded.cases) {
     if (c.scenario->run.runs != batch) {
-      throw ScenarioError("--target-ci: every sweep case must have the same run.runs (the batch size)");
+      throw ScenarioError(
+          "--target-ci: every sweep case must have the same run.runs (the batch size)");
     }
   }
   if (cmd.max_runs < batch) {
-    throw ScenarioError(fmt::format("--max-runs: expected at least run.runs = {} (one batch), got {}", batch,
-                                    cmd.max_runs));
+    throw ScenarioError(fmt::format(
+        "--max-runs: expected at least run.runs = {} (one batch), got {}", batch, cmd.max_runs));
   }
   bool reachable = false;
   for (const auto& c : loaded.cases) {
-    for (const auto& e : c.scenario->estimators) reachable = reachable || e.design->report().status == "ok";
+    for (const auto& e : c.scenario->estimators)
+      reachable = reachable || e.design->report().status == "ok";
   }
-  if (!reachable) throw ScenarioError("--target-ci: no estimator has a working design, so no row has an mse to reach the target");
+  if (!reachable)
+    throw ScenarioError(
+        "--target-ci: no estimator has a working design, so no row has an mse to reach the target");
   meta["target_ci"] = fmt::format("{:.17g}", *cmd.target_ci);
   meta["max_runs"] = std::to_string(cmd.max_runs);
   return target_of(meta, loaded);
@@ -909,7 +979,8 @@ struct ReplacedStore {
 
 // Whether the folder's store of this very campaign holds every run it owns (with --target-ci:
 // it was not stopped before the target or --max-runs decided).
-bool store_finished(const RunStore& store, const LoadedScenario& loaded, const std::map<std::string, std::string>& meta) {
+bool store_finished(const RunStore& store, const LoadedScenario& loaded,
+                    const std::map<std::string, std::string>& meta) {
   if (target_of(meta, loaded).on()) return meta.count("stopped") == 0 || meta.at("stopped").empty();
   const Shard shard = shard_of(meta);
   for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
@@ -920,7 +991,8 @@ bool store_finished(const RunStore& store, const LoadedScenario& loaded, const s
 
 // The store at `path` if replacing it would lose runs (`partial`: the unfinished store beside
 // the folder); nothing for no store, no run, the same finished campaign or an unreadable store.
-std::optional<ReplacedStore> replaced_store(const std::string& path, bool partial, const LoadedScenario& loaded,
+std::optional<ReplacedStore> replaced_store(const std::string& path, bool partial,
+                                            const LoadedScenario& loaded,
                                             const std::map<std::string, std::string>& meta) {
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) return std::nullopt;
@@ -936,29 +1008,35 @@ std::optional<ReplacedStore> replaced_store(const std::string& path, bool partia
   } catch (const StoreError&) {
     return std::nullopt;  // damaged: nothing in it can be resumed or exported (as before: replaced)
   }
-  if (r.diff.empty() && !r.unfinished) return std::nullopt;  // the same campaign again: identical results
+  if (r.diff.empty() && !r.unfinished)
+    return std::nullopt;  // the same campaign again: identical results
   return r;
 }
 
 // Without --resume: refuses (exit 2, nothing written) to replace a store of the folder that holds
 // finished runs of a different or unfinished campaign, unless --replace says so (then says what
 // it replaces; true).
-bool check_replace(const RunCommand& cmd, const LoadedScenario& loaded, const std::map<std::string, std::string>& meta) {
+bool check_replace(const RunCommand& cmd, const LoadedScenario& loaded,
+                   const std::map<std::string, std::string>& meta) {
   std::optional<ReplacedStore> r = replaced_store(partial_store_path(cmd.out), true, loaded, meta);
   if (!r) r = replaced_store(store_path(cmd.out), false, loaded, meta);
   if (!r) return false;
   if (cmd.replace) {
-    std::cerr << fmt::format("ncosim: --replace: replacing {} finished run(s) of {} campaign in {}\n", r->runs,
-                             r->diff.empty() ? "an unfinished" : "a different", r->path);
+    std::cerr << fmt::format(
+        "ncosim: --replace: replacing {} finished run(s) of {} campaign in {}\n", r->runs,
+        r->diff.empty() ? "an unfinished" : "a different", r->path);
     return true;
   }
   const std::string what = r->diff.empty() ? "an unfinished campaign"
-                                           : r->unfinished ? "a different, unfinished campaign" : "a different campaign";
-  throw ScenarioError(fmt::format(
-      "--out: '{}' holds {} finished run(s) of {} ({}){}; {}`--replace` starts afresh and replaces them, or choose "
-      "another --out",
-      cmd.out, r->runs, what, r->path, r->diff.empty() ? "" : fmt::format(": {} differ(s) (stored vs now)", r->diff),
-      r->diff.empty() ? "`--resume` continues it, " : ""));
+                           : r->unfinished ? "a different, unfinished campaign"
+                                           : "a different campaign";
+  throw ScenarioError(
+      fmt::format("--out: '{}' holds {} finished run(s) of {} ({}){}; {}`--replace` starts afresh "
+                  "and replaces them, or choose "
+                  "another --out",
+                  cmd.out, r->runs, what, r->path,
+                  r->diff.empty() ? "" : fmt::format(": {} differ(s) (stored vs now)", r->diff),
+                  r->diff.empty() ? "`--resume` continues it, " : ""));
 }
 
 // The run store of the campaign, always built beside the folder (partial_store_path): created
@@ -980,16 +1058,18 @@ RunStore open_run_store(const RunCommand& cmd, const LoadedScenario& loaded,
     check_campaign_meta(stored, what);
     const std::string diff = identity_difference(stored, meta, true);
     if (!diff.empty()) {
-      throw ScenarioError(fmt::format("--resume: {} holds a different campaign: {} differ(s) (stored vs now); run "
-                                      "without --resume to start afresh, or choose another --out",
-                                      what, diff));
+      throw ScenarioError(
+          fmt::format("--resume: {} holds a different campaign: {} differ(s) (stored vs now); run "
+                      "without --resume to start afresh, or choose another --out",
+                      what, diff));
     }
   };
   bool copied = false;  // a copy made here is removed again when it cannot be resumed
   try {
     if (!fs::exists(partial, ec)) {
       if (!fs::exists(live, ec)) {
-        throw ScenarioError(fmt::format("--resume: no run store to resume in '{}' (expected {})", cmd.out, live));
+        throw ScenarioError(
+            fmt::format("--resume: no run store to resume in '{}' (expected {})", cmd.out, live));
       }
       // The finished set's store goes on in a copy beside the folder; the set stays as it is.
       const RunStore finished = RunStore::open(live, false);
@@ -999,7 +1079,8 @@ RunStore open_run_store(const RunCommand& cmd, const LoadedScenario& loaded,
       copied = true;
     }
     RunStore store = RunStore::open(partial, true);
-    same_campaign(store, fmt::format("{} (the store of an unfinished campaign into '{}')", partial, cmd.out));
+    same_campaign(
+        store, fmt::format("{} (the store of an unfinished campaign into '{}')", partial, cmd.out));
     store.verify(loaded.cases.size(), run_limit(loaded, store.meta()));
     return store;
   } catch (const StoreError& e) {
@@ -1036,7 +1117,8 @@ struct SessionTotals {
 
 // "3 cases x 20 runs x 5000 periods = 60 runs" (one case: "20 runs x 5000 periods"; cases of
 // different sizes: "20..40 runs").
-std::string campaign_size(const LoadedScenario& loaded, const std::vector<std::uint64_t>& case_runs) {
+std::string campaign_size(const LoadedScenario& loaded,
+                          const std::vector<std::uint64_t>& case_runs) {
   std::uint64_t total = 0, rlo = std::numeric_limits<std::uint64_t>::max(), rhi = 0;
   std::int64_t plo = std::numeric_limits<std::int64_t>::max(), phi = 0;
   for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
@@ -1047,26 +1129,33 @@ std::string campaign_size(const LoadedScenario& loaded, const std::vector<std::u
     plo = std::min(plo, loaded.cases[c].scenario->run.periods);
     phi = std::max(phi, loaded.cases[c].scenario->run.periods);
   }
-  auto range = [](auto lo, auto hi) { return lo == hi ? fmt::format("{}", lo) : fmt::format("{}..{}", lo, hi); };
+  auto range = [](auto lo, auto hi) {
+    return lo == hi ? fmt::format("{}", lo) : fmt::format("{}..{}", lo, hi);
+  };
   if (loaded.cases.size() == 1) return fmt::format("{} runs x {} periods", total, plo);
-  return fmt::format("{} cases x {} runs x {} periods = {} runs", loaded.cases.size(), range(rlo, rhi), range(plo, phi),
-                     total);
+  return fmt::format("{} cases x {} runs x {} periods = {} runs", loaded.cases.size(),
+                     range(rlo, rhi), range(plo, phi), total);
 }
 
 // The closing line: "ncosim: 3 cases x 20 runs x 5000 periods = 60 runs in 8.7 s on 2 threads
 // [x 3 MPI ranks][, shard I/N]; results in DIR/", with the runs stored before when resumed.
-std::string closing_line(const RunCommand& cmd, const LoadedScenario& loaded, const SessionTotals& t) {
-  return fmt::format("ncosim: {}{} in {} s on {} thread{}{}{}; results in {}/\n", campaign_size(loaded, t.case_runs),
-                     t.skipped > 0 ? fmt::format(" ({} stored before, {} simulated now)", t.skipped, t.simulated) : "",
-                     t.wall >= 10.0 ? fmt::format("{:.1f}", t.wall) : fmt::format("{:.2f}", t.wall), t.threads,
-                     t.threads == 1 ? "" : "s", t.ranks > 1 ? fmt::format(" x {} MPI ranks", t.ranks) : "",
-                     cmd.shard.empty() ? "" : fmt::format(", shard {}", cmd.shard), cmd.out);
+std::string closing_line(const RunCommand& cmd, const LoadedScenario& loaded,
+                         const SessionTotals& t) {
+  return fmt::format(
+      "ncosim: {}{} in {} s on {} thread{}{}{}; results in {}/\n",
+      campaign_size(loaded, t.case_runs),
+      t.skipped > 0 ? fmt::format(" ({} stored before, {} simulated now)", t.skipped, t.simulated)
+                    : "",
+      t.wall >= 10.0 ? fmt::format("{:.1f}", t.wall) : fmt::format("{:.2f}", t.wall), t.threads,
+      t.threads == 1 ? "" : "s", t.ranks > 1 ? fmt::format(" x {} MPI ranks", t.ranks) : "",
+      cmd.shard.empty() ? "" : fmt::format(", shard {}", cmd.shard), cmd.out);
 }
 
 // The runs lo..limit-1 of this shard that the store does not hold yet (`done`, sorted); the
 // others are counted in `skipped`.
-std::vector<std::uint64_t> runs_to_do(const std::vector<std::uint64_t>& done, std::uint64_t lo, std::uint64_t limit,
-                                      const Shard& shard, std::uint64_t& skipped) {
+std::vector<std::uint64_t> runs_to_do(const std::vector<std::uint64_t>& done, std::uint64_t lo,
+                                      std::uint64_t limit, const Shard& shard,
+                                      std::uint64_t& skipped) {
   std::vector<std::uint64_t> todo;
   auto d = std::lower_bound(done.begin(), done.end(), lo);
   for (std::uint64_t r = lo; r < limit; ++r) {
@@ -1083,28 +1172,35 @@ std::vector<std::uint64_t> runs_to_do(const std::vector<std::uint64_t>& done, st
 
 // The summary table and closing line on stdout; the exit status (a stop signal's, or
 // kExitFlagged with --fail-on-status and rows whose status is not the expected one).
-int finish_session(const RunCommand& cmd, const std::string& md, const LoadedScenario& loaded, const SessionTotals& t,
-                   const std::string& path, int sig, bool complete, const std::vector<std::string>& not_ok) {
+int finish_session(const RunCommand& cmd, const std::string& md, const LoadedScenario& loaded,
+                   const SessionTotals& t, const std::string& path, int sig, bool complete,
+                   const std::vector<std::string>& not_ok) {
   std::cout << md << std::flush;
   // With --format csv|json stdout holds the data alone: the closing line goes to stderr.
-  (cmd.format == "csv" || cmd.format == "json" ? std::cerr : std::cout) << "\n" << closing_line(cmd, loaded, t);
+  (cmd.format == "csv" || cmd.format == "json" ? std::cerr : std::cout)
+      << "\n"
+      << closing_line(cmd, loaded, t);
   if (sig > 0) {
     // A signal after the last run had started stopped nothing: the results are complete (the
     // exit status still says a signal came).
-    std::cerr << (complete ? fmt::format("ncosim: {} stopped nothing (every run had started): the campaign is "
-                                         "complete ({} run(s) committed to {})\n",
-                                         signal_name(sig), t.simulated, path)
-                           : fmt::format("ncosim: stopped by {}: {} run(s) committed to {}; partial results written; "
-                                         "`--resume` continues\n",
-                                         signal_name(sig), t.simulated, path));
+    std::cerr
+        << (complete
+                ? fmt::format("ncosim: {} stopped nothing (every run had started): the campaign is "
+                              "complete ({} run(s) committed to {})\n",
+                              signal_name(sig), t.simulated, path)
+                : fmt::format(
+                      "ncosim: stopped by {}: {} run(s) committed to {}; partial results written; "
+                      "`--resume` continues\n",
+                      signal_name(sig), t.simulated, path));
     return 128 + sig;
   }
   if (cmd.fail_on_status && !not_ok.empty()) {
     std::string list;
     for (const auto& r : not_ok) list += "  " + r + "\n";
-    std::cerr << fmt::format("ncosim: --fail-on-status: {} row(s) with an unexpected status (results written to "
-                             "{}/):\n{}",
-                             not_ok.size(), cmd.out, list);
+    std::cerr << fmt::format(
+        "ncosim: --fail-on-status: {} row(s) with an unexpected status (results written to "
+        "{}/):\n{}",
+        not_ok.size(), cmd.out, list);
     return kExitFlagged;
   }
   return 0;
@@ -1114,15 +1210,17 @@ int finish_session(const RunCommand& cmd, const std::string& md, const LoadedSce
 std::unique_ptr<MpiSession> start_mpi() {
   if (!mpi_launched()) return nullptr;
   if (!mpi_available()) {
-    throw ScenarioError("started by mpirun with several ranks, but this ncosim was built without MPI "
-                        "(CMake option NCOSIM_MPI; Debian libboost-mpi-dev libopenmpi-dev)");
+    throw ScenarioError(
+        "started by mpirun with several ranks, but this ncosim was built without MPI "
+        "(CMake option NCOSIM_MPI; Debian libboost-mpi-dev libopenmpi-dev)");
   }
   return std::make_unique<MpiSession>();
 }
 
 // Each case's estimator names into the store; per case, the runs it holds already (with
 // --resume; none otherwise).
-std::vector<std::vector<std::uint64_t>> register_cases(RunStore& store, const LoadedScenario& loaded, bool resume) {
+std::vector<std::vector<std::uint64_t>> register_cases(RunStore& store,
+                                                       const LoadedScenario& loaded, bool resume) {
   std::vector<std::vector<std::uint64_t>> stored(loaded.cases.size());
   for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
     std::vector<std::string> names;
@@ -1135,8 +1233,15 @@ std::vector<std::vector<std::uint64_t>> register_cases(RunStore& store, const Lo
 
 // One `run` session on rank 0: the campaign's fixed inputs and what its batches accumulate.
 struct RunSession {
-  RunSession(const RunCommand& c, const LoadedScenario& l, const Shard& sh, const TargetRule& r, MpiSession* m)
-      : cmd(c), loaded(l), shard(sh), rule(r), mpi(m), timed(l.cases.size(), 0), ran(l.cases.size(), 0) {
+  RunSession(const RunCommand& c, const LoadedScenario& l, const Shard& sh, const TargetRule& r,
+             MpiSession* m)
+      : cmd(c),
+        loaded(l),
+        shard(sh),
+        rule(r),
+        mpi(m),
+        timed(l.cases.size(), 0),
+        ran(l.cases.size(), 0) {
     totals.case_runs.assign(l.cases.size(), 0);
     totals.ranks = m != nullptr ? m->size() : 1;
   }
@@ -1145,30 +1250,35 @@ struct RunSession {
   const LoadedScenario& loaded;
   const Shard shard;
   const TargetRule rule;
-  MpiSession* const mpi;  // under mpirun, else null
+  MpiSession* const mpi;                 // under mpirun, else null
   CampaignProgress* progress = nullptr;  // the campaign's progress line (sim/progress.h), or null
   std::vector<std::vector<std::uint64_t>> stored;  // per case: the runs the store held at the start
   SessionTotals totals;
-  std::vector<char> timed, ran;  // per case: ns_per_period stored / a campaign of it ran in this session
-  std::vector<TraceRow> trace;   // run 0 of the first case, with --trace
+  std::vector<char> timed,
+      ran;  // per case: ns_per_period stored / a campaign of it ran in this session
+  std::vector<TraceRow> trace;  // run 0 of the first case, with --trace
 };
 
 // The runs lo..limit-1 of case c that are still to do, simulated here or on the MPI ranks and
 // pushed to the sink as they complete; ns_per_period stored once per case (unless stopped).
-void run_case_batch(RunSession& session, StoreSink& sink, std::size_t c, std::uint64_t lo, std::uint64_t limit) {
+void run_case_batch(RunSession& session, StoreSink& sink, std::size_t c, std::uint64_t lo,
+                    std::uint64_t limit) {
   const RunCommand& cmd = session.cmd;
   const std::size_t cases = session.loaded.cases.size();
   const Scenario& sc = *session.loaded.cases[c].scenario;
   const std::uint64_t skipped = session.totals.skipped;
-  std::vector<std::uint64_t> todo = runs_to_do(session.stored[c], lo, limit, session.shard, session.totals.skipped);
+  std::vector<std::uint64_t> todo =
+      runs_to_do(session.stored[c], lo, limit, session.shard, session.totals.skipped);
   session.totals.case_runs[c] += session.totals.skipped - skipped;
   if (todo.empty()) return;
   CampaignOptions opt;
-  opt.threads = session.mpi && cmd.threads == 0 ? 1 : cmd.threads;  // one thread per rank unless asked
+  opt.threads =
+      session.mpi && cmd.threads == 0 ? 1 : cmd.threads;  // one thread per rank unless asked
   opt.trace = cmd.trace && c == 0;
   opt.time_estimators = cmd.timing && session.timed[c] == 0;
   if (session.progress != nullptr) {
-    session.progress->set_case(c, cases, session.rule.on() ? fmt::format("runs {}..{}", lo, limit - 1) : "");
+    session.progress->set_case(c, cases,
+                               session.rule.on() ? fmt::format("runs {}..{}", lo, limit - 1) : "");
     opt.progress = session.progress;
   }
   opt.only_runs = std::move(todo);
@@ -1214,7 +1324,8 @@ void run_batches(RunSession& session, StoreSink& sink) {
   for (std::uint64_t lo = 0; g_stop.load() == 0;) {
     const std::uint64_t hi = rule.on() ? std::min(lo + rule.batch, rule.max_runs) : 0;
     for (std::size_t c = 0; c < session.loaded.cases.size() && g_stop.load() == 0; ++c) {
-      const std::uint64_t limit = rule.on() ? hi : static_cast<std::uint64_t>(session.loaded.cases[c].scenario->run.runs);
+      const std::uint64_t limit =
+          rule.on() ? hi : static_cast<std::uint64_t>(session.loaded.cases[c].scenario->run.runs);
       run_case_batch(session, sink, c, lo, limit);
     }
     if (!rule.on() || hi >= rule.max_runs || g_stop.load() != 0) break;
@@ -1235,7 +1346,8 @@ void store_timing_and_trace(RunSession& session, StoreSink& sink) {
       sink.with_store([&](RunStore& s) { s.put_timing(c, std::vector<double>(ne, std::nan(""))); });
     }
   }
-  if (session.cmd.trace && session.trace.empty() && g_stop.load() == 0) {  // run 0 was done by an earlier session
+  if (session.cmd.trace && session.trace.empty() &&
+      g_stop.load() == 0) {  // run 0 was done by an earlier session
     simulate_run(*loaded.cases.front().scenario, 0, &session.trace);
   }
   if (session.cmd.trace && !session.trace.empty()) {
@@ -1250,8 +1362,9 @@ void set_progress_total(const RunSession& session, CampaignProgress& progress) {
   const Shard& shard = session.shard;
   std::uint64_t total = 0, stored = 0;
   for (std::size_t c = 0; c < session.loaded.cases.size(); ++c) {
-    const std::uint64_t limit = session.rule.on() ? session.rule.max_runs
-                                                  : static_cast<std::uint64_t>(session.loaded.cases[c].scenario->run.runs);
+    const std::uint64_t limit =
+        session.rule.on() ? session.rule.max_runs
+                          : static_cast<std::uint64_t>(session.loaded.cases[c].scenario->run.runs);
     total += limit / shard.count + (shard.index < limit % shard.count ? 1 : 0);
     for (std::uint64_t r : session.stored[c]) stored += r < limit && shard.owns(r) ? 1 : 0;
   }
@@ -1274,11 +1387,15 @@ int cmd_run_campaign(const RunCommand& cmd) {
   LoadedScenario loaded = load_cases(cmd.file, cmd.sets, cmd.overrides);
   reference_case_index(loaded);  // [paired] reference_case: bad input before t = 0
   const std::string& out = cmd.out;
-  auto meta = campaign_meta(loaded, cmd.overrides, cmd.shard.empty() ? "" : fmt::format("{}/{}", shard.index + 1, shard.count));
+  auto meta =
+      campaign_meta(loaded, cmd.overrides,
+                    cmd.shard.empty() ? "" : fmt::format("{}/{}", shard.index + 1, shard.count));
   const TargetRule rule = target_rule(cmd, loaded, meta);
-  const TableRequest table{cmd.columns, cmd.format};  // sim/table_view.h: bad --columns before t = 0
-  check_table_request(table, summary_csv_columns(loaded.sweeps, loaded.cases.front().scenario->model.plant.n(),
-                                                 rule.on()));
+  const TableRequest table{cmd.columns,
+                           cmd.format};  // sim/table_view.h: bad --columns before t = 0
+  check_table_request(
+      table, summary_csv_columns(loaded.sweeps, loaded.cases.front().scenario->model.plant.n(),
+                                 rule.on()));
   // Under mpirun: ranks > 0 simulate what rank 0 hands out; rank 0 goes on alone from here.
   const std::unique_ptr<MpiSession> mpi = start_mpi();
   if (mpi && mpi->rank() > 0) {
@@ -1287,12 +1404,14 @@ int cmd_run_campaign(const RunCommand& cmd) {
     mpi->serve(cases);
     return 0;
   }
-  const OutputFolderLock folder_lock(out);  // sim/output_set.h: one writer per folder for the whole campaign
+  const OutputFolderLock folder_lock(
+      out);                 // sim/output_set.h: one writer per folder for the whole campaign
   prepare_output_dir(out);  // fail before the campaign, not after it
   {
-    const Scenario& sc0 = *loaded.cases.front().scenario;  // sim/limits.h: the exports hold every run
-    check_campaign_resources(loaded.file, 0, sc0.run.runs, loaded.cases.size(), sc0.estimators.size(),
-                             sc0.model.plant.n(), sc0.model.sensors.size());
+    const Scenario& sc0 =
+        *loaded.cases.front().scenario;  // sim/limits.h: the exports hold every run
+    check_campaign_resources(loaded.file, 0, sc0.run.runs, loaded.cases.size(),
+                             sc0.estimators.size(), sc0.model.plant.n(), sc0.model.sensors.size());
   }
   RunStore store = open_run_store(cmd, loaded, meta);
   const std::string path = store_path(out);
@@ -1310,7 +1429,8 @@ int cmd_run_campaign(const RunCommand& cmd) {
   simulate_session(session, store);
   progress.finish();
   // Test hook: a signal that comes after the last run (a moment the signal tests cannot aim at).
-  if (const char* raise_after = std::getenv("NCOSIM_TEST_RAISE_AFTER_RUNS")) ::raise(std::atoi(raise_after));
+  if (const char* raise_after = std::getenv("NCOSIM_TEST_RAISE_AFTER_RUNS"))
+    ::raise(std::atoi(raise_after));
   const int sig = g_stop.load();
   record_session(store, session.totals.wall, session.totals.threads, session.totals.ranks, sig);
   ExportInfo info;
@@ -1345,8 +1465,9 @@ int cmd_export(const std::string& dir, const std::string& out, const std::string
   bool same_folder = false;
   {
     std::error_code ec;
-    same_folder = output_set_folder(dir) == output_set_folder(target) ||
-                  (std::filesystem::exists(target, ec) && std::filesystem::equivalent(dir, target, ec));
+    same_folder =
+        output_set_folder(dir) == output_set_folder(target) ||
+        (std::filesystem::exists(target, ec) && std::filesystem::equivalent(dir, target, ec));
   }
   ExportInfo info;
   info.command_line = command_line;
@@ -1364,7 +1485,9 @@ int cmd_export(const std::string& dir, const std::string& out, const std::string
     // Another folder: its set becomes this store's, with a copy of it; what was derived from the
     // folder's previous results goes.
     write_output_set(target, files, stale_with_derived(),
-                     {InstalledFile{"runs.sqlite", [&](const std::filesystem::path& to) { store.copy_to(to.string()); }}});
+                     {InstalledFile{"runs.sqlite", [&](const std::filesystem::path& to) {
+                                      store.copy_to(to.string());
+                                    }}});
   }
   store.close();
   std::cout << fmt::format("exports of {} written to {}/\n", path, target);
@@ -1400,25 +1523,26 @@ ShardStores open_shards(const std::string& out, const std::vector<std::string>& 
     }
     const std::string diff = identity_difference(s.metas.front(), s.metas.back(), false);
     if (!diff.empty()) {
-      throw ScenarioError(fmt::format("merge: {} and {} are shards of different campaigns: {} differ(s)",
-                                      store_path(dirs.front()), store_path(d), diff));
+      throw ScenarioError(
+          fmt::format("merge: {} and {} are shards of different campaigns: {} differ(s)",
+                      store_path(dirs.front()), store_path(d), diff));
     }
   }
   return s;
 }
 
 // The shard holding each (case, run); throws when two shards hold the same one.
-std::map<std::pair<std::size_t, std::uint64_t>, std::size_t> run_owners(ShardStores& shards,
-                                                                        const std::vector<std::string>& dirs,
-                                                                        const LoadedScenario& loaded) {
+std::map<std::pair<std::size_t, std::uint64_t>, std::size_t> run_owners(
+    ShardStores& shards, const std::vector<std::string>& dirs, const LoadedScenario& loaded) {
   std::map<std::pair<std::size_t, std::uint64_t>, std::size_t> owner;
   for (std::size_t s = 0; s < shards.stores.size(); ++s) {
     for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
       for (std::uint64_t r : shards.stores[s].done_runs(c)) {
         const auto [it, fresh] = owner.emplace(std::make_pair(c, r), s);
         if (!fresh) {
-          throw ScenarioError(fmt::format("merge: run {} of case {} is in both {} and {} (overlapping shards)", r,
-                                          c + 1, store_path(dirs[it->second]), store_path(dirs[s])));
+          throw ScenarioError(
+              fmt::format("merge: run {} of case {} is in both {} and {} (overlapping shards)", r,
+                          c + 1, store_path(dirs[it->second]), store_path(dirs[s])));
         }
       }
     }
@@ -1433,26 +1557,31 @@ void check_complete(const std::map<std::pair<std::size_t, std::uint64_t>, std::s
   std::vector<std::string> missing;
   std::size_t missing_count = 0;
   for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
-    const auto runs = rule.on() ? rule.max_runs : static_cast<std::uint64_t>(loaded.cases[c].scenario->run.runs);
+    const auto runs =
+        rule.on() ? rule.max_runs : static_cast<std::uint64_t>(loaded.cases[c].scenario->run.runs);
     for (std::uint64_t r = 0; r < runs; ++r) {
       if (owner.count({c, r}) != 0) continue;
       ++missing_count;
-      if (missing.size() < 5) missing.push_back(loaded.cases.size() > 1 ? fmt::format("case {} run {}", c + 1, r) : fmt::format("run {}", r));
+      if (missing.size() < 5)
+        missing.push_back(loaded.cases.size() > 1 ? fmt::format("case {} run {}", c + 1, r)
+                                                  : fmt::format("run {}", r));
     }
   }
   if (missing_count > 0) {
     std::string list;
     for (std::size_t i = 0; i < missing.size(); ++i) list += (i ? ", " : "") + missing[i];
-    throw ScenarioError(fmt::format("merge: {} run(s) missing from the given stores (first: {}); merge every shard, "
-                                    "each complete (`ncosim run ... --shard I/N --resume` finishes one)",
-                                    missing_count, list));
+    throw ScenarioError(fmt::format(
+        "merge: {} run(s) missing from the given stores (first: {}); merge every shard, "
+        "each complete (`ncosim run ... --shard I/N --resume` finishes one)",
+        missing_count, list));
   }
 }
 
 // The campaign table of the merged store: the first shard's, unsharded, with the shards' wall
 // time summed and the folders it was merged from.
-std::map<std::string, std::string> merged_meta(const std::vector<std::map<std::string, std::string>>& metas,
-                                               const std::vector<std::string>& dirs) {
+std::map<std::string, std::string> merged_meta(
+    const std::vector<std::map<std::string, std::string>>& metas,
+    const std::vector<std::string>& dirs) {
   auto meta = metas.front();
   meta["shard"] = "";
   meta.erase("store");
@@ -1502,7 +1631,8 @@ void merge_case(ShardStores& shards, RunStore& merged, const Scenario& sc, std::
 
 }  // namespace
 
-int cmd_merge(const std::string& out, const std::vector<std::string>& dirs, const std::string& command_line) {
+int cmd_merge(const std::string& out, const std::vector<std::string>& dirs,
+              const std::string& command_line) {
   if (dirs.empty()) throw ScenarioError("merge: expected at least one shard folder");
   ShardStores shards = open_shards(out, dirs);
   LoadedScenario loaded;
@@ -1523,7 +1653,8 @@ int cmd_merge(const std::string& out, const std::vector<std::string>& dirs, cons
   note_replaced_partial(out, partial_store_path(out));
   RunStore merged = RunStore::create(partial_store_path(out), merged_meta(shards.metas, dirs));
   try {
-    for (std::size_t c = 0; c < loaded.cases.size(); ++c) merge_case(shards, merged, *loaded.cases[c].scenario, c);
+    for (std::size_t c = 0; c < loaded.cases.size(); ++c)
+      merge_case(shards, merged, *loaded.cases[c].scenario, c);
     for (auto& store : shards.stores) {
       for (const auto& [name, content] : store.artifacts()) merged.put_artifact(name, content);
     }
@@ -1537,8 +1668,8 @@ int cmd_merge(const std::string& out, const std::vector<std::string>& dirs, cons
   ExportInfo info;
   info.command_line = command_line;
   export_and_install(loaded, merged, out, info);
-  std::cout << fmt::format("{} store(s) merged: {} runs x {} case(s); results in {}/\n", dirs.size(), owner.size(),
-                           loaded.cases.size(), out);
+  std::cout << fmt::format("{} store(s) merged: {} runs x {} case(s); results in {}/\n",
+                           dirs.size(), owner.size(), loaded.cases.size(), out);
   return 0;
 }
 

@@ -22,14 +22,15 @@ struct RunCommand {
   bool trace = false;
   bool quiet = false;
   bool resume = false;
-  bool replace = false;    // --replace: replace a store of a different or unfinished campaign
-  bool timing = true;      // false: --no-timing
-  std::string shard;       // "I/N" or empty
+  bool replace = false;  // --replace: replace a store of a different or unfinished campaign
+  bool timing = true;    // false: --no-timing
+  std::string shard;     // "I/N" or empty
   std::optional<double> target_ci;  // --target-ci REL
   std::int64_t max_runs = 0;        // --max-runs N
   std::string command_line;
-  std::vector<std::string> columns;  // --columns: the summary.csv columns on stdout (sim/table_view.h)
-  std::string format;                // --format md|csv|json ("" = the table fitted to 120 columns)
+  std::vector<std::string>
+      columns;                  // --columns: the summary.csv columns on stdout (sim/table_view.h)
+  std::string format;           // --format md|csv|json ("" = the table fitted to 120 columns)
   bool fail_on_status = false;  // exit kExitFlagged when a row's status is not its expected one
 };
 
@@ -49,6 +50,7 @@ int cmd_run_campaign(const RunCommand& cmd);
 // Re-derives every export of the store in `dir` into `out` (default: `dir`).
 int cmd_export(const std::string& dir, const std::string& out, const std::string& command_line);
 // Combines the stores of `dirs` (shards of one campaign) into `out`, then exports.
-int cmd_merge(const std::string& out, const std::vector<std::string>& dirs, const std::string& command_line);
+int cmd_merge(const std::string& out, const std::vector<std::string>& dirs,
+              const std::string& command_line);
 
 }  // namespace ncosim::sim

@@ -1,4 +1,5 @@
-// sim/campaign.cc — the campaign: runs (sim/run.h) distributed over threads, counting progress (sim/progress.h), with stop.
+// sim/campaign.cc — the campaign: runs (sim/run.h) distributed over threads, counting progress
+// (sim/progress.h), with stop.
 #include "sim/campaign.h"
 
 #include <fmt/format.h>
@@ -30,15 +31,16 @@ std::vector<std::thread> start_workers(int count, Worker& worker, Stop stop) {
   } catch (const std::system_error& e) {
     stop();
     for (auto& t : pool) t.join();
-    throw std::runtime_error(fmt::format("cannot start worker thread {} of {} ({}); retry with a smaller --threads",
-                                         pool.size() + 2, count + 1, e.what()));
+    throw std::runtime_error(
+        fmt::format("cannot start worker thread {} of {} ({}); retry with a smaller --threads",
+                    pool.size() + 2, count + 1, e.what()));
   }
   return pool;
 }
 
 // A stopped campaign keeps the completed runs only, with their run indices.
-void keep_completed(const std::vector<std::uint64_t>& todo, const std::vector<char>& completed, bool link_counters,
-                    CampaignResult& result) {
+void keep_completed(const std::vector<std::uint64_t>& todo, const std::vector<char>& completed,
+                    bool link_counters, CampaignResult& result) {
   std::vector<RunMetrics> kept;
   std::vector<RunLinks> kept_links;
   std::vector<std::uint64_t> ids;
@@ -61,12 +63,14 @@ ErrorCurve error_curve_of(const Scenario& sc) {
 }
 
 RunMetrics simulate_run(const Scenario& sc, std::uint64_t run, std::vector<TraceRow>* trace,
-                        std::vector<double>* ns_per_period, std::vector<models::LinkCounters>* links,
-                        ErrorCurve* curve) {
+                        std::vector<double>* ns_per_period,
+                        std::vector<models::LinkCounters>* links, ErrorCurve* curve) {
   ReplayLog log;
-  RunMetrics m = execute_run(sc, run, trace, ns_per_period != nullptr ? &log : nullptr, links, curve);
+  RunMetrics m =
+      execute_run(sc, run, trace, ns_per_period != nullptr ? &log : nullptr, links, curve);
   if (curve != nullptr) curve->add_run(run);
-  if (ns_per_period != nullptr) *ns_per_period = time_estimators(sc, log, std::chrono::milliseconds(200));
+  if (ns_per_period != nullptr)
+    *ns_per_period = time_estimators(sc, log, std::chrono::milliseconds(200));
   return m;
 }
 
@@ -86,7 +90,8 @@ CampaignResult run_campaign(const Scenario& sc, const CampaignOptions& options) 
     if (options.link_counters) result.link_runs.resize(runs);
     if (options.only_runs) result.run_ids = todo;
   }
-  int threads = options.threads > 0 ? options.threads : static_cast<int>(std::thread::hardware_concurrency());
+  int threads =
+      options.threads > 0 ? options.threads : static_cast<int>(std::thread::hardware_concurrency());
   threads = std::max(1, std::min<int>(threads, static_cast<int>(std::max<std::size_t>(runs, 1))));
   if (sc.mobility && sc.mobility->single_threaded()) threads = 1;  // one libsumo per process
   result.threads = threads;
@@ -97,7 +102,8 @@ CampaignResult run_campaign(const Scenario& sc, const CampaignOptions& options) 
   // estimator costs about 2 % of the campaign.
   ReplayLog log;
   log.limit = std::min<std::size_t>(
-      kReplayPeriods, std::max<std::size_t>(200, static_cast<std::size_t>(sc.run.periods) * runs / 50));
+      kReplayPeriods,
+      std::max<std::size_t>(200, static_cast<std::size_t>(sc.run.periods) * runs / 50));
   std::atomic<std::size_t> next{0};
   std::atomic<std::size_t> done{0};
   std::exception_ptr error;
@@ -152,13 +158,16 @@ CampaignResult run_campaign(const Scenario& sc, const CampaignOptions& options) 
   result.runs_done = done.load();
   result.stopped = result.runs_done < runs;
   if (keep && result.stopped) keep_completed(todo, completed, options.link_counters, result);
-  result.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  result.wall_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (options.time_estimators && !log.u.empty() && !stop_requested()) {
     // Timed alone, after the campaign, on a replay of the first run simulated (at most
     // kReplayPeriods periods; not part of the results' identity). Budget per estimator: 2 %
     // of the campaign's time, between 1 ms and 200 ms.
-    const double share = 0.02 * result.wall_seconds / static_cast<double>(std::max<std::size_t>(sc.estimators.size(), 1));
-    const auto budget = std::chrono::nanoseconds(static_cast<std::int64_t>(std::clamp(share, 0.001, 0.2) * 1e9));
+    const double share = 0.02 * result.wall_seconds /
+                         static_cast<double>(std::max<std::size_t>(sc.estimators.size(), 1));
+    const auto budget =
+        std::chrono::nanoseconds(static_cast<std::int64_t>(std::clamp(share, 0.001, 0.2) * 1e9));
     result.ns_per_period = time_estimators(sc, log, budget);
   } else {
     result.ns_per_period.assign(sc.estimators.size(), std::nan(""));

@@ -10,8 +10,8 @@
 namespace ncosim::sim {
 
 // manifest.json of a campaign (scenario, hash, overrides, seed, version, commit, date, ...).
-nlohmann::json campaign_manifest(const LoadedScenario& loaded, const std::string& command_line, int threads,
-                                 double wall_seconds);
+nlohmann::json campaign_manifest(const LoadedScenario& loaded, const std::string& command_line,
+                                 int threads, double wall_seconds);
 
 int run_cli(int argc, char** argv);
 

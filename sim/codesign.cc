@@ -29,21 +29,26 @@ nlohmann::json run_codesign(const Scenario& sc, const CodesignOptions& options) 
           sc.file, 0, e.name, fmt::format("expected mu >= 1 ([codesign] mu or --mu), got {}", mu)));
     }
     const est::sod::SodDesignResult z0 = est::sod::design_all_measurements(d->system());
-    if (!z0.ok) throw std::runtime_error(fmt::format("{}: the z~0 LMI failed ({})", e.name, z0.status));
+    if (!z0.ok)
+      throw std::runtime_error(fmt::format("{}: the z~0 LMI failed ({})", e.name, z0.status));
     const auto spec = d->codesign_spec(mu, z0.bound);
     if (!spec) {
-      throw ScenarioError(format_error(sc.file, 0, e.name, "expected one output per sensor for the co-design"));
+      throw ScenarioError(
+          format_error(sc.file, 0, e.name, "expected one output per sensor for the co-design"));
     }
     auto progress = [&](const est::sod::CodesignStep& s) {
       if (!options.progress) return;
       std::fprintf(stderr, "%s: step %d  delta = [", e.name.c_str(), s.iteration);
-      for (Eigen::Index i = 0; i < s.delta.size(); ++i) std::fprintf(stderr, "%s%.4g", i ? " " : "", s.delta(i));
-      std::fprintf(stderr, "]  cost %.5g  bound %.5g (target %.5g)\n", s.cost, s.bound, spec->target);
+      for (Eigen::Index i = 0; i < s.delta.size(); ++i)
+        std::fprintf(stderr, "%s%.4g", i ? " " : "", s.delta(i));
+      std::fprintf(stderr, "]  cost %.5g  bound %.5g (target %.5g)\n", s.cost, s.bound,
+                   spec->target);
     };
     const est::sod::CodesignResult r = est::sod::codesign(d->system(), *spec, progress);
     nlohmann::json j;
     j["estimator"] = e.name;
-    j["design"] = d->spec().approach == est::sod::Approach::kDeterministic ? "deterministic" : "stochastic";
+    j["design"] =
+        d->spec().approach == est::sod::Approach::kDeterministic ? "deterministic" : "stochastic";
     j["gain"] = d->spec().jump ? "jump" : "constant";
     if (d->spec().approach == est::sod::Approach::kStochastic) {
       j["vertices"] = d->spec().vertices == est::sod::Vertices::kAll ? "all" : "lower";
@@ -70,7 +75,11 @@ nlohmann::json run_codesign(const Scenario& sc, const CodesignOptions& options) 
     j["sdp_variables"] = r.design.size.variables;
     j["lmis_per_problem"] = r.design.lmis;
     nlohmann::json path = nlohmann::json::array();
-    for (const auto& s : r.path) path.push_back({{"iteration", s.iteration}, {"delta", vec(s.delta)}, {"cost", s.cost}, {"bound", s.bound}});
+    for (const auto& s : r.path)
+      path.push_back({{"iteration", s.iteration},
+                      {"delta", vec(s.delta)},
+                      {"cost", s.cost},
+                      {"bound", s.bound}});
     j["path"] = path;
     std::string sets;
     Eigen::Index row = 0;
@@ -82,10 +91,11 @@ nlohmann::json run_codesign(const Scenario& sc, const CodesignOptions& options) 
     out.push_back(j);
   }
   if (!found) {
-    throw ScenarioError(format_error(sc.file, 0, "estimator",
-                                     options.estimator.empty()
-                                         ? "expected at least one sod_jump estimator to co-design"
-                                         : fmt::format("expected a sod_jump estimator named \"{}\"", options.estimator)));
+    throw ScenarioError(format_error(
+        sc.file, 0, "estimator",
+        options.estimator.empty()
+            ? "expected at least one sod_jump estimator to co-design"
+            : fmt::format("expected a sod_jump estimator named \"{}\"", options.estimator)));
   }
   return out;
 }

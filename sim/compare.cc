@@ -1,7 +1,5 @@
 // sim/compare.cc — `ncosim compare`: reading two output folders, matching and testing rows.
 #include "sim/compare.h"
-#include "sim/compare_manifest.h"
-#include "sim/csv.h"
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
@@ -17,6 +15,8 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "sim/compare_manifest.h"
+#include "sim/csv.h"
 #include "sim/output.h"
 #include "sim/paired.h"
 
@@ -39,21 +39,25 @@ std::optional<double> parse_number(const std::string& s) {
   double v = 0.0;
   const auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
   if (p != s.data() + s.size()) throw std::invalid_argument(s);
-  // Beyond a double's range: +-inf on overflow (the callers refuse it), 0 or subnormal on underflow.
+  // Beyond a double's range: +-inf on overflow (the callers refuse it), 0 or subnormal on
+  // underflow.
   if (ec == std::errc::result_out_of_range) return std::strtod(s.c_str(), nullptr);
   if (ec != std::errc()) throw std::invalid_argument(s);
   return v;
 }
 
-std::string case_text(const std::vector<std::string>& keys, const std::vector<std::string>& labels) {
+std::string case_text(const std::vector<std::string>& keys,
+                      const std::vector<std::string>& labels) {
   std::string out;
-  for (std::size_t a = 0; a < keys.size(); ++a) out += fmt::format("{}{} = {}", a ? ", " : "", keys[a], labels[a]);
+  for (std::size_t a = 0; a < keys.size(); ++a)
+    out += fmt::format("{}{} = {}", a ? ", " : "", keys[a], labels[a]);
   return out;
 }
 
 std::string row_text(const std::vector<std::string>& keys, const RunFolder::Row& r) {
-  return keys.empty() ? fmt::format("estimator \"{}\"", r.estimator)
-                      : fmt::format("case {}, estimator \"{}\"", case_text(keys, r.labels), r.estimator);
+  return keys.empty()
+             ? fmt::format("estimator \"{}\"", r.estimator)
+             : fmt::format("case {}, estimator \"{}\"", case_text(keys, r.labels), r.estimator);
 }
 
 }  // namespace
@@ -62,7 +66,9 @@ RunFolder read_run_folder(const std::string& dir, const std::string& metric) {
   RunFolder f;
   f.dir = dir;
   const fs::path d(dir);
-  if (!fs::is_directory(d)) throw CompareInputError(fmt::format("{}: not a directory (expected an ncosim run output folder)", dir));
+  if (!fs::is_directory(d))
+    throw CompareInputError(
+        fmt::format("{}: not a directory (expected an ncosim run output folder)", dir));
   const fs::path man = d / "manifest.json";
   nlohmann::json m;
   try {
@@ -77,22 +83,25 @@ RunFolder read_run_folder(const std::string& dir, const std::string& metric) {
     f.seed = m.at("seed").get<std::uint64_t>();
     if (m.contains("inputs")) {
       std::map<std::string, std::string> in;
-      for (auto it = m["inputs"].begin(); it != m["inputs"].end(); ++it) in[it.key()] = it.value().get<std::string>();
+      for (auto it = m["inputs"].begin(); it != m["inputs"].end(); ++it)
+        in[it.key()] = it.value().get<std::string>();
       f.inputs = std::move(in);
     }
   } catch (const nlohmann::json::exception& e) {
-    throw CompareInputError(fmt::format("{}: expected the fields scenario, scenario_hash and seed of `ncosim run` ({})",
-                                        man.string(), e.what()));
+    throw CompareInputError(
+        fmt::format("{}: expected the fields scenario, scenario_hash and seed of `ncosim run` ({})",
+                    man.string(), e.what()));
   }
   read_folder_identity(m, f);
   if (m.contains("complete") && m["complete"].is_boolean() && !m["complete"].get<bool>()) {
-    f.partial = fmt::format("{} of {} runs (a partial campaign: stopped, or one shard)", m.value("runs_done", 0),
-                            m.value("runs_expected", 0));
+    f.partial = fmt::format("{} of {} runs (a partial campaign: stopped, or one shard)",
+                            m.value("runs_done", 0), m.value("runs_expected", 0));
   }
   const fs::path runs = d / "runs.csv";
   const std::string file = runs.string();
   if (!fs::exists(runs) && fs::exists(d / "runs.sqlite")) {
-    throw CompareInputError(fmt::format("{}: missing; the folder holds a run store: `ncosim export {}` writes it", file, dir));
+    throw CompareInputError(fmt::format(
+        "{}: missing; the folder holds a run store: `ncosim export {}` writes it", file, dir));
   }
   // Streamed one record at a time, keeping only the columns compare needs: memory follows the
   // runs of the metric, not the size of the file.
@@ -109,25 +118,31 @@ RunFolder read_run_folder(const std::string& dir, const std::string& metric) {
     }
   };
   CsvRecord r;
-  if (!next(r)) throw CompareInputError(fmt::format("{}: empty file (expected the runs.csv of `ncosim run`)", file));
+  if (!next(r))
+    throw CompareInputError(
+        fmt::format("{}: empty file (expected the runs.csv of `ncosim run`)", file));
   const std::vector<std::string> head = std::move(r.fields);
   auto col = [&](const std::string& name) -> std::size_t {
     const auto it = std::find(head.begin(), head.end(), name);
     return it == head.end() ? head.size() : static_cast<std::size_t>(it - head.begin());
   };
-  const std::size_t c_run = col("run"), c_est = col("estimator"), c_div = col("diverged"), c_metric = col(metric);
+  const std::size_t c_run = col("run"), c_est = col("estimator"), c_div = col("diverged"),
+                    c_metric = col(metric);
   if (c_run == head.size() || c_est != c_run + 1 || c_div == head.size()) {
-    throw CompareInputError(fmt::format("{}:1: expected the header of `ncosim run`'s runs.csv ([sweep keys,] run, "
-                                        "estimator, ..., diverged, ...)",
-                                        file));
+    throw CompareInputError(
+        fmt::format("{}:1: expected the header of `ncosim run`'s runs.csv ([sweep keys,] run, "
+                    "estimator, ..., diverged, ...)",
+                    file));
   }
   if (c_metric == head.size() || metric == "run" || metric == "estimator" || metric == "status" ||
       metric == "diverged") {
     std::string list;
     for (std::size_t i = c_est + 1; i < head.size(); ++i) {
-      if (head[i] != "status" && head[i] != "diverged") list += (list.empty() ? "" : ", ") + head[i];
+      if (head[i] != "status" && head[i] != "diverged")
+        list += (list.empty() ? "" : ", ") + head[i];
     }
-    throw CompareInputError(fmt::format("--metric: expected a per-run column of {} ({}), got \"{}\"", file, list, metric));
+    throw CompareInputError(fmt::format(
+        "--metric: expected a per-run column of {} ({}), got \"{}\"", file, list, metric));
   }
   std::vector<bool> keep(head.size(), false);
   for (std::size_t i = 0; i <= c_est; ++i) keep[i] = true;  // sweep labels, run, estimator
@@ -135,13 +150,15 @@ RunFolder read_run_folder(const std::string& dir, const std::string& metric) {
   reader.keep_only(std::move(keep));
   f.sweep_keys.assign(head.begin(), head.begin() + static_cast<std::ptrdiff_t>(c_run));
   std::map<std::pair<std::vector<std::string>, std::string>, std::size_t> index;
-  std::vector<std::vector<int>> lines;  // per row, the line of each run (duplicates are found at the end)
+  std::vector<std::vector<int>>
+      lines;  // per row, the line of each run (duplicates are found at the end)
   while (next(r)) {
     if (r.fields.size() != head.size()) {
-      throw CompareInputError(
-          fmt::format("{}:{}: expected {} fields (the header's), got {}", file, r.line, head.size(), r.fields.size()));
+      throw CompareInputError(fmt::format("{}:{}: expected {} fields (the header's), got {}", file,
+                                          r.line, head.size(), r.fields.size()));
     }
-    std::vector<std::string> labels(r.fields.begin(), r.fields.begin() + static_cast<std::ptrdiff_t>(c_run));
+    std::vector<std::string> labels(r.fields.begin(),
+                                    r.fields.begin() + static_cast<std::ptrdiff_t>(c_run));
     auto key = std::make_pair(std::move(labels), r.fields[c_est]);
     auto it = index.find(key);
     if (it == index.end()) {
@@ -157,8 +174,9 @@ RunFolder read_run_folder(const std::string& dir, const std::string& metric) {
     } catch (const std::invalid_argument&) {
     }
     if (!run || !(*run >= 0.0 && *run <= 9007199254740992.0) || *run != std::floor(*run)) {
-      throw CompareInputError(fmt::format("{}:{}: run: expected a run index (an integer >= 0), got \"{}\"", file, r.line,
-                                          r.fields[c_run]));
+      throw CompareInputError(
+          fmt::format("{}:{}: run: expected a run index (an integer >= 0), got \"{}\"", file,
+                      r.line, r.fields[c_run]));
     }
     // The metric: empty (no value in this run), else a finite number >= 0 (every per-run column
     // of runs.csv is); nan, inf, a negative value or one beyond a double's range is damaged input.
@@ -166,12 +184,12 @@ RunFolder read_run_folder(const std::string& dir, const std::string& metric) {
     try {
       value = parse_number(r.fields[c_metric]);
     } catch (const std::invalid_argument&) {
-      throw CompareInputError(fmt::format("{}:{}: {}: expected a number, got \"{}\"", file, r.line, metric,
-                                          r.fields[c_metric]));
+      throw CompareInputError(fmt::format("{}:{}: {}: expected a number, got \"{}\"", file, r.line,
+                                          metric, r.fields[c_metric]));
     }
     if (value && !(std::isfinite(*value) && *value >= 0.0)) {
-      throw CompareInputError(fmt::format("{}:{}: {}: expected a finite number >= 0, got \"{}\"", file, r.line, metric,
-                                          r.fields[c_metric]));
+      throw CompareInputError(fmt::format("{}:{}: {}: expected a finite number >= 0, got \"{}\"",
+                                          file, r.line, metric, r.fields[c_metric]));
     }
     row.run.push_back(static_cast<std::int64_t>(*run));
     row.value.push_back(value);
@@ -200,10 +218,12 @@ RunFolder read_run_folder(const std::string& dir, const std::string& metric) {
     }
   }
   if (dup_line != 0) {
-    throw CompareInputError(fmt::format("{}:{}: run {} of {} appears twice", file, dup_line, dup_run,
-                                        row_text(f.sweep_keys, f.rows[dup_row])));
+    throw CompareInputError(fmt::format("{}:{}: run {} of {} appears twice", file, dup_line,
+                                        dup_run, row_text(f.sweep_keys, f.rows[dup_row])));
   }
-  if (f.rows.empty()) throw CompareInputError(fmt::format("{}: no runs (expected the runs.csv of `ncosim run`)", file));
+  if (f.rows.empty())
+    throw CompareInputError(
+        fmt::format("{}: no runs (expected the runs.csv of `ncosim run`)", file));
   return f;
 }
 
@@ -230,17 +250,17 @@ const RunFolder::RowStatus* status_of(const RunFolder& f, const RunFolder::Row& 
 }
 
 // A status that differs between the folders, in the row's note: expected or not by NEW's row.
-void note_status_change(const RunFolder& bf, const RunFolder::Row& b, const RunFolder& nf, const RunFolder::Row& n,
-                        CompareRow& out) {
+void note_status_change(const RunFolder& bf, const RunFolder::Row& b, const RunFolder& nf,
+                        const RunFolder::Row& n, CompareRow& out) {
   const auto *sb = status_of(bf, b), *sn = status_of(nf, n);
   if (sb == nullptr || sn == nullptr || sb->status == sn->status) return;
   const bool expected = status_as_expected(sn->status, sn->expected_status);  // sim/scenario.h
-  out.note += fmt::format("{}status {} -> {} ({})", out.note.empty() ? "" : "; ", sb->status, sn->status,
-                          expected ? "expected" : "unexpected");
+  out.note += fmt::format("{}status {} -> {} ({})", out.note.empty() ? "" : "; ", sb->status,
+                          sn->status, expected ? "expected" : "unexpected");
 }
 
-void test_row(const RunFolder& bf, const RunFolder::Row& b, const RunFolder& nf, const RunFolder::Row& n,
-              const CompareOptions& o, CompareRow& out) {
+void test_row(const RunFolder& bf, const RunFolder::Row& b, const RunFolder& nf,
+              const RunFolder::Row& n, const CompareOptions& o, CompareRow& out) {
   out.runs_base = b.run.size();
   out.runs_new = n.run.size();
   const auto div_b = std::count(b.diverged.begin(), b.diverged.end(), true);
@@ -337,8 +357,9 @@ void test_row(const RunFolder& bf, const RunFolder::Row& b, const RunFolder& nf,
   if (!std::isfinite(t.p_worse) || !std::isfinite(t.p_better)) {
     // Not reached on finite input after the scaling; never let it pass for "unchanged".
     throw CompareInputError(fmt::format("{}: {}: the test of {} is not finite (p = {}, {})",
-                                        (fs::path(nf.dir) / "runs.csv").string(), row_text(nf.sweep_keys, n), o.metric,
-                                        t.p_worse, t.p_better));
+                                        (fs::path(nf.dir) / "runs.csv").string(),
+                                        row_text(nf.sweep_keys, n), o.metric, t.p_worse,
+                                        t.p_better));
   }
   out.p_worse = t.p_worse;
   out.p_better = t.p_better;
@@ -364,33 +385,38 @@ void test_row(const RunFolder& bf, const RunFolder::Row& b, const RunFolder& nf,
       out.relative_low = *out.relative - *d->ratio_half;
       out.relative_high = *out.relative + *d->ratio_half;
     }
-    if (!out.relative || (d->ratio_half && !out.relative_low)) beyond.emplace_back("relative change");
+    if (!out.relative || (d->ratio_half && !out.relative_low))
+      beyond.emplace_back("relative change");
   }
   if (!beyond.empty()) {
-    out.note += fmt::format("{}{} or its CI beyond the range of a double", out.note.empty() ? "" : "; ",
-                            fmt::join(beyond, " and "));
+    out.note += fmt::format("{}{} or its CI beyond the range of a double",
+                            out.note.empty() ? "" : "; ", fmt::join(beyond, " and "));
   }
 }
 
 // The refusal's tail: each differing manifest field on its own line, and why a folder of an
 // older ncosim cannot tell other runs or seeds from another scenario.
-std::string what_differs(const RunFolder& base, const RunFolder& fresh, const std::vector<std::string>& differences,
-                         bool scenario) {
+std::string what_differs(const RunFolder& base, const RunFolder& fresh,
+                         const std::vector<std::string>& differences, bool scenario) {
   std::string out = "; what differs (BASE -> NEW):";
   for (const auto& d : differences) out += "\n  " + d;
   for (const auto* f : {&base, &fresh}) {
     if (!scenario || f->text_hash) continue;
-    out += fmt::format("\n  ({} {}: a manifest.json without scenario_text_hash (an older ncosim) and no run store; "
-                       "its scenario_hash also covers --runs, --periods and --seed, so other runs or seeds cannot be "
-                       "told from another scenario there: re-run it with this ncosim)",
-                       f == &base ? "BASE" : "NEW", f->dir);
+    out += fmt::format(
+        "\n  ({} {}: a manifest.json without scenario_text_hash (an older ncosim) and no run "
+        "store; "
+        "its scenario_hash also covers --runs, --periods and --seed, so other runs or seeds cannot "
+        "be "
+        "told from another scenario there: re-run it with this ncosim)",
+        f == &base ? "BASE" : "NEW", f->dir);
   }
   return out;
 }
 
 }  // namespace
 
-CompareResult compare_folders(const RunFolder& base, const RunFolder& fresh, const CompareOptions& options) {
+CompareResult compare_folders(const RunFolder& base, const RunFolder& fresh,
+                              const CompareOptions& options) {
   CompareResult res;
   res.options = options;
   // The folders' identities; not their rows (the per-run values are read here, not kept).
@@ -413,12 +439,14 @@ CompareResult compare_folders(const RunFolder& base, const RunFolder& fresh, con
   const std::string base_man = (fs::path(base.dir) / "manifest.json").string();
   const std::string new_man = (fs::path(fresh.dir) / "manifest.json").string();
   if (!same_scenario_text(base, fresh)) {
-    const std::string what = fmt::format("BASE {} (scenario_hash {}) and NEW {} (scenario_hash {})", base.scenario,
-                                         base.scenario_hash, fresh.scenario, fresh.scenario_hash);
+    const std::string what =
+        fmt::format("BASE {} (scenario_hash {}) and NEW {} (scenario_hash {})", base.scenario,
+                    base.scenario_hash, fresh.scenario, fresh.scenario_hash);
     if (!options.allow_scenario_change) {
-      throw CompareInputError(fmt::format("{}: a different scenario or different overrides than {}; pass "
-                                          "--allow-scenario-change to compare them anyway{}",
-                                          new_man, base_man, what_differs(base, fresh, res.differences, true)));
+      throw CompareInputError(
+          fmt::format("{}: a different scenario or different overrides than {}; pass "
+                      "--allow-scenario-change to compare them anyway{}",
+                      new_man, base_man, what_differs(base, fresh, res.differences, true)));
     }
     res.warnings.push_back(fmt::format("scenarios differ (--allow-scenario-change): {}", what));
   }
@@ -433,12 +461,14 @@ CompareResult compare_folders(const RunFolder& base, const RunFolder& fresh, con
       }
     }
     for (const auto& [file, h] : *fresh.inputs) {
-      if (base.inputs->count(file) == 0) what += fmt::format("{}'{}' (not read vs {})", what.empty() ? "" : ", ", file, h);
+      if (base.inputs->count(file) == 0)
+        what += fmt::format("{}'{}' (not read vs {})", what.empty() ? "" : ", ", file, h);
     }
     what = "the content of the input file(s) " + what + " differs";
     if (!options.allow_scenario_change) {
-      throw CompareInputError(fmt::format("{}: {} from {}; pass --allow-scenario-change to compare them anyway{}",
-                                          new_man, what, base_man, what_differs(base, fresh, res.differences, false)));
+      throw CompareInputError(
+          fmt::format("{}: {} from {}; pass --allow-scenario-change to compare them anyway{}",
+                      new_man, what, base_man, what_differs(base, fresh, res.differences, false)));
     }
     res.warnings.push_back(fmt::format("inputs differ (--allow-scenario-change): {}", what));
   }
@@ -446,10 +476,12 @@ CompareResult compare_folders(const RunFolder& base, const RunFolder& fresh, con
   if (!fresh.partial.empty()) res.warnings.push_back(fmt::format("NEW holds {}", fresh.partial));
   if (base.sweep_keys != fresh.sweep_keys) {
     throw CompareInputError(fmt::format("{}: sweep axes [{}] differ from {}'s [{}]", new_runs,
-                                        fmt::join(fresh.sweep_keys, ", "), base_runs, fmt::join(base.sweep_keys, ", ")));
+                                        fmt::join(fresh.sweep_keys, ", "), base_runs,
+                                        fmt::join(base.sweep_keys, ", ")));
   }
   std::map<std::pair<std::vector<std::string>, std::string>, std::size_t> in_new;
-  for (std::size_t i = 0; i < fresh.rows.size(); ++i) in_new[{fresh.rows[i].labels, fresh.rows[i].estimator}] = i;
+  for (std::size_t i = 0; i < fresh.rows.size(); ++i)
+    in_new[{fresh.rows[i].labels, fresh.rows[i].estimator}] = i;
   std::vector<bool> used(fresh.rows.size(), false);
   for (const auto& b : base.rows) {
     CompareRow row;
@@ -505,10 +537,14 @@ CompareResult compare_folders(const RunFolder& base, const RunFolder& fresh, con
     r.verdict = pw[j] <= options.alpha ? "worse" : pb[j] <= options.alpha ? "better" : "unchanged";
   }
   for (const auto& r : res.rows) {
-    if (r.verdict == "worse") ++res.worse;
-    else if (r.verdict == "better") ++res.better;
-    else if (r.verdict == "unchanged") ++res.unchanged;
-    else ++res.not_comparable;
+    if (r.verdict == "worse")
+      ++res.worse;
+    else if (r.verdict == "better")
+      ++res.better;
+    else if (r.verdict == "unchanged")
+      ++res.unchanged;
+    else
+      ++res.not_comparable;
   }
   return res;
 }
@@ -516,17 +552,21 @@ CompareResult compare_folders(const RunFolder& base, const RunFolder& fresh, con
 std::string compare_csv(const CompareResult& r) {
   std::string out;
   for (const auto& k : r.base.sweep_keys) out += csv_field(k) + ",";
-  out += "estimator,metric,verdict,test,runs_base,runs_new,pairs,base_mean,new_mean,diff,diff_ci_low,diff_ci_high,"
-         "relative_change,relative_ci_low,relative_ci_high,p_worse,p_better,note\n";
-  auto num = [](std::optional<double> v) { return v && std::isfinite(*v) ? fmt::format("{:.6g}", *v) : std::string(); };
+  out +=
+      "estimator,metric,verdict,test,runs_base,runs_new,pairs,base_mean,new_mean,diff,diff_ci_low,"
+      "diff_ci_high,"
+      "relative_change,relative_ci_low,relative_ci_high,p_worse,p_better,note\n";
+  auto num = [](std::optional<double> v) {
+    return v && std::isfinite(*v) ? fmt::format("{:.6g}", *v) : std::string();
+  };
   for (const auto& row : r.rows) {
     for (const auto& l : row.labels) out += csv_field(l) + ",";
-    out += fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n", csv_field(row.estimator),
-                       csv_field(r.options.metric), row.verdict, row.test,
-                       row.runs_base, row.runs_new, row.pairs,
-                       num(row.base_mean), num(row.new_mean), num(row.diff), num(row.diff_low), num(row.diff_high),
-                       num(row.relative), num(row.relative_low), num(row.relative_high), num(row.p_worse),
-                       num(row.p_better), csv_field(row.note));
+    out += fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
+                       csv_field(row.estimator), csv_field(r.options.metric), row.verdict, row.test,
+                       row.runs_base, row.runs_new, row.pairs, num(row.base_mean),
+                       num(row.new_mean), num(row.diff), num(row.diff_low), num(row.diff_high),
+                       num(row.relative), num(row.relative_low), num(row.relative_high),
+                       num(row.p_worse), num(row.p_better), csv_field(row.note));
   }
   return out;
 }
@@ -546,17 +586,22 @@ std::string md_cell(const std::string& s) {
 // Which test the rows use and why: paired where run r of both folders drew the same random
 // numbers (the same seed), Welch's unpaired test where they did not.
 std::string pairing_text(const CompareResult& r) {
-  const bool swept_seed =
-      std::find(r.base.sweep_keys.begin(), r.base.sweep_keys.end(), "run.seed") != r.base.sweep_keys.end();
+  const bool swept_seed = std::find(r.base.sweep_keys.begin(), r.base.sweep_keys.end(),
+                                    "run.seed") != r.base.sweep_keys.end();
   const std::string paired =
-      "paired on the runs both folders have (run r of both drew the same random numbers: common random numbers)";
+      "paired on the runs both folders have (run r of both drew the same random numbers: common "
+      "random numbers)";
   if (swept_seed) {
-    return "test: per case, " + paired + " where the case's run.seed is the same in both, else Welch's unpaired test";
+    return "test: per case, " + paired +
+           " where the case's run.seed is the same in both, else Welch's unpaired test";
   }
-  if (r.base.seed == r.fresh.seed) return fmt::format("test: {}; same seed {}", paired, r.base.seed);
-  return fmt::format("test: Welch's unpaired test: the seeds differ ({} -> {}), so run r is another realisation in "
-                     "each folder",
-                     r.base.seed, r.fresh.seed);
+  if (r.base.seed == r.fresh.seed)
+    return fmt::format("test: {}; same seed {}", paired, r.base.seed);
+  return fmt::format(
+      "test: Welch's unpaired test: the seeds differ ({} -> {}), so run r is another realisation "
+      "in "
+      "each folder",
+      r.base.seed, r.fresh.seed);
 }
 
 }  // namespace
@@ -564,14 +609,16 @@ std::string pairing_text(const CompareResult& r) {
 std::string compare_markdown(const CompareResult& r) {
   const auto& o = r.options;
   std::string out = fmt::format("# ncosim compare: {}\n\n", o.metric);
-  out += fmt::format("- BASE `{}`: {} (seed {}, scenario_hash {})\n", r.base.dir, r.base.scenario, r.base.seed,
-                     r.base.scenario_hash);
-  out += fmt::format("- NEW `{}`: {} (seed {}, scenario_hash {})\n", r.fresh.dir, r.fresh.scenario, r.fresh.seed,
-                     r.fresh.scenario_hash);
-  out += fmt::format("- worse: mean {} significantly above (1 + {:g}) x BASE; one-sided tests at alpha = {:g}, {} over "
-                     "{} tested row(s); CI: two-sided {:g} %\n",
-                     o.metric, o.tolerance, o.alpha, o.holm ? "Holm-corrected" : "no correction", r.tested,
-                     100.0 * (1.0 - o.alpha));
+  out += fmt::format("- BASE `{}`: {} (seed {}, scenario_hash {})\n", r.base.dir, r.base.scenario,
+                     r.base.seed, r.base.scenario_hash);
+  out += fmt::format("- NEW `{}`: {} (seed {}, scenario_hash {})\n", r.fresh.dir, r.fresh.scenario,
+                     r.fresh.seed, r.fresh.scenario_hash);
+  out += fmt::format(
+      "- worse: mean {} significantly above (1 + {:g}) x BASE; one-sided tests at alpha = {:g}, {} "
+      "over "
+      "{} tested row(s); CI: two-sided {:g} %\n",
+      o.metric, o.tolerance, o.alpha, o.holm ? "Holm-corrected" : "no correction", r.tested,
+      100.0 * (1.0 - o.alpha));
   if (!r.differences.empty()) {
     out += "- BASE -> NEW differ in:\n";
     for (const auto& d : r.differences) out += fmt::format("  - {}\n", d);
@@ -580,7 +627,9 @@ std::string compare_markdown(const CompareResult& r) {
   for (const auto& w : r.warnings) out += fmt::format("- warning: {}\n", w);
   out += "\n|";
   for (const auto& k : r.base.sweep_keys) out += fmt::format(" {} |", md_cell(k));
-  out += " estimator | verdict | test | runs | BASE | NEW | change % [CI] | p worse | p better | note |\n|";
+  out +=
+      " estimator | verdict | test | runs | BASE | NEW | change % [CI] | p worse | p better | note "
+      "|\n|";
   for (std::size_t i = 0; i < r.base.sweep_keys.size() + 10; ++i) out += "---|";
   out += "\n";
   auto g = [](std::optional<double> v, const char* f) {
@@ -593,18 +642,20 @@ std::string compare_markdown(const CompareResult& r) {
     if (row.relative) {
       change = fmt::format("{:+.3f}", 100.0 * *row.relative);
       if (row.relative_low && row.relative_high) {
-        change += fmt::format(" [{:+.3f}, {:+.3f}]", 100.0 * *row.relative_low, 100.0 * *row.relative_high);
+        change += fmt::format(" [{:+.3f}, {:+.3f}]", 100.0 * *row.relative_low,
+                              100.0 * *row.relative_high);
       }
     }
     const std::string verdict = row.verdict == "worse" ? "**worse**" : row.verdict;
-    out += fmt::format(" {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n", md_cell(row.estimator), verdict, row.test,
+    out += fmt::format(" {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
+                       md_cell(row.estimator), verdict, row.test,
                        row.test == "paired" ? std::to_string(row.pairs)
                                             : fmt::format("{} / {}", row.runs_base, row.runs_new),
-                       g(row.base_mean, "{:.6g}"), g(row.new_mean, "{:.6g}"), change, g(row.p_worse, "{:.3g}"),
-                       g(row.p_better, "{:.3g}"), md_cell(row.note));
+                       g(row.base_mean, "{:.6g}"), g(row.new_mean, "{:.6g}"), change,
+                       g(row.p_worse, "{:.3g}"), g(row.p_better, "{:.3g}"), md_cell(row.note));
   }
-  out += fmt::format("\n{} worse, {} better, {} unchanged, {} not comparable: exit {}\n", r.worse, r.better, r.unchanged,
-                     r.not_comparable, r.exit_code());
+  out += fmt::format("\n{} worse, {} better, {} unchanged, {} not comparable: exit {}\n", r.worse,
+                     r.better, r.unchanged, r.not_comparable, r.exit_code());
   return out;
 }
 
@@ -620,10 +671,12 @@ void read_row_statuses(RunFolder& f) {
   } catch (const ScenarioError& e) {
     throw CompareInputError(e.what());
   }
-  const int c_est = t.column("estimator"), c_status = t.column("status"), c_exp = t.column("expected_status");
+  const int c_est = t.column("estimator"), c_status = t.column("status"),
+            c_exp = t.column("expected_status");
   if (c_est < 0 || c_status < 0) return;
   std::map<std::pair<std::vector<std::string>, std::string>, std::size_t> index;
-  for (std::size_t i = 0; i < f.rows.size(); ++i) index[{f.rows[i].labels, f.rows[i].estimator}] = i;
+  for (std::size_t i = 0; i < f.rows.size(); ++i)
+    index[{f.rows[i].labels, f.rows[i].estimator}] = i;
   f.statuses.assign(f.rows.size(), {});
   for (const auto& cells : t.rows) {
     std::vector<std::string> labels;
@@ -645,7 +698,8 @@ int run_compare_command(const CompareCommand& c) {
     throw CompareInputError(fmt::format("--alpha: expected a level in (0, 1), got {}", o.alpha));
   }
   if (!(o.tolerance >= 0.0 && o.tolerance < 1.0)) {
-    throw CompareInputError(fmt::format("--tolerance: expected a relative tolerance in [0, 1), got {}", o.tolerance));
+    throw CompareInputError(
+        fmt::format("--tolerance: expected a relative tolerance in [0, 1), got {}", o.tolerance));
   }
   o.holm = c.correction == "holm";
   if (!c.out.empty()) prepare_output_dir(c.out);
@@ -655,7 +709,8 @@ int run_compare_command(const CompareCommand& c) {
   read_row_statuses(fresh);
   const CompareResult r = compare_folders(base, fresh, o);
   const std::string md = compare_markdown(r);
-  if (!c.out.empty()) write_files_atomically(c.out, {{"compare.csv", compare_csv(r)}, {"compare.md", md}});
+  if (!c.out.empty())
+    write_files_atomically(c.out, {{"compare.csv", compare_csv(r)}, {"compare.md", md}});
   std::fputs(md.c_str(), stdout);
   return r.exit_code();
 }

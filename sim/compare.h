@@ -56,7 +56,7 @@ struct RunFolder {
   struct Row {
     std::vector<std::string> labels;  // per sweep key
     std::string estimator;
-    std::vector<std::int64_t> run;    // run indices, in file order
+    std::vector<std::int64_t> run;             // run indices, in file order
     std::vector<std::optional<double>> value;  // the metric, finite and >= 0 (nullopt: empty cell)
     std::vector<bool> diverged;
   };
@@ -91,7 +91,8 @@ struct CompareRow {
 
 struct CompareResult {
   CompareOptions options;
-  RunFolder base, fresh;  // the two folders without their rows (dir, scenario, seed, sweep keys, ...)
+  RunFolder base,
+      fresh;  // the two folders without their rows (dir, scenario, seed, sweep keys, ...)
   std::vector<CompareRow> rows;
   std::size_t tested = 0;  // rows with a test (the Holm family)
   std::size_t worse = 0, better = 0, unchanged = 0, not_comparable = 0;
@@ -100,7 +101,8 @@ struct CompareResult {
   int exit_code() const { return worse > 0 ? 1 : 0; }
 };
 
-CompareResult compare_folders(const RunFolder& base, const RunFolder& fresh, const CompareOptions& options);
+CompareResult compare_folders(const RunFolder& base, const RunFolder& fresh,
+                              const CompareOptions& options);
 
 std::string compare_csv(const CompareResult& r);
 std::string compare_markdown(const CompareResult& r);

@@ -18,9 +18,9 @@ namespace {
 // How and when a campaign ran, not what it ran: never reported (command_line always differs in
 // --out; runs_done .. shard are said by the partial-campaign warning; inputs have their own lines).
 const std::set<std::string>& not_compared() {
-  static const std::set<std::string> keys{"command_line", "date",     "wall_seconds", "threads", "ranks",
-                                          "store",        "runs_done", "runs_expected", "complete", "stopped",
-                                          "shard",        "links_csv", "inputs"};
+  static const std::set<std::string> keys{
+      "command_line",  "date",     "wall_seconds", "threads", "ranks",     "store", "runs_done",
+      "runs_expected", "complete", "stopped",      "shard",   "links_csv", "inputs"};
   return keys;
 }
 
@@ -30,13 +30,17 @@ std::string shortened(const std::string& s, std::size_t width = 80) {
 }
 
 // A manifest value as a user wrote it: a string bare, anything else as compact JSON.
-std::string rendered(const nlohmann::json& v) { return v.is_string() ? v.get<std::string>() : v.dump(); }
+std::string rendered(const nlohmann::json& v) {
+  return v.is_string() ? v.get<std::string>() : v.dump();
+}
 
 }  // namespace
 
 void read_folder_identity(const nlohmann::json& manifest, RunFolder& f) {
-  for (auto it = manifest.begin(); it != manifest.end(); ++it) f.fields[it.key()] = rendered(it.value());
-  if (const auto it = manifest.find("scenario_text_hash"); it != manifest.end() && it->is_string()) {
+  for (auto it = manifest.begin(); it != manifest.end(); ++it)
+    f.fields[it.key()] = rendered(it.value());
+  if (const auto it = manifest.find("scenario_text_hash");
+      it != manifest.end() && it->is_string()) {
     f.text_hash = it->get<std::string>();
   }
   const std::string store = (std::filesystem::path(f.dir) / "runs.sqlite").string();
@@ -74,7 +78,9 @@ std::string first_differing_line(const std::string& a, const std::string& b) {
     from = end == std::string::npos ? s.size() + 1 : end + 1;
     return line;
   };
-  auto text = [](const std::optional<std::string>& l) { return l ? "`" + shortened(*l, 60) + "`" : "(end of file)"; };
+  auto text = [](const std::optional<std::string>& l) {
+    return l ? "`" + shortened(*l, 60) + "`" : "(end of file)";
+  };
   std::size_t pa = 0, pb = 0;
   for (int line = 1; pa <= a.size() || pb <= b.size(); ++line) {
     const auto la = line_at(a, pa), lb = line_at(b, pb);

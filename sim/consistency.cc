@@ -1,8 +1,9 @@
 // sim/consistency.cc — NEES and NIS averages against their chi-square bounds.
 #include "sim/consistency.h"
 
-#include <boost/math/distributions/chi_squared.hpp>
 #include <fmt/format.h>
+
+#include <boost/math/distributions/chi_squared.hpp>
 
 #include "sim/output.h"
 
@@ -39,7 +40,8 @@ std::optional<ConsistencyStat> nis_stat(const ConsistencySums& s) {
   return bounded(s.nis / updates, updates, static_cast<double>(s.nis_dof));
 }
 
-std::string consistency_note(const std::optional<ConsistencyStat>& nees, const std::optional<ConsistencyStat>& nis) {
+std::string consistency_note(const std::optional<ConsistencyStat>& nees,
+                             const std::optional<ConsistencyStat>& nis) {
   if (!nees && !nis) return "";
   std::string out;
   if (nees && !nees->inside()) out = side("NEES", *nees);
@@ -47,10 +49,12 @@ std::string consistency_note(const std::optional<ConsistencyStat>& nees, const s
   return out.empty() ? "ok" : out;
 }
 
-std::string consistency_notes(const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows) {
+std::string consistency_notes(const std::vector<SweepAxis>& sweeps,
+                              const std::vector<SummaryRow>& rows) {
   std::string out;
   auto stat = [](const char* name, const std::optional<ConsistencyStat>& s) {
-    return s ? fmt::format("{} {:.4g} in [{:.4g}, {:.4g}]", name, s->mean, s->lo, s->hi) : std::string();
+    return s ? fmt::format("{} {:.4g} in [{:.4g}, {:.4g}]", name, s->mean, s->lo, s->hi)
+             : std::string();
   };
   for (const auto& r : rows) {
     if (r.consistency.empty() || r.consistency == "ok") continue;
@@ -65,8 +69,10 @@ std::string consistency_notes(const std::vector<SweepAxis>& sweeps, const std::v
   if (out.empty()) return out;
   // A 95 % test: a consistent filter falls outside its bounds one time in twenty, so the header
   // says so rather than calling every flag a fault.
-  return "\nFilter consistency (average NEES and NIS against two-sided 95 % chi-square bounds, which a\n"
-         "consistent filter misses 1 time in 20; summary.csv nees.. columns):\n" + out;
+  return "\nFilter consistency (average NEES and NIS against two-sided 95 % chi-square bounds, "
+         "which a\n"
+         "consistent filter misses 1 time in 20; summary.csv nees.. columns):\n" +
+         out;
 }
 
 }  // namespace ncosim::sim

@@ -41,6 +41,7 @@ std::optional<ConsistencyStat> nis_stat(const ConsistencySums& s);
 // The summary's `consistency` cell: empty without a statistic, "ok" when both are inside their
 // bounds, else what is outside and what it means (e.g. "NEES above its 95 % bound: the
 // covariance is too small (overconfident)").
-std::string consistency_note(const std::optional<ConsistencyStat>& nees, const std::optional<ConsistencyStat>& nis);
+std::string consistency_note(const std::optional<ConsistencyStat>& nees,
+                             const std::optional<ConsistencyStat>& nis);
 
 }  // namespace ncosim::sim

@@ -3,8 +3,8 @@
 
 #include <fmt/format.h>
 
-#include <boost/math/distributions/students_t.hpp>
 #include <bit>
+#include <boost/math/distributions/students_t.hpp>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -23,9 +23,11 @@ void put_u64(std::string& out, std::uint64_t v) {  // little-endian, whatever th
 }
 
 std::uint64_t get_u64(const std::string& in, std::size_t& pos) {
-  if (in.size() - pos < 8 || pos > in.size()) throw std::runtime_error("error curve: truncated record");
+  if (in.size() - pos < 8 || pos > in.size())
+    throw std::runtime_error("error curve: truncated record");
   std::uint64_t v = 0;
-  for (int i = 0; i < 8; ++i) v |= static_cast<std::uint64_t>(static_cast<unsigned char>(in[pos + i])) << (8 * i);
+  for (int i = 0; i < 8; ++i)
+    v |= static_cast<std::uint64_t>(static_cast<unsigned char>(in[pos + i])) << (8 * i);
   pos += 8;
   return v;
 }
@@ -34,7 +36,8 @@ std::uint64_t get_u64(const std::string& in, std::size_t& pos) {
 
 ErrorCurve::ErrorCurve(std::int64_t periods, std::size_t estimators, Eigen::Index n)
     : periods_(periods), estimators_(estimators), n_(n) {
-  const std::size_t cells = static_cast<std::size_t>(periods) * estimators * static_cast<std::size_t>(n + 1);
+  const std::size_t cells =
+      static_cast<std::size_t>(periods) * estimators * static_cast<std::size_t>(n + 1);
   sums_.assign(2 * cells, 0.0);
 }
 
@@ -84,7 +87,8 @@ double ErrorCurve::ci95(std::int64_t k, std::size_t e) const {
   if (std::abs(var) * (runs - 1.0) <= 8.0 * std::numeric_limits<double>::epsilon() * s2) var = 0.0;
   if (t_runs_ != runs_.size()) {  // one quantile for every cell: the runs are the same
     t_runs_ = runs_.size();
-    t975_ = boost::math::quantile(boost::math::complement(boost::math::students_t(runs - 1.0), 0.025));
+    t975_ =
+        boost::math::quantile(boost::math::complement(boost::math::students_t(runs - 1.0), 0.025));
   }
   return t975_ * std::sqrt(std::max(0.0, var) / runs);
 }
@@ -104,13 +108,16 @@ std::string ErrorCurve::serialize() const {
 
 ErrorCurve ErrorCurve::deserialize(const std::string& blob) {
   std::size_t pos = 0;
-  if (get_u64(blob, pos) != kCurveFormat) throw std::runtime_error("error curve: unknown record format");
-  const std::uint64_t periods = get_u64(blob, pos), estimators = get_u64(blob, pos), n = get_u64(blob, pos);
+  if (get_u64(blob, pos) != kCurveFormat)
+    throw std::runtime_error("error curve: unknown record format");
+  const std::uint64_t periods = get_u64(blob, pos), estimators = get_u64(blob, pos),
+                      n = get_u64(blob, pos);
   const std::uint64_t runs = get_u64(blob, pos);
   const std::uint64_t words = blob.size() / 8;
   // Every count is checked against the blob's size before anything is allocated.
-  if (periods == 0 || estimators == 0 || n == 0 || periods > words || estimators > words || n > words ||
-      runs > words || periods * estimators > words || periods * estimators * (n + 1) > words / 2 ||
+  if (periods == 0 || estimators == 0 || n == 0 || periods > words || estimators > words ||
+      n > words || runs > words || periods * estimators > words ||
+      periods * estimators * (n + 1) > words / 2 ||
       blob.size() != 8 * (5 + runs + 2 * periods * estimators * (n + 1))) {
     throw std::runtime_error("error curve: corrupt record (sizes)");
   }
@@ -121,8 +128,10 @@ ErrorCurve ErrorCurve::deserialize(const std::string& blob) {
   return c;
 }
 
-std::string error_curve_csv(const std::vector<SweepAxis>& sweeps, const std::vector<std::vector<std::string>>& labels,
-                            const std::vector<const Scenario*>& scenarios, const std::vector<ErrorCurve>& curves) {
+std::string error_curve_csv(const std::vector<SweepAxis>& sweeps,
+                            const std::vector<std::vector<std::string>>& labels,
+                            const std::vector<const Scenario*>& scenarios,
+                            const std::vector<ErrorCurve>& curves) {
   fmt::memory_buffer out;
   for (const auto& s : sweeps) fmt::format_to(std::back_inserter(out), "{},", csv_field(s.key));
   const Eigen::Index n = scenarios.empty() ? 0 : scenarios.front()->model.plant.n();
@@ -141,7 +150,8 @@ std::string error_curve_csv(const std::vector<SweepAxis>& sweeps, const std::vec
         fmt::format_to(std::back_inserter(out), "{}{},{},{},{},{},{}", prefix, name, k,
                        fmt_number(static_cast<double>(k) * sc.run.period), curve.runs().size(),
                        fmt_number(curve.mean(k, e)), fmt_number(curve.ci95(k, e)));
-        for (Eigen::Index i = 0; i < n; ++i) fmt::format_to(std::back_inserter(out), ",{}", fmt_number(curve.mean_state(k, e, i)));
+        for (Eigen::Index i = 0; i < n; ++i)
+          fmt::format_to(std::back_inserter(out), ",{}", fmt_number(curve.mean_state(k, e, i)));
         out.push_back('\n');
       }
     }

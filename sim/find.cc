@@ -25,9 +25,10 @@ FindTarget parse_target(const std::string& text, const std::string& origin) {
     }
   }
   auto bad = [&](const std::string& why) {
-    throw ScenarioError(fmt::format("{}: expected QUANTITY<=VALUE (or >=, <, >), e.g. "
-                                    "'predicted_mse<=0.03', got '{}' ({})",
-                                    origin, text, why));
+    throw ScenarioError(
+        fmt::format("{}: expected QUANTITY<=VALUE (or >=, <, >), e.g. "
+                    "'predicted_mse<=0.03', got '{}' ({})",
+                    origin, text, why));
   };
   if (at == std::string::npos) bad("no comparison");
   auto trim = [](std::string s) {
@@ -68,13 +69,15 @@ std::string assignment(const FindOptions& opt, std::optional<std::size_t> swept,
   return fmt::format("{}={}", opt.key, toml_float(v));
 }
 
-Sample evaluate(const std::string& file, const std::vector<std::string>& sets, const FindOptions& opt,
-                std::optional<std::size_t> swept, std::size_t case_index, double v) {
+Sample evaluate(const std::string& file, const std::vector<std::string>& sets,
+                const FindOptions& opt, std::optional<std::size_t> swept, std::size_t case_index,
+                double v) {
   std::vector<std::string> s = sets;
   s.push_back(assignment(opt, swept, v));
   const LoadedScenario loaded = load_cases(file, s, {}, case_index);
   const nlohmann::json dj = design_json(loaded);
-  const nlohmann::json& ests = dj.contains("cases") ? dj["cases"][0]["estimators"] : dj["estimators"];
+  const nlohmann::json& ests =
+      dj.contains("cases") ? dj["cases"][0]["estimators"] : dj["estimators"];
   Sample out;
   for (const auto& e : ests) {
     std::optional<double> q;
@@ -114,11 +117,14 @@ bool is_monotone(const std::map<double, std::optional<double>>& pts) {
   return true;
 }
 
-FindResult find_threshold(const std::string& file, const std::vector<std::string>& sets, const FindOptions& opt,
-                          std::ostream& log) {
-  if (!(opt.lo < opt.hi)) throw ScenarioError(fmt::format("--lo: expected lo < hi, got {} and {}", opt.lo, opt.hi));
-  if (!(opt.tol > 0.0)) throw ScenarioError(fmt::format("--tol: expected a positive tolerance, got {}", opt.tol));
-  if (opt.scan < 1) throw ScenarioError(fmt::format("--scan: expected at least 1 interval, got {}", opt.scan));
+FindResult find_threshold(const std::string& file, const std::vector<std::string>& sets,
+                          const FindOptions& opt, std::ostream& log) {
+  if (!(opt.lo < opt.hi))
+    throw ScenarioError(fmt::format("--lo: expected lo < hi, got {} and {}", opt.lo, opt.hi));
+  if (!(opt.tol > 0.0))
+    throw ScenarioError(fmt::format("--tol: expected a positive tolerance, got {}", opt.tol));
+  if (opt.scan < 1)
+    throw ScenarioError(fmt::format("--scan: expected at least 1 interval, got {}", opt.scan));
   FindResult res;
   // Case 0 at lo: the sweep axes, the estimator names, and a check that the key loads.
   // A swept key is searched instead of swept: its axis is reduced to the searched value and
@@ -142,8 +148,9 @@ FindResult find_threshold(const std::string& file, const std::vector<std::string
   for (const auto& n : chosen) {
     if (std::find(names.begin(), names.end(), n) == names.end()) {
       const std::string hint = did_you_mean(n, names);
-      throw ScenarioError(fmt::format("--estimator: expected an estimator name of {}, got \"{}\"{}", file, n,
-                                      hint.empty() ? "" : fmt::format(" (did you mean \"{}\"?)", hint)));
+      throw ScenarioError(
+          fmt::format("--estimator: expected an estimator name of {}, got \"{}\"{}", file, n,
+                      hint.empty() ? "" : fmt::format(" (did you mean \"{}\"?)", hint)));
     }
   }
   for (std::size_t c = 0; c < total; ++c) {
@@ -199,9 +206,10 @@ FindResult find_threshold(const std::string& file, const std::vector<std::string
       }
       if (row.crossings == 0) {
         row.status = "not_bracketed";
-        log << fmt::format("ncosim find: warning: \"{}\"{}: {} {} over [{}, {}]: no threshold in the range\n",
-                           name, where, opt.target.quantity,
-                           ok.front() ? "meets the target everywhere" : "never meets the target", opt.lo, opt.hi);
+        log << fmt::format(
+            "ncosim find: warning: \"{}\"{}: {} {} over [{}, {}]: no threshold in the range\n",
+            name, where, opt.target.quantity,
+            ok.front() ? "meets the target everywhere" : "never meets the target", opt.lo, opt.hi);
       } else {
         double a = xs[first], b = xs[first + 1];
         const bool ok_a = ok[first];
@@ -215,17 +223,19 @@ FindResult find_threshold(const std::string& file, const std::vector<std::string
         row.value = pts[*row.threshold];
         row.status = row.crossings > 1 ? "several_crossings" : "ok";
         if (row.crossings > 1) {
-          log << fmt::format("ncosim find: warning: \"{}\"{}: the target is crossed {} times over the scan; "
-                             "the crossing nearest lo is reported\n",
-                             name, where, row.crossings);
+          log << fmt::format(
+              "ncosim find: warning: \"{}\"{}: the target is crossed {} times over the scan; "
+              "the crossing nearest lo is reported\n",
+              name, where, row.crossings);
         }
       }
       row.monotone = is_monotone(pts);
       if (!row.monotone) {
         if (row.status == "ok") row.status = "not_monotone";
-        log << fmt::format("ncosim find: warning: \"{}\"{}: {} is not monotone in {} over the evaluated "
-                           "points; a bisection threshold may not be unique\n",
-                           name, where, opt.target.quantity, opt.key);
+        log << fmt::format(
+            "ncosim find: warning: \"{}\"{}: {} is not monotone in {} over the evaluated "
+            "points; a bisection threshold may not be unique\n",
+            name, where, opt.target.quantity, opt.key);
       }
       res.rows.push_back(std::move(row));
     }
@@ -238,13 +248,15 @@ std::string find_csv(const FindResult& result, const FindOptions& opt) {
   std::string out;
   std::vector<std::string> cols;
   for (const auto& s : result.sweeps) cols.push_back(s.key);
-  for (const char* c : {"estimator", "key", "quantity", "op", "target", "threshold", "other_end", "value_at_threshold",
-                        "evaluations", "monotone", "status"}) {
+  for (const char* c : {"estimator", "key", "quantity", "op", "target", "threshold", "other_end",
+                        "value_at_threshold", "evaluations", "monotone", "status"}) {
     cols.push_back(c);
   }
   for (std::size_t i = 0; i < cols.size(); ++i) out += (i ? "," : "") + csv_field(cols[i]);
   out += "\n";
-  auto num = [](const std::optional<double>& v) { return v ? fmt::format("{:.10g}", *v) : std::string(); };
+  auto num = [](const std::optional<double>& v) {
+    return v ? fmt::format("{:.10g}", *v) : std::string();
+  };
   for (const auto& r : result.rows) {
     std::vector<std::string> cells = r.sweep_labels;
     cells.push_back(r.estimator);

@@ -25,12 +25,12 @@ struct FindTarget {
 FindTarget parse_target(const std::string& text, const std::string& origin);
 
 struct FindOptions {
-  std::string key;                      // scenario key path, set as a float (e.g. link[0].delivery)
+  std::string key;  // scenario key path, set as a float (e.g. link[0].delivery)
   FindTarget target;
   std::vector<std::string> estimators;  // empty: every estimator
   double lo = 0.0, hi = 1.0;
-  double tol = 1e-4;                    // bisection stops when the bracket is narrower
-  int scan = 8;                         // scan intervals before the bisection
+  double tol = 1e-4;  // bisection stops when the bracket is narrower
+  int scan = 8;       // scan intervals before the bisection
 };
 
 struct FindRow {
@@ -52,8 +52,8 @@ struct FindResult {
 
 // Runs the search for every sweep case and every selected estimator. Warnings go to `log`.
 // Throws ScenarioError for bad input (unknown estimator, a key that does not load).
-FindResult find_threshold(const std::string& file, const std::vector<std::string>& sets, const FindOptions& opt,
-                          std::ostream& log);
+FindResult find_threshold(const std::string& file, const std::vector<std::string>& sets,
+                          const FindOptions& opt, std::ostream& log);
 
 std::string find_csv(const FindResult& result, const FindOptions& opt);
 

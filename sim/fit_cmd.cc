@@ -10,9 +10,9 @@
 #include <iostream>
 #include <stdexcept>
 
+#include "config/config.h"
 #include "models/fit.h"
 #include "models/link.h"
-#include "config/config.h"
 #include "sim/output.h"
 #include "sim/output_set.h"
 
@@ -62,7 +62,8 @@ int cmd_fit(const FitArgs& a) {
   for (const auto& f : o.families) {
     if (models::family_states(f) == 0) {
       throw ScenarioError(fmt::format(
-          "--family: expected bernoulli, delay, gilbert_elliott or markov2 .. markov8, got '{}'", f));
+          "--family: expected bernoulli, delay, gilbert_elliott or markov2 .. markov8, got '{}'",
+          f));
     }
   }
   if (a.criterion != "bic" && a.criterion != "aic") {
@@ -77,17 +78,20 @@ int cmd_fit(const FitArgs& a) {
   try {
     trace = models::load_trace(a.trace, &first_row_line);
   } catch (const models::TraceError& e) {
-    throw ScenarioError(e.line > 0 ? format_error(e.file, e.line, "", e.what()) : std::string(e.what()));
+    throw ScenarioError(e.line > 0 ? format_error(e.file, e.line, "", e.what())
+                                   : std::string(e.what()));
   }
   const int last_line = count_lines(a.trace);
-  if (trace.empty()) throw ScenarioError(format_error(a.trace, last_line, "", "the trace holds no packet"));
+  if (trace.empty())
+    throw ScenarioError(format_error(a.trace, last_line, "", "the trace holds no packet"));
   // The families' laws are dense in the delay: a longer delay is bad input at its line.
   for (std::size_t i = 0; i < trace.size(); ++i) {
     if (trace[i] && *trace[i] > models::kMaxFitDelay) {
-      throw ScenarioError(format_error(a.trace, first_row_line + static_cast<int>(i), "",
-                                       fmt::format("delay: expected at most {} periods (the largest delay the fit "
-                                                   "families hold), got {}",
-                                                   models::kMaxFitDelay, *trace[i])));
+      throw ScenarioError(
+          format_error(a.trace, first_row_line + static_cast<int>(i), "",
+                       fmt::format("delay: expected at most {} periods (the largest delay the fit "
+                                   "families hold), got {}",
+                                   models::kMaxFitDelay, *trace[i])));
     }
   }
   const std::vector<int> sym = models::fate_symbols(trace);
@@ -99,24 +103,29 @@ int cmd_fit(const FitArgs& a) {
       fits.push_back(models::fit_family(f, sym, o));
     } catch (const std::invalid_argument& e) {
       throw ScenarioError(
-          format_error(a.trace, last_line, "", fmt::format("{} (choose smaller families with --family)", e.what())));
+          format_error(a.trace, last_line, "",
+                       fmt::format("{} (choose smaller families with --family)", e.what())));
     } catch (const std::domain_error& e) {
       if (a.families.empty()) {
         std::cerr << fmt::format("ncosim fit: {} skipped: {}\n", f, e.what());
         continue;
       }
-      throw ScenarioError(format_error(a.trace, last_line, "", fmt::format("--family {}: {}", f, e.what())));
+      throw ScenarioError(
+          format_error(a.trace, last_line, "", fmt::format("--family {}: {}", f, e.what())));
     }
   }
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const std::size_t best = models::best_fit(fits, a.criterion);
 
   std::string csv = "family,section,item,estimate,ci95_low,ci95_high,observed\n";
   for (std::size_t i = 0; i < fits.size(); ++i) {
     const auto& r = fits[i];
     auto row = [&](const std::string& section, const std::string& item, const std::string& est,
-                   const std::string& lo = "", const std::string& hi = "", const std::string& obs = "") {
-      csv += fmt::format("{},{},{},{},{},{},{}\n", r.family, section, csv_field(item), est, lo, hi, obs);
+                   const std::string& lo = "", const std::string& hi = "",
+                   const std::string& obs = "") {
+      csv += fmt::format("{},{},{},{},{},{},{}\n", r.family, section, csv_field(item), est, lo, hi,
+                         obs);
     };
     row("fit", "packets", std::to_string(sym.size()));
     row("fit", "loglik", opt(r.loglik));
@@ -129,7 +138,8 @@ int cmd_fit(const FitArgs& a) {
     row("fit", "burst_tv", opt(r.burst_tv));
     row("fit", "acf_rmse", opt(r.acf_rmse));
     row("fit", "selected", i == best ? "1" : "0");
-    for (const auto& p : r.params) row("parameter", p.name, opt(p.estimate), opt(p.ci_low), opt(p.ci_high));
+    for (const auto& p : r.params)
+      row("parameter", p.name, opt(p.estimate), opt(p.ci_low), opt(p.ci_high));
     for (std::size_t L = 0; L < r.burst_model.size(); ++L) {
       row("burst", std::to_string(L + 1), opt(r.burst_model[L]), "", "", opt(r.burst_observed[L]));
     }
@@ -137,13 +147,14 @@ int cmd_fit(const FitArgs& a) {
       row("acf", std::to_string(k + 1), opt(r.acf_model[k]), "", "", opt(r.acf_observed[k]));
     }
   }
-  std::string toml = fmt::format("# ncosim fit {}: {} packets; selected by {} among the families below\n", a.trace,
-                                 sym.size(), a.criterion);
+  std::string toml =
+      fmt::format("# ncosim fit {}: {} packets; selected by {} among the families below\n", a.trace,
+                  sym.size(), a.criterion);
   toml += fits[best].link_toml;
   for (std::size_t i = 0; i < fits.size(); ++i) {
     if (i == best) continue;
-    toml += fmt::format("\n# {} (loglik {:.6g}, {} {:.6g}):\n", fits[i].family, fits[i].loglik, a.criterion,
-                        a.criterion == "aic" ? fits[i].aic : fits[i].bic);
+    toml += fmt::format("\n# {} (loglik {:.6g}, {} {:.6g}):\n", fits[i].family, fits[i].loglik,
+                        a.criterion, a.criterion == "aic" ? fits[i].aic : fits[i].bic);
     std::string text = fits[i].link_toml;
     std::string commented;
     std::size_t pos = 0;
@@ -155,23 +166,26 @@ int cmd_fit(const FitArgs& a) {
     toml += commented;
   }
   // out/fit_<stem>: git-ignored, like `run`'s default (never a committed reference folder).
-  const std::string out = a.out.empty() ? (std::filesystem::path("out") / ("fit_" + stem)).string() : a.out;
+  const std::string out =
+      a.out.empty() ? (std::filesystem::path("out") / ("fit_" + stem)).string() : a.out;
   prepare_output_dir(out);
   const OutputFolderLock lock(out);  // sim/output_set.h: one writer per folder
   write_files_atomically(out, {{"fit.csv", csv}, {"link.toml", toml}});
 
-  std::cout << fmt::format("{}: {} packets, loss {:.6g}\n", a.trace, sym.size(), fits.front().model.stationary().dot(fits.front().model.emission.col(0)));
-  std::cout << fmt::format("{:<16} {:>14} {:>4} {:>14} {:>14} {:>6} {:>9} {:>9}\n", "family", "loglik", "k", "aic", "bic",
-                           "iter", "burst_tv", "acf_rmse");
+  std::cout << fmt::format("{}: {} packets, loss {:.6g}\n", a.trace, sym.size(),
+                           fits.front().model.stationary().dot(fits.front().model.emission.col(0)));
+  std::cout << fmt::format("{:<16} {:>14} {:>4} {:>14} {:>14} {:>6} {:>9} {:>9}\n", "family",
+                           "loglik", "k", "aic", "bic", "iter", "burst_tv", "acf_rmse");
   for (std::size_t i = 0; i < fits.size(); ++i) {
     const auto& r = fits[i];
-    std::cout << fmt::format("{:<16} {:>14.6f} {:>4} {:>14.3f} {:>14.3f} {:>6} {:>9.4f} {:>9.4f}{}\n", r.family, r.loglik,
-                             r.parameters, r.aic, r.bic, r.iterations, r.burst_tv, r.acf_rmse,
-                             i == best ? "  <- " + a.criterion : std::string());
+    std::cout << fmt::format(
+        "{:<16} {:>14.6f} {:>4} {:>14.3f} {:>14.3f} {:>6} {:>9.4f} {:>9.4f}{}\n", r.family,
+        r.loglik, r.parameters, r.aic, r.bic, r.iterations, r.burst_tv, r.acf_rmse,
+        i == best ? "  <- " + a.criterion : std::string());
   }
   std::cout << parameters_text(fits, best);
-  std::cout << fmt::format("\n{}\nfitted in {:.2f} s; fit.csv and link.toml written to {}/\n", fits[best].link_toml,
-                           seconds, out);
+  std::cout << fmt::format("\n{}\nfitted in {:.2f} s; fit.csv and link.toml written to {}/\n",
+                           fits[best].link_toml, seconds, out);
   return 0;
 }
 

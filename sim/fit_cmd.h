@@ -13,7 +13,7 @@ struct FitArgs {
   std::vector<std::string> families;  // default: every family
   std::string criterion = "bic";
   int starts = 4;
-  std::string name;                   // [[link]] name (default: the trace's stem)
+  std::string name;  // [[link]] name (default: the trace's stem)
 };
 
 // Exit status: 0, or 2 for bad input (nothing written). Throws ScenarioError for bad input.

@@ -39,28 +39,31 @@ void check_estimator_resources(const Table& t, const toml::table& raw, const std
 // While estimator table `t` is designed: an observer of its LMI solves (lmi::ScopedSolveObserver)
 // that prints, once, the note of a design estimated above 256 MB or 10 GFLOP (the LMI designs'
 // estimate is only known when their problem is built).
-std::function<void(const lmi::SolveEstimate&)> large_solve_note(const Table& t, const std::string& kind,
+std::function<void(const lmi::SolveEstimate&)> large_solve_note(const Table& t,
+                                                                const std::string& kind,
                                                                 const std::string& driver);
 
 // Before a campaign: the per-run storage of runs x cases x estimators. Throws ScenarioError
 // at run.runs.
-void check_campaign_resources(const std::string& file, int line, std::int64_t runs, std::size_t cases,
-                              std::size_t estimators, std::int64_t states, std::size_t sensors);
+void check_campaign_resources(const std::string& file, int line, std::int64_t runs,
+                              std::size_t cases, std::size_t estimators, std::int64_t states,
+                              std::size_t sensors);
 
 // [run] error_curve = true: the curve of every period, estimator and state, in one copy per worker
 // thread, their sum and the stored copy it is merged with. Throws ScenarioError at run.error_curve.
-void check_error_curve_resources(const std::string& file, int line, std::int64_t periods, std::size_t estimators,
-                                 std::int64_t states);
+void check_error_curve_resources(const std::string& file, int line, std::int64_t periods,
+                                 std::size_t estimators, std::int64_t states);
 
 // Before a trace link (kind = "trace") is used: every run counts the delivered packets per delay
 // up to the trace's largest delay `delay` (links.csv's delay histogram, kept per run and in the
 // run store), so memory grows with the delay times the runs. Throws ScenarioError at the
 // trace's `line`, naming the delay, the estimate and the limit, then `named_by` (the scenario key).
-void check_trace_resources(const std::string& trace, int line, std::int64_t delay, std::int64_t runs,
-                           const std::string& named_by);
+void check_trace_resources(const std::string& trace, int line, std::int64_t delay,
+                           std::int64_t runs, const std::string& named_by);
 
 // Before the cases of a sweep are built: every case holds its parsed document while it is built
 // and its designed scenario until the campaign ends. Throws ScenarioError at the last sweep.
-void check_sweep_resources(const std::string& file, int line, std::size_t cases, std::size_t text_bytes);
+void check_sweep_resources(const std::string& file, int line, std::size_t cases,
+                           std::size_t text_bytes);
 
 }  // namespace ncosim::sim

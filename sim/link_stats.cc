@@ -15,7 +15,8 @@ std::vector<LinkFlow> link_flows(const Scenario& sc) {
     const std::size_t first = flows.size();
     for (std::size_t s = 0; s < sc.model.sensors.size(); ++s) {
       const auto& spec = sc.model.sensors[s].spec;
-      if (spec.link == static_cast<int>(l)) flows.push_back({l, false, s, spec.name, true, std::nullopt, ""});
+      if (spec.link == static_cast<int>(l))
+        flows.push_back({l, false, s, spec.name, true, std::nullopt, ""});
     }
     // Sensors naming one link share its channel instance.
     if (flows.size() - first > 1) {
@@ -23,9 +24,11 @@ std::vector<LinkFlow> link_flows(const Scenario& sc) {
     }
     for (std::size_t a = 0; a < sc.model.actuators.size(); ++a) {
       const auto& spec = sc.model.actuators[a].spec;
-      if (spec.link == static_cast<int>(l)) flows.push_back({l, true, a, spec.name, true, std::nullopt, ""});
+      if (spec.link == static_cast<int>(l))
+        flows.push_back({l, true, a, spec.name, true, std::nullopt, ""});
     }
-    using StateStep = models::Link::StateStep;  // the link says what moves its state (models/link.h)
+    using StateStep =
+        models::Link::StateStep;  // the link says what moves its state (models/link.h)
     const StateStep step = sc.links[l].link->state_step();
     const bool per_period = step == StateStep::kPeriod;
     for (std::size_t f = first; f < flows.size(); ++f) {
@@ -74,13 +77,17 @@ std::string opt_int(const std::optional<std::int64_t>& v) { return v ? std::to_s
 
 }  // namespace
 
-std::string links_csv(const std::vector<SweepAxis>& sweeps, const std::vector<std::vector<std::string>>& labels,
-                      const std::vector<const Scenario*>& scenarios, const std::vector<const CampaignResult*>& results) {
+std::string links_csv(const std::vector<SweepAxis>& sweeps,
+                      const std::vector<std::vector<std::string>>& labels,
+                      const std::vector<const Scenario*>& scenarios,
+                      const std::vector<const CampaignResult*>& results) {
   std::string out;
   for (const auto& s : sweeps) out += csv_field(s.key) + ",";
   out +=
-      "link,kind,sender,runs,packets_sent,packets_delivered,delivered_ratio,nominal_delivered_ratio,delay_max,"
-      "delay_pmf,nominal_delay_pmf,bursts,burst_mean,nominal_burst_mean,burst_p95,burst_max,state_occupancy,"
+      "link,kind,sender,runs,packets_sent,packets_delivered,delivered_ratio,nominal_delivered_"
+      "ratio,delay_max,"
+      "delay_pmf,nominal_delay_pmf,bursts,burst_mean,nominal_burst_mean,burst_p95,burst_max,state_"
+      "occupancy,"
       "nominal_state_occupancy,step\n";
   for (std::size_t c = 0; c < scenarios.size(); ++c) {
     const Scenario& sc = *scenarios[c];
@@ -99,16 +106,16 @@ std::string links_csv(const std::vector<SweepAxis>& sweeps, const std::vector<st
       const std::size_t states = std::max(sum.states.size(), nominal.states.size());
       for (const auto& l : labels[c]) out += csv_field(l) + ",";
       out += fmt::format(
-          "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n", csv_field(sc.links[flow.link].name),
-          csv_field(sc.links[flow.link].kind), csv_field(flow.sender_name), res.link_runs.size(), sum.sent,
-          sum.delivered,
+          "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
+          csv_field(sc.links[flow.link].name), csv_field(sc.links[flow.link].kind),
+          csv_field(flow.sender_name), res.link_runs.size(), sum.sent, sum.delivered,
           fmt_number(sum.sent > 0 ? std::optional<double>(static_cast<double>(sum.delivered) /
                                                           static_cast<double>(sum.sent))
                                   : std::nullopt),
           fmt_number(nominal.delivered_ratio), sum.copies.empty() ? "" : std::to_string(max_delay),
-          ratios(sum.copies, sum.sent, sum.copies.size()), join(nominal.delay_pmf), b.count, fmt_number(b.mean),
-          fmt_number(nominal.burst_mean), opt_int(b.p95), opt_int(b.max), ratios(sum.states, sum.sent, states),
-          join(nominal.states), flow.step);
+          ratios(sum.copies, sum.sent, sum.copies.size()), join(nominal.delay_pmf), b.count,
+          fmt_number(b.mean), fmt_number(nominal.burst_mean), opt_int(b.p95), opt_int(b.max),
+          ratios(sum.states, sum.sent, states), join(nominal.states), flow.step);
     }
   }
   return out;

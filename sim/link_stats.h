@@ -18,15 +18,16 @@ namespace ncosim::sim {
 struct LinkFlow {
   std::size_t link = 0;
   bool actuator = false;
-  std::size_t sender = 0;   // sensor or actuator index
+  std::size_t sender = 0;  // sensor or actuator index
   std::string sender_name;
-  bool sole = true;         // the only sender on this link instance (actuators: always)
+  bool sole = true;  // the only sender on this link instance (actuators: always)
   // Channel steps between two consecutive packets of this sender when regular (1 per packet for
   // a sole sender on a per-packet link; the sender's `every` on a per-period link);
   // nullopt when irregular (senders interleaving on a per-packet chain, send-on-delta on a
   // per-period chain).
   std::optional<int> gap;
-  std::string step;         // "period" or "packet" when the link has a state that moves (Link::state_step), "" otherwise
+  std::string step;  // "period" or "packet" when the link has a state that moves
+                     // (Link::state_step), "" otherwise
 };
 std::vector<LinkFlow> link_flows(const Scenario& sc);
 
@@ -37,7 +38,9 @@ struct FlowIndex {
 FlowIndex flow_index(const Scenario& sc, const std::vector<LinkFlow>& flows);
 
 // One row per case and flow; columns in results/README.md.
-std::string links_csv(const std::vector<SweepAxis>& sweeps, const std::vector<std::vector<std::string>>& labels,
-                      const std::vector<const Scenario*>& scenarios, const std::vector<const CampaignResult*>& results);
+std::string links_csv(const std::vector<SweepAxis>& sweeps,
+                      const std::vector<std::vector<std::string>>& labels,
+                      const std::vector<const Scenario*>& scenarios,
+                      const std::vector<const CampaignResult*>& results);
 
 }  // namespace ncosim::sim

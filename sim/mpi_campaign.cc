@@ -54,7 +54,8 @@ void put_u64(std::string& s, std::uint64_t v) {
 }
 std::uint64_t get_u64(const std::string& s, std::size_t at) {
   std::uint64_t v = 0;
-  for (int i = 0; i < 8; ++i) v |= static_cast<std::uint64_t>(static_cast<unsigned char>(s[at + i])) << (8 * i);
+  for (int i = 0; i < 8; ++i)
+    v |= static_cast<std::uint64_t>(static_cast<unsigned char>(s[at + i])) << (8 * i);
   return v;
 }
 
@@ -103,7 +104,8 @@ int MpiSession::finish(int exit_code) {
 int MpiSession::rank() const { return impl_->world.rank(); }
 int MpiSession::size() const { return impl_->world.size(); }
 
-CampaignResult MpiSession::run(const Scenario& sc, std::size_t case_index, const CampaignOptions& options) {
+CampaignResult MpiSession::run(const Scenario& sc, std::size_t case_index,
+                               const CampaignOptions& options) {
   auto& world = impl_->world;
   CampaignResult result;
   std::vector<std::uint64_t> todo;
@@ -120,12 +122,15 @@ CampaignResult MpiSession::run(const Scenario& sc, std::size_t case_index, const
   std::mutex sink_mutex, error_mutex;
   std::exception_ptr error;
   std::atomic<bool> failed{false};
-  auto stop_requested = [&] { return (options.stop != nullptr && options.stop->load() != 0) || failed.load(); };
+  auto stop_requested = [&] {
+    return (options.stop != nullptr && options.stop->load() != 0) || failed.load();
+  };
   auto deliver = [&](std::uint64_t run, RunMetrics&& m, RunLinks&& links) {
     std::lock_guard<std::mutex> lock(sink_mutex);
     options.on_run(run, std::move(m), std::move(links));
     done.fetch_add(1);
-    if (options.progress != nullptr) options.progress->add_done();  // rank 0 reports (sim/progress.h)
+    if (options.progress != nullptr)
+      options.progress->add_done();  // rank 0 reports (sim/progress.h)
   };
   // [run] error_curve: one curve per local thread; the worker ranks' curves are collected after
   // the case (kCurve), so the result covers exactly the runs delivered.
@@ -142,7 +147,8 @@ CampaignResult MpiSession::run(const Scenario& sc, std::size_t case_index, const
       if (i >= n) return;
       try {
         RunLinks links;
-        RunMetrics m = simulate_run(sc, todo[i], nullptr, nullptr, options.link_counters ? &links : nullptr, curve);
+        RunMetrics m = simulate_run(sc, todo[i], nullptr, nullptr,
+                                    options.link_counters ? &links : nullptr, curve);
         deliver(todo[i], std::move(m), std::move(links));
       } catch (...) {
         std::lock_guard<std::mutex> lock(error_mutex);
@@ -161,7 +167,8 @@ CampaignResult MpiSession::run(const Scenario& sc, std::size_t case_index, const
     if (stop_requested()) return;
     const std::size_t i = next.fetch_add(1);
     if (i >= n) return;
-    world.send(w, kWork, std::vector<std::uint64_t>{case_index, todo[i], options.link_counters ? 1u : 0u});
+    world.send(w, kWork,
+               std::vector<std::uint64_t>{case_index, todo[i], options.link_counters ? 1u : 0u});
     ++outstanding;
   };
   for (int w = 1; w < world.size(); ++w) {
@@ -175,19 +182,24 @@ CampaignResult MpiSession::run(const Scenario& sc, std::size_t case_index, const
       --outstanding;
       if (st->tag() == kError) {
         std::lock_guard<std::mutex> lock(error_mutex);
-        if (!error) error = std::make_exception_ptr(std::runtime_error(fmt::format("MPI rank {}: {}", st->source(), msg)));
+        if (!error)
+          error = std::make_exception_ptr(
+              std::runtime_error(fmt::format("MPI rank {}: {}", st->source(), msg)));
         failed = true;
         continue;
       }
       try {
-        if (msg.size() < 24 || get_u64(msg, 16) > msg.size() - 24) throw std::runtime_error("malformed result message");
+        if (msg.size() < 24 || get_u64(msg, 16) > msg.size() - 24)
+          throw std::runtime_error("malformed result message");
         const auto n_metrics = static_cast<std::size_t>(get_u64(msg, 16));
         const std::string links = msg.substr(24 + n_metrics);
         deliver(get_u64(msg, 8), deserialize_run(msg.substr(24, n_metrics)),
                 links.empty() ? RunLinks{} : deserialize_links(links));
       } catch (const std::exception& e) {
         std::lock_guard<std::mutex> lock(error_mutex);
-        if (!error) error = std::make_exception_ptr(std::runtime_error(fmt::format("MPI rank {}: {}", st->source(), e.what())));
+        if (!error)
+          error = std::make_exception_ptr(
+              std::runtime_error(fmt::format("MPI rank {}: {}", st->source(), e.what())));
         failed = true;
         continue;
       }
@@ -209,15 +221,18 @@ CampaignResult MpiSession::run(const Scenario& sc, std::size_t case_index, const
   }
   result.runs_done = done.load();
   result.stopped = result.runs_done < n;
-  result.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  result.wall_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   result.ns_per_period.assign(sc.estimators.size(), std::nan(""));
-  if (options.time_estimators && !result.stopped && n > 0) simulate_run(sc, todo[0], nullptr, &result.ns_per_period);
+  if (options.time_estimators && !result.stopped && n > 0)
+    simulate_run(sc, todo[0], nullptr, &result.ns_per_period);
   return result;
 }
 
 void MpiSession::serve(const std::vector<const Scenario*>& cases) {
   auto& world = impl_->world;
-  std::map<std::uint64_t, ErrorCurve> curves;  // per case: the runs of this rank ([run] error_curve)
+  std::map<std::uint64_t, ErrorCurve>
+      curves;  // per case: the runs of this rank ([run] error_curve)
   while (true) {
     auto st = world.iprobe(0, boost::mpi::any_tag);
     if (!st) {
@@ -239,7 +254,8 @@ void MpiSession::serve(const std::vector<const Scenario*>& cases) {
     std::vector<std::uint64_t> work;
     world.recv(0, kWork, work);
     try {
-      if (work.size() != 3 || work[0] >= cases.size()) throw std::runtime_error("malformed work message");
+      if (work.size() != 3 || work[0] >= cases.size())
+        throw std::runtime_error("malformed work message");
       RunLinks links;
       const Scenario& sc = *cases[work[0]];
       ErrorCurve* curve = nullptr;
@@ -248,7 +264,8 @@ void MpiSession::serve(const std::vector<const Scenario*>& cases) {
         if (fresh) it->second = error_curve_of(sc);
         curve = &it->second;
       }
-      const RunMetrics m = simulate_run(sc, work[1], nullptr, nullptr, work[2] != 0 ? &links : nullptr, curve);
+      const RunMetrics m =
+          simulate_run(sc, work[1], nullptr, nullptr, work[2] != 0 ? &links : nullptr, curve);
       std::string msg;
       put_u64(msg, work[0]);
       put_u64(msg, work[1]);

@@ -1,19 +1,18 @@
 // sim/output.cc — summary statistics and the result files.
 #include "sim/output.h"
-#include "sim/physical.h"
-
-#include "sim/validity.h"
 
 #include <fmt/format.h>
+#include <unistd.h>
 
-#include <boost/math/distributions/students_t.hpp>
 #include <algorithm>
+#include <boost/math/distributions/students_t.hpp>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
-#include <unistd.h>
 
 #include "sim/output_set.h"
+#include "sim/physical.h"
+#include "sim/validity.h"
 
 namespace ncosim::sim {
 
@@ -97,14 +96,18 @@ std::vector<SummaryRow> summarise(const Scenario& sc, const CampaignResult& resu
         root[i].push_back(std::sqrt(m.sse_state[i] / static_cast<double>(m.count)));
       }
       count += m.count;
-      if (m.mode_count > 0) mde.push_back(100.0 * static_cast<double>(m.mode_errors) / static_cast<double>(m.mode_count));
+      if (m.mode_count > 0)
+        mde.push_back(100.0 * static_cast<double>(m.mode_errors) /
+                      static_cast<double>(m.mode_count));
       if (!m.confusion.empty()) {
         row.confusion.resize(m.confusion.size(), 0);
         for (std::size_t c = 0; c < m.confusion.size(); ++c) row.confusion[c] += m.confusion[c];
       }
     }
     // Precedence: a failed design (it says why the rest went wrong), divergence, run status.
-    const std::string status = design_status != "ok" ? design_status : diverged > 0 ? "diverged" : run_status;
+    const std::string status = design_status != "ok" ? design_status
+                               : diverged > 0        ? "diverged"
+                                                     : run_status;
     if (diverged == 0) {
       row.mse = finite(mean_of(mse));
       row.mse_ci95 = ci95_half_width(mse);
@@ -112,7 +115,8 @@ std::vector<SummaryRow> summarise(const Scenario& sc, const CampaignResult& resu
         row.mse_ext = finite(mean_of(mse_ext));
         row.mse_ext_ci95 = ci95_half_width(mse_ext);
       }
-      for (double s : state_sse) row.rmse.push_back(finite(std::sqrt(s / static_cast<double>(count))));
+      for (double s : state_sse)
+        row.rmse.push_back(finite(std::sqrt(s / static_cast<double>(count))));
       for (const auto& r : root) {
         row.ermse.push_back(finite(mean_of(r)));
         row.ermse_ci95.push_back(ci95_half_width(r));
@@ -141,7 +145,8 @@ std::vector<SummaryRow> summarise(const Scenario& sc, const CampaignResult& resu
     for (const auto& run : result.runs) {
       for (const auto v : run[e].sensor_sent) sent += v;
     }
-    const double periods = static_cast<double>(sc.run.periods - sc.run.warmup) * static_cast<double>(result.runs.size());
+    const double periods = static_cast<double>(sc.run.periods - sc.run.warmup) *
+                           static_cast<double>(result.runs.size());
     if (periods > 0) row.sent_per_period = static_cast<double>(sent) / periods;
     if (diverged == 0) {
       row.per_run.mse = mse;
@@ -183,10 +188,12 @@ std::string fmt_number(std::optional<double> v) {
 std::vector<std::string> summary_columns(const std::vector<SweepAxis>& sweeps, Eigen::Index n) {
   std::vector<std::string> cols;
   for (const auto& s : sweeps) cols.push_back(s.key);
-  for (const char* c : {"estimator", "kind", "runs", "mse", "mse_ci95", "mse_ext", "mse_ext_ci95"}) cols.push_back(c);
+  for (const char* c : {"estimator", "kind", "runs", "mse", "mse_ci95", "mse_ext", "mse_ext_ci95"})
+    cols.push_back(c);
   for (Eigen::Index i = 0; i < n; ++i) cols.push_back(fmt::format("rmse_x{}", i + 1));
-  for (const char* c : {"mde_percent", "flops_per_period", "stored_gains", "ns_per_period", "predicted_mse_ext",
-                        "delivered_ratio", "status", "predicted_mse", "flops_mean", "mde_ci95", "sent_per_period"}) {
+  for (const char* c : {"mde_percent", "flops_per_period", "stored_gains", "ns_per_period",
+                        "predicted_mse_ext", "delivered_ratio", "status", "predicted_mse",
+                        "flops_mean", "mde_ci95", "sent_per_period"}) {
     cols.push_back(c);
   }
   for (Eigen::Index i = 0; i < n; ++i) cols.push_back(fmt::format("ermse_x{}", i + 1));
@@ -228,16 +235,20 @@ std::vector<std::string> row_cells(const SummaryRow& r) {
 
 }  // namespace
 
-std::vector<std::string> summary_csv_columns(const std::vector<SweepAxis>& sweeps, Eigen::Index n, bool stop) {
+std::vector<std::string> summary_csv_columns(const std::vector<SweepAxis>& sweeps, Eigen::Index n,
+                                             bool stop) {
   auto cols = summary_columns(sweeps, n);
   if (stop) cols.emplace_back("stop");  // --target-ci campaigns only
   cols.emplace_back("expected_status");
-  for (const char* c : {"nees", "nees_lo", "nees_hi", "nis", "nis_lo", "nis_hi", "consistency"}) cols.push_back(c);
+  for (const char* c : {"nees", "nees_lo", "nees_hi", "nis", "nis_lo", "nis_hi", "consistency"})
+    cols.push_back(c);
   return cols;
 }
 
-SummaryText summary_text(const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows, Eigen::Index n) {
-  const bool stop = std::any_of(rows.begin(), rows.end(), [](const SummaryRow& r) { return !r.stop.empty(); });
+SummaryText summary_text(const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows,
+                         Eigen::Index n) {
+  const bool stop =
+      std::any_of(rows.begin(), rows.end(), [](const SummaryRow& r) { return !r.stop.empty(); });
   SummaryText t{summary_csv_columns(sweeps, n, stop), {}};
   for (const auto& r : rows) {
     auto cells = row_cells(r);
@@ -265,17 +276,20 @@ std::string summary_text_csv(const SummaryText& t) {
   return out;
 }
 
-std::string summary_csv(const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows, Eigen::Index n) {
+std::string summary_csv(const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows,
+                        Eigen::Index n) {
   return summary_text_csv(summary_text(sweeps, rows, n));
 }
 
 std::string status_text(const SummaryRow& r) {
   if (r.expected_status.empty()) return r.status;
-  if (status_as_expected(r.status, r.expected_status)) return r.status == "ok" ? r.status : r.status + " (expected)";
+  if (status_as_expected(r.status, r.expected_status))
+    return r.status == "ok" ? r.status : r.status + " (expected)";
   return fmt::format("{} (expected {})", r.status, r.expected_status);
 }
 
-std::string confusion_csv(const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows) {
+std::string confusion_csv(const std::vector<SweepAxis>& sweeps,
+                          const std::vector<SummaryRow>& rows) {
   std::string out;
   for (const auto& s : sweeps) out += csv_field(s.key) + ",";
   out += "estimator,true_mode,estimated_mode,count,share_of_true\n";
@@ -288,8 +302,9 @@ std::string confusion_csv(const std::vector<SweepAxis>& sweeps, const std::vecto
       for (int e = 0; e < s; ++e) {
         const std::int64_t c = r.confusion[static_cast<std::size_t>(t * s + e)];
         for (const auto& l : r.sweep_labels) out += csv_field(l) + ",";
-        out += fmt::format("{},{},{},{},{}\n", csv_field(r.estimator), t, e, c,
-                           total > 0 ? fmt_number(static_cast<double>(c) / static_cast<double>(total)) : "");
+        out += fmt::format(
+            "{},{},{},{},{}\n", csv_field(r.estimator), t, e, c,
+            total > 0 ? fmt_number(static_cast<double>(c) / static_cast<double>(total)) : "");
       }
     }
   }
@@ -301,7 +316,8 @@ std::string summary_markdown(const std::string& title, const std::vector<SweepAx
   // Readable columns: mse ± ci, mse_ext ± ci, predicted, FLOPs, gains, ns, delivered, status.
   std::vector<std::string> head;
   for (const auto& s : sweeps) head.push_back(s.key);
-  for (const char* c : {"estimator", "mse ± 95% CI", "mse_ext ± 95% CI", "predicted mse_ext"}) head.push_back(c);
+  for (const char* c : {"estimator", "mse ± 95% CI", "mse_ext ± 95% CI", "predicted mse_ext"})
+    head.push_back(c);
   for (Eigen::Index i = 0; i < n; ++i) head.push_back(fmt::format("rmse_x{}", i + 1));
   bool modes = false;
   for (const auto& r : rows) modes = modes || r.mde_percent.has_value();
@@ -378,27 +394,36 @@ std::string summary_markdown(const std::string& title, const std::vector<SweepAx
   // Name the references under the table (one line; the reference may differ between cases).
   std::vector<std::string> refs;
   for (const auto& r : rows) {
-    if (std::find(refs.begin(), refs.end(), r.paired.reference) == refs.end()) refs.push_back(r.paired.reference);
+    if (std::find(refs.begin(), refs.end(), r.paired.reference) == refs.end())
+      refs.push_back(r.paired.reference);
   }
   std::string names;
   for (const auto& ref : refs) names += (names.empty() ? "" : ", ") + fmt::format("\"{}\"", ref);
   if (!rows.empty()) {
-    out += fmt::format("\nPaired columns: each row minus the reference estimator {} of its case, per run on the same "
-                       "realisation (common random numbers); ratio = row / reference.",
-                       names);
-    if (swept) out += fmt::format(" Δ vs ref. case: against the same estimator in the case {}.", rows.front().paired.reference_case);
+    out += fmt::format(
+        "\nPaired columns: each row minus the reference estimator {} of its case, per run on the "
+        "same "
+        "realisation (common random numbers); ratio = row / reference.",
+        names);
+    if (swept)
+      out += fmt::format(" Δ vs ref. case: against the same estimator in the case {}.",
+                         rows.front().paired.reference_case);
     out += " Columns mse_diff.. in summary.csv.\n";
   }
   return out;
 }
 
-std::string runs_csv(const std::vector<SweepAxis>& sweeps, const std::vector<std::vector<std::string>>& labels,
-                     const std::vector<const Scenario*>& scenarios, const std::vector<const CampaignResult*>& results) {
+std::string runs_csv(const std::vector<SweepAxis>& sweeps,
+                     const std::vector<std::vector<std::string>>& labels,
+                     const std::vector<const Scenario*>& scenarios,
+                     const std::vector<const CampaignResult*>& results) {
   std::string out;
   for (const auto& s : sweeps) out += csv_field(s.key) + ",";
   const Eigen::Index n = scenarios.empty() ? 0 : scenarios.front()->model.plant.n();
-  out += "run,estimator,mse,mse_ext,periods,samples_used,samples_taken,diverged,status,flops_mean,late_samples,"
-         "duplicate_samples,mde_percent";
+  out +=
+      "run,estimator,mse,mse_ext,periods,samples_used,samples_taken,diverged,status,flops_mean,"
+      "late_samples,"
+      "duplicate_samples,mde_percent";
   for (Eigen::Index i = 0; i < n; ++i) out += fmt::format(",rmse_x{}", i + 1);
   out += ",nees,nis\n";
   for (std::size_t c = 0; c < scenarios.size(); ++c) {
@@ -411,22 +436,29 @@ std::string runs_csv(const std::vector<SweepAxis>& sweeps, const std::vector<std
         const bool ok = !m.diverged && m.count > 0;
         const auto& cnt = m.counters;
         const std::uint64_t run_id = results[c]->run_ids.empty() ? r : results[c]->run_ids[r];
-        out += fmt::format("{},{},{},{},{},{},{},{},{},{},{},{}", run_id, csv_field(sc.estimators[e].name),
-                           ok ? fmt_number(m.sse / static_cast<double>(m.count)) : "",
-                           ok && has_ext ? fmt_number(m.sse_ext / static_cast<double>(m.count)) : "", m.count,
-                           m.samples_used, m.samples_taken, m.diverged ? 1 : 0, m.status,
-                           cnt && cnt->periods > 0 ? fmt::format("{:.0f}", cnt->flops / static_cast<double>(cnt->periods)) : "",
-                           cnt ? std::to_string(cnt->late) : "", cnt ? std::to_string(cnt->duplicates) : "");
+        out += fmt::format(
+            "{},{},{},{},{},{},{},{},{},{},{},{}", run_id, csv_field(sc.estimators[e].name),
+            ok ? fmt_number(m.sse / static_cast<double>(m.count)) : "",
+            ok && has_ext ? fmt_number(m.sse_ext / static_cast<double>(m.count)) : "", m.count,
+            m.samples_used, m.samples_taken, m.diverged ? 1 : 0, m.status,
+            cnt && cnt->periods > 0
+                ? fmt::format("{:.0f}", cnt->flops / static_cast<double>(cnt->periods))
+                : "",
+            cnt ? std::to_string(cnt->late) : "", cnt ? std::to_string(cnt->duplicates) : "");
         out += "," + (m.mode_count > 0 ? fmt_number(100.0 * static_cast<double>(m.mode_errors) /
-                                                     static_cast<double>(m.mode_count))
-                                        : std::string());
+                                                    static_cast<double>(m.mode_count))
+                                       : std::string());
         for (Eigen::Index i = 0; i < n && i < static_cast<Eigen::Index>(m.sse_state.size()); ++i) {
-          out += "," + (ok ? fmt_number(std::sqrt(m.sse_state[static_cast<std::size_t>(i)] / static_cast<double>(m.count)))
+          out += "," + (ok ? fmt_number(std::sqrt(m.sse_state[static_cast<std::size_t>(i)] /
+                                                  static_cast<double>(m.count)))
                            : std::string());
         }
         // The run's average NEES per period and NIS per update (sim/consistency.h).
-        out += "," + (ok && m.nees_count > 0 ? fmt_number(m.nees / static_cast<double>(m.nees_count)) : std::string());
-        out += "," + (ok && m.nis_count > 0 ? fmt_number(m.nis / static_cast<double>(m.nis_count)) : std::string());
+        out +=
+            "," + (ok && m.nees_count > 0 ? fmt_number(m.nees / static_cast<double>(m.nees_count))
+                                          : std::string());
+        out += "," + (ok && m.nis_count > 0 ? fmt_number(m.nis / static_cast<double>(m.nis_count))
+                                            : std::string());
         out += "\n";
       }
     }
@@ -454,7 +486,8 @@ nlohmann::json design_json(const LoadedScenario& loaded) {
       j["kind"] = e.kind;
       j["method"] = r.method;
       j["design_seconds"] = r.design_seconds;
-      j["stored_gains"] = r.stored_gains ? nlohmann::json(*r.stored_gains) : nlohmann::json(nullptr);
+      j["stored_gains"] =
+          r.stored_gains ? nlohmann::json(*r.stored_gains) : nlohmann::json(nullptr);
       j["predicted_mse"] = opt_json(r.predicted_mse);
       j["predicted_mse_ext"] = opt_json(r.predicted_mse_ext);
       j["stable"] = r.stable ? nlohmann::json(*r.stable) : nlohmann::json(nullptr);
@@ -465,7 +498,8 @@ nlohmann::json design_json(const LoadedScenario& loaded) {
     }
     if (loaded.sweeps.empty()) return nlohmann::json{{"estimators", ests}};
     nlohmann::json sweep = nlohmann::json::object();
-    for (std::size_t a = 0; a < loaded.sweeps.size(); ++a) sweep[loaded.sweeps[a].key] = c.labels[a];
+    for (std::size_t a = 0; a < loaded.sweeps.size(); ++a)
+      sweep[loaded.sweeps[a].key] = c.labels[a];
     cases.push_back({{"sweep", sweep}, {"estimators", ests}});
   }
   // With sweeps: the first case's estimators stay under "estimators" (the contract's shape),
@@ -477,8 +511,8 @@ std::string design_csv(const LoadedScenario& loaded) {
   std::string out;
   std::vector<std::string> cols;
   for (const auto& s : loaded.sweeps) cols.push_back(s.key);
-  for (const char* c : {"estimator", "kind", "method", "predicted_mse", "predicted_mse_ext", "stored_gains",
-                        "flops_per_period", "p0", "design_seconds", "status",
+  for (const char* c : {"estimator", "kind", "method", "predicted_mse", "predicted_mse_ext",
+                        "stored_gains", "flops_per_period", "p0", "design_seconds", "status",
                         "predicted_mse_paper_eq28_erroneous"}) {
     cols.push_back(c);
   }
@@ -503,8 +537,10 @@ std::string design_csv(const LoadedScenario& loaded) {
       cells.push_back(p0 != r.extra.end() && p0->is_number() ? fmt_number(p0->get<double>()) : "");
       cells.push_back(fmt::format("{:.6g}", r.design_seconds));
       cells.push_back(r.status);
-      const auto eq28 = r.extra.find("predicted_mse_paper_eq28_erroneous");  // jump only (results/README.md)
-      cells.push_back(eq28 != r.extra.end() && eq28->is_number() ? precise(eq28->get<double>()) : "");
+      const auto eq28 =
+          r.extra.find("predicted_mse_paper_eq28_erroneous");  // jump only (results/README.md)
+      cells.push_back(eq28 != r.extra.end() && eq28->is_number() ? precise(eq28->get<double>())
+                                                                 : "");
       for (std::size_t i = 0; i < cells.size(); ++i) out += (i ? "," : "") + csv_field(cells[i]);
       out += "\n";
     }
@@ -512,7 +548,8 @@ std::string design_csv(const LoadedScenario& loaded) {
   return out;
 }
 
-std::string transmissions_csv(const std::vector<SweepAxis>& sweeps, const std::vector<std::vector<std::string>>& labels,
+std::string transmissions_csv(const std::vector<SweepAxis>& sweeps,
+                              const std::vector<std::vector<std::string>>& labels,
                               const std::vector<const Scenario*>& scenarios,
                               const std::vector<const CampaignResult*>& results) {
   std::string out;
@@ -534,12 +571,15 @@ std::string transmissions_csv(const std::vector<SweepAxis>& sweeps, const std::v
       const Eigen::VectorXd* delta = spec.deadband();
       for (Eigen::Index i = 0; i < spec.ny(); ++i) {
         for (const auto& l : labels[c]) out += csv_field(l) + ",";
-        out += fmt::format("{},{},{},{},{},{},{},{}\n", csv_field(spec.name), i + 1, csv_field(spec.policy->name()),
+        out += fmt::format("{},{},{},{},{},{},{},{}\n", csv_field(spec.name), i + 1,
+                           csv_field(spec.policy->name()),
                            delta != nullptr ? fmt::format("{:.6g}", (*delta)(i)) : "", taken, sent,
-                           fmt_number(taken > 0 ? std::optional<double>(static_cast<double>(sent) / static_cast<double>(taken))
+                           fmt_number(taken > 0 ? std::optional<double>(static_cast<double>(sent) /
+                                                                        static_cast<double>(taken))
                                                 : std::nullopt),
-                           fmt_number(taken > 0 ? std::optional<double>(std::sqrt(sse[static_cast<std::size_t>(i)] /
-                                                                                  static_cast<double>(taken)))
+                           fmt_number(taken > 0 ? std::optional<double>(
+                                                      std::sqrt(sse[static_cast<std::size_t>(i)] /
+                                                                static_cast<double>(taken)))
                                                 : std::nullopt));
       }
     }
@@ -552,13 +592,16 @@ std::string trajectory_csv(const Scenario& sc, const std::vector<TraceRow>& trac
   std::string out = "period";
   for (Eigen::Index i = 0; i < n; ++i) out += fmt::format(",x{}", i + 1);
   for (const auto& e : sc.estimators) {
-    for (Eigen::Index i = 0; i < n; ++i) out += "," + csv_field(fmt::format("{}:xhat{}", e.name, i + 1));
+    for (Eigen::Index i = 0; i < n; ++i)
+      out += "," + csv_field(fmt::format("{}:xhat{}", e.name, i + 1));
   }
-  for (const auto& s : sc.model.sensors) out += "," + csv_field(fmt::format("arrived:{}", s.spec.name));
+  for (const auto& s : sc.model.sensors)
+    out += "," + csv_field(fmt::format("arrived:{}", s.spec.name));
   for (Eigen::Index j = 0; j < sc.model.plant.nu(); ++j) out += fmt::format(",u{}", j + 1);
   for (const auto& s : sc.model.sensors) {
     for (Eigen::Index i = 0; i < s.spec.ny(); ++i) {
-      out += "," + csv_field(s.spec.ny() == 1 ? fmt::format("y:{}", s.spec.name) : fmt::format("y:{}:{}", s.spec.name, i + 1));
+      out += "," + csv_field(s.spec.ny() == 1 ? fmt::format("y:{}", s.spec.name)
+                                              : fmt::format("y:{}:{}", s.spec.name, i + 1));
     }
   }
   const bool has_reference = sc.input.controller->sees_outputs();
@@ -568,7 +611,8 @@ std::string trajectory_csv(const Scenario& sc, const std::vector<TraceRow>& trac
     out += ",mode";
     for (const auto& e : sc.estimators) out += "," + csv_field(fmt::format("{}:mode", e.name));
   }
-  const auto offsets = recentring_offsets(sc, trace);  // re-centred runs: the physical state (sim/physical.h)
+  const auto offsets =
+      recentring_offsets(sc, trace);  // re-centred runs: the physical state (sim/physical.h)
   if (sc.recentre) {
     for (Eigen::Index i = 0; i < n; ++i) out += fmt::format(",x{}_physical", i + 1);
   }
@@ -590,7 +634,9 @@ std::string trajectory_csv(const Scenario& sc, const std::vector<TraceRow>& trac
     }
     if (sc.recentre) {
       for (Eigen::Index i = 0; i < n; ++i) {
-        out += offsets[t] ? fmt::format(",{:.9g}", r.x[static_cast<std::size_t>(i)] + (*offsets[t])[static_cast<std::size_t>(i)]) : ",";
+        out += offsets[t] ? fmt::format(",{:.9g}", r.x[static_cast<std::size_t>(i)] +
+                                                       (*offsets[t])[static_cast<std::size_t>(i)])
+                          : ",";
       }
     }
     out += "\n";
@@ -606,19 +652,24 @@ void prepare_output_dir(const std::string& dir) {
   const OutputFolderLock lock(dir);
   std::error_code ec;
   fs::create_directories(folder, ec);
-  if (ec) throw std::runtime_error(fmt::format("cannot create the output directory '{}': {}", dir, ec.message()));
+  if (ec)
+    throw std::runtime_error(
+        fmt::format("cannot create the output directory '{}': {}", dir, ec.message()));
   // The result set is written into a sibling folder and swapped in: the parent must be writable.
-  const fs::path probe = folder.parent_path() / fmt::format(".{}.probe.tmp{}", folder.filename().string(),
-                                                            static_cast<long>(::getpid()));
+  const fs::path probe =
+      folder.parent_path() /
+      fmt::format(".{}.probe.tmp{}", folder.filename().string(), static_cast<long>(::getpid()));
   fs::create_directory(probe, ec);
   if (ec) {
-    throw std::runtime_error(fmt::format("cannot write next to the output directory '{}' (in '{}'): {}", dir,
-                                         folder.parent_path().string(), ec.message()));
+    throw std::runtime_error(
+        fmt::format("cannot write next to the output directory '{}' (in '{}'): {}", dir,
+                    folder.parent_path().string(), ec.message()));
   }
   fs::remove(probe, ec);
 }
 
-void write_files_atomically(const std::string& dir, const std::vector<std::pair<std::string, std::string>>& files,
+void write_files_atomically(const std::string& dir,
+                            const std::vector<std::pair<std::string, std::string>>& files,
                             const std::vector<std::string>& stale) {
   write_output_set(dir, files, stale);  // sim/output_set.h
 }

@@ -43,7 +43,7 @@ struct SummaryRow {
   std::string stop;
   // After the ermse columns: paired differences against the reference (sim/paired.h).
   PairedColumns paired;
-  PerRunValues per_run;  // the per-run values the paired columns use (not written)
+  PerRunValues per_run;     // the per-run values the paired columns use (not written)
   std::string model_check;  // the prediction against the simulation (sim/validity.h)
   // After model_check (and stop): [[estimator]] expected_status, "" when not declared ("ok").
   std::string expected_status;
@@ -62,40 +62,50 @@ std::vector<SummaryRow> summarise(const Scenario& sc, const CampaignResult& resu
 
 std::vector<std::string> summary_columns(const std::vector<SweepAxis>& sweeps, Eigen::Index n);
 // confusion.csv: one row per (sweep case, mode estimator, true mode, estimated mode).
-std::string confusion_csv(const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows);
+std::string confusion_csv(const std::vector<SweepAxis>& sweeps,
+                          const std::vector<SummaryRow>& rows);
 
 // summary.csv as text: the header and every row's cells, every column in file order.
 struct SummaryText {
   std::vector<std::string> header;
   std::vector<std::vector<std::string>> cells;
 };
-SummaryText summary_text(const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows, Eigen::Index n);
+SummaryText summary_text(const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows,
+                         Eigen::Index n);
 // The text of a SummaryText as CSV (RFC 4180 quoting): summary.csv, and `run --format csv`.
 std::string summary_text_csv(const SummaryText& t);
 // The columns of summary_text: summary_columns, then `stop` (with --target-ci),
 // `expected_status` and the filter-consistency columns (nees .. consistency).
-std::vector<std::string> summary_csv_columns(const std::vector<SweepAxis>& sweeps, Eigen::Index n, bool stop);
-std::string summary_csv(const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows, Eigen::Index n);
+std::vector<std::string> summary_csv_columns(const std::vector<SweepAxis>& sweeps, Eigen::Index n,
+                                             bool stop);
+std::string summary_csv(const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows,
+                        Eigen::Index n);
 // The lines under the table for the rows whose filter is inconsistent (`consistency` neither
 // empty nor "ok"): one per row with its NEES/NIS and bounds; empty when there is none.
-std::string consistency_notes(const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows);
+std::string consistency_notes(const std::vector<SweepAxis>& sweeps,
+                              const std::vector<SummaryRow>& rows);
 std::string summary_markdown(const std::string& title, const std::vector<SweepAxis>& sweeps,
                              const std::vector<SummaryRow>& rows, Eigen::Index n);
-std::string runs_csv(const std::vector<SweepAxis>& sweeps, const std::vector<std::vector<std::string>>& labels,
-                     const std::vector<const Scenario*>& scenarios, const std::vector<const CampaignResult*>& results);
+std::string runs_csv(const std::vector<SweepAxis>& sweeps,
+                     const std::vector<std::vector<std::string>>& labels,
+                     const std::vector<const Scenario*>& scenarios,
+                     const std::vector<const CampaignResult*>& results);
 nlohmann::json design_json(const LoadedScenario& loaded);
 // design.csv: one row per case and estimator (swept keys first), the design's predictions.
 std::string design_csv(const LoadedScenario& loaded);
 // Per case and sensor: samples taken and sent, the send ratio (beta) and per output the RMS of
 // the virtual noise m - y (send-on-delta). Averaged over the runs.
-std::string transmissions_csv(const std::vector<SweepAxis>& sweeps, const std::vector<std::vector<std::string>>& labels,
+std::string transmissions_csv(const std::vector<SweepAxis>& sweeps,
+                              const std::vector<std::vector<std::string>>& labels,
                               const std::vector<const Scenario*>& scenarios,
                               const std::vector<const CampaignResult*>& results);
 std::string trajectory_csv(const Scenario& sc, const std::vector<TraceRow>& trace);
 // error_curve.csv ([run] error_curve): per case, estimator and period, the run-averaged squared
 // error with its 95 % CI half-width and per state (sim/error_curve.h); curves[c] of case c.
-std::string error_curve_csv(const std::vector<SweepAxis>& sweeps, const std::vector<std::vector<std::string>>& labels,
-                            const std::vector<const Scenario*>& scenarios, const std::vector<ErrorCurve>& curves);
+std::string error_curve_csv(const std::vector<SweepAxis>& sweeps,
+                            const std::vector<std::vector<std::string>>& labels,
+                            const std::vector<const Scenario*>& scenarios,
+                            const std::vector<ErrorCurve>& curves);
 
 // Writes every (name, content) as the new result set of `dir`, atomically as a whole (a sibling
 // folder fsynced and swapped in; see sim/output_set.h). Creates `dir` if needed. Throws
@@ -103,7 +113,8 @@ std::string error_curve_csv(const std::vector<SweepAxis>& sweeps, const std::vec
 // holds the folder's lock. `stale` names earlier outputs to drop when they are not part of this
 // set (e.g. a trajectory.csv of an earlier --trace run); every other existing entry is carried
 // over, so the folder never mixes two result sets.
-void write_files_atomically(const std::string& dir, const std::vector<std::pair<std::string, std::string>>& files,
+void write_files_atomically(const std::string& dir,
+                            const std::vector<std::pair<std::string, std::string>>& files,
                             const std::vector<std::string>& stale = {});
 
 // Creates `dir` and checks that its parent is writable (the set is swapped in from a sibling),

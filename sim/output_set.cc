@@ -82,12 +82,15 @@ class Steps {
 };
 
 int rename2(const fs::path& from, const fs::path& to, unsigned flags) {
-  return static_cast<int>(::syscall(SYS_renameat2, AT_FDCWD, from.c_str(), AT_FDCWD, to.c_str(), flags));
+  return static_cast<int>(
+      ::syscall(SYS_renameat2, AT_FDCWD, from.c_str(), AT_FDCWD, to.c_str(), flags));
 }
 
 void fsync_path(const fs::path& p, bool directory) {
   const int fd = ::open(p.c_str(), (directory ? O_RDONLY | O_DIRECTORY : O_RDONLY) | O_CLOEXEC);
-  if (fd < 0) throw std::runtime_error(fmt::format("cannot open '{}' to sync it: {}", p.string(), errno_text(errno)));
+  if (fd < 0)
+    throw std::runtime_error(
+        fmt::format("cannot open '{}' to sync it: {}", p.string(), errno_text(errno)));
   const int rc = ::fsync(fd);
   const int e = errno;
   ::close(fd);
@@ -97,10 +100,12 @@ void fsync_path(const fs::path& p, bool directory) {
   }
 }
 
-void write_file(const fs::path& p, const std::string& content, Steps& step, const std::string& name) {
+void write_file(const fs::path& p, const std::string& content, Steps& step,
+                const std::string& name) {
   step("write " + name);
   const int fd = ::open(p.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
-  if (fd < 0) throw std::runtime_error(fmt::format("cannot write '{}': {}", p.string(), errno_text(errno)));
+  if (fd < 0)
+    throw std::runtime_error(fmt::format("cannot write '{}': {}", p.string(), errno_text(errno)));
   std::size_t done = 0;
   while (done < content.size()) {
     const ssize_t n = ::write(fd, content.data() + done, content.size() - done);
@@ -118,7 +123,8 @@ void write_file(const fs::path& p, const std::string& content, Steps& step, cons
     ::close(fd);
     throw std::runtime_error(fmt::format("cannot sync '{}': {}", p.string(), errno_text(e)));
   }
-  if (::close(fd) != 0) throw std::runtime_error(fmt::format("cannot write '{}': {}", p.string(), errno_text(errno)));
+  if (::close(fd) != 0)
+    throw std::runtime_error(fmt::format("cannot write '{}': {}", p.string(), errno_text(errno)));
 }
 
 // Carries `src` (file, symlink or folder) over to `dst`: hard links, so an open database keeps
@@ -129,21 +135,25 @@ void carry_over(const fs::path& src, const fs::path& dst) {
   if (ec) throw std::runtime_error(fmt::format("cannot read '{}': {}", src.string(), ec.message()));
   if (fs::is_directory(st)) {
     fs::create_directory(dst, ec);
-    if (ec) throw std::runtime_error(fmt::format("cannot create '{}': {}", dst.string(), ec.message()));
-    for (const auto& e : fs::directory_iterator(src)) carry_over(e.path(), dst / e.path().filename());
+    if (ec)
+      throw std::runtime_error(fmt::format("cannot create '{}': {}", dst.string(), ec.message()));
+    for (const auto& e : fs::directory_iterator(src))
+      carry_over(e.path(), dst / e.path().filename());
     return;
   }
   if (::linkat(AT_FDCWD, src.c_str(), AT_FDCWD, dst.c_str(), 0) == 0) return;
   const int e = errno;
   if (e != EPERM && e != EXDEV && e != EMLINK && e != ENOTSUP) {
-    throw std::runtime_error(fmt::format("cannot carry '{}' over: {}", src.string(), errno_text(e)));
+    throw std::runtime_error(
+        fmt::format("cannot carry '{}' over: {}", src.string(), errno_text(e)));
   }
   if (fs::is_symlink(st)) {
     fs::copy_symlink(src, dst, ec);
   } else {
     fs::copy_file(src, dst, ec);
   }
-  if (ec) throw std::runtime_error(fmt::format("cannot carry '{}' over: {}", src.string(), ec.message()));
+  if (ec)
+    throw std::runtime_error(fmt::format("cannot carry '{}' over: {}", src.string(), ec.message()));
 }
 
 bool all_digits(std::string_view s) {
@@ -180,9 +190,11 @@ bool restore_moved_aside(const fs::path& parent, const std::string& name, const 
   }
   // Killed between "move previous folder aside" and "rename new folder": the previous set is
   // the one a reader saw last; put it back.
-  if (rename2(olds.front(), folder, RENAME_NOREPLACE) == 0 || ::rename(olds.front().c_str(), folder.c_str()) == 0) {
-    std::cerr << fmt::format("ncosim: restored the previous result set of '{}' (a write was interrupted)\n",
-                             folder.string());
+  if (rename2(olds.front(), folder, RENAME_NOREPLACE) == 0 ||
+      ::rename(olds.front().c_str(), folder.c_str()) == 0) {
+    std::cerr << fmt::format(
+        "ncosim: restored the previous result set of '{}' (a write was interrupted)\n",
+        folder.string());
     return true;
   }
   return false;
@@ -223,8 +235,9 @@ int clean_siblings(const fs::path& parent, const std::string& name, const fs::pa
 
 void report(int removed, const fs::path& folder) {
   if (removed > 0) {
-    std::cerr << fmt::format("ncosim: removed {} leftover temporar{} of an interrupted write of '{}'\n", removed,
-                             removed == 1 ? "y" : "ies", folder.string());
+    std::cerr << fmt::format(
+        "ncosim: removed {} leftover temporar{} of an interrupted write of '{}'\n", removed,
+        removed == 1 ? "y" : "ies", folder.string());
   }
 }
 
@@ -234,9 +247,13 @@ std::string output_set_folder(const std::string& dir) {
   if (dir.empty()) throw ScenarioError("--out: expected a folder name, got an empty string");
   std::error_code ec;
   fs::path p = fs::absolute(fs::path(dir), ec);
-  if (ec) throw std::runtime_error(fmt::format("cannot resolve the output folder '{}': {}", dir, ec.message()));
+  if (ec)
+    throw std::runtime_error(
+        fmt::format("cannot resolve the output folder '{}': {}", dir, ec.message()));
   p = fs::weakly_canonical(p, ec);
-  if (ec) throw std::runtime_error(fmt::format("cannot resolve the output folder '{}': {}", dir, ec.message()));
+  if (ec)
+    throw std::runtime_error(
+        fmt::format("cannot resolve the output folder '{}': {}", dir, ec.message()));
   if (p.filename().empty() || p.filename() == "." || p.filename() == "..") p = p.parent_path();
   if (p == p.root_path() || p.filename().empty()) {
     throw ScenarioError(fmt::format("--out: expected a folder below the root, got '{}'", dir));
@@ -245,10 +262,11 @@ std::string output_set_folder(const std::string& dir) {
   if (!ec) {
     const auto rel = cwd.lexically_relative(p);
     if (!rel.empty() && *rel.begin() != "..") {
-      throw ScenarioError(fmt::format(
-          "--out: expected a folder that is not the current directory or one of its parents, got '{}' (a result "
-          "set replaces its folder as a whole)",
-          dir));
+      throw ScenarioError(
+          fmt::format("--out: expected a folder that is not the current directory or one of its "
+                      "parents, got '{}' (a result "
+                      "set replaces its folder as a whole)",
+                      dir));
     }
   }
   return p.string();
@@ -259,7 +277,9 @@ OutputFolderLock::OutputFolderLock(const std::string& dir) {
   const fs::path parent = folder.parent_path();
   std::error_code ec;
   fs::create_directories(parent, ec);
-  if (ec) throw std::runtime_error(fmt::format("cannot create the output directory '{}': {}", dir, ec.message()));
+  if (ec)
+    throw std::runtime_error(
+        fmt::format("cannot create the output directory '{}': {}", dir, ec.message()));
   std::lock_guard<std::mutex> g(lock_mutex());
   auto& held = held_locks()[folder.string()];
   key_ = folder.string();
@@ -271,7 +291,8 @@ OutputFolderLock::OutputFolderLock(const std::string& dir) {
   const int fd = ::open(lock_path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0666);
   if (fd < 0) {
     held_locks().erase(key_);
-    throw std::runtime_error(fmt::format("cannot open the lock file '{}': {}", lock_path.string(), errno_text(errno)));
+    throw std::runtime_error(
+        fmt::format("cannot open the lock file '{}': {}", lock_path.string(), errno_text(errno)));
   }
   if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
     const int e = errno;
@@ -283,12 +304,14 @@ OutputFolderLock::OutputFolderLock(const std::string& dir) {
     ::close(fd);
     held_locks().erase(key_);
     if (e == EWOULDBLOCK) {
-      throw ScenarioError(fmt::format(
-          "{}: the output folder is in use by another ncosim process (PID {}; lock {}); wait for it to finish or "
-          "choose another --out",
-          dir, pid.empty() ? std::string("unknown") : pid, lock_path.string()));
+      throw ScenarioError(
+          fmt::format("{}: the output folder is in use by another ncosim process (PID {}; lock "
+                      "{}); wait for it to finish or "
+                      "choose another --out",
+                      dir, pid.empty() ? std::string("unknown") : pid, lock_path.string()));
     }
-    throw std::runtime_error(fmt::format("cannot lock '{}': {}", lock_path.string(), errno_text(e)));
+    throw std::runtime_error(
+        fmt::format("cannot lock '{}': {}", lock_path.string(), errno_text(e)));
   }
   const std::string text = fmt::format("{}\n", static_cast<long>(::getpid()));
   if (::ftruncate(fd, 0) == 0) {
@@ -310,8 +333,10 @@ OutputFolderLock::~OutputFolderLock() {
   }
 }
 
-int write_output_set(const std::string& dir, const std::vector<std::pair<std::string, std::string>>& files,
-                     const std::vector<std::string>& stale, const std::vector<InstalledFile>& installs) {
+int write_output_set(const std::string& dir,
+                     const std::vector<std::pair<std::string, std::string>>& files,
+                     const std::vector<std::string>& stale,
+                     const std::vector<InstalledFile>& installs) {
   std::vector<std::string> names;
   for (const auto& f : files) names.push_back(f.first);
   for (const auto& f : installs) names.push_back(f.name);
@@ -332,7 +357,8 @@ int write_output_set(const std::string& dir, const std::vector<std::pair<std::st
   try {
     step("create the temporary folder");
     if (::mkdir(tmp.c_str(), 0777) != 0) {
-      throw std::runtime_error(fmt::format("cannot create '{}': {}", tmp.string(), errno_text(errno)));
+      throw std::runtime_error(
+          fmt::format("cannot create '{}': {}", tmp.string(), errno_text(errno)));
     }
     for (const auto& [fname, content] : files) write_file(tmp / fname, content, step, fname);
     for (const auto& f : installs) {
@@ -359,27 +385,32 @@ int write_output_set(const std::string& dir, const std::vector<std::pair<std::st
     fsync_path(tmp, true);
     if (exists) {
       step("exchange the folders");
-      const char* no_exchange = std::getenv("NCOSIM_TEST_NO_EXCHANGE");  // test hook: the fallback path
-      const bool exchanged =
-          !(no_exchange != nullptr && std::string(no_exchange) == "1") && rename2(tmp, folder, RENAME_EXCHANGE) == 0;
+      const char* no_exchange =
+          std::getenv("NCOSIM_TEST_NO_EXCHANGE");  // test hook: the fallback path
+      const bool exchanged = !(no_exchange != nullptr && std::string(no_exchange) == "1") &&
+                             rename2(tmp, folder, RENAME_EXCHANGE) == 0;
       if (!exchanged && no_exchange == nullptr) {
         if (errno != EINVAL && errno != ENOSYS && errno != ENOTSUP) {
-          throw std::runtime_error(fmt::format("cannot swap '{}' in: {}", folder.string(), errno_text(errno)));
+          throw std::runtime_error(
+              fmt::format("cannot swap '{}' in: {}", folder.string(), errno_text(errno)));
         }
       }
       if (exchanged) {
         tmp_is_new = false;
       } else {
-        const fs::path old = parent / fmt::format(".{}.old.{}", name, static_cast<long>(::getpid()));
+        const fs::path old =
+            parent / fmt::format(".{}.old.{}", name, static_cast<long>(::getpid()));
         step("move the previous folder aside");
         if (::rename(folder.c_str(), old.c_str()) != 0) {
-          throw std::runtime_error(fmt::format("cannot move '{}' aside: {}", folder.string(), errno_text(errno)));
+          throw std::runtime_error(
+              fmt::format("cannot move '{}' aside: {}", folder.string(), errno_text(errno)));
         }
         step("rename the new folder");
         if (::rename(tmp.c_str(), folder.c_str()) != 0) {
           const int e = errno;
           ::rename(old.c_str(), folder.c_str());
-          throw std::runtime_error(fmt::format("cannot rename into '{}': {}", folder.string(), errno_text(e)));
+          throw std::runtime_error(
+              fmt::format("cannot rename into '{}': {}", folder.string(), errno_text(e)));
         }
         step("fsync the parent folder");
         fsync_path(parent, true);
@@ -391,7 +422,8 @@ int write_output_set(const std::string& dir, const std::vector<std::pair<std::st
     } else {
       step("rename the new folder");
       if (::rename(tmp.c_str(), folder.c_str()) != 0) {
-        throw std::runtime_error(fmt::format("cannot rename into '{}': {}", folder.string(), errno_text(errno)));
+        throw std::runtime_error(
+            fmt::format("cannot rename into '{}': {}", folder.string(), errno_text(errno)));
       }
       tmp_is_new = false;
     }

@@ -50,8 +50,10 @@ struct InstalledFile {
 // Throws std::runtime_error on an I/O failure (the previous set stays, temporaries are removed)
 // and ScenarioError when another process holds the folder's lock. Returns the number of leftover
 // temporaries of interrupted writers that were removed (also reported on stderr).
-int write_output_set(const std::string& dir, const std::vector<std::pair<std::string, std::string>>& files,
-                     const std::vector<std::string>& stale, const std::vector<InstalledFile>& installs = {});
+int write_output_set(const std::string& dir,
+                     const std::vector<std::pair<std::string, std::string>>& files,
+                     const std::vector<std::string>& stale,
+                     const std::vector<InstalledFile>& installs = {});
 
 // The folder that holds the result set of `dir` once symlinks are resolved (absolute).
 std::string output_set_folder(const std::string& dir);

@@ -68,8 +68,8 @@ double t_two_sided(double dof, double level) {
   return boost::math::quantile(boost::math::complement(dist, (1.0 - level) / 2.0));
 }
 
-std::optional<Difference> paired_difference(const std::vector<double>& base, const std::vector<double>& fresh,
-                                            double level) {
+std::optional<Difference> paired_difference(const std::vector<double>& base,
+                                            const std::vector<double>& fresh, double level) {
   const std::size_t n = base.size();
   if (n < 2 || fresh.size() != n || !all_finite(base) || !all_finite(fresh)) return std::nullopt;
   Difference d;
@@ -95,9 +95,10 @@ std::optional<Difference> paired_difference(const std::vector<double>& base, con
   return d;
 }
 
-std::optional<Difference> welch_difference(const std::vector<double>& base, const std::vector<double>& fresh,
-                                           double level) {
-  if (base.size() < 2 || fresh.size() < 2 || !all_finite(base) || !all_finite(fresh)) return std::nullopt;
+std::optional<Difference> welch_difference(const std::vector<double>& base,
+                                           const std::vector<double>& fresh, double level) {
+  if (base.size() < 2 || fresh.size() < 2 || !all_finite(base) || !all_finite(fresh))
+    return std::nullopt;
   Difference d;
   d.n_base = base.size();
   d.n_new = fresh.size();
@@ -118,10 +119,11 @@ std::optional<Difference> welch_difference(const std::vector<double>& base, cons
   return d;
 }
 
-RelativeTest relative_test(const std::vector<double>& base, const std::vector<double>& fresh, bool paired,
-                           double margin) {
+RelativeTest relative_test(const std::vector<double>& base, const std::vector<double>& fresh,
+                           bool paired, double margin) {
   RelativeTest r;
-  auto one = [&](double factor) -> std::pair<double, double> {  // (estimate, se) of new - factor base
+  auto one =
+      [&](double factor) -> std::pair<double, double> {  // (estimate, se) of new - factor base
     if (paired) {
       std::vector<double> e(base.size());
       for (std::size_t i = 0; i < base.size(); ++i) e[i] = fresh[i] - factor * base[i];
@@ -130,13 +132,14 @@ RelativeTest relative_test(const std::vector<double>& base, const std::vector<do
     }
     const Moments a = moments(base), b = moments(fresh);
     return {b.mean - factor * a.mean,
-            std::sqrt(b.var / static_cast<double>(b.n) + factor * factor * a.var / static_cast<double>(a.n))};
+            std::sqrt(b.var / static_cast<double>(b.n) +
+                      factor * factor * a.var / static_cast<double>(a.n))};
   };
   auto dof = [&](double factor) {
     if (paired) return static_cast<double>(base.size() - 1);
     const Moments a = moments(base), b = moments(fresh);
-    return satterthwaite(b.var / static_cast<double>(b.n), b.n, factor * factor * a.var / static_cast<double>(a.n),
-                         a.n);
+    return satterthwaite(b.var / static_cast<double>(b.n), b.n,
+                         factor * factor * a.var / static_cast<double>(a.n), a.n);
   };
   if (base.size() < 2 || fresh.size() < 2 || (paired && base.size() != fresh.size())) return r;
   const auto [ew, sw] = one(1.0 + margin);
@@ -150,7 +153,8 @@ std::vector<double> holm_adjust(const std::vector<double>& p) {
   const std::size_t k = p.size();
   std::vector<std::size_t> order(k);
   std::iota(order.begin(), order.end(), std::size_t{0});
-  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return p[a] < p[b]; });
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::size_t a, std::size_t b) { return p[a] < p[b]; });
   std::vector<double> adj(k);
   double running = 0.0;
   for (std::size_t j = 0; j < k; ++j) {
@@ -160,7 +164,8 @@ std::vector<double> holm_adjust(const std::vector<double>& p) {
   return adj;
 }
 
-// ---- [paired] ------------------------------------------------------------------------------------
+// ---- [paired]
+// ------------------------------------------------------------------------------------
 
 PairedSettings read_paired(const Table& root, const toml::table& doc, const Scenario& sc) {
   PairedSettings p;
@@ -176,8 +181,9 @@ PairedSettings read_paired(const Table& root, const toml::table& doc, const Scen
       std::string list;
       for (const auto& n : names) list += (list.empty() ? "" : ", ") + fmt::format("\"{}\"", n);
       const std::string hint = did_you_mean(p.reference, names);
-      t->fail("reference", fmt::format("expected an estimator name ({}), got \"{}\"{}", list, p.reference,
-                                       hint.empty() ? "" : fmt::format(" (did you mean \"{}\"?)", hint)));
+      t->fail("reference",
+              fmt::format("expected an estimator name ({}), got \"{}\"{}", list, p.reference,
+                          hint.empty() ? "" : fmt::format(" (did you mean \"{}\"?)", hint)));
     }
   }
   t->allow("reference_case");
@@ -217,7 +223,8 @@ std::size_t reference_case_index(const LoadedScenario& loaded) {
   auto fail = [&](const std::string& msg) {
     throw ScenarioError(format_error(p.file, p.reference_case_line, "paired.reference_case", msg));
   };
-  if (loaded.sweeps.empty()) fail("expected [[sweep]] tables (a reference case names sweep values), got none");
+  if (loaded.sweeps.empty())
+    fail("expected [[sweep]] tables (a reference case names sweep values), got none");
   std::vector<std::size_t> idx(loaded.sweeps.size(), 0);
   for (const auto& [key, label] : p.reference_case) {
     std::size_t a = 0;
@@ -296,7 +303,8 @@ void add_paired_within(std::vector<SummaryRow>& case_rows, std::size_t reference
   }
 }
 
-void add_paired_across_cases(std::vector<SummaryRow>& rows, const LoadedScenario& loaded, std::size_t reference_case) {
+void add_paired_across_cases(std::vector<SummaryRow>& rows, const LoadedScenario& loaded,
+                             std::size_t reference_case) {
   if (loaded.sweeps.empty() || reference_case >= loaded.cases.size()) return;
   // Row ranges of each case.
   std::vector<std::size_t> start;
@@ -308,7 +316,8 @@ void add_paired_across_cases(std::vector<SummaryRow>& rows, const LoadedScenario
   if (at != rows.size()) return;  // not the layout summarise() produced
   std::string where;
   for (std::size_t a = 0; a < loaded.sweeps.size(); ++a) {
-    where += fmt::format("{}{}={}", a ? "; " : "", loaded.sweeps[a].key, loaded.cases[reference_case].labels[a]);
+    where += fmt::format("{}{}={}", a ? "; " : "", loaded.sweeps[a].key,
+                         loaded.cases[reference_case].labels[a]);
   }
   const Scenario& ref_sc = *loaded.cases[reference_case].scenario;
   for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
@@ -350,7 +359,8 @@ std::vector<std::string> paired_column_names(bool sweeps) {
 std::vector<std::string> paired_cells(const PairedColumns& p, bool sweeps) {
   std::vector<std::string> cells{p.reference};
   auto add = [&](const PairedMetric& m) {
-    for (const auto& v : {m.diff, m.diff_ci95, m.ratio, m.ratio_ci95}) cells.push_back(fmt_number(v));
+    for (const auto& v : {m.diff, m.diff_ci95, m.ratio, m.ratio_ci95})
+      cells.push_back(fmt_number(v));
   };
   add(p.mse);
   add(p.mse_ext);

@@ -29,11 +29,11 @@ struct SummaryRow;
 // H0: mean(new) = (1 + margin) mean(base) (see relative_test).
 struct Difference {
   double base_mean = 0.0, new_mean = 0.0;
-  double diff = 0.0;                     // mean(new) - mean(base)
-  std::optional<double> diff_half;       // CI half-width of diff
-  std::optional<double> ratio;           // mean(new) / mean(base) (nullopt when mean(base) == 0)
-  std::optional<double> ratio_half;      // delta-method CI half-width of the ratio
-  double dof = 0.0;                      // degrees of freedom (paired: n - 1; Welch: Satterthwaite)
+  double diff = 0.0;                 // mean(new) - mean(base)
+  std::optional<double> diff_half;   // CI half-width of diff
+  std::optional<double> ratio;       // mean(new) / mean(base) (nullopt when mean(base) == 0)
+  std::optional<double> ratio_half;  // delta-method CI half-width of the ratio
+  double dof = 0.0;                  // degrees of freedom (paired: n - 1; Welch: Satterthwaite)
   std::size_t n_base = 0, n_new = 0;
   bool paired = false;
 };
@@ -41,11 +41,11 @@ struct Difference {
 // Paired: a[i] and b[i] come from the same run. The CI of the mean difference uses the per-run
 // differences d = b - a (Student t, n - 1 dof); the ratio's uses the linearised per-run values
 // (b_i - R a_i) / mean(a) (delta method). Needs a.size() == b.size() >= 2.
-std::optional<Difference> paired_difference(const std::vector<double>& base, const std::vector<double>& fresh,
-                                            double level = 0.95);
+std::optional<Difference> paired_difference(const std::vector<double>& base,
+                                            const std::vector<double>& fresh, double level = 0.95);
 // Unpaired (Welch): independent samples, Welch-Satterthwaite degrees of freedom. Needs >= 2 each.
-std::optional<Difference> welch_difference(const std::vector<double>& base, const std::vector<double>& fresh,
-                                           double level = 0.95);
+std::optional<Difference> welch_difference(const std::vector<double>& base,
+                                           const std::vector<double>& fresh, double level = 0.95);
 
 // One-sided p-values against a relative margin m >= 0 (m = 0: plain difference):
 //   worse:  H0 mean(new) <= (1 + m) mean(base)  vs  H1 mean(new) > (1 + m) mean(base)
@@ -56,8 +56,8 @@ std::optional<Difference> welch_difference(const std::vector<double>& base, cons
 struct RelativeTest {
   double p_worse = 1.0, p_better = 1.0;
 };
-RelativeTest relative_test(const std::vector<double>& base, const std::vector<double>& fresh, bool paired,
-                           double margin);
+RelativeTest relative_test(const std::vector<double>& base, const std::vector<double>& fresh,
+                           bool paired, double margin);
 
 // Holm's step-down adjusted p-values (family-wise error <= alpha when rejecting adjusted <= alpha).
 std::vector<double> holm_adjust(const std::vector<double>& p);
@@ -96,10 +96,11 @@ struct PairedMetric {
   std::optional<double> diff, diff_ci95, ratio, ratio_ci95;
 };
 struct PairedColumns {
-  std::string reference;               // the reference estimator (within the case)
-  PairedMetric mse, mse_ext, mde;      // against the reference estimator, same case and runs
-  std::string reference_case;          // "KEY=VALUE; ..." (sweeps only)
-  PairedMetric case_mse, case_mse_ext, case_mde;  // against the same estimator in the reference case
+  std::string reference;           // the reference estimator (within the case)
+  PairedMetric mse, mse_ext, mde;  // against the reference estimator, same case and runs
+  std::string reference_case;      // "KEY=VALUE; ..." (sweeps only)
+  PairedMetric case_mse, case_mse_ext,
+      case_mde;  // against the same estimator in the reference case
 };
 
 // The per-run values summarise() uses (empty when any run diverged, as the summary columns).
@@ -115,7 +116,8 @@ void add_paired_within(std::vector<SummaryRow>& case_rows, std::size_t reference
 // case (rows grouped by case in case order, each case one row per estimator of its scenario).
 // Runs are paired by index over the runs both cases have; a case whose seed differs from the
 // reference case's is left empty (no common random numbers to pair).
-void add_paired_across_cases(std::vector<SummaryRow>& rows, const LoadedScenario& loaded, std::size_t reference_case);
+void add_paired_across_cases(std::vector<SummaryRow>& rows, const LoadedScenario& loaded,
+                             std::size_t reference_case);
 
 // Column names appended to summary.csv (`sweeps`: whether the case columns are present) and
 // one row's cells.

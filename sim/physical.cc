@@ -5,8 +5,8 @@
 
 namespace ncosim::sim {
 
-std::vector<std::optional<std::vector<double>>> recentring_offsets(const Scenario& sc,
-                                                                   const std::vector<TraceRow>& trace) {
+std::vector<std::optional<std::vector<double>>> recentring_offsets(
+    const Scenario& sc, const std::vector<TraceRow>& trace) {
   std::vector<std::optional<std::vector<double>>> out;
   if (!sc.recentre || trace.empty()) return out;
   const auto& plant = sc.model.plant;
@@ -19,12 +19,15 @@ std::vector<std::optional<std::vector<double>>> recentring_offsets(const Scenari
     if (r > 0 && !lost) {
       const TraceRow& prev = trace[r - 1];
       const Eigen::MatrixXd& Am =
-          (row.mode >= 0 && static_cast<std::size_t>(row.mode) < plant.modes.size()) ? plant.modes[row.mode].A : plant.A;
+          (row.mode >= 0 && static_cast<std::size_t>(row.mode) < plant.modes.size())
+              ? plant.modes[row.mode].A
+              : plant.A;
       for (Eigen::Index i = 0; i < n; ++i) {
         long double s = 0.0L;
         for (Eigen::Index j = 0; j < n; ++j) {
           s += static_cast<long double>(Am(i, j)) * o[static_cast<std::size_t>(j)] +
-               static_cast<long double>(plant.A(i, j)) * static_cast<long double>(prev.x[static_cast<std::size_t>(j)]);
+               static_cast<long double>(plant.A(i, j)) *
+                   static_cast<long double>(prev.x[static_cast<std::size_t>(j)]);
         }
         next[static_cast<std::size_t>(i)] = s;
       }
@@ -32,7 +35,8 @@ std::vector<std::optional<std::vector<double>>> recentring_offsets(const Scenari
     }
     if (!lost) {
       for (Eigen::Index i = 0; i < n; ++i) {
-        const long double xp = static_cast<long double>(row.x[static_cast<std::size_t>(i)]) + o[static_cast<std::size_t>(i)];
+        const long double xp = static_cast<long double>(row.x[static_cast<std::size_t>(i)]) +
+                               o[static_cast<std::size_t>(i)];
         if (!(std::fabs(static_cast<double>(xp)) <= kPhysicalLimit)) lost = true;
       }
     }

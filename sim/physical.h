@@ -19,7 +19,7 @@ inline constexpr double kPhysicalLimit = 1e10;
 
 // Per trace row: the offset o[k] to add to x and xhat, or nullopt once |x_p| exceeded the limit.
 // Empty when the scenario was not re-centred.
-std::vector<std::optional<std::vector<double>>> recentring_offsets(const Scenario& sc,
-                                                                   const std::vector<TraceRow>& trace);
+std::vector<std::optional<std::vector<double>>> recentring_offsets(
+    const Scenario& sc, const std::vector<TraceRow>& trace);
 
 }  // namespace ncosim::sim

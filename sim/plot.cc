@@ -29,10 +29,14 @@ namespace fs = std::filesystem;
 
 const char* figure_kind_name(FigureKind k) {
   switch (k) {
-    case FigureKind::kPerEstimator: return "per_estimator";
-    case FigureKind::kAgainstKey: return "against_key";
-    case FigureKind::kPanels: return "panels";
-    case FigureKind::kTrace: return "trace";
+    case FigureKind::kPerEstimator:
+      return "per_estimator";
+    case FigureKind::kAgainstKey:
+      return "against_key";
+    case FigureKind::kPanels:
+      return "panels";
+    case FigureKind::kTrace:
+      return "trace";
   }
   return "?";
 }
@@ -55,7 +59,9 @@ namespace {
 
 std::string read_file(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);
-  if (!in) throw ScenarioError(fmt::format("{}: cannot read (is this an ncosim output folder?)", p.string()));
+  if (!in)
+    throw ScenarioError(
+        fmt::format("{}: cannot read (is this an ncosim output folder?)", p.string()));
   std::ostringstream s;
   s << in.rdbuf();
   return s.str();
@@ -104,11 +110,13 @@ Summary read_summary(const std::string& dir) {
   Summary s;
   s.t = parse_csv(read_file(p), p.string());
   s.est_col = s.t.column("estimator");
-  if (s.est_col < 0) throw ScenarioError(format_error(p.string(), 1, "", "expected an `estimator` column"));
+  if (s.est_col < 0)
+    throw ScenarioError(format_error(p.string(), 1, "", "expected an `estimator` column"));
   for (int i = 0; i < s.est_col; ++i) s.keys.push_back(s.t.header[static_cast<std::size_t>(i)]);
   for (const auto& r : s.t.rows) {
     const auto& e = r[static_cast<std::size_t>(s.est_col)];
-    if (std::find(s.estimators.begin(), s.estimators.end(), e) == s.estimators.end()) s.estimators.push_back(e);
+    if (std::find(s.estimators.begin(), s.estimators.end(), e) == s.estimators.end())
+      s.estimators.push_back(e);
   }
   return s;
 }
@@ -124,7 +132,8 @@ std::vector<std::string> distinct(const CsvTable& t, int col) {
 }
 
 bool all_numeric(const std::vector<std::string>& values) {
-  return std::all_of(values.begin(), values.end(), [](const std::string& v) { return number(v).has_value(); });
+  return std::all_of(values.begin(), values.end(),
+                     [](const std::string& v) { return number(v).has_value(); });
 }
 
 std::string prediction_column(const CsvTable& t, const std::string& metric) {
@@ -144,14 +153,16 @@ Choice choose(const Summary& s, const PlotOptions& opt, const std::string& what)
     if (std::find(s.keys.begin(), s.keys.end(), k) == s.keys.end()) {
       std::string valid;
       for (const auto& v : s.keys) valid += (valid.empty() ? "" : ", ") + v;
-      throw ScenarioError(fmt::format("{} '{}': not a sweep key of {} (sweep keys: {})", option, k, what,
+      throw ScenarioError(fmt::format("{} '{}': not a sweep key of {} (sweep keys: {})", option, k,
+                                      what,
                                       valid.empty() ? "none, the campaign has one case" : valid));
     }
   };
   if (!opt.x_key.empty()) check_key(opt.x_key, "--x");
   if (!opt.panel_key.empty()) check_key(opt.panel_key, "--panel");
   if (!opt.x_key.empty() && opt.x_key == opt.panel_key) {
-    throw ScenarioError(fmt::format("--panel '{}': expected a key other than the x key", opt.panel_key));
+    throw ScenarioError(
+        fmt::format("--panel '{}': expected a key other than the x key", opt.panel_key));
   }
   if (s.keys.empty()) return c;
   c.x_key = opt.x_key;
@@ -200,7 +211,8 @@ struct Range {
 bool want_log(const std::string& mode, const Range& r, const char* option) {
   if (mode == "on") return true;
   if (mode == "off") return false;
-  if (mode != "auto") throw ScenarioError(fmt::format("{} '{}': expected auto, on or off", option, mode));
+  if (mode != "auto")
+    throw ScenarioError(fmt::format("{} '{}': expected auto, on or off", option, mode));
   return !r.empty() && !r.any_nonpositive && r.hi / r.lo >= 100.0;
 }
 
@@ -217,7 +229,8 @@ std::string palette_style(std::size_t e) {
 }
 
 // The gnuplot script around a body: one pass per output format, images named <name>.<format>.
-std::string script(const std::string& name, const std::string& what, int width, int height, const std::string& body) {
+std::string script(const std::string& name, const std::string& what, int width, int height,
+                   const std::string& body) {
   return fmt::format(
       "# {0}.gp — {1}, written by `ncosim plot`.\n"
       "# Run in this folder: gnuplot {0}.gp   (one format: gnuplot -e \"formats='svg'\" {0}.gp)\n"
@@ -225,8 +238,10 @@ std::string script(const std::string& name, const std::string& what, int width, 
       "if (!exists(\"formats\")) formats = 'png svg'\n"
       "set datafile missing '?'\n"
       "do for [fmt in formats] {{\n"
-      "  if (fmt eq 'png') {{ set terminal pngcairo size {2},{3} noenhanced font 'Sans,10'; set output '{0}.png' }}\n"
-      "  if (fmt eq 'svg') {{ set terminal svg size {2},{3} noenhanced font 'Sans,10' background '#ffffff'; "
+      "  if (fmt eq 'png') {{ set terminal pngcairo size {2},{3} noenhanced font 'Sans,10'; set "
+      "output '{0}.png' }}\n"
+      "  if (fmt eq 'svg') {{ set terminal svg size {2},{3} noenhanced font 'Sans,10' background "
+      "'#ffffff'; "
       "set output '{0}.svg' }}\n"
       "  reset\n"
       "  set datafile missing '?'\n"
@@ -246,7 +261,8 @@ std::string errorbar_using(const std::string& x, bool ci, bool log) {
 
 std::string tics(const std::vector<std::string>& labels) {
   std::string out = "(";
-  for (std::size_t i = 0; i < labels.size(); ++i) out += fmt::format("{}{} {}", i ? ", " : "", gnuplot_quote(labels[i]), i);
+  for (std::size_t i = 0; i < labels.size(); ++i)
+    out += fmt::format("{}{} {}", i ? ", " : "", gnuplot_quote(labels[i]), i);
   return out + ")";
 }
 
@@ -271,9 +287,11 @@ MetricColumns metric_columns(const Summary& s, const std::string& metric, const 
     std::string valid;
     for (std::size_t i = static_cast<std::size_t>(s.est_col) + 2; i < s.t.header.size(); ++i) {
       const auto& h = s.t.header[i];
-      if (h != "status" && h.find("_ci95") == std::string::npos) valid += (valid.empty() ? "" : ", ") + h;
+      if (h != "status" && h.find("_ci95") == std::string::npos)
+        valid += (valid.empty() ? "" : ", ") + h;
     }
-    throw ScenarioError(fmt::format("--metric '{}': not a column of {} (columns: {})", metric, what, valid));
+    throw ScenarioError(
+        fmt::format("--metric '{}': not a column of {} (columns: {})", metric, what, valid));
   }
   mc.ci = s.t.column(metric + "_ci95");
   // A CI column without a single value (one run: no spread) is drawn as absent: error bars of
@@ -291,7 +309,8 @@ MetricColumns metric_columns(const Summary& s, const std::string& metric, const 
 
 // The names of the metric's three .dat columns ('-' for an absent one).
 std::string dat_metric_names(const MetricColumns& mc) {
-  return fmt::format("{} {} {}", mc.metric, mc.ci >= 0 ? mc.metric + "_ci95" : "-", mc.pred >= 0 ? mc.pred_name : "-");
+  return fmt::format("{} {} {}", mc.metric, mc.ci >= 0 ? mc.metric + "_ci95" : "-",
+                     mc.pred >= 0 ? mc.pred_name : "-");
 }
 
 // The metric's three .dat fields of row r: value, CI half-width, prediction ('?' when absent).
@@ -306,14 +325,17 @@ std::string dat_metric_fields(const std::vector<std::string>& r, const MetricCol
 std::string summary_title(const Summary& s, const MetricColumns& mc, const std::string& scenario) {
   const int runs = s.t.column("runs");
   std::string runs_text;
-  if (runs >= 0 && !s.t.rows.empty()) runs_text = fmt::format(", {} runs", s.t.rows.front()[static_cast<std::size_t>(runs)]);
+  if (runs >= 0 && !s.t.rows.empty())
+    runs_text = fmt::format(", {} runs", s.t.rows.front()[static_cast<std::size_t>(runs)]);
   const std::string tail = scenario.empty() ? "" : " — " + scenario;
-  if (!mc.paired) return fmt::format("{}{}{}{}", mc.metric, mc.ci >= 0 ? " with 95 % CI" : "", runs_text, tail);
+  if (!mc.paired)
+    return fmt::format("{}{}{}{}", mc.metric, mc.ci >= 0 ? " with 95 % CI" : "", runs_text, tail);
   std::string reference;
-  for (const auto& r : distinct(s.t, s.t.column("paired_reference"))) reference += (reference.empty() ? "" : ", ") + r;
+  for (const auto& r : distinct(s.t, s.t.column("paired_reference")))
+    reference += (reference.empty() ? "" : ", ") + r;
   const std::string base_metric = mc.metric.substr(0, mc.metric.size() - 5);
-  return fmt::format("paired {0}: {0} − {0} of the reference ({1}) on the same runs{2}{3}{4}", base_metric, reference,
-                     mc.ci >= 0 ? ", 95 % CI" : "", runs_text, tail);
+  return fmt::format("paired {0}: {0} − {0} of the reference ({1}) on the same runs{2}{3}{4}",
+                     base_metric, reference, mc.ci >= 0 ? ", 95 % CI" : "", runs_text, tail);
 }
 
 // The y values the figure shows: the metric, the ends of its CI (the lower end when positive,
@@ -344,25 +366,30 @@ struct SummaryPlot {
 };
 
 // Without sweep keys: one point per row of summary.csv, the estimators along x.
-void plot_per_estimator(const Summary& s, const MetricColumns& mc, const std::string& name, bool logy, SummaryPlot& p) {
+void plot_per_estimator(const Summary& s, const MetricColumns& mc, const std::string& name,
+                        bool logy, SummaryPlot& p) {
   bool any_pred = false;
-  for (const auto& r : s.t.rows) any_pred = any_pred || (mc.pred >= 0 && number(r[static_cast<std::size_t>(mc.pred)]));
-  p.dat += fmt::format("# index {}   (index: estimator, named in the comment above its row)\n", dat_metric_names(mc));
+  for (const auto& r : s.t.rows)
+    any_pred = any_pred || (mc.pred >= 0 && number(r[static_cast<std::size_t>(mc.pred)]));
+  p.dat += fmt::format("# index {}   (index: estimator, named in the comment above its row)\n",
+                       dat_metric_names(mc));
   for (std::size_t e = 0; e < s.t.rows.size(); ++e) {
     const auto& r = s.t.rows[e];
-    p.dat += fmt::format("# {}\n{} {}\n", comment(r[static_cast<std::size_t>(s.est_col)]), e, dat_metric_fields(r, mc));
+    p.dat += fmt::format("# {}\n{} {}\n", comment(r[static_cast<std::size_t>(s.est_col)]), e,
+                         dat_metric_fields(r, mc));
   }
   p.width = std::max(700, 110 * static_cast<int>(s.t.rows.size()) + 250);
   std::vector<std::string> labels;
   for (const auto& r : s.t.rows) {
     const auto& est = r[static_cast<std::size_t>(s.est_col)];
-    const bool is_reference = mc.paired && est == r[static_cast<std::size_t>(s.t.column("paired_reference"))];
+    const bool is_reference =
+        mc.paired && est == r[static_cast<std::size_t>(s.t.column("paired_reference"))];
     labels.push_back(est + (number(r[static_cast<std::size_t>(mc.value)]) ? ""
-                            : is_reference                               ? " (reference)"
-                                                                         : " (no " + mc.metric + ")"));
+                            : is_reference                                ? " (reference)"
+                                           : " (no " + mc.metric + ")"));
   }
-  p.body += fmt::format("  set xtics rotate by -25 {}\n  set xrange [-0.6:{}]\n  set bmargin 9\n", tics(labels),
-                        static_cast<double>(s.t.rows.size()) - 0.4);
+  p.body += fmt::format("  set xtics rotate by -25 {}\n  set xrange [-0.6:{}]\n  set bmargin 9\n",
+                        tics(labels), static_cast<double>(s.t.rows.size()) - 0.4);
   p.body += "  set key outside bottom center horizontal\n";
   const bool any_value = std::any_of(s.t.rows.begin(), s.t.rows.end(), [&](const auto& r) {
     return number(r[static_cast<std::size_t>(mc.value)]).has_value();
@@ -374,12 +401,14 @@ void plot_per_estimator(const Summary& s, const MetricColumns& mc, const std::st
         gnuplot_quote(fmt::format("no finite {} in any row", mc.metric)));
     return;
   }
-  p.body += fmt::format("  plot '{}.dat' using {} with {} pt 7 ps 1.2 lc rgb '#1f77b4' title {}", name,
-                        errorbar_using("1", mc.ci >= 0, logy), mc.ci >= 0 ? "yerrorbars" : "points",
-                        gnuplot_quote(mc.ci >= 0 ? "simulated, 95 % CI" : "simulated"));
+  p.body +=
+      fmt::format("  plot '{}.dat' using {} with {} pt 7 ps 1.2 lc rgb '#1f77b4' title {}", name,
+                  errorbar_using("1", mc.ci >= 0, logy), mc.ci >= 0 ? "yerrorbars" : "points",
+                  gnuplot_quote(mc.ci >= 0 ? "simulated, 95 % CI" : "simulated"));
   if (any_pred) {
-    p.body += fmt::format(", \\\n       '' using ($1+0.2):4 with points pt 4 ps 1.5 lc rgb '#d62728' title {}",
-                          gnuplot_quote("predicted (" + mc.pred_name + ")"));
+    p.body += fmt::format(
+        ", \\\n       '' using ($1+0.2):4 with points pt 4 ps 1.5 lc rgb '#d62728' title {}",
+        gnuplot_quote("predicted (" + mc.pred_name + ")"));
   }
   p.body += "\n";
 }
@@ -398,7 +427,8 @@ struct KeyAxes {
   std::string panel_of(const std::vector<std::string>& r) const {
     std::string label;
     for (std::size_t i = 0; i < panel_cols.size(); ++i) {
-      label += fmt::format("{}{} = {}", i ? ", " : "", panel_keys[i], r[static_cast<std::size_t>(panel_cols[i])]);
+      label += fmt::format("{}{} = {}", i ? ", " : "", panel_keys[i],
+                           r[static_cast<std::size_t>(panel_cols[i])]);
     }
     return label;
   }
@@ -427,19 +457,23 @@ KeyAxes key_axes(const Summary& s, const Choice& c, const std::string& logx_mode
 // The .dat of a figure against a key: one block per panel and estimator, in that order
 // (gnuplot's `index` = panel * estimators + estimator), "? ? ? ?" for a block without rows.
 std::string against_key_dat(const Summary& s, const MetricColumns& mc, const KeyAxes& a) {
-  std::string dat = fmt::format("# x {}   (one block per {}estimator; x = {}{})\n", dat_metric_names(mc),
-                                a.panels.size() > 1 ? "panel and " : "", comment(a.x_key),
-                                a.numeric_x ? "" : ", as the index of its value in the figure's x tics");
+  std::string dat =
+      fmt::format("# x {}   (one block per {}estimator; x = {}{})\n", dat_metric_names(mc),
+                  a.panels.size() > 1 ? "panel and " : "", comment(a.x_key),
+                  a.numeric_x ? "" : ", as the index of its value in the figure's x tics");
   std::size_t block = 0;
   for (const auto& p : a.panels) {
     for (const auto& e : s.estimators) {
       if (block++ > 0) dat += "\n\n";
-      dat += fmt::format("# block {}: {}{}\n", block - 1, p.empty() ? "" : comment(p) + ", ", comment(e));
+      dat += fmt::format("# block {}: {}{}\n", block - 1, p.empty() ? "" : comment(p) + ", ",
+                         comment(e));
       bool wrote = false;
       for (const auto& r : s.t.rows) {
         if (r[static_cast<std::size_t>(s.est_col)] != e || a.panel_of(r) != p) continue;
         const auto& xv = r[static_cast<std::size_t>(a.x_col)];
-        const std::string x = a.numeric_x ? xv : std::to_string(std::find(a.xs.begin(), a.xs.end(), xv) - a.xs.begin());
+        const std::string x =
+            a.numeric_x ? xv
+                        : std::to_string(std::find(a.xs.begin(), a.xs.end(), xv) - a.xs.begin());
         dat += fmt::format("{} {}\n", x, dat_metric_fields(r, mc));
         wrote = true;
       }
@@ -498,14 +532,16 @@ std::string panel_plot(const Summary& s, const MetricColumns& mc, const KeyAxes&
     }
     drawn = true;
     // Categorical x: estimators side by side around each tic so their bars do not overlap.
-    const std::string x = a.numeric_x ? "1" : fmt::format("($1{:+.3f})", (static_cast<double>(e) - (E - 1) / 2.0) * 0.06);
+    const std::string x =
+        a.numeric_x ? "1"
+                    : fmt::format("($1{:+.3f})", (static_cast<double>(e) - (E - 1) / 2.0) * 0.06);
     plot +=
         fmt::format("{}'{}.dat' index {} using {} with {} {} ps 1.0 title {}", sep, name, b,
                     errorbar_using(x, mc.ci >= 0, logy), mc.ci >= 0 ? "yerrorlines" : "linespoints",
                     palette_style(e), gnuplot_quote(s.estimators[e]));
     if (bc.pred) {
-      plot += fmt::format(", \\\n       '' index {} using {}:4 with lines dt 2 {} title {}", b, x, colour_of(e),
-                          gnuplot_quote(s.estimators[e] + ", predicted"));
+      plot += fmt::format(", \\\n       '' index {} using {}:4 with lines dt 2 {} title {}", b, x,
+                          colour_of(e), gnuplot_quote(s.estimators[e] + ", predicted"));
     }
   }
   if (drawn) return "  plot " + plot + "\n";
@@ -519,20 +555,24 @@ std::string panel_plot(const Summary& s, const MetricColumns& mc, const KeyAxes&
 
 // Against a sweep key: one curve per estimator, in one panel per value of the panel keys (a
 // grid of up to 3 columns sharing one y range).
-void plot_against_key(const Summary& s, const MetricColumns& mc, const Choice& c, const PlotOptions& opt,
-                      const std::string& name, const std::string& title, const Range& yr, bool logy, SummaryPlot& p) {
+void plot_against_key(const Summary& s, const MetricColumns& mc, const Choice& c,
+                      const PlotOptions& opt, const std::string& name, const std::string& title,
+                      const Range& yr, bool logy, SummaryPlot& p) {
   const KeyAxes a = key_axes(s, c, opt.logx);
   p.dat += against_key_dat(s, mc, a);
   const std::size_t P = a.panels.size();
-  const std::size_t cols = P == 1 ? 1 : std::min<std::size_t>(3, static_cast<std::size_t>(std::ceil(std::sqrt(P))));
+  const std::size_t cols =
+      P == 1 ? 1 : std::min<std::size_t>(3, static_cast<std::size_t>(std::ceil(std::sqrt(P))));
   const std::size_t rows = (P + cols - 1) / cols;
   p.width = P == 1 ? 900 : static_cast<int>(cols) * 520;
   p.height = P == 1 ? 560 : static_cast<int>(rows) * 400 + 60;
   p.body += fmt::format("  set xlabel {}\n", gnuplot_quote(a.x_key));
   if (a.logx) p.body += "  set logscale x\n";
-  if (a.numeric_x) p.body += "  set offsets graph 0.03, graph 0.03, 0, 0\n";  // end points' bars inside the frame
+  if (a.numeric_x)
+    p.body += "  set offsets graph 0.03, graph 0.03, 0, 0\n";  // end points' bars inside the frame
   if (!a.numeric_x) {
-    p.body += fmt::format("  set xtics {}\n  set xrange [-0.5:{}]\n", tics(a.xs), static_cast<double>(a.xs.size()) - 0.5);
+    p.body += fmt::format("  set xtics {}\n  set xrange [-0.5:{}]\n", tics(a.xs),
+                          static_cast<double>(a.xs.size()) - 0.5);
   }
   if (P > 1 && !yr.empty()) {  // one y range for every panel, so that panels compare
     const double lo = logy ? yr.min_positive / 1.5 : yr.lo - 0.05 * (yr.hi - yr.lo);
@@ -540,7 +580,8 @@ void plot_against_key(const Summary& s, const MetricColumns& mc, const Choice& c
     if (hi > lo) p.body += fmt::format("  set yrange [{:.6g}:{:.6g}]\n", lo, hi);
   }
   if (P > 1) {
-    p.body += fmt::format("  set multiplot layout {},{} title {}\n", rows, cols, gnuplot_quote(title));
+    p.body +=
+        fmt::format("  set multiplot layout {},{} title {}\n", rows, cols, gnuplot_quote(title));
     p.body += "  set key top left font ',8' box opaque\n";
   } else {
     p.body += "  set key outside right top\n";
@@ -568,7 +609,8 @@ Figure summary_figure(const std::string& dir, const Summary& s, const PlotOption
   const bool logy = !mc.paired && want_log(opt.logy, yr, "--logy");
 
   SummaryPlot p;
-  p.dat = fmt::format("# {} — numbers copied from summary.csv as written ('?' = empty)\n", comment(f.title));
+  p.dat = fmt::format("# {} — numbers copied from summary.csv as written ('?' = empty)\n",
+                      comment(f.title));
   p.body = fmt::format("  set title {}\n  set ylabel {}\n  set grid\n", gnuplot_quote(f.title),
                        gnuplot_quote(opt.metric + (mc.ci >= 0 ? "  (bars: 95 % CI)" : "")));
   if (logy) p.body += "  set logscale y\n";
@@ -601,7 +643,8 @@ Trajectory read_trajectory(const std::string& dir) {
   tr.path = fs::path(dir) / "trajectory.csv";
   const fs::path& p = tr.path;
   if (!fs::exists(p)) {
-    throw ScenarioError(fmt::format("--trace: {} does not exist (run the campaign with `ncosim run --trace`)", p.string()));
+    throw ScenarioError(fmt::format(
+        "--trace: {} does not exist (run the campaign with `ncosim run --trace`)", p.string()));
   }
   tr.t = parse_csv(read_file(p), p.string());
   const CsvTable& t = tr.t;
@@ -611,7 +654,8 @@ Trajectory read_trajectory(const std::string& dir) {
     tr.x.push_back(c);
     tr.xphys.push_back(t.column(fmt::format("x{}_physical", i)));
   }
-  if (tr.x.empty()) throw ScenarioError(format_error(p.string(), 1, "", "expected columns x1 .. xn"));
+  if (tr.x.empty())
+    throw ScenarioError(format_error(p.string(), 1, "", "expected columns x1 .. xn"));
   for (std::size_t c = 0; c < t.header.size(); ++c) {
     const std::string& h = t.header[c];
     if (h.rfind("arrived:", 0) == 0) {
@@ -626,14 +670,16 @@ Trajectory read_trajectory(const std::string& dir) {
       tr.estimators.push_back(name);
       tr.xhat.emplace_back();
     }
-    if (!tr.xhat.empty() && tr.estimators.back() == name) tr.xhat.back().push_back(static_cast<int>(c));
+    if (!tr.xhat.empty() && tr.estimators.back() == name)
+      tr.xhat.back().push_back(static_cast<int>(c));
   }
   tr.period = t.column("period");
   return tr;
 }
 
 // The rows of the periods from..from+periods-1; throws when there is none.
-std::vector<const std::vector<std::string>*> trace_window(const Trajectory& tr, const PlotOptions& opt) {
+std::vector<const std::vector<std::string>*> trace_window(const Trajectory& tr,
+                                                          const PlotOptions& opt) {
   std::vector<const std::vector<std::string>*> window;
   for (const auto& r : tr.t.rows) {
     const auto k = number(r[static_cast<std::size_t>(tr.period)]);
@@ -643,25 +689,29 @@ std::vector<const std::vector<std::string>*> trace_window(const Trajectory& tr, 
     }
   }
   if (window.empty()) {
-    throw ScenarioError(fmt::format("--from {}: no period of {} in the window of {} periods", opt.trace_from,
-                                    tr.path.string(), opt.trace_periods));
+    throw ScenarioError(fmt::format("--from {}: no period of {} in the window of {} periods",
+                                    opt.trace_from, tr.path.string(), opt.trace_periods));
   }
   return window;
 }
 
 // The trace .dat: period, x, every estimate and every arrival count per row. With `physical`,
 // x is written as x_physical and each estimate of a state is shifted by (x_physical - x).
-std::string trace_dat(const Trajectory& tr, const std::vector<const std::vector<std::string>*>& window, bool physical,
+std::string trace_dat(const Trajectory& tr,
+                      const std::vector<const std::vector<std::string>*>& window, bool physical,
                       const std::string& title) {
   const std::size_t n = tr.x.size();
   std::string dat = fmt::format("# {}\n# period", comment(title));
   for (std::size_t i = 0; i < n; ++i) dat += fmt::format(" x{}", i + 1);
   for (std::size_t e = 0; e < tr.estimators.size(); ++e) {
-    for (std::size_t i = 0; i < tr.xhat[e].size(); ++i) dat += fmt::format(" [{}]:xhat{}", comment(tr.estimators[e]), i + 1);
+    for (std::size_t i = 0; i < tr.xhat[e].size(); ++i)
+      dat += fmt::format(" [{}]:xhat{}", comment(tr.estimators[e]), i + 1);
   }
   for (const auto& s : tr.sensors) dat += fmt::format(" arrived:[{}]", comment(s));
-  dat += physical ? "\n# x and xhat in physical coordinates: xhat + (x_physical - x) from trajectory.csv\n"
-                  : "\n# numbers copied from trajectory.csv as written\n";
+  dat +=
+      physical
+          ? "\n# x and xhat in physical coordinates: xhat + (x_physical - x) from trajectory.csv\n"
+          : "\n# numbers copied from trajectory.csv as written\n";
   for (const auto* rp : window) {
     const auto& r = *rp;
     dat += r[static_cast<std::size_t>(tr.period)];
@@ -704,8 +754,8 @@ std::string trace_body(const Trajectory& tr,
                        const std::vector<const std::vector<std::string>*>& window,
                        std::size_t shown, const std::string& title) {
   const std::size_t n = tr.x.size();
-  std::string body = fmt::format("  set multiplot layout {},1 title {}\n", shown + (tr.sensors.empty() ? 0 : 1),
-                                 gnuplot_quote(title));
+  std::string body = fmt::format("  set multiplot layout {},1 title {}\n",
+                                 shown + (tr.sensors.empty() ? 0 : 1), gnuplot_quote(title));
   body += "  set lmargin 12\n  set rmargin 30\n  set grid\n  set key outside right top font ',8'\n";
   std::size_t col = 2 + n;  // trace.dat's column of the first estimate
   std::vector<std::size_t> first_col;
@@ -742,15 +792,19 @@ std::string trace_body(const Trajectory& tr,
   }
   if (!tr.sensors.empty()) {
     body += "  set ylabel 'packets'\n  set xlabel 'period'\n";
-    body += fmt::format("  set yrange [-0.5:{}]\n  set ytics {}\n", static_cast<double>(tr.sensors.size()) - 0.5,
-                        tics(tr.sensors));
+    body += fmt::format("  set yrange [-0.5:{}]\n  set ytics {}\n",
+                        static_cast<double>(tr.sensors.size()) - 0.5, tics(tr.sensors));
     std::string plot;
     for (std::size_t s = 0; s < tr.sensors.size(); ++s) {
       const std::size_t c = col + s;
-      plot += fmt::format("{}'trace.dat' using 1:(${} > 0 ? {} : 1/0) with points pt 7 ps 0.5 lc rgb '#2ca02c' title {}",
-                          plot.empty() ? "" : ", \\\n       ", c, s, s == 0 ? "'packet(s) arrived'" : "''");
-      plot += fmt::format(", \\\n       '' using 1:(${} == 0 ? {} : 1/0) with points pt 2 ps 0.6 lc rgb '#d62728' title {}", c,
-                          s, s == 0 ? "'nothing arrived'" : "''");
+      plot += fmt::format(
+          "{}'trace.dat' using 1:(${} > 0 ? {} : 1/0) with points pt 7 ps 0.5 lc rgb '#2ca02c' "
+          "title {}",
+          plot.empty() ? "" : ", \\\n       ", c, s, s == 0 ? "'packet(s) arrived'" : "''");
+      plot += fmt::format(
+          ", \\\n       '' using 1:(${} == 0 ? {} : 1/0) with points pt 2 ps 0.6 lc rgb '#d62728' "
+          "title {}",
+          c, s, s == 0 ? "'nothing arrived'" : "''");
     }
     body += "  plot " + plot + "\n";
   }
@@ -765,7 +819,8 @@ Figure trace_figure(const std::string& dir, const PlotOptions& opt) {
   bool physical = std::all_of(tr.xphys.begin(), tr.xphys.end(), [](int c) { return c >= 0; });
   const bool recentred = physical;
   for (const auto* r : window) {
-    for (int c : tr.xphys) physical = physical && c >= 0 && number((*r)[static_cast<std::size_t>(c)]).has_value();
+    for (int c : tr.xphys)
+      physical = physical && c >= 0 && number((*r)[static_cast<std::size_t>(c)]).has_value();
   }
   const std::size_t n = tr.x.size();
   const std::size_t shown = std::min<std::size_t>(n, 6);
@@ -773,12 +828,13 @@ Figure trace_figure(const std::string& dir, const PlotOptions& opt) {
   f.name = "trace";
   f.kind = FigureKind::kTrace;
   const std::string title0 = scenario_title(dir);
-  f.title = fmt::format("run 0, periods {}..{}{}{}", (*window.front())[static_cast<std::size_t>(tr.period)],
-                        (*window.back())[static_cast<std::size_t>(tr.period)],
-                        recentred ? (physical ? ", physical coordinates (re-centring added back)"
-                                              : ", re-centred coordinates (the physical state exceeds 1e10 here)")
-                                  : "",
-                        title0.empty() ? "" : " — " + title0);
+  f.title = fmt::format(
+      "run 0, periods {}..{}{}{}", (*window.front())[static_cast<std::size_t>(tr.period)],
+      (*window.back())[static_cast<std::size_t>(tr.period)],
+      recentred ? (physical ? ", physical coordinates (re-centring added back)"
+                            : ", re-centred coordinates (the physical state exceeds 1e10 here)")
+                : "",
+      title0.empty() ? "" : " — " + title0);
   f.dat = trace_dat(tr, window, physical, f.title);
   if (n > shown) f.dat += fmt::format("# the figure shows x1..x{} of {} states\n", shown, n);
   f.gp = script(f.name, f.title, 1000, static_cast<int>(260 * (shown + 1) + 60),
@@ -812,8 +868,9 @@ std::vector<Figure> build_figures(const std::string& dir, const PlotOptions& opt
   // metric and any row has a value (a second figure, `plot_<metric>_diff`).
   const int diff = s.t.column(opt.metric + "_diff");
   if (!opt.metric.ends_with("_diff") && diff >= 0 &&
-      std::any_of(s.t.rows.begin(), s.t.rows.end(),
-                  [&](const auto& r) { return number(r[static_cast<std::size_t>(diff)]).has_value(); })) {
+      std::any_of(s.t.rows.begin(), s.t.rows.end(), [&](const auto& r) {
+        return number(r[static_cast<std::size_t>(diff)]).has_value();
+      })) {
     PlotOptions po = opt;
     po.metric += "_diff";
     out.push_back(summary_figure(dir, s, po));
@@ -903,7 +960,8 @@ std::vector<std::string> render_figures(const std::string& dir, const std::vecto
   write_files_atomically(dir, files);
   std::string fmts;
   for (const auto& f : formats) {
-    if (f != "png" && f != "svg") throw ScenarioError(fmt::format("--format '{}': expected png or svg", f));
+    if (f != "png" && f != "svg")
+      throw ScenarioError(fmt::format("--format '{}': expected png or svg", f));
     fmts += (fmts.empty() ? "" : " ") + f;
   }
   std::vector<std::string> images;
@@ -916,12 +974,14 @@ std::vector<std::string> render_figures(const std::string& dir, const std::vecto
 
 int plot_command(const std::string& dir, const PlotOptions& opt) {
   for (const auto& f : opt.formats) {
-    if (f != "png" && f != "svg") throw ScenarioError(fmt::format("--format '{}': expected png or svg", f));
+    if (f != "png" && f != "svg")
+      throw ScenarioError(fmt::format("--format '{}': expected png or svg", f));
   }
   const auto figures = build_figures(dir, opt);
   const auto images = render_figures(dir, figures, opt.formats);
   for (const auto& f : figures) {
-    std::cout << fmt::format("{:<14} {}: {}.dat, {}.gp", figure_kind_name(f.kind), f.title, f.name, f.name);
+    std::cout << fmt::format("{:<14} {}: {}.dat, {}.gp", figure_kind_name(f.kind), f.title, f.name,
+                             f.name);
     for (const auto& x : opt.formats) std::cout << fmt::format(", {}.{}", f.name, x);
     std::cout << "\n";
   }

@@ -24,14 +24,14 @@ const char* figure_kind_name(FigureKind k);
 
 struct PlotOptions {
   std::string metric = "mse";  // a numeric column of summary.csv
-  std::string x_key;           // sweep key on the x axis (default: the first numeric key, else the first)
-  std::string panel_key;       // sweep key of the panels (default: every other key together)
-  std::string logx = "auto";   // auto | on | off
+  std::string x_key;  // sweep key on the x axis (default: the first numeric key, else the first)
+  std::string panel_key;      // sweep key of the panels (default: every other key together)
+  std::string logx = "auto";  // auto | on | off
   std::string logy = "auto";
   std::vector<std::string> formats{"png", "svg"};
-  bool trace = false;          // also the trace figure from trajectory.csv
-  long trace_from = 0;         // first period of the trace window
-  long trace_periods = 200;    // periods in the trace window
+  bool trace = false;        // also the trace figure from trajectory.csv
+  long trace_from = 0;       // first period of the trace window
+  long trace_periods = 200;  // periods in the trace window
 };
 
 // One figure: its base name (files <name>.dat, <name>.gp, <name>.<format>) and content.

@@ -49,49 +49,58 @@ double parse(const std::string& s) {
 }
 
 std::vector<Panel> read_panels(const CsvTable& t) {
-  const int est = t.column("estimator"), period = t.column("period"), mse = t.column("mse"), ci = t.column("mse_ci95");
+  const int est = t.column("estimator"), period = t.column("period"), mse = t.column("mse"),
+            ci = t.column("mse_ci95");
   if (est < 0 || period < 0 || mse < 0 || ci < 0) {
-    throw ScenarioError("error_curve.csv: expected the columns estimator, period, mse and mse_ci95");
+    throw ScenarioError(
+        "error_curve.csv: expected the columns estimator, period, mse and mse_ci95");
   }
   std::vector<Panel> panels;
   for (const auto& r : t.rows) {
     std::string label;
     for (int i = 0; i < est; ++i) {
-      label += fmt::format("{}{} = {}", i ? ", " : "", t.header[static_cast<std::size_t>(i)], r[static_cast<std::size_t>(i)]);
+      label += fmt::format("{}{} = {}", i ? ", " : "", t.header[static_cast<std::size_t>(i)],
+                           r[static_cast<std::size_t>(i)]);
     }
     if (panels.empty() || panels.back().label != label) panels.push_back(Panel{label, {}});
     auto& series = panels.back().series;
     const std::string& name = r[static_cast<std::size_t>(est)];
     if (series.empty() || series.back().estimator != name) series.push_back(Series{name, {}, {}});
-    series.back().points.push_back({parse(r[static_cast<std::size_t>(period)]), parse(r[static_cast<std::size_t>(mse)]),
+    series.back().points.push_back({parse(r[static_cast<std::size_t>(period)]),
+                                    parse(r[static_cast<std::size_t>(mse)]),
                                     parse(r[static_cast<std::size_t>(ci)])});
   }
   return panels;
 }
 
-std::string number_or_missing(double v) { return std::isfinite(v) && v <= kLargest ? fmt::format("{}", v) : "?"; }
+std::string number_or_missing(double v) {
+  return std::isfinite(v) && v <= kLargest ? fmt::format("{}", v) : "?";
+}
 
 bool drawable(double v) { return std::isfinite(v) && v > 0.0 && v <= kLargest; }
 
 // One data block per drawn series (gnuplot `index`); the band's lower edge is drawn to mean/1000
 // where mean - half-width is not positive (the axis is logarithmic).
-std::string panel_dat(const Panel& p, std::size_t& index, std::vector<std::size_t>& drawn, std::vector<bool>& banded,
-                      std::string& left_out) {
+std::string panel_dat(const Panel& p, std::size_t& index, std::vector<std::size_t>& drawn,
+                      std::vector<bool>& banded, std::string& left_out) {
   std::string dat;
   for (std::size_t s = 0; s < p.series.size(); ++s) {
     const auto& pts = p.series[s].points;
-    const bool any = std::any_of(pts.begin(), pts.end(), [](const auto& q) { return drawable(q[1]); });
+    const bool any =
+        std::any_of(pts.begin(), pts.end(), [](const auto& q) { return drawable(q[1]); });
     if (!any) {
       left_out += (left_out.empty() ? "" : ", ") + p.series[s].estimator;
       continue;
     }
-    dat += fmt::format("# index {}: {}{}\n# period mse lo hi\n", index++, p.label.empty() ? "" : p.label + ", ",
-                       p.series[s].estimator);
+    dat += fmt::format("# index {}: {}{}\n# period mse lo hi\n", index++,
+                       p.label.empty() ? "" : p.label + ", ", p.series[s].estimator);
     for (const auto& q : pts) {
-      const double lo = std::isfinite(q[2]) ? (q[1] - q[2] > 0.0 ? q[1] - q[2] : q[1] / 1000.0) : std::nan("");
+      const double lo =
+          std::isfinite(q[2]) ? (q[1] - q[2] > 0.0 ? q[1] - q[2] : q[1] / 1000.0) : std::nan("");
       const double hi = std::isfinite(q[2]) ? q[1] + q[2] : std::nan("");
       const bool band = drawable(q[1]) && drawable(hi);
-      dat += fmt::format("{} {} {} {}\n", number_or_missing(q[0]), drawable(q[1]) ? number_or_missing(q[1]) : "?",
+      dat += fmt::format("{} {} {} {}\n", number_or_missing(q[0]),
+                         drawable(q[1]) ? number_or_missing(q[1]) : "?",
                          band ? number_or_missing(lo) : "?", band ? number_or_missing(hi) : "?");
     }
     dat += "\n\n";
@@ -119,9 +128,12 @@ std::optional<Figure> error_curve_figure(const std::string& dir) {
   f.kind = FigureKind::kPerEstimator;
   f.title = "run-averaged squared error |x - xhat|^2 against time, 95 % band";
   f.dat = fmt::format("# {} (from error_curve.csv)\n", f.title);
-  std::string body = fmt::format("  set multiplot layout {},1 title {}\n", panels, gnuplot_quote(f.title));
-  body += "  set grid\n  set logscale y\n  set format y '%g'\n  set key outside right top font ',8'\n  set xlabel 'period'\n"
-          "  set ylabel 'mean |x - xhat|^2'\n  set style fill transparent solid 0.2 noborder\n";
+  std::string body =
+      fmt::format("  set multiplot layout {},1 title {}\n", panels, gnuplot_quote(f.title));
+  body +=
+      "  set grid\n  set logscale y\n  set format y '%g'\n  set key outside right top font ',8'\n  "
+      "set xlabel 'period'\n"
+      "  set ylabel 'mean |x - xhat|^2'\n  set style fill transparent solid 0.2 noborder\n";
   std::size_t index = 0;
   for (std::size_t p = 0; p < panels; ++p) {
     std::vector<std::size_t> drawn;
@@ -130,11 +142,14 @@ std::optional<Figure> error_curve_figure(const std::string& dir) {
     const std::size_t first = index;
     f.dat += panel_dat(all[p], index, drawn, banded, left_out);
     std::string title = all[p].label;
-    if (!left_out.empty()) title += fmt::format("{}no finite values (diverged): {}", title.empty() ? "" : "; ", left_out);
+    if (!left_out.empty())
+      title +=
+          fmt::format("{}no finite values (diverged): {}", title.empty() ? "" : "; ", left_out);
     body += fmt::format("  set title {}\n", gnuplot_quote(title));
     if (drawn.empty()) {  // nothing to draw: an empty frame saying why
-      body += "  set label 1 'no finite values' at graph 0.5, 0.5 center\n  unset logscale y\n"
-              "  plot [0:1] [0:1] 1/0 notitle\n  unset label 1\n  set logscale y\n";
+      body +=
+          "  set label 1 'no finite values' at graph 0.5, 0.5 center\n  unset logscale y\n"
+          "  plot [0:1] [0:1] 1/0 notitle\n  unset label 1\n  set logscale y\n";
       continue;
     }
     std::string plot;
@@ -143,15 +158,18 @@ std::optional<Figure> error_curve_figure(const std::string& dir) {
       const std::string colour = gnuplot_colour(drawn[d]);
       const std::string name = gnuplot_quote(all[p].series[drawn[d]].estimator);
       if (banded[d]) {
-        plot += fmt::format("{}'plot_error_curve.dat' index {} using 1:3:4 with filledcurves {} notitle",
-                            plot.empty() ? "" : ", \\\n       ", i, colour);
+        plot += fmt::format(
+            "{}'plot_error_curve.dat' index {} using 1:3:4 with filledcurves {} notitle",
+            plot.empty() ? "" : ", \\\n       ", i, colour);
       }
-      plot += fmt::format("{}'plot_error_curve.dat' index {} using 1:2 with lines lw 1.5 {} title {}",
-                          plot.empty() ? "" : ", \\\n       ", i, colour, name);
+      plot +=
+          fmt::format("{}'plot_error_curve.dat' index {} using 1:2 with lines lw 1.5 {} title {}",
+                      plot.empty() ? "" : ", \\\n       ", i, colour, name);
     }
     body += "  plot " + plot + "\n";
   }
-  if (all.size() > panels) f.dat += fmt::format("# the figure shows the first {} of {} cases\n", panels, all.size());
+  if (all.size() > panels)
+    f.dat += fmt::format("# the figure shows the first {} of {} cases\n", panels, all.size());
   f.gp = gnuplot_script(f.name, f.title, 1000, static_cast<int>(320 * panels + 80), body);
   return f;
 }

@@ -38,7 +38,8 @@ void write_stderr(const std::string& text) {
 }  // namespace
 
 CampaignProgress::CampaignProgress(Mode mode, Clock clock, Writer writer)
-    : mode_(mode), clock_(clock ? std::move(clock) : Clock(steady_seconds)),
+    : mode_(mode),
+      clock_(clock ? std::move(clock) : Clock(steady_seconds)),
       writer_(writer ? std::move(writer) : Writer(write_stderr)) {
   start_ = clock_();
   next_log_ = start_ + kLogFirstSeconds;
@@ -70,16 +71,19 @@ std::string CampaignProgress::line(double now) const {
   // The rate and the ETA count the runs simulated in this session only (stored ones are free).
   const double rate = elapsed > 0.0 ? static_cast<double>(simulated) / elapsed : 0.0;
   const std::uint64_t left = total_ > done ? total_ - done : 0;
-  const std::string eta = simulated > 0 && rate > 0.0 ? format_duration(static_cast<double>(left) / rate) : "?";
+  const std::string eta =
+      simulated > 0 && rate > 0.0 ? format_duration(static_cast<double>(left) / rate) : "?";
   std::string where;
   if (cases_ > 1) where = fmt::format("case {}/{}", case_ + 1, cases_);
   if (!batch_.empty()) where += where.empty() ? batch_ : fmt::format(" ({})", batch_);
   if (!where.empty()) where += ", ";
-  const std::string runs = upper_bound_ ? fmt::format("{} of at most {} runs (--target-ci)", done, total_)
-                                        : fmt::format("{}/{} runs", done, total_);
+  const std::string runs = upper_bound_
+                               ? fmt::format("{} of at most {} runs (--target-ci)", done, total_)
+                               : fmt::format("{}/{} runs", done, total_);
   return fmt::format("ncosim: {}{}{}, {} runs/s, elapsed {}, ETA {}{}", where, runs,
-                     stored_ > 0 ? fmt::format(" ({} stored before)", stored_) : "", format_rate(rate),
-                     format_duration(elapsed), upper_bound_ ? "at most " : "", eta);
+                     stored_ > 0 ? fmt::format(" ({} stored before)", stored_) : "",
+                     format_rate(rate), format_duration(elapsed), upper_bound_ ? "at most " : "",
+                     eta);
 }
 
 std::string CampaignProgress::poll(double now) {

@@ -25,8 +25,8 @@ std::string format_duration(double seconds);
 class CampaignProgress {
  public:
   enum class Mode { off, terminal, log };
-  using Clock = std::function<double()>;                    // seconds, monotonic
-  using Writer = std::function<void(const std::string&)>;   // writes the text as is
+  using Clock = std::function<double()>;                   // seconds, monotonic
+  using Writer = std::function<void(const std::string&)>;  // writes the text as is
 
   // A terminal line is redrawn every kTerminalSeconds; a log gets its first line kLogFirstSeconds
   // after the start (so that a short campaign shows one too) and then one every kLogSeconds.

@@ -26,27 +26,33 @@ std::vector<std::size_t> senders(const Scenario& sc, std::size_t l) {
   const auto& name = sc.links[l].name;
   for (const auto& a : sc.model.actuators) {
     if (a.spec.link == static_cast<int>(l)) {
-      throw ScenarioError(fmt::format(
-          "--link: link '{}' carries an actuator's commands: only links of periodic sensors can be recorded", name));
+      throw ScenarioError(
+          fmt::format("--link: link '{}' carries an actuator's commands: only links of periodic "
+                      "sensors can be recorded",
+                      name));
     }
   }
   if (sc.links[l].link->independent_copies()) {
-    throw ScenarioError(fmt::format(
-        "--link: link '{}' delivers independent copies (several delays per packet): a trace holds one", name));
+    throw ScenarioError(
+        fmt::format("--link: link '{}' delivers independent copies (several delays per packet): a "
+                    "trace holds one",
+                    name));
   }
   std::vector<std::size_t> out;
   for (std::size_t s = 0; s < sc.model.sensors.size(); ++s) {
     const auto& spec = sc.model.sensors[s].spec;
     if (spec.link != static_cast<int>(l)) continue;
     if (!spec.policy->sends_every_sample()) {
-      throw ScenarioError(fmt::format(
-          "--link: sensor {} on link '{}' sends by policy \"{}\" (its send times depend on the simulation): only "
-          "sensors that send every sample can be recorded",
-          s, name, spec.policy->name()));
+      throw ScenarioError(
+          fmt::format("--link: sensor {} on link '{}' sends by policy \"{}\" (its send times "
+                      "depend on the simulation): only "
+                      "sensors that send every sample can be recorded",
+                      s, name, spec.policy->name()));
     }
     out.push_back(s);
   }
-  if (out.empty()) throw ScenarioError(fmt::format("--link: link '{}' carries no sensor's packets", name));
+  if (out.empty())
+    throw ScenarioError(fmt::format("--link: link '{}' carries no sensor's packets", name));
   return out;
 }
 
@@ -61,10 +67,11 @@ RecordedTrace record_link(const Scenario& sc, std::size_t l, std::int64_t runs) 
     out.per_run += (periods + every - 1) / every;
   }
   if (out.per_run * runs > kMaxPackets) {
-    throw ScenarioError(fmt::format(
-        "--runs/--periods: recording link '{}' gives {} runs x {} packets, more than the {} packets a trace link "
-        "reads",
-        sc.links[l].name, runs, out.per_run, kMaxPackets));
+    throw ScenarioError(
+        fmt::format("--runs/--periods: recording link '{}' gives {} runs x {} packets, more than "
+                    "the {} packets a trace link "
+                    "reads",
+                    sc.links[l].name, runs, out.per_run, kMaxPackets));
   }
   out.delays.reserve(static_cast<std::size_t>(out.per_run * runs));
   const std::uint64_t seed = sc.run.seed;
@@ -102,12 +109,14 @@ int cmd_record_link(const RecordLinkArgs& a) {
     names += (i ? ", " : "") + first.links[i].name;
   }
   if (l == first.links.size()) {
-    throw ScenarioError(fmt::format("--link: expected the name of a [[link]] of {} ({}), got '{}'", a.file,
-                                    names.empty() ? "it has none" : names, a.link));
+    throw ScenarioError(fmt::format("--link: expected the name of a [[link]] of {} ({}), got '{}'",
+                                    a.file, names.empty() ? "it has none" : names, a.link));
   }
-  const std::string out =
-      a.out.empty() ? (std::filesystem::path("out") / ("record_" + std::filesystem::path(a.file).stem().string())).string()
-                    : a.out;
+  const std::string out = a.out.empty()
+                              ? (std::filesystem::path("out") /
+                                 ("record_" + std::filesystem::path(a.file).stem().string()))
+                                    .string()
+                              : a.out;
   std::string index;
   for (const auto& axis : loaded.sweeps) index += csv_field(axis.key) + ",";
   index += "link,file,runs,periods,segment,packets,delivered,delivered_ratio\n";
@@ -115,8 +124,8 @@ int cmd_record_link(const RecordLinkArgs& a) {
   for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
     const Scenario& sc = *loaded.cases[c].scenario;
     const RecordedTrace t = record_link(sc, l, sc.run.runs);
-    const std::string name =
-        loaded.cases.size() == 1 ? fmt::format("{}.csv", a.link) : fmt::format("{}_case{}.csv", a.link, c);
+    const std::string name = loaded.cases.size() == 1 ? fmt::format("{}.csv", a.link)
+                                                      : fmt::format("{}_case{}.csv", a.link, c);
     std::string csv = "seq,delay\n";
     std::int64_t delivered = 0;
     for (std::size_t i = 0; i < t.delays.size(); ++i) {
@@ -129,13 +138,14 @@ int cmd_record_link(const RecordLinkArgs& a) {
     }
     for (const auto& label : loaded.cases[c].labels) index += csv_field(label) + ",";
     const auto packets = static_cast<std::int64_t>(t.delays.size());
-    index += fmt::format("{},{},{},{},{},{},{},{}\n", csv_field(a.link), csv_field(name), sc.run.runs, sc.run.periods,
-                         t.per_run, packets, delivered,
+    index += fmt::format("{},{},{},{},{},{},{},{}\n", csv_field(a.link), csv_field(name),
+                         sc.run.runs, sc.run.periods, t.per_run, packets, delivered,
                          fmt_number(static_cast<double>(delivered) / static_cast<double>(packets)));
     if (!a.quiet) {
-      std::cerr << fmt::format("record-link: case {} of {}: {} runs x {} packets, delivered {:.6g}\n", c + 1,
-                               loaded.cases.size(), sc.run.runs, t.per_run,
-                               static_cast<double>(delivered) / static_cast<double>(packets));
+      std::cerr << fmt::format(
+          "record-link: case {} of {}: {} runs x {} packets, delivered {:.6g}\n", c + 1,
+          loaded.cases.size(), sc.run.runs, t.per_run,
+          static_cast<double>(delivered) / static_cast<double>(packets));
     }
     files.emplace_back(name, std::move(csv));
   }
@@ -144,7 +154,8 @@ int cmd_record_link(const RecordLinkArgs& a) {
   prepare_output_dir(out);
   const OutputFolderLock lock(out);  // one writer per folder (sim/output_set.h)
   write_files_atomically(out, files);
-  std::cout << fmt::format("{} trace(s) of link '{}' and record.csv written to {}/\n", files.size() - 1, a.link, out);
+  std::cout << fmt::format("{} trace(s) of link '{}' and record.csv written to {}/\n",
+                           files.size() - 1, a.link, out);
   return 0;
 }
 

@@ -1,8 +1,6 @@
 // sim/registry.cc — the one place where built-in kinds are registered (explicit calls: static
 // self-registration can be dropped by the linker from static libraries), then the extensions
 // added by add_extension().
-#include "sim/registries.h"
-
 #include <fmt/format.h>
 
 #include <mutex>
@@ -10,6 +8,7 @@
 #include <vector>
 
 #include "sim/extensions.h"
+#include "sim/registries.h"
 
 #if NCOSIM_HAVE_SUMO
 #include "sumo/sumo.h"
@@ -83,7 +82,8 @@ const AllRegistries& all_registries() {
 void add_extension(Extension extension) {
   std::lock_guard<std::mutex> lock(extension_mutex());
   if (registries_built()) {
-    throw std::logic_error("ncosim::sim::add_extension: called after the registries were first used");
+    throw std::logic_error(
+        "ncosim::sim::add_extension: called after the registries were first used");
   }
   extensions().push_back(std::move(extension));
 }
@@ -96,7 +96,8 @@ const models::SendPolicyRegistry& send_policy_registry() { return all_registries
 
 bool have_sumo() { return NCOSIM_HAVE_SUMO != 0; }
 
-void announce_mobility(const toml::table& case_doc, const std::string& file, const std::string& dir) {
+void announce_mobility(const toml::table& case_doc, const std::string& file,
+                       const std::string& dir) {
 #if NCOSIM_HAVE_SUMO
   sumo::announce_vehicles(case_doc, file, dir);
 #else
@@ -104,12 +105,14 @@ void announce_mobility(const toml::table& case_doc, const std::string& file, con
 #endif
 }
 
-std::shared_ptr<MobilitySource> make_mobility(const Table& t, const RunSettings& run, const std::string& dir) {
+std::shared_ptr<MobilitySource> make_mobility(const Table& t, const RunSettings& run,
+                                              const std::string& dir) {
 #if NCOSIM_HAVE_SUMO
   return sumo::make_mobility(t, run, dir);
 #else
   (void)run, (void)dir;
-  t.fail_here("this ncosim was built without SUMO (configure with -DNCOSIM_SUMO=ON and libsumo installed)");
+  t.fail_here(
+      "this ncosim was built without SUMO (configure with -DNCOSIM_SUMO=ON and libsumo installed)");
 #endif
 }
 

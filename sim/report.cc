@@ -27,12 +27,23 @@ std::string html_escape(const std::string& s) {
   out.reserve(s.size() + s.size() / 8);
   for (char c : s) {
     switch (c) {
-      case '&': out += "&amp;"; break;
-      case '<': out += "&lt;"; break;
-      case '>': out += "&gt;"; break;
-      case '"': out += "&quot;"; break;
-      case '\'': out += "&#39;"; break;
-      default: out += c;
+      case '&':
+        out += "&amp;";
+        break;
+      case '<':
+        out += "&lt;";
+        break;
+      case '>':
+        out += "&gt;";
+        break;
+      case '"':
+        out += "&quot;";
+        break;
+      case '\'':
+        out += "&#39;";
+        break;
+      default:
+        out += c;
     }
   }
   return out;
@@ -41,7 +52,8 @@ std::string html_escape(const std::string& s) {
 namespace {
 
 void replace_all(std::string& s, const std::string& from, const std::string& to) {
-  for (std::size_t pos = s.find(from); pos != std::string::npos; pos = s.find(from, pos + to.size())) {
+  for (std::size_t pos = s.find(from); pos != std::string::npos;
+       pos = s.find(from, pos + to.size())) {
     s.replace(pos, from.size(), to);
   }
 }
@@ -57,10 +69,12 @@ std::optional<std::string> try_read(const fs::path& p) {
 // The columns a summary.csv of this version writes; any other column (e.g. the paired comparison
 // against a reference estimator) is shown in its own table.
 bool known_column(const std::string& c) {
-  static const std::set<std::string> known{"estimator", "kind", "runs", "mse", "mse_ci95", "mse_ext", "mse_ext_ci95",
-                                           "mde_percent", "flops_per_period", "stored_gains", "ns_per_period",
-                                           "predicted_mse_ext", "delivered_ratio", "status", "predicted_mse",
-                                           "flops_mean", "mde_ci95", "sent_per_period"};
+  static const std::set<std::string> known{
+      "estimator",        "kind",           "runs",          "mse",
+      "mse_ci95",         "mse_ext",        "mse_ext_ci95",  "mde_percent",
+      "flops_per_period", "stored_gains",   "ns_per_period", "predicted_mse_ext",
+      "delivered_ratio",  "status",         "predicted_mse", "flops_mean",
+      "mde_ci95",         "sent_per_period"};
   if (known.count(c) != 0) return true;
   return c.rfind("rmse_x", 0) == 0 || c.rfind("ermse_x", 0) == 0;
 }
@@ -95,7 +109,8 @@ struct SummaryTable {
 // Cell text of column c: "value ± ci" when a c_ci95 column exists.
 std::string cell(const CsvTable& t, const std::vector<std::string>& r, int c, int ci) {
   std::string v = html_escape(r[static_cast<std::size_t>(c)]);
-  if (ci >= 0 && !r[static_cast<std::size_t>(ci)].empty()) v += " ± " + html_escape(r[static_cast<std::size_t>(ci)]);
+  if (ci >= 0 && !r[static_cast<std::size_t>(ci)].empty())
+    v += " ± " + html_escape(r[static_cast<std::size_t>(ci)]);
   (void)t;
   return v;
 }
@@ -111,8 +126,8 @@ double to_double(const std::string& s) {
 }
 
 // One HTML table of `rows` (indices into t.rows) over the given columns.
-std::string html_table(const SummaryTable& tb, const std::vector<std::size_t>& rows, const std::vector<int>& cols,
-                       bool mark_best) {
+std::string html_table(const SummaryTable& tb, const std::vector<std::size_t>& rows,
+                       const std::vector<int>& cols, bool mark_best) {
   const CsvTable& t = tb.t;
   std::string h = "<div class=\"scroll\"><table>\n<tr>";
   std::vector<int> ci(cols.size(), -1);
@@ -120,7 +135,8 @@ std::string html_table(const SummaryTable& tb, const std::vector<std::size_t>& r
     const std::string& name = t.header[static_cast<std::size_t>(cols[i])];
     ci[i] = t.column(name + "_ci95");
     const bool text = cols[i] == tb.est || name == "kind" || cols[i] == tb.status;
-    h += fmt::format("<th{}>{}{}</th>", text ? " class=\"t\"" : "", html_escape(name), ci[i] >= 0 ? " ± 95 % CI" : "");
+    h += fmt::format("<th{}>{}{}</th>", text ? " class=\"t\"" : "", html_escape(name),
+                     ci[i] >= 0 ? " ± 95 % CI" : "");
   }
   h += "</tr>\n";
   // Lowest mse of the rows (marked when it is a number and rows > 1).
@@ -141,8 +157,10 @@ std::string html_table(const SummaryTable& tb, const std::vector<std::size_t>& r
       std::string cls;
       if (c == tb.est || t.header[static_cast<std::size_t>(c)] == "kind") cls = "t";
       if (c == tb.status) cls = bad ? "t status-bad" : "t";
-      if (c == mse && rows.size() > 1 && to_double(row[static_cast<std::size_t>(c)]) == best) cls = "best";
-      h += fmt::format("<td{}>{}</td>", cls.empty() ? "" : fmt::format(" class=\"{}\"", cls), cell(t, row, c, ci[i]));
+      if (c == mse && rows.size() > 1 && to_double(row[static_cast<std::size_t>(c)]) == best)
+        cls = "best";
+      h += fmt::format("<td{}>{}</td>", cls.empty() ? "" : fmt::format(" class=\"{}\"", cls),
+                       cell(t, row, c, ci[i]));
     }
     h += "</tr>\n";
   }
@@ -163,16 +181,26 @@ std::string design_section(const std::string& dir) {
   try {
     j = nlohmann::json::parse(*text);
   } catch (const std::exception& e) {
-    return fmt::format("<p class=\"warn\">design.json could not be read: {}</p>\n", html_escape(e.what()));
+    return fmt::format("<p class=\"warn\">design.json could not be read: {}</p>\n",
+                       html_escape(e.what()));
   }
-  static const char* fields[] = {"name", "kind", "method", "stored_gains", "predicted_mse", "predicted_mse_ext",
-                                 "flops_per_period", "stable", "status", "design_seconds"};
+  static const char* fields[] = {"name",
+                                 "kind",
+                                 "method",
+                                 "stored_gains",
+                                 "predicted_mse",
+                                 "predicted_mse_ext",
+                                 "flops_per_period",
+                                 "stable",
+                                 "status",
+                                 "design_seconds"};
   std::vector<std::pair<std::string, const nlohmann::json*>> groups;
   if (j.contains("cases") && j["cases"].is_array()) {
     for (const auto& c : j["cases"]) {
       std::string label;
       if (c.contains("sweep")) {
-        for (const auto& [k, v] : c["sweep"].items()) label += (label.empty() ? "" : ", ") + k + " = " + json_text(v);
+        for (const auto& [k, v] : c["sweep"].items())
+          label += (label.empty() ? "" : ", ") + k + " = " + json_text(v);
       }
       groups.emplace_back(label, &c["estimators"]);
     }
@@ -186,24 +214,28 @@ std::string design_section(const std::string& dir) {
   for (const auto& [label, ests] : groups) {
     if (ests == nullptr || !ests->is_array()) continue;
     for (const auto& e : *ests) {
-      const bool bad = e.contains("status") && e["status"].is_string() && e["status"].get<std::string>() != "ok";
+      const bool bad =
+          e.contains("status") && e["status"].is_string() && e["status"].get<std::string>() != "ok";
       h += bad ? "<tr class=\"bad\">" : "<tr>";
       if (groups.size() > 1) h += fmt::format("<td class=\"t\">{}</td>", html_escape(label));
       for (const char* f : fields) {
-        h += fmt::format("<td class=\"t\">{}</td>", e.contains(f) ? html_escape(json_text(e[f])) : "");
+        h += fmt::format("<td class=\"t\">{}</td>",
+                         e.contains(f) ? html_escape(json_text(e[f])) : "");
       }
       h += "</tr>\n";
     }
   }
   h += "</table></div>\n";
   if (groups.size() > 1) {
-    h = fmt::format("<details><summary>design of every case ({} cases)</summary>\n{}</details>\n", groups.size(), h);
+    h = fmt::format("<details><summary>design of every case ({} cases)</summary>\n{}</details>\n",
+                    groups.size(), h);
   }
   return h;
 }
 
 // The scenario file named in the manifest: as given, or relative to the folders above DIR.
-std::optional<std::pair<std::string, std::string>> scenario_text(const std::string& dir, const std::string& name) {
+std::optional<std::pair<std::string, std::string>> scenario_text(const std::string& dir,
+                                                                 const std::string& name) {
   if (name.empty()) return std::nullopt;
   std::vector<fs::path> tries{fs::path(name)};
   fs::path up = fs::absolute(dir);
@@ -217,17 +249,19 @@ std::optional<std::pair<std::string, std::string>> scenario_text(const std::stri
   return std::nullopt;
 }
 
-
 // summary.csv of `dir` with its sweep key, estimator and status columns; throws when unreadable.
 SummaryTable read_summary_table(const std::string& dir) {
   const fs::path sp = fs::path(dir) / "summary.csv";
   const auto stext = try_read(sp);
-  if (!stext) throw ScenarioError(fmt::format("{}: cannot read (is this an ncosim output folder?)", sp.string()));
+  if (!stext)
+    throw ScenarioError(
+        fmt::format("{}: cannot read (is this an ncosim output folder?)", sp.string()));
   SummaryTable tb;
   tb.t = parse_csv(*stext, sp.string());
   tb.est = tb.t.column("estimator");
   tb.status = tb.t.column("status");
-  if (tb.est < 0) throw ScenarioError(format_error(sp.string(), 1, "", "expected an `estimator` column"));
+  if (tb.est < 0)
+    throw ScenarioError(format_error(sp.string(), 1, "", "expected an `estimator` column"));
   for (int i = 0; i < tb.est; ++i) tb.keys.push_back(i);
   return tb;
 }
@@ -255,8 +289,9 @@ Cases split_cases(const SummaryTable& tb) {
   for (std::size_t r = 0; r < t.rows.size(); ++r) {
     std::string label;
     for (int k : tb.keys) {
-      label += fmt::format("{}{} = {}", label.empty() ? "" : ", ", t.header[static_cast<std::size_t>(k)],
-                           t.rows[r][static_cast<std::size_t>(k)]);
+      label +=
+          fmt::format("{}{} = {}", label.empty() ? "" : ", ", t.header[static_cast<std::size_t>(k)],
+                      t.rows[r][static_cast<std::size_t>(k)]);
     }
     if (cases.rows.empty() || cases.labels.back() != label) {
       cases.rows.emplace_back();
@@ -269,7 +304,8 @@ Cases split_cases(const SummaryTable& tb) {
 
 // Columns from `estimator` on: the known ones that hold a value somewhere (ci columns merged
 // into their value's cell) in `main_cols`, the others in `extra_cols`.
-void split_columns(const SummaryTable& tb, std::vector<int>& main_cols, std::vector<int>& extra_cols) {
+void split_columns(const SummaryTable& tb, std::vector<int>& main_cols,
+                   std::vector<int>& extra_cols) {
   const CsvTable& t = tb.t;
   for (int c = tb.est; c < static_cast<int>(t.header.size()); ++c) {
     const std::string& name = t.header[static_cast<std::size_t>(c)];
@@ -283,19 +319,24 @@ void split_columns(const SummaryTable& tb, std::vector<int>& main_cols, std::vec
   }
 }
 
-// The document's head, title and the line under it (scenario, cases, estimators, runs, seed, folder).
-std::string page_head(const std::string& dir, const nlohmann::json& man, const std::string& title, const Cases& cases) {
+// The document's head, title and the line under it (scenario, cases, estimators, runs, seed,
+// folder).
+std::string page_head(const std::string& dir, const nlohmann::json& man, const std::string& title,
+                      const Cases& cases) {
   std::string h = "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\"/>\n";
   h += "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\"/>\n";
-  h += fmt::format("<title>{} — ncosim report</title>\n<style>{}</style>\n</head>\n<body>\n", html_escape(title), kCss);
+  h += fmt::format("<title>{} — ncosim report</title>\n<style>{}</style>\n</head>\n<body>\n",
+                   html_escape(title), kCss);
   h += fmt::format("<h1>{}</h1>\n", html_escape(title));
-  h += fmt::format("<p class=\"sub\">{} · {} case(s) · {} estimator(s){}{}{} · folder {}</p>\n",
-                   man.contains("scenario") ? html_escape(json_text(man["scenario"])) : "scenario unknown",
-                   cases.rows.size(), cases.rows.empty() ? 0 : cases.rows.front().size(),
-                   man.contains("runs") ? fmt::format(" · {} runs", html_escape(json_text(man["runs"]))) : "",
-                   man.contains("periods") ? fmt::format(" × {} periods", html_escape(json_text(man["periods"]))) : "",
-                   man.contains("seed") ? fmt::format(" · seed {}", html_escape(json_text(man["seed"]))) : "",
-                   html_escape(dir));
+  h += fmt::format(
+      "<p class=\"sub\">{} · {} case(s) · {} estimator(s){}{}{} · folder {}</p>\n",
+      man.contains("scenario") ? html_escape(json_text(man["scenario"])) : "scenario unknown",
+      cases.rows.size(), cases.rows.empty() ? 0 : cases.rows.front().size(),
+      man.contains("runs") ? fmt::format(" · {} runs", html_escape(json_text(man["runs"]))) : "",
+      man.contains("periods") ? fmt::format(" × {} periods", html_escape(json_text(man["periods"])))
+                              : "",
+      man.contains("seed") ? fmt::format(" · seed {}", html_escape(json_text(man["seed"]))) : "",
+      html_escape(dir));
   return h;
 }
 
@@ -310,16 +351,19 @@ std::string warnings_section(const std::string& dir, const SummaryTable& tb, con
       for (std::size_t r : cases.rows[c]) {
         const auto& st = t.rows[r][static_cast<std::size_t>(tb.status)];
         if (st == "ok") continue;
-        warn += fmt::format("<li>{}{}: <b>{}</b></li>\n",
-                            cases.labels[c].empty() ? "" : html_escape(cases.labels[c]) + " · ",
-                            html_escape(t.rows[r][static_cast<std::size_t>(tb.est)]), html_escape(st));
+        warn +=
+            fmt::format("<li>{}{}: <b>{}</b></li>\n",
+                        cases.labels[c].empty() ? "" : html_escape(cases.labels[c]) + " · ",
+                        html_escape(t.rows[r][static_cast<std::size_t>(tb.est)]), html_escape(st));
       }
     }
   }
   std::string h;
   if (!warn.empty()) {
-    h += "<div class=\"warn\" id=\"warnings\"><b>Rows whose status is not ok</b> (not trustworthy, see the status "
-         "column in results/README.md):\n<ul>\n" + warn + "</ul></div>\n";
+    h += "<div class=\"warn\" id=\"warnings\"><b>Rows whose status is not ok</b> (not trustworthy, "
+         "see the status "
+         "column in results/README.md):\n<ul>\n" +
+         warn + "</ul></div>\n";
   } else {
     h += "<p class=\"ok\" id=\"warnings\">Every row has status ok.</p>\n";
   }
@@ -337,9 +381,11 @@ std::string warnings_section(const std::string& dir, const SummaryTable& tb, con
 
 // The table of contents; the further-columns section only when there is one.
 std::string contents_nav(bool further) {
-  std::string h = "<nav><b>Contents:</b> <a href=\"#figures\">figures</a> · <a href=\"#summary\">summary</a>";
+  std::string h =
+      "<nav><b>Contents:</b> <a href=\"#figures\">figures</a> · <a href=\"#summary\">summary</a>";
   if (further) h += " · <a href=\"#further\">paired comparison / further columns</a>";
-  h += " · <a href=\"#design\">design</a> · <a href=\"#manifest\">manifest</a> · <a href=\"#scenario\">scenario</a></nav>\n";
+  h += " · <a href=\"#design\">design</a> · <a href=\"#manifest\">manifest</a> · <a "
+       "href=\"#scenario\">scenario</a></nav>\n";
   return h;
 }
 
@@ -348,8 +394,10 @@ std::string figures_section(const std::vector<ReportFigure>& figures) {
   std::string h = "<h2 id=\"figures\">Figures</h2>\n";
   if (figures.empty()) h += "<p>No figures (report written with --no-figures).</p>\n";
   for (std::size_t i = 0; i < figures.size(); ++i) {
-    h += fmt::format("<figure id=\"fig-{}\">\n{}\n<figcaption>Figure {}: {}</figcaption>\n</figure>\n", i + 1,
-                     inline_svg(figures[i].svg, fmt::format("f{}-", i + 1)), i + 1, html_escape(figures[i].title));
+    h += fmt::format(
+        "<figure id=\"fig-{}\">\n{}\n<figcaption>Figure {}: {}</figcaption>\n</figure>\n", i + 1,
+        inline_svg(figures[i].svg, fmt::format("f{}-", i + 1)), i + 1,
+        html_escape(figures[i].title));
   }
   return h;
 }
@@ -359,13 +407,16 @@ std::string figures_section(const std::vector<ReportFigure>& figures) {
 std::string case_overview(const SummaryTable& tb, const Cases& cases) {
   const CsvTable& t = tb.t;
   const int mse = t.column("mse"), mci = t.column("mse_ci95");
-  std::string h = "<h3 id=\"overview\">mse per case and estimator</h3>\n<div class=\"scroll\"><table>\n<tr><th class=\"t\">case</th>";
+  std::string h =
+      "<h3 id=\"overview\">mse per case and estimator</h3>\n<div class=\"scroll\"><table>\n<tr><th "
+      "class=\"t\">case</th>";
   for (std::size_t r : cases.rows.front()) {
     h += fmt::format("<th>{}</th>", html_escape(t.rows[r][static_cast<std::size_t>(tb.est)]));
   }
   h += "</tr>\n";
   for (std::size_t c = 0; c < cases.rows.size(); ++c) {
-    h += fmt::format("<tr><td class=\"t\"><a href=\"#case-{}\">{}</a></td>", c + 1, html_escape(cases.labels[c]));
+    h += fmt::format("<tr><td class=\"t\"><a href=\"#case-{}\">{}</a></td>", c + 1,
+                     html_escape(cases.labels[c]));
     double best = INFINITY;
     for (std::size_t r : cases.rows[c]) {
       best = std::min(best, mse >= 0 ? to_double(t.rows[r][static_cast<std::size_t>(mse)]) : NAN);
@@ -374,9 +425,10 @@ std::string case_overview(const SummaryTable& tb, const Cases& cases) {
       const auto& row = t.rows[r];
       const bool bad = tb.status >= 0 && row[static_cast<std::size_t>(tb.status)] != "ok";
       const bool is_best = mse >= 0 && to_double(row[static_cast<std::size_t>(mse)]) == best;
-      h += fmt::format("<td{}>{}{}</td>", bad ? " class=\"status-bad\"" : (is_best ? " class=\"best\"" : ""),
-                       mse >= 0 ? cell(t, row, mse, mci) : "",
-                       bad ? " (" + html_escape(row[static_cast<std::size_t>(tb.status)]) + ")" : "");
+      h += fmt::format(
+          "<td{}>{}{}</td>", bad ? " class=\"status-bad\"" : (is_best ? " class=\"best\"" : ""),
+          mse >= 0 ? cell(t, row, mse, mci) : "",
+          bad ? " (" + html_escape(row[static_cast<std::size_t>(tb.status)]) + ")" : "");
     }
     h += "</tr>\n";
   }
@@ -384,25 +436,32 @@ std::string case_overview(const SummaryTable& tb, const Cases& cases) {
 }
 
 // The summary: one table, or with several cases the overview and one folded table per case.
-std::string summary_section(const SummaryTable& tb, const Cases& cases, const std::vector<int>& main_cols) {
+std::string summary_section(const SummaryTable& tb, const Cases& cases,
+                            const std::vector<int>& main_cols) {
   std::string h = "<h2 id=\"summary\">Summary</h2>\n";
-  h += "<p class=\"sub\">Numbers as written in summary.csv (columns: results/README.md); rows whose status is not "
-       "ok are red; the lowest mse of each case is green. Columns empty in every row are left out.</p>\n";
+  h += "<p class=\"sub\">Numbers as written in summary.csv (columns: results/README.md); rows "
+       "whose status is not "
+       "ok are red; the lowest mse of each case is green. Columns empty in every row are left "
+       "out.</p>\n";
   if (cases.rows.size() <= 1) {
-    return h + html_table(tb, cases.rows.empty() ? std::vector<std::size_t>{} : cases.rows.front(), main_cols, true);
+    return h + html_table(tb, cases.rows.empty() ? std::vector<std::size_t>{} : cases.rows.front(),
+                          main_cols, true);
   }
   h += case_overview(tb, cases) + "<h3>Every case</h3>\n";
   for (std::size_t c = 0; c < cases.rows.size(); ++c) {
-    h += fmt::format("<details id=\"case-{}\"><summary>case {}: {}</summary>\n{}</details>\n", c + 1, c + 1,
-                     html_escape(cases.labels[c]), html_table(tb, cases.rows[c], main_cols, true));
+    h += fmt::format("<details id=\"case-{}\"><summary>case {}: {}</summary>\n{}</details>\n",
+                     c + 1, c + 1, html_escape(cases.labels[c]),
+                     html_table(tb, cases.rows[c], main_cols, true));
   }
   return h;
 }
 
 // The columns beyond the known ones (e.g. the paired comparison), every row in one table.
-std::string further_section(const SummaryTable& tb, const Cases& cases, const std::vector<int>& extra_cols) {
+std::string further_section(const SummaryTable& tb, const Cases& cases,
+                            const std::vector<int>& extra_cols) {
   std::string h = "<h2 id=\"further\">Paired comparison and further columns</h2>\n";
-  h += "<p class=\"sub\">Columns of summary.csv beyond the ones above (for instance the paired differences "
+  h += "<p class=\"sub\">Columns of summary.csv beyond the ones above (for instance the paired "
+       "differences "
        "against the reference estimator), as written.</p>\n";
   std::vector<int> cols = tb.keys;
   cols.push_back(tb.est);
@@ -410,7 +469,8 @@ std::string further_section(const SummaryTable& tb, const Cases& cases, const st
   std::vector<std::size_t> all(tb.t.rows.size());
   for (std::size_t i = 0; i < all.size(); ++i) all[i] = i;
   const std::string table = html_table(tb, all, cols, false);
-  h += cases.rows.size() > 1 ? "<details><summary>every case</summary>\n" + table + "</details>\n" : table;
+  h += cases.rows.size() > 1 ? "<details><summary>every case</summary>\n" + table + "</details>\n"
+                             : table;
   return h;
 }
 
@@ -420,7 +480,8 @@ std::string manifest_section(const nlohmann::json& man) {
   if (man.empty()) return h + "<p>No manifest.json in this folder.</p>\n";
   h += "<table>\n";
   for (const auto& [k, v] : man.items()) {
-    h += fmt::format("<tr><th class=\"t\">{}</th><td class=\"t\">{}</td></tr>\n", html_escape(k), html_escape(json_text(v)));
+    h += fmt::format("<tr><th class=\"t\">{}</th><td class=\"t\">{}</td></tr>\n", html_escape(k),
+                     html_escape(json_text(v)));
   }
   return h + "</table>\n";
 }
@@ -545,7 +606,8 @@ std::string inline_svg(const std::string& svg, const std::string& prefix) {
 std::string build_report(const std::string& dir, const std::vector<ReportFigure>& figures) {
   const SummaryTable tb = read_summary_table(dir);
   const nlohmann::json man = read_manifest(dir);
-  const std::string title = man.contains("title") ? json_text(man["title"]) : fs::path(dir).filename().string();
+  const std::string title =
+      man.contains("title") ? json_text(man["title"]) : fs::path(dir).filename().string();
   const Cases cases = split_cases(tb);
   std::vector<int> main_cols, extra_cols;
   split_columns(tb, main_cols, extra_cols);
@@ -561,7 +623,8 @@ std::string build_report(const std::string& dir, const std::vector<ReportFigure>
   h += "<h2 id=\"design\">Design</h2>\n" + design_section(dir);
   h += manifest_section(man);
   h += scenario_section(dir, man);
-  h += "<p class=\"sub\">Written by <code>ncosim report</code>; self-contained (no script, no network).</p>\n";
+  h += "<p class=\"sub\">Written by <code>ncosim report</code>; self-contained (no script, no "
+       "network).</p>\n";
   h += "</body>\n</html>\n";
   return h;
 }
@@ -607,13 +670,16 @@ int report_command(const std::string& dir, const ReportOptions& opt) {
   }
   const std::string html = build_report(dir, rf);
   const fs::path out = opt.out.empty() ? fs::path(dir) / "report.html" : fs::path(opt.out);
-  write_files_atomically(out.parent_path().empty() ? "." : out.parent_path().string(), {{out.filename().string(), html}});
+  write_files_atomically(out.parent_path().empty() ? "." : out.parent_path().string(),
+                         {{out.filename().string(), html}});
   const auto t3 = clock::now();
   const double gnuplot_s = std::chrono::duration<double>(t2 - t1).count();
   const double total_s = std::chrono::duration<double>(t3 - t0).count();
-  std::cout << fmt::format("{} written ({:.0f} KB, {} figure(s)) in {:.3f} s: {:.3f} s without gnuplot, {:.3f} s gnuplot\n",
-                           out.string(), static_cast<double>(html.size()) / 1024.0, rf.size(), total_s,
-                           total_s - gnuplot_s, gnuplot_s);
+  std::cout << fmt::format(
+      "{} written ({:.0f} KB, {} figure(s)) in {:.3f} s: {:.3f} s without gnuplot, {:.3f} s "
+      "gnuplot\n",
+      out.string(), static_cast<double>(html.size()) / 1024.0, rf.size(), total_s,
+      total_s - gnuplot_s, gnuplot_s);
   return 0;
 }
 

@@ -30,9 +30,9 @@ struct ReportFigure {
 std::string build_report(const std::string& dir, const std::vector<ReportFigure>& figures);
 
 struct ReportOptions {
-  PlotOptions plot;       // metric etc. of the figures (formats: svg)
-  std::string out;        // default DIR/report.html
-  bool figures = true;    // false: no gnuplot, no figures (tables only)
+  PlotOptions plot;     // metric etc. of the figures (formats: svg)
+  std::string out;      // default DIR/report.html
+  bool figures = true;  // false: no gnuplot, no figures (tables only)
 };
 
 // `ncosim report`: renders the figures (SVG) into DIR, writes the report, prints the times.

@@ -247,10 +247,12 @@ class RunSimulation {
     ls.link->advance(k, ls.rng);
     const int state = ls.link->state();
     ls.link->transmit_copies(ls.rng, delays_);
-    if (link_out_ != nullptr) link_counters_[static_cast<std::size_t>(flow_of_.sensor[s])].record(delays_, state);
+    if (link_out_ != nullptr)
+      link_counters_[static_cast<std::size_t>(flow_of_.sensor[s])].record(delays_, state);
     const bool independent = ls.link->independent_copies();
     for (std::size_t c = 0; c < delays_.size(); ++c) {
-      if (independent && c > 0) sensor.redraw_newest(signals_.x);  // the design model: own noise per copy
+      if (independent && c > 0)
+        sensor.redraw_newest(signals_.x);  // the design model: own noise per copy
       deliver_copy(s, k, delays_[c], independent);
     }
   }
@@ -273,10 +275,12 @@ class RunSimulation {
   void on_arrival(SimTime now, std::uint64_t id) {
     const std::int64_t k = period_of(now);
     const models::Packet& p = pool_[id];
-    for (std::size_t e = 0; e < estimators_.size(); ++e) recorder_.on_used(e, k, estimators_[e]->on_packet(p, k));
+    for (std::size_t e = 0; e < estimators_.size(); ++e)
+      recorder_.on_used(e, k, estimators_[e]->on_packet(p, k));
     recorder_.on_arrival(p.sensor);
     const auto ps = static_cast<std::size_t>(p.sensor);
-    if (p.count > 0 && p.stamps[0] > received_stamp_[ps]) {  // the newest sample seen at the controller node
+    if (p.count > 0 &&
+        p.stamps[0] > received_stamp_[ps]) {  // the newest sample seen at the controller node
       received_stamp_[ps] = p.stamps[0];
       received_[ps] = p.values.head(received_[ps].size());
     }
@@ -300,7 +304,8 @@ class RunSimulation {
     ctx_.k = k;
     ctx_.t = static_cast<double>(ctx_.k) * sc_.run.period;
     if (sees_outputs_) {
-      for (std::size_t s = 0; s < sensors_.size(); ++s) true_output_[s].noalias() = sensors_[s].spec().C * signals_.x;
+      for (std::size_t s = 0; s < sensors_.size(); ++s)
+        true_output_[s].noalias() = sensors_[s].spec().C * signals_.x;
     }
     if (sc_.input.source_index >= 0) {
       estimate_ = estimators_[static_cast<std::size_t>(sc_.input.source_index)]->state();
@@ -325,11 +330,12 @@ class RunSimulation {
   std::vector<models::SensorProcess> sensors_;
   std::vector<LinkState> links_;
   std::vector<std::int64_t> delays_;
-  std::vector<std::size_t> sample_order_;  // the sensors in the order their next samples were scheduled
+  std::vector<std::size_t>
+      sample_order_;  // the sensors in the order their next samples were scheduled
   std::vector<std::int64_t> next_sample_;  // the period of each sensor's next sample
   std::vector<std::size_t> due_;           // the sensors that sample in this period, in order
   std::vector<std::size_t> sending_;       // the sensors whose sample of this period is sent
-  std::vector<models::Packet> pool_;  // packets in flight, reused
+  std::vector<models::Packet> pool_;       // packets in flight, reused
   std::vector<std::size_t> free_;
   std::vector<std::unique_ptr<est::Estimator>> estimators_;
   // The controller node: what it can know, and its output.
@@ -351,19 +357,22 @@ class RunSimulation {
 
 }  // namespace
 
-RunMetrics execute_run(const Scenario& sc, std::uint64_t run, std::vector<TraceRow>* trace, ReplayLog* log,
-                       std::vector<models::LinkCounters>* links, ErrorCurve* curve) {
+RunMetrics execute_run(const Scenario& sc, std::uint64_t run, std::vector<TraceRow>* trace,
+                       ReplayLog* log, std::vector<models::LinkCounters>* links,
+                       ErrorCurve* curve) {
   RunSimulation sim(sc, run, trace, log, links, curve);
   return sim.execute();
 }
 
-std::vector<double> time_estimators(const Scenario& sc, const ReplayLog& log, std::chrono::nanoseconds budget) {
+std::vector<double> time_estimators(const Scenario& sc, const ReplayLog& log,
+                                    std::chrono::nanoseconds budget) {
   std::vector<double> out;
   const std::size_t periods = log.u.size();
   for (const auto& entry : sc.estimators) {
     std::vector<double> samples;
     const auto begin = std::chrono::steady_clock::now();
-    for (int rep = 0; rep < 15 && (rep < 1 || std::chrono::steady_clock::now() - begin < budget); ++rep) {
+    for (int rep = 0; rep < 15 && (rep < 1 || std::chrono::steady_clock::now() - begin < budget);
+         ++rep) {
       auto est = entry.design->instantiate();
       std::size_t next = 0;
       const auto t0 = std::chrono::steady_clock::now();

@@ -29,12 +29,14 @@ struct ReplayLog {
 
 // Simulates run `run`; `trace`, `log`, `links` and `curve` (the error curve the run's errors are
 // added to) are optional outputs.
-RunMetrics execute_run(const Scenario& sc, std::uint64_t run, std::vector<TraceRow>* trace, ReplayLog* log,
-                       std::vector<models::LinkCounters>* links, ErrorCurve* curve = nullptr);
+RunMetrics execute_run(const Scenario& sc, std::uint64_t run, std::vector<TraceRow>* trace,
+                       ReplayLog* log, std::vector<models::LinkCounters>* links,
+                       ErrorCurve* curve = nullptr);
 
 // Replays a logged run into a fresh instance of each estimator and times it alone: the median
 // over repetitions of (wall time / periods). At least one repetition, at most 15, more only
 // while the estimator's `budget` lasts.
-std::vector<double> time_estimators(const Scenario& sc, const ReplayLog& log, std::chrono::nanoseconds budget);
+std::vector<double> time_estimators(const Scenario& sc, const ReplayLog& log,
+                                    std::chrono::nanoseconds budget);
 
 }  // namespace ncosim::sim

@@ -13,8 +13,8 @@ constexpr double kPrecisionLimit = 1e10;
 
 }  // namespace
 
-RunRecorder::RunRecorder(const Scenario& sc, const Estimators& estimators, std::vector<TraceRow>* trace,
-                         ErrorCurve* curve)
+RunRecorder::RunRecorder(const Scenario& sc, const Estimators& estimators,
+                         std::vector<TraceRow>* trace, ErrorCurve* curve)
     : sc_(sc),
       estimators_(estimators),
       trace_(trace),
@@ -40,7 +40,8 @@ RunRecorder::RunRecorder(const Scenario& sc, const Estimators& estimators, std::
   }
   sensors_.sensor_taken.assign(sc.model.sensors.size(), 0);
   sensors_.sensor_sent.assign(sc.model.sensors.size(), 0);
-  for (const auto& sm : sc.model.sensors) sensors_.sensor_virtual_sse.emplace_back(static_cast<std::size_t>(sm.spec.ny()), 0.0);
+  for (const auto& sm : sc.model.sensors)
+    sensors_.sensor_virtual_sse.emplace_back(static_cast<std::size_t>(sm.spec.ny()), 0.0);
   // x[-j] = x0: the plant rests at x0 before t = 0.
   history_.assign(static_cast<std::size_t>(max_ext_blocks), sc.model.plant.x0);
 }
@@ -54,7 +55,8 @@ void RunRecorder::on_state(std::int64_t k, const Eigen::VectorXd& x) {
   }
 }
 
-void RunRecorder::on_sample(std::size_t s, std::int64_t k, bool sent, const Eigen::Ref<const Eigen::VectorXd>& sample,
+void RunRecorder::on_sample(std::size_t s, std::int64_t k, bool sent,
+                            const Eigen::Ref<const Eigen::VectorXd>& sample,
                             const Eigen::VectorXd* held) {
   if (k < warmup_) return;
   // The sensors' counts are the same for every estimator: kept once, copied by finish().
@@ -66,13 +68,13 @@ void RunRecorder::on_sample(std::size_t s, std::int64_t k, bool sent, const Eige
   }
   if (held == nullptr) return;  // a policy that keeps no held value
   for (Eigen::Index i = 0; i < sample.size(); ++i) {
-    const double d = (*held)(i) - sample(i);
+    const double d = (*held)(i)-sample(i);
     sensors_.sensor_virtual_sse[s][static_cast<std::size_t>(i)] += d * d;
   }
 }
 
-void RunRecorder::on_period(std::int64_t k, const Eigen::VectorXd& x, int true_mode, const Eigen::VectorXd& u,
-                            double reference) {
+void RunRecorder::on_period(std::int64_t k, const Eigen::VectorXd& x, int true_mode,
+                            const Eigen::VectorXd& u, double reference) {
   if (trace_ != nullptr) trace_row(k, x, true_mode, u, reference);
   std::fill(arrivals_.begin(), arrivals_.end(), 0);
   // |x| > 1e10: x - xhat has lost 10 of its 16 significant digits to rounding (an unstable
@@ -108,15 +110,16 @@ void RunRecorder::on_period(std::int64_t k, const Eigen::VectorXd& x, int true_m
     }
     m.sse += e2;
     m.sse_ext += e2_ext;
-    for (Eigen::Index i = 0; i < n; ++i) m.sse_state[static_cast<std::size_t>(i)] += err_(i) * err_(i);
+    for (Eigen::Index i = 0; i < n; ++i)
+      m.sse_state[static_cast<std::size_t>(i)] += err_(i) * err_(i);
     ++m.count;
     score_consistency(m, *estimators_[e], n);
   }
   if (scored && k >= 1) score_modes(true_mode);
 }
 
-void RunRecorder::trace_row(std::int64_t k, const Eigen::VectorXd& x, int true_mode, const Eigen::VectorXd& u,
-                            double reference) {
+void RunRecorder::trace_row(std::int64_t k, const Eigen::VectorXd& x, int true_mode,
+                            const Eigen::VectorXd& u, double reference) {
   const Eigen::Index n = x.size();
   TraceRow row;
   row.period = k;
@@ -141,7 +144,8 @@ void RunRecorder::trace_row(std::int64_t k, const Eigen::VectorXd& x, int true_m
 // covariance; a P that is not positive definite (e.g. P0 = 0 before the first packet) is skipped.
 // (Cholesky by hand on the leading n x n block: Eigen's dynamic LLT cost ~600 instructions for
 // n = 2, about 7 % of the flagship's whole run.)
-void RunRecorder::score_consistency(EstimatorRunMetrics& m, const est::Estimator& e, Eigen::Index n) {
+void RunRecorder::score_consistency(EstimatorRunMetrics& m, const est::Estimator& e,
+                                    Eigen::Index n) {
   const Eigen::MatrixXd* P = e.covariance();
   if (P == nullptr || P->rows() < n || P->cols() < n) return;
   const double* p = P->data();

@@ -16,12 +16,15 @@
 
 namespace ncosim::sim {
 
-std::string fnv1a_hex(const std::string& text) { return content_hash(text); }  // config/input_files.h
+std::string fnv1a_hex(const std::string& text) {
+  return content_hash(text);
+}  // config/input_files.h
 
 const std::vector<std::string>& expected_status_values() {
   // The order of results/README.md `### status`.
-  static const std::vector<std::string> values{"ok",         "diverged",      "precision_lost",   "numerical_failure",
-                                                "heavy_tail", "design_failed", "ci_target_not_met"};
+  static const std::vector<std::string> values{
+      "ok",         "diverged",      "precision_lost",   "numerical_failure",
+      "heavy_tail", "design_failed", "ci_target_not_met"};
   return values;
 }
 
@@ -53,14 +56,16 @@ constexpr std::uintmax_t kMaxScenarioBytes = 64'000'000;
 
 }  // namespace
 
-std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::string& file, const std::string& dir) {
+std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::string& file,
+                                         const std::string& dir) {
   auto sc = std::make_unique<Scenario>();
   sc->file = file;
   Table root(doc, "", file);
   sc->title = root.string_or("title", std::filesystem::path(file).stem().string());
   // Unknown top-level keys first (a misspelt [[sensor]] is reported as such, not as a missing
   // table). Every top-level key read below must be listed here.
-  for (const char* key : {"run", "sweep", "plant", "link", "sensor", "input", "estimator", "actuator", "sumo", "paired"})
+  for (const char* key : {"run", "sweep", "plant", "link", "sensor", "input", "estimator",
+                          "actuator", "sumo", "paired"})
     root.allow(key);
   root.finish();
   // The sections, each by its reader (sim/scenario_sections.h), in an order where every reader
@@ -80,11 +85,12 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
   choose_recentre(root, *sc);
   {
     const auto rt = root.opt_table("run");
-    check_campaign_resources(file, rt ? rt->line_of("runs") : 1, sc->run.runs, 1, sc->estimators.size(),
-                             sc->model.plant.n(), sc->model.sensors.size());  // sim/limits.h
+    check_campaign_resources(file, rt ? rt->line_of("runs") : 1, sc->run.runs, 1,
+                             sc->estimators.size(), sc->model.plant.n(),
+                             sc->model.sensors.size());  // sim/limits.h
     if (sc->run.error_curve) {
-      check_error_curve_resources(file, rt ? rt->line_of("error_curve") : 1, sc->run.periods, sc->estimators.size(),
-                                  sc->model.plant.n());
+      check_error_curve_resources(file, rt ? rt->line_of("error_curve") : 1, sc->run.periods,
+                                  sc->estimators.size(), sc->model.plant.n());
     }
   }
   sc->paired = read_paired(root, doc, *sc);
@@ -137,12 +143,15 @@ LoadedScenario load_cases(const std::string& file, const std::vector<std::string
     std::error_code ec;
     const auto st = std::filesystem::status(file, ec);
     if (!ec && std::filesystem::exists(st) && !std::filesystem::is_regular_file(st)) {
-      throw ScenarioError(format_error(file, 0, "", "expected a regular scenario file (not a FIFO, device or folder)"));
+      throw ScenarioError(format_error(
+          file, 0, "", "expected a regular scenario file (not a FIFO, device or folder)"));
     }
     const auto size = std::filesystem::file_size(file, ec);
     if (!ec && size > kMaxScenarioBytes) {
-      throw ScenarioError(format_error(file, 0, "", fmt::format("the scenario file holds {} bytes; at most {} are read",
-                                                                size, kMaxScenarioBytes)));
+      throw ScenarioError(
+          format_error(file, 0, "",
+                       fmt::format("the scenario file holds {} bytes; at most {} are read", size,
+                                   kMaxScenarioBytes)));
     }
   }
   std::ifstream in(file, std::ios::binary);
@@ -160,8 +169,8 @@ namespace {
 // Axes sharing a `zip` name are one dimension of the cartesian product (they move together;
 // equal lengths), placed at its first axis: `axis_sizes` receives the size of each dimension,
 // `axis_dim` the dimension of each axis.
-int read_sweeps(toml::table& doc, const std::string& file, LoadedScenario& out, std::vector<std::size_t>& axis_sizes,
-                std::vector<std::size_t>& axis_dim) {
+int read_sweeps(toml::table& doc, const std::string& file, LoadedScenario& out,
+                std::vector<std::size_t>& axis_sizes, std::vector<std::size_t>& axis_dim) {
   int last_sweep_line = 1;
   std::vector<std::string> dim_zip;  // per dimension: its zip name ("" = a plain axis)
   Table root(doc, "", file);
@@ -206,8 +215,9 @@ int read_sweeps(toml::table& doc, const std::string& file, LoadedScenario& out, 
       axis_sizes.push_back(size);
       dim_zip.push_back(zip);
     } else if (axis_sizes[dim] != size) {
-      t.fail("values", fmt::format("expected {} values like the other sweeps zipped as \"{}\", got {}",
-                                   axis_sizes[dim], zip, size));
+      t.fail("values",
+             fmt::format("expected {} values like the other sweeps zipped as \"{}\", got {}",
+                         axis_sizes[dim], zip, size));
     }
     axis_dim.push_back(dim);
     out.sweeps.push_back(std::move(axis));
@@ -315,7 +325,8 @@ void check_base_scenario(const toml::table& doc, const LoadedScenario& out,
       continue;
     }
     const auto& labels = out.sweeps[a].labels;
-    unchecked = unchecked || std::find(labels.begin(), labels.end(), sweep_label(*base)) == labels.end();
+    unchecked =
+        unchecked || std::find(labels.begin(), labels.end(), sweep_label(*base)) == labels.end();
   }
   if (!unchecked) return;
   toml::table base_doc = parse_document(out.text, out.file, *shape.sets, *shape.overrides);
@@ -327,9 +338,10 @@ void check_base_scenario(const toml::table& doc, const LoadedScenario& out,
     (void)build_scenario(base_doc, out.file, shape.dir);
   } catch (const ScenarioError& e) {
     if (!concerns_sweep(e.what(), out, [&] { return case_error(0, shape, out); })) throw;
-    throw ScenarioError(fmt::format("{} (in the base scenario: the values written outside [[sweep]] must be "
-                                    "valid too, even where a sweep replaces them)",
-                                    e.what()));
+    throw ScenarioError(
+        fmt::format("{} (in the base scenario: the values written outside [[sweep]] must be "
+                    "valid too, even where a sweep replaces them)",
+                    e.what()));
   }
 }
 
@@ -359,11 +371,13 @@ Case build_case(toml::table& case_doc, std::size_t c, const SweepShape& shape,
 
 }  // namespace
 
-LoadedScenario load_cases_text(const std::string& file, const std::string& text, const std::vector<std::string>& sets,
-                               const RunOverrides& overrides, std::optional<std::size_t> only_case) {
+LoadedScenario load_cases_text(const std::string& file, const std::string& text,
+                               const std::vector<std::string>& sets, const RunOverrides& overrides,
+                               std::optional<std::size_t> only_case) {
   LoadedScenario out;
   // What the readers open, hashed, keyed relative to the scenario's folder.
-  const InputFileRecorder record_inputs(out.inputs, std::filesystem::path(file).parent_path().string());
+  const InputFileRecorder record_inputs(out.inputs,
+                                        std::filesystem::path(file).parent_path().string());
   out.file = file;
   out.text = text;
   out.overrides = sets;
@@ -384,9 +398,10 @@ LoadedScenario load_cases_text(const std::string& file, const std::string& text,
   for (const std::size_t n : axis_sizes) {
     total *= n;
     if (total > 100000) {
-      throw ScenarioError(format_error(file, last_sweep_line, "sweep",
-                                       "expected at most 100000 cases (the product of the [[sweep]] value counts), "
-                                       "got more"));
+      throw ScenarioError(
+          format_error(file, last_sweep_line, "sweep",
+                       "expected at most 100000 cases (the product of the [[sweep]] value counts), "
+                       "got more"));
     }
   }
   check_sweep_resources(file, last_sweep_line, total, out.text.size());  // sim/limits.h
@@ -394,8 +409,9 @@ LoadedScenario load_cases_text(const std::string& file, const std::string& text,
   const SweepShape shape{axis_sizes, axis_dim, total, &sets, &overrides, dir};
   if (!out.sweeps.empty() && !only_case) check_base_scenario(doc, out, shape);
   if (only_case && *only_case >= total) {
-    throw ScenarioError(format_error(file, 0, "sweep",
-                                     fmt::format("expected a case index below {}, got {}", total, *only_case)));
+    throw ScenarioError(
+        format_error(file, 0, "sweep",
+                     fmt::format("expected a case index below {}, got {}", total, *only_case)));
   }
   // Mobility (SUMO): every case's document is shown to the mobility source first, so that one
   // recording per realisation can serve every case.
@@ -410,7 +426,8 @@ LoadedScenario load_cases_text(const std::string& file, const std::string& text,
       }
       try {
         for (std::size_t a = 0; a < axis_dim.size(); ++a) {
-          set_path(case_doc, out.sweeps[a].key, *sweep_values(case_doc, a).get(idx[axis_dim[a]]), file, 0);
+          set_path(case_doc, out.sweeps[a].key, *sweep_values(case_doc, a).get(idx[axis_dim[a]]),
+                   file, 0);
         }
       } catch (const ScenarioError&) {
         continue;  // reported when the case is built
@@ -420,13 +437,15 @@ LoadedScenario load_cases_text(const std::string& file, const std::string& text,
   }
   for (std::size_t c = 0; c < total; ++c) {
     if (only_case && c != *only_case) continue;
-    toml::table case_doc = c == 0 ? std::move(doc) : parse_document(out.text, file, sets, overrides);
+    toml::table case_doc =
+        c == 0 ? std::move(doc) : parse_document(out.text, file, sets, overrides);
     out.cases.push_back(build_case(case_doc, c, shape, out));
     // error_curve.csv is one file for every case (and every case's curve is in the store).
     if (out.cases.back().scenario->run.error_curve != out.cases.front().scenario->run.error_curve) {
-      throw ScenarioError(format_error(file, last_sweep_line, "run.error_curve",
-                                       "expected the same value in every sweep case (error_curve.csv covers them "
-                                       "all), got both true and false"));
+      throw ScenarioError(
+          format_error(file, last_sweep_line, "run.error_curve",
+                       "expected the same value in every sweep case (error_curve.csv covers them "
+                       "all), got both true and false"));
     }
   }
   return out;

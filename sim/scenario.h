@@ -4,8 +4,6 @@
 // input is reported (ScenarioError) before t = 0 and nothing is written.
 #pragma once
 
-#include "config/input_files.h"
-
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -14,6 +12,7 @@
 #include <vector>
 
 #include "config/config.h"
+#include "config/input_files.h"
 #include "config/mobility.h"
 #include "config/run_settings.h"
 #include "config/toml_path.h"
@@ -76,9 +75,10 @@ struct Case {
 
 struct LoadedScenario {
   std::string file;
-  std::string text;      // the file's text
-  std::string hash;      // FNV-1a 64 of the text, the --set and the --runs/--periods/--seed given, hex
-  std::string text_hash;  // scenario_text_hash(text, overrides): the same without --runs/--periods/--seed
+  std::string text;  // the file's text
+  std::string hash;  // FNV-1a 64 of the text, the --set and the --runs/--periods/--seed given, hex
+  std::string
+      text_hash;  // scenario_text_hash(text, overrides): the same without --runs/--periods/--seed
   std::vector<std::string> overrides;
   std::vector<SweepAxis> sweeps;
   std::vector<Case> cases;
@@ -103,7 +103,8 @@ LoadedScenario load_cases(const std::string& file, const std::vector<std::string
 
 // The same from the scenario's text (e.g. kept in a run store); `file` names it in messages
 // and its folder resolves relative paths.
-LoadedScenario load_cases_text(const std::string& file, const std::string& text, const std::vector<std::string>& sets,
+LoadedScenario load_cases_text(const std::string& file, const std::string& text,
+                               const std::vector<std::string>& sets,
                                const RunOverrides& overrides = {},
                                std::optional<std::size_t> only_case = std::nullopt);
 

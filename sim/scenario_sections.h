@@ -45,7 +45,8 @@ std::optional<Table> read_input(const Table& root, Scenario& sc);
 
 // [[estimator]] (at least one): each designed for sc.model after its resource estimate, unique
 // names. `state_driver` is read_plant()'s result.
-void read_estimators(const Table& root, const toml::table& doc, const std::string& state_driver, Scenario& sc);
+void read_estimators(const Table& root, const toml::table& doc, const std::string& state_driver,
+                     Scenario& sc);
 
 // The estimator that a state-feedback input or a controller reads (input.source /
 // input.feedback), by name: sc.input.source_index.

@@ -4,12 +4,11 @@
 #include <fmt/format.h>
 #include <sqlite3.h>
 
-#include <boost/crc.hpp>
-
+#include <algorithm>
 #include <bit>
+#include <boost/crc.hpp>
 #include <cmath>
 #include <cstring>
-#include <algorithm>
 #include <filesystem>
 
 #include "sim/output_set.h"
@@ -17,14 +16,15 @@
 namespace ncosim::sim {
 
 // Whoever adds a field to EstimatorRunMetrics must add it to serialize_run/deserialize_run
-// (and bump kRunBlobFormat), or stored campaigns would silently lose it on export, resume and merge.
+// (and bump kRunBlobFormat), or stored campaigns would silently lose it on export, resume and
+// merge.
 static_assert(sizeof(EstimatorRunMetrics) == 304 || sizeof(void*) != 8,
               "EstimatorRunMetrics changed: update serialize_run/deserialize_run in sim/store.cc");
 
 namespace {
 
 constexpr std::uint32_t kRunBlobFormat = 2;  // version of the run blob (2: NEES and NIS sums)
-constexpr std::uint32_t kLinksFormat = 1;  // version of the link counters blob
+constexpr std::uint32_t kLinksFormat = 1;    // version of the link counters blob
 
 class Writer {
  public:
@@ -64,7 +64,8 @@ class Reader {
   double f64() { return std::bit_cast<double>(raw()); }
   std::size_t size() {
     const std::uint64_t v = raw();
-    if (v > in_.size() - pos_) throw StoreError("run store: corrupt run record (length beyond the record)");
+    if (v > in_.size() - pos_)
+      throw StoreError("run store: corrupt run record (length beyond the record)");
     return static_cast<std::size_t>(v);
   }
   std::string str() {
@@ -93,7 +94,8 @@ class Reader {
   std::uint64_t raw() {
     need(8);
     std::uint64_t v = 0;
-    for (int i = 0; i < 8; ++i) v |= static_cast<std::uint64_t>(static_cast<unsigned char>(in_[pos_ + i])) << (8 * i);
+    for (int i = 0; i < 8; ++i)
+      v |= static_cast<std::uint64_t>(static_cast<unsigned char>(in_[pos_ + i])) << (8 * i);
     pos_ += 8;
     return v;
   }
@@ -138,10 +140,14 @@ class Stmt {
     sqlite3_clear_bindings(st_);
   }
   std::int64_t i64(int c) const { return sqlite3_column_int64(st_, c); }
-  double f64(int c) const { return sqlite3_column_type(st_, c) == SQLITE_NULL ? std::nan("") : sqlite3_column_double(st_, c); }
+  double f64(int c) const {
+    return sqlite3_column_type(st_, c) == SQLITE_NULL ? std::nan("")
+                                                      : sqlite3_column_double(st_, c);
+  }
   std::string text(int c) const {
     const auto* p = reinterpret_cast<const char*>(sqlite3_column_blob(st_, c));
-    return p == nullptr ? std::string() : std::string(p, static_cast<std::size_t>(sqlite3_column_bytes(st_, c)));
+    return p == nullptr ? std::string()
+                        : std::string(p, static_cast<std::size_t>(sqlite3_column_bytes(st_, c)));
   }
 
  private:
@@ -178,12 +184,14 @@ CREATE VIEW estimator_runs_named AS
 // first put_runs into a store written before link counting (a --resume of one).
 constexpr const char* kLinkTable =
     "CREATE TABLE IF NOT EXISTS link_runs (case_index INTEGER NOT NULL, run INTEGER NOT NULL, "
-    "counters BLOB NOT NULL, checksum INTEGER NOT NULL, PRIMARY KEY (case_index, run)) WITHOUT ROWID;";
+    "counters BLOB NOT NULL, checksum INTEGER NOT NULL, PRIMARY KEY (case_index, run)) WITHOUT "
+    "ROWID;";
 
 // Per case: the run-averaged error against time ([run] error_curve, sim/error_curve.h), summed
 // over the runs it names. Created by the first add_curve (absent from stores written before it).
 constexpr const char* kCurveTable =
-    "CREATE TABLE IF NOT EXISTS curves (case_index INTEGER NOT NULL PRIMARY KEY, curve BLOB NOT NULL, "
+    "CREATE TABLE IF NOT EXISTS curves (case_index INTEGER NOT NULL PRIMARY KEY, curve BLOB NOT "
+    "NULL, "
     "checksum INTEGER NOT NULL);";
 
 // CRC-32 (boost::crc_32_type) of a row: a tag naming the table, the key as 8-byte little-endian
@@ -193,7 +201,8 @@ class RowSum {
   explicit RowSum(char tag) { crc_.process_byte(static_cast<unsigned char>(tag)); }
   RowSum& key(std::int64_t v) {
     unsigned char b[8];
-    for (int i = 0; i < 8; ++i) b[i] = static_cast<unsigned char>((static_cast<std::uint64_t>(v) >> (8 * i)) & 0xFF);
+    for (int i = 0; i < 8; ++i)
+      b[i] = static_cast<unsigned char>((static_cast<std::uint64_t>(v) >> (8 * i)) & 0xFF);
     crc_.process_bytes(b, sizeof b);
     return *this;
   }
@@ -208,16 +217,24 @@ class RowSum {
   boost::crc_32_type crc_;
 };
 
-std::int64_t run_sum(std::int64_t c, std::int64_t k, const std::string& blob) { return RowSum('r').key(c).key(k).bytes(blob).value(); }
+std::int64_t run_sum(std::int64_t c, std::int64_t k, const std::string& blob) {
+  return RowSum('r').key(c).key(k).bytes(blob).value();
+}
 std::int64_t links_sum(std::int64_t c, std::int64_t k, const std::string& blob) {
   return RowSum('l').key(c).key(k).bytes(blob).value();
 }
 // NaN (not measured) is stored as NULL: summed as an absent value.
 std::int64_t timing_sum(std::int64_t c, std::int64_t e, double ns) {
   if (ns == 0.0) ns = 0.0;  // SQLite reads -0.0 back as +0.0
-  return RowSum('t').key(c).key(e).key(std::isfinite(ns) ? static_cast<std::int64_t>(std::bit_cast<std::uint64_t>(ns)) : -1).value();
+  return RowSum('t')
+      .key(c)
+      .key(e)
+      .key(std::isfinite(ns) ? static_cast<std::int64_t>(std::bit_cast<std::uint64_t>(ns)) : -1)
+      .value();
 }
-std::int64_t curve_sum(std::int64_t c, const std::string& blob) { return RowSum('c').key(c).bytes(blob).value(); }
+std::int64_t curve_sum(std::int64_t c, const std::string& blob) {
+  return RowSum('c').key(c).bytes(blob).value();
+}
 std::int64_t artifact_sum(const std::string& name, const std::string& content) {
   return RowSum('a').bytes(name).bytes(content).value();
 }
@@ -266,9 +283,11 @@ std::string serialize_run(const RunMetrics& run) {
 RunMetrics deserialize_run(const std::string& blob) {
   Reader r(blob);
   const std::int64_t format = r.i64();
-  if (format < 1 || format > kRunBlobFormat) {  // format 1 has no NEES/NIS sums (counts 0: no column)
+  if (format < 1 ||
+      format > kRunBlobFormat) {  // format 1 has no NEES/NIS sums (counts 0: no column)
     throw StoreError(
-        fmt::format("run store: run record format {} (this ncosim reads formats 1 to {})", format, kRunBlobFormat));
+        fmt::format("run store: run record format {} (this ncosim reads formats 1 to {})", format,
+                    kRunBlobFormat));
   }
   RunMetrics run(r.size());
   for (EstimatorRunMetrics& m : run) {
@@ -327,8 +346,8 @@ RunLinks deserialize_links(const std::string& blob) {
   Reader r(blob);
   const std::int64_t format = r.i64();
   if (format != kLinksFormat) {
-    throw StoreError(
-        fmt::format("run store: link counters format {} (this ncosim reads format {})", format, kLinksFormat));
+    throw StoreError(fmt::format("run store: link counters format {} (this ncosim reads format {})",
+                                 format, kLinksFormat));
   }
   RunLinks links(r.size());
   for (models::LinkCounters& c : links) {
@@ -343,16 +362,20 @@ RunLinks deserialize_links(const std::string& blob) {
   return links;
 }
 
-std::string store_path(const std::string& dir) { return (std::filesystem::path(dir) / "runs.sqlite").string(); }
+std::string store_path(const std::string& dir) {
+  return (std::filesystem::path(dir) / "runs.sqlite").string();
+}
 
 std::string partial_store_path(const std::string& dir) {
   const std::filesystem::path folder = output_set_folder(dir);
-  return (folder.parent_path() / fmt::format(".{}.partial.sqlite", folder.filename().string())).string();
+  return (folder.parent_path() / fmt::format(".{}.partial.sqlite", folder.filename().string()))
+      .string();
 }
 
 void remove_store_files(const std::string& path) {
   std::error_code ec;
-  for (const char* suffix : {"", "-wal", "-shm", "-journal"}) std::filesystem::remove(path + suffix, ec);
+  for (const char* suffix : {"", "-wal", "-shm", "-journal"})
+    std::filesystem::remove(path + suffix, ec);
 }
 
 RunStore& RunStore::operator=(RunStore&& o) noexcept {
@@ -462,7 +485,8 @@ RunStore RunStore::open(const std::string& path, bool writable) {
   namespace fs = std::filesystem;
   std::error_code ec;
   if (!fs::exists(path, ec)) throw StoreError(fmt::format("no run store at '{}'", path));
-  if (!fs::is_regular_file(path, ec)) throw StoreError(fmt::format("'{}' is not an ncosim run store (not a regular file)", path));
+  if (!fs::is_regular_file(path, ec))
+    throw StoreError(fmt::format("'{}' is not an ncosim run store (not a regular file)", path));
   RunStore s;
   s.path_ = path;
   s.writable_ = writable;
@@ -489,8 +513,8 @@ RunStore RunStore::open(const std::string& path, bool writable) {
     // immutable=1 ignores locks and journals: only for a store that is complete on its own (no
     // -wal, no hot -journal) which could not be opened because nothing can be written beside it.
     const int primary = code & 0xFF;
-    if (writable || (primary != SQLITE_CANTOPEN && primary != SQLITE_READONLY) || fs::exists(path + "-wal", ec) ||
-        fs::exists(path + "-journal", ec)) {
+    if (writable || (primary != SQLITE_CANTOPEN && primary != SQLITE_READONLY) ||
+        fs::exists(path + "-wal", ec) || fs::exists(path + "-journal", ec)) {
       throw StoreError(fmt::format("cannot read the run store '{}': {}", path, why));
     }
     try {
@@ -498,8 +522,9 @@ RunStore RunStore::open(const std::string& path, bool writable) {
       marker = read_marker(s);
     } catch (const StoreError& e2) {
       const bool not_db2 = s.db_ != nullptr && sqlite3_errcode(s.db_) == SQLITE_NOTADB;
-      throw StoreError(not_db2 ? fmt::format("'{}' is not an ncosim run store", path)
-                               : fmt::format("cannot read the run store '{}': {}", path, e2.what()));
+      throw StoreError(not_db2
+                           ? fmt::format("'{}' is not an ncosim run store", path)
+                           : fmt::format("cannot read the run store '{}': {}", path, e2.what()));
     }
   }
   if (!marker) throw StoreError(fmt::format("'{}' is not an ncosim run store", path));
@@ -510,23 +535,27 @@ RunStore RunStore::open(const std::string& path, bool writable) {
     if (f.step()) {
       const std::string v = f.text(0);
       if (v != "1" && v != "2" && v != "3") {
-        throw StoreError(fmt::format("run store '{}': store format '{}' (this ncosim reads formats {} to {}); use "
-                                     "the ncosim that wrote it",
-                                     path, v.substr(0, 40), kOldestFormat, kFormat));
+        throw StoreError(fmt::format(
+            "run store '{}': store format '{}' (this ncosim reads formats {} to {}); use "
+            "the ncosim that wrote it",
+            path, v.substr(0, 40), kOldestFormat, kFormat));
       }
       format = v[0] - '0';
     }
   }
   s.checksums_ = format >= 3;
-  if (s.checksums_ && !(has_column(s.db_, "runs", "checksum") && has_column(s.db_, "timing", "checksum") &&
-                        has_column(s.db_, "artifacts", "checksum"))) {
-    throw StoreError(fmt::format("run store '{}': format 3 without its checksum columns (the store is damaged)", path));
+  if (s.checksums_ &&
+      !(has_column(s.db_, "runs", "checksum") && has_column(s.db_, "timing", "checksum") &&
+        has_column(s.db_, "artifacts", "checksum"))) {
+    throw StoreError(fmt::format(
+        "run store '{}': format 3 without its checksum columns (the store is damaged)", path));
   }
   if (writable) {
     if (format != kFormat) {
-      throw StoreError(fmt::format("run store '{}' is of format {}, written by an older ncosim; it can be exported "
-                                   "and merged, not extended (run the campaign afresh)",
-                                   path, format));
+      throw StoreError(fmt::format(
+          "run store '{}' is of format {}, written by an older ncosim; it can be exported "
+          "and merged, not extended (run the campaign afresh)",
+          path, format));
     }
     s.exec("PRAGMA journal_mode=WAL; PRAGMA synchronous=FULL;");
   }
@@ -549,10 +578,13 @@ void RunStore::set_meta(const std::string& key, const std::string& value) {
 void RunStore::put_estimators(std::size_t case_index, const std::vector<std::string>& names) {
   exec("BEGIN");
   try {
-    Stmt st(db_, "INSERT OR REPLACE INTO estimators (case_index, estimator, name) VALUES (?, ?, ?)");
+    Stmt st(db_,
+            "INSERT OR REPLACE INTO estimators (case_index, estimator, name) VALUES (?, ?, ?)");
     for (std::size_t e = 0; e < names.size(); ++e) {
       st.reset();
-      st.bind(1, static_cast<std::int64_t>(case_index)).bind(2, static_cast<std::int64_t>(e)).bind(3, names[e]);
+      st.bind(1, static_cast<std::int64_t>(case_index))
+          .bind(2, static_cast<std::int64_t>(e))
+          .bind(3, names[e]);
       st.step();
     }
   } catch (...) {
@@ -568,9 +600,11 @@ void RunStore::put_runs(const std::vector<StoredRun>& batch) {
   try {
     exec(kLinkTable);
     Stmt run(db_, "INSERT INTO runs (case_index, run, metrics, checksum) VALUES (?, ?, ?, ?)");
-    Stmt links(db_, "INSERT INTO link_runs (case_index, run, counters, checksum) VALUES (?, ?, ?, ?)");
+    Stmt links(db_,
+               "INSERT INTO link_runs (case_index, run, counters, checksum) VALUES (?, ?, ?, ?)");
     Stmt est(db_,
-             "INSERT INTO estimator_runs (case_index, run, estimator, mse, mse_ext, periods, samples_used, "
+             "INSERT INTO estimator_runs (case_index, run, estimator, mse, mse_ext, periods, "
+             "samples_used, "
              "samples_taken, diverged, status) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
     for (const StoredRun& r : batch) {
       const auto c = static_cast<std::int64_t>(r.case_index);
@@ -618,35 +652,43 @@ std::int64_t RunStore::count_runs() const {
   return st.i64(0);
 }
 
-std::vector<std::pair<std::uint64_t, RunMetrics>> RunStore::load_case(std::size_t case_index) const {
+std::vector<std::pair<std::uint64_t, RunMetrics>> RunStore::load_case(
+    std::size_t case_index) const {
   std::vector<std::pair<std::uint64_t, RunMetrics>> out;
-  Stmt st(db_, checksums_ ? "SELECT run, metrics, checksum FROM runs WHERE case_index = ? ORDER BY run"
-                          : "SELECT run, metrics, 0 FROM runs WHERE case_index = ? ORDER BY run");
+  Stmt st(db_, checksums_
+                   ? "SELECT run, metrics, checksum FROM runs WHERE case_index = ? ORDER BY run"
+                   : "SELECT run, metrics, 0 FROM runs WHERE case_index = ? ORDER BY run");
   const auto c = static_cast<std::int64_t>(case_index);
   st.bind(1, c);
   while (st.step()) {
     const std::string blob = st.text(1);
-    if (checksums_) check_sum(run_sum(c, st.i64(0), blob), st.i64(2), fmt::format("run {} of case {}", st.i64(0), c + 1));
+    if (checksums_)
+      check_sum(run_sum(c, st.i64(0), blob), st.i64(2),
+                fmt::format("run {} of case {}", st.i64(0), c + 1));
     out.emplace_back(static_cast<std::uint64_t>(st.i64(0)), deserialize_run(blob));
   }
   return out;
 }
 
-std::vector<std::pair<std::uint64_t, RunLinks>> RunStore::load_case_links(std::size_t case_index) const {
+std::vector<std::pair<std::uint64_t, RunLinks>> RunStore::load_case_links(
+    std::size_t case_index) const {
   std::vector<std::pair<std::uint64_t, RunLinks>> out;
   {
     Stmt t(db_, "SELECT count(*) FROM sqlite_master WHERE type = 'table' AND name = 'link_runs'");
     t.step();
     if (t.i64(0) == 0) return out;  // a store written before link counting
   }
-  Stmt st(db_, checksums_ ? "SELECT run, counters, checksum FROM link_runs WHERE case_index = ? ORDER BY run"
-                          : "SELECT run, counters, 0 FROM link_runs WHERE case_index = ? ORDER BY run");
+  Stmt st(db_,
+          checksums_
+              ? "SELECT run, counters, checksum FROM link_runs WHERE case_index = ? ORDER BY run"
+              : "SELECT run, counters, 0 FROM link_runs WHERE case_index = ? ORDER BY run");
   const auto c = static_cast<std::int64_t>(case_index);
   st.bind(1, c);
   while (st.step()) {
     const std::string blob = st.text(1);
     if (checksums_) {
-      check_sum(links_sum(c, st.i64(0), blob), st.i64(2), fmt::format("the link counters of run {} of case {}", st.i64(0), c + 1));
+      check_sum(links_sum(c, st.i64(0), blob), st.i64(2),
+                fmt::format("the link counters of run {} of case {}", st.i64(0), c + 1));
     }
     out.emplace_back(static_cast<std::uint64_t>(st.i64(0)), deserialize_links(blob));
   }
@@ -656,7 +698,9 @@ std::vector<std::pair<std::uint64_t, RunLinks>> RunStore::load_case_links(std::s
 void RunStore::put_timing(std::size_t case_index, const std::vector<double>& ns) {
   exec("BEGIN");
   try {
-    Stmt st(db_, "INSERT OR REPLACE INTO timing (case_index, estimator, ns_per_period, checksum) VALUES (?, ?, ?, ?)");
+    Stmt st(db_,
+            "INSERT OR REPLACE INTO timing (case_index, estimator, ns_per_period, checksum) VALUES "
+            "(?, ?, ?, ?)");
     for (std::size_t e = 0; e < ns.size(); ++e) {
       st.reset();
       const auto c = static_cast<std::int64_t>(case_index);
@@ -673,8 +717,9 @@ void RunStore::put_timing(std::size_t case_index, const std::vector<double>& ns)
 
 std::vector<double> RunStore::timing(std::size_t case_index, std::size_t estimators) const {
   std::vector<double> out(estimators, std::nan(""));
-  Stmt st(db_, checksums_ ? "SELECT estimator, ns_per_period, checksum FROM timing WHERE case_index = ?"
-                          : "SELECT estimator, ns_per_period, 0 FROM timing WHERE case_index = ?");
+  Stmt st(db_, checksums_
+                   ? "SELECT estimator, ns_per_period, checksum FROM timing WHERE case_index = ?"
+                   : "SELECT estimator, ns_per_period, 0 FROM timing WHERE case_index = ?");
   const auto c = static_cast<std::int64_t>(case_index);
   st.bind(1, c);
   while (st.step()) {
@@ -715,11 +760,13 @@ ErrorCurve RunStore::curve(std::size_t case_index) const {
   st.bind(1, c);
   if (!st.step()) return {};
   const std::string blob = st.text(0);
-  check_sum(curve_sum(c, blob), st.i64(1), fmt::format("the error curve of case {}", case_index + 1));
+  check_sum(curve_sum(c, blob), st.i64(1),
+            fmt::format("the error curve of case {}", case_index + 1));
   try {
     return ErrorCurve::deserialize(blob);
   } catch (const std::runtime_error& e) {
-    throw StoreError(fmt::format("run store {}: the error curve of case {}: {}", path_, case_index + 1, e.what()));
+    throw StoreError(fmt::format("run store {}: the error curve of case {}: {}", path_,
+                                 case_index + 1, e.what()));
   }
 }
 
@@ -731,9 +778,12 @@ void RunStore::put_artifact(const std::string& name, const std::string& content)
 
 std::map<std::string, std::string> RunStore::artifacts() const {
   std::map<std::string, std::string> out;
-  Stmt st(db_, checksums_ ? "SELECT name, content, checksum FROM artifacts" : "SELECT name, content, 0 FROM artifacts");
+  Stmt st(db_, checksums_ ? "SELECT name, content, checksum FROM artifacts"
+                          : "SELECT name, content, 0 FROM artifacts");
   while (st.step()) {
-    if (checksums_) check_sum(artifact_sum(st.text(0), st.text(1)), st.i64(2), fmt::format("the stored file '{}'", st.text(0)));
+    if (checksums_)
+      check_sum(artifact_sum(st.text(0), st.text(1)), st.i64(2),
+                fmt::format("the stored file '{}'", st.text(0)));
     out[st.text(0)] = st.text(1);
   }
   return out;
@@ -746,32 +796,39 @@ std::string RunStore::integrity_check() const {
   return out;
 }
 
-void RunStore::check_sum(std::int64_t computed, std::int64_t stored, const std::string& what) const {
+void RunStore::check_sum(std::int64_t computed, std::int64_t stored,
+                         const std::string& what) const {
   if (computed != stored) {
-    throw StoreError(fmt::format("run store '{}': {} fails its checksum (stored {}, computed {}): the store is "
-                                 "damaged; re-run the campaign, or the damaged shard",
-                                 path_, what, stored, computed));
+    throw StoreError(
+        fmt::format("run store '{}': {} fails its checksum (stored {}, computed {}): the store is "
+                    "damaged; re-run the campaign, or the damaged shard",
+                    path_, what, stored, computed));
   }
 }
 
 void RunStore::verify(std::size_t cases, std::uint64_t run_limit) const {
   for (const char* table : {"runs", "link_runs"}) {
     if (std::string(table) == "link_runs" && columns_of(db_, table).empty()) continue;
-    Stmt st(db_, fmt::format("SELECT case_index, run, {}, {} FROM {}", table == std::string("runs") ? "metrics" : "counters",
+    Stmt st(db_, fmt::format("SELECT case_index, run, {}, {} FROM {}",
+                             table == std::string("runs") ? "metrics" : "counters",
                              checksums_ ? "checksum" : "0", table)
                      .c_str());
     const bool is_runs = std::string(table) == "runs";
     while (st.step()) {
       const std::int64_t c = st.i64(0), k = st.i64(1);
-      if (c < 0 || static_cast<std::uint64_t>(c) >= cases || k < 0 || static_cast<std::uint64_t>(k) >= run_limit) {
-        throw StoreError(fmt::format("run store '{}': a stored run has case {} and run index {}, outside the campaign's "
-                                     "{} case(s) of runs 0..{}: the store is damaged",
-                                     path_, c + 1, k, cases, run_limit - 1));
+      if (c < 0 || static_cast<std::uint64_t>(c) >= cases || k < 0 ||
+          static_cast<std::uint64_t>(k) >= run_limit) {
+        throw StoreError(fmt::format(
+            "run store '{}': a stored run has case {} and run index {}, outside the campaign's "
+            "{} case(s) of runs 0..{}: the store is damaged",
+            path_, c + 1, k, cases, run_limit - 1));
       }
       if (checksums_) {
         const std::string blob = st.text(2);
         const std::int64_t sum = is_runs ? run_sum(c, k, blob) : links_sum(c, k, blob);
-        check_sum(sum, st.i64(3), fmt::format("{}run {} of case {}", is_runs ? "" : "the link counters of ", k, c + 1));
+        check_sum(
+            sum, st.i64(3),
+            fmt::format("{}run {} of case {}", is_runs ? "" : "the link counters of ", k, c + 1));
       }
     }
   }
@@ -794,7 +851,8 @@ void RunStore::copy_to(const std::string& path) const {
   sqlite3* db = open_db(path, SQLITE_OPEN_READWRITE);
   const int jrc = sqlite3_exec(db, "PRAGMA journal_mode=DELETE", nullptr, nullptr, nullptr);
   sqlite3_close(db);
-  if (jrc != SQLITE_OK) throw StoreError(fmt::format("cannot finish the copy '{}' of the run store", path));
+  if (jrc != SQLITE_OK)
+    throw StoreError(fmt::format("cannot finish the copy '{}' of the run store", path));
 }
 
 void RunStore::close() {
@@ -812,7 +870,8 @@ void RunStore::close() {
   }
   const int rc = sqlite3_close(db_);
   db_ = nullptr;
-  if (rc != SQLITE_OK) throw StoreError(fmt::format("run store {}: close failed ({})", path_, sqlite3_errstr(rc)));
+  if (rc != SQLITE_OK)
+    throw StoreError(fmt::format("run store {}: close failed ({})", path_, sqlite3_errstr(rc)));
 }
 
 }  // namespace ncosim::sim

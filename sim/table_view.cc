@@ -35,11 +35,13 @@ std::vector<std::string> parse_column_list(const std::string& text) {
   std::size_t start = 0;
   while (true) {
     const auto comma = text.find(',', start);
-    const std::string name = trim(text.substr(start, comma == std::string::npos ? std::string::npos : comma - start));
+    const std::string name =
+        trim(text.substr(start, comma == std::string::npos ? std::string::npos : comma - start));
     if (name.empty()) {
-      throw ScenarioError(fmt::format("--columns: expected a comma-separated list of summary.csv column names, got "
-                                      "\"{}\" (an empty name)",
-                                      text));
+      throw ScenarioError(
+          fmt::format("--columns: expected a comma-separated list of summary.csv column names, got "
+                      "\"{}\" (an empty name)",
+                      text));
     }
     out.push_back(name);
     if (comma == std::string::npos) return out;
@@ -56,8 +58,9 @@ void check_table_request(const TableRequest& req, const std::vector<std::string>
     std::string list;
     for (const auto& v : valid_columns) list += (list.empty() ? "" : ", ") + v;
     const std::string hint = did_you_mean(c, valid_columns);
-    throw ScenarioError(fmt::format("--columns: no summary.csv column \"{}\"{} (this campaign's columns: {})", c,
-                                    hint.empty() ? "" : fmt::format(" (did you mean \"{}\"?)", hint), list));
+    throw ScenarioError(
+        fmt::format("--columns: no summary.csv column \"{}\"{} (this campaign's columns: {})", c,
+                    hint.empty() ? "" : fmt::format(" (did you mean \"{}\"?)", hint), list));
   }
 }
 
@@ -102,8 +105,11 @@ std::vector<Footnote> make_footnotes(std::vector<ViewColumn>& cols) {
   for (auto& col : cols) {
     for (std::size_t r = 0; r < col.cells.size(); ++r) {
       std::string& cell = col.cells[r];
-      if (col.priority == 0 || (!col.note && width_of(cell) <= kLongCell) || cell.empty() || cell == "–") continue;
-      auto [head, tail] = col.note ? split_note(cell) : std::pair<std::string, std::string>{cell, ""};
+      if (col.priority == 0 || (!col.note && width_of(cell) <= kLongCell) || cell.empty() ||
+          cell == "–")
+        continue;
+      auto [head, tail] =
+          col.note ? split_note(cell) : std::pair<std::string, std::string>{cell, ""};
       auto [it, added] = index.emplace(head, notes.size());
       if (added) notes.push_back(Footnote{head, {}});
       notes[it->second].tails.emplace_back(r, tail);
@@ -113,18 +119,20 @@ std::vector<Footnote> make_footnotes(std::vector<ViewColumn>& cols) {
   return notes;
 }
 
-std::string footnote_text(const std::vector<Footnote>& notes, const std::vector<std::string>& row_labels,
-                          std::size_t width) {
+std::string footnote_text(const std::vector<Footnote>& notes,
+                          const std::vector<std::string>& row_labels, std::size_t width) {
   std::string out;
   for (std::size_t k = 0; k < notes.size(); ++k) {
     const auto& n = notes[k];
     bool same = true;  // every row's tail the same: printed once with the head
     for (const auto& t : n.tails) same = same && t.second == n.tails.front().second;
-    const std::string tail = same && !n.tails.front().second.empty() ? ": " + n.tails.front().second : "";
+    const std::string tail =
+        same && !n.tails.front().second.empty() ? ": " + n.tails.front().second : "";
     out += wrap_text(fmt::format("[{}] {}{}{}", k + 1, n.head, tail, same ? "" : ":"), width, 4);
     if (same) continue;
     for (const auto& [r, t] : n.tails) {
-      out += wrap_text(fmt::format("    {}: {}", r < row_labels.size() ? row_labels[r] : "", t), width, 6);
+      out += wrap_text(fmt::format("    {}: {}", r < row_labels.size() ? row_labels[r] : "", t),
+                       width, 6);
     }
   }
   return out;
@@ -160,14 +168,15 @@ std::string render(const std::vector<ViewColumn>& cols) {
   for (const auto w : wid) sep += std::string(w + 2, '-') + "|";
   out += sep + "\n";
   const std::size_t rows = cols.empty() ? 0 : cols.front().cells.size();
-  for (std::size_t r = 0; r < rows; ++r) out += line([&](std::size_t i) { return cols[i].cells[r]; });
+  for (std::size_t r = 0; r < rows; ++r)
+    out += line([&](std::size_t i) { return cols[i].cells[r]; });
   return out;
 }
 
 }  // namespace
 
-std::string fit_table(std::vector<ViewColumn> cols, const std::vector<std::string>& row_labels, std::size_t width,
-                      bool can_drop, std::vector<std::string>* kept) {
+std::string fit_table(std::vector<ViewColumn> cols, const std::vector<std::string>& row_labels,
+                      std::size_t width, bool can_drop, std::vector<std::string>* kept) {
   // Leave out the lowest-priority column (the rightmost of equals) until the rows fit; the
   // references are numbered again for the columns kept.
   std::vector<std::string> order;
@@ -185,7 +194,9 @@ std::string fit_table(std::vector<ViewColumn> cols, const std::vector<std::strin
     left_out.push_back(low->name);
     cols.erase(low);
   }
-  auto position = [&](const std::string& name) { return std::find(order.begin(), order.end(), name) - order.begin(); };
+  auto position = [&](const std::string& name) {
+    return std::find(order.begin(), order.end(), name) - order.begin();
+  };
   std::sort(left_out.begin(), left_out.end(),
             [&](const std::string& a, const std::string& b) { return position(a) < position(b); });
   if (kept != nullptr) {
@@ -198,10 +209,13 @@ std::string fit_table(std::vector<ViewColumn> cols, const std::vector<std::strin
   if (!left_out.empty()) {
     std::string names;
     for (const auto& n : left_out) names += (names.empty() ? "" : ", ") + n;
-    out += "\n" + wrap_text(fmt::format("Left out to fit {} columns: {} (`--columns` picks any; summary.csv has every "
-                                       "column).",
-                                       width, names),
-                           width, 4);
+    out += "\n" +
+           wrap_text(
+               fmt::format(
+                   "Left out to fit {} columns: {} (`--columns` picks any; summary.csv has every "
+                   "column).",
+                   width, names),
+               width, 4);
   }
   return out;
 }
@@ -210,10 +224,13 @@ namespace {
 
 std::string pm(std::optional<double> v, std::optional<double> ci) {
   if (!v || !std::isfinite(*v)) return "–";
-  return ci && std::isfinite(*ci) ? fmt::format("{:.4g} ± {:.2g}", *v, *ci) : fmt::format("{:.4g}", *v);
+  return ci && std::isfinite(*ci) ? fmt::format("{:.4g} ± {:.2g}", *v, *ci)
+                                  : fmt::format("{:.4g}", *v);
 }
 
-std::string num(std::optional<double> v) { return v && std::isfinite(*v) ? fmt::format("{:.4g}", *v) : "–"; }
+std::string num(std::optional<double> v) {
+  return v && std::isfinite(*v) ? fmt::format("{:.4g}", *v) : "–";
+}
 
 template <typename F>
 bool any_row(const std::vector<SummaryRow>& rows, F f) {
@@ -221,7 +238,8 @@ bool any_row(const std::vector<SummaryRow>& rows, F f) {
 }
 
 // The default columns (display order; priority: 0 identifies the row, larger goes first).
-std::vector<ViewColumn> default_columns(const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows) {
+std::vector<ViewColumn> default_columns(const std::vector<SweepAxis>& sweeps,
+                                        const std::vector<SummaryRow>& rows) {
   std::vector<ViewColumn> cols;
   auto add = [&](std::string name, std::string header, int priority, auto cell, bool note = false) {
     ViewColumn c{std::move(name), std::move(header), {}, priority, note};
@@ -234,25 +252,30 @@ std::vector<ViewColumn> default_columns(const std::vector<SweepAxis>& sweeps, co
   add("estimator", "estimator", 0, [](const SummaryRow& r) { return r.estimator; });
   add("mse", "mse ± 95% CI", 1, [](const SummaryRow& r) { return pm(r.mse, r.mse_ci95); });
   if (any_row(rows, [](const SummaryRow& r) { return r.mse_ext.has_value(); })) {
-    add("mse_ext", "mse_ext ± 95% CI", 3, [](const SummaryRow& r) { return pm(r.mse_ext, r.mse_ext_ci95); });
+    add("mse_ext", "mse_ext ± 95% CI", 3,
+        [](const SummaryRow& r) { return pm(r.mse_ext, r.mse_ext_ci95); });
   }
   if (any_row(rows, [](const SummaryRow& r) { return r.predicted_mse_ext.has_value(); })) {
-    add("predicted_mse_ext", "pred. mse_ext", 4, [](const SummaryRow& r) { return num(r.predicted_mse_ext); });
+    add("predicted_mse_ext", "pred. mse_ext", 4,
+        [](const SummaryRow& r) { return num(r.predicted_mse_ext); });
   }
   if (any_row(rows, [](const SummaryRow& r) { return r.predicted_mse.has_value(); })) {
     add("predicted_mse", "pred. mse", 6, [](const SummaryRow& r) { return num(r.predicted_mse); });
   }
   if (any_row(rows, [](const SummaryRow& r) { return r.mde_percent.has_value(); })) {
-    add("mde_percent", "MDE % ± 95% CI", 2, [](const SummaryRow& r) { return pm(r.mde_percent, r.mde_ci95); });
+    add("mde_percent", "MDE % ± 95% CI", 2,
+        [](const SummaryRow& r) { return pm(r.mde_percent, r.mde_ci95); });
   }
   add("status", "status", 1, [](const SummaryRow& r) { return status_text(r); });
   if (any_row(rows, [](const SummaryRow& r) { return r.paired.mse.diff.has_value(); })) {
     add("mse_diff", "Δmse vs ref ± CI", 5,
         [](const SummaryRow& r) { return pm(r.paired.mse.diff, r.paired.mse.diff_ci95); });
   }
-  if (!sweeps.empty() && any_row(rows, [](const SummaryRow& r) { return r.paired.case_mse.diff.has_value(); })) {
-    add("case_mse_diff", "Δmse vs ref case ± CI", 6,
-        [](const SummaryRow& r) { return pm(r.paired.case_mse.diff, r.paired.case_mse.diff_ci95); });
+  if (!sweeps.empty() &&
+      any_row(rows, [](const SummaryRow& r) { return r.paired.case_mse.diff.has_value(); })) {
+    add("case_mse_diff", "Δmse vs ref case ± CI", 6, [](const SummaryRow& r) {
+      return pm(r.paired.case_mse.diff, r.paired.case_mse.diff_ci95);
+    });
   }
   const std::size_t n = rows.empty() ? 0 : rows.front().rmse.size();
   for (std::size_t i = 0; i < n; ++i) {
@@ -260,7 +283,8 @@ std::vector<ViewColumn> default_columns(const std::vector<SweepAxis>& sweeps, co
         [i](const SummaryRow& r) { return num(r.rmse.at(i)); });
   }
   if (any_row(rows, [](const SummaryRow& r) { return !r.model_check.empty(); })) {
-    add("model_check", "note", 2, [](const SummaryRow& r) { return r.model_check; }, true);
+    add(
+        "model_check", "note", 2, [](const SummaryRow& r) { return r.model_check; }, true);
   }
   return cols;
 }
@@ -270,8 +294,10 @@ SummaryText select_columns(const SummaryText& t, const std::vector<std::string>&
   if (names.empty()) return t;
   SummaryText out{names, std::vector<std::vector<std::string>>(t.cells.size())};
   for (const auto& name : names) {
-    const auto c = static_cast<std::size_t>(std::find(t.header.begin(), t.header.end(), name) - t.header.begin());
-    for (std::size_t r = 0; r < t.cells.size(); ++r) out.cells[r].push_back(c < t.header.size() ? t.cells[r][c] : "");
+    const auto c = static_cast<std::size_t>(std::find(t.header.begin(), t.header.end(), name) -
+                                            t.header.begin());
+    for (std::size_t r = 0; r < t.cells.size(); ++r)
+      out.cells[r].push_back(c < t.header.size() ? t.cells[r][c] : "");
   }
   return out;
 }
@@ -281,8 +307,8 @@ bool text_column(const std::string& name, const std::vector<SweepAxis>& sweeps) 
   for (const auto& s : sweeps) {
     if (s.key == name) return true;
   }
-  for (const char* c : {"estimator", "kind", "status", "paired_reference", "reference_case", "model_check", "stop",
-                        "expected_status"}) {
+  for (const char* c : {"estimator", "kind", "status", "paired_reference", "reference_case",
+                        "model_check", "stop", "expected_status"}) {
     if (name == c) return true;
   }
   return false;
@@ -296,16 +322,19 @@ std::string json_rows(const SummaryText& t, const std::vector<SweepAxis>& sweeps
       const std::string& s = cells[i];
       char* end = nullptr;
       const double v = s.empty() ? 0.0 : std::strtod(s.c_str(), &end);
-      if (text_column(t.header[i], sweeps)) row[t.header[i]] = s;
-      else if (s.empty()) row[t.header[i]] = nullptr;
-      else if (end != nullptr && *end == '\0' && std::isfinite(v)) row[t.header[i]] = v;
-      else row[t.header[i]] = s;
+      if (text_column(t.header[i], sweeps))
+        row[t.header[i]] = s;
+      else if (s.empty())
+        row[t.header[i]] = nullptr;
+      else if (end != nullptr && *end == '\0' && std::isfinite(v))
+        row[t.header[i]] = v;
+      else
+        row[t.header[i]] = s;
     }
     arr.push_back(std::move(row));
   }
   return arr.dump(2) + "\n";
 }
-
 
 std::vector<ViewColumn> text_columns(const SummaryText& t) {
   std::vector<ViewColumn> cols;
@@ -328,9 +357,9 @@ std::string paired_line(const std::string& summary_md) {
 
 }  // namespace
 
-std::string stdout_table(const TableRequest& req, const std::string& title, const std::vector<SweepAxis>& sweeps,
-                         const std::vector<SummaryRow>& rows, Eigen::Index n, const std::string& summary_md,
-                         const std::string& extras) {
+std::string stdout_table(const TableRequest& req, const std::string& title,
+                         const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows,
+                         Eigen::Index n, const std::string& summary_md, const std::string& extras) {
   const SummaryText chosen = select_columns(summary_text(sweeps, rows, n), req.columns);
   if (req.format == "csv") return summary_text_csv(chosen);
   if (req.format == "json") return json_rows(chosen, sweeps);
@@ -355,7 +384,8 @@ std::string stdout_table(const TableRequest& req, const std::string& title, cons
   std::size_t start = 0;  // the extras, each line wrapped
   while (start < extras.size()) {
     const auto end = extras.find('\n', start);
-    const std::string l = extras.substr(start, end == std::string::npos ? std::string::npos : end - start);
+    const std::string l =
+        extras.substr(start, end == std::string::npos ? std::string::npos : end - start);
     out += l.empty() ? "\n" : wrap_text(l, req.width, 0);
     if (end == std::string::npos) break;
     start = end + 1;

@@ -34,8 +34,8 @@ struct ViewColumn {
   std::string name;    // the summary.csv column (named when left out)
   std::string header;  // as shown
   std::vector<std::string> cells;
-  int priority = 0;    // 0: never left out (identifies the row); larger: left out first
-  bool note = false;   // long text: every cell becomes a footnote reference [k]
+  int priority = 0;   // 0: never left out (identifies the row); larger: left out first
+  bool note = false;  // long text: every cell becomes a footnote reference [k]
 };
 
 // The columns as a table of at most `width` characters per line (none left out when
@@ -44,14 +44,14 @@ struct ViewColumn {
 // `row_labels`), and a line (wrapped at `width`) naming the columns left out. Never wraps a
 // table row. `kept` (optional) receives the names of the columns shown.
 inline constexpr std::size_t kLongCell = 28;
-std::string fit_table(std::vector<ViewColumn> cols, const std::vector<std::string>& row_labels, std::size_t width,
-                      bool can_drop, std::vector<std::string>* kept = nullptr);
+std::string fit_table(std::vector<ViewColumn> cols, const std::vector<std::string>& row_labels,
+                      std::size_t width, bool can_drop, std::vector<std::string>* kept = nullptr);
 
 // Everything `run` prints on stdout before its closing line. `summary_md` is summary.md's text;
 // `extras` the lines it has after the table (stopping rule, partial results).
-std::string stdout_table(const TableRequest& req, const std::string& title, const std::vector<SweepAxis>& sweeps,
-                         const std::vector<SummaryRow>& rows, Eigen::Index n, const std::string& summary_md,
-                         const std::string& extras);
+std::string stdout_table(const TableRequest& req, const std::string& title,
+                         const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows,
+                         Eigen::Index n, const std::string& summary_md, const std::string& extras);
 
 // `text` wrapped at spaces to lines of at most `width` characters, continuation lines indented
 // by `indent` spaces (a word longer than a line stays whole).

@@ -55,7 +55,8 @@ double free_space_db(double d, double frequency) {
 double Channel::reception_probability(double d) const {
   const double margin_db = threshold_dbm - mean_rx_dbm(d);  // threshold above the mean (dB)
   switch (fading.kind) {
-    case Fading::Kind::kNone: return margin_db <= 0.0 ? 1.0 : 0.0;
+    case Fading::Kind::kNone:
+      return margin_db <= 0.0 ? 1.0 : 0.0;
     case Fading::Kind::kLognormal:
       if (fading.sigma_db == 0.0) return margin_db <= 0.0 ? 1.0 : 0.0;
       return 0.5 * std::erfc(margin_db / (fading.sigma_db * std::numbers::sqrt2));
@@ -93,14 +94,18 @@ double DelayLaw::cdf(double x) const {
 
 std::string DelayLaw::describe() const {
   if (kind == Kind::kCv2xMode4) {
-    return fmt::format("C-V2X mode 4: access delay uniform in [{:g}, {:g}] ms, plus d/c", t1 * 1e3, t2 * 1e3);
+    return fmt::format("C-V2X mode 4: access delay uniform in [{:g}, {:g}] ms, plus d/c", t1 * 1e3,
+                       t2 * 1e3);
   }
   const double base = sifs + aifsn * slot + frame_time();
   std::string s = fmt::format(
-      "802.11p (10 MHz): AIFS {:g} us (SIFS {:g} + {} x {:g} us slots) + frame {:g} us ({} bytes at {:g} Mbit/s)",
-      (sifs + aifsn * slot) * 1e6, sifs * 1e6, aifsn, slot * 1e6, frame_time() * 1e6, size, rate * 1e-6);
+      "802.11p (10 MHz): AIFS {:g} us (SIFS {:g} + {} x {:g} us slots) + frame {:g} us ({} bytes "
+      "at {:g} Mbit/s)",
+      (sifs + aifsn * slot) * 1e6, sifs * 1e6, aifsn, slot * 1e6, frame_time() * 1e6, size,
+      rate * 1e-6);
   if (backoff) {
-    s += fmt::format(" + backoff uniform in 0..{} slots (max {:g} us)", cw, (base + cw * slot) * 1e6);
+    s += fmt::format(" + backoff uniform in 0..{} slots (max {:g} us)", cw,
+                     (base + cw * slot) * 1e6);
   } else {
     s += fmt::format(" = {:g} us", base * 1e6);
   }
@@ -216,7 +221,8 @@ Channel read_channel(const sim::Table& t) {
       c.fading.kind = Fading::Kind::kLognormal;
       c.fading.sigma_db = t.number("sigma");
       if (!(c.fading.sigma_db >= 0.0 && c.fading.sigma_db <= 100.0)) {
-        t.fail("sigma", fmt::format("expected a standard deviation in dB in [0, 100], got {}", c.fading.sigma_db));
+        t.fail("sigma", fmt::format("expected a standard deviation in dB in [0, 100], got {}",
+                                    c.fading.sigma_db));
       }
     } else if (f == "nakagami") {
       c.fading.kind = Fading::Kind::kNakagami;
@@ -232,14 +238,17 @@ Channel read_channel(const sim::Table& t) {
     for (double m : c.fading.m) {
       // The received power is Gamma(m, mean/m) for any m > 0. The textbook Nakagami-m model has
       // m >= 0.5, but measured fits go below it (Artery's defaults for Cheng et al.: 0.45, 0.32).
-      if (!(m > 0.0 && m <= 1000.0)) t.fail("m", fmt::format("expected Nakagami shapes in (0, 1000], got {}", m));
+      if (!(m > 0.0 && m <= 1000.0))
+        t.fail("m", fmt::format("expected Nakagami shapes in (0, 1000], got {}", m));
     }
     if (c.fading.m_bounds.size() + 1 != c.fading.m.size()) {
-      t.fail("m_bounds", fmt::format("expected {} bin edges for {} shapes, got {}", c.fading.m.size() - 1,
-                                     c.fading.m.size(), c.fading.m_bounds.size()));
+      t.fail("m_bounds",
+             fmt::format("expected {} bin edges for {} shapes, got {}", c.fading.m.size() - 1,
+                         c.fading.m.size(), c.fading.m_bounds.size()));
     }
     for (std::size_t i = 0; i < c.fading.m_bounds.size(); ++i) {
-      if (!(c.fading.m_bounds[i] > 0.0) || (i > 0 && c.fading.m_bounds[i] <= c.fading.m_bounds[i - 1])) {
+      if (!(c.fading.m_bounds[i] > 0.0) ||
+          (i > 0 && c.fading.m_bounds[i] <= c.fading.m_bounds[i - 1])) {
         t.fail("m_bounds", fmt::format("expected increasing positive distances (m), got {}",
                                        fmt::join(c.fading.m_bounds, ", ")));
       }
@@ -250,23 +259,29 @@ Channel read_channel(const sim::Table& t) {
   if (mac == "80211p") {
     d.kind = DelayLaw::Kind::k80211p;
     d.rate = t.number_or("rate", 6.0) * 1e6;
-    if (!(d.rate >= 1e6 && d.rate <= 54e6)) t.fail("rate", fmt::format("expected a rate in Mbit/s in [1, 54], got {}", d.rate * 1e-6));
+    if (!(d.rate >= 1e6 && d.rate <= 54e6))
+      t.fail("rate", fmt::format("expected a rate in Mbit/s in [1, 54], got {}", d.rate * 1e-6));
     const auto size = t.integer_or("size", d.size);
-    if (size < 1 || size > 65535) t.fail("size", fmt::format("expected a frame size in bytes in 1..65535, got {}", size));
+    if (size < 1 || size > 65535)
+      t.fail("size", fmt::format("expected a frame size in bytes in 1..65535, got {}", size));
     d.size = static_cast<int>(size);
     const auto aifsn = t.integer_or("aifsn", d.aifsn);
-    if (aifsn < 1 || aifsn > 15) t.fail("aifsn", fmt::format("expected an integer in 1..15, got {}", aifsn));
+    if (aifsn < 1 || aifsn > 15)
+      t.fail("aifsn", fmt::format("expected an integer in 1..15, got {}", aifsn));
     d.aifsn = static_cast<int>(aifsn);
     const auto cw = t.integer_or("cw", d.cw);
-    if (cw < 0 || cw > 1023) t.fail("cw", fmt::format("expected an integer in 0..1023, got {}", cw));
+    if (cw < 0 || cw > 1023)
+      t.fail("cw", fmt::format("expected an integer in 0..1023, got {}", cw));
     d.cw = static_cast<int>(cw);
     d.backoff = t.boolean_or("backoff", false);
   } else {
     d.kind = DelayLaw::Kind::kCv2xMode4;
     d.t1 = t.number_or("t1", d.t1);
     d.t2 = t.number_or("t2", d.t2);
-    if (!(d.t1 >= 0.0 && d.t1 <= 1.0)) t.fail("t1", fmt::format("expected seconds in [0, 1], got {}", d.t1));
-    if (!(d.t2 > d.t1 && d.t2 <= 10.0)) t.fail("t2", fmt::format("expected seconds in (t1, 10], got {}", d.t2));
+    if (!(d.t1 >= 0.0 && d.t1 <= 1.0))
+      t.fail("t1", fmt::format("expected seconds in [0, 1], got {}", d.t1));
+    if (!(d.t2 > d.t1 && d.t2 <= 10.0))
+      t.fail("t2", fmt::format("expected seconds in (t1, 10], got {}", d.t2));
   }
   return c;
 }
@@ -276,7 +291,8 @@ std::string channel_table(const Channel& ch, double max_distance, double step, b
   if (csv) {
     out += "distance_m,mean_rx_dbm,p_reception\n";
   } else {
-    out += fmt::format("channel {}: tx {:g} dBm, threshold {:g} dBm\n", ch.preset, ch.tx_power_dbm, ch.threshold_dbm);
+    out += fmt::format("channel {}: tx {:g} dBm, threshold {:g} dBm\n", ch.preset, ch.tx_power_dbm,
+                       ch.threshold_dbm);
     out += fmt::format("delay: {}\n", ch.delay.describe());
     out += "no interference model: every packet is judged alone (no collisions, no SINR)\n";
     out += fmt::format("{:>10} {:>12} {:>12}\n", "d (m)", "Pr (dBm)", "p(d)");
@@ -287,17 +303,20 @@ std::string channel_table(const Channel& ch, double max_distance, double step, b
     if (csv) {
       out += fmt::format("{},{:.6f},{:.9g}\n", d, ch.mean_rx_dbm(d), ch.reception_probability(d));
     } else {
-      out += fmt::format("{:>10g} {:>12.2f} {:>12.6f}\n", d, ch.mean_rx_dbm(d), ch.reception_probability(d));
+      out += fmt::format("{:>10g} {:>12.2f} {:>12.6f}\n", d, ch.mean_rx_dbm(d),
+                         ch.reception_probability(d));
     }
   }
   return out;
 }
 
-std::string channel_gnuplot(const Channel& ch, const std::string& csv_file, const std::string& png) {
+std::string channel_gnuplot(const Channel& ch, const std::string& csv_file,
+                            const std::string& png) {
   return fmt::format(
       "# p(d) of channel preset {0}: ncosim channel {0} --csv > {1}; gnuplot this script\n"
       "set terminal pngcairo size 800,500\nset output '{2}'\nset datafile separator ','\n"
-      "set xlabel 'distance (m)'\nset ylabel 'reception probability p(d)'\nset yrange [0:1.05]\nset grid\n"
+      "set xlabel 'distance (m)'\nset ylabel 'reception probability p(d)'\nset yrange "
+      "[0:1.05]\nset grid\n"
       "plot '{1}' using 1:3 skip 1 with lines lw 2 title '{0}'\n",
       ch.preset, csv_file, png);
 }
@@ -311,7 +330,8 @@ std::uint64_t name_hash(const std::string& name) {
   return h;
 }
 
-std::uint64_t stream_key(std::uint64_t seed, std::uint64_t run, std::uint64_t sender, std::uint64_t receiver) {
+std::uint64_t stream_key(std::uint64_t seed, std::uint64_t run, std::uint64_t sender,
+                         std::uint64_t receiver) {
   using sim::splitmix64;
   return splitmix64(splitmix64(splitmix64(splitmix64(seed) ^ run) ^ sender) ^ receiver);
 }

@@ -31,9 +31,9 @@ struct PathLoss {
 struct Fading {
   enum class Kind { kNone, kLognormal, kNakagami };
   Kind kind = Kind::kNone;
-  double sigma_db = 0.0;             // lognormal
-  std::vector<double> m;             // nakagami shape per bin (m.size() = m_bounds.size() + 1)
-  std::vector<double> m_bounds;      // bin upper edges (m): m[i] applies for d < m_bounds[i]
+  double sigma_db = 0.0;         // lognormal
+  std::vector<double> m;         // nakagami shape per bin (m.size() = m_bounds.size() + 1)
+  std::vector<double> m_bounds;  // bin upper edges (m): m[i] applies for d < m_bounds[i]
   double shape(double d) const;
 };
 
@@ -49,8 +49,8 @@ struct DelayLaw {
   // `backoff` a uniform number of slots in 0..cw.
   double sifs = 32e-6, slot = 13e-6;
   int aifsn = 6, cw = 15;
-  double rate = 6e6;   // bit/s
-  int size = 300;      // bytes (MPDU)
+  double rate = 6e6;  // bit/s
+  int size = 300;     // bytes (MPDU)
   bool backoff = false;
   // C-V2X mode 4 (sensing-based semi-persistent scheduling): uniform in [t1, t2].
   double t1 = 0.001, t2 = 0.1;
@@ -95,7 +95,8 @@ std::string channel_table(const Channel& ch, double max_distance, double step, b
 std::string channel_gnuplot(const Channel& ch, const std::string& csv_file, const std::string& png);
 
 // Counter-based draws keyed by (seed, run, sender, receiver, sequence number).
-std::uint64_t stream_key(std::uint64_t seed, std::uint64_t run, std::uint64_t sender, std::uint64_t receiver);
+std::uint64_t stream_key(std::uint64_t seed, std::uint64_t run, std::uint64_t sender,
+                         std::uint64_t receiver);
 double keyed_uniform(std::uint64_t key, std::uint64_t seq, std::uint64_t draw);
 std::uint64_t name_hash(const std::string& name);
 

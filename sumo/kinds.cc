@@ -18,8 +18,9 @@ namespace {
 // send time; each packet's draws come from (seed, run, sender, receiver, sequence number).
 class DistanceLink final : public models::Link {
  public:
-  DistanceLink(std::shared_ptr<const Mobility> mobility, int sender, int receiver, double rx, double ry,
-               Channel channel, double period, std::uint64_t sender_hash, std::uint64_t receiver_hash)
+  DistanceLink(std::shared_ptr<const Mobility> mobility, int sender, int receiver, double rx,
+               double ry, Channel channel, double period, std::uint64_t sender_hash,
+               std::uint64_t receiver_hash)
       : mobility_(std::move(mobility)),
         sender_(sender),
         receiver_(receiver),
@@ -30,7 +31,9 @@ class DistanceLink final : public models::Link {
         sender_hash_(sender_hash),
         receiver_hash_(receiver_hash) {}
 
-  std::unique_ptr<models::Link> clone() const override { return std::make_unique<DistanceLink>(*this); }
+  std::unique_ptr<models::Link> clone() const override {
+    return std::make_unique<DistanceLink>(*this);
+  }
   LossModel loss_model() const override { return LossModel::kPosition; }
 
   void bind_run(const sim::MobilityRun* mobility, std::uint64_t seed, std::uint64_t run) override {
@@ -42,7 +45,8 @@ class DistanceLink final : public models::Link {
   std::int64_t transmit(sim::Rng&) override {
     const std::uint64_t seq = seq_++;
     if (run_ == nullptr) return models::kLost;
-    const double d = distance(run_->vehicle(sender_), receiver_ >= 0 ? &run_->vehicle(receiver_) : nullptr);
+    const double d =
+        distance(run_->vehicle(sender_), receiver_ >= 0 ? &run_->vehicle(receiver_) : nullptr);
     if (!(d >= 0.0)) return models::kLost;  // a vehicle not in the network
     if (keyed_uniform(key_, seq, 0) >= channel_.reception_probability(d)) return models::kLost;
     return channel_.delay_periods(d, period_, keyed_uniform(key_, seq, 1));
@@ -57,7 +61,8 @@ class DistanceLink final : public models::Link {
       ++count;
       if (!(d >= 0.0)) return;
       const double p = channel_.reception_probability(d);
-      for (int j = 0; j <= max_delay; ++j) pmf[static_cast<std::size_t>(j)] += p * channel_.delay_period_probability(d, period_, j);
+      for (int j = 0; j <= max_delay; ++j)
+        pmf[static_cast<std::size_t>(j)] += p * channel_.delay_period_probability(d, period_, j);
     });
     for (double& p : pmf) p /= static_cast<double>(std::max<std::int64_t>(count, 1));
     return pmf;
@@ -102,9 +107,11 @@ class DistanceLink final : public models::Link {
   std::uint64_t key_ = 0, seq_ = 0;
 };
 
-std::unique_ptr<models::Link> read_sumo_distance(const sim::Table& t, const models::LinkContext& ctx) {
+std::unique_ptr<models::Link> read_sumo_distance(const sim::Table& t,
+                                                 const models::LinkContext& ctx) {
   auto mobility = std::dynamic_pointer_cast<Mobility>(ctx.mobility);
-  if (!mobility) t.fail("kind", "expected a [sumo] table (the vehicles' mobility) for a sumo_distance link");
+  if (!mobility)
+    t.fail("kind", "expected a [sumo] table (the vehicles' mobility) for a sumo_distance link");
   const int sender = mobility->vehicle(t, "sender");
   const std::string sender_id = t.string("sender");
   int receiver = -1;
@@ -123,31 +130,37 @@ std::unique_ptr<models::Link> read_sumo_distance(const sim::Table& t, const mode
     ry = p[1];
     receiver_id = t.string_or("receiver_name", fmt::format("rsu@{},{}", rx, ry));
   } else {
-    t.fail_here("expected `receiver` (a vehicle id) or `receiver_position` ([x, y] of a roadside unit)");
+    t.fail_here(
+        "expected `receiver` (a vehicle id) or `receiver_position` ([x, y] of a roadside unit)");
   }
   Channel ch = read_channel(t);
-  return std::make_unique<DistanceLink>(std::move(mobility), sender, receiver, rx, ry, std::move(ch), ctx.period,
-                                        name_hash(sender_id), name_hash(receiver_id));
+  return std::make_unique<DistanceLink>(std::move(mobility), sender, receiver, rx, ry,
+                                        std::move(ch), ctx.period, name_hash(sender_id),
+                                        name_hash(receiver_id));
 }
 
 // The declared kinematic design model of a SUMO vehicle's longitudinal motion. The true
 // state (position along the route, speed[, acceleration]) comes from SUMO.
 models::LinearPlant read_sumo_vehicle(const sim::Table& t, double period) {
   t.allow("vehicle");  // bound to the mobility by the scenario reader (LinearPlant::vehicle_key)
-  const std::string model = t.choice_or("model", "constant_velocity", {"constant_velocity", "constant_acceleration"});
+  const std::string model =
+      t.choice_or("model", "constant_velocity", {"constant_velocity", "constant_acceleration"});
   const double q = t.number("q");
-  if (!(q > 0.0 && std::isfinite(q))) t.fail("q", fmt::format("expected a positive process-noise intensity, got {}", q));
+  if (!(q > 0.0 && std::isfinite(q)))
+    t.fail("q", fmt::format("expected a positive process-noise intensity, got {}", q));
   const Eigen::Index n = model == "constant_velocity" ? 2 : 3;
   Eigen::MatrixXd Ac = Eigen::MatrixXd::Zero(n, n);
   for (Eigen::Index i = 0; i + 1 < n; ++i) Ac(i, i + 1) = 1.0;
   Eigen::MatrixXd Gc = Eigen::MatrixXd::Zero(n, 1);
   Gc(n - 1, 0) = 1.0;
-  models::LinearPlant p = models::discretise(Ac, Eigen::MatrixXd::Zero(n, 0), Gc, Eigen::MatrixXd::Constant(1, 1, q), period);
+  models::LinearPlant p = models::discretise(Ac, Eigen::MatrixXd::Zero(n, 0), Gc,
+                                             Eigen::MatrixXd::Constant(1, 1, q), period);
   p.vehicle_key = "vehicle";
   p.process = models::vehicle_process;
   if (t.has("x0")) {
     p.x0 = t.vector("x0");
-    if (p.x0.size() != n) t.fail("x0", fmt::format("expected {} entries (the state size), got {}", n, p.x0.size()));
+    if (p.x0.size() != n)
+      t.fail("x0", fmt::format("expected {} entries (the state size), got {}", n, p.x0.size()));
   }
   return p;
 }
@@ -156,16 +169,20 @@ models::LinearPlant read_sumo_vehicle(const sim::Table& t, double period) {
 
 void register_links(models::LinkRegistry& registry) {
   registry.add("sumo_distance",
-               "reception p(d) from the distance between SUMO vehicles: sender, receiver | receiver_position, "
-               "preset, tx_power, threshold, fading, sigma, m, m_bounds, mac, rate, size, aifsn, cw, backoff, t1, t2",
+               "reception p(d) from the distance between SUMO vehicles: sender, receiver | "
+               "receiver_position, "
+               "preset, tx_power, threshold, fading, sigma, m, m_bounds, mac, rate, size, aifsn, "
+               "cw, backoff, t1, t2",
                read_sumo_distance);
 }
 
 void register_plants(models::PlantRegistry& registry) {
-  registry.add("sumo_vehicle",
-               "a SUMO vehicle's longitudinal motion (position, speed[, acceleration]) as true state; design "
-               "model: model = constant_velocity | constant_acceleration, q (intensity), vehicle, x0",
-               read_sumo_vehicle);
+  registry.add(
+      "sumo_vehicle",
+      "a SUMO vehicle's longitudinal motion (position, speed[, acceleration]) as true state; "
+      "design "
+      "model: model = constant_velocity | constant_acceleration, q (intensity), vehicle, x0",
+      read_sumo_vehicle);
 }
 
 std::shared_ptr<sim::MobilitySource> make_mobility(const sim::Table& t, const sim::RunSettings& run,
@@ -173,7 +190,8 @@ std::shared_ptr<sim::MobilitySource> make_mobility(const sim::Table& t, const si
   return std::make_shared<Mobility>(t, run, dir);
 }
 
-int channel_command(const std::string& preset, bool csv, bool gnuplot, double max_distance, double step) {
+int channel_command(const std::string& preset, bool csv, bool gnuplot, double max_distance,
+                    double step) {
   Channel ch;
   try {
     ch = make_preset(preset);

@@ -2,8 +2,6 @@
 // their FCD output, replay, and live runs in worker processes.
 #include "sumo/mobility.h"
 
-#include "config/input_files.h"
-
 #include <dlfcn.h>
 #include <fcntl.h>
 #include <fmt/format.h>
@@ -12,27 +10,27 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <array>
 #include <atomic>
 #include <cerrno>
-#include <cstdlib>
-
-#include <algorithm>
-#include <map>
-#include <mutex>
-#include <array>
-#include <csignal>
-#include <limits>
-#include <unordered_map>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <limits>
+#include <map>
+#include <mutex>
 #include <regex>
 #include <sstream>
 #include <thread>
+#include <unordered_map>
 
+#include "config/input_files.h"
 #include "kernel/time.h"
 #include "sumo/channel.h"
 #include "sumo/sumo.h"
@@ -70,8 +68,10 @@ std::string read_file(const fs::path& p) {
 std::vector<std::string> config_inputs(const fs::path& cfg) {
   const std::string text = read_file(cfg);
   std::vector<std::string> out;
-  static const std::regex re(R"re(<\s*(net-file|route-files|additional-files)\s+value\s*=\s*"([^"]*)")re");
-  for (auto it = std::sregex_iterator(text.begin(), text.end(), re); it != std::sregex_iterator(); ++it) {
+  static const std::regex re(
+      R"re(<\s*(net-file|route-files|additional-files)\s+value\s*=\s*"([^"]*)")re");
+  for (auto it = std::sregex_iterator(text.begin(), text.end(), re); it != std::sregex_iterator();
+       ++it) {
     std::stringstream list((*it)[2].str());
     for (std::string f; std::getline(list, f, ',');) {
       f.erase(0, f.find_first_not_of(' '));
@@ -98,10 +98,11 @@ class ReplayRun final : public sim::MobilityRun {
 };
 
 // The libsumo module (sumo/session.cc), opened on first use: $NCOSIM_SUMO_MODULE (only it,
-// when set), else the build's module (NCOSIM_SUMO_MODULE_PATH), else libncosim_sumo_session.so beside the executable.
-// Only the live worker process (`ncosim sumo-live`) opens it.
+// when set), else the build's module (NCOSIM_SUMO_MODULE_PATH), else libncosim_sumo_session.so
+// beside the executable. Only the live worker process (`ncosim sumo-live`) opens it.
 struct SessionApi {
-  sim::MobilityRun* (*start_live)(const SumoInputs*, std::uint64_t, const std::vector<std::string>*);
+  sim::MobilityRun* (*start_live)(const SumoInputs*, std::uint64_t,
+                                  const std::vector<std::string>*);
 };
 
 const SessionApi& session_api() {
@@ -149,8 +150,8 @@ std::string exit_text(int status) {
 
 // A child process: stdin and stdout /dev/null (nothing from SUMO on our stdout), stderr to
 // err_path, and `fd3` (when >= 0) as its file descriptor 3. envp: nullptr for ours.
-pid_t spawn(const std::string& exe, std::vector<std::string> argv, char* const* envp, const std::string& err_path,
-            int fd3 = -1) {
+pid_t spawn(const std::string& exe, std::vector<std::string> argv, char* const* envp,
+            const std::string& err_path, int fd3 = -1) {
   std::vector<char*> cargv;
   for (auto& a : argv) cargv.push_back(a.data());
   cargv.push_back(nullptr);
@@ -161,9 +162,11 @@ pid_t spawn(const std::string& exe, std::vector<std::string> argv, char* const* 
   posix_spawn_file_actions_addopen(&fa, 2, err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
   if (fd3 >= 0) posix_spawn_file_actions_adddup2(&fa, fd3, 3);
   pid_t pid = 0;
-  const int rc = posix_spawn(&pid, exe.c_str(), &fa, nullptr, cargv.data(), envp != nullptr ? envp : environ);
+  const int rc =
+      posix_spawn(&pid, exe.c_str(), &fa, nullptr, cargv.data(), envp != nullptr ? envp : environ);
   posix_spawn_file_actions_destroy(&fa);
-  if (rc != 0) throw std::runtime_error(fmt::format("cannot start '{}': {}", exe, std::strerror(rc)));
+  if (rc != 0)
+    throw std::runtime_error(fmt::format("cannot start '{}': {}", exe, std::strerror(rc)));
   return pid;
 }
 
@@ -206,8 +209,9 @@ struct SumoProcess {
   pid_t pid = -1;
 };
 
-SumoProcess start_sumo(const std::string& exe, char* const* envp, const SumoInputs& in, std::uint64_t seed,
-                       std::int64_t frames, const std::vector<std::string>& vehicles, const std::string& stem) {
+SumoProcess start_sumo(const std::string& exe, char* const* envp, const SumoInputs& in,
+                       std::uint64_t seed, std::int64_t frames,
+                       const std::vector<std::string>& vehicles, const std::string& stem) {
   SumoProcess p{seed, stem + ".fcd.xml", stem + ".log", -1};
   std::vector<std::string> argv{exe};
   for (auto& a : sumo_arguments(in, seed)) argv.push_back(std::move(a));
@@ -216,8 +220,9 @@ SumoProcess start_sumo(const std::string& exe, char* const* envp, const SumoInpu
   if (!vehicles.empty()) {
     std::string ids;
     for (const auto& v : vehicles) ids += (ids.empty() ? "" : ",") + v;
-    argv.insert(argv.end(), {"--fcd-output", p.fcd, "--device.fcd.explicit", ids, "--fcd-output.attributes",
-                             "x,y,speed,acceleration,odometer", "--precision", "40"});
+    argv.insert(argv.end(),
+                {"--fcd-output", p.fcd, "--device.fcd.explicit", ids, "--fcd-output.attributes",
+                 "x,y,speed,acceleration,odometer", "--precision", "40"});
   }
   try {
     p.pid = spawn(exe, argv, envp, p.log);
@@ -262,7 +267,8 @@ class FcdReader {
  public:
   FcdReader(std::string path) : path_(std::move(path)), s_(read_file(path_)) {}
 
-  Recording read(std::int64_t step_ms, std::int64_t frames, const std::vector<std::string>& vehicles) {
+  Recording read(std::int64_t step_ms, std::int64_t frames,
+                 const std::vector<std::string>& vehicles) {
     const std::size_t n = vehicles.size();
     Recording r;
     r.step_ms = step_ms;
@@ -273,7 +279,8 @@ class FcdReader {
     for (std::size_t v = 0; v < n; ++v) index.emplace(vehicles[v], v);
     std::vector<sim::VehicleState> cur(n);  // zeros before departure, the last state after arrival
     auto store = [&](std::int64_t frame) {
-      if (frame < frames) std::copy(cur.begin(), cur.end(), r.states.begin() + frame * static_cast<std::int64_t>(n));
+      if (frame < frames)
+        std::copy(cur.begin(), cur.end(), r.states.begin() + frame * static_cast<std::int64_t>(n));
     };
     skip_ws();
     if (take("<?xml")) skip_past("?>");
@@ -290,12 +297,14 @@ class FcdReader {
         }
         expect("<timestep");
         const bool empty = attributes();
-        if (attrs_.size() != 1 || attrs_[0].first != "time") fail("expected <timestep time=\"...\">");
+        if (attrs_.size() != 1 || attrs_[0].first != "time")
+          fail("expected <timestep time=\"...\">");
         const double t = number(attrs_[0].second);
         const auto ms = std::llround(t * 1000.0);
-        if (std::abs(t * 1000.0 - static_cast<double>(ms)) > 1e-6 || ms % step_ms != 0 || ms / step_ms + 1 != last + 1) {
-          fail(fmt::format("timestep time=\"{}\" where {} s (step {} ms) was expected", attrs_[0].second,
-                           ms_to_seconds(last * step_ms), step_ms));
+        if (std::abs(t * 1000.0 - static_cast<double>(ms)) > 1e-6 || ms % step_ms != 0 ||
+            ms / step_ms + 1 != last + 1) {
+          fail(fmt::format("timestep time=\"{}\" where {} s (step {} ms) was expected",
+                           attrs_[0].second, ms_to_seconds(last * step_ms), step_ms));
         }
         ++last;
         for (auto& c : cur) c.present = false;
@@ -327,7 +336,8 @@ class FcdReader {
   }
   bool skip_ws() {
     const std::size_t start = i_;
-    while (i_ < s_.size() && (s_[i_] == ' ' || s_[i_] == '\n' || s_[i_] == '\r' || s_[i_] == '\t')) ++i_;
+    while (i_ < s_.size() && (s_[i_] == ' ' || s_[i_] == '\n' || s_[i_] == '\r' || s_[i_] == '\t'))
+      ++i_;
     return i_ > start;
   }
   bool take(std::string_view t) {
@@ -336,7 +346,9 @@ class FcdReader {
     return true;
   }
   void expect(std::string_view t) {
-    if (!take(t)) fail(fmt::format("expected '{}', found '{}'", t, s_.substr(i_, std::min<std::size_t>(40, s_.size() - i_))));
+    if (!take(t))
+      fail(fmt::format("expected '{}', found '{}'", t,
+                       s_.substr(i_, std::min<std::size_t>(40, s_.size() - i_))));
   }
   void skip_past(std::string_view t) {
     const auto e = s_.find(t, i_);
@@ -359,8 +371,8 @@ class FcdReader {
       if (take(">")) return false;
       if (!ws) fail("expected whitespace, '>' or '/>'");
       const std::size_t b = i_;
-      while (i_ < s_.size() && (std::isalnum(static_cast<unsigned char>(s_[i_])) != 0 || s_[i_] == '_' ||
-                                s_[i_] == ':' || s_[i_] == '-' || s_[i_] == '.')) {
+      while (i_ < s_.size() && (std::isalnum(static_cast<unsigned char>(s_[i_])) != 0 ||
+                                s_[i_] == '_' || s_[i_] == ':' || s_[i_] == '-' || s_[i_] == '.')) {
         ++i_;
       }
       if (i_ == b) fail("expected an attribute name");
@@ -372,7 +384,8 @@ class FcdReader {
       const auto e = s_.find('"', i_);
       if (e == std::string::npos) fail("unterminated attribute value");
       std::string value = s_.substr(i_, e - i_);
-      if (value.find_first_of("<&") != std::string::npos) fail(fmt::format("unexpected '<' or '&' in {}=\"{}\"", name, value));
+      if (value.find_first_of("<&") != std::string::npos)
+        fail(fmt::format("unexpected '<' or '&' in {}=\"{}\"", name, value));
       i_ = e + 1;
       attrs_.emplace_back(std::move(name), std::move(value));
     }
@@ -386,10 +399,12 @@ class FcdReader {
     }
     return x;
   }
-  void vehicle(const std::unordered_map<std::string_view, std::size_t>& index, std::vector<char>& seen,
-               std::vector<sim::VehicleState>& cur) {
-    static constexpr std::array<std::string_view, 6> kNames{"id", "x", "y", "speed", "acceleration", "odometer"};
-    if (attrs_.size() != kNames.size()) fail("expected <vehicle id x y speed acceleration odometer/>");
+  void vehicle(const std::unordered_map<std::string_view, std::size_t>& index,
+               std::vector<char>& seen, std::vector<sim::VehicleState>& cur) {
+    static constexpr std::array<std::string_view, 6> kNames{"id",           "x",       "y", "speed",
+                                                            "acceleration", "odometer"};
+    if (attrs_.size() != kNames.size())
+      fail("expected <vehicle id x y speed acceleration odometer/>");
     std::array<const std::string*, 6> v{};
     for (const auto& [name, value] : attrs_) {
       const auto it = std::find(kNames.begin(), kNames.end(), name);
@@ -450,7 +465,8 @@ bool read_all(int fd, void* data, std::size_t n) {
 
 void put_state(std::string& buf, const sim::VehicleState& s) {
   buf.push_back(s.present ? '\1' : '\0');
-  for (double x : {s.x, s.y, s.pos, s.speed, s.accel}) buf.append(reinterpret_cast<const char*>(&x), sizeof x);
+  for (double x : {s.x, s.y, s.pos, s.speed, s.accel})
+    buf.append(reinterpret_cast<const char*>(&x), sizeof x);
 }
 
 bool send_error(int fd, const std::string& msg) {
@@ -469,16 +485,21 @@ class WorkerRun final : public sim::MobilityRun {
   WorkerRun(const SumoInputs& in, std::uint64_t seed, const std::vector<std::string>& vehicles)
       : seed_(seed), step_ns_(in.step_ms * 1'000'000), states_(vehicles.size()) {
     if (g_worker.empty()) {
-      throw std::runtime_error("SUMO live mode needs the ncosim executable as its worker (set_worker_executable)");
+      throw std::runtime_error(
+          "SUMO live mode needs the ncosim executable as its worker (set_worker_executable)");
     }
     int sv[2];
     if (::socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, sv) != 0) {
-      throw std::runtime_error(fmt::format("cannot create the SUMO live worker's socket: {}", std::strerror(errno)));
+      throw std::runtime_error(
+          fmt::format("cannot create the SUMO live worker's socket: {}", std::strerror(errno)));
     }
     fd_ = sv[0];
-    log_ = (fs::temp_directory_path() / fmt::format("ncosim-sumo-live-{}-{}.log", ::getpid(), g_live_counter++)).string();
-    std::vector<std::string> argv{g_worker, "sumo-live", "--seed", std::to_string(seed), "--step-ms",
-                                  std::to_string(in.step_ms)};
+    log_ = (fs::temp_directory_path() /
+            fmt::format("ncosim-sumo-live-{}-{}.log", ::getpid(), g_live_counter++))
+               .string();
+    std::vector<std::string> argv{g_worker,    "sumo-live",
+                                  "--seed",    std::to_string(seed),
+                                  "--step-ms", std::to_string(in.step_ms)};
     for (const auto& v : vehicles) argv.insert(argv.end(), {"--vehicle", v});
     argv.emplace_back("--");
     argv.insert(argv.end(), in.args.begin(), in.args.end());
@@ -501,12 +522,15 @@ class WorkerRun final : public sim::MobilityRun {
   void advance(sim::SimTime t) override {
     const std::int64_t target = t / step_ns_;
     if (target <= frame_) return;
-    if (pid_ < 0) throw std::runtime_error(fmt::format("SUMO live worker (seed {}) is gone", seed_));
+    if (pid_ < 0)
+      throw std::runtime_error(fmt::format("SUMO live worker (seed {}) is gone", seed_));
     if (!write_all(fd_, &target, sizeof target)) died("did not take the request");
     receive();
     frame_ = target;
   }
-  const sim::VehicleState& vehicle(int index) const override { return states_[static_cast<std::size_t>(index)]; }
+  const sim::VehicleState& vehicle(int index) const override {
+    return states_[static_cast<std::size_t>(index)];
+  }
 
  private:
   void receive() {
@@ -571,13 +595,15 @@ class WorkerRun final : public sim::MobilityRun {
 
 std::string sumo_binary() {
   if (const char* e = std::getenv("NCOSIM_SUMO_BINARY"); e != nullptr && *e != '\0') {
-    if (::access(e, X_OK) != 0) throw std::runtime_error(fmt::format("NCOSIM_SUMO_BINARY '{}' is not executable", e));
+    if (::access(e, X_OK) != 0)
+      throw std::runtime_error(fmt::format("NCOSIM_SUMO_BINARY '{}' is not executable", e));
     return e;
   }
   std::vector<fs::path> tried;
   if (const char* path = std::getenv("PATH"); path != nullptr) {
     std::stringstream dirs(path);
-    for (std::string d; std::getline(dirs, d, ':');) tried.push_back(fs::path(d.empty() ? "." : d) / "sumo");
+    for (std::string d; std::getline(dirs, d, ':');)
+      tried.push_back(fs::path(d.empty() ? "." : d) / "sumo");
   }
   if (const char* home = std::getenv("SUMO_HOME"); home != nullptr && *home != '\0') {
     tried.push_back(fs::path(home) / "bin" / "sumo");
@@ -586,12 +612,14 @@ std::string sumo_binary() {
     std::error_code ec;
     if (fs::is_regular_file(p, ec) && ::access(p.c_str(), X_OK) == 0) return p.string();
   }
-  throw std::runtime_error("cannot find the `sumo` binary on PATH or in $SUMO_HOME/bin (apt install sumo)");
+  throw std::runtime_error(
+      "cannot find the `sumo` binary on PATH or in $SUMO_HOME/bin (apt install sumo)");
 }
 
 Recording parse_fcd(const std::string& path, std::int64_t step_ms, std::int64_t frames,
                     const std::vector<std::string>& vehicles) {
-  if (!fs::is_regular_file(path)) throw std::runtime_error(fmt::format("SUMO wrote no FCD output '{}'", path));
+  if (!fs::is_regular_file(path))
+    throw std::runtime_error(fmt::format("SUMO wrote no FCD output '{}'", path));
   return FcdReader(path).read(step_ms, frames, vehicles);
 }
 
@@ -599,7 +627,8 @@ Recording record(const SumoInputs& in, std::uint64_t seed, std::int64_t frames,
                  const std::vector<std::string>& vehicles) {
   const SumoEnvironment env;
   const std::string stem =
-      (fs::temp_directory_path() / fmt::format("ncosim-sumo-{}-{}", ::getpid(), g_live_counter++)).string();
+      (fs::temp_directory_path() / fmt::format("ncosim-sumo-{}-{}", ::getpid(), g_live_counter++))
+          .string();
   SumoProcess p = start_sumo(sumo_binary(), env.ptrs.data(), in, seed, frames, vehicles, stem);
   return finish_sumo(p, in, frames, vehicles);
 }
@@ -658,13 +687,15 @@ Recording read_recording(const std::string& path) {
   if (!in) throw std::runtime_error(fmt::format("cannot open '{}'", path));
   char magic[8];
   in.read(magic, sizeof magic);
-  if (!in || std::memcmp(magic, kMagic, sizeof magic) != 0) throw std::runtime_error("not an ncosim SUMO recording");
+  if (!in || std::memcmp(magic, kMagic, sizeof magic) != 0)
+    throw std::runtime_error("not an ncosim SUMO recording");
   Recording r;
   std::uint32_t n = 0;
   get(in, r.step_ms);
   get(in, r.frames);
   get(in, n);
-  if (r.step_ms <= 0 || r.frames <= 0 || n > 100000) throw std::runtime_error("corrupt recording header");
+  if (r.step_ms <= 0 || r.frames <= 0 || n > 100000)
+    throw std::runtime_error("corrupt recording header");
   for (std::uint32_t i = 0; i < n; ++i) {
     std::uint32_t len = 0;
     get(in, len);
@@ -683,7 +714,8 @@ Recording read_recording(const std::string& path) {
   return r;
 }
 
-Mobility::Mobility(const sim::Table& t, const sim::RunSettings& run, const std::string& dir) : file_(t.file()) {
+Mobility::Mobility(const sim::Table& t, const sim::RunSettings& run, const std::string& dir)
+    : file_(t.file()) {
   auto resolve = [&](const std::string& f) {
     fs::path p(f);
     if (p.is_relative() && !dir.empty()) p = fs::path(dir) / p;
@@ -691,7 +723,8 @@ Mobility::Mobility(const sim::Table& t, const sim::RunSettings& run, const std::
   };
   auto existing = [&](std::string_view key, const std::string& f) {
     const std::string p = resolve(f);
-    if (!fs::is_regular_file(p)) t.fail(key, fmt::format("expected a readable SUMO file, got '{}' (not found)", p));
+    if (!fs::is_regular_file(p))
+      t.fail(key, fmt::format("expected a readable SUMO file, got '{}' (not found)", p));
     return p;
   };
   if (t.has("config")) {
@@ -723,12 +756,14 @@ Mobility::Mobility(const sim::Table& t, const sim::RunSettings& run, const std::
   const double step = t.number_or("step", 0.1);
   const double ms = step * 1000.0;
   if (!(step > 0.0 && step <= 3600.0) || std::abs(ms - std::round(ms)) > 1e-6 * std::max(1.0, ms)) {
-    t.fail("step", fmt::format("expected a whole number of milliseconds in (0, 3600] s (SUMO time is integer ms), got {} s",
+    t.fail("step", fmt::format("expected a whole number of milliseconds in (0, 3600] s (SUMO time "
+                               "is integer ms), got {} s",
                                step));
   }
   inputs_.step_ms = std::llround(ms);
   const auto seeds = t.integer_or("seeds", 1);
-  if (seeds < 1 || seeds > 100000) t.fail("seeds", fmt::format("expected an integer in 1..100000, got {}", seeds));
+  if (seeds < 1 || seeds > 100000)
+    t.fail("seeds", fmt::format("expected an integer in 1..100000, got {}", seeds));
   seeds_ = static_cast<int>(seeds);
   const auto first = t.integer_or("seed", 1);
   if (first < 0 || first + seeds > 2147483647) {
@@ -746,7 +781,9 @@ int Mobility::vehicle(const sim::Table& t, std::string_view key) {
   const std::string id = t.string(key);
   if (id.empty()) t.fail(key, "expected a SUMO vehicle id, got an empty string");
   if (id.find_first_of(" \t\n\r|\\'\";,<>&") != std::string::npos) {  // as SUMO's own id check
-    t.fail(key, fmt::format("expected a SUMO vehicle id (no spaces or any of |\\'\";,<>&), got \"{}\"", id));
+    t.fail(key,
+           fmt::format("expected a SUMO vehicle id (no spaces or any of |\\'\";,<>&), got \"{}\"",
+                       id));
   }
   const auto it = std::find(vehicles_.begin(), vehicles_.end(), id);
   if (it != vehicles_.end()) return static_cast<int>(it - vehicles_.begin());
@@ -783,7 +820,8 @@ std::mutex& announced_mutex() {
 }
 
 void add_unique(std::vector<std::string>& to, const std::string& v) {
-  if (v.empty() || v.find_first_of(" \t\n\r|\\'\";,<>&") != std::string::npos) return;  // Mobility::vehicle's check
+  if (v.empty() || v.find_first_of(" \t\n\r|\\'\";,<>&") != std::string::npos)
+    return;  // Mobility::vehicle's check
   if (std::find(to.begin(), to.end(), v) == to.end()) to.push_back(v);
 }
 
@@ -796,7 +834,8 @@ Recording project(const Recording& r, const std::vector<std::string>& vehicles) 
   p.vehicles = vehicles;
   std::vector<int> index;
   for (const auto& v : vehicles) {
-    index.push_back(static_cast<int>(std::find(r.vehicles.begin(), r.vehicles.end(), v) - r.vehicles.begin()));
+    index.push_back(
+        static_cast<int>(std::find(r.vehicles.begin(), r.vehicles.end(), v) - r.vehicles.begin()));
   }
   p.states.reserve(static_cast<std::size_t>(r.frames) * vehicles.size());
   for (std::int64_t f = 0; f < r.frames; ++f) {
@@ -826,7 +865,8 @@ void announce_vehicles(const toml::table& doc, const std::string& file, const st
     const sim::Table t(*sumo, "sumo", file);
     const Mobility m(t, run, dir);
     std::vector<std::string> v;
-    if (doc["plant"]["kind"].value_or(std::string()) == "sumo_vehicle") add_unique(v, doc["plant"]["vehicle"].value_or(std::string()));
+    if (doc["plant"]["kind"].value_or(std::string()) == "sumo_vehicle")
+      add_unique(v, doc["plant"]["vehicle"].value_or(std::string()));
     if (const auto* links = doc["link"].as_array()) {
       for (const auto& l : *links) {
         const auto* lt = l.as_table();
@@ -844,11 +884,13 @@ void announce_vehicles(const toml::table& doc, const std::string& file, const st
 
 void Mobility::prepare() {
   auto fail = [&](const std::string& why) {
-    throw sim::ScenarioError(sim::format_error(file_, line_, fmt::format("sumo.{}", config_key_), why));
+    throw sim::ScenarioError(
+        sim::format_error(file_, line_, fmt::format("sumo.{}", config_key_), why));
   };
   std::error_code ec;
   fs::create_directories(cache_dir_, ec);
-  if (!fs::is_directory(cache_dir_)) fail(fmt::format("cannot create the recording cache '{}'", cache_dir_));
+  if (!fs::is_directory(cache_dir_))
+    fail(fmt::format("cannot create the recording cache '{}'", cache_dir_));
   struct Job {
     std::uint64_t seed;
     std::string path;
@@ -900,9 +942,10 @@ void Mobility::prepare() {
       for (std::size_t i = b; i < std::min(missing.size(), b + width); ++i) {
         const Job& j = missing[i];
         try {
-          running.emplace_back(start_sumo(exe, env.ptrs.data(), inputs_, j.seed, frames_, record_vehicles,
-                                          fmt::format("{}.{}", j.path, ::getpid())),
-                               &j);
+          running.emplace_back(
+              start_sumo(exe, env.ptrs.data(), inputs_, j.seed, frames_, record_vehicles,
+                         fmt::format("{}.{}", j.path, ::getpid())),
+              &j);
         } catch (const std::exception& e) {
           if (first_error.empty()) first_error = e.what();
           break;
@@ -913,7 +956,8 @@ void Mobility::prepare() {
           const Recording r = finish_sumo(proc, inputs_, frames_, record_vehicles);
           if (first_error.empty()) write_recording(job->path, r);
         } catch (const std::exception& e) {
-          if (first_error.empty()) first_error = fmt::format("SUMO failed (seed {}): {}", job->seed, e.what());
+          if (first_error.empty())
+            first_error = fmt::format("SUMO failed (seed {}): {}", job->seed, e.what());
         }
       }
       if (!first_error.empty()) fail(first_error);
@@ -923,7 +967,8 @@ void Mobility::prepare() {
   for (const Job& j : jobs) {
     try {
       const Recording all = read_recording(j.path);
-      if (!holds(all, vehicles_) || all.frames != frames_) fail(fmt::format("recording '{}' does not match; remove it", j.path));
+      if (!holds(all, vehicles_) || all.frames != frames_)
+        fail(fmt::format("recording '{}' does not match; remove it", j.path));
       recordings_.push_back(project(all, vehicles_));
     } catch (const sim::ScenarioError&) {
       throw;
@@ -932,19 +977,25 @@ void Mobility::prepare() {
       fail(fmt::format("recording '{}' unreadable ({}); removed, run again", j.path, e.what()));
     }
     const Recording& r = recordings_.back();
-    if (r.vehicles != vehicles_ || r.frames != frames_) fail(fmt::format("recording '{}' does not match; remove it", j.path));
+    if (r.vehicles != vehicles_ || r.frames != frames_)
+      fail(fmt::format("recording '{}' does not match; remove it", j.path));
     for (std::size_t v = 0; v < vehicles_.size(); ++v) {
       bool seen = false;
-      for (std::int64_t f = 0; f < r.frames && !seen; ++f) seen = r.at(f, static_cast<int>(v)).present;
+      for (std::int64_t f = 0; f < r.frames && !seen; ++f)
+        seen = r.at(f, static_cast<int>(v)).present;
       if (!seen) {
         const Origin& o = origins_[v];
-        throw sim::ScenarioError(sim::format_error(o.file, o.line, o.path, fmt::format("vehicle \"{}\" never drives in SUMO (seed {}) during the {:g} s horizon: unknown id, or it "
-                         "departs later",
-                         vehicles_[v], j.seed, sim::time_to_seconds(horizon_ns_))));
+        throw sim::ScenarioError(sim::format_error(
+            o.file, o.line, o.path,
+            fmt::format("vehicle \"{}\" never drives in SUMO (seed {}) during the {:g} s horizon: "
+                        "unknown id, or it "
+                        "departs later",
+                        vehicles_[v], j.seed, sim::time_to_seconds(horizon_ns_))));
       }
     }
   }
-  std::cerr << fmt::format("sumo: {} realisation(s) recorded, {} reused (cache {})\n", recorded_, reused_, cache_dir_);
+  std::cerr << fmt::format("sumo: {} realisation(s) recorded, {} reused (cache {})\n", recorded_,
+                           reused_, cache_dir_);
 }
 
 std::unique_ptr<sim::MobilityRun> Mobility::start(std::uint64_t run) const {
@@ -973,12 +1024,17 @@ int live_worker_main(const std::vector<std::string>& args) {
         in.args.assign(args.begin() + static_cast<std::ptrdiff_t>(i) + 1, args.end());
         break;
       }
-      if (a == "--seed") seed = std::stoull(value(a));
-      else if (a == "--step-ms") in.step_ms = std::stoll(value(a));
-      else if (a == "--vehicle") vehicles.push_back(value(a));
-      else throw std::runtime_error("unknown option " + a);
+      if (a == "--seed")
+        seed = std::stoull(value(a));
+      else if (a == "--step-ms")
+        in.step_ms = std::stoll(value(a));
+      else if (a == "--vehicle")
+        vehicles.push_back(value(a));
+      else
+        throw std::runtime_error("unknown option " + a);
     }
-    if (in.step_ms < 1 || in.args.empty()) throw std::runtime_error("expected --step-ms and -- SUMO inputs");
+    if (in.step_ms < 1 || in.args.empty())
+      throw std::runtime_error("expected --step-ms and -- SUMO inputs");
     step_ns = in.step_ms * 1'000'000;
     n = vehicles.size();
     run.reset(session_api().start_live(&in, seed, &vehicles));

@@ -27,7 +27,8 @@ namespace ncosim::sumo {
 
 // What a worker needs to simulate one realisation.
 struct SumoInputs {
-  std::vector<std::string> args;   // SUMO options naming the inputs ("-c", cfg) or ("-n", net, "-r", ...)
+  std::vector<std::string>
+      args;  // SUMO options naming the inputs ("-c", cfg) or ("-n", net, "-r", ...)
   std::vector<std::string> files;  // every input file (hashed)
   std::int64_t step_ms = 100;
 };
@@ -47,14 +48,15 @@ struct Recording {
 // validation, the seed, the step and begin 0. Header-only: the libsumo module uses it too.
 inline std::vector<std::string> sumo_arguments(const SumoInputs& in, std::uint64_t seed) {
   std::vector<std::string> a = in.args;
-  for (const char* o : {"--no-step-log", "--no-warnings", "--duration-log.disable"}) a.insert(a.end(), {o, "true"});
+  for (const char* o : {"--no-step-log", "--no-warnings", "--duration-log.disable"})
+    a.insert(a.end(), {o, "true"});
   for (const char* o : {"--xml-validation", "--xml-validation.net", "--xml-validation.routes"}) {
     a.insert(a.end(), {o, "never"});
   }
   std::string ms = std::to_string(in.step_ms % 1000);
   ms.insert(0, 3 - ms.size(), '0');
-  a.insert(a.end(), {"--seed", std::to_string(seed), "--step-length", std::to_string(in.step_ms / 1000) + "." + ms,
-                     "--begin", "0"});
+  a.insert(a.end(), {"--seed", std::to_string(seed), "--step-length",
+                     std::to_string(in.step_ms / 1000) + "." + ms, "--begin", "0"});
   return a;
 }
 

@@ -47,19 +47,23 @@ class Session {
     try {
       libsumo::Simulation::step();
       for (const auto& id : libsumo::Simulation::getDepartedIDList()) {
-        if (auto it = index_.find(id); it != index_.end()) states_[static_cast<std::size_t>(it->second)].present = true;
+        if (auto it = index_.find(id); it != index_.end())
+          states_[static_cast<std::size_t>(it->second)].present = true;
       }
       // A teleporting vehicle is off the road: absent (keeping its last state) until the
       // teleport ends, exactly as SUMO's FCD output, which the recordings are made from, leaves
       // it out.
       for (const auto& id : libsumo::Simulation::getStartingTeleportIDList()) {
-        if (auto it = index_.find(id); it != index_.end()) states_[static_cast<std::size_t>(it->second)].present = false;
+        if (auto it = index_.find(id); it != index_.end())
+          states_[static_cast<std::size_t>(it->second)].present = false;
       }
       for (const auto& id : libsumo::Simulation::getEndingTeleportIDList()) {
-        if (auto it = index_.find(id); it != index_.end()) states_[static_cast<std::size_t>(it->second)].present = true;
+        if (auto it = index_.find(id); it != index_.end())
+          states_[static_cast<std::size_t>(it->second)].present = true;
       }
       for (const auto& id : libsumo::Simulation::getArrivedIDList()) {
-        if (auto it = index_.find(id); it != index_.end()) states_[static_cast<std::size_t>(it->second)].present = false;
+        if (auto it = index_.find(id); it != index_.end())
+          states_[static_cast<std::size_t>(it->second)].present = false;
       }
       for (const auto& [id, i] : index_) {
         sim::VehicleState& s = states_[static_cast<std::size_t>(i)];
@@ -110,11 +114,13 @@ class LiveRun final : public sim::MobilityRun {
 // The module's entry points (looked up by name with dlsym; C++ exceptions cross the boundary:
 // same compiler and runtime).
 extern "C" {
-ncosim::sim::MobilityRun* ncosim_sumo_start_live(const ncosim::sumo::SumoInputs* in, std::uint64_t seed,
-                                                const std::vector<std::string>* vehicles);
+ncosim::sim::MobilityRun* ncosim_sumo_start_live(const ncosim::sumo::SumoInputs* in,
+                                                 std::uint64_t seed,
+                                                 const std::vector<std::string>* vehicles);
 }
 
-ncosim::sim::MobilityRun* ncosim_sumo_start_live(const ncosim::sumo::SumoInputs* in, std::uint64_t seed,
-                                                const std::vector<std::string>* vehicles) {
+ncosim::sim::MobilityRun* ncosim_sumo_start_live(const ncosim::sumo::SumoInputs* in,
+                                                 std::uint64_t seed,
+                                                 const std::vector<std::string>* vehicles) {
   return new ncosim::sumo::LiveRun(*in, seed, *vehicles);
 }

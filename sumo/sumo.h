@@ -26,6 +26,7 @@ std::shared_ptr<sim::MobilitySource> make_mobility(const sim::Table& t, const si
 void announce_vehicles(const toml::table& doc, const std::string& file, const std::string& dir);
 
 // `ncosim channel PRESET [--csv] [--gnuplot] [--max-distance M] [--step S]`.
-int channel_command(const std::string& preset, bool csv, bool gnuplot, double max_distance, double step);
+int channel_command(const std::string& preset, bool csv, bool gnuplot, double max_distance,
+                    double step);
 
 }  // namespace ncosim::sumo

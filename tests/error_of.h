@@ -9,7 +9,9 @@
 
 namespace ncosim::testing {
 
-inline toml::table parse_toml(const std::string& text) { return toml::parse(text, std::string_view("s.toml")); }
+inline toml::table parse_toml(const std::string& text) {
+  return toml::parse(text, std::string_view("s.toml"));
+}
 
 // The ScenarioError message that `f` throws ("" when it throws none).
 template <class F>

@@ -2,15 +2,15 @@
 // to build scenarios and models in code.
 #pragma once
 
-#include <Eigen/Dense>
 #include <sys/wait.h>
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <array>
-#include <cstdio>
 #include <cmath>
-#include <limits>
+#include <cstdio>
 #include <fstream>
+#include <limits>
 #include <memory>
 #include <sstream>
 #include <string>
@@ -22,7 +22,9 @@
 
 namespace ncosim::testing {
 
-inline std::string source_path(const std::string& rel) { return std::string(NCOSIM_SOURCE_DIR) + "/" + rel; }
+inline std::string source_path(const std::string& rel) {
+  return std::string(NCOSIM_SOURCE_DIR) + "/" + rel;
+}
 
 inline std::string read_text(const std::string& path) {
   std::ifstream in(path);
@@ -65,7 +67,9 @@ inline std::string ncosim_command(const std::vector<std::string>& args) {
 }
 
 // Runs the ncosim executable with `args`: its exit status and its stdout + stderr.
-inline CommandOutcome run_ncosim(const std::vector<std::string>& args) { return run_shell(ncosim_command(args)); }
+inline CommandOutcome run_ncosim(const std::vector<std::string>& args) {
+  return run_shell(ncosim_command(args));
+}
 #endif
 
 // `text` split at newlines (no line ends kept).
@@ -103,7 +107,8 @@ struct DolzModel {
   est::Model model;
 };
 
-inline DolzModel dolz_model(const std::vector<std::vector<double>>& pmfs = {{0.3340, 0.3064}, {0.3761, 0.3403}}) {
+inline DolzModel dolz_model(const std::vector<std::vector<double>>& pmfs = {{0.3340, 0.3064},
+                                                                            {0.3761, 0.3403}}) {
   DolzModel d;
   d.model.plant = dolz_plant(3);
   const double c[2][2] = {{0.5325, 0.3987}, {0.7258, 0.3584}};
@@ -123,7 +128,8 @@ inline DolzModel dolz_model(const std::vector<std::vector<double>>& pmfs = {{0.3
 }
 
 // Loads a scenario file (with --set overrides) and returns its single case.
-inline std::unique_ptr<sim::Scenario> load_one(const std::string& file, const std::vector<std::string>& sets = {}) {
+inline std::unique_ptr<sim::Scenario> load_one(const std::string& file,
+                                               const std::vector<std::string>& sets = {}) {
   auto loaded = sim::load_cases(file, sets);
   return std::move(loaded.cases.front().scenario);
 }
@@ -191,8 +197,9 @@ inline PeerReplay replay_kf_peer(est::Estimator& kf) {
       const double err = std::abs(got[q] - v[3 + q]) / (q < 2 ? xs : ps);
       if (!(err <= r.worst)) {  // NaN counts as worst
         r.worst = std::isnan(err) ? std::numeric_limits<double>::infinity() : err;
-        r.where = "step " + std::to_string(static_cast<long long>(v[0])) + " quantity " + std::to_string(q) + ": " +
-                  std::to_string(got[q]) + " vs " + std::to_string(v[3 + q]);
+        r.where = "step " + std::to_string(static_cast<long long>(v[0])) + " quantity " +
+                  std::to_string(q) + ": " + std::to_string(got[q]) + " vs " +
+                  std::to_string(v[3 + q]);
       }
     }
     ++r.rows;

@@ -1,11 +1,12 @@
 // estimators/design/buffer_design.cc — see buffer_design.h.
 #include "estimators/design/buffer_design.h"
 
+#include <fmt/format.h>
+
 #include <Eigen/Eigenvalues>
 #include <Eigen/QR>
 #include <chrono>
 #include <cmath>
-#include <fmt/format.h>
 #include <limits>
 
 namespace ncosim::est::buffer {
@@ -15,7 +16,8 @@ namespace {
 Eigen::MatrixXd kron(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
   Eigen::MatrixXd out(a.rows() * b.rows(), a.cols() * b.cols());
   for (Eigen::Index i = 0; i < a.rows(); ++i) {
-    for (Eigen::Index j = 0; j < a.cols(); ++j) out.block(i * b.rows(), j * b.cols(), b.rows(), b.cols()) = a(i, j) * b;
+    for (Eigen::Index j = 0; j < a.cols(); ++j)
+      out.block(i * b.rows(), j * b.cols(), b.rows(), b.cols()) = a(i, j) * b;
   }
   return out;
 }
@@ -38,7 +40,8 @@ Eigen::MatrixXd kron_power(const Eigen::MatrixXd& a, int k) {
 
 // E[F^{⊗k}] for F = A prod_i (I - gamma_i K_i C_i), sensor 0 applied first: by independence and
 // the mixed-product rule, A^{⊗k} M_{S-1} ... M_0 with M_i = lambda_i G_i^{⊗k} + (1-lambda_i) I.
-Eigen::MatrixXd moment_operator(const Plant& p, const std::vector<double>& lambda, const Gains& K, int k) {
+Eigen::MatrixXd moment_operator(const Plant& p, const std::vector<double>& lambda, const Gains& K,
+                                int k) {
   const Eigen::Index n = p.A.rows();
   const Eigen::MatrixXd I = Eigen::MatrixXd::Identity(n, n);
   Eigen::MatrixXd out = kron_power(p.A, k);
@@ -73,7 +76,8 @@ Gains slot_gains(const Plant& p, const std::vector<double>& lambda, const Eigen:
   return K;
 }
 
-Eigen::MatrixXd filtered(const Plant& p, const std::vector<double>& lambda, const Gains& K, const Eigen::MatrixXd& P) {
+Eigen::MatrixXd filtered(const Plant& p, const std::vector<double>& lambda, const Gains& K,
+                         const Eigen::MatrixXd& P) {
   const Eigen::Index n = p.A.rows();
   Eigen::MatrixXd Pi = P;
   for (int i = 0; i < p.sensors(); ++i) {
@@ -85,7 +89,8 @@ Eigen::MatrixXd filtered(const Plant& p, const std::vector<double>& lambda, cons
   return Pi;
 }
 
-Eigen::MatrixXd l_op(const Plant& p, const std::vector<double>& lambda, const Gains& K, const Eigen::MatrixXd& P) {
+Eigen::MatrixXd l_op(const Plant& p, const std::vector<double>& lambda, const Gains& K,
+                     const Eigen::MatrixXd& P) {
   return sym(p.A * filtered(p, lambda, K, P) * p.A.transpose() + p.Q);
 }
 
@@ -108,7 +113,8 @@ double fourth_moment_radius(const Plant& p, const std::vector<double>& lambda, c
   return spectral_radius(moment_operator(p, lambda, K, 4));
 }
 
-std::optional<Eigen::MatrixXd> l_fixed_point(const Plant& p, const std::vector<double>& lambda, const Gains& K) {
+std::optional<Eigen::MatrixXd> l_fixed_point(const Plant& p, const std::vector<double>& lambda,
+                                             const Gains& K) {
   const Eigen::Index n = p.A.rows();
   const Eigen::MatrixXd T = moment_operator(p, lambda, K, 2);
   if (!(spectral_radius(T) < 1.0)) return std::nullopt;
@@ -121,7 +127,8 @@ std::optional<Eigen::MatrixXd> l_fixed_point(const Plant& p, const std::vector<d
   return P;
 }
 
-RiccatiFixedPoint riccati_fixed_point(const Plant& p, const std::vector<double>& lambda, int max_value_iterations) {
+RiccatiFixedPoint riccati_fixed_point(const Plant& p, const std::vector<double>& lambda,
+                                      int max_value_iterations) {
   const Eigen::Index n = p.A.rows();
   RiccatiFixedPoint out;
   Eigen::MatrixXd P = Eigen::MatrixXd::Zero(n, n);
@@ -186,7 +193,8 @@ Plant compressed(const Plant& plant) {
     r += plant.C[i].rows();
   }
   if (!W.allFinite()) return stacked(plant);
-  // W = Q T (thin QR): C' R^-1 C = W' W = T' T, so (T, I) gives the same Phi and the same row space.
+  // W = Q T (thin QR): C' R^-1 C = W' W = T' T, so (T, I) gives the same Phi and the same row
+  // space.
   const Eigen::HouseholderQR<Eigen::MatrixXd> qr(W);
   Plant s;
   s.A = plant.A;
@@ -246,7 +254,8 @@ std::vector<double> column(const std::vector<std::vector<double>>& lambda, std::
 }
 }  // namespace
 
-std::vector<Eigen::MatrixXd> covariances_of_gains(const Plant& p, const std::vector<std::vector<double>>& lambda,
+std::vector<Eigen::MatrixXd> covariances_of_gains(const Plant& p,
+                                                  const std::vector<std::vector<double>>& lambda,
                                                   const std::vector<Gains>& K) {
   const std::size_t N = lambda.front().size();
   std::vector<Eigen::MatrixXd> T(N + 1);
@@ -276,9 +285,11 @@ StaticGains design_static_gains(const Plant& p, const std::vector<std::vector<do
   if (!g.stable) {
     std::string l;
     for (const auto& li : lambda) l += fmt::format("{}{:.6g}", l.empty() ? "" : ", ", li[N - 1]);
-    g.status = fmt::format("unstable: no fixed point of Phi at lambda_{} = {} (lambda_c not exceeded)", N - 1, l);
+    g.status = fmt::format(
+        "unstable: no fixed point of Phi at lambda_{} = {} (lambda_c not exceeded)", N - 1, l);
     g.trace_V0 = std::numeric_limits<double>::infinity();
-    g.filtered = Eigen::MatrixXd::Constant(p.A.rows(), p.A.rows(), std::numeric_limits<double>::infinity());
+    g.filtered =
+        Eigen::MatrixXd::Constant(p.A.rows(), p.A.rows(), std::numeric_limits<double>::infinity());
     return g;
   }
   g.filtered = filtered(p, column(lambda, 0), g.K[0], g.V[1]);

@@ -31,10 +31,12 @@ Eigen::MatrixXd gain(const Eigen::MatrixXd& C, const Eigen::MatrixXd& R, const E
 // covariance after the corrections of sensors 0..i-1.
 Gains slot_gains(const Plant& p, const std::vector<double>& lambda, const Eigen::MatrixXd& P);
 Eigen::MatrixXd phi(const Plant& p, const std::vector<double>& lambda, const Eigen::MatrixXd& P);
-Eigen::MatrixXd l_op(const Plant& p, const std::vector<double>& lambda, const Gains& K, const Eigen::MatrixXd& P);
+Eigen::MatrixXd l_op(const Plant& p, const std::vector<double>& lambda, const Gains& K,
+                     const Eigen::MatrixXd& P);
 // Filtered covariance of a slot whose prior covariance is P, sensor i corrected with K_i with
 // probability lambda_i: per sensor lambda [(I-KC)P(I-KC)' + K R K'] + (1-lambda) P.
-Eigen::MatrixXd filtered(const Plant& p, const std::vector<double>& lambda, const Gains& K, const Eigen::MatrixXd& P);
+Eigen::MatrixXd filtered(const Plant& p, const std::vector<double>& lambda, const Gains& K,
+                         const Eigen::MatrixXd& P);
 
 // Spectral radius of the second-moment operator of e+ = A prod_i (I - gamma_i K_i C_i) e
 // (gamma_i ~ Bernoulli(lambda_i), independent): rho(E[F⊗F]).
@@ -44,7 +46,8 @@ double second_moment_radius(const Plant& p, const std::vector<double>& lambda, c
 double fourth_moment_radius(const Plant& p, const std::vector<double>& lambda, const Gains& K);
 // The fixed point T = L_lambda(K, T) (a linear equation), or nullopt when the
 // second-moment radius is >= 1 (no bounded stationary covariance).
-std::optional<Eigen::MatrixXd> l_fixed_point(const Plant& p, const std::vector<double>& lambda, const Gains& K);
+std::optional<Eigen::MatrixXd> l_fixed_point(const Plant& p, const std::vector<double>& lambda,
+                                             const Gains& K);
 
 // The fixed point of Phi_lambda (the modified algebraic Riccati equation). Value iteration
 // from 0 until the gains of an iterate make L_lambda(K, .) stable (a certificate that the
@@ -53,7 +56,7 @@ std::optional<Eigen::MatrixXd> l_fixed_point(const Plant& p, const std::vector<d
 // the iteration budget.
 struct RiccatiFixedPoint {
   bool exists = false;
-  Eigen::MatrixXd P;  // the fixed point when it exists, else the last iterate
+  Eigen::MatrixXd P;   // the fixed point when it exists, else the last iterate
   int iterations = 0;  // value + policy iterations
 };
 RiccatiFixedPoint riccati_fixed_point(const Plant& p, const std::vector<double>& lambda,
@@ -65,12 +68,12 @@ RiccatiFixedPoint riccati_fixed_point(const Plant& p, const std::vector<double>&
 // lambda = 1 (an undetectable pair), value 1 and detectable = false.
 struct CriticalProbability {
   double value = 0.0;
-  double lower_bound = 0.0;  // 1 - 1/rho(A)^2 (0 for a stable A), always a lower bound
-  double upper_bound = 0.0;  // 1 - 1/prod |unstable eigenvalues|^2 (exact when C is invertible
-                             // or for one unstable mode; not a bound in general)
+  double lower_bound = 0.0;      // 1 - 1/rho(A)^2 (0 for a stable A), always a lower bound
+  double upper_bound = 0.0;      // 1 - 1/prod |unstable eigenvalues|^2 (exact when C is invertible
+                                 // or for one unstable mode; not a bound in general)
   double spectral_radius = 0.0;  // rho(A)
   bool detectable = true;
-  int evaluations = 0;       // fixed-point existence checks
+  int evaluations = 0;  // fixed-point existence checks
   double seconds = 0.0;
 };
 CriticalProbability critical_probability_bisection(const Plant& p, double tolerance = 1e-7);
@@ -81,14 +84,14 @@ CriticalProbability critical_probability_bisection(const Plant& p, double tolera
 // delay k (0 = the newest) is corrected with K_k.
 struct StaticGains {
   int N = 0;
-  std::vector<Gains> K;                // K[k][i]: delay k, sensor i
-  std::vector<Eigen::MatrixXd> V;      // V_0 .. V_N (V_N the last value iterate when unstable)
-  bool stable = false;                 // the fixed point exists (lambda_{N-1} > lambda_c)
-  Eigen::MatrixXd filtered;            // stationary covariance of x[t] - xhat[t|t]
-  double trace_V0 = 0.0;               // the paper's Fig. 6 quantity
-  double second_moment_radius = 0.0;   // of the oldest slot's recursion (< 1 when stable)
-  double fourth_moment_radius = 0.0;   // >= 1: |e|^2 has an infinite variance
-  std::string status = "ok";           // "ok" or "unstable: ..."
+  std::vector<Gains> K;               // K[k][i]: delay k, sensor i
+  std::vector<Eigen::MatrixXd> V;     // V_0 .. V_N (V_N the last value iterate when unstable)
+  bool stable = false;                // the fixed point exists (lambda_{N-1} > lambda_c)
+  Eigen::MatrixXd filtered;           // stationary covariance of x[t] - xhat[t|t]
+  double trace_V0 = 0.0;              // the paper's Fig. 6 quantity
+  double second_moment_radius = 0.0;  // of the oldest slot's recursion (< 1 when stable)
+  double fourth_moment_radius = 0.0;  // >= 1: |e|^2 has an infinite variance
+  std::string status = "ok";          // "ok" or "unstable: ..."
 };
 // lambda[i] = lambda_0 .. lambda_{N-1} of sensor i (all of the same length N >= 1).
 StaticGains design_static_gains(const Plant& p, const std::vector<std::vector<double>>& lambda);
@@ -96,14 +99,15 @@ StaticGains design_static_gains(const Plant& p, const std::vector<std::vector<do
 // The covariances T_N = fixed point of L_{lambda_{N-1}}(K_{N-1}, .), T_k = L_{lambda_k}(K_k,
 // T_{k+1}) of any gains; T_0 is the one-step prediction covariance. Empty when the oldest
 // slot's recursion is not mean-square stable.
-std::vector<Eigen::MatrixXd> covariances_of_gains(const Plant& p, const std::vector<std::vector<double>>& lambda,
+std::vector<Eigen::MatrixXd> covariances_of_gains(const Plant& p,
+                                                  const std::vector<std::vector<double>>& lambda,
                                                   const std::vector<Gains>& K);
 
 // The same by the SDP of Schenato's eq. (37) (Sinopoli et al. 2004, Theorem 5): the fixed point
 // exists iff there are Y, Z with 0 <= Y <= I and
 //   Psi_lambda(Y, Z) = [[Y, sqrt(l)(Y A + Z C), sqrt(1-l) Y A], [*, Y, 0], [*, 0, Y]] > 0,
-// decided on CSDP (lmi/lmi.h) as the feasibility of Y >= I, Psi >= I (Psi is homogeneous in (Y, Z)).
-// Bisection on lambda in [lower bound, 1] as above. `evaluations` counts the SDPs solved; a
+// decided on CSDP (lmi/lmi.h) as the feasibility of Y >= I, Psi >= I (Psi is homogeneous in (Y,
+// Z)). Bisection on lambda in [lower bound, 1] as above. `evaluations` counts the SDPs solved; a
 // solver failure (other than infeasible) makes value NaN.
 CriticalProbability critical_probability_sdp(const Plant& p, double tolerance = 1e-7);
 
@@ -117,8 +121,8 @@ Plant stacked(const Plant& p);
 // unchanged, at a cost independent of the number of sensors (1001 stacked rows took minutes).
 Plant compressed(const Plant& p);
 
-// The start of both lambda_c computations: p with its sensors stacked (compressed), and a result holding
-// the eigenvalue bounds (lower_bound, upper_bound) of A.
+// The start of both lambda_c computations: p with its sensors stacked (compressed), and a result
+// holding the eigenvalue bounds (lower_bound, upper_bound) of A.
 CriticalProbability critical_probability_start(const Plant& plant, Plant& stacked_plant);
 
 }  // namespace ncosim::est::buffer

@@ -1,12 +1,12 @@
 // estimators/design/buffer_sdp.cc — the critical probability by the SDP of Schenato (2008),
 // eq. (37), on the LMI layer (see buffer_design.h).
+#include <Eigen/Eigenvalues>
 #include <chrono>
 #include <cmath>
 #include <limits>
 
 #include "estimators/design/buffer_design.h"
 #include "lmi/lmi.h"
-#include <Eigen/Eigenvalues>
 
 namespace ncosim::est::buffer {
 
@@ -29,7 +29,8 @@ int psi_feasible(const Eigen::MatrixXd& A, const Eigen::MatrixXd& C, double lamb
   const Eigen::MatrixXd O = Eigen::MatrixXd::Zero(n, n);
   const lmi::Expr YA = lmi::Expr(Y) * A;
   const lmi::Expr top = a * (YA + lmi::Expr(Z) * C);
-  const lmi::Expr psi = lmi::block({{Y, top, b * YA}, {top.transpose(), Y, O}, {b * YA.transpose(), O, Y}});
+  const lmi::Expr psi =
+      lmi::block({{Y, top, b * YA}, {top.transpose(), Y, O}, {b * YA.transpose(), O, Y}});
   const int d = 3 * n;
   lmi::Expr tI = Eigen::MatrixXd::Zero(d, d);
   for (int i = 0; i < d; ++i) {

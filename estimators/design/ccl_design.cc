@@ -21,7 +21,8 @@ MatrixXd psd_factor(const MatrixXd& M) {
     if (es.eigenvalues()(i) > 1e-12 * top) keep.push_back(i);
   MatrixXd Z(M.rows(), static_cast<Eigen::Index>(keep.size()));
   for (std::size_t c = 0; c < keep.size(); ++c)
-    Z.col(static_cast<Eigen::Index>(c)) = es.eigenvectors().col(keep[c]) * std::sqrt(es.eigenvalues()(keep[c]));
+    Z.col(static_cast<Eigen::Index>(c)) =
+        es.eigenvectors().col(keep[c]) * std::sqrt(es.eigenvalues()(keep[c]));
   return Z;
 }
 
@@ -35,11 +36,11 @@ MatrixXd psd_factor(const MatrixXd& M) {
 struct Piece {
   int N;
   int group;
-  double coef;          // sqrt(weight) of the noise parts
-  double coef_A;        // of the A^N part (the tail's extra (1 - p0) included)
-  double delta;         // 1 for F-like pieces, 0 for the covariance pieces
-  Eigen::VectorXd T;    // diagonal over the nmb fictitious sensors
-  MatrixXd Zv;          // factor of the measurement-noise part (k columns) or empty
+  double coef;        // sqrt(weight) of the noise parts
+  double coef_A;      // of the A^N part (the tail's extra (1 - p0) included)
+  double delta;       // 1 for F-like pieces, 0 for the covariance pieces
+  Eigen::VectorXd T;  // diagonal over the nmb fictitious sensors
+  MatrixXd Zv;        // factor of the measurement-noise part (k columns) or empty
 };
 
 struct Setup {
@@ -48,9 +49,11 @@ struct Setup {
   int Nbar;
   Grouping grouping;
   double p0;
-  std::vector<MatrixXd> Apow, noise_factor;  // noise_factor[N]: factor of S_W,N (tail: of the tail noise)
-  std::vector<Piece> pieces;                 // ordered by N
-  std::vector<MatrixXd> select;  // per group: rows of the gain that are variables (|U| x nmb), empty: none
+  std::vector<MatrixXd> Apow,
+      noise_factor;           // noise_factor[N]: factor of S_W,N (tail: of the tail noise)
+  std::vector<Piece> pieces;  // ordered by N
+  std::vector<MatrixXd>
+      select;  // per group: rows of the gain that are variables (|U| x nmb), empty: none
   std::size_t groups = 0;
 };
 
@@ -73,11 +76,12 @@ Built build(const Setup& s, double gamma) {
   b.L.resize(s.groups);
   for (std::size_t g = 0; g < s.groups; ++g)
     if (s.select[g].rows() > 0)
-      b.L[g] = b.prob.full(static_cast<int>(nb), static_cast<int>(s.select[g].rows()), "L" + std::to_string(g));
+      b.L[g] = b.prob.full(static_cast<int>(nb), static_cast<int>(s.select[g].rows()),
+                           "L" + std::to_string(g));
   lmi::Expr sumY = lmi::Expr(MatrixXd::Zero(nb, nb));
   // Terms in chunks of bounded LMI size, each with its own Y (CSDP's cost grows with the
   // cube of a block's size; a slack Y per chunk keeps the problem exact).
-  constexpr Eigen::Index kMaxBlock = 30;  // measured best over the A3 grid (12-100 tried)
+  constexpr Eigen::Index kMaxBlock = 30;     // measured best over the A3 grid (12-100 tried)
   std::vector<std::vector<lmi::Expr>> B, D;  // per chunk
   std::vector<Eigen::Index> chunk_size;
   int chunk_N = 0;
@@ -92,9 +96,11 @@ Built build(const Setup& s, double gamma) {
     for (std::size_t i = 0; i < B[c].size(); ++i) {
       rows[i + 1].push_back(B[c][i].transpose());
       for (std::size_t j = 0; j < B[c].size(); ++j)
-        rows[i + 1].push_back(i == j ? D[c][i] : lmi::Expr(MatrixXd::Zero(D[c][i].rows(), D[c][j].cols())));
+        rows[i + 1].push_back(i == j ? D[c][i]
+                                     : lmi::Expr(MatrixXd::Zero(D[c][i].rows(), D[c][j].cols())));
     }
-    b.prob.add(lmi::lmi(lmi::block(rows) >= 0, -1.0, "(25) N=" + std::to_string(chunk_N) + " part " + std::to_string(c)));
+    b.prob.add(lmi::lmi(lmi::block(rows) >= 0, -1.0,
+                        "(25) N=" + std::to_string(chunk_N) + " part " + std::to_string(c)));
   };
   for (const Piece& pc : s.pieces) {
     const int N = pc.N;
@@ -190,7 +196,8 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
     const int k = group_of(grouping, ext, m);
     members[static_cast<std::size_t>(k)].push_back(m);
     for (int N = 1; N <= Nbar; ++N) {
-      if (history_weight(p0, N, Nbar) <= 0.0) continue;  // p0 = 0: no update ever waits N >= 2 periods
+      if (history_weight(p0, N, Nbar) <= 0.0)
+        continue;  // p0 = 0: no update ever waits N >= 2 periods
       const std::size_t g = static_cast<std::size_t>((N - 1) * per_N + k);
       used[g] = used[g].cwiseMax(ext.row_mask(m));
     }
@@ -222,7 +229,13 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
         const double w = wN * prob[m];
         const Eigen::VectorXd eta = ext.row_mask(m);
         const MatrixXd mask = eta.asDiagonal();
-        Piece pc{N, g, std::sqrt(w), std::sqrt(w * tailA), 1.0, eta, psd_factor(E * mask * sext.V * mask * E.transpose())};
+        Piece pc{N,
+                 g,
+                 std::sqrt(w),
+                 std::sqrt(w * tailA),
+                 1.0,
+                 eta,
+                 psd_factor(E * mask * sext.V * mask * E.transpose())};
         each_size += nb + zw + pc.Zv.cols();
         each.push_back(std::move(pc));
         W += w;
@@ -238,7 +251,8 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
       moments.push_back({N, g, std::sqrt(W), std::sqrt(W * tailA), 1.0, mean,
                          psd_factor(E * second.cwiseProduct(sext.V) * E.transpose())});
       for (Eigen::Index c = 0; c < Sk.cols(); ++c)
-        moments.push_back({N, g, std::sqrt(W), std::sqrt(W * tailA), 0.0, Sk.col(c), MatrixXd(E.rows(), 0)});
+        moments.push_back(
+            {N, g, std::sqrt(W), std::sqrt(W * tailA), 0.0, Sk.col(c), MatrixXd(E.rows(), 0)});
       Eigen::Index moment_size = 0;
       for (const auto& pc : moments) moment_size += nb + zw + pc.Zv.cols();
       auto& chosen = opt.group_moments && moment_size < each_size ? moments : each;
@@ -259,7 +273,8 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
     if (opt.verbose) std::fputs(sol.log.c_str(), stderr);
     if (opt.verbose)
       std::fprintf(stderr, "sdp %d: %s obj %.6g %.3fs k=%d blocks=%d best %.8g\n", info.sdp_solves,
-                   lmi::to_string(sol.status), sol.objective, sol.seconds, sol.size.variables, sol.size.blocks, best_trP);
+                   lmi::to_string(sol.status), sol.objective, sol.seconds, sol.size.variables,
+                   sol.size.blocks, best_trP);
     return sol;
   };
   // Gains of a solution: keep the best exact fixed point.
@@ -293,7 +308,8 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
     lmi::Solution sol;
     MatrixXd Pk, Qk, Sk, Rk;
     const JumpDesign* from = nullptr;
-    if (opt.start == CclStart::kBestExact) from = std::isfinite(best_trP) ? &best : s4_ok ? &s4 : nullptr;
+    if (opt.start == CclStart::kBestExact)
+      from = std::isfinite(best_trP) ? &best : s4_ok ? &s4 : nullptr;
     if (from != nullptr) {
       // Step 2 from the best exact fixed point so far (before any, the S4 optimum): (25) holds
       // there with Q = P^-1, R = S_P^-1. A singular P (e.g. a noise-free measured direction)
@@ -310,7 +326,8 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
     if (from == nullptr) {
       sol = solve(b);  // step 2: a feasible point (no objective)
       if (!sol.ok()) {
-        if (sol.status != lmi::Status::kInfeasible && fail_status.empty()) fail_status = lmi::to_string(sol.status);
+        if (sol.status != lmi::Status::kInfeasible && fail_status.empty())
+          fail_status = lmi::to_string(sol.status);
         return false;
       }
       if (const double tr = consider(b, sol); std::isfinite(tr) && tr <= gamma) return true;
@@ -319,8 +336,8 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
     int idle = 0;
     for (int k = 0; k < opt.max_ccl_iterations; ++k) {
       if (k > 0) Pk = sol.value(b.P), Qk = sol.value(b.Q), Sk = sol.value(b.S), Rk = sol.value(b.R);
-      b.prob.minimize(lmi::trace(Pk * lmi::Expr(b.Q)) + lmi::trace(Qk * b.P) + lmi::trace(Sk * lmi::Expr(b.R)) +
-                      lmi::trace(Rk * lmi::Expr(b.S)));
+      b.prob.minimize(lmi::trace(Pk * lmi::Expr(b.Q)) + lmi::trace(Qk * b.P) +
+                      lmi::trace(Sk * lmi::Expr(b.R)) + lmi::trace(Rk * lmi::Expr(b.S)));
       sol = solve(b);
       ++info.ccl_iterations;
       if (!sol.ok()) {
@@ -328,11 +345,13 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
         return false;
       }
       const double before = best_trP;
-      if (const double tr = consider(b, sol); std::isfinite(tr) && tr <= gamma * (1.0 + 1e-12)) return true;
+      if (const double tr = consider(b, sol); std::isfinite(tr) && tr <= gamma * (1.0 + 1e-12))
+        return true;
       // Stalled: the best exact tr(P) did not move for `patience` iterations (k_max of step 4
       // bounds the loop in any case).
       // Until some iterate has stable gains, only k_max ends the loop.
-      const bool moved = !std::isfinite(best_trP) || best_trP < before * (1.0 - opt.stall_tolerance);
+      const bool moved =
+          !std::isfinite(best_trP) || best_trP < before * (1.0 - opt.stall_tolerance);
       idle = moved ? 0 : idle + 1;
       if (idle >= opt.patience) return false;
     }
@@ -375,7 +394,8 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
   // Bisection (section 4, steps 1-5).
   double upper = best_trP;
   int fruitless = 0;  // consecutive steps that found nothing better
-  for (; info.bisections < opt.max_bisections && upper - lower >= opt.relative_gap * upper; ++info.bisections) {
+  for (; info.bisections < opt.max_bisections && upper - lower >= opt.relative_gap * upper;
+       ++info.bisections) {
     if (s4_ok && opt.max_fruitless_steps > 0 && fruitless >= opt.max_fruitless_steps) {
       info.stopped_fruitless = true;
       info.stop = "no_improvement";
@@ -386,9 +406,11 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
     if (!ccl(gamma)) lower = gamma;
     fruitless = best_trP < before * (1.0 - opt.stall_tolerance) ? 0 : fruitless + 1;
     upper = std::min(upper, best_trP);  // the best exact fixed point so far bounds the optimum
-    if (opt.verbose) std::fprintf(stderr, "gamma %.6g -> [%.6g, %.6g] best %.6g\n", gamma, lower, upper, best_trP);
+    if (opt.verbose)
+      std::fprintf(stderr, "gamma %.6g -> [%.6g, %.6g] best %.6g\n", gamma, lower, upper, best_trP);
   }
-  if (info.stop.empty()) info.stop = upper - lower < opt.relative_gap * upper ? "gap" : "max_bisections";
+  if (info.stop.empty())
+    info.stop = upper - lower < opt.relative_gap * upper ? "gap" : "max_bisections";
   info.lower_bound = lower;
   info.upper_bound = best_trP;
   if (info_out) *info_out = info;

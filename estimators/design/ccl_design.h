@@ -35,19 +35,19 @@ enum class CclStart { kFeasible, kBestExact };
 
 struct CclOptions {
   CclStart start = CclStart::kBestExact;
-  int max_ccl_iterations = 20;       // k_max of the paper's step 4
+  int max_ccl_iterations = 20;  // k_max of the paper's step 4
   // A bisection step ends early (as a failure at this gamma) after `patience` consecutive CCL
   // iterations that lowered the best exact tr(P) by less than stall_tolerance (relative).
   int patience = 1;
   double stall_tolerance = 1e-3;
-  double relative_gap = 1e-3;        // bisection stops when gamma_u - gamma_l < gap gamma_u
+  double relative_gap = 1e-3;  // bisection stops when gamma_u - gamma_l < gap gamma_u
   // ... or, when the lower end is the exact S4 design's (s4_bound), after this many consecutive
   // steps that did not improve the best design by stall_tolerance (0: never; the paper's step 5
   // has only the gap). From the relaxation's loose lower end, failed steps are expected (gamma
   // below anything reachable) and only the gap ends the bisection.
   int max_fruitless_steps = 2;
   int max_bisections = 40;
-  int sdp_max_iterations = 100;      // CSDP's iteration limit per SDP
+  int sdp_max_iterations = 100;  // CSDP's iteration limit per SDP
   // CSDP's tolerances (axtol, atytol, objtol) for every SDP of the design. The SDPs only steer
   // the search: every candidate gain set is evaluated exactly (evaluate_jump_gains).
   double sdp_tolerance = 1e-5;
@@ -60,28 +60,31 @@ struct CclOptions {
   // every grouping; the paper starts at 0) and linearise the first CCL iterate at it. false:
   // the LMI relaxation's min tr(P) (Q, R free), solved as the first SDP, gives both.
   bool s4_bound = true;
-  bool verbose = false;              // CSDP log and the bisection trace on stderr
+  bool verbose = false;  // CSDP log and the bisection trace on stderr
 };
 
 struct CclInfo {
-  lmi::SdpSize size;        // of a bisection step's SDP
+  lmi::SdpSize size;  // of a bisection step's SDP
   int sdp_solves = 0;
   int bisections = 0;
-  int ccl_iterations = 0;   // total over the bisection
+  int ccl_iterations = 0;          // total over the bisection
   bool stopped_fruitless = false;  // the bisection ended on max_fruitless_steps, not on the gap
   // Why the bisection ended: "gap", "no_improvement" (max_fruitless_steps), "max_bisections";
   // empty when the design failed before it.
   std::string stop;
-  double relaxation_bound = 0.0;  // min tr(P) with Q, R free: a certified lower bound (0 when not solved)
-  double s4_bound = 0.0;          // tr(P) of the exact S4 design (0 when not used)
-  double lower_bound = 0.0; // final gamma_l: CCL failed there (not a certified bound; the relaxation is)
-  double upper_bound = 0.0; // final gamma_u (tr P of the returned gains)
+  double relaxation_bound =
+      0.0;                // min tr(P) with Q, R free: a certified lower bound (0 when not solved)
+  double s4_bound = 0.0;  // tr(P) of the exact S4 design (0 when not used)
+  double lower_bound =
+      0.0;  // final gamma_l: CCL failed there (not a certified bound; the relaxation is)
+  double upper_bound = 0.0;            // final gamma_u (tr P of the returned gains)
   std::string lmi_status = "optimal";  // status of the first SDP that failed, if the design failed
 };
 
 // On failure the returned design has stable = false and status = the LMI status
 // ("infeasible", "numerical_trouble", ...) or "no_feasible_gains".
-JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& pattern_prob, int Nbar,
-                           Grouping grouping, const CclOptions& options = {}, CclInfo* info = nullptr);
+JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& pattern_prob,
+                           int Nbar, Grouping grouping, const CclOptions& options = {},
+                           CclInfo* info = nullptr);
 
 }  // namespace ncosim::est

@@ -11,20 +11,28 @@ namespace ncosim::est {
 
 int groups_per_N(Grouping g, const ExtendedModel& ext) {
   switch (g) {
-    case Grouping::kS1: return 1;
-    case Grouping::kS2: return ext.sensors;
-    case Grouping::kS3: return ext.fictitious_count();
-    case Grouping::kS4: return (1 << ext.fictitious_count()) - 1;
+    case Grouping::kS1:
+      return 1;
+    case Grouping::kS2:
+      return ext.sensors;
+    case Grouping::kS3:
+      return ext.fictitious_count();
+    case Grouping::kS4:
+      return (1 << ext.fictitious_count()) - 1;
   }
   return 0;
 }
 
 int group_of(Grouping g, const ExtendedModel& ext, std::uint64_t pattern) {
   switch (g) {
-    case Grouping::kS1: return 0;
-    case Grouping::kS2: return ext.real_sensors(pattern) - 1;
-    case Grouping::kS3: return std::popcount(pattern) - 1;
-    case Grouping::kS4: return static_cast<int>(pattern) - 1;
+    case Grouping::kS1:
+      return 0;
+    case Grouping::kS2:
+      return ext.real_sensors(pattern) - 1;
+    case Grouping::kS3:
+      return std::popcount(pattern) - 1;
+    case Grouping::kS4:
+      return static_cast<int>(pattern) - 1;
   }
   return 0;
 }
@@ -32,7 +40,8 @@ int group_of(Grouping g, const ExtendedModel& ext, std::uint64_t pattern) {
 namespace {
 
 // Closed-form S4 gain of one term: L = X Cs'(Cs X Cs' + Vs)^-1 on the delivered rows.
-Eigen::MatrixXd optimal_gain(const ExtendedModel& ext, const Eigen::MatrixXd& X, const Eigen::VectorXd& mask) {
+Eigen::MatrixXd optimal_gain(const ExtendedModel& ext, const Eigen::MatrixXd& X,
+                             const Eigen::VectorXd& mask) {
   Eigen::MatrixXd CX = mask.asDiagonal() * ext.C * X;  // rows outside the pattern zero
   Eigen::MatrixXd S = CX * ext.C.transpose() * mask.asDiagonal();
   S += mask.asDiagonal() * ext.V * mask.asDiagonal();
@@ -43,15 +52,15 @@ Eigen::MatrixXd optimal_gain(const ExtendedModel& ext, const Eigen::MatrixXd& X,
 }
 
 // Eq. (28) of Dolz et al. (2014) as printed (see JumpDesign::Pt_paper_eq28_erroneous).
-Eigen::MatrixXd paper_eq28_erroneous(const ExtendedModel& ext, double p0, const Eigen::MatrixXd& stein,
-                                     const Eigen::MatrixXd& P) {
+Eigen::MatrixXd paper_eq28_erroneous(const ExtendedModel& ext, double p0,
+                                     const Eigen::MatrixXd& stein, const Eigen::MatrixXd& P) {
   const Eigen::MatrixXd Sc = ext.A * P * ext.A.transpose() + ext.Q / (1.0 - p0);
   Eigen::MatrixXd Pt = (1.0 - p0) * P + p0 * stein_sum(stein, Sc);
   return 0.5 * (Pt + Pt.transpose());
 }
 
 struct Term {
-  int N;                 // 1..Nbar (Nbar = the tail N >= Nbar)
+  int N;  // 1..Nbar (Nbar = the tail N >= Nbar)
   std::uint64_t pattern;
   double weight;         // sum over the terms of one N is 1 for the tail, p0^(N-1)(1-p0) else
   Eigen::VectorXd mask;  // row mask of the pattern
@@ -85,12 +94,14 @@ double history_weight(double p0, int N, int Nbar) {
 std::string design_precheck(const ExtendedModel& ext, double p0) {
   if (p0 >= 1.0) return "no_measurements";
   const double rho = ext.A.eigenvalues().cwiseAbs().maxCoeff();
-  if (p0 * rho * rho >= 1.0) return fmt::format("unstable: p0 rho(A)^2 = {:.4g} >= 1", p0 * rho * rho);
+  if (p0 * rho * rho >= 1.0)
+    return fmt::format("unstable: p0 rho(A)^2 = {:.4g} >= 1", p0 * rho * rho);
   return "";
 }
 
-JumpDesign design_jump_iterative(const ExtendedModel& ext, const std::vector<double>& prob, int Nbar,
-                                 Grouping grouping, int max_iterations, double tolerance) {
+JumpDesign design_jump_iterative(const ExtendedModel& ext, const std::vector<double>& prob,
+                                 int Nbar, Grouping grouping, int max_iterations,
+                                 double tolerance) {
   JumpDesign d;
   d.grouping = grouping;
   d.Nbar = Nbar;
@@ -156,12 +167,13 @@ JumpDesign design_jump_iterative(const ExtendedModel& ext, const std::vector<dou
     }
     for (const Term& t : ts) {
       num[t.group] += t.weight * X[t.N] * ext.C.transpose() * t.mask.asDiagonal();
-      den[t.group] += t.weight * t.mask.asDiagonal() * (ext.C * X[t.N] * ext.C.transpose() + ext.V) *
-                      t.mask.asDiagonal();
+      den[t.group] += t.weight * t.mask.asDiagonal() *
+                      (ext.C * X[t.N] * ext.C.transpose() + ext.V) * t.mask.asDiagonal();
     }
     for (const Term& t : ts) {
       if (den[t.group].isZero(0.0)) continue;
-      d.gains[t.group] = num[t.group] * den[t.group].completeOrthogonalDecomposition().pseudoInverse();
+      d.gains[t.group] =
+          num[t.group] * den[t.group].completeOrthogonalDecomposition().pseudoInverse();
     }
   };
   Eigen::MatrixXd Pnew(nb, nb);
@@ -204,7 +216,8 @@ JumpDesign design_jump_iterative(const ExtendedModel& ext, const std::vector<dou
       if (best_window < kStallBelow && best_window >= kStallRatio * best_before) {
         d.status = "not_converged";
         d.iteration_message = fmt::format(
-            "stopped after {} iterations: the relative change stalled at {:.1e} (tolerance {:g}), rounding noise "
+            "stopped after {} iterations: the relative change stalled at {:.1e} (tolerance {:g}), "
+            "rounding noise "
             "of a badly scaled model; rescale the plant and sensor matrices",
             d.iterations, best_window, tolerance);
         return d;
@@ -256,7 +269,8 @@ JumpDesign evaluate_jump_gains(const ExtendedModel& ext, const std::vector<doubl
   d.gains = gains;
   d.gain_of.assign(Nbar, std::vector<int>(patterns, -1));
   for (int N = 1; N <= Nbar; ++N)
-    for (std::size_t m = 1; m < patterns; ++m) d.gain_of[N - 1][m] = (N - 1) * per_N + group_of(grouping, ext, m);
+    for (std::size_t m = 1; m < patterns; ++m)
+      d.gain_of[N - 1][m] = (N - 1) * per_N + group_of(grouping, ext, m);
   for (std::size_t m = 0; m < patterns; ++m) d.masks.push_back(ext.row_mask(m));
   d.P = Eigen::MatrixXd::Constant(nb, nb, std::nan(""));
   d.Pt = d.P;
@@ -284,7 +298,8 @@ JumpDesign evaluate_jump_gains(const ExtendedModel& ext, const std::vector<doubl
   auto kron = [](const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
     Eigen::MatrixXd k(a.rows() * b.rows(), a.cols() * b.cols());
     for (Eigen::Index i = 0; i < a.rows(); ++i)
-      for (Eigen::Index j = 0; j < a.cols(); ++j) k.block(i * b.rows(), j * b.cols(), b.rows(), b.cols()) = a(i, j) * b;
+      for (Eigen::Index j = 0; j < a.cols(); ++j)
+        k.block(i * b.rows(), j * b.cols(), b.rows(), b.cols()) = a(i, j) * b;
     return k;
   };
   Eigen::MatrixXd tailT = Eigen::MatrixXd::Zero(n2, n2);
@@ -324,13 +339,17 @@ JumpDesign evaluate_jump_gains(const ExtendedModel& ext, const std::vector<doubl
   for (std::size_t g = 0; g < d.gains.size(); ++g) {
     if (weighted[g]) continue;
     const int N = static_cast<int>(g) / per_N + 1;
-    const Eigen::MatrixXd X = N < Nbar ? Eigen::MatrixXd(Apow[N] * d.P * Apow[N].transpose() + SW[N])
-                                       : Eigen::MatrixXd((1.0 - p0) * AN * stein_sum(stein, d.P) * AN.transpose() + tail_noise);
-    Eigen::MatrixXd num = Eigen::MatrixXd::Zero(nb, ext.nmb), den = Eigen::MatrixXd::Zero(ext.nmb, ext.nmb);
+    const Eigen::MatrixXd X =
+        N < Nbar ? Eigen::MatrixXd(Apow[N] * d.P * Apow[N].transpose() + SW[N])
+                 : Eigen::MatrixXd((1.0 - p0) * AN * stein_sum(stein, d.P) * AN.transpose() +
+                                   tail_noise);
+    Eigen::MatrixXd num = Eigen::MatrixXd::Zero(nb, ext.nmb),
+                    den = Eigen::MatrixXd::Zero(ext.nmb, ext.nmb);
     for (std::size_t m = 1; m < patterns; ++m) {
       if (d.gain_of[N - 1][m] != static_cast<int>(g)) continue;
       num += X * ext.C.transpose() * d.masks[m].asDiagonal();
-      den += d.masks[m].asDiagonal() * (ext.C * X * ext.C.transpose() + ext.V) * d.masks[m].asDiagonal();
+      den += d.masks[m].asDiagonal() * (ext.C * X * ext.C.transpose() + ext.V) *
+             d.masks[m].asDiagonal();
     }
     if (!den.isZero(0.0)) d.gains[g] = num * den.completeOrthogonalDecomposition().pseudoInverse();
   }

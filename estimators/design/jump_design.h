@@ -22,13 +22,13 @@ enum class Grouping { kS1, kS2, kS3, kS4 };
 struct JumpDesign {
   Grouping grouping = Grouping::kS4;
   int Nbar = 1;
-  std::vector<Eigen::MatrixXd> gains;          // one per group (nb x nmb)
-  std::vector<std::vector<int>> gain_of;       // [N-1][pattern] -> index into gains, -1 for 0
-  std::vector<Eigen::VectorXd> masks;          // [pattern] -> 0/1 row mask (alpha of eq. 10)
-  long stored_gains = 0;                       // the paper's count |L|
-  double p0 = 0.0;                             // P[no measurement in a period]
-  Eigen::MatrixXd P;                           // covariance at update instants
-  Eigen::MatrixXd Pt;                          // covariance at every period (corrected eq. 28)
+  std::vector<Eigen::MatrixXd> gains;     // one per group (nb x nmb)
+  std::vector<std::vector<int>> gain_of;  // [N-1][pattern] -> index into gains, -1 for 0
+  std::vector<Eigen::VectorXd> masks;     // [pattern] -> 0/1 row mask (alpha of eq. 10)
+  long stored_gains = 0;                  // the paper's count |L|
+  double p0 = 0.0;                        // P[no measurement in a period]
+  Eigen::MatrixXd P;                      // covariance at update instants
+  Eigen::MatrixXd Pt;                     // covariance at every period (corrected eq. 28)
   // Eq. (28) exactly as printed, which weights the N >= 1 terms by p0^N instead of (1-p0) p0^N:
   // (1-p0) P + p0 sum_k p0^k Abar^k (Abar P Abar' + Bw W Bw' / (1-p0)) Abar^k'. Wrong (simulation
   // follows Pt); kept only to reproduce the paper's Fig. 3 and Fig. 1(a) text (results/README.md).
@@ -72,6 +72,7 @@ JumpDesign design_jump_iterative(const ExtendedModel& ext, const std::vector<dou
 // positive probability uses get the gain of design_jump_iterative's fallback formula at the
 // fixed point. status "unstable_gains" when the operator's spectral radius is >= 1.
 JumpDesign evaluate_jump_gains(const ExtendedModel& ext, const std::vector<double>& pattern_prob,
-                               int Nbar, Grouping grouping, const std::vector<Eigen::MatrixXd>& gains);
+                               int Nbar, Grouping grouping,
+                               const std::vector<Eigen::MatrixXd>& gains);
 
 }  // namespace ncosim::est

@@ -9,8 +9,8 @@
 
 namespace ncosim::est::sod {
 
-Eigen::VectorXd uniform_range(const Eigen::MatrixXd& C, const Eigen::MatrixXd& Bw, const Eigen::VectorXd& w_inf,
-                              const Eigen::VectorXd& v_inf) {
+Eigen::VectorXd uniform_range(const Eigen::MatrixXd& C, const Eigen::MatrixXd& Bw,
+                              const Eigen::VectorXd& w_inf, const Eigen::VectorXd& v_inf) {
   Eigen::VectorXd r(C.rows());
   for (Eigen::Index i = 0; i < C.rows(); ++i) {
     double s = 0.0;
@@ -35,14 +35,18 @@ double uniform_sigma2(double delta, double r) {
   return 2.0 * delta * delta * delta / (r * r) * (r / 3.0 - delta / 4.0);
 }
 
-double uniform_delta_for_beta(double beta, double r) { return r * (1.0 - std::sqrt(std::clamp(beta, 0.0, 1.0))); }
+double uniform_delta_for_beta(double beta, double r) {
+  return r * (1.0 - std::sqrt(std::clamp(beta, 0.0, 1.0)));
+}
 
-double gaussian_beta(double delta, double sigma) { return 1.0 - std::erf(delta / (std::sqrt(2.0) * sigma)); }
+double gaussian_beta(double delta, double sigma) {
+  return 1.0 - std::erf(delta / (std::sqrt(2.0) * sigma));
+}
 
 double gaussian_sigma2(double delta, double sigma) {
   const double e = std::erf(delta / (std::sqrt(2.0) * sigma));
-  return sigma * sigma * e -
-         std::sqrt(2.0 / std::numbers::pi) * delta * sigma * std::exp(-delta * delta / (2.0 * sigma * sigma));
+  return sigma * sigma * e - std::sqrt(2.0 / std::numbers::pi) * delta * sigma *
+                                 std::exp(-delta * delta / (2.0 * sigma * sigma));
 }
 
 double gaussian_delta_for_beta(double beta, double sigma) {

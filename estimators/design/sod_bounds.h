@@ -9,8 +9,8 @@
 namespace ncosim::est::sod {
 
 // (28): r_i = sum_j (sum_k |C_ik B_kj|) ||w_j||_inf + 2 ||v_i||_inf.
-Eigen::VectorXd uniform_range(const Eigen::MatrixXd& C, const Eigen::MatrixXd& Bw, const Eigen::VectorXd& w_inf,
-                              const Eigen::VectorXd& v_inf);
+Eigen::VectorXd uniform_range(const Eigen::MatrixXd& C, const Eigen::MatrixXd& Bw,
+                              const Eigen::VectorXd& w_inf, const Eigen::VectorXd& v_inf);
 
 // Uniform assumption, Lemma 1: (29) beta' = (r - Delta)^2 / r^2 and (30)
 // sigma^2 = 2 Delta^3 / r^2 (r/3 - Delta/4) for Delta <= r; beta' = 0, sigma^2 = r^2/6 beyond.

@@ -17,7 +17,8 @@ Eigen::VectorXd SodSystem::eta(unsigned j) const {
   VectorXd e = VectorXd::Zero(ny());
   for (Eigen::Index s = 0; s < ns(); ++s) {
     if ((j >> s) & 1U) {
-      const auto s0 = sensor_rows[static_cast<std::size_t>(s)], s1 = sensor_rows[static_cast<std::size_t>(s) + 1];
+      const auto s0 = sensor_rows[static_cast<std::size_t>(s)],
+                 s1 = sensor_rows[static_cast<std::size_t>(s) + 1];
       e.segment(s0, s1 - s0).setOnes();
     }
   }
@@ -71,15 +72,18 @@ struct Vars {
 // `needed` (jump gains, empty: all): patterns that occur with positive probability somewhere.
 // A pattern that never occurs gets no variables of its own (they would appear in no LMI, an
 // ill-posed problem): it shares the gain of the first pattern that occurs.
-Vars make_vars(lmi::Problem& prob, const SodSystem& sys, std::size_t patterns, bool jump, std::size_t nP,
-               bool with_delta, bool all_delivered = false, const std::vector<bool>& needed = {}) {
+Vars make_vars(lmi::Problem& prob, const SodSystem& sys, std::size_t patterns, bool jump,
+               std::size_t nP, bool with_delta, bool all_delivered = false,
+               const std::vector<bool>& needed = {}) {
   const int n = static_cast<int>(sys.A.rows());
   const int ny = static_cast<int>(sys.ny());
   Vars v;
   std::size_t first = 0;
   while (!needed.empty() && first < patterns && !needed[first]) ++first;
   if (first == patterns) first = 0;
-  auto own = [&](std::size_t j) { return jump ? needed.empty() || needed[j] || j == first : j == 0; };
+  auto own = [&](std::size_t j) {
+    return jump ? needed.empty() || needed[j] || j == first : j == 0;
+  };
   for (std::size_t j = 0; j < patterns; ++j) {
     if (own(j)) {
       v.Q.push_back(prob.full(n, n, "Q" + std::to_string(j)));
@@ -88,8 +92,10 @@ Vars make_vars(lmi::Problem& prob, const SodSystem& sys, std::size_t patterns, b
       std::vector<bool> live(static_cast<std::size_t>(ny), true);
       bool all = true;
       for (Eigen::Index s = 0; s < sys.ns(); ++s) {
-        const bool sod = sys.send_on_delta.empty() || sys.send_on_delta[static_cast<std::size_t>(s)];
-        for (Eigen::Index i = sys.sensor_rows[static_cast<std::size_t>(s)]; i < sys.sensor_rows[static_cast<std::size_t>(s) + 1]; ++i) {
+        const bool sod =
+            sys.send_on_delta.empty() || sys.send_on_delta[static_cast<std::size_t>(s)];
+        for (Eigen::Index i = sys.sensor_rows[static_cast<std::size_t>(s)];
+             i < sys.sensor_rows[static_cast<std::size_t>(s) + 1]; ++i) {
           live[static_cast<std::size_t>(i)] = sod || eta(i) > 0.5;
           all = all && live[static_cast<std::size_t>(i)];
         }
@@ -132,12 +138,13 @@ lmi::LinearForm bound_form(const SodSystem& sys, const Vars& v, const VectorXd& 
     const double r = sys.v_rms(static_cast<Eigen::Index>(i));
     f = f + (r * r) * lmi::trace(v.gv[i]);
   }
-  for (std::size_t i = 0; i < v.gd.size(); ++i) f = f + sigma2(static_cast<Eigen::Index>(i)) * lmi::trace(v.gd[i]);
+  for (std::size_t i = 0; i < v.gd.size(); ++i)
+    f = f + sigma2(static_cast<Eigen::Index>(i)) * lmi::trace(v.gd[i]);
   return f;
 }
 
-SodDesignResult collect(const lmi::Solution& sol, const Vars& v, std::size_t patterns, const lmi::LinearForm& f,
-                        int lmis) {
+SodDesignResult collect(const lmi::Solution& sol, const Vars& v, std::size_t patterns,
+                        const lmi::LinearForm& f, int lmis) {
   SodDesignResult r;
   r.lmis = lmis;
   r.size = sol.size;
@@ -151,9 +158,11 @@ SodDesignResult collect(const lmi::Solution& sol, const Vars& v, std::size_t pat
   r.bound = sol.value(f);
   r.gamma_w = sol.value(v.gw)(0, 0);
   r.gamma_v.resize(static_cast<Eigen::Index>(v.gv.size()));
-  for (std::size_t i = 0; i < v.gv.size(); ++i) r.gamma_v(static_cast<Eigen::Index>(i)) = sol.value(v.gv[i])(0, 0);
+  for (std::size_t i = 0; i < v.gv.size(); ++i)
+    r.gamma_v(static_cast<Eigen::Index>(i)) = sol.value(v.gv[i])(0, 0);
   r.gamma_delta.resize(static_cast<Eigen::Index>(v.gd.size()));
-  for (std::size_t i = 0; i < v.gd.size(); ++i) r.gamma_delta(static_cast<Eigen::Index>(i)) = sol.value(v.gd[i])(0, 0);
+  for (std::size_t i = 0; i < v.gd.size(); ++i)
+    r.gamma_delta(static_cast<Eigen::Index>(i)) = sol.value(v.gd[i])(0, 0);
   for (std::size_t j = 0; j < patterns; ++j) {
     const MatrixXd Q = sol.value(v.Q[j]);
     const MatrixXd X = sol.value(v.X[j]);
@@ -210,12 +219,13 @@ SodDesignResult design_sod(const SodSystem& sys, const SodDesignSpec& spec) {
     // (11) for every (j, k): blocks x~ (P_j), x~ (P_k - Cz'Cz), w, v, delta.
     for (std::size_t j = 0; j < patterns; ++j) {
       for (std::size_t k = 0; k < patterns; ++k) {
-        prob.add(lmi::lmi(symmetric_from_lower({{QQ[j] - v.P[j]},
-                                                {Abar[j].transpose(), lmi::Expr(v.P[k]) - CzCz},
-                                                {Bbar[j].transpose(), zeros(nw, n), Gw},
-                                                {Xt[j], zeros(ny, n), zeros(ny, nw), Gv},
-                                                {Xeta[j], zeros(ny, n), zeros(ny, nw), zeros(ny, ny), Gd}}) > 0,
-                          spec.margin));
+        prob.add(lmi::lmi(
+            symmetric_from_lower({{QQ[j] - v.P[j]},
+                                  {Abar[j].transpose(), lmi::Expr(v.P[k]) - CzCz},
+                                  {Bbar[j].transpose(), zeros(nw, n), Gw},
+                                  {Xt[j], zeros(ny, n), zeros(ny, nw), Gv},
+                                  {Xeta[j], zeros(ny, n), zeros(ny, nw), zeros(ny, ny), Gd}}) > 0,
+            spec.margin));
         ++lmis;
       }
     }
@@ -274,11 +284,13 @@ SodDesignResult design_all_measurements(const SodSystem& sys) {
   const lmi::Expr Gv = diag_of(v.gv);
   const lmi::Expr Gw = diag_of(std::vector<lmi::Var>(static_cast<std::size_t>(nw), v.gw));
   const lmi::Expr qxc = lmi::Expr(v.Q[0]) - v.X[0] * sys.C;  // X[0]: all sensors delivered
-  prob.add(lmi::lmi(symmetric_from_lower({{lmi::Expr(v.Q[0]) + lmi::Expr(v.Q[0]).transpose() - v.P[0]},
-                                          {(qxc * sys.A).transpose(), lmi::Expr(v.P[0]) - sys.Cz.transpose() * sys.Cz},
-                                          {(qxc * sys.Bw).transpose(), zeros(nw, n), Gw},
-                                          {-v.X[0].transpose(), zeros(ny, n), zeros(ny, nw), Gv}}) > 0,
-                    1e-7));
+  prob.add(
+      lmi::lmi(symmetric_from_lower(
+                   {{lmi::Expr(v.Q[0]) + lmi::Expr(v.Q[0]).transpose() - v.P[0]},
+                    {(qxc * sys.A).transpose(), lmi::Expr(v.P[0]) - sys.Cz.transpose() * sys.Cz},
+                    {(qxc * sys.Bw).transpose(), zeros(nw, n), Gw},
+                    {-v.X[0].transpose(), zeros(ny, n), zeros(ny, nw), Gv}}) > 0,
+               1e-7));
   const lmi::LinearForm f = bound_form(sys, v, VectorXd());
   prob.minimize(f);
   return collect(prob.solve(), v, 1, f, 1);
@@ -298,7 +310,8 @@ Eigen::MatrixXd psi_at(const SodSystem& sys, const SodDesignResult& r, const Eig
     const MatrixXd& Q = r.Q[static_cast<std::size_t>(j)];
     const MatrixXd& X = r.X[static_cast<std::size_t>(j)];
     const MatrixXd qxc = Q - X * sys.C;
-    const MatrixXd Ieta = MatrixXd::Identity(ny, ny) - MatrixXd(sys.eta(static_cast<unsigned>(j)).asDiagonal());
+    const MatrixXd Ieta =
+        MatrixXd::Identity(ny, ny) - MatrixXd(sys.eta(static_cast<unsigned>(j)).asDiagonal());
     Psi.block(j * n, j * n, n, n) = pj * (Q + Q.transpose() - P);
     Psi.block(o2, j * n, n, n) = pj * (qxc * sys.A).transpose();
     Psi.block(o3, j * n, nw, n) = pj * (qxc * sys.Bw).transpose();
@@ -314,8 +327,8 @@ Eigen::MatrixXd psi_at(const SodSystem& sys, const SodDesignResult& r, const Eig
 
 // ---- co-design ------------------------------------------------------------------------------
 
-void codesign_bounds(const CodesignSpec& spec, const Eigen::VectorXd& delta, Eigen::VectorXd& sigma2,
-                     Eigen::VectorXd& beta) {
+void codesign_bounds(const CodesignSpec& spec, const Eigen::VectorXd& delta,
+                     Eigen::VectorXd& sigma2, Eigen::VectorXd& beta) {
   const Eigen::Index m = delta.size();
   sigma2.resize(m);
   beta.resize(m);
@@ -334,7 +347,8 @@ void codesign_bounds(const CodesignSpec& spec, const Eigen::VectorXd& delta, Eig
 }
 
 double codesign_cost(const CodesignSpec& spec, const Eigen::VectorXd& delta) {
-  if (spec.approach == Approach::kDeterministic) return cost_deterministic(delta, spec.g.size() ? spec.g : spec.r);
+  if (spec.approach == Approach::kDeterministic)
+    return cost_deterministic(delta, spec.g.size() ? spec.g : spec.r);
   VectorXd s2, beta;
   codesign_bounds(spec, delta, s2, beta);
   return cost_stochastic(beta);
@@ -343,7 +357,8 @@ double codesign_cost(const CodesignSpec& spec, const Eigen::VectorXd& delta) {
 namespace {
 
 // Delta_i that makes the cost equal `target` with the other thresholds fixed; NaN if none.
-double threshold_for_cost(const CodesignSpec& spec, const VectorXd& delta, Eigen::Index i, double target) {
+double threshold_for_cost(const CodesignSpec& spec, const VectorXd& delta, Eigen::Index i,
+                          double target) {
   if (spec.approach == Approach::kDeterministic) {
     const VectorXd g = spec.g.size() ? spec.g : spec.r;
     double rest = 0.0;
@@ -398,7 +413,8 @@ CodesignResult codesign(const SodSystem& sys, const CodesignSpec& spec,
   out.path.push_back({0, delta, cost, current.bound});
   if (progress) progress(out.path.back());
   for (int it = 1; it <= spec.max_iterations; ++it) {
-    const double target_cost = spec.relative_step ? cost * (1.0 - spec.epsilon) : cost - spec.epsilon;
+    const double target_cost =
+        spec.relative_step ? cost * (1.0 - spec.epsilon) : cost - spec.epsilon;
     double best = std::numeric_limits<double>::infinity();
     VectorXd best_delta;
     SodDesignResult best_design;

@@ -21,7 +21,7 @@
 namespace ncosim::est::sod {
 
 struct SodSystem {
-  Eigen::MatrixXd A, Bw, C, Cz;          // C stacked over the sensors' outputs
+  Eigen::MatrixXd A, Bw, C, Cz;           // C stacked over the sensors' outputs
   std::vector<Eigen::Index> sensor_rows;  // first stacked row of each sensor, and the end
   double w_rms = 0.0;                     // ||w||_RMS (the whole vector)
   Eigen::VectorXd v_rms;                  // ||v_i||_RMS per output
@@ -49,16 +49,16 @@ struct SodDesignSpec {
 
 struct SodDesignResult {
   bool ok = false;
-  std::string status = "ok";          // "ok" or the solver status
+  std::string status = "ok";           // "ok" or the solver status
   std::string message;                 // why, when not ok (lmi::Solution::message)
-  double bound = 0.0;                 // guaranteed ||z~||^2_RMS
+  double bound = 0.0;                  // guaranteed ||z~||^2_RMS
   std::vector<Eigen::MatrixXd> gains;  // L_j, j = 0 .. 2^ns - 1 (all equal for a constant gain)
   double gamma_w = 0.0;
   Eigen::VectorXd gamma_v, gamma_delta;
   std::vector<Eigen::MatrixXd> Q, X, P;  // the solved variables (P: one per pattern, or one)
-  int lmis = 0;                        // LMI blocks in the SDP
+  int lmis = 0;                          // LMI blocks in the SDP
   lmi::SdpSize size;
-  double seconds = 0.0;                // solver wall time
+  double seconds = 0.0;  // solver wall time
 };
 
 SodDesignResult design_sod(const SodSystem& sys, const SodDesignSpec& spec);
@@ -83,13 +83,13 @@ struct CodesignSpec {
   bool jump = true;
   Vertices vertices = Vertices::kAll;
   Assumption assumption = Assumption::kUniform;
-  Eigen::VectorXd r;               // uniform range (28) or Gaussian sigma, per output (= per sensor)
-  Eigen::VectorXd g;               // deterministic cost weights (35) (default r)
-  double sigma2_factor = 1.0;      // deterministic: sigma^2_delta = factor * Delta^2 (1 or 1/3)
-  double target = 0.0;             // z~rms (the bound to meet)
-  double epsilon = 0.01;           // cost step per iteration
-  bool relative_step = false;      // J_k = J_{k-1} (1 - epsilon) instead of J_{k-1} - epsilon
-  Eigen::VectorXd delta0;          // starting thresholds
+  Eigen::VectorXd r;           // uniform range (28) or Gaussian sigma, per output (= per sensor)
+  Eigen::VectorXd g;           // deterministic cost weights (35) (default r)
+  double sigma2_factor = 1.0;  // deterministic: sigma^2_delta = factor * Delta^2 (1 or 1/3)
+  double target = 0.0;         // z~rms (the bound to meet)
+  double epsilon = 0.01;       // cost step per iteration
+  bool relative_step = false;  // J_k = J_{k-1} (1 - epsilon) instead of J_{k-1} - epsilon
+  Eigen::VectorXd delta0;      // starting thresholds
   int max_iterations = 10000;
 };
 
@@ -100,20 +100,20 @@ struct CodesignStep {
 };
 
 struct CodesignResult {
-  Eigen::VectorXd delta;           // the last accepted thresholds
-  SodDesignResult design;          // the design at them
+  Eigen::VectorXd delta;   // the last accepted thresholds
+  SodDesignResult design;  // the design at them
   double cost = 0.0;
   int iterations = 0;
-  int lmi_problems = 0;            // SDPs solved
-  double lmi_seconds = 0.0;        // their solver time
-  double seconds = 0.0;            // whole co-design wall time
+  int lmi_problems = 0;      // SDPs solved
+  double lmi_seconds = 0.0;  // their solver time
+  double seconds = 0.0;      // whole co-design wall time
   std::vector<CodesignStep> path;
-  std::string status = "ok";       // "ok", "start_infeasible" (delta0 misses the target)
+  std::string status = "ok";  // "ok", "start_infeasible" (delta0 misses the target)
 };
 
 // Per-threshold sigma^2_delta and beta' (per sensor) of a co-design spec.
-void codesign_bounds(const CodesignSpec& spec, const Eigen::VectorXd& delta, Eigen::VectorXd& sigma2,
-                     Eigen::VectorXd& beta);
+void codesign_bounds(const CodesignSpec& spec, const Eigen::VectorXd& delta,
+                     Eigen::VectorXd& sigma2, Eigen::VectorXd& beta);
 double codesign_cost(const CodesignSpec& spec, const Eigen::VectorXd& delta);
 
 CodesignResult codesign(const SodSystem& sys, const CodesignSpec& spec,

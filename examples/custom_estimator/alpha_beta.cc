@@ -57,7 +57,9 @@ class AlphaBetaDesign final : public EstimatorDesign {
     report_.extra["alpha"] = alpha;
     report_.extra["beta"] = beta;
   }
-  std::unique_ptr<Estimator> instantiate() const override { return std::make_unique<AlphaBeta>(g_); }
+  std::unique_ptr<Estimator> instantiate() const override {
+    return std::make_unique<AlphaBeta>(g_);
+  }
   const ncosim::est::DesignReport& report() const override { return report_; }
   // Predict (A x: 6, + drive: 2) and correct (C x: 3, residual: 1, K r and add: 4).
   std::optional<double> flops_per_period() const override { return 16.0; }
@@ -69,12 +71,15 @@ class AlphaBetaDesign final : public EstimatorDesign {
 
 std::unique_ptr<EstimatorDesign> read_alpha_beta(const ncosim::sim::Table& t, const Model& model) {
   if (model.plant.n() != 2 || model.sensors.size() != 1 || model.sensors[0].spec.ny() != 1) {
-    t.fail_here(fmt::format("expected a 2-state plant and one sensor with one output, got {} states and {} sensors",
-                            model.plant.n(), model.sensors.size()));
+    t.fail_here(fmt::format(
+        "expected a 2-state plant and one sensor with one output, got {} states and {} sensors",
+        model.plant.n(), model.sensors.size()));
   }
   const double alpha = t.number_or("alpha", 0.5), beta = t.number_or("beta", 0.1);
-  if (!(alpha > 0.0 && alpha <= 1.0)) t.fail("alpha", fmt::format("expected a gain in (0, 1], got {}", alpha));
-  if (!(beta > 0.0 && beta < 2.0)) t.fail("beta", fmt::format("expected a gain in (0, 2), got {}", beta));
+  if (!(alpha > 0.0 && alpha <= 1.0))
+    t.fail("alpha", fmt::format("expected a gain in (0, 1], got {}", alpha));
+  if (!(beta > 0.0 && beta < 2.0))
+    t.fail("beta", fmt::format("expected a gain in (0, 2), got {}", beta));
   Gains g;
   g.A = model.plant.A;
   g.C = model.sensors[0].spec.C;
@@ -86,6 +91,8 @@ std::unique_ptr<EstimatorDesign> read_alpha_beta(const ncosim::sim::Table& t, co
 }  // namespace
 
 void register_alpha_beta(ncosim::est::EstimatorRegistry& registry) {
-  registry.add("alpha_beta", "alpha-beta tracker of position and velocity (example extension): alpha, beta, xhat0",
-               read_alpha_beta);
+  registry.add(
+      "alpha_beta",
+      "alpha-beta tracker of position and velocity (example extension): alpha, beta, xhat0",
+      read_alpha_beta);
 }

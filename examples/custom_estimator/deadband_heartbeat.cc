@@ -18,7 +18,8 @@ class DeadbandHeartbeat final : public SendPolicy {
       : delta_(delta), max_silence_(max_silence), last_(Eigen::VectorXd::Zero(delta.size())) {}
 
   bool decide(const Eigen::Ref<const Eigen::VectorXd>& y) override {
-    const bool send = !has_sent_ || silent_ >= max_silence_ || ((y - last_).cwiseAbs().array() >= delta_.array()).any();
+    const bool send = !has_sent_ || silent_ >= max_silence_ ||
+                      ((y - last_).cwiseAbs().array() >= delta_.array()).any();
     if (send) {
       last_ = y;  // same size: no allocation per period
       has_sent_ = true;
@@ -40,7 +41,8 @@ class DeadbandHeartbeat final : public SendPolicy {
 
 class DeadbandHeartbeatDesign final : public SendPolicyDesign {
  public:
-  DeadbandHeartbeatDesign(Eigen::VectorXd delta, int max_silence) : delta_(std::move(delta)), max_silence_(max_silence) {}
+  DeadbandHeartbeatDesign(Eigen::VectorXd delta, int max_silence)
+      : delta_(std::move(delta)), max_silence_(max_silence) {}
   std::unique_ptr<SendPolicy> instantiate() const override {
     return std::make_unique<DeadbandHeartbeat>(delta_, max_silence_);
   }
@@ -51,8 +53,8 @@ class DeadbandHeartbeatDesign final : public SendPolicyDesign {
   int max_silence_;
 };
 
-std::shared_ptr<const SendPolicyDesign> read_deadband_heartbeat(const ncosim::sim::Table& t,
-                                                                const ncosim::models::SensorSpec& s) {
+std::shared_ptr<const SendPolicyDesign> read_deadband_heartbeat(
+    const ncosim::sim::Table& t, const ncosim::models::SensorSpec& s) {
   Eigen::VectorXd delta = t.vector("delta");
   if (delta.size() == 1) delta = Eigen::VectorXd::Constant(s.ny(), delta(0));
   if (delta.size() != s.ny() || !delta.allFinite() || delta.minCoeff() < 0.0) {
@@ -68,8 +70,9 @@ std::shared_ptr<const SendPolicyDesign> read_deadband_heartbeat(const ncosim::si
 }  // namespace
 
 void register_deadband_heartbeat(ncosim::models::SendPolicyRegistry& registry) {
-  registry.add("deadband_heartbeat",
-               "send when some output moved by >= delta since the last sample sent, or after max_silence "
-               "samples not sent: delta, max_silence",
-               read_deadband_heartbeat);
+  registry.add(
+      "deadband_heartbeat",
+      "send when some output moved by >= delta since the last sample sent, or after max_silence "
+      "samples not sent: delta, max_silence",
+      read_deadband_heartbeat);
 }

@@ -10,7 +10,8 @@
 namespace {
 
 ncosim::models::LinearPlant read_mass_spring_damper(const ncosim::sim::Table& t, double period) {
-  const double m = t.number("mass"), k = t.number_or("stiffness", 0.0), c = t.number_or("damping", 0.0);
+  const double m = t.number("mass"), k = t.number_or("stiffness", 0.0),
+               c = t.number_or("damping", 0.0);
   const double sigma = t.number("sigma");
   if (!(m > 0.0)) t.fail("mass", fmt::format("expected a mass > 0, got {}", m));
   if (!(k >= 0.0)) t.fail("stiffness", fmt::format("expected a stiffness >= 0, got {}", k));
@@ -30,7 +31,8 @@ ncosim::models::LinearPlant read_mass_spring_damper(const ncosim::sim::Table& t,
 
 void register_mass_spring_damper(ncosim::models::PlantRegistry& registry) {
   registry.add("mass_spring_damper",
-               "m x'' + c x' + k x = u + w, exact discretisation (example extension): mass, stiffness, damping, "
+               "m x'' + c x' + k x = u + w, exact discretisation (example extension): mass, "
+               "stiffness, damping, "
                "sigma, x0",
                read_mass_spring_damper);
 }

@@ -15,7 +15,9 @@ class PeriodicOutage final : public ncosim::models::Link {
  public:
   PeriodicOutage(std::int64_t cycle, std::int64_t outage, std::int64_t delay)
       : cycle_(cycle), outage_(outage), delay_(delay) {}
-  std::unique_ptr<Link> clone() const override { return std::make_unique<PeriodicOutage>(cycle_, outage_, delay_); }
+  std::unique_ptr<Link> clone() const override {
+    return std::make_unique<PeriodicOutage>(cycle_, outage_, delay_);
+  }
   void reset(ncosim::sim::Rng& rng) override {
     phase_ = boost::random::uniform_int_distribution<std::int64_t>(0, cycle_ - 1)(rng);
   }
@@ -29,7 +31,9 @@ class PeriodicOutage final : public ncosim::models::Link {
     if (delay_ <= max_delay) pmf[static_cast<std::size_t>(delay_)] = 1.0 - loss_probability();
     return pmf;
   }
-  double loss_probability() const override { return static_cast<double>(outage_) / static_cast<double>(cycle_); }
+  double loss_probability() const override {
+    return static_cast<double>(outage_) / static_cast<double>(cycle_);
+  }
 
  private:
   std::int64_t cycle_, outage_, delay_;
@@ -38,9 +42,11 @@ class PeriodicOutage final : public ncosim::models::Link {
 
 std::unique_ptr<ncosim::models::Link> read_periodic_outage(const ncosim::sim::Table& t,
                                                            const ncosim::models::LinkContext&) {
-  const std::int64_t cycle = t.integer("cycle"), outage = t.integer("outage"), delay = t.integer_or("delay", 0);
+  const std::int64_t cycle = t.integer("cycle"), outage = t.integer("outage"),
+                     delay = t.integer_or("delay", 0);
   if (cycle < 1) t.fail("cycle", fmt::format("expected an integer >= 1, got {}", cycle));
-  if (outage < 0 || outage > cycle) t.fail("outage", fmt::format("expected an integer in 0..{}, got {}", cycle, outage));
+  if (outage < 0 || outage > cycle)
+    t.fail("outage", fmt::format("expected an integer in 0..{}, got {}", cycle, outage));
   if (delay < 0) t.fail("delay", fmt::format("expected an integer >= 0, got {}", delay));
   return std::make_unique<PeriodicOutage>(cycle, outage, delay);
 }
@@ -49,7 +55,8 @@ std::unique_ptr<ncosim::models::Link> read_periodic_outage(const ncosim::sim::Ta
 
 void register_periodic_outage(ncosim::models::LinkRegistry& registry) {
   registry.add("periodic_outage",
-               "deterministic duty cycle (example extension): of every `cycle` packets the last `outage` are lost; "
+               "deterministic duty cycle (example extension): of every `cycle` packets the last "
+               "`outage` are lost; "
                "delay",
                read_periodic_outage);
 }

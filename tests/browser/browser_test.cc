@@ -33,7 +33,8 @@ std::string shell_quote(const std::string& s) {
 // The flags for a machine without network, display or GPU; a fresh profile each call.
 std::string chromium(const fs::path& profile, const std::string& args) {
   return fmt::format(
-      "timeout 120 chromium --headless {} --disable-gpu --disable-quic --no-first-run --disable-background-networking "
+      "timeout 120 chromium --headless {} --disable-gpu --disable-quic --no-first-run "
+      "--disable-background-networking "
       "--disable-component-update --disable-sync --disable-extensions --user-data-dir={} {}",
       ::geteuid() == 0 ? "--no-sandbox" : "", shell_quote(profile.string()), args);
 }
@@ -85,7 +86,8 @@ Verdict probe(const fs::path& html, const fs::path& work, const std::string& ext
   EXPECT_NE(head, std::string::npos);
   text.insert(head + 6, kProbe);
   if (!extra_body.empty()) text.insert(text.find("</body>"), extra_body);
-  const fs::path copy = work / fmt::format("{}_probe{}.html", html.stem().string(), extra_body.empty() ? "" : "_broken");
+  const fs::path copy = work / fmt::format("{}_probe{}.html", html.stem().string(),
+                                           extra_body.empty() ? "" : "_broken");
   {
     std::ofstream o(copy, std::ios::binary);
     o << text;
@@ -102,9 +104,10 @@ Verdict probe(const fs::path& html, const fs::path& work, const std::string& ext
   const std::regex pre(R"re(<pre id="ncosim-probe">([^<]*)</pre>)re");
   if (std::regex_search(out.output, m, pre)) {
     std::string js = m[1].str();
-    for (const auto& [from, to] : std::vector<std::pair<std::string, std::string>>{{"&quot;", "\""}, {"&lt;", "<"},
-                                                                                     {"&gt;", ">"}, {"&amp;", "&"}}) {
-      for (auto p = js.find(from); p != std::string::npos; p = js.find(from, p + to.size())) js.replace(p, from.size(), to);
+    for (const auto& [from, to] : std::vector<std::pair<std::string, std::string>>{
+             {"&quot;", "\""}, {"&lt;", "<"}, {"&gt;", ">"}, {"&amp;", "&"}}) {
+      for (auto p = js.find(from); p != std::string::npos; p = js.find(from, p + to.size()))
+        js.replace(p, from.size(), to);
     }
     v.j = nlohmann::json::parse(js);
   }
@@ -122,11 +125,12 @@ TEST(Browser, ReportRendersInHeadlessChromium) {
   fs::remove_all(work);
   fs::create_directories(work);
   const fs::path out = work / "campaign";
-  auto r = ncosim::testing::run_shell(fmt::format("{} run {} --out {} --trace --runs 2 --quiet", shell_quote(kBinary),
-                                                  shell_quote((kData / "plot_names.toml").string()),
-                                                  shell_quote(out.string())));
+  auto r = ncosim::testing::run_shell(
+      fmt::format("{} run {} --out {} --trace --runs 2 --quiet", shell_quote(kBinary),
+                  shell_quote((kData / "plot_names.toml").string()), shell_quote(out.string())));
   ASSERT_EQ(r.code, 0) << r.output;
-  r = ncosim::testing::run_shell(fmt::format("{} report {}", shell_quote(kBinary), shell_quote(out.string())));
+  r = ncosim::testing::run_shell(
+      fmt::format("{} report {}", shell_quote(kBinary), shell_quote(out.string())));
   ASSERT_EQ(r.code, 0) << r.output;
   const fs::path html = out / "report.html";
   const auto lint = ncosim::testing::run_shell("xmllint --noout " + shell_quote(html.string()));
@@ -147,15 +151,18 @@ TEST(Browser, ReportRendersInHeadlessChromium) {
   EXPECT_GE(v.j["tables"].get<int>(), 3);
 
   // The same probe catches a missing image and a console error.
-  const Verdict bad = probe(html, work, "<img src=\"missing.png\" alt=\"\"/><script>console.error('x');</script>");
+  const Verdict bad =
+      probe(html, work, "<img src=\"missing.png\" alt=\"\"/><script>console.error('x');</script>");
   ASSERT_TRUE(bad.j.is_object());
   EXPECT_EQ(bad.j["problems"].size(), 2u) << bad.j["problems"].dump();
 
   // Screenshot of the report itself (no probe), for a person to look at.
   const fs::path shot = work / "report_screenshot.png";
   const auto s = ncosim::testing::run_shell(
-      chromium(work / "profile_shot", fmt::format("--window-size=1280,1600 --screenshot={} {}", shell_quote(shot.string()),
-                                                  shell_quote("file://" + html.string()))) + " 2>/dev/null");
+      chromium(work / "profile_shot",
+               fmt::format("--window-size=1280,1600 --screenshot={} {}", shell_quote(shot.string()),
+                           shell_quote("file://" + html.string()))) +
+      " 2>/dev/null");
   ASSERT_TRUE(fs::exists(shot)) << s.output;
   EXPECT_GT(fs::file_size(shot), 20'000u);
   std::cout << "screenshot: " << shot.string() << "\n";

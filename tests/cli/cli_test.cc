@@ -198,12 +198,13 @@ TEST_F(Cli, UnknownKeyIsReportedWithDidYouMean) {
 
 TEST_F(Cli, ExpectedStatusMustBeARowStatus) {
   // [[estimator]] expected_status (issue 28, part 5): one of the row statuses, at its line.
-  expect_edit_rejected("history = 2", "expected_status = \"diverge\"\nhistory = 2", "estimator[0].expected_status",
-                       {"expected one of \"ok\", \"diverged\", \"precision_lost\", \"numerical_failure\", "
-                        "\"heavy_tail\", \"design_failed\", \"ci_target_not_met\", got \"diverge\" (did you mean "
-                        "\"diverged\"?)"});
-  expect_edit_rejected("history = 2", "expected_status = 1\nhistory = 2", "estimator[0].expected_status",
-                       {"expected a string"});
+  expect_edit_rejected(
+      "history = 2", "expected_status = \"diverge\"\nhistory = 2", "estimator[0].expected_status",
+      {"expected one of \"ok\", \"diverged\", \"precision_lost\", \"numerical_failure\", "
+       "\"heavy_tail\", \"design_failed\", \"ci_target_not_met\", got \"diverge\" (did you mean "
+       "\"diverged\"?)"});
+  expect_edit_rejected("history = 2", "expected_status = 1\nhistory = 2",
+                       "estimator[0].expected_status", {"expected a string"});
 }
 
 TEST_F(Cli, MisspeltTopLevelTableIsAnUnknownKeyNotAMissingTable) {
@@ -226,35 +227,39 @@ TEST_F(Cli, MisspeltTopLevelTableIsAnUnknownKeyNotAMissingTable) {
 #endif
 
 TEST_F(Cli, UnknownPlantKindListsTheValidKinds) {
-  expect_edit_rejected(
-      "kind = \"lti\"", "kind = \"ltx\"", "plant.kind",
-      {"expected one of \"lti\", \"lti_continuous\", \"jump_linear\", \"transfer_function\"" SUMO_PLANT_KINDS ", got \"ltx\"", "(did you mean \"lti\"?)"});
+  expect_edit_rejected("kind = \"lti\"", "kind = \"ltx\"", "plant.kind",
+                       {"expected one of \"lti\", \"lti_continuous\", \"jump_linear\", "
+                        "\"transfer_function\"" SUMO_PLANT_KINDS ", got \"ltx\"",
+                        "(did you mean \"lti\"?)"});
 }
 
 TEST_F(Cli, UnknownLinkKindListsTheValidKinds) {
   expect_edit_rejected(
       "kind = \"delay\"", "kind = \"dealy\"", "link[0].kind",
       {"expected one of \"delay\", \"bernoulli\", \"negative_binomial\", "
-       "\"arrival_cdf\", \"gilbert_elliott\", \"markov\", \"trace\"" SUMO_LINK_KINDS ", got \"dealy\"",
+       "\"arrival_cdf\", \"gilbert_elliott\", \"markov\", \"trace\"" SUMO_LINK_KINDS
+       ", got \"dealy\"",
        "(did you mean \"delay\"?)"});
 }
 
 TEST_F(Cli, UnknownEstimatorKindListsTheValidKinds) {
-  expect_edit_rejected(
-      "kind = \"kalman_extended\"", "kind = \"kalman\"", "estimator[1].kind",
-      {"expected one of \"jump\", \"kalman_extended\", \"open_loop\", \"imm\", \"mode_io\", \"mode_ss\", \"kalman_buffer\", \"static_buffer\", \"sod_kalman\", \"sod_jump\", got \"kalman\""});
+  expect_edit_rejected("kind = \"kalman_extended\"", "kind = \"kalman\"", "estimator[1].kind",
+                       {"expected one of \"jump\", \"kalman_extended\", \"open_loop\", \"imm\", "
+                        "\"mode_io\", \"mode_ss\", \"kalman_buffer\", \"static_buffer\", "
+                        "\"sod_kalman\", \"sod_jump\", got \"kalman\""});
 }
 
 TEST_F(Cli, UnknownJumpDesignMethodSuggestsTheNearestOne) {
-  expect_edit_rejected("grouping = \"S2\"", "design = \"cll\"\ngrouping = \"S2\"", "estimator[0].design",
-                       {"expected one of \"iterative\", \"ccl\", \"both\", got \"cll\"",
-                        "(did you mean \"ccl\"?)"});
+  expect_edit_rejected(
+      "grouping = \"S2\"", "design = \"cll\"\ngrouping = \"S2\"", "estimator[0].design",
+      {"expected one of \"iterative\", \"ccl\", \"both\", got \"cll\"", "(did you mean \"ccl\"?)"});
 }
 
 TEST_F(Cli, UnknownInputKindListsTheValidKinds) {
-  expect_edit_rejected("kind = \"white\"", "kind = \"whte\"", "input.kind",
-                       {"expected one of \"none\", \"white\", \"state_feedback\", \"relay\", \"pi\", got \"whte\"",
-                        "(did you mean \"white\"?)"});
+  expect_edit_rejected(
+      "kind = \"white\"", "kind = \"whte\"", "input.kind",
+      {"expected one of \"none\", \"white\", \"state_feedback\", \"relay\", \"pi\", got \"whte\"",
+       "(did you mean \"white\"?)"});
 }
 
 TEST_F(Cli, NonSquareAIsRejected) {
@@ -467,9 +472,11 @@ TEST_F(Cli, BadSweptValueIsReportedAtItsLineWithTheCase) {
 TEST_F(Cli, TypoInASweptScenarioGetsNoSweepSuffix) {
   for (const std::string values : {"[1, 2]", "[2, 3]"}) {  // the base value 1 among them, or not
     const std::string text = replace_once(base_, "history = 2", "histroy = 2") +
-                             "\n[[sweep]]\nkey = \"estimator[1].max_delay\"\nvalues = " + values + "\n";
+                             "\n[[sweep]]\nkey = \"estimator[1].max_delay\"\nvalues = " + values +
+                             "\n";
     const std::string file = scenario(text);
-    const std::string out = expect_bad_input(file, {at(file, text, "histroy = 2", "estimator[0].histroy"), "unknown key"});
+    const std::string out = expect_bad_input(
+        file, {at(file, text, "histroy = 2", "estimator[0].histroy"), "unknown key"});
     EXPECT_EQ(out.find("sweep case"), std::string::npos) << out;
     EXPECT_EQ(out.find("base scenario"), std::string::npos) << out;
   }
@@ -480,8 +487,9 @@ TEST_F(Cli, BadBaseValueOfASweptKeyKeepsTheBaseScenarioSuffix) {
   const std::string text = replace_once(base_, "history = 2", "history = 0") +
                            "\n[[sweep]]\nkey = \"estimator[0].history\"\nvalues = [1, 2]\n";
   const std::string file = scenario(text);
-  expect_bad_input(file, {at(file, text, "history = 0", "estimator[0].history"), "got 0",
-                          "(in the base scenario: the values written outside [[sweep]] must be valid too"});
+  expect_bad_input(
+      file, {at(file, text, "history = 0", "estimator[0].history"), "got 0",
+             "(in the base scenario: the values written outside [[sweep]] must be valid too"});
 }
 
 TEST_F(Cli, UnknownCommandLineOptionIsBadInput) {
@@ -492,11 +500,11 @@ TEST_F(Cli, UnknownCommandLineOptionIsBadInput) {
 TEST_F(Cli, UnknownCommandSuggestsTheClosest) {
   const Outcome o = ncosim({"chek", scenario(base_)});
   EXPECT_EQ(o.code, 2) << o.output;
-  EXPECT_NE(
-      o.output.find("expected a command (run, export, merge, design, find, codesign, compare, fit, record-link, check, plot, report or list), "
-                    "got 'chek' (did you mean "
-                    "'check'?)"),
-      std::string::npos)
+  EXPECT_NE(o.output.find("expected a command (run, export, merge, design, find, codesign, "
+                          "compare, fit, record-link, check, plot, report or list), "
+                          "got 'chek' (did you mean "
+                          "'check'?)"),
+            std::string::npos)
       << o.output;
 }
 
@@ -731,7 +739,8 @@ TEST_F(Cli, DesignBothReportsEachMethodAndTheCclStartIsAKey) {
     EXPECT_DOUBLE_EQ(e["predicted_mse_ext"].get<double>(), std::min(it, ccl));
     EXPECT_NEAR(ccl, it, 1e-2 * it);  // S2, Nbar = 2: both methods within 1 %
     EXPECT_GE(e["sdp"]["solves"].get<int>(), 1);
-    EXPECT_TRUE(e["sdp"]["bisection_stop"] == "gap" || e["sdp"]["bisection_stop"] == "no_improvement");
+    EXPECT_TRUE(e["sdp"]["bisection_stop"] == "gap" ||
+                e["sdp"]["bisection_stop"] == "no_improvement");
   }
   EXPECT_GT(runs[0]["sdp"]["s4_bound_trP"].get<double>(), 0.0);
   EXPECT_EQ(runs[1]["sdp"]["s4_bound_trP"].get<double>(), 0.0);
@@ -749,8 +758,9 @@ TEST_F(Cli, RunWritesTheContractFilesAndNothingElse) {
                             "--seed", "11", "--quiet"});
   ASSERT_EQ(o.code, 0) << o.output;
   // No temporary file left behind.
-  EXPECT_EQ(listing(out_), (std::set<std::string>{"summary.csv", "summary.md", "runs.csv", "design.json",
-                                                  "manifest.json", "transmissions.csv", "runs.sqlite", "links.csv"}));
+  EXPECT_EQ(listing(out_), (std::set<std::string>{
+                               "summary.csv", "summary.md", "runs.csv", "design.json",
+                               "manifest.json", "transmissions.csv", "runs.sqlite", "links.csv"}));
 
   const Csv s = read_csv(out_ / "summary.csv");
   const std::vector<std::string> columns{"estimator",
@@ -805,13 +815,16 @@ TEST_F(Cli, RunWritesTheContractFilesAndNothingElse) {
   EXPECT_EQ(s.at(1, "paired_reference"), "Kalman");
   EXPECT_EQ(s.at(1, "mse_diff"), "");
   EXPECT_GT(std::stod(s.at(0, "mse_diff")), 0.0);  // S2 is worse than the Kalman filter
-  EXPECT_NEAR(std::stod(s.at(0, "mse_ratio")), std::stod(s.at(0, "mse")) / std::stod(s.at(1, "mse")), 1e-4);
+  EXPECT_NEAR(std::stod(s.at(0, "mse_ratio")),
+              std::stod(s.at(0, "mse")) / std::stod(s.at(1, "mse")), 1e-4);
   EXPECT_EQ(s.at(0, "mde_diff"), "");  // no modes
   // The jump observer's prediction assumes independent copies; net1 is a physical delay link.
-  EXPECT_EQ(s.at(0, "model_check").rfind("design model not followed (physical packets on delay link 'net1':", 0), 0u)
+  EXPECT_EQ(s.at(0, "model_check")
+                .rfind("design model not followed (physical packets on delay link 'net1':", 0),
+            0u)
       << s.at(0, "model_check");
   EXPECT_EQ(s.at(1, "model_check"), "");  // no prediction for the Kalman filter
-  ASSERT_EQ(s.rows.size(), 2u);  // one per estimator, in scenario order
+  ASSERT_EQ(s.rows.size(), 2u);           // one per estimator, in scenario order
   EXPECT_EQ(s.at(0, "estimator"), "jump S2");
   EXPECT_EQ(s.at(1, "estimator"), "Kalman");
   EXPECT_EQ(s.at(0, "kind"), "jump");
@@ -852,8 +865,9 @@ TEST_F(Cli, RunWithTraceWritesTrajectoryOfRunZero) {
   EXPECT_TRUE(listing(out_).count("trajectory.csv")) << o.output;
   const Csv t = read_csv(out_ / "trajectory.csv");
   const std::vector<std::string> header{
-      "period",       "x1",           "x2",         "jump S2:xhat1", "jump S2:xhat2",
-      "Kalman:xhat1", "Kalman:xhat2", "arrived:y1", "arrived:y2", "u1", "y:y1", "y:y2"};
+      "period",        "x1",           "x2",           "jump S2:xhat1",
+      "jump S2:xhat2", "Kalman:xhat1", "Kalman:xhat2", "arrived:y1",
+      "arrived:y2",    "u1",           "y:y1",         "y:y2"};
   EXPECT_EQ(t.header, header);
   ASSERT_EQ(t.rows.size(), 300u);  // one row per period
   EXPECT_EQ(t.rows.front()[0], "0");
@@ -861,11 +875,13 @@ TEST_F(Cli, RunWithTraceWritesTrajectoryOfRunZero) {
 }
 
 TEST_F(Cli, TransmissionsCsvCountsEverySampleOfPeriodicSensors) {
-  const Outcome o = ncosim({"run", scenario(base_), "--out", out_.string(), "--periods", "300", "--runs", "2", "--quiet"});
+  const Outcome o = ncosim({"run", scenario(base_), "--out", out_.string(), "--periods", "300",
+                            "--runs", "2", "--quiet"});
   ASSERT_EQ(o.code, 0) << o.output;
   const Csv t = read_csv(out_ / "transmissions.csv");
-  const std::vector<std::string> header{"sensor", "output", "policy", "delta", "samples_taken",
-                                        "samples_sent", "sent_ratio", "virtual_noise_rms"};
+  const std::vector<std::string> header{"sensor",     "output",           "policy",
+                                        "delta",      "samples_taken",    "samples_sent",
+                                        "sent_ratio", "virtual_noise_rms"};
   EXPECT_EQ(t.header, header);
   ASSERT_EQ(t.rows.size(), 2u);
   EXPECT_EQ(t.at(0, "policy"), "periodic");
@@ -876,7 +892,8 @@ TEST_F(Cli, TransmissionsCsvCountsEverySampleOfPeriodicSensors) {
 
 TEST_F(Cli, CodesignWritesThresholdsUnderTheTarget) {
   const std::string file = std::string(NCOSIM_SOURCE_DIR) + "/scenarios/sod_example51.toml";
-  const Outcome o = ncosim({"codesign", file, "--out", out_.string(), "--estimator", "C4", "--mu", "1.4", "--quiet"});
+  const Outcome o = ncosim(
+      {"codesign", file, "--out", out_.string(), "--estimator", "C4", "--mu", "1.4", "--quiet"});
   ASSERT_EQ(o.code, 0) << o.output;
   const auto j = nlohmann::json::parse(read_file(out_ / "codesign.json"));
   ASSERT_EQ(j.size(), 1u);
@@ -888,13 +905,17 @@ TEST_F(Cli, CodesignWritesThresholdsUnderTheTarget) {
   EXPECT_EQ(j[0]["epsilon"], 0.005);
   EXPECT_NE(o.output.find("apply: --set sensor[0].delta="), std::string::npos) << o.output;
   // Not a sod_jump estimator: bad input.
-  const Outcome bad = ncosim({"codesign", file, "--out", out_.string(), "--estimator", "suh_w0.02", "--quiet"});
+  const Outcome bad =
+      ncosim({"codesign", file, "--out", out_.string(), "--estimator", "suh_w0.02", "--quiet"});
   EXPECT_EQ(bad.code, 2) << bad.output;
-  EXPECT_NE(bad.output.find("expected a sod_jump estimator named \"suh_w0.02\""), std::string::npos) << bad.output;
+  EXPECT_NE(bad.output.find("expected a sod_jump estimator named \"suh_w0.02\""), std::string::npos)
+      << bad.output;
   // A range error says what it got, as written (issue 28).
-  const Outcome low = ncosim({"codesign", file, "--out", out_.string(), "--estimator", "C4", "--mu", "0.5", "--quiet"});
+  const Outcome low = ncosim(
+      {"codesign", file, "--out", out_.string(), "--estimator", "C4", "--mu", "0.5", "--quiet"});
   EXPECT_EQ(low.code, 2) << low.output;
-  EXPECT_NE(low.output.find("--mu: expected a number in [1, 1000000], got 0.5"), std::string::npos) << low.output;
+  EXPECT_NE(low.output.find("--mu: expected a number in [1, 1000000], got 0.5"), std::string::npos)
+      << low.output;
 }
 
 }  // namespace

@@ -24,7 +24,9 @@ const fs::path kTable2 = fs::path(NCOSIM_SOURCE_DIR) / "scenarios" / "dolz2014_t
 
 using Outcome = ncosim::testing::CommandOutcome;
 
-Outcome ncosim(const std::string& args) { return ncosim::testing::run_shell(fmt::format("'{}' {}", kBinary, args)); }
+Outcome ncosim(const std::string& args) {
+  return ncosim::testing::run_shell(fmt::format("'{}' {}", kBinary, args));
+}
 
 class CompareCli : public ::testing::Test {
  protected:
@@ -39,8 +41,8 @@ class CompareCli : public ::testing::Test {
   }
   // A short flagship campaign into dir_/name with extra options.
   void run(const std::string& name, const std::string& extra = "") {
-    const Outcome o = ncosim(fmt::format("run '{}' --out '{}' --runs 6 --periods 3000 --quiet {}", kTable2.string(),
-                                         (dir_ / name).string(), extra));
+    const Outcome o = ncosim(fmt::format("run '{}' --out '{}' --runs 6 --periods 3000 --quiet {}",
+                                         kTable2.string(), (dir_ / name).string(), extra));
     ASSERT_EQ(o.code, 0) << o.output;
   }
   std::string path(const std::string& name) const { return (dir_ / name).string(); }
@@ -49,17 +51,20 @@ class CompareCli : public ::testing::Test {
   // rmse_x1.. of 17 characters each (a wide file: a model with many states). Returns runs.csv.
   std::string hand_made(const std::string& name, int runs, double level, int extra = 1) const {
     fs::create_directories(dir_ / name);
-    std::ofstream(dir_ / name / "manifest.json") << R"({"scenario": "x.toml", "scenario_hash": "h", "seed": 1})";
+    std::ofstream(dir_ / name / "manifest.json")
+        << R"({"scenario": "x.toml", "scenario_hash": "h", "seed": 1})";
     std::ofstream out(dir_ / name / "runs.csv");
-    std::string line = "run,estimator,mse,mse_ext,periods,samples_used,samples_taken,diverged,status,flops_mean,"
-                       "late_samples,duplicate_samples,mde_percent";
+    std::string line =
+        "run,estimator,mse,mse_ext,periods,samples_used,samples_taken,diverged,status,flops_mean,"
+        "late_samples,duplicate_samples,mde_percent";
     for (int i = 1; i <= extra; ++i) line += fmt::format(",rmse_x{}", i);
     out << line << "\n";
     std::string tail;
     for (int i = 0; i < extra; ++i) tail += ",0.123456789012345";
     for (int r = 0; r < runs; ++r) {
       for (const auto& [est, f] : {std::pair<const char*, double>{"a", 1.0}, {"b", 1.1}}) {
-        out << fmt::format("{},{},{:.17g},,100,1,1,0,ok,,,,{}\n", r, est, f * level * (1.0 + (r % 7) / 10.0), tail);
+        out << fmt::format("{},{},{:.17g},,100,1,1,0,ok,,,,{}\n", r, est,
+                           f * level * (1.0 + (r % 7) / 10.0), tail);
       }
     }
     return (dir_ / name / "runs.csv").string();
@@ -89,25 +94,33 @@ std::pair<int, long> exit_and_peak_rss_kb(const std::vector<std::string>& args) 
 TEST_F(CompareCli, UnchangedIsExit0AndARegressionExit1WithTheFiles) {
   run("base");
   run("same");
-  Outcome o = ncosim(fmt::format("compare '{}' '{}' --out '{}'", path("base"), path("same"), path("cmp")));
+  Outcome o =
+      ncosim(fmt::format("compare '{}' '{}' --out '{}'", path("base"), path("same"), path("cmp")));
   EXPECT_EQ(o.code, 0) << o.output;
-  EXPECT_NE(o.output.find("0 worse, 0 better, 6 unchanged, 1 not comparable: exit 0"), std::string::npos) << o.output;
+  EXPECT_NE(o.output.find("0 worse, 0 better, 6 unchanged, 1 not comparable: exit 0"),
+            std::string::npos)
+      << o.output;
   EXPECT_TRUE(fs::exists(dir_ / "cmp" / "compare.csv"));
   EXPECT_TRUE(fs::exists(dir_ / "cmp" / "compare.md"));
   // S4 replaced by S1's grouping (+170 % MSE): another scenario hash, so exit 2 without the flag.
   run("worse", "--set 'estimator[4].grouping=\"S1\"'");
   o = ncosim(fmt::format("compare '{}' '{}'", path("base"), path("worse")));
   EXPECT_EQ(o.code, 2) << o.output;
-  EXPECT_NE(o.output.find(path("worse") + "/manifest.json: a different scenario or different overrides"),
+  EXPECT_NE(
+      o.output.find(path("worse") + "/manifest.json: a different scenario or different overrides"),
+      std::string::npos)
+      << o.output;
+  EXPECT_NE(o.output.find("\n  overrides: [] -> [\"estimator[4].grouping=\\\"S1\\\"\"]"),
             std::string::npos)
       << o.output;
-  EXPECT_NE(o.output.find("\n  overrides: [] -> [\"estimator[4].grouping=\\\"S1\\\"\"]"), std::string::npos)
-      << o.output;
-  o = ncosim(fmt::format("compare '{}' '{}' --allow-scenario-change --metric mse_ext", path("base"), path("worse")));
+  o = ncosim(fmt::format("compare '{}' '{}' --allow-scenario-change --metric mse_ext", path("base"),
+                         path("worse")));
   EXPECT_EQ(o.code, 1) << o.output;
-  EXPECT_NE(o.output.find("| S4, 60 gains | **worse** | paired | 6 |"), std::string::npos) << o.output;
+  EXPECT_NE(o.output.find("| S4, 60 gains | **worse** | paired | 6 |"), std::string::npos)
+      << o.output;
   // A bigger tolerance than the change: not a regression.
-  o = ncosim(fmt::format("compare '{}' '{}' --allow-scenario-change --tolerance 0.99", path("base"), path("worse")));
+  o = ncosim(fmt::format("compare '{}' '{}' --allow-scenario-change --tolerance 0.99", path("base"),
+                         path("worse")));
   EXPECT_EQ(o.code, 0) << o.output;
 }
 
@@ -116,13 +129,16 @@ TEST_F(CompareCli, AnotherSeedOrMoreRunsOfTheSameScenarioCompareWithoutTheOption
   // --allow-scenario-change (both were exit 2, naming nothing), every differing field listed.
   run("base");
   run("seed", "--seed 99");
-  Outcome o = ncosim(fmt::format("compare '{}' '{}' --out '{}'", path("base"), path("seed"), path("cmp")));
+  Outcome o =
+      ncosim(fmt::format("compare '{}' '{}' --out '{}'", path("base"), path("seed"), path("cmp")));
   EXPECT_EQ(o.code, 0) << o.output;
   EXPECT_NE(o.output.find("  - seed: 2014 -> 99\n"), std::string::npos) << o.output;
-  EXPECT_NE(o.output.find("- test: Welch's unpaired test: the seeds differ (2014 -> 99)"), std::string::npos)
+  EXPECT_NE(o.output.find("- test: Welch's unpaired test: the seeds differ (2014 -> 99)"),
+            std::string::npos)
       << o.output;
   EXPECT_NE(o.output.find("| Kalman | unchanged | welch | 6 / 6 |"), std::string::npos) << o.output;
-  EXPECT_NE(ncosim::testing::read_text(path("cmp") + "/compare.csv").find(",welch,6,6,0,"), std::string::npos);
+  EXPECT_NE(ncosim::testing::read_text(path("cmp") + "/compare.csv").find(",welch,6,6,0,"),
+            std::string::npos);
   EXPECT_NE(o.output.find("different seeds: unpaired"), std::string::npos) << o.output;
   // The manifests: scenario_text_hash is the same (text and --set), scenario_hash is not (it
   // also covers --seed, as results/README.md says).
@@ -139,25 +155,29 @@ TEST_F(CompareCli, AnotherSeedOrMoreRunsOfTheSameScenarioCompareWithoutTheOption
   // store's scenario text and --set, so the seeds still compare.
   const auto line = mb.find("  \"scenario_text_hash\"");
   ASSERT_NE(line, std::string::npos);
-  std::ofstream(path("base") + "/manifest.json") << mb.substr(0, line) + mb.substr(mb.find('\n', line) + 1);
+  std::ofstream(path("base") + "/manifest.json")
+      << mb.substr(0, line) + mb.substr(mb.find('\n', line) + 1);
   o = ncosim(fmt::format("compare '{}' '{}'", path("base"), path("seed")));
   EXPECT_EQ(o.code, 0) << o.output;
   EXPECT_NE(o.output.find("  - scenario_text_hash: (absent) -> "), std::string::npos) << o.output;
   fs::remove(path("base") + "/runs.sqlite");  // and without a store: by scenario_hash, refused
   o = ncosim(fmt::format("compare '{}' '{}'", path("base"), path("seed")));
   EXPECT_EQ(o.code, 2) << o.output;
-  EXPECT_NE(o.output.find("a manifest.json without scenario_text_hash (an older ncosim) and no run store"),
+  EXPECT_NE(o.output.find(
+                "a manifest.json without scenario_text_hash (an older ncosim) and no run store"),
             std::string::npos)
       << o.output;
   std::ofstream(path("base") + "/manifest.json") << mb;
 
   // --runs 8 (same seed): runs 0..5 are the same realisations, paired on them.
-  o = ncosim(fmt::format("run '{}' --out '{}' --runs 8 --periods 3000 --quiet", kTable2.string(), path("more")));
+  o = ncosim(fmt::format("run '{}' --out '{}' --runs 8 --periods 3000 --quiet", kTable2.string(),
+                         path("more")));
   ASSERT_EQ(o.code, 0) << o.output;
   o = ncosim(fmt::format("compare '{}' '{}'", path("base"), path("more")));
   EXPECT_EQ(o.code, 0) << o.output;
   EXPECT_NE(o.output.find("  - runs: 6 -> 8\n"), std::string::npos) << o.output;
-  EXPECT_NE(o.output.find("- test: paired on the runs both folders have"), std::string::npos) << o.output;
+  EXPECT_NE(o.output.find("- test: paired on the runs both folders have"), std::string::npos)
+      << o.output;
   EXPECT_NE(o.output.find("| Kalman | unchanged | paired | 6 |"), std::string::npos) << o.output;
   EXPECT_NE(o.output.find("paired on the 6 runs both have"), std::string::npos) << o.output;
 }
@@ -170,20 +190,23 @@ TEST_F(CompareCli, AnotherScenarioTextIsRefusedWithItsFirstDifferingLine) {
   const auto eol = text.find('\n', title);
   const std::string old_line = text.substr(title, eol - title);
   text.replace(title, eol - title, "title = \"edited\"");
-  const int line = 1 + static_cast<int>(std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(title), '\n'));
+  const int line = 1 + static_cast<int>(std::count(
+                           text.begin(), text.begin() + static_cast<std::ptrdiff_t>(title), '\n'));
   const fs::path copy = dir_ / "edited.toml";
   std::ofstream(copy) << text;
   run("base");
-  const Outcome made = ncosim(fmt::format("run '{}' --out '{}' --runs 6 --periods 3000 --quiet", copy.string(),
-                                          path("edited")));
+  const Outcome made = ncosim(fmt::format("run '{}' --out '{}' --runs 6 --periods 3000 --quiet",
+                                          copy.string(), path("edited")));
   fs::remove(copy);
   ASSERT_EQ(made.code, 0) << made.output;
   const Outcome o = ncosim(fmt::format("compare '{}' '{}'", path("base"), path("edited")));
   EXPECT_EQ(o.code, 2) << o.output;
-  EXPECT_NE(o.output.find(path("edited") + "/manifest.json: a different scenario or different overrides"),
-            std::string::npos)
+  EXPECT_NE(
+      o.output.find(path("edited") + "/manifest.json: a different scenario or different overrides"),
+      std::string::npos)
       << o.output;
-  EXPECT_NE(o.output.find(fmt::format("\n  scenario text: line {}: `{}` -> `title = \"edited\"`", line, old_line)),
+  EXPECT_NE(o.output.find(fmt::format("\n  scenario text: line {}: `{}` -> `title = \"edited\"`",
+                                      line, old_line)),
             std::string::npos)
       << o.output;
   EXPECT_NE(o.output.find("\n  scenario_text_hash: "), std::string::npos) << o.output;
@@ -216,7 +239,9 @@ TEST_F(CompareCli, HandMadeNonFiniteOrHugeValuesAreRefusedOrTested) {
   hand_made("huge", 10, 1e160);
   Outcome o = ncosim(fmt::format("compare '{}' '{}'", path("base"), path("huge")));
   EXPECT_EQ(o.code, 1) << o.output;
-  EXPECT_NE(o.output.find("2 worse, 0 better, 0 unchanged, 0 not comparable: exit 1"), std::string::npos) << o.output;
+  EXPECT_NE(o.output.find("2 worse, 0 better, 0 unchanged, 0 not comparable: exit 1"),
+            std::string::npos)
+      << o.output;
   // A non-finite, negative or out-of-range cell: exit 2 naming FILE:LINE (nan used to drop the
   // run; -1e308 gave "-inf [-nan, -nan]" and "unchanged").
   for (const std::string bad : {"nan", "inf", "-1e308", "1e999"}) {
@@ -224,7 +249,8 @@ TEST_F(CompareCli, HandMadeNonFiniteOrHugeValuesAreRefusedOrTested) {
     std::ofstream(file, std::ios::app) << "10,a," << bad << ",,100,1,1,0,ok,,,,,0.1\n";
     o = ncosim(fmt::format("compare '{}' '{}'", path("base"), path("bad")));
     EXPECT_EQ(o.code, 2) << bad << ": " << o.output;
-    EXPECT_NE(o.output.find(file + ":22: mse: expected a finite number >= 0, got \"" + bad + "\""), std::string::npos)
+    EXPECT_NE(o.output.find(file + ":22: mse: expected a finite number >= 0, got \"" + bad + "\""),
+              std::string::npos)
         << o.output;
   }
 }
@@ -243,17 +269,21 @@ TEST_F(CompareCli, MemoryFollowsTheRunsNotTheFileSize) {
 TEST_F(CompareCli, FailOnStatusListsTheRowsAndExits3) {
   // The flagship's open-loop row always diverges (A3 is unstable); the shipped scenario expects
   // it (expected_status = "diverged", tests/cli/table_cli_test.cc), so it is declared ok here.
-  const Outcome o = ncosim(fmt::format("run '{}' --out '{}' --runs 2 --periods 1000 --quiet --fail-on-status "
-                                       "--set 'estimator[6].expected_status=\"ok\"'",
-                                       kTable2.string(), path("fos")));
+  const Outcome o =
+      ncosim(fmt::format("run '{}' --out '{}' --runs 2 --periods 1000 --quiet --fail-on-status "
+                         "--set 'estimator[6].expected_status=\"ok\"'",
+                         kTable2.string(), path("fos")));
   EXPECT_EQ(o.code, 3) << o.output;
-  EXPECT_NE(o.output.find("--fail-on-status: 1 row(s) with an unexpected status"), std::string::npos) << o.output;
+  EXPECT_NE(o.output.find("--fail-on-status: 1 row(s) with an unexpected status"),
+            std::string::npos)
+      << o.output;
   EXPECT_NE(o.output.find("\"open loop\": diverged"), std::string::npos) << o.output;
   EXPECT_TRUE(fs::exists(dir_ / "fos" / "summary.csv"));  // the results are written first
   // Without the open-loop row every status is ok: exit 0.
-  const Outcome ok = ncosim(fmt::format("run '{}' --out '{}' --runs 2 --periods 1000 --quiet --fail-on-status "
-                                        "--set 'estimator=[{{kind=\"kalman_extended\", max_delay=1}}]'",
-                                        kTable2.string(), path("fos2")));
+  const Outcome ok =
+      ncosim(fmt::format("run '{}' --out '{}' --runs 2 --periods 1000 --quiet --fail-on-status "
+                         "--set 'estimator=[{{kind=\"kalman_extended\", max_delay=1}}]'",
+                         kTable2.string(), path("fos2")));
   EXPECT_EQ(ok.code, 0) << ok.output;
 }
 
@@ -261,11 +291,13 @@ TEST_F(CompareCli, CodesignWithAStatusNotOkExits3AndPrintsNoApplyLine) {
   // Example 5.1, deterministic C1 at mu = 1.05: the bound at delta0 is already 1.18 z~0 above
   // the target (results/sod_example51/README.md): start_infeasible.
   const std::string file = std::string(NCOSIM_SOURCE_DIR) + "/scenarios/sod_example51.toml";
-  const Outcome o = ncosim(fmt::format("codesign '{}' --out '{}' --estimator C1 --mu 1.05 --quiet", file, path("cd")));
+  const Outcome o = ncosim(
+      fmt::format("codesign '{}' --out '{}' --estimator C1 --mu 1.05 --quiet", file, path("cd")));
   EXPECT_EQ(o.code, 3) << o.output;
   EXPECT_EQ(o.output.find("apply:"), std::string::npos) << o.output;
   EXPECT_NE(o.output.find("status start_infeasible"), std::string::npos) << o.output;
-  EXPECT_NE(ncosim::testing::read_text(path("cd") + "/codesign.json").find("\"apply\": null"), std::string::npos);
+  EXPECT_NE(ncosim::testing::read_text(path("cd") + "/codesign.json").find("\"apply\": null"),
+            std::string::npos);
 }
 
 }  // namespace

@@ -24,7 +24,8 @@ class ErrorCurveCli : public TempDirTest {
     std::string text = read_text(source_path("tests/cli/data/base.toml"));
     text.replace(text.find("seed = 7"), 8, "seed = 7\nerror_curve = true" + extra);
     text += "\n[[estimator]]\nname = \"open loop\"\nkind = \"open_loop\"\n";
-    text.replace(text.find("A  = [[0.9, 0.1]"), 16, "A  = [[1.3, 0.1]");  // unstable: open loop diverges
+    text.replace(text.find("A  = [[0.9, 0.1]"), 16,
+                 "A  = [[1.3, 0.1]");  // unstable: open loop diverges
     return write("curve.toml", text);
   }
   CommandOutcome run(const std::vector<std::string>& args) { return run_ncosim(args); }
@@ -33,7 +34,8 @@ class ErrorCurveCli : public TempDirTest {
 
 TEST_F(ErrorCurveCli, SameFileForAnyThreadsShardsMergeAndReExport) {
   const std::string sc = scenario();
-  const std::vector<std::string> common{"--runs", "7", "--periods", "400", "--no-timing", "--quiet"};
+  const std::vector<std::string> common{"--runs", "7",           "--periods",
+                                        "400",    "--no-timing", "--quiet"};
   auto run_into = [&](const std::string& name, std::vector<std::string> extra) {
     std::vector<std::string> args{"run", sc, "--out", out(name)};
     args.insert(args.end(), common.begin(), common.end());
@@ -50,7 +52,8 @@ TEST_F(ErrorCurveCli, SameFileForAnyThreadsShardsMergeAndReExport) {
   const std::string ref = read_text(out("t1") + "/error_curve.csv");
   // 3 estimators x 400 periods + the header; the open loop's error grows as 1.3^k.
   EXPECT_EQ(split_lines(ref).size(), 1U + 3U * 400U);
-  EXPECT_NE(ref.find("open loop,399,399,7,1.30851e+90,"), std::string::npos) << ref.substr(ref.size() - 300);
+  EXPECT_NE(ref.find("open loop,399,399,7,1.30851e+90,"), std::string::npos)
+      << ref.substr(ref.size() - 300);
   EXPECT_NE(ref.find("Kalman,0,0,7,"), std::string::npos);
   EXPECT_EQ(read_text(out("t2") + "/error_curve.csv"), ref);
   EXPECT_EQ(read_text(out("merged") + "/error_curve.csv"), ref);
@@ -68,14 +71,17 @@ TEST_F(ErrorCurveCli, SameFileForAnyThreadsShardsMergeAndReExport) {
 
 TEST_F(ErrorCurveCli, OffByDefaultAndPlotDrawsItWithoutWarnings) {
   std::string text = read_text(source_path("tests/cli/data/base.toml"));
-  const auto off = run({"run", write("off.toml", text), "--out", out("off"), "--runs", "2", "--periods", "200", "--quiet"});
+  const auto off = run({"run", write("off.toml", text), "--out", out("off"), "--runs", "2",
+                        "--periods", "200", "--quiet"});
   ASSERT_EQ(off.code, 0) << off.output;
   EXPECT_FALSE(fs::exists(out("off") + "/error_curve.csv"));
   // 1500 periods: the open loop's squared error overflows (1.3^1350 > 1e154) to empty cells.
-  const auto on = run({"run", scenario(), "--out", out("on"), "--runs", "3", "--periods", "1500", "--quiet", "--trace"});
+  const auto on = run({"run", scenario(), "--out", out("on"), "--runs", "3", "--periods", "1500",
+                       "--quiet", "--trace"});
   ASSERT_EQ(on.code, 0) << on.output;
   const std::string csv = read_text(out("on") + "/error_curve.csv");
-  EXPECT_NE(csv.find("open loop,1499,1499,3,,,,"), std::string::npos) << csv.substr(csv.size() - 200);
+  EXPECT_NE(csv.find("open loop,1499,1499,3,,,,"), std::string::npos)
+      << csv.substr(csv.size() - 200);
   // Under the C locale of a fresh Debian root or a CI container as well: gnuplot runs with
   // LC_ALL=C.UTF-8, so the scripts' UTF-8 gives no "iconv failed" warning.
   auto plot = run_shell("LC_ALL=C LANG=C " + ncosim_command({"plot", out("on")}));
@@ -94,8 +100,9 @@ TEST_F(ErrorCurveCli, OffByDefaultAndPlotDrawsItWithoutWarnings) {
   // of the figure and named in its panel's title, so gnuplot never meets an empty series.
   std::string emptied;
   for (const auto& line : split_lines(csv)) {
-    emptied += line.rfind("open loop,", 0) == 0 ? line.substr(0, line.find(',', line.find(',', 10) + 1)) + ",3,,,,\n"
-                                                 : line + "\n";
+    emptied += line.rfind("open loop,", 0) == 0
+                   ? line.substr(0, line.find(',', line.find(',', 10) + 1)) + ",3,,,,\n"
+                   : line + "\n";
   }
   write("on/error_curve.csv", emptied);
   plot = run({"plot", out("on")});
@@ -117,17 +124,22 @@ TEST_F(ErrorCurveCli, BadValueAndTooMuchMemoryAreRefusedWithTheirLocation) {
   EXPECT_NE(bad.output.find("bad.toml:10"), std::string::npos) << bad.output;
   EXPECT_NE(bad.output.find("error_curve"), std::string::npos) << bad.output;
   EXPECT_FALSE(fs::exists(out("bad")));
-  const auto big = run({"run", scenario(), "--out", out("big"), "--periods", "2000000", "--max-memory", "100", "--quiet"});
+  const auto big = run({"run", scenario(), "--out", out("big"), "--periods", "2000000",
+                        "--max-memory", "100", "--quiet"});
   EXPECT_EQ(big.code, 2) << big.output;
   EXPECT_NE(big.output.find("curve.toml:10"), std::string::npos) << big.output;
   EXPECT_NE(big.output.find("run.error_curve"), std::string::npos) << big.output;
-  EXPECT_NE(big.output.find("error curve keeps 2000000 periods x 3 estimator(s)"), std::string::npos) << big.output;
+  EXPECT_NE(big.output.find("error curve keeps 2000000 periods x 3 estimator(s)"),
+            std::string::npos)
+      << big.output;
   EXPECT_FALSE(fs::exists(out("big")));
   // One file covers every case: the key cannot be swept to different values.
-  text = read_text(source_path("tests/cli/data/base.toml")) + "\n[[sweep]]\nkey = \"run.error_curve\"\nvalues = [false, true]\n";
+  text = read_text(source_path("tests/cli/data/base.toml")) +
+         "\n[[sweep]]\nkey = \"run.error_curve\"\nvalues = [false, true]\n";
   const auto swept = run({"run", write("swept.toml", text), "--out", out("swept"), "--quiet"});
   EXPECT_EQ(swept.code, 2) << swept.output;
-  EXPECT_NE(swept.output.find("run.error_curve': expected the same value in every sweep case"), std::string::npos)
+  EXPECT_NE(swept.output.find("run.error_curve': expected the same value in every sweep case"),
+            std::string::npos)
       << swept.output;
   EXPECT_FALSE(fs::exists(out("swept")));
 }
@@ -135,7 +147,8 @@ TEST_F(ErrorCurveCli, BadValueAndTooMuchMemoryAreRefusedWithTheirLocation) {
 // One run: no band (no spread to estimate), so the figure draws the curves alone and gnuplot
 // never meets a band without a point.
 TEST_F(ErrorCurveCli, OneRunDrawsCurvesWithoutABandOrAWarning) {
-  const auto one = run({"run", scenario(), "--out", out("one"), "--runs", "1", "--periods", "200", "--quiet"});
+  const auto one =
+      run({"run", scenario(), "--out", out("one"), "--runs", "1", "--periods", "200", "--quiet"});
   ASSERT_EQ(one.code, 0) << one.output;
   EXPECT_NE(read_text(out("one") + "/error_curve.csv").find("Kalman,5,5,1,"), std::string::npos);
   const auto plot = run_shell("LC_ALL=C " + ncosim_command({"plot", out("one")}));

@@ -3,6 +3,8 @@
 // (N, pattern), and tracks the C++ jump estimator on a recorded run (packets with buffered,
 // delayed and out-of-window samples, multi-output sensor, random inputs, samples of a simulated
 // plant) to 1e-12.
+#include "estimators/export_c.h"
+
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <sys/wait.h>
@@ -17,7 +19,6 @@
 #include <string>
 #include <vector>
 
-#include "estimators/export_c.h"
 #include "test_util.h"
 
 namespace {
@@ -33,7 +34,8 @@ using Outcome = ncosim::testing::CommandOutcome;
 Outcome shell(const std::string& cmd) { return ncosim::testing::run_shell(cmd); }
 
 fs::path fresh_dir(const std::string& name) {
-  const fs::path d = fs::temp_directory_path() / fmt::format("ncosim_export_{}_{}", name, ::getpid());
+  const fs::path d =
+      fs::temp_directory_path() / fmt::format("ncosim_export_{}_{}", name, ::getpid());
   fs::remove_all(d);
   fs::create_directories(d);
   return d;
@@ -109,8 +111,9 @@ TEST(CIdentifier, SanitisedUniqueAndValid) {
 TEST(ExportC, CompilesSelectsAndTracksTheCppEstimatorTo1e12) {
   if (shell("cc --version").code != 0) GTEST_SKIP() << "no C compiler (cc) on this machine";
   const fs::path dir = fresh_dir("c");
-  const Outcome o = shell(fmt::format("'{}' design '{}' --out '{}' --export-c '{}'", kBinary, kFixture.string(),
-                                      (dir / "design").string(), (dir / "c").string()));
+  const Outcome o =
+      shell(fmt::format("'{}' design '{}' --out '{}' --export-c '{}'", kBinary, kFixture.string(),
+                        (dir / "design").string(), (dir / "c").string()));
   ASSERT_EQ(o.code, 0) << o.output;
   EXPECT_NE(o.output.find("\"Kalman\" skipped"), std::string::npos) << o.output;
 
@@ -125,12 +128,11 @@ TEST(ExportC, CompilesSelectsAndTracksTheCppEstimatorTo1e12) {
     SCOPED_TRACE(entry.name + " -> " + p);
     ASSERT_TRUE(fs::exists(dir / "c" / (p + ".h")));
     ASSERT_TRUE(fs::exists(dir / "c" / (p + ".c")));
-    {
-      std::ofstream(dir / "c" / (p + "_driver.c")) << driver(p);
-    }
+    { std::ofstream(dir / "c" / (p + "_driver.c")) << driver(p); }
     const fs::path exe = dir / "c" / (p + "_driver");
-    const Outcome cc = shell(fmt::format("cc -std=c99 -Wall -Werror -pedantic -O2 -I'{0}' '{0}/{1}.c' '{0}/{1}_driver.c' -o '{2}'",
-                                         (dir / "c").string(), p, exe.string()));
+    const Outcome cc = shell(fmt::format(
+        "cc -std=c99 -Wall -Werror -pedantic -O2 -I'{0}' '{0}/{1}.c' '{0}/{1}_driver.c' -o '{2}'",
+        (dir / "c").string(), p, exe.string()));
     ASSERT_EQ(cc.code, 0) << cc.output;
 
     // The recorded run: packets of both sensors (buffered samples, delays beyond dbar) and inputs.
@@ -152,7 +154,8 @@ TEST(ExportC, CompilesSelectsAndTracksTheCppEstimatorTo1e12) {
       if (k > 0) {
         Eigen::VectorXd w(plant.nw());
         for (Eigen::Index i = 0; i < w.size(); ++i) w(i) = normal(rng);
-        xtrue.push_back(plant.A * xtrue.back() + last_drive + plant.Bw * (plant.W.llt().matrixL() * w));
+        xtrue.push_back(plant.A * xtrue.back() + last_drive +
+                        plant.Bw * (plant.W.llt().matrixL() * w));
       }
       for (int s = 0; s < static_cast<int>(sc->model.sensors.size()); ++s) {
         const auto& spec = sc->model.sensors[static_cast<std::size_t>(s)].spec;
@@ -168,13 +171,17 @@ TEST(ExportC, CompilesSelectsAndTracksTheCppEstimatorTo1e12) {
         if (pk.count == 0) continue;
         pk.values.resize(pk.count * spec.ny());
         for (int i = 0; i < pk.count; ++i) {
-          const Eigen::VectorXd y = spec.C * xtrue[static_cast<std::size_t>(pk.stamps[static_cast<std::size_t>(i)])];
-          for (Eigen::Index r = 0; r < spec.ny(); ++r) pk.values(i * spec.ny() + r) = y(r) + 0.1 * normal(rng);
+          const Eigen::VectorXd y =
+              spec.C * xtrue[static_cast<std::size_t>(pk.stamps[static_cast<std::size_t>(i)])];
+          for (Eigen::Index r = 0; r < spec.ny(); ++r)
+            pk.values(i * spec.ny() + r) = y(r) + 0.1 * normal(rng);
         }
         estimator->on_packet(pk, k);
         for (int i = 0; i < pk.count; ++i) {
-          script += fmt::format("R {} {} {}", s, k - pk.stamps[static_cast<std::size_t>(i)], spec.ny());
-          for (Eigen::Index r = 0; r < spec.ny(); ++r) script += fmt::format(" {:.17g}", pk.values(i * spec.ny() + r));
+          script +=
+              fmt::format("R {} {} {}", s, k - pk.stamps[static_cast<std::size_t>(i)], spec.ny());
+          for (Eigen::Index r = 0; r < spec.ny(); ++r)
+            script += fmt::format(" {:.17g}", pk.values(i * spec.ny() + r));
           script += "\n";
         }
       }
@@ -188,10 +195,9 @@ TEST(ExportC, CompilesSelectsAndTracksTheCppEstimatorTo1e12) {
       script += "\n";
       expected.push_back(*estimator->extended());
     }
-    {
-      std::ofstream(dir / "c" / (p + ".in")) << script;
-    }
-    const Outcome run = shell(fmt::format("'{}' < '{}'", exe.string(), (dir / "c" / (p + ".in")).string()));
+    { std::ofstream(dir / "c" / (p + ".in")) << script; }
+    const Outcome run =
+        shell(fmt::format("'{}' < '{}'", exe.string(), (dir / "c" / (p + ".in")).string()));
     ASSERT_EQ(run.code, 0) << run.output.substr(0, 500);
     std::istringstream lines(run.output);
     std::string line;
@@ -199,7 +205,8 @@ TEST(ExportC, CompilesSelectsAndTracksTheCppEstimatorTo1e12) {
     for (int N = 1; N <= design.Nbar + 1; ++N) {
       for (std::uint64_t m = 0; m < (std::uint64_t{1} << ext.fictitious_count()); ++m) {
         ASSERT_TRUE(std::getline(lines, line));
-        const int want = m == 0 ? -1 : design.gain_of[static_cast<std::size_t>(std::min(N, design.Nbar) - 1)][m];
+        const int want =
+            m == 0 ? -1 : design.gain_of[static_cast<std::size_t>(std::min(N, design.Nbar) - 1)][m];
         ASSERT_EQ(std::stoi(line), want) << "N = " << N << ", pattern = " << m;
       }
     }
@@ -227,8 +234,9 @@ TEST(ExportC, CompilesSelectsAndTracksTheCppEstimatorTo1e12) {
     EXPECT_EQ(step, static_cast<std::size_t>(periods));
     EXPECT_GT(used, periods / 2) << "the recorded run must exercise the updates";
     EXPECT_LE(worst, 1e-12) << "largest |x| " << largest;
-    std::printf("%-16s %zu steps, %d samples used, worst relative difference %.3g (|x| up to %.3g)\n", p.c_str(),
-                step, used, worst, largest);
+    std::printf(
+        "%-16s %zu steps, %d samples used, worst relative difference %.3g (|x| up to %.3g)\n",
+        p.c_str(), step, used, worst, largest);
   }
   EXPECT_EQ(exported, 4);
   fs::remove_all(dir);
@@ -237,9 +245,10 @@ TEST(ExportC, CompilesSelectsAndTracksTheCppEstimatorTo1e12) {
 TEST(ExportC, FailedDesignOrNoJumpEstimatorIsAnErrorAndWritesNothing) {
   const fs::path dir = fresh_dir("bad");
   // A3 with every packet lost: the design fails; nothing may be written.
-  const Outcome o = shell(fmt::format("'{}' design '{}' --set 'link[0].pmf=[0.0]' --set 'link[1].pmf=[0.0]' --out '{}' "
-                                      "--export-c '{}'",
-                                      kBinary, kFixture.string(), (dir / "design").string(), (dir / "c").string()));
+  const Outcome o = shell(
+      fmt::format("'{}' design '{}' --set 'link[0].pmf=[0.0]' --set 'link[1].pmf=[0.0]' --out '{}' "
+                  "--export-c '{}'",
+                  kBinary, kFixture.string(), (dir / "design").string(), (dir / "c").string()));
   EXPECT_EQ(o.code, 1) << o.output;
   EXPECT_NE(o.output.find("the design failed"), std::string::npos) << o.output;
   EXPECT_FALSE(fs::exists(dir / "c"));
@@ -255,17 +264,20 @@ TEST(ExportC, SweepCasesGetTheirOwnNamesAndAllCompile) {
   if (shell("cc --version").code != 0) GTEST_SKIP() << "no C compiler (cc) on this machine";
   const fs::path dir = fresh_dir("sweep");
   const fs::path fig5 = fs::path(NCOSIM_SOURCE_DIR) / "scenarios" / "dolz2014_fig5.toml";
-  const Outcome o = shell(fmt::format("'{}' design '{}' --set 'sweep[0].values=[0.9, 0.95]' --out '{}' --export-c '{}'",
-                                      kBinary, fig5.string(), (dir / "design").string(), (dir / "c").string()));
+  const Outcome o = shell(
+      fmt::format("'{}' design '{}' --set 'sweep[0].values=[0.9, 0.95]' --out '{}' --export-c '{}'",
+                  kBinary, fig5.string(), (dir / "design").string(), (dir / "c").string()));
   ASSERT_EQ(o.code, 0) << o.output;
   int files = 0;
-  for (const auto& e : fs::directory_iterator(dir / "c")) files += e.path().extension() == ".c" ? 1 : 0;
+  for (const auto& e : fs::directory_iterator(dir / "c"))
+    files += e.path().extension() == ".c" ? 1 : 0;
   EXPECT_EQ(files, 8);  // 2 cases x 4 estimators
   EXPECT_TRUE(fs::exists(dir / "c" / "s4_n1_b0_case1.h"));
   EXPECT_TRUE(fs::exists(dir / "c" / "s4_n4_b3_case2.c"));
   // Every file compiles, and all of them link together (no symbol clash).
-  const Outcome cc = shell(fmt::format("cd '{}' && cc -std=c99 -Wall -Werror -pedantic -c *.c && ld -r *.o -o all.o",
-                                       (dir / "c").string()));
+  const Outcome cc = shell(
+      fmt::format("cd '{}' && cc -std=c99 -Wall -Werror -pedantic -c *.c && ld -r *.o -o all.o",
+                  (dir / "c").string()));
   EXPECT_EQ(cc.code, 0) << cc.output;
   fs::remove_all(dir);
 }

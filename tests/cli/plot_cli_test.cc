@@ -43,7 +43,8 @@ class PlotCli : public ::testing::Test {
     // A folder name with a space, a quote and unicode: gnuplot runs inside it.
     dir_ = fs::temp_directory_path() / fmt::format("ncosim plot 'test' µ {}", ::getpid());
     fs::remove_all(dir_);
-    const auto r = ncosim_cmd({"run", (kData / "plot_names.toml").string(), "--out", dir_.string(), "--trace", "--quiet"});
+    const auto r = ncosim_cmd({"run", (kData / "plot_names.toml").string(), "--out", dir_.string(),
+                               "--trace", "--quiet"});
     ASSERT_EQ(r.code, 0) << r.output;
   }
   static void TearDownTestSuite() { fs::remove_all(dir_); }
@@ -70,8 +71,8 @@ std::vector<std::vector<std::string>> dat_rows(const std::string& dat) {
 TEST_F(PlotCli, SweepWithAwkwardNamesGivesPanelsHoldingSummaryNumbers) {
   const auto r = ncosim_cmd({"plot", dir_.string(), "--trace"});
   ASSERT_EQ(r.code, 0) << r.output;
-  for (const char* f : {"plot_mse.dat", "plot_mse.gp", "plot_mse.png", "plot_mse.svg", "trace.dat", "trace.gp",
-                        "trace.png", "trace.svg"}) {
+  for (const char* f : {"plot_mse.dat", "plot_mse.gp", "plot_mse.png", "plot_mse.svg", "trace.dat",
+                        "trace.gp", "trace.png", "trace.svg"}) {
     ASSERT_TRUE(fs::exists(dir_ / f)) << f;
     EXPECT_GT(fs::file_size(dir_ / f), 100u) << f;
   }
@@ -84,9 +85,12 @@ TEST_F(PlotCli, SweepWithAwkwardNamesGivesPanelsHoldingSummaryNumbers) {
   for (const std::string pmf : {"[0.5, 0.3]", "[0.8, 0.1]"}) {
     for (int e = 0; e < 2; ++e) {
       for (const auto& row : s.rows) {
-        if (row[1] != pmf || row[2] != (e == 0 ? "jump S2, \"two\" gains" : "Kalman — it's <b>µ</b> & co")) continue;
+        if (row[1] != pmf ||
+            row[2] != (e == 0 ? "jump S2, \"two\" gains" : "Kalman — it's <b>µ</b> & co"))
+          continue;
         const auto q = [](const std::string& v) { return v.empty() ? std::string("?") : v; };
-        EXPECT_EQ(rows[i], (std::vector<std::string>{row[0], row[mse], q(row[ci]), q(row[pred])})) << "row " << i;
+        EXPECT_EQ(rows[i], (std::vector<std::string>{row[0], row[mse], q(row[ci]), q(row[pred])}))
+            << "row " << i;
         ++i;
       }
     }
@@ -96,9 +100,11 @@ TEST_F(PlotCli, SweepWithAwkwardNamesGivesPanelsHoldingSummaryNumbers) {
   const std::string gp = read_file(dir_ / "plot_mse.gp");
   EXPECT_NE(gp.find("'Kalman — it''s <b>µ</b> & co'"), std::string::npos) << gp;
   EXPECT_NE(read_file(dir_ / "plot_mse.svg").find("jump S2, \"two\" gains"), std::string::npos);
-  EXPECT_NE(read_file(dir_ / "plot_mse.svg").find("Kalman — it's &lt;b>µ&lt;/b> &amp; co"), std::string::npos);
+  EXPECT_NE(read_file(dir_ / "plot_mse.svg").find("Kalman — it's &lt;b>µ&lt;/b> &amp; co"),
+            std::string::npos);
   // The other key on x, one format only.
-  const auto r2 = ncosim_cmd({"plot", dir_.string(), "--x", "link[0].pmf", "--panel", "link[1].loss", "--format", "svg"});
+  const auto r2 = ncosim_cmd(
+      {"plot", dir_.string(), "--x", "link[0].pmf", "--panel", "link[1].loss", "--format", "svg"});
   ASSERT_EQ(r2.code, 0) << r2.output;
   EXPECT_NE(read_file(dir_ / "plot_mse.gp").find("set xlabel 'link[0].pmf'"), std::string::npos);
 }
@@ -130,7 +136,8 @@ TEST_F(PlotCli, RecentredTrajectoryCarriesThePhysicalState) {
   const auto man = nlohmann::json::parse(read_file(dir_ / "manifest.json"));
   ASSERT_TRUE(man["recentred"].get<bool>());
   const auto t = ncosim::sim::parse_csv(read_file(dir_ / "trajectory.csv"), "trajectory.csv");
-  const int x1 = t.column("x1"), x2 = t.column("x2"), p1 = t.column("x1_physical"), p2 = t.column("x2_physical");
+  const int x1 = t.column("x1"), x2 = t.column("x2"), p1 = t.column("x1_physical"),
+            p2 = t.column("x2_physical");
   ASSERT_GE(p1, 0);
   ASSERT_GE(p2, 0);
   ASSERT_EQ(t.rows.size(), 300u);
@@ -156,7 +163,8 @@ TEST_F(PlotCli, RecentredTrajectoryCarriesThePhysicalState) {
 std::set<std::string> duplicate_ids(const std::string& html) {
   std::set<std::string> seen, dup;
   const std::regex id(R"re(\sid=["']([^"']*)["'])re");
-  for (auto it = std::sregex_iterator(html.begin(), html.end(), id); it != std::sregex_iterator(); ++it) {
+  for (auto it = std::sregex_iterator(html.begin(), html.end(), id); it != std::sregex_iterator();
+       ++it) {
     if (!seen.insert((*it)[1].str()).second) dup.insert((*it)[1].str());
   }
   return dup;
@@ -174,10 +182,12 @@ TEST_F(PlotCli, ReportIsSelfContainedWellFormedAndEscaped) {
   EXPECT_NE(html.find("Kalman — it&#39;s &lt;b&gt;µ&lt;/b&gt; &amp; co"), std::string::npos);
   EXPECT_EQ(html.find("<b>µ</b>"), std::string::npos);
   std::size_t figures = 0;
-  for (auto p = html.find("<figure"); p != std::string::npos; p = html.find("<figure", p + 1)) ++figures;
+  for (auto p = html.find("<figure"); p != std::string::npos; p = html.find("<figure", p + 1))
+    ++figures;
   EXPECT_EQ(figures, 4u);  // mse, mse_ext, paired mse_diff, trace
   EXPECT_TRUE(duplicate_ids(html).empty());
-  const auto lint = ncosim::testing::run_shell("xmllint --noout " + shell_quote(html_path.string()));
+  const auto lint =
+      ncosim::testing::run_shell("xmllint --noout " + shell_quote(html_path.string()));
   EXPECT_EQ(lint.code, 0) << lint.output;
 }
 
@@ -189,8 +199,10 @@ TEST(ReportCli, TwentyCaseTenEstimatorSweepStaysUnderOneMegabyte) {
   sc = sc.substr(0, pos);
   const char* groupings[] = {"S1", "S2", "S3", "S4"};
   for (int e = 0; e < 8; ++e) {
-    sc += fmt::format("[[estimator]]\nname = \"jump {} N={}\"\nkind = \"jump\"\ngrouping = \"{}\"\nhistory = {}\nmax_delay = 1\n\n",
-                      groupings[e % 4], 1 + e / 4, groupings[e % 4], 1 + e / 4);
+    sc += fmt::format(
+        "[[estimator]]\nname = \"jump {} N={}\"\nkind = \"jump\"\ngrouping = \"{}\"\nhistory = "
+        "{}\nmax_delay = 1\n\n",
+        groupings[e % 4], 1 + e / 4, groupings[e % 4], 1 + e / 4);
   }
   sc += "[[estimator]]\nname = \"Kalman\"\nkind = \"kalman_extended\"\nmax_delay = 1\n\n";
   sc += "[[estimator]]\nname = \"open loop\"\nkind = \"open_loop\"\nmax_delay = 1\n\n";
@@ -204,15 +216,16 @@ TEST(ReportCli, TwentyCaseTenEstimatorSweepStaysUnderOneMegabyte) {
     std::ofstream o(d / "sweep.toml");
     o << sc;
   }
-  const auto run = ncosim_cmd({"run", (d / "sweep.toml").string(), "--out", (d / "out").string(), "--runs", "2",
-                               "--periods", "200", "--quiet"});
+  const auto run = ncosim_cmd({"run", (d / "sweep.toml").string(), "--out", (d / "out").string(),
+                               "--runs", "2", "--periods", "200", "--quiet"});
   ASSERT_EQ(run.code, 0) << run.output;
   const auto r = ncosim_cmd({"report", (d / "out").string()});
   ASSERT_EQ(r.code, 0) << r.output;
   const std::string html = read_file(d / "out" / "report.html");
   EXPECT_LT(html.size(), 1'000'000u);
   std::cout << "20 x 10 report: " << html.size() << " bytes; " << r.output;
-  for (int c = 1; c <= 20; ++c) EXPECT_NE(html.find(fmt::format("<details id=\"case-{}\">", c)), std::string::npos) << c;
+  for (int c = 1; c <= 20; ++c)
+    EXPECT_NE(html.find(fmt::format("<details id=\"case-{}\">", c)), std::string::npos) << c;
   EXPECT_NE(html.find("href=\"#case-20\""), std::string::npos);
   EXPECT_TRUE(duplicate_ids(html).empty());
   fs::remove_all(d);

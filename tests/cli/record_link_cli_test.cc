@@ -38,7 +38,8 @@ std::string replace(std::string text, const std::string& from, const std::string
 std::vector<std::string> rows_of(const fs::path& runs_csv, const std::string& estimator) {
   std::vector<std::string> out;
   for (const auto& l : split_lines(ncosim::testing::read_text(runs_csv.string()))) {
-    if (l.find("," + estimator + ",") != std::string::npos) out.push_back(l.substr(0, l.find(",ok,")));
+    if (l.find("," + estimator + ",") != std::string::npos)
+      out.push_back(l.substr(0, l.find(",ok,")));
   }
   return out;
 }
@@ -49,10 +50,12 @@ class RecordLinkCli : public ncosim::testing::TempDirTest {
   void SetUp() override {
     TempDirTest::SetUp();
     // base.toml with net2 a time-driven Gilbert–Elliott link and y2 sending every 3rd period.
-    std::string t = ncosim::testing::read_text(std::string(NCOSIM_SOURCE_DIR) + "/tests/cli/data/base.toml");
-    t = replace(t, "kind = \"bernoulli\"\nloss = 0.2\n",
-                "kind = \"gilbert_elliott\"\np_good_to_bad = 0.05\np_bad_to_good = 0.3\nloss_good = 0.02\n"
-                "loss_bad = 0.9\n");
+    std::string t =
+        ncosim::testing::read_text(std::string(NCOSIM_SOURCE_DIR) + "/tests/cli/data/base.toml");
+    t = replace(
+        t, "kind = \"bernoulli\"\nloss = 0.2\n",
+        "kind = \"gilbert_elliott\"\np_good_to_bad = 0.05\np_bad_to_good = 0.3\nloss_good = 0.02\n"
+        "loss_bad = 0.9\n");
     t = replace(t, "R = [[0.02]]\n", "R = [[0.02]]\nevery = 3\n");
     base_ = t;
   }
@@ -61,13 +64,15 @@ class RecordLinkCli : public ncosim::testing::TempDirTest {
 
 TEST_F(RecordLinkCli, RecordsTheCampaignsFatesAndASegmentedReplayReproducesIt) {
   const std::string file = write("s.toml", base_);
-  const Outcome run = run_ncosim({"run", file, "--out", (dir_ / "run").string(), "--quiet", "--no-timing"});
+  const Outcome run =
+      run_ncosim({"run", file, "--out", (dir_ / "run").string(), "--quiet", "--no-timing"});
   ASSERT_EQ(run.code, 0) << run.output;
   const auto links = split_lines(ncosim::testing::read_text((dir_ / "run" / "links.csv").string()));
   ASSERT_EQ(links.size(), 3u);
   for (const std::string link : {"net1", "net2"}) {
     const fs::path rec = dir_ / ("rec_" + link);
-    const Outcome o = run_ncosim({"record-link", file, "--link", link, "--out", rec.string(), "--quiet"});
+    const Outcome o =
+        run_ncosim({"record-link", file, "--link", link, "--out", rec.string(), "--quiet"});
     ASSERT_EQ(o.code, 0) << o.output;
     const auto index = split_lines(ncosim::testing::read_text((rec / "record.csv").string()));
     ASSERT_EQ(index.size(), 2u);
@@ -88,12 +93,13 @@ TEST_F(RecordLinkCli, RecordsTheCampaignsFatesAndASegmentedReplayReproducesIt) {
   // Replay both links from their records, run r its own segment.
   std::string replay = replace(base_, "kind = \"delay\"\npmf = [0.5, 0.3]\n",
                                "kind = \"trace\"\nfile = \"rec_net1/net1.csv\"\nsegment = 2000\n");
-  replay = replace(replay,
-                   "kind = \"gilbert_elliott\"\np_good_to_bad = 0.05\np_bad_to_good = 0.3\nloss_good = 0.02\n"
-                   "loss_bad = 0.9\n",
-                   "kind = \"trace\"\nfile = \"rec_net2/net2.csv\"\nsegment = 667\n");
-  const Outcome rp =
-      run_ncosim({"run", write("replay.toml", replay), "--out", (dir_ / "replay").string(), "--quiet", "--no-timing"});
+  replay = replace(
+      replay,
+      "kind = \"gilbert_elliott\"\np_good_to_bad = 0.05\np_bad_to_good = 0.3\nloss_good = 0.02\n"
+      "loss_bad = 0.9\n",
+      "kind = \"trace\"\nfile = \"rec_net2/net2.csv\"\nsegment = 667\n");
+  const Outcome rp = run_ncosim({"run", write("replay.toml", replay), "--out",
+                                 (dir_ / "replay").string(), "--quiet", "--no-timing"});
   ASSERT_EQ(rp.code, 0) << rp.output;
   // The Kalman filter uses what arrives (no design law): the same errors, run by run.
   const auto a = rows_of(dir_ / "run" / "runs.csv", "Kalman");
@@ -101,8 +107,9 @@ TEST_F(RecordLinkCli, RecordsTheCampaignsFatesAndASegmentedReplayReproducesIt) {
   ASSERT_EQ(a.size(), 4u);
   EXPECT_EQ(a, b);
   // Without `segment` every run replays rows 0.. (run 0's packets): runs 1..3 differ.
-  const Outcome whole = run_ncosim({"run", write("whole.toml", replace(replay, "segment = 2000\n", "")), "--out",
-                                (dir_ / "whole").string(), "--quiet", "--no-timing"});
+  const Outcome whole =
+      run_ncosim({"run", write("whole.toml", replace(replay, "segment = 2000\n", "")), "--out",
+                  (dir_ / "whole").string(), "--quiet", "--no-timing"});
   ASSERT_EQ(whole.code, 0) << whole.output;
   const auto c = rows_of(dir_ / "whole" / "runs.csv", "Kalman");
   ASSERT_EQ(c.size(), 4u);
@@ -114,12 +121,15 @@ TEST_F(RecordLinkCli, WritesOneTracePerSweepCase) {
   const std::string file =
       write("s.toml", base_ + "\n[[sweep]]\nkey = \"link[0].pmf\"\nvalues = [[0.5, 0.3], [0.9]]\n");
   const fs::path rec = dir_ / "rec";
-  const Outcome o = run_ncosim({"record-link", file, "--link", "net1", "--out", rec.string(), "--runs", "2", "--quiet"});
+  const Outcome o = run_ncosim(
+      {"record-link", file, "--link", "net1", "--out", rec.string(), "--runs", "2", "--quiet"});
   ASSERT_EQ(o.code, 0) << o.output;
   const auto index = split_lines(ncosim::testing::read_text((rec / "record.csv").string()));
   ASSERT_EQ(index.size(), 3u);
-  EXPECT_EQ(index[0], "link[0].pmf,link,file,runs,periods,segment,packets,delivered,delivered_ratio");
-  EXPECT_EQ(index[1].rfind("\"[0.5, 0.3]\",net1,net1_case0.csv,2,2000,2000,4000,", 0), 0u) << index[1];
+  EXPECT_EQ(index[0],
+            "link[0].pmf,link,file,runs,periods,segment,packets,delivered,delivered_ratio");
+  EXPECT_EQ(index[1].rfind("\"[0.5, 0.3]\",net1,net1_case0.csv,2,2000,2000,4000,", 0), 0u)
+      << index[1];
   EXPECT_EQ(index[2].rfind("[0.9],net1,net1_case1.csv,2,2000,2000,4000,", 0), 0u) << index[2];
   EXPECT_TRUE(fs::exists(rec / "net1_case0.csv"));
   EXPECT_TRUE(fs::exists(rec / "net1_case1.csv"));
@@ -132,14 +142,18 @@ TEST_F(RecordLinkCli, BadInputIsExit2AndWritesNothing) {
     std::vector<std::string> args;
     std::string message;
   };
-  const std::string sod = replace(base_, "R = [[0.01]]\n", "R = [[0.01]]\npolicy = \"send_on_delta\"\ndelta = [0.1]\n");
+  const std::string sod =
+      replace(base_, "R = [[0.01]]\n", "R = [[0.01]]\npolicy = \"send_on_delta\"\ndelta = [0.1]\n");
   const std::vector<Bad> bad{
       {base_, {"--link", "net9"}, "--link: expected the name of a [[link]] of"},
       {sod, {"--link", "net1"}, "sends by policy \"send_on_delta\""},
-      {base_, {"--link", "net1", "--runs", "30000"}, "more than the 50000000 packets a trace link reads"},
+      {base_,
+       {"--link", "net1", "--runs", "30000"},
+       "more than the 50000000 packets a trace link reads"},
   };
   for (const auto& b : bad) {
-    std::vector<std::string> args{"record-link", write("s.toml", b.scenario), "--out", out.string()};
+    std::vector<std::string> args{"record-link", write("s.toml", b.scenario), "--out",
+                                  out.string()};
     args.insert(args.end(), b.args.begin(), b.args.end());
     const Outcome o = run_ncosim(args);
     EXPECT_EQ(o.code, 2) << o.output;
@@ -150,12 +164,13 @@ TEST_F(RecordLinkCli, BadInputIsExit2AndWritesNothing) {
   std::string trace = "seq,delay\n";
   for (int i = 0; i < 4000; ++i) trace += fmt::format("{},{}\n", i, i % 5 == 0 ? "" : "0");
   write("t.csv", trace);
-  for (const auto& [segment, message] :
-       std::vector<std::pair<std::string, std::string>>{{"0", "expected an integer in 1..4000 (the trace's rows), got 0"},
-                                                        {"4001", "expected an integer in 1..4000"},
-                                                        {"1999", "expected a trace segment of at least 2000 packets"}}) {
-    const std::string file = write("r.toml", replace(base_, "kind = \"delay\"\npmf = [0.5, 0.3]\n",
-                                                     "kind = \"trace\"\nfile = \"t.csv\"\nsegment = " + segment + "\n"));
+  for (const auto& [segment, message] : std::vector<std::pair<std::string, std::string>>{
+           {"0", "expected an integer in 1..4000 (the trace's rows), got 0"},
+           {"4001", "expected an integer in 1..4000"},
+           {"1999", "expected a trace segment of at least 2000 packets"}}) {
+    const std::string file =
+        write("r.toml", replace(base_, "kind = \"delay\"\npmf = [0.5, 0.3]\n",
+                                "kind = \"trace\"\nfile = \"t.csv\"\nsegment = " + segment + "\n"));
     const Outcome o = run_ncosim({"run", file, "--out", out.string(), "--quiet"});
     EXPECT_EQ(o.code, 2) << o.output;
     EXPECT_NE(o.output.find(file + ":"), std::string::npos) << o.output;

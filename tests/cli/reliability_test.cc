@@ -2,10 +2,9 @@
 // them through the ncosim executable: each test is a regression test of one finding of the
 // reliability probe (exit 2 with FILE:LINE for bad input, exit 1 with a message for a failure that
 // is not bad input, never an abort, a silent status or a mixed result set).
+#include <fcntl.h>
 #include <fmt/format.h>
 #include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
-#include <fcntl.h>
 #include <poll.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
@@ -16,6 +15,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <regex>
 #include <string>
 #include <vector>
@@ -109,7 +109,8 @@ w_rms = 0.1
   const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   EXPECT_EQ(o.code, 2) << o.output;
   EXPECT_NE(o.output.find(file + ":12: key 'estimator[0].kind'"), std::string::npos) << o.output;
-  EXPECT_NE(o.output.find("above the process's address-space limit of 2.0 GB (ulimit -v"), std::string::npos)
+  EXPECT_NE(o.output.find("above the process's address-space limit of 2.0 GB (ulimit -v"),
+            std::string::npos)
       << o.output;
   EXPECT_LT(s, 20.0);
 }
@@ -117,21 +118,24 @@ w_rms = 0.1
 // Issue 29, finding 11: the note of a design estimated above 256 MB or 10 GFLOP never appeared
 // for send-on-delta (LMI) designs; it is printed before the solve.
 TEST_F(Reliability, SendOnDeltaDesignsGetTheLargeDesignNote) {
-  const Outcome o = ncosim({"check", (kSource / "scenarios" / "sod_example52.toml").string(), "--set",
-                            "plant.dead_time=0.1"});
+  const Outcome o = ncosim({"check", (kSource / "scenarios" / "sod_example52.toml").string(),
+                            "--set", "plant.dead_time=0.1"});
   EXPECT_EQ(o.code, 0) << o.output;
-  EXPECT_NE(o.output.find("ncosim: note: estimator[0].kind: the sod_jump design solves an LMI problem of"),
+  EXPECT_NE(o.output.find(
+                "ncosim: note: estimator[0].kind: the sod_jump design solves an LMI problem of"),
             std::string::npos)
       << o.output;
   EXPECT_NE(o.output.find("its size is driven by plant.dead_time"), std::string::npos) << o.output;
 }
 
-// Issue 29, finding 14: --max-work 0.01 printed "estimated 0 GFLOP, above the work limit of 0 GFLOP".
+// Issue 29, finding 14: --max-work 0.01 printed "estimated 0 GFLOP, above the work limit of 0
+// GFLOP".
 TEST_F(Reliability, SmallWorkLimitsArePrintedWithTheirDigits) {
   write("trace.csv", trace_csv(400));
   const Outcome o = ncosim({"check", write("small.toml", kSmall), "--max-work", "0.00001"});
   EXPECT_EQ(o.code, 2) << o.output;
-  EXPECT_NE(o.output.find("needs an estimated 5e-05 GFLOP, above the work limit of 1e-05 GFLOP"), std::string::npos)
+  EXPECT_NE(o.output.find("needs an estimated 5e-05 GFLOP, above the work limit of 1e-05 GFLOP"),
+            std::string::npos)
       << o.output;
 }
 
@@ -143,11 +147,14 @@ TEST_F(Reliability, SmallWorkLimitsArePrintedWithTheirDigits) {
 TEST_F(Reliability, JumpDesignMemoryEstimateCountsThePatternTerms) {
   const std::string file = (kSource / "scenarios" / "dolz2014_table2.toml").string();
   const auto t0 = std::chrono::steady_clock::now();
-  const Outcome o = ncosim({"check", file, "--set", "estimator[4].max_delay=7", "--set", "estimator[4].history=2",
-                            "--max-memory", "400"});
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const Outcome o = ncosim({"check", file, "--set", "estimator[4].max_delay=7", "--set",
+                            "estimator[4].history=2", "--max-memory", "400"});
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   EXPECT_EQ(o.code, 2) << o.output;
-  EXPECT_NE(o.output.find("key 'estimator[4].kind': the jump design needs an estimated"), std::string::npos) << o.output;
+  EXPECT_NE(o.output.find("key 'estimator[4].kind': the jump design needs an estimated"),
+            std::string::npos)
+      << o.output;
   EXPECT_NE(o.output.find("above the memory limit"), std::string::npos) << o.output;
   EXPECT_NE(o.output.find("2 x 2^16 terms"), std::string::npos) << o.output;
   EXPECT_LT(seconds, 10.0);
@@ -181,8 +188,10 @@ max_delay = 62
                                                          a, bw, c));
   const Outcome o = ncosim({"check", file});
   EXPECT_EQ(o.code, 2) << o.output.substr(0, 2000);
-  EXPECT_NE(o.output.find(file + ":10: key 'estimator[0].kind': the kalman_extended design needs an estimated"),
-            std::string::npos)
+  EXPECT_NE(
+      o.output.find(file +
+                    ":10: key 'estimator[0].kind': the kalman_extended design needs an estimated"),
+      std::string::npos)
       << o.output.substr(0, 2000);
   EXPECT_NE(o.output.find("above the memory limit of 4.0 GB (--max-memory); its size is driven by "
                           "estimator[0].max_delay (with plant.A (300 plant states))"),
@@ -198,10 +207,13 @@ max_delay = 62
   EXPECT_EQ(passes.code, 0) << passes.output;
 }
 
-std::string many_sensors(int sensors, const std::string& plant, const std::string& C, const std::string& estimators) {
-  std::string text = "[run]\nperiods = 100\nruns = 2\n[plant]\n" + plant + "\n[[link]]\nname = \"net\"\n"
+std::string many_sensors(int sensors, const std::string& plant, const std::string& C,
+                         const std::string& estimators) {
+  std::string text = "[run]\nperiods = 100\nruns = 2\n[plant]\n" + plant +
+                     "\n[[link]]\nname = \"net\"\n"
                      "kind = \"bernoulli\"\nloss = 0.2\n";
-  for (int i = 0; i < sensors; ++i) text += fmt::format("[[sensor]]\nC = {}\nR = 1.0\nlink = \"net\"\n", C);
+  for (int i = 0; i < sensors; ++i)
+    text += fmt::format("[[sensor]]\nC = {}\nR = 1.0\nlink = \"net\"\n", C);
   return text + estimators;
 }
 
@@ -210,15 +222,17 @@ std::string many_sensors(int sensors, const std::string& plant, const std::strin
 // critical probability (design.json) ran its SDP and its bisection on all 1001 stacked rows. The
 // rows are now compressed to n with the same information: 0.03 s.
 TEST_F(Reliability, ThousandSensorsOnAnUnstablePlantAreCheckedInSeconds) {
-  const std::string file = write("many.toml", many_sensors(1001, "A = [[1.2, 0.1], [0.0, 0.8]]\nW = [[1.0, 0.0], [0.0, 1.0]]",
-                                                           "[[1.0, 0.0]]",
-                                                           "[[estimator]]\nkind = \"kalman_buffer\"\nbuffer = 2\n"
-                                                           "[[estimator]]\nkind = \"static_buffer\"\nbuffer = 2\n"));
+  const std::string file = write(
+      "many.toml", many_sensors(1001, "A = [[1.2, 0.1], [0.0, 0.8]]\nW = [[1.0, 0.0], [0.0, 1.0]]",
+                                "[[1.0, 0.0]]",
+                                "[[estimator]]\nkind = \"kalman_buffer\"\nbuffer = 2\n"
+                                "[[estimator]]\nkind = \"static_buffer\"\nbuffer = 2\n"));
   const auto t0 = std::chrono::steady_clock::now();
   const Outcome o = ncosim({"check", file}, "timeout 60 ");
   const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   EXPECT_EQ(o.code, 0) << o.output.substr(0, 2000);
-  EXPECT_NE(o.output.find("ok (1 case(s), 2 estimator(s))"), std::string::npos) << o.output.substr(0, 2000);
+  EXPECT_NE(o.output.find("ok (1 case(s), 2 estimator(s))"), std::string::npos)
+      << o.output.substr(0, 2000);
   EXPECT_LT(s, 10.0);
 }
 
@@ -228,18 +242,24 @@ TEST_F(Reliability, ThousandSensorsOnAnUnstablePlantAreCheckedInSeconds) {
 // the large-design note before the design starts.
 TEST_F(Reliability, StaticBufferFourthMomentIsCountedPerSensor) {
   const std::string file =
-      write("many.toml", many_sensors(1001,
-                                      "A = [[1.1, 0.1, 0, 0, 0], [0, 0.9, 0.1, 0, 0], [0, 0, 0.9, 0.1, 0], "
-                                      "[0, 0, 0, 0.9, 0.1], [0, 0, 0, 0, 0.9]]\nBw = [[1], [1], [1], [1], [1]]\nW = 1.0",
-                                      "[[1.0, 0, 0, 0, 0]]", "[[estimator]]\nkind = \"static_buffer\"\nbuffer = 2\n"));
+      write("many.toml",
+            many_sensors(
+                1001,
+                "A = [[1.1, 0.1, 0, 0, 0], [0, 0.9, 0.1, 0, 0], [0, 0, 0.9, 0.1, 0], "
+                "[0, 0, 0, 0.9, 0.1], [0, 0, 0, 0, 0.9]]\nBw = [[1], [1], [1], [1], [1]]\nW = 1.0",
+                "[[1.0, 0, 0, 0, 0]]", "[[estimator]]\nkind = \"static_buffer\"\nbuffer = 2\n"));
   const auto t0 = std::chrono::steady_clock::now();
   const Outcome o = ncosim({"check", file, "--max-work", "100"}, "timeout 60 ");
   const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   EXPECT_EQ(o.code, 2) << o.output.substr(0, 2000);
-  EXPECT_NE(o.output.find("key 'estimator[0].kind': the static_buffer design needs an estimated 491 GFLOP, above the "
-                          "work limit of 100 GFLOP (--max-work); its size is driven by plant.A (5 plant states) and "
-                          "the 1001 sensor(s) (the fourth-moment operator is 625 x 625, one product per sensor)"),
-            std::string::npos)
+  EXPECT_NE(
+      o.output.find(
+          "key 'estimator[0].kind': the static_buffer design needs an estimated 491 GFLOP, above "
+          "the "
+          "work limit of 100 GFLOP (--max-work); its size is driven by plant.A (5 plant states) "
+          "and "
+          "the 1001 sensor(s) (the fourth-moment operator is 625 x 625, one product per sensor)"),
+      std::string::npos)
       << o.output.substr(0, 2000);
   EXPECT_LT(s, 10.0);
 }
@@ -249,8 +269,8 @@ TEST_F(Reliability, StaticBufferFourthMomentIsCountedPerSensor) {
 TEST_F(Reliability, ThreadCreationFailureIsExitOneWithAMessage) {
   write("trace.csv", trace_csv(400));
   const std::string file = write("small.toml", kSmall);
-  const Outcome o = ncosim({"run", file, "--threads", "300", "--runs", "300", "--periods", "20", "--quiet", "--out",
-                            (dir_ / "out").string()},
+  const Outcome o = ncosim({"run", file, "--threads", "300", "--runs", "300", "--periods", "20",
+                            "--quiet", "--out", (dir_ / "out").string()},
                            "ulimit -v 2000000; ");
   EXPECT_EQ(o.code, 1) << o.output;
   EXPECT_NE(o.output.find("cannot start worker thread"), std::string::npos) << o.output;
@@ -275,15 +295,16 @@ TEST_F(Reliability, TraceFilesMustBeRegularAndBounded) {
   write("trace.csv", "seq,delay\n0,1\n1," + std::string(5000, '1') + "\n");
   o = ncosim({"check", file});
   EXPECT_EQ(o.code, 2) << o.output;
-  EXPECT_NE(o.output.find("trace.csv:3: line longer than 4096 bytes"), std::string::npos) << o.output;
+  EXPECT_NE(o.output.find("trace.csv:3: line longer than 4096 bytes"), std::string::npos)
+      << o.output;
   // The scenario file itself.
   o = ncosim({"check", "/dev/zero"}, "timeout 20 ");
   EXPECT_EQ(o.code, 2) << o.output;
   EXPECT_NE(o.output.find("regular scenario file"), std::string::npos) << o.output;
 }
 
-// Issue 29, finding 10: one delay of 10^8 periods passed `check`, then `run` grew 70 bytes per period
-// of delay (links.csv's per-delay counts) to bad_alloc after 2.6 GB, leaving a store behind;
+// Issue 29, finding 10: one delay of 10^8 periods passed `check`, then `run` grew 70 bytes per
+// period of delay (links.csv's per-delay counts) to bad_alloc after 2.6 GB, leaving a store behind;
 // 2^63 - 1 gave "vector::_M_fill_insert". The estimate counts it: refused at `check` at the
 // trace's line, naming the delay, and `run` writes nothing.
 TEST_F(Reliability, AHugeTraceDelayIsRefusedAtItsLineBeforeTheRuns) {
@@ -294,11 +315,13 @@ TEST_F(Reliability, AHugeTraceDelayIsRefusedAtItsLineBeforeTheRuns) {
     const std::string csv = write("trace.csv", trace);
     const auto t0 = std::chrono::steady_clock::now();
     Outcome o = ncosim({"check", file}, "ulimit -v 2000000; ");
-    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     EXPECT_EQ(o.code, 2) << o.output;
-    EXPECT_NE(o.output.find(csv + ":302: delay: " + delay + " periods"), std::string::npos) << o.output;
-    EXPECT_NE(o.output.find("above the memory limit of 4.0 GB (--max-memory) (the trace named by " + file +
-                            ":20: key 'link[0].file')"),
+    EXPECT_NE(o.output.find(csv + ":302: delay: " + delay + " periods"), std::string::npos)
+        << o.output;
+    EXPECT_NE(o.output.find("above the memory limit of 4.0 GB (--max-memory) (the trace named by " +
+                            file + ":20: key 'link[0].file')"),
               std::string::npos)
         << o.output;
     EXPECT_LT(seconds, 10.0);
@@ -338,12 +361,13 @@ TEST_F(Reliability, TraceErrorsEscapeTheBytesOfTheLine) {
   const std::string file = write("small.toml", kSmall);
   const std::string bad = std::string("seq,delay\n0,1\n1,\033[31mred\377\376") + '\0' + "tail\n";
   const std::string csv = write("trace.csv", bad);
-  for (const auto& args : std::vector<std::vector<std::string>>{{"check", file},
-                                                                 {"fit", csv, "--out", (dir_ / "fit").string()}}) {
+  for (const auto& args : std::vector<std::vector<std::string>>{
+           {"check", file}, {"fit", csv, "--out", (dir_ / "fit").string()}}) {
     const Outcome o = ncosim(args);
     EXPECT_EQ(o.code, 2) << o.output;
     EXPECT_NE(o.output.find(csv + ":3: "), std::string::npos) << o.output;
-    EXPECT_NE(o.output.find("got '1,\\x1b[31mred\\xff\\xfe\\x00tail'"), std::string::npos) << o.output;
+    EXPECT_NE(o.output.find("got '1,\\x1b[31mred\\xff\\xfe\\x00tail'"), std::string::npos)
+        << o.output;
     EXPECT_EQ(o.output.find('\033'), std::string::npos) << o.output;
     EXPECT_EQ(o.output.find('\377'), std::string::npos) << o.output;
     EXPECT_EQ(o.output.find('\0'), std::string::npos) << o.output;
@@ -360,7 +384,8 @@ TEST_F(Reliability, BaseValuesOverriddenByASweepAreValidated) {
   const std::string file = write("sweep.toml", text);
   const Outcome o = ncosim({"check", file});
   EXPECT_EQ(o.code, 2) << o.output;
-  EXPECT_NE(o.output.find(file + ":24: key 'estimator[0].max_delay'"), std::string::npos) << o.output;
+  EXPECT_NE(o.output.find(file + ":24: key 'estimator[0].max_delay'"), std::string::npos)
+      << o.output;
   EXPECT_NE(o.output.find("base scenario"), std::string::npos) << o.output;
   // A valid base value is not a failure.
   std::string ok = kSmall + "[[sweep]]\nkey = \"estimator[0].max_delay\"\nvalues = [0, 2]\n";
@@ -383,7 +408,8 @@ TEST_F(Reliability, MessagesSurviveAnyByteInAKey) {
   const std::string file = write("nul.toml", text);
   const Outcome o = ncosim({"check", file});
   EXPECT_EQ(o.code, 2) << o.output;
-  EXPECT_NE(o.output.find(file + ":7: key 'run.a\\x00b\\x07c': unknown key"), std::string::npos) << o.output;
+  EXPECT_NE(o.output.find(file + ":7: key 'run.a\\x00b\\x07c': unknown key"), std::string::npos)
+      << o.output;
   EXPECT_EQ(o.output.find('\0'), std::string::npos);
 }
 
@@ -394,12 +420,16 @@ TEST_F(Reliability, RangesAreStatedCorrectly) {
   text.replace(text.find("runs = 2"), 8, "runs = 1e8");
   Outcome o = ncosim({"check", write("runs.toml", text)});
   EXPECT_EQ(o.code, 2) << o.output;
-  EXPECT_NE(o.output.find("expected an integer in 1..10000000 (1e7), got 100000000"), std::string::npos) << o.output;
+  EXPECT_NE(o.output.find("expected an integer in 1..10000000 (1e7), got 100000000"),
+            std::string::npos)
+      << o.output;
   text = kSmall;
   text.replace(text.find("R = [[0.01]]"), 12, "R = [[0.01]]\nevery = 1e9");
   o = ncosim({"check", write("every.toml", text)});
   EXPECT_EQ(o.code, 2) << o.output;
-  EXPECT_NE(o.output.find("expected an integer in 1..1000000 (1e6), got 1000000000"), std::string::npos) << o.output;
+  EXPECT_NE(o.output.find("expected an integer in 1..1000000 (1e6), got 1000000000"),
+            std::string::npos)
+      << o.output;
 }
 
 // Finding 7: a missing [plant] named neither the line nor the table.
@@ -411,7 +441,8 @@ TEST_F(Reliability, AMissingRequiredTableNamesTheFileAndTheTable) {
   const std::string file = write("noplant.toml", text);
   const Outcome o = ncosim({"check", file});
   EXPECT_EQ(o.code, 2) << o.output;
-  EXPECT_NE(o.output.find(file + ":1: key 'plant': expected a [plant] table"), std::string::npos) << o.output;
+  EXPECT_NE(o.output.find(file + ":1: key 'plant': expected a [plant] table"), std::string::npos)
+      << o.output;
 }
 
 // Found by the 10^6-mutant structured fuzz campaign: a [[sweep]] key below a table the file
@@ -421,24 +452,30 @@ TEST_F(Reliability, ATableOnlyASweepMakesNamesTheSweepsLine) {
   std::string text = kSmall;
   const std::size_t from = text.find("[plant]");
   text.erase(from, text.find("[[sensor]]") - from);
-  text += "\n[[sweep]]\nkey = \"plant.W\"\nvalues = [[[0.01, 0.0], [0.0, 0.01]], [[0.02, 0.0], [0.0, 0.02]]]\n";
+  text +=
+      "\n[[sweep]]\nkey = \"plant.W\"\nvalues = [[[0.01, 0.0], [0.0, 0.01]], [[0.02, 0.0], [0.0, "
+      "0.02]]]\n";
   const std::string file = write("sweepplant.toml", text);
   std::size_t values_line = 1;
-  for (std::size_t i = 0; i < text.find("values = [[["); ++i) values_line += text[i] == '\n' ? 1 : 0;
+  for (std::size_t i = 0; i < text.find("values = [[["); ++i)
+    values_line += text[i] == '\n' ? 1 : 0;
   const Outcome o = ncosim({"check", file});
   EXPECT_EQ(o.code, 2) << o.output;
-  EXPECT_NE(o.output.find(fmt::format("{}:{}: key 'plant.", file, values_line)), std::string::npos) << o.output;
+  EXPECT_NE(o.output.find(fmt::format("{}:{}: key 'plant.", file, values_line)), std::string::npos)
+      << o.output;
 }
 
 // Finding 8: R = 0 and delta = 0 in the send-on-delta design gave design_lmi_invalid_problem,
 // a status the docs called a bug.
 TEST_F(Reliability, DegenerateSendOnDeltaDesignsGetAClearStatus) {
   const std::string file = (kSource / "scenarios" / "sod_example51.toml").string();
-  const Outcome o = ncosim({"design", file, "--set", "sensor[0].R=[[0.0]]", "--set", "sensor[1].R=[[0.0]]", "--set",
-                            "sensor[0].delta=0.0", "--set", "sensor[1].delta=0.0", "--out", (dir_ / "d").string()});
+  const Outcome o = ncosim({"design", file, "--set", "sensor[0].R=[[0.0]]", "--set",
+                            "sensor[1].R=[[0.0]]", "--set", "sensor[0].delta=0.0", "--set",
+                            "sensor[1].delta=0.0", "--out", (dir_ / "d").string()});
   EXPECT_EQ(o.code, 0) << o.output;
   EXPECT_EQ(o.output.find("invalid_problem"), std::string::npos) << o.output;
-  const std::string readme = ncosim::testing::read_text((kSource / "results" / "README.md").string());
+  const std::string readme =
+      ncosim::testing::read_text((kSource / "results" / "README.md").string());
   EXPECT_EQ(readme.find("a bug"), std::string::npos);
 }
 
@@ -449,9 +486,10 @@ TEST_F(Reliability, DegenerateSendOnDeltaDesignsGetAClearStatus) {
 TEST_F(Reliability, BadlyScaledModelEndsTheLmiDesignWithAMessage) {
   const std::string file = (kSource / "scenarios" / "sod_example51.toml").string();
   const auto t0 = std::chrono::steady_clock::now();
-  const Outcome o = ncosim({"design", file, "--set", "plant.Bw=[[-0.229, 0.023], [0.231, 1e300], [-0.186, 0.245]]",
-                            "--out", (dir_ / "d").string()},
-                           "timeout 60 ");
+  const Outcome o = ncosim(
+      {"design", file, "--set", "plant.Bw=[[-0.229, 0.023], [0.231, 1e300], [-0.186, 0.245]]",
+       "--out", (dir_ / "d").string()},
+      "timeout 60 ");
   EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(30));
   ASSERT_EQ(o.code, 0) << o.output;
   const std::string json = ncosim::testing::read_text((dir_ / "d" / "design.json").string());
@@ -468,12 +506,14 @@ TEST_F(Reliability, BadlyScaledModelEndsTheLmiDesignWithAMessage) {
 TEST_F(Reliability, BadlyScaledModelStopsAStalledJumpIterationWithAMessage) {
   const std::string file = (kSource / "scenarios" / "dolz2014_table2.toml").string();
   const auto t0 = std::chrono::steady_clock::now();
-  const Outcome o = ncosim({"design", file, "--set", "plant.Bw=[[0.0121, 0.1347], [1e6, 0.0831]]", "--out",
-                            (dir_ / "d").string()},
+  const Outcome o = ncosim({"design", file, "--set", "plant.Bw=[[0.0121, 0.1347], [1e6, 0.0831]]",
+                            "--out", (dir_ / "d").string()},
                            "timeout 60 ");
-  EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(8));  // 16 s of CPU before, 0.4 s after
+  EXPECT_LT(std::chrono::steady_clock::now() - t0,
+            std::chrono::seconds(8));  // 16 s of CPU before, 0.4 s after
   ASSERT_EQ(o.code, 0) << o.output;
-  const auto design = nlohmann::json::parse(ncosim::testing::read_text((dir_ / "d" / "design.json").string()));
+  const auto design =
+      nlohmann::json::parse(ncosim::testing::read_text((dir_ / "d" / "design.json").string()));
   int stalled = 0;
   for (const auto& e : design["estimators"]) {
     if (e["status"] != "not_converged") continue;
@@ -481,7 +521,8 @@ TEST_F(Reliability, BadlyScaledModelStopsAStalledJumpIterationWithAMessage) {
     EXPECT_LT(e["iterations"].get<int>(), 200000) << e["name"];
     EXPECT_NE(e.value("iteration_message", "").find("stalled at"), std::string::npos) << e["name"];
   }
-  EXPECT_GE(stalled, 1);  // here the two S3 designs (S1, S2 and S4 converge); rounding decides which
+  EXPECT_GE(stalled,
+            1);  // here the two S3 designs (S1, S2 and S4 converge); rounding decides which
 }
 
 // Peak RSS (kB) of `ncosim ARGS` alone: the child's own rusage (wait4), the shell replaced by exec.
@@ -494,7 +535,9 @@ long peak_rss_kb(const std::vector<std::string>& args) {
   }
   int status = 0;
   struct rusage usage {};
-  if (pid < 0 || ::wait4(pid, &status, 0, &usage) != pid || !WIFEXITED(status) || WEXITSTATUS(status) != 0) return -1;
+  if (pid < 0 || ::wait4(pid, &status, 0, &usage) != pid || !WIFEXITED(status) ||
+      WEXITSTATUS(status) != 0)
+    return -1;
   return usage.ru_maxrss;
 }
 
@@ -506,8 +549,8 @@ long peak_rss_kb(const std::vector<std::string>& args) {
 TEST_F(Reliability, PeakMemoryOfARunDoesNotGrowWithItsPeriods) {
   const std::string file = (kSource / "tests" / "cli" / "data" / "base.toml").string();
   auto rss = [&](const std::string& periods) {
-    return peak_rss_kb({"run", file, "--runs", "1", "--periods", periods, "--threads", "1", "--quiet", "--out",
-                        (dir_ / ("p" + periods)).string()});
+    return peak_rss_kb({"run", file, "--runs", "1", "--periods", periods, "--threads", "1",
+                        "--quiet", "--out", (dir_ / ("p" + periods)).string()});
   };
   const long short_run = rss("100000");
   const long long_run = rss("10000000");
@@ -523,14 +566,16 @@ TEST_F(Reliability, PeakMemoryOfARunDoesNotGrowWithItsPeriods) {
 TEST_F(Reliability, TheRunsOfACampaignAreBoundedByTheMemoryLimit) {
   const std::string file = (kSource / "tests" / "cli" / "data" / "base.toml").string();
   const auto t0 = std::chrono::steady_clock::now();
-  const Outcome o = ncosim({"run", file, "--runs", "10000000", "--periods", "200", "--quiet", "--out",
-                            (dir_ / "out").string()});
+  const Outcome o = ncosim({"run", file, "--runs", "10000000", "--periods", "200", "--quiet",
+                            "--out", (dir_ / "out").string()});
   EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(10));
   EXPECT_EQ(o.code, 2) << o.output;
-  EXPECT_NE(o.output.find("base.toml:5: key 'run.runs': the campaign keeps per-run results of 10000000 runs x 1 "
-                          "case(s) x 2 estimator(s): an estimated 11.1 GB, above the memory limit of 4.0 GB "
-                          "(--max-memory)"),
-            std::string::npos)
+  EXPECT_NE(
+      o.output.find(
+          "base.toml:5: key 'run.runs': the campaign keeps per-run results of 10000000 runs x 1 "
+          "case(s) x 2 estimator(s): an estimated 11.1 GB, above the memory limit of 4.0 GB "
+          "(--max-memory)"),
+      std::string::npos)
       << o.output;
   EXPECT_FALSE(fs::exists(dir_ / "out" / "runs.sqlite"));
 }
@@ -544,7 +589,8 @@ TEST_F(Reliability, KilledRunLeavesThePreviousOrTheNewSet) {
   const fs::path out = dir_ / "out";
   auto run = [&](const std::string& seed, const std::string& env) {
     // --replace: each run deliberately replaces the other seed's campaign (issue 28, part 3).
-    return ncosim({"run", file, "--seed", seed, "--quiet", "--replace", "--out", out.string()}, env);
+    return ncosim({"run", file, "--seed", seed, "--quiet", "--replace", "--out", out.string()},
+                  env);
   };
   // A set is identified by its files' inodes (every write makes new files; timing columns make
   // contents differ between identical campaigns) and by runs.csv, which depends on the seed only.
@@ -578,9 +624,11 @@ TEST_F(Reliability, KilledRunLeavesThePreviousOrTheNewSet) {
       ASSERT_EQ(before.inodes.count(name), 1u) << name;
       (before.inodes.at(name) == inode ? old_files : new_files)++;
     }
-    const bool whole = (new_files == 0 && now.runs == before.runs) || (old_files == 0 && now.runs == runs_of_seed2);
+    const bool whole = (new_files == 0 && now.runs == before.runs) ||
+                       (old_files == 0 && now.runs == runs_of_seed2);
     if (!whole) ++mixed;
-    EXPECT_TRUE(whole) << "kill before step " << k << ": " << old_files << " old and " << new_files << " new files";
+    EXPECT_TRUE(whole) << "kill before step " << k << ": " << old_files << " old and " << new_files
+                       << " new files";
     ASSERT_EQ(run("1", "").code, 0);  // recovers, cleans, and writes the seed-1 set again
   }
   EXPECT_GE(kills, 15);

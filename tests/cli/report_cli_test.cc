@@ -73,8 +73,9 @@ values = [0.0, 0.9]
 class CampaignReport : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() / fmt::format("ncosim_report_cli_{}_{}", ::getpid(),
-                                                   ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    dir_ = fs::temp_directory_path() /
+           fmt::format("ncosim_report_cli_{}_{}", ::getpid(),
+                       ::testing::UnitTest::GetInstance()->current_test_info()->name());
     fs::remove_all(dir_);
     fs::create_directories(dir_);
     scenario_ = dir_ / "diverging.toml";
@@ -111,19 +112,24 @@ TEST_F(CampaignReport, DivergedRowsAndEstimatesReachNoGnuplotWarning) {
   EXPECT_EQ(s.rows[0][static_cast<std::size_t>(s.column("status"))], "diverged");
   EXPECT_EQ(s.rows[0][static_cast<std::size_t>(s.column("mse"))], "");
 
-  const auto plot = run_ncosim({"plot", out.string(), "--trace", "--from", "1900", "--format", "svg"});
+  const auto plot =
+      run_ncosim({"plot", out.string(), "--trace", "--from", "1900", "--format", "svg"});
   ASSERT_EQ(plot.code, 0) << plot.output;
   EXPECT_EQ(plot.output.find("warning"), std::string::npos) << plot.output;
   EXPECT_EQ(plot.output.find("gnuplot"), std::string::npos) << plot.output;
   // The figure says why the row is not drawn; the trace says the estimate diverged.
-  EXPECT_NE(read_file(out / "plot_mse.gp").find("'open loop: no finite mse: diverged'"), std::string::npos);
-  EXPECT_NE(read_file(out / "plot_mse.svg").find("open loop: no finite mse: diverged"), std::string::npos);
-  EXPECT_NE(read_file(out / "trace.svg").find("open loop: no finite value (diverged)"), std::string::npos);
+  EXPECT_NE(read_file(out / "plot_mse.gp").find("'open loop: no finite mse: diverged'"),
+            std::string::npos);
+  EXPECT_NE(read_file(out / "plot_mse.svg").find("open loop: no finite mse: diverged"),
+            std::string::npos);
+  EXPECT_NE(read_file(out / "trace.svg").find("open loop: no finite value (diverged)"),
+            std::string::npos);
 
   const auto report = run_ncosim({"report", out.string()});
   ASSERT_EQ(report.code, 0) << report.output;
   EXPECT_EQ(report.output.find("warning"), std::string::npos) << report.output;
-  EXPECT_EQ(report.output.find("gnuplot "), std::string::npos) << report.output;  // "s gnuplot" timing only
+  EXPECT_EQ(report.output.find("gnuplot "), std::string::npos)
+      << report.output;  // "s gnuplot" timing only
 }
 
 // The stored text is shown; the sentence follows the file on disk: unchanged, changed (the edit
@@ -136,20 +142,25 @@ TEST_F(CampaignReport, ShowsTheScenarioTheCampaignRanAndWhetherTheFileChanged) {
     EXPECT_EQ(r.code, 0) << r.output;
   };
   report();
-  EXPECT_NE(disk_sentence(out).find("is unchanged since the campaign ran"), std::string::npos) << disk_sentence(out);
-  EXPECT_NE(read_file(out / "report.html").find("The scenario text the campaign ran, from runs.sqlite"),
-            std::string::npos);
+  EXPECT_NE(disk_sentence(out).find("is unchanged since the campaign ran"), std::string::npos)
+      << disk_sentence(out);
+  EXPECT_NE(
+      read_file(out / "report.html").find("The scenario text the campaign ran, from runs.sqlite"),
+      std::string::npos);
 
   write_file(scenario_, kDiverging + "# edited after the run\n");
   report();
-  EXPECT_NE(disk_sentence(out).find("has changed since the campaign ran"), std::string::npos) << disk_sentence(out);
+  EXPECT_NE(disk_sentence(out).find("has changed since the campaign ran"), std::string::npos)
+      << disk_sentence(out);
   EXPECT_EQ(read_file(out / "report.html").find("edited after the run"), std::string::npos);
-  EXPECT_NE(read_file(out / "report.html").find("title = &quot;diverging open loop&quot;"), std::string::npos);
+  EXPECT_NE(read_file(out / "report.html").find("title = &quot;diverging open loop&quot;"),
+            std::string::npos);
 
   fs::remove(scenario_);
   report();
   EXPECT_NE(disk_sentence(out).find("is no longer there"), std::string::npos) << disk_sentence(out);
-  EXPECT_NE(read_file(out / "report.html").find("title = &quot;diverging open loop&quot;"), std::string::npos);
+  EXPECT_NE(read_file(out / "report.html").find("title = &quot;diverging open loop&quot;"),
+            std::string::npos);
 
   // An older folder: no store; the file as read now, and the report says it may differ.
   write_file(scenario_, kDiverging);
@@ -157,7 +168,8 @@ TEST_F(CampaignReport, ShowsTheScenarioTheCampaignRanAndWhetherTheFileChanged) {
   report();
   EXPECT_NE(disk_sentence(out).find("No run store (runs.sqlite) in this folder"), std::string::npos)
       << disk_sentence(out);
-  EXPECT_NE(disk_sentence(out).find("may differ from the text the campaign ran"), std::string::npos);
+  EXPECT_NE(disk_sentence(out).find("may differ from the text the campaign ran"),
+            std::string::npos);
 }
 
 // A re-centred run without --trace writes no trajectory.csv, and the report does not name it
@@ -167,7 +179,8 @@ TEST_F(CampaignReport, NamesTrajectoryCsvOnlyWhenTheRunWroteIt) {
   run(plain);
   run(traced, {"--trace"});
   ASSERT_FALSE(fs::exists(plain / "trajectory.csv"));
-  for (const auto& d : {plain, traced}) ASSERT_EQ(run_ncosim({"report", d.string(), "--no-figures"}).code, 0);
+  for (const auto& d : {plain, traced})
+    ASSERT_EQ(run_ncosim({"report", d.string(), "--no-figures"}).code, 0);
   const std::string p = read_file(plain / "report.html"), t = read_file(traced / "report.html");
   EXPECT_NE(p.find("simulated re-centred"), std::string::npos);
   EXPECT_EQ(p.find("trajectory.csv"), std::string::npos);

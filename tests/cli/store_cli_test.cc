@@ -8,12 +8,13 @@
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <spawn.h>
-#include <cstdlib>
+#include <sqlite3.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -24,7 +25,6 @@
 #include <vector>
 
 #include "sim/store.h"
-#include <sqlite3.h>
 #include "spawn_ncosim.h"
 #include "test_util.h"
 
@@ -44,7 +44,8 @@ const fs::path kFlagship = kSource / "scenarios" / "dolz2014_table2.toml";
 struct TempDir {
   fs::path path;
   explicit TempDir(const std::string& name)
-      : path(fs::temp_directory_path() / ("ncosim_storecli_" + name + "_" + std::to_string(::getpid()))) {
+      : path(fs::temp_directory_path() /
+             ("ncosim_storecli_" + name + "_" + std::to_string(::getpid()))) {
     fs::remove_all(path);
     fs::create_directories(path);
   }
@@ -63,17 +64,21 @@ std::string join(const std::vector<std::string>& args) {
   return out;
 }
 
-ncosim::testing::CommandOutcome ncosim(const std::string& args) { return run_shell(quote(kBinary) + " " + args); }
+ncosim::testing::CommandOutcome ncosim(const std::string& args) {
+  return run_shell(quote(kBinary) + " " + args);
+}
 
 // The exports that must be bit-identical (timing aside: --no-timing, and design.json without
 // its design_seconds lines).
-const std::vector<std::string> kExports{"summary.csv", "summary.md", "runs.csv", "transmissions.csv",
-                                        "confusion.csv", "trajectory.csv", "design.json", "links.csv"};
+const std::vector<std::string> kExports{"summary.csv",       "summary.md",    "runs.csv",
+                                        "transmissions.csv", "confusion.csv", "trajectory.csv",
+                                        "design.json",       "links.csv"};
 
 std::string comparable(const fs::path& file) {
   if (!fs::exists(file)) return "<absent>";
   std::string text = read_text(file.string());
-  if (file.filename() == "design.json") text = std::regex_replace(text, std::regex(".*design_seconds.*\n"), "");
+  if (file.filename() == "design.json")
+    text = std::regex_replace(text, std::regex(".*design_seconds.*\n"), "");
   return text;
 }
 
@@ -83,12 +88,15 @@ void expect_same_exports(const std::string& a, const std::string& b, const std::
     EXPECT_TRUE(fs::exists(fs::path(a) / "links.csv")) << what;
   }
   for (const auto& f : kExports) {
-    EXPECT_EQ(comparable(fs::path(a) / f), comparable(fs::path(b) / f)) << what << ": " << f << " differs";
+    EXPECT_EQ(comparable(fs::path(a) / f), comparable(fs::path(b) / f))
+        << what << ": " << f << " differs";
   }
 }
 
 // Starts ncosim with `args` (stdout and stderr to `log`); returns its pid.
-pid_t spawn(const std::vector<std::string>& args, const std::string& log) { return ncosim::testing::spawn_ncosim(args, log); }
+pid_t spawn(const std::vector<std::string>& args, const std::string& log) {
+  return ncosim::testing::spawn_ncosim(args, log);
+}
 
 int wait_exit(pid_t pid) {
   int status = 0;
@@ -117,11 +125,12 @@ TEST(StoreCli, ExportReDerivesEveryFileFromTheStoreAlone) {
   TempDir t("export");
   // The scenario is copied, run, then deleted: the store alone must suffice.
   fs::copy_file(kBase, t / "scenario.toml");
-  auto r = ncosim(fmt::format("run {} --out {} --runs 6 --no-timing --trace --quiet", quote(t / "scenario.toml"),
-                              quote(t / "a")));
+  auto r = ncosim(fmt::format("run {} --out {} --runs 6 --no-timing --trace --quiet",
+                              quote(t / "scenario.toml"), quote(t / "a")));
   ASSERT_EQ(r.code, 0) << r.output;
   ASSERT_TRUE(fs::exists(t / "a/runs.sqlite"));
-  EXPECT_FALSE(fs::exists(t / "a/runs.sqlite-wal")) << "the store is checkpointed before the exports";
+  EXPECT_FALSE(fs::exists(t / "a/runs.sqlite-wal"))
+      << "the store is checkpointed before the exports";
   fs::remove(t / "scenario.toml");
   fs::create_directories(t / "b");
   fs::copy_file(t / "a/runs.sqlite", t / "b/runs.sqlite");
@@ -162,11 +171,13 @@ TEST(StoreCli, AStoreWithoutLinkCountersExportsEverythingButLinksCsvAndSaysSo) {
   EXPECT_FALSE(fs::exists(t / "b/links.csv"));
   for (const auto& f : kExports) {
     if (f == "links.csv") continue;
-    EXPECT_EQ(comparable(fs::path(t / "a") / f), comparable(fs::path(t / "b") / f)) << f << " differs";
+    EXPECT_EQ(comparable(fs::path(t / "a") / f), comparable(fs::path(t / "b") / f))
+        << f << " differs";
   }
   auto man = nlohmann::json::parse(read_text(t / "b/manifest.json"));
-  EXPECT_EQ(man["links_csv"], "not written: 6 of the 6 stored runs have no link counters (a store written before "
-                              "ncosim counted them)");
+  EXPECT_EQ(man["links_csv"],
+            "not written: 6 of the 6 stored runs have no link counters (a store written before "
+            "ncosim counted them)");
   // An earlier links.csv in the folder does not survive an export that cannot write one.
   fs::copy_file(t / "a/links.csv", t / "b/links.csv");
   ASSERT_EQ(ncosim(fmt::format("export {}", quote(t / "b"))).code, 0);
@@ -184,13 +195,15 @@ TEST(StoreCli, AStoreWithoutLinkCountersExportsEverythingButLinksCsvAndSaysSo) {
   ASSERT_EQ(r.code, 0) << r.output;
   EXPECT_FALSE(fs::exists(t / "m/links.csv"));
   man = nlohmann::json::parse(read_text(t / "m/manifest.json"));
-  EXPECT_EQ(man["links_csv"], "not written: 3 of the 6 stored runs have no link counters (a store written before "
-                              "ncosim counted them)");
+  EXPECT_EQ(man["links_csv"],
+            "not written: 3 of the 6 stored runs have no link counters (a store written before "
+            "ncosim counted them)");
   EXPECT_EQ(comparable(t / "a/runs.csv"), comparable(t / "m/runs.csv"));
 }
 
 // A campaign long enough to be interrupted (about a second on 2 threads).
-const std::vector<std::string> kLong{"--runs", "1500", "--periods", "400", "--no-timing", "--threads", "2", "--quiet"};
+const std::vector<std::string> kLong{"--runs",      "1500",      "--periods", "400",
+                                     "--no-timing", "--threads", "2",         "--quiet"};
 
 // Batches committed every 10 ms instead of 250 ms while alive: the signal tests wait for the
 // first commit, and on a fast machine the whole campaign takes little more than one default
@@ -213,7 +226,8 @@ TEST(StoreCli, SigtermAndSigintCommitFinishedRunsWritePartialExportsAndResumeCom
   };
   auto ref = ncosim(join(args(t / "ref")));
   ASSERT_EQ(ref.code, 0) << ref.output;
-  for (const auto& [sig, code, name] : {std::tuple{SIGTERM, 143, "SIGTERM"}, std::tuple{SIGINT, 130, "SIGINT"}}) {
+  for (const auto& [sig, code, name] :
+       {std::tuple{SIGTERM, 143, "SIGTERM"}, std::tuple{SIGINT, 130, "SIGINT"}}) {
     const std::string out = t / name;
     const pid_t pid = spawn(args(out), t / "log");
     ASSERT_GT(pid, 0);
@@ -229,8 +243,10 @@ TEST(StoreCli, SigtermAndSigintCommitFinishedRunsWritePartialExportsAndResumeCom
       GTEST_SKIP() << "campaign finished before " << name;
     }
     ASSERT_EQ(exit, code) << log;
-    if (stored_runs(out) == 1500) {  // the signal came after the last run: a complete campaign, said so
-      EXPECT_NE(log.find(std::string(name) + " stopped nothing (every run had started): the campaign is complete"),
+    if (stored_runs(out) ==
+        1500) {  // the signal came after the last run: a complete campaign, said so
+      EXPECT_NE(log.find(std::string(name) +
+                         " stopped nothing (every run had started): the campaign is complete"),
                 std::string::npos)
           << log;
       const auto man = nlohmann::json::parse(read_text(fs::path(out) / "manifest.json"));
@@ -260,15 +276,19 @@ TEST(StoreCli, SigtermAndSigintCommitFinishedRunsWritePartialExportsAndResumeCom
 TEST(StoreCli, ASignalAfterTheLastRunLeavesACompleteCampaign) {
   TempDir t("late");
   const std::string flags = "--runs 6 --periods 400 --no-timing --quiet";
-  auto ref = ncosim(fmt::format("run {} --out {} {}", quote(kBase.string()), quote(t / "ref"), flags));
+  auto ref =
+      ncosim(fmt::format("run {} --out {} {}", quote(kBase.string()), quote(t / "ref"), flags));
   ASSERT_EQ(ref.code, 0) << ref.output;
-  auto r = run_shell(fmt::format("NCOSIM_TEST_RAISE_AFTER_RUNS={} {} run {} --out {} {}", SIGTERM, quote(kBinary),
-                                 quote(kBase.string()), quote(t / "late"), flags));
+  auto r = run_shell(fmt::format("NCOSIM_TEST_RAISE_AFTER_RUNS={} {} run {} --out {} {}", SIGTERM,
+                                 quote(kBinary), quote(kBase.string()), quote(t / "late"), flags));
   ASSERT_EQ(r.code, 143) << r.output;
-  EXPECT_NE(r.output.find("SIGTERM stopped nothing (every run had started): the campaign is complete (6 run(s)"),
-            std::string::npos)
+  EXPECT_NE(
+      r.output.find(
+          "SIGTERM stopped nothing (every run had started): the campaign is complete (6 run(s)"),
+      std::string::npos)
       << r.output;
-  EXPECT_EQ(r.output.find("partial"), std::string::npos) << r.output;  // nor the handler's line, nor summary.md
+  EXPECT_EQ(r.output.find("partial"), std::string::npos)
+      << r.output;  // nor the handler's line, nor summary.md
   const auto man = nlohmann::json::parse(read_text(t / "late/manifest.json"));
   EXPECT_EQ(man["complete"], true);
   EXPECT_EQ(man["stopped"], "SIGTERM");
@@ -280,11 +300,13 @@ TEST(StoreCli, SigkillAtRandomMomentsNeverCorruptsAndResumeIsBitIdentical) {
   TempDir t("kill");
   // Without the 10 ms commits, no kill could find a partly filled store on a fast machine.
   const CommitEvery10ms commit_every_10ms;
-  const std::vector<std::string> small{"--runs", "120", "--periods", "1500", "--no-timing", "--threads", "2", "--quiet"};
+  const std::vector<std::string> small{"--runs",      "120",       "--periods", "1500",
+                                       "--no-timing", "--threads", "2",         "--quiet"};
   std::string flags;
   for (const auto& a : small) flags += " " + a;
   const auto t0 = std::chrono::steady_clock::now();
-  auto ref = ncosim(fmt::format("run {} --out {}{}", quote(kBase.string()), quote(t / "ref"), flags));
+  auto ref =
+      ncosim(fmt::format("run {} --out {}{}", quote(kBase.string()), quote(t / "ref"), flags));
   const double total = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   ASSERT_EQ(ref.code, 0) << ref.output;
   std::mt19937 rng(13);  // fixed: the same kill moments every time (up to the machine's speed)
@@ -314,7 +336,8 @@ TEST(StoreCli, SigkillAtRandomMomentsNeverCorruptsAndResumeIsBitIdentical) {
         resumable = true;
       } catch (const ncosim::sim::StoreError& e) {
         // Killed while the store was being created: its campaign row may not be committed yet.
-        EXPECT_NE(std::string(e.what()).find("not an ncosim run store"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("not an ncosim run store"), std::string::npos)
+            << e.what();
       }
     }
     if (fs::exists(fs::path(out) / "summary.csv")) {  // exports written: they agree with the store
@@ -322,8 +345,8 @@ TEST(StoreCli, SigkillAtRandomMomentsNeverCorruptsAndResumeIsBitIdentical) {
       ASSERT_EQ(r.code, 0) << r.output;
       expect_same_exports(out, out + "_export", fmt::format("trial {}: exports vs store", trial));
     }
-    const auto r = ncosim(fmt::format("run {} --out {}{}{}", quote(kBase.string()), quote(out), flags,
-                                      resumable ? " --resume" : ""));
+    const auto r = ncosim(fmt::format("run {} --out {}{}{}", quote(kBase.string()), quote(out),
+                                      flags, resumable ? " --resume" : ""));
     ASSERT_EQ(r.code, 0) << "trial " << trial << ": " << r.output;
     expect_same_exports(t / "ref", out, fmt::format("trial {}: resume", trial));
   }
@@ -334,17 +357,21 @@ TEST(StoreCli, SigkillAtRandomMomentsNeverCorruptsAndResumeIsBitIdentical) {
 TEST(StoreCli, ResumeRefusesADifferentCampaignNamingWhatDiffers) {
   TempDir t("refuse");
   fs::copy_file(kBase, t / "s.toml");
-  const std::string base = fmt::format("run {} --out {} --runs 3 --periods 300 --quiet --no-timing", quote(t / "s.toml"),
-                                       quote(t / "o"));
+  const std::string base = fmt::format("run {} --out {} --runs 3 --periods 300 --quiet --no-timing",
+                                       quote(t / "s.toml"), quote(t / "o"));
   auto r = ncosim(base + " --resume");
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_NE(r.output.find("no run store to resume"), std::string::npos) << r.output;
   ASSERT_EQ(ncosim(base).code, 0);
   r = ncosim(base + " --resume");
   EXPECT_EQ(r.code, 0) << r.output;
-  EXPECT_NE(r.output.find("3 runs x 300 periods (3 stored before, 0 simulated now) in "), std::string::npos) << r.output;
-  for (const auto& [extra, what] : std::vector<std::pair<std::string, std::string>>{
-           {" --seed 8", "--seed"}, {" --set run.warmup=50", "--set overrides"}, {" --shard 1/2", "--shard"}}) {
+  EXPECT_NE(r.output.find("3 runs x 300 periods (3 stored before, 0 simulated now) in "),
+            std::string::npos)
+      << r.output;
+  for (const auto& [extra, what] :
+       std::vector<std::pair<std::string, std::string>>{{" --seed 8", "--seed"},
+                                                        {" --set run.warmup=50", "--set overrides"},
+                                                        {" --shard 1/2", "--shard"}}) {
     r = ncosim(base + " --resume" + extra);
     EXPECT_EQ(r.code, 2) << extra << ": " << r.output;
     EXPECT_NE(r.output.find(what), std::string::npos) << r.output;
@@ -361,16 +388,17 @@ TEST(StoreCli, ResumeRefusesADifferentCampaignNamingWhatDiffers) {
 }
 
 // Shards in several layouts, merged, against one process with --threads 1.
-void check_shards(const std::string& scenario, const std::string& flags, const std::vector<int>& layouts,
-                  const TempDir& t) {
-  auto r = ncosim(fmt::format("run {} --out {} --threads 1 {}", quote(scenario), quote(t / "ref"), flags));
+void check_shards(const std::string& scenario, const std::string& flags,
+                  const std::vector<int>& layouts, const TempDir& t) {
+  auto r = ncosim(
+      fmt::format("run {} --out {} --threads 1 {}", quote(scenario), quote(t / "ref"), flags));
   ASSERT_EQ(r.code, 0) << r.output;
   for (int n : layouts) {
     std::string dirs;
     for (int i = 1; i <= n; ++i) {
       const std::string out = t / fmt::format("n{}_{}", n, i);
-      r = ncosim(fmt::format("run {} --out {} --shard {}/{} --threads {} {}", quote(scenario), quote(out), i, n,
-                             1 + i % 2, flags));
+      r = ncosim(fmt::format("run {} --out {} --shard {}/{} --threads {} {}", quote(scenario),
+                             quote(out), i, n, 1 + i % 2, flags));
       ASSERT_EQ(r.code, 0) << r.output;
       dirs += " " + quote(out);
     }
@@ -378,7 +406,8 @@ void check_shards(const std::string& scenario, const std::string& flags, const s
     r = ncosim(fmt::format("merge {}{}", quote(merged), dirs));
     ASSERT_EQ(r.code, 0) << r.output;
     expect_same_exports(t / "ref", merged, fmt::format("{} shards", n));
-    EXPECT_EQ(nlohmann::json::parse(read_text(fs::path(merged) / "manifest.json"))["complete"], true);
+    EXPECT_EQ(nlohmann::json::parse(read_text(fs::path(merged) / "manifest.json"))["complete"],
+              true);
   }
 }
 
@@ -397,7 +426,8 @@ TEST(StoreCli, ShardsMergedAreBitIdenticalToOneProcessOnASweep) {
 
 TEST(StoreCli, MergeRefusesOverlapsGapsAndDifferentCampaigns) {
   TempDir t("merge_bad");
-  const std::string base = fmt::format("run {} --runs 4 --periods 300 --quiet --no-timing", quote(kBase.string()));
+  const std::string base =
+      fmt::format("run {} --runs 4 --periods 300 --quiet --no-timing", quote(kBase.string()));
   ASSERT_EQ(ncosim(base + " --shard 1/2 --out " + quote(t / "a")).code, 0);
   ASSERT_EQ(ncosim(base + " --shard 2/2 --out " + quote(t / "b")).code, 0);
   ASSERT_EQ(ncosim(base + " --shard 2/2 --seed 9 --out " + quote(t / "c")).code, 0);
@@ -468,8 +498,8 @@ std::size_t column(const std::vector<std::string>& head, const std::string& name
 TEST(StoreCli, TargetCiStopsAtTheSameRunForAnyThreadsOrShardsAndEveryOkRowMeetsIt) {
   TempDir t("target");
   const double rel = 0.02;
-  const std::string flags =
-      fmt::format("--runs 10 --periods 1000 --target-ci {} --max-runs 400 --no-timing --quiet", rel);
+  const std::string flags = fmt::format(
+      "--runs 10 --periods 1000 --target-ci {} --max-runs 400 --no-timing --quiet", rel);
   const std::string file = quote(kBase.string());
   auto r = ncosim(fmt::format("run {} --out {} --threads 1 {}", file, quote(t / "one"), flags));
   ASSERT_EQ(r.code, 0) << r.output;
@@ -490,8 +520,9 @@ TEST(StoreCli, TargetCiStopsAtTheSameRunForAnyThreadsOrShardsAndEveryOkRowMeetsI
   const auto rows = read_csv(t / "one/summary.csv");
   ASSERT_GT(rows.size(), 1u);
   const auto& head = rows[0];
-  const std::size_t runs = column(head, "runs"), mse = column(head, "mse"), ci = column(head, "mse_ci95"),
-                    status = column(head, "status"), stop = column(head, "stop");
+  const std::size_t runs = column(head, "runs"), mse = column(head, "mse"),
+                    ci = column(head, "mse_ci95"), status = column(head, "status"),
+                    stop = column(head, "stop");
   ASSERT_LT(stop, head.size()) << "summary.csv has a stop column with --target-ci";
   const auto man = nlohmann::json::parse(read_text(t / "one/manifest.json"));
   const auto used = man["target_ci"]["runs"].get<std::int64_t>();
@@ -513,12 +544,14 @@ TEST(StoreCli, TargetCiStopsAtTheSameRunForAnyThreadsOrShardsAndEveryOkRowMeetsI
 TEST(StoreCli, TargetCiNotReachedAtMaxRunsIsSaidInTheStatusAndBadOptionsAreRefused) {
   TempDir t("target_max");
   const std::string file = quote(kBase.string());
-  auto r = ncosim(fmt::format("run {} --out {} --runs 5 --periods 300 --target-ci 0.0001 --max-runs 12 --quiet "
-                              "--no-timing",
-                              file, quote(t / "o")));
+  auto r = ncosim(
+      fmt::format("run {} --out {} --runs 5 --periods 300 --target-ci 0.0001 --max-runs 12 --quiet "
+                  "--no-timing",
+                  file, quote(t / "o")));
   ASSERT_EQ(r.code, 0) << r.output;
   const auto rows = read_csv(t / "o/summary.csv");
-  const std::size_t stop = column(rows[0], "stop"), status = column(rows[0], "status"), runs = column(rows[0], "runs");
+  const std::size_t stop = column(rows[0], "stop"), status = column(rows[0], "status"),
+                    runs = column(rows[0], "runs");
   for (std::size_t i = 1; i < rows.size(); ++i) {
     EXPECT_EQ(rows[i][stop], "max_runs");
     EXPECT_EQ(rows[i][runs], "12");  // batches of 5, the last one cut at --max-runs
@@ -531,7 +564,8 @@ TEST(StoreCli, TargetCiNotReachedAtMaxRunsIsSaidInTheStatusAndBadOptionsAreRefus
            {"--target-ci 0 --max-runs 50", "expected a relative half-width"},
            {"--target-ci 1.5 --max-runs 50", "expected a relative half-width"},
            {"--target-ci 0.01 --max-runs 3", "at least run.runs"}}) {
-    r = ncosim(fmt::format("run {} --out {} --runs 5 --periods 300 --quiet {}", file, quote(t / "bad"), args));
+    r = ncosim(fmt::format("run {} --out {} --runs 5 --periods 300 --quiet {}", file,
+                           quote(t / "bad"), args));
     EXPECT_EQ(r.code, 2) << args << ": " << r.output;
     EXPECT_NE(r.output.find(what), std::string::npos) << args << ": " << r.output;
   }

@@ -19,9 +19,9 @@
 #include <string>
 #include <vector>
 
-#include "sim/store.h"
 #include "cli/small_trace_scenario.h"
 #include "cli/temp_dir_test.h"
+#include "sim/store.h"
 #include "test_util.h"
 
 namespace {
@@ -48,31 +48,36 @@ class StoreIntegrity : public ncosim::testing::TempDirTest {
 
 // The exports `ncosim export` re-derives from the store (the run here is --no-timing; design.json
 // without its design_seconds lines).
-const std::vector<std::string> kExports{"summary.csv", "summary.md", "runs.csv", "transmissions.csv",
-                                        "confusion.csv", "design.json", "links.csv"};
+const std::vector<std::string> kExports{"summary.csv",       "summary.md",    "runs.csv",
+                                        "transmissions.csv", "confusion.csv", "design.json",
+                                        "links.csv"};
 
 std::string comparable(const fs::path& file) {
   if (!fs::exists(file)) return "<absent>";
   std::string text = read_text(file.string());
-  if (file.filename() == "design.json") text = std::regex_replace(text, std::regex(".*design_seconds.*\n"), "");
+  if (file.filename() == "design.json")
+    text = std::regex_replace(text, std::regex(".*design_seconds.*\n"), "");
   return text;
 }
 
 // `ncosim export DIR --out CHECK` reproduces DIR's exports byte for byte: the folder's store and
 // exports agree.
-void expect_store_and_exports_agree(const std::string& dir, const std::string& check, const std::string& what) {
+void expect_store_and_exports_agree(const std::string& dir, const std::string& check,
+                                    const std::string& what) {
   fs::remove_all(check);
   const auto r = ncosim(fmt::format("export {} --out {}", quote(dir), quote(check)));
   ASSERT_EQ(r.code, 0) << what << ": " << r.output;
   for (const auto& f : kExports) {
-    EXPECT_EQ(comparable(fs::path(dir) / f), comparable(fs::path(check) / f)) << what << ": " << f << " differs";
+    EXPECT_EQ(comparable(fs::path(dir) / f), comparable(fs::path(check) / f))
+        << what << ": " << f << " differs";
   }
 }
 
 const std::string kFlags = "--runs 6 --periods 300 --no-timing --quiet";
 
 std::string run_cmd(const std::string& out, int seed, const std::string& extra = "") {
-  return fmt::format("run {} --out {} {} --seed {}{}", quote(kBase.string()), quote(out), kFlags, seed, extra);
+  return fmt::format("run {} --out {} {} --seed {}{}", quote(kBase.string()), quote(out), kFlags,
+                     seed, extra);
 }
 
 // Finding 2 (and the "kills at every step"): a kill before each step of the set's write,
@@ -118,7 +123,9 @@ TEST_F(StoreIntegrity, KillsAtEveryStepOfRunMergeAndExportLeaveAStoreAndExportsT
   ASSERT_TRUE(fs::exists(ncosim::sim::partial_store_path(out)));
   r = ncosim(run_cmd(out, 2, " --resume"));
   ASSERT_EQ(r.code, 0) << r.output;
-  EXPECT_NE(r.output.find("6 runs x 300 periods (6 stored before, 0 simulated now)"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("6 runs x 300 periods (6 stored before, 0 simulated now)"),
+            std::string::npos)
+      << r.output;
   EXPECT_EQ(read_text(out + "/runs.csv"), runs2);
   EXPECT_FALSE(fs::exists(ncosim::sim::partial_store_path(out)));
   expect_store_and_exports_agree(out, at("check"), "resumed");
@@ -128,11 +135,14 @@ TEST_F(StoreIntegrity, KillsAtEveryStepOfRunMergeAndExportLeaveAStoreAndExportsT
   ASSERT_TRUE(fs::exists(ncosim::sim::partial_store_path(out))) << r.output;
   r = ncosim(run_cmd(out, 4));
   ASSERT_EQ(r.code, 2) << r.output;
-  EXPECT_NE(r.output.find("holds 6 finished run(s) of a different, unfinished campaign"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("holds 6 finished run(s) of a different, unfinished campaign"),
+            std::string::npos)
+      << r.output;
   EXPECT_NE(r.output.find("`--replace` starts afresh"), std::string::npos) << r.output;
   r = ncosim(run_cmd(out, 4, " --replace"));
   ASSERT_EQ(r.code, 0) << r.output;
-  EXPECT_NE(r.output.find("--replace: replacing 6 finished run(s) of a different campaign"), std::string::npos)
+  EXPECT_NE(r.output.find("--replace: replacing 6 finished run(s) of a different campaign"),
+            std::string::npos)
       << r.output;
 }
 
@@ -155,7 +165,8 @@ TEST_F(StoreIntegrity, ANewCampaignDropsWhatWasDerivedFromTheOldOne) {
   const std::string out = at("out");
   ASSERT_EQ(ncosim(run_cmd(out, 1)).code, 0);
   // What `plot` and `report` write (written by hand here: the test needs no gnuplot).
-  for (const char* f : {"plot_mse.dat", "plot_mse.gp", "plot_mse.png", "trace.dat", "report.html"}) write(out + "/" + f, "old");
+  for (const char* f : {"plot_mse.dat", "plot_mse.gp", "plot_mse.png", "trace.dat", "report.html"})
+    write(out + "/" + f, "old");
   write(out + "/notes.txt", "mine");
   // Re-deriving the same campaign keeps them (they still describe it) ...
   ASSERT_EQ(ncosim(fmt::format("export {}", quote(out))).code, 0);
@@ -163,7 +174,8 @@ TEST_F(StoreIntegrity, ANewCampaignDropsWhatWasDerivedFromTheOldOne) {
   EXPECT_TRUE(fs::exists(out + "/report.html"));
   // ... a new campaign does not; a file that ncosim does not derive stays.
   ASSERT_EQ(ncosim(run_cmd(out, 2, " --replace")).code, 0);
-  for (const char* f : {"plot_mse.dat", "plot_mse.gp", "plot_mse.png", "trace.dat", "report.html"}) {
+  for (const char* f :
+       {"plot_mse.dat", "plot_mse.gp", "plot_mse.png", "trace.dat", "report.html"}) {
     EXPECT_FALSE(fs::exists(out + "/" + f)) << f;
   }
   EXPECT_EQ(read_text(out + "/notes.txt"), "mine");
@@ -176,16 +188,22 @@ TEST_F(StoreIntegrity, InputFilesArePartOfTheCampaignsIdentity) {
   write(sc, ncosim::testing::kSmallTraceScenario);
   write(at("trace.csv"), ncosim::testing::small_trace_csv(300, 3));
   const std::string flags = "--no-timing --quiet";
-  ASSERT_EQ(ncosim(fmt::format("run {} --out {} --shard 1/2 {}", quote(sc), quote(at("s1")), flags)).code, 0);
+  ASSERT_EQ(
+      ncosim(fmt::format("run {} --out {} --shard 1/2 {}", quote(sc), quote(at("s1")), flags)).code,
+      0);
   write(at("trace.csv"), ncosim::testing::small_trace_csv(300, 2));
-  ASSERT_EQ(ncosim(fmt::format("run {} --out {} --shard 2/2 {}", quote(sc), quote(at("s2")), flags)).code, 0);
+  ASSERT_EQ(
+      ncosim(fmt::format("run {} --out {} --shard 2/2 {}", quote(sc), quote(at("s2")), flags)).code,
+      0);
   auto r = ncosim(fmt::format("merge {} {} {}", quote(at("m")), quote(at("s1")), quote(at("s2"))));
   EXPECT_EQ(r.code, 2) << r.output;
   // Named relative to the scenario's folder (the same key whatever the working directory).
-  EXPECT_NE(r.output.find("the content of the input file 'trace.csv'"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("the content of the input file 'trace.csv'"), std::string::npos)
+      << r.output;
   EXPECT_FALSE(fs::exists(at("m/summary.csv")));
   // --resume after the file changed: refused, naming it.
-  r = ncosim(fmt::format("run {} --out {} --shard 1/2 --resume {}", quote(sc), quote(at("s1")), flags));
+  r = ncosim(
+      fmt::format("run {} --out {} --shard 1/2 --resume {}", quote(sc), quote(at("s1")), flags));
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_NE(r.output.find("the content of the input file"), std::string::npos) << r.output;
   // export re-derives from the stored text, which reads the file again: it must be the same file.
@@ -203,21 +221,25 @@ TEST_F(StoreIntegrity, InputFilesArePartOfTheCampaignsIdentity) {
   ASSERT_EQ(ncosim(fmt::format("run {} --out {} {}", quote(sc), quote(at("c2")), flags)).code, 0);
   r = ncosim(fmt::format("compare {} {}", quote(at("c1")), quote(at("c2"))));
   EXPECT_EQ(r.code, 2) << r.output;
-  EXPECT_NE(r.output.find("the content of the input file(s) 'trace.csv'"), std::string::npos) << r.output;
-  r = ncosim(fmt::format("compare {} {} --allow-scenario-change", quote(at("c1")), quote(at("c2"))));
+  EXPECT_NE(r.output.find("the content of the input file(s) 'trace.csv'"), std::string::npos)
+      << r.output;
+  r = ncosim(
+      fmt::format("compare {} {} --allow-scenario-change", quote(at("c1")), quote(at("c2"))));
   EXPECT_NE(r.code, 2) << r.output;
   // The same file named from another working directory (a relative scenario path, as a user types
   // it; a shard run from elsewhere) is the same input: export, merge and --resume accept it.
-  const std::string rel_run = fmt::format("cd {} && {} run sc.toml --out {} --no-timing --quiet", quote(dir_.string()),
-                                          quote(kBinary), quote(at("r1")));
+  const std::string rel_run = fmt::format("cd {} && {} run sc.toml --out {} --no-timing --quiet",
+                                          quote(dir_.string()), quote(kBinary), quote(at("r1")));
   ASSERT_EQ(run_shell(rel_run + " --shard 1/2").code, 0);
-  ASSERT_EQ(ncosim(fmt::format("run {} --out {} --shard 2/2 {}", quote(sc), quote(at("r2")), flags)).code, 0);
+  ASSERT_EQ(
+      ncosim(fmt::format("run {} --out {} --shard 2/2 {}", quote(sc), quote(at("r2")), flags)).code,
+      0);
   r = ncosim(fmt::format("export {} --out {}", quote(at("r1")), quote(at("r1e"))));
   EXPECT_EQ(r.code, 0) << r.output;
   r = ncosim(fmt::format("merge {} {} {}", quote(at("rm")), quote(at("r1")), quote(at("r2"))));
   EXPECT_EQ(r.code, 0) << r.output;
-  r = run_shell(fmt::format("cd / && {} run {} --out {} --shard 2/2 --resume {}", quote(kBinary), quote(sc),
-                            quote(at("r2")), flags));
+  r = run_shell(fmt::format("cd / && {} run {} --out {} --shard 2/2 --resume {}", quote(kBinary),
+                            quote(sc), quote(at("r2")), flags));
   EXPECT_EQ(r.code, 0) << r.output;
 }
 
@@ -245,8 +267,10 @@ TEST_F(StoreIntegrity, DamagedRowsAndIndicesAndFormatsAreRefused) {
   // 8 bytes of run 3's blob overwritten (what a bit rot or a stray write does; integrity_check
   // cannot see it).
   std::string store = fresh("b");
-  sql(store, "UPDATE runs SET metrics = substr(metrics, 1, 40) || x'0102030405060708' || substr(metrics, 49) "
-             "WHERE run = 3");
+  sql(store,
+      "UPDATE runs SET metrics = substr(metrics, 1, 40) || x'0102030405060708' || substr(metrics, "
+      "49) "
+      "WHERE run = 3");
   auto r = ncosim(fmt::format("export {}", quote(at("b"))));
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_NE(r.output.find("run 3 of case 1 fails its checksum"), std::string::npos) << r.output;
@@ -258,10 +282,13 @@ TEST_F(StoreIntegrity, DamagedRowsAndIndicesAndFormatsAreRefused) {
   EXPECT_NE(r.output.find("run 3 of case 1 fails its checksum"), std::string::npos) << r.output;
   // The link counters, the timing and the stored files carry checksums too.
   store = fresh("c");
-  sql(store, "UPDATE link_runs SET counters = substr(counters, 1, 8) || x'09' || substr(counters, 10) WHERE run = 1");
+  sql(store,
+      "UPDATE link_runs SET counters = substr(counters, 1, 8) || x'09' || substr(counters, 10) "
+      "WHERE run = 1");
   r = ncosim(fmt::format("export {}", quote(at("c"))));
   EXPECT_EQ(r.code, 2) << r.output;
-  EXPECT_NE(r.output.find("link counters of run 1 of case 1 fails its checksum"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("link counters of run 1 of case 1 fails its checksum"), std::string::npos)
+      << r.output;
   store = fresh("c");
   sql(store, "UPDATE timing SET ns_per_period = 5 WHERE estimator = 0");
   r = ncosim(fmt::format("export {}", quote(at("c"))));
@@ -269,7 +296,8 @@ TEST_F(StoreIntegrity, DamagedRowsAndIndicesAndFormatsAreRefused) {
   EXPECT_NE(r.output.find("fails its checksum"), std::string::npos) << r.output;
   // A run index outside 0..runs-1 (the checksum recomputed: a deliberate edit, not rot).
   store = fresh("d");
-  sql(store, "UPDATE runs SET run = 600 WHERE run = 5; UPDATE link_runs SET run = 600 WHERE run = 5");
+  sql(store,
+      "UPDATE runs SET run = 600 WHERE run = 5; UPDATE link_runs SET run = 600 WHERE run = 5");
   r = ncosim(fmt::format("export {}", quote(at("d"))));
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_NE(r.output.find("run index 600, outside the campaign"), std::string::npos) << r.output;
@@ -278,7 +306,9 @@ TEST_F(StoreIntegrity, DamagedRowsAndIndicesAndFormatsAreRefused) {
   sql(store, "UPDATE campaign SET value = '99' WHERE key = 'format'");
   r = ncosim(fmt::format("export {}", quote(at("e"))));
   EXPECT_EQ(r.code, 2) << r.output;
-  EXPECT_NE(r.output.find("store format '99' (this ncosim reads formats 1 to 3)"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("store format '99' (this ncosim reads formats 1 to 3)"),
+            std::string::npos)
+      << r.output;
 }
 
 // Finding 7: every field of the campaign table that the commands read is checked, and a bad one
@@ -304,7 +334,8 @@ TEST_F(StoreIntegrity, DamagedCampaignFieldsAreNamed) {
     fs::remove_all(at("b"));
     fs::create_directories(at("b"));
     fs::copy_file(at("a/runs.sqlite"), at("b/runs.sqlite"));
-    sql(at("b/runs.sqlite"), fmt::format("UPDATE campaign SET value = {} WHERE key = '{}'", value, key));
+    sql(at("b/runs.sqlite"),
+        fmt::format("UPDATE campaign SET value = {} WHERE key = '{}'", value, key));
     const auto r = ncosim(fmt::format("export {}", quote(at("b"))));
     EXPECT_EQ(r.code, 2) << key << ": " << r.output;
     EXPECT_NE(r.output.find(expected), std::string::npos) << key << ": " << r.output;
@@ -316,13 +347,16 @@ TEST_F(StoreIntegrity, DamagedCampaignFieldsAreNamed) {
   sql(at("b/runs.sqlite"), "DELETE FROM campaign WHERE key = 'scenario_text'");
   auto r = ncosim(fmt::format("export {}", quote(at("b"))));
   EXPECT_EQ(r.code, 2) << r.output;
-  EXPECT_NE(r.output.find("campaign field 'scenario_text': expected a value, got nothing"), std::string::npos)
+  EXPECT_NE(r.output.find("campaign field 'scenario_text': expected a value, got nothing"),
+            std::string::npos)
       << r.output;
   // Finding 14: a stored text that does not load is reported as the store's, not the file's.
   fs::remove_all(at("b"));
   fs::create_directories(at("b"));
   fs::copy_file(at("a/runs.sqlite"), at("b/runs.sqlite"));
-  sql(at("b/runs.sqlite"), "UPDATE campaign SET value = 'title = \"x\"' || char(10) || '[run' WHERE key = 'scenario_text'");
+  sql(at("b/runs.sqlite"),
+      "UPDATE campaign SET value = 'title = \"x\"' || char(10) || '[run' WHERE key = "
+      "'scenario_text'");
   r = ncosim(fmt::format("export {}", quote(at("b"))));
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_NE(r.output.find("the scenario text stored in it"), std::string::npos) << r.output;
@@ -351,7 +385,8 @@ TEST_F(StoreIntegrity, ReadingAStoreNeverWritesIt) {
   EXPECT_EQ(read_text(at("m/runs.csv")), read_text(at("a/runs.csv")));
   // What is not a store is still called so; what cannot be read says why.
   fs::create_directories(at("junk"));
-  write(at("junk/runs.sqlite"), "not a database, not at all, but long enough to be read as a header....");
+  write(at("junk/runs.sqlite"),
+        "not a database, not at all, but long enough to be read as a header....");
   r = ncosim(fmt::format("export {}", quote(at("junk"))));
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_NE(r.output.find("is not an ncosim run store"), std::string::npos) << r.output;
@@ -367,10 +402,11 @@ TEST_F(StoreIntegrity, TheFallbackSwapNeverLosesThePreviousSet) {
   // Find the step "rename the new folder" of the fallback sequence.
   // (into a folder that exists: the swap is only needed then).
   ASSERT_EQ(ncosim(run_cmd(at("probe"), 1)).code, 0);
-  const auto steps =
-      ncosim(run_cmd(at("probe"), 2, " --replace"), "NCOSIM_TEST_NO_EXCHANGE=1 NCOSIM_TEST_OUTPUT_STEPS=1 ");
+  const auto steps = ncosim(run_cmd(at("probe"), 2, " --replace"),
+                            "NCOSIM_TEST_NO_EXCHANGE=1 NCOSIM_TEST_OUTPUT_STEPS=1 ");
   std::smatch m;
-  ASSERT_TRUE(std::regex_search(steps.output, m, std::regex("output step ([0-9]+): rename the new folder")))
+  ASSERT_TRUE(
+      std::regex_search(steps.output, m, std::regex("output step ([0-9]+): rename the new folder")))
       << steps.output;
   const int rename_step = std::stoi(m[1]);
   auto r = ncosim(run_cmd(out, 2, " --replace"),
@@ -392,8 +428,8 @@ TEST_F(StoreIntegrity, TheFallbackSwapNeverLosesThePreviousSet) {
 // copy of the metrics, the campaign fields the exports do not show); never different results
 // with exit 0, never a crash.
 TEST_F(StoreIntegrity, RandomOverwritesNeverChangeResultsSilently) {
-  ASSERT_EQ(ncosim(fmt::format("run {} --out {} --runs 40 --periods 300 --no-timing --quiet", quote(kBase.string()),
-                               quote(at("a"))))
+  ASSERT_EQ(ncosim(fmt::format("run {} --out {} --runs 40 --periods 300 --no-timing --quiet",
+                               quote(kBase.string()), quote(at("a"))))
                 .code,
             0);
   const std::string original = at("a/runs.sqlite");
@@ -421,12 +457,14 @@ TEST_F(StoreIntegrity, RandomOverwritesNeverChangeResultsSilently) {
       continue;
     }
     bool identical = true;
-    for (const auto& f : kExports) identical = identical && comparable(at("a/" + f)) == comparable(at("c/" + f));
+    for (const auto& f : kExports)
+      identical = identical && comparable(at("a/" + f)) == comparable(at("c/" + f));
     (identical ? same : changed)++;
     EXPECT_TRUE(identical) << "trial " << trial << ": exit 0 with different exports";
   }
-  std::cout << fmt::format("random overwrites: {} refused, {} harmless, {} changed results, {} other\n", refused, same,
-                           changed, other);
+  std::cout << fmt::format(
+      "random overwrites: {} refused, {} harmless, {} changed results, {} other\n", refused, same,
+      changed, other);
   EXPECT_EQ(changed, 0);
   EXPECT_GE(refused, 20) << "the overwrites should mostly land in the runs";
 }
@@ -451,7 +489,8 @@ TEST_F(StoreIntegrity, AFullDiskAtAnyPointLeavesThePreviousSet) {
       fs::remove_all(out);  // a killed run's unfinished store beside it is replaced deliberately
       ASSERT_EQ(ncosim(run_cmd(out, 1, " --replace")).code, 0);
       const std::string runs1 = read_text(out + "/runs.csv");
-      const auto r = run_shell(fmt::format("trap '' XFSZ; ulimit -f {}; {} {}", kb, quote(kBinary), cmd));
+      const auto r =
+          run_shell(fmt::format("trap '' XFSZ; ulimit -f {}; {} {}", kb, quote(kBinary), cmd));
       if (r.code == 0) continue;  // the limit was above what the command writes
       ++points;
       const std::string what = fmt::format("{} with {} KiB", name, kb);

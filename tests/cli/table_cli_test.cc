@@ -27,7 +27,9 @@ const std::string kSource = NCOSIM_SOURCE_DIR;
 const std::string kTable2 = kSource + "/scenarios/dolz2014_table2.toml";
 
 // stdout and stderr together.
-Outcome ncosim(const std::string& args) { return ncosim::testing::run_shell(fmt::format("'{}' {}", kBinary, args)); }
+Outcome ncosim(const std::string& args) {
+  return ncosim::testing::run_shell(fmt::format("'{}' {}", kBinary, args));
+}
 // stdout alone.
 Outcome ncosim_stdout(const std::string& args) {
   return ncosim::testing::run_shell(fmt::format("( '{}' {} 2>/dev/null )", kBinary, args));
@@ -59,8 +61,8 @@ class TableCli : public ::testing::Test {
   std::string path(const std::string& name) const { return (dir_ / name).string(); }
   // A short flagship campaign into dir_/name: stdout alone.
   Outcome flagship(const std::string& name, const std::string& extra = "") {
-    return ncosim_stdout(
-        fmt::format("run '{}' --out '{}' --runs 3 --periods 1500 --quiet {}", kTable2, path(name), extra));
+    return ncosim_stdout(fmt::format("run '{}' --out '{}' --runs 3 --periods 1500 --quiet {}",
+                                     kTable2, path(name), extra));
   }
   fs::path dir_;
 };
@@ -89,14 +91,16 @@ TEST_F(TableCli, ColumnsAndFormatsForScripts) {
   Outcome o = flagship("csv", "--format csv --columns estimator,status,expected_status");
   ASSERT_EQ(o.code, 0) << o.output;
   EXPECT_EQ(o.output,
-            "estimator,status,expected_status\n\"S1, 1 gain\",ok,\n\"S2, 2 gains\",ok,\n\"S3, 4 gains\",ok,\n"
+            "estimator,status,expected_status\n\"S1, 1 gain\",ok,\n\"S2, 2 gains\",ok,\n\"S3, 4 "
+            "gains\",ok,\n"
             "\"S3, 8 gains\",ok,\n\"S4, 60 gains\",ok,\nKalman,ok,\nopen loop,diverged,diverged\n");
   o = flagship("all", "--format csv");
   ASSERT_EQ(o.code, 0) << o.output;
   EXPECT_EQ(o.output, read_text(path("all") + "/summary.csv"));  // stdout holds only the data
   o = flagship("md", "--format md");
   ASSERT_EQ(o.code, 0) << o.output;
-  EXPECT_EQ(o.output.rfind(read_text(path("md") + "/summary.md"), 0), 0u) << o.output;  // then the closing line
+  EXPECT_EQ(o.output.rfind(read_text(path("md") + "/summary.md"), 0), 0u)
+      << o.output;  // then the closing line
   o = flagship("json", "--format json --columns estimator,mse,mse_ci95,status,expected_status");
   ASSERT_EQ(o.code, 0) << o.output;
   const auto rows = nlohmann::json::parse(o.output);
@@ -121,39 +125,46 @@ TEST_F(TableCli, BadColumnsOrFormatExit2WithNothingWritten) {
     std::string options, message;
   };
   const std::vector<Case> cases{
-      {"--columns estimator,msee", "--columns: no summary.csv column \"msee\" (did you mean \"mse\"?) (this campaign's "
-                                   "columns: estimator, kind, runs, mse,"},
+      {"--columns estimator,msee",
+       "--columns: no summary.csv column \"msee\" (did you mean \"mse\"?) (this campaign's "
+       "columns: estimator, kind, runs, mse,"},
       {"--columns stop", "--columns: no summary.csv column \"stop\""},  // only with --target-ci
-      {"--columns 'mse,,status'", "--columns: expected a comma-separated list of summary.csv column names"},
+      {"--columns 'mse,,status'",
+       "--columns: expected a comma-separated list of summary.csv column names"},
       {"--format xml", "--format: expected md, csv or json, got \"xml\""},
   };
   for (const auto& c : cases) {
-    const Outcome o = ncosim(fmt::format("run '{}' --out '{}' --runs 2 --periods 1000 --quiet {}", kTable2, path("bad"),
-                                         c.options));
+    const Outcome o = ncosim(fmt::format("run '{}' --out '{}' --runs 2 --periods 1000 --quiet {}",
+                                         kTable2, path("bad"), c.options));
     EXPECT_EQ(o.code, 2) << c.options << ": " << o.output;
     EXPECT_NE(o.output.find(c.message), std::string::npos) << c.options << ": " << o.output;
     if (c.options.find("msee") != std::string::npos) {
-      EXPECT_NE(o.output.find(", model_check, expected_status, nees,"), std::string::npos) << o.output;  // every column
+      EXPECT_NE(o.output.find(", model_check, expected_status, nees,"), std::string::npos)
+          << o.output;  // every column
     }
     EXPECT_FALSE(fs::exists(path("bad"))) << c.options << ": the folder was written";
   }
 }
 
 TEST_F(TableCli, ShippedFlagshipPassesFailOnStatusAndAnUnexpectedStatusFails) {
-  Outcome o = ncosim(fmt::format("run '{}' --out '{}' --runs 2 --periods 1000 --quiet --fail-on-status", kTable2,
-                                 path("ok")));
+  Outcome o = ncosim(fmt::format(
+      "run '{}' --out '{}' --runs 2 --periods 1000 --quiet --fail-on-status", kTable2, path("ok")));
   EXPECT_EQ(o.code, 0) << o.output;  // the open-loop row diverges as declared
-  o = ncosim(fmt::format("run '{}' --out '{}' --runs 2 --periods 1000 --quiet --fail-on-status "
+  o =
+      ncosim(fmt::format("run '{}' --out '{}' --runs 2 --periods 1000 --quiet --fail-on-status "
                          "--set 'estimator[5].expected_status=\"diverged\"'",
                          kTable2, path("kalman")));
   EXPECT_EQ(o.code, 3) << o.output;
-  EXPECT_NE(o.output.find("--fail-on-status: 1 row(s) with an unexpected status"), std::string::npos) << o.output;
+  EXPECT_NE(o.output.find("--fail-on-status: 1 row(s) with an unexpected status"),
+            std::string::npos)
+      << o.output;
   EXPECT_NE(o.output.find("\"Kalman\": ok (expected diverged)"), std::string::npos) << o.output;
 }
 
 TEST_F(TableCli, EveryKindAcceptsExpectedStatus) {
   // Shipped scenarios covering every estimator kind: the key on every [[estimator]] is accepted.
-  for (const char* name : {"dolz2014_table2", "cstr_mode_estimation", "schenato2008_fig4_a", "sod_example51"}) {
+  for (const char* name :
+       {"dolz2014_table2", "cstr_mode_estimation", "schenato2008_fig4_a", "sod_example51"}) {
     const std::string file = kSource + "/scenarios/" + name + ".toml";
     const std::string text = read_text(file);
     std::string sets;
@@ -172,11 +183,14 @@ TEST_F(TableCli, CompareCountsAnExpectedDivergenceAsNoRegression) {
       "--set 'estimator[6].kind=\"kalman_extended\"' --set 'estimator[6].expected_status=\"ok\"'";
   ASSERT_EQ(flagship("base", base_opts).code, 0);
   ASSERT_EQ(flagship("new").code, 0);
-  Outcome o = ncosim(fmt::format("compare '{}' '{}' --allow-scenario-change", path("base"), path("new")));
+  Outcome o =
+      ncosim(fmt::format("compare '{}' '{}' --allow-scenario-change", path("base"), path("new")));
   EXPECT_EQ(o.code, 0) << o.output;
-  EXPECT_NE(o.output.find("diverged in 3 of 3 NEW runs, none in BASE (expected_status = diverged); status ok -> "
-                          "diverged (expected)"),
-            std::string::npos)
+  EXPECT_NE(
+      o.output.find(
+          "diverged in 3 of 3 NEW runs, none in BASE (expected_status = diverged); status ok -> "
+          "diverged (expected)"),
+      std::string::npos)
       << o.output;
   // The same divergence without the declaration is a regression, its status change unexpected.
   ASSERT_EQ(flagship("new2", "--set 'estimator[6].expected_status=\"ok\"'").code, 0);

@@ -131,7 +131,8 @@ void expect_no_allocation(const Scenario& sc, const std::string& what) {
       g_allocations = 0;
       g_counting = k >= kWarmup;
       for (const auto& p : arrivals[static_cast<std::size_t>(k)]) est->on_packet(p, k);
-      est->on_period(k, est::PeriodInput{us[static_cast<std::size_t>(k)], drives[static_cast<std::size_t>(k)]});
+      est->on_period(k, est::PeriodInput{us[static_cast<std::size_t>(k)],
+                                         drives[static_cast<std::size_t>(k)]});
       sink += est->state()(0);
       if (const auto* x = est->extended()) sink += (*x)(0);
       if (const auto* P = est->covariance()) sink += (*P)(0, 0);
@@ -170,7 +171,8 @@ TEST(Allocation, NoEstimatorAllocatesPerPeriodAfterWarmUp) {
   for (const auto& link : link_registry().entries()) {
     if (needs_sumo(link.name)) continue;
     TempDir dir;
-    const auto file = write_scenario(dir, scenario_text("lti", "white", link.name, all_estimators()));
+    const auto file =
+        write_scenario(dir, scenario_text("lti", "white", link.name, all_estimators()));
     expect_no_allocation(*testing::load_one(file), "link " + link.name);
   }
 }
@@ -192,7 +194,8 @@ TEST(Allocation, NoEstimatorAllocatesWithBufferedSensors) {
 TEST(Allocation, ModeEstimatorsOnAJumpLinearPlantDoNotAllocate) {
   TempDir dir;
   std::string text = scenario_text("jump_linear", "white", "bernoulli", {"imm", "mode_ss"});
-  text.replace(text.find("[[actuator]]"), std::string("[[actuator]]\nlink = \"net\"\non_loss = \"hold\"\n\n").size(), "");
+  text.replace(text.find("[[actuator]]"),
+               std::string("[[actuator]]\nlink = \"net\"\non_loss = \"hold\"\n\n").size(), "");
   expect_no_allocation(*testing::load_one(write_scenario(dir, text)), "jump_linear plant");
 }
 
@@ -218,16 +221,17 @@ TEST(Allocation, ARunAllocatesNothingPerPeriod) {
     for (const auto& in : input_registry().entries()) {
       for (const std::string policy : {"", "policy = \"send_on_delta\"\ndelta = 0.05\n"}) {
         std::string text = scenario_text(p.name, in.name, "delay", {"open_loop"});
-        for (std::size_t at = text.find("[[sensor]]\n"); at != std::string::npos; at = text.find("[[sensor]]\n", at + 1)) {
+        for (std::size_t at = text.find("[[sensor]]\n"); at != std::string::npos;
+             at = text.find("[[sensor]]\n", at + 1)) {
           text.insert(at + 11, policy);
         }
         auto sc = testing::load_one(write_scenario(dir, text));
         const long once = run_allocations(*sc, kPeriods);
         const long twice = run_allocations(*sc, 2 * kPeriods);
-        EXPECT_LE(twice - once, kPoolGrowth) << p.name << " plant, " << in.name << " input"
-                                             << (policy.empty() ? "" : ", send-on-delta sensors") << ": " << once
-                                             << " allocations in " << kPeriods << " periods, " << twice << " in "
-                                             << 2 * kPeriods;
+        EXPECT_LE(twice - once, kPoolGrowth)
+            << p.name << " plant, " << in.name << " input"
+            << (policy.empty() ? "" : ", send-on-delta sensors") << ": " << once
+            << " allocations in " << kPeriods << " periods, " << twice << " in " << 2 * kPeriods;
       }
     }
   }

@@ -20,7 +20,8 @@ namespace {
 using namespace conformance;  // NOLINT: the suite's fixtures
 
 template <class R>
-void expect_entries(const R& registry, const std::map<std::string, std::string>& table, const char* what) {
+void expect_entries(const R& registry, const std::map<std::string, std::string>& table,
+                    const char* what) {
   for (const auto& e : registry.entries()) {
     EXPECT_TRUE(table.count(e.name)) << what << " kind '" << e.name << "' has no conformance entry";
     EXPECT_FALSE(e.help.empty()) << what << " kind '" << e.name << "' has no help line";
@@ -49,7 +50,8 @@ TEST(Conformance, EveryEstimatorRunsFiniteDeterministicAndBeatsNothingWithoutDat
   for (const auto& link : link_registry().entries()) {
     if (needs_sumo(link.name)) continue;
     TempDir dir;
-    const auto file = write_scenario(dir, scenario_text("lti", "white", link.name, all_estimators()));
+    const auto file =
+        write_scenario(dir, scenario_text("lti", "white", link.name, all_estimators()));
     auto sc = testing::load_one(file);
     CampaignOptions opt;
     opt.time_estimators = false;
@@ -71,7 +73,8 @@ TEST(Conformance, EveryEstimatorRunsFiniteDeterministicAndBeatsNothingWithoutDat
       EXPECT_GE(*r.delivered_ratio, 0.0);
       EXPECT_LE(*r.delivered_ratio, 1.0);
       EXPECT_LE(*r.mse, 1.05 * open_loop);
-      for (std::size_t run = 0; run < a.runs.size(); ++run) EXPECT_EQ(a.runs[run][e].sse, b.runs[run][e].sse);
+      for (std::size_t run = 0; run < a.runs.size(); ++run)
+        EXPECT_EQ(a.runs[run][e].sse, b.runs[run][e].sse);
     }
   }
 }
@@ -79,13 +82,16 @@ TEST(Conformance, EveryEstimatorRunsFiniteDeterministicAndBeatsNothingWithoutDat
 TEST(Conformance, EveryKindRejectsAnUnknownKeyWithADidYouMean) {
   TempDir dir;
   for (const auto& k : all_estimators()) {
-    const auto bad = kMisspelt.count(k) ? kMisspelt.at(k) : std::make_pair(std::string("max_delayy = 1"), std::string("max_delay"));
+    const auto bad = kMisspelt.count(k)
+                         ? kMisspelt.at(k)
+                         : std::make_pair(std::string("max_delayy = 1"), std::string("max_delay"));
     const auto file = write_scenario(dir, scenario_text("lti", "none", "delay", {k}, bad.first));
     try {
       testing::load_one(file);
       ADD_FAILURE() << k << " accepted an unknown key";
     } catch (const ScenarioError& e) {
-      EXPECT_NE(std::string(e.what()).find("did you mean '" + bad.second + "'"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("did you mean '" + bad.second + "'"), std::string::npos)
+          << e.what();
     }
   }
   for (const auto& l : link_registry().entries()) {
@@ -137,7 +143,8 @@ TEST(Conformance, EveryLinkHonoursItsMarginalLaw) {
       lost += da == models::kLost;
     }
     const double sigma = std::sqrt(n * loss * (1 - loss)) + 1e-9;
-    EXPECT_LT(std::abs(lost - n * loss), 4.5 * sigma + 1) << lost << " lost of " << n << ", expected " << n * loss;
+    EXPECT_LT(std::abs(lost - n * loss), 4.5 * sigma + 1)
+        << lost << " lost of " << n << ", expected " << n * loss;
   }
 }
 
@@ -169,10 +176,12 @@ TEST(Conformance, EveryLinkThatClaimsTheDesignModelLosesPacketsIndependently) {
     }
     const double p = proto.loss_probability();
     const double m = n - 1.0;
-    const double sigma = std::sqrt(m * p * p * (1 - p * p) + 2.0 * (m - 1.0) * (p * p * p - p * p * p * p)) + 1e-9;
+    const double sigma =
+        std::sqrt(m * p * p * (1 - p * p) + 2.0 * (m - 1.0) * (p * p * p - p * p * p * p)) + 1e-9;
     const bool independent_looking = std::abs(pairs - m * p * p) < 4.5 * sigma + 1;
     if (proto.loss_model() == models::Link::LossModel::kIndependent) {
-      EXPECT_TRUE(independent_looking) << pairs << " consecutive losses, expected " << m * p * p << " +- " << sigma;
+      EXPECT_TRUE(independent_looking)
+          << pairs << " consecutive losses, expected " << m * p * p << " +- " << sigma;
     } else if (!independent_looking) {
       ++dependent_seen;
     }
@@ -185,7 +194,8 @@ TEST(Conformance, EveryPlantAndInputKindBuildsAndRuns) {
     if (needs_sumo(p.name)) continue;
     for (const auto& in : input_registry().entries()) {
       TempDir dir;
-      const auto file = write_scenario(dir, scenario_text(p.name, in.name, "bernoulli", {"kalman_extended"}));
+      const auto file =
+          write_scenario(dir, scenario_text(p.name, in.name, "bernoulli", {"kalman_extended"}));
       auto sc = testing::load_one(file);
       SCOPED_TRACE(p.name + " with input " + in.name);
       EXPECT_EQ(sc->model.plant.A.rows(), 2);
@@ -208,7 +218,8 @@ TEST(Conformance, EverySendPolicyDecidesAndKeepsTheRunDeterministic) {
     TempDir dir;
     std::string text = scenario_text("lti", "white", "bernoulli", {"kalman_extended"});
     const std::string keys = "policy = \"" + p.name + "\"\n" + kSendPolicies.at(p.name) + "\n";
-    for (std::size_t at = text.find("[[sensor]]\n"); at != std::string::npos; at = text.find("[[sensor]]\n", at + 1)) {
+    for (std::size_t at = text.find("[[sensor]]\n"); at != std::string::npos;
+         at = text.find("[[sensor]]\n", at + 1)) {
       text.insert(at + 11, keys);
     }
     auto sc = testing::load_one(write_scenario(dir, text));

@@ -3,6 +3,8 @@
 // add its minimal table to the maps below, or KindsHaveAConformanceEntry fails.
 #pragma once
 
+#include <gtest/gtest.h>
+
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
@@ -10,8 +12,6 @@
 #include <string>
 #include <utility>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 namespace ncosim::sim::conformance {
 
@@ -38,7 +38,9 @@ inline const std::map<std::string, std::pair<std::string, std::string>> kMisspel
 };
 
 // Mode estimators need modes: their scenarios get an [[actuator]] on the same link kind.
-inline bool is_mode_kind(const std::string& k) { return k == "imm" || k == "mode_io" || k == "mode_ss"; }
+inline bool is_mode_kind(const std::string& k) {
+  return k == "imm" || k == "mode_io" || k == "mode_ss";
+}
 
 inline const std::map<std::string, std::string> kLinks{
     {"delay", "pmf = [0.5, 0.3]"},
@@ -52,11 +54,16 @@ inline const std::map<std::string, std::string> kLinks{
 };
 
 inline const std::map<std::string, std::string> kPlants{
-    {"lti", "A = [[0.8821, -0.0351], [-0.0351, 0.7347]]\nBu = [[-0.3359], [0.3466]]\nW = [[0.01, 0], [0, 0.01]]"},
-    {"lti_continuous", "Ac = [[-0.1, 1.0], [0.0, -0.3]]\nBc = [[0.0], [1.0]]\nWc = [[0.01, 0], [0, 0.01]]"},
+    {"lti",
+     "A = [[0.8821, -0.0351], [-0.0351, 0.7347]]\nBu = [[-0.3359], [0.3466]]\nW = [[0.01, 0], [0, "
+     "0.01]]"},
+    {"lti_continuous",
+     "Ac = [[-0.1, 1.0], [0.0, -0.3]]\nBc = [[0.0], [1.0]]\nWc = [[0.01, 0], [0, 0.01]]"},
     {"jump_linear",
-     "A = [[0.8821, -0.0351], [-0.0351, 0.7347]]\nBu = [[-0.3359], [0.3466]]\nW = [[0.01, 0], [0, 0.01]]\n"
-     "transition = [[0.9, 0.1], [0.3, 0.7]]\n[[plant.mode]]\n[[plant.mode]]\nA = [[0.5, 0.0], [0.1, 0.6]]\n"
+     "A = [[0.8821, -0.0351], [-0.0351, 0.7347]]\nBu = [[-0.3359], [0.3466]]\nW = [[0.01, 0], [0, "
+     "0.01]]\n"
+     "transition = [[0.9, 0.1], [0.3, 0.7]]\n[[plant.mode]]\n[[plant.mode]]\nA = [[0.5, 0.0], "
+     "[0.1, 0.6]]\n"
      "W = [[0.05, 0], [0, 0.05]]"},
     {"transfer_function", "num = [1.0]\nden = [1.0, 0.5, 0.1]\nW = 0.01"},
     {"sumo_vehicle", "vehicle = \"leader\"\nq = 1.0"},
@@ -71,7 +78,9 @@ inline const std::map<std::string, std::string> kInputs{
     {"white", "std = 1.0"},
     {"state_feedback", "K = [[0.1, 0.1]]\nsource = \"plant\""},
     {"relay", "level = 0.5\ndead_zone = 0.2\noutputs = [0]\nsees = \"measured\""},
-    {"pi", "kp = 0.1\nki = 0.05\nb = 0.7\nu_min = -1.0\nu_max = 1.0\nreference = {kind = \"square\", low = 0.0, high = 1.0, period = 50.0}"},
+    {"pi",
+     "kp = 0.1\nki = 0.05\nb = 0.7\nu_min = -1.0\nu_max = 1.0\nreference = {kind = \"square\", low "
+     "= 0.0, high = 1.0, period = 50.0}"},
 };
 
 // Send policies ([[sensor]] policy): the keys each needs on a one-output sensor.
@@ -84,8 +93,8 @@ struct TempDir {
   std::filesystem::path path;
   TempDir() {
     path = std::filesystem::temp_directory_path() /
-           ("ncosim_conf_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) + "_" +
-            std::to_string(reinterpret_cast<std::uintptr_t>(this)));
+           ("ncosim_conf_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) +
+            "_" + std::to_string(reinterpret_cast<std::uintptr_t>(this)));
     std::filesystem::create_directories(path);
   }
   ~TempDir() { std::filesystem::remove_all(path); }
@@ -93,8 +102,9 @@ struct TempDir {
 
 // A small scenario: the given plant, input, one link kind for both sensors, and estimators.
 inline std::string scenario_text(const std::string& plant_kind, const std::string& input_kind,
-                          const std::string& link_kind, const std::vector<std::string>& est_kinds,
-                          const std::string& extra_estimator_key = "") {
+                                 const std::string& link_kind,
+                                 const std::vector<std::string>& est_kinds,
+                                 const std::string& extra_estimator_key = "") {
   std::string s = "[run]\nperiods = 3000\nwarmup = 100\nruns = 3\nseed = 7\n\n";
   s += "[plant]\nkind = \"" + plant_kind + "\"\n" + kPlants.at(plant_kind) + "\n\n";
   s += "[input]\nkind = \"" + input_kind + "\"\n" + kInputs.at(input_kind) + "\n\n";
@@ -115,7 +125,8 @@ inline std::string write_scenario(const TempDir& dir, const std::string& text) {
   {
     std::ofstream trace(dir.path / "trace.csv");
     trace << "seq,delay\n";
-    for (int i = 0; i < 25000; ++i) trace << i << "," << (i % 5 == 4 ? "" : std::to_string(i % 2)) << "\n";
+    for (int i = 0; i < 25000; ++i)
+      trace << i << "," << (i % 5 == 4 ? "" : std::to_string(i % 2)) << "\n";
   }
   std::string t = text;
   for (std::size_t p; (p = t.find("TRACE")) != std::string::npos;) t.replace(p, 5, "trace.csv");

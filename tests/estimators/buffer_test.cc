@@ -18,7 +18,8 @@ namespace ncosim::est {
 namespace {
 
 std::unique_ptr<EstimatorDesign> make(const std::string& kind, toml::table t, const Model& model) {
-  return sim::estimator_registry().find(kind)->factory(sim::Table(t, "estimator[0]", "test"), model);
+  return sim::estimator_registry().find(kind)->factory(sim::Table(t, "estimator[0]", "test"),
+                                                       model);
 }
 
 Packet packet(int sensor, std::int64_t stamp, const Eigen::VectorXd& y) {
@@ -108,7 +109,8 @@ TEST(BufferDesign, CriticalProbabilityBySdpAgreesWithBisection) {
 
 // Issue 29, finding 12: the sensors' rows, stacked for lambda_c, are compressed to n whitened rows
 // with the same information C' R^-1 C: Phi is the same map and lambda_c the same (by bisection
-// and by the SDP) as on the full stack, for sensors with correlated noise and more rows than states.
+// and by the SDP) as on the full stack, for sensors with correlated noise and more rows than
+// states.
 TEST(BufferDesign, CompressedStackGivesTheSamePhiAndCriticalProbability) {
   std::mt19937_64 gen(29);
   std::normal_distribution<double> N01(0.0, 1.0);
@@ -128,20 +130,24 @@ TEST(BufferDesign, CompressedStackGivesTheSamePhiAndCriticalProbability) {
     ASSERT_EQ(small.C.front().rows(), n);
     const Eigen::MatrixXd P0 = Eigen::MatrixXd::Identity(n, n);
     for (double lambda : {0.3, 0.9}) {
-      EXPECT_LT((buffer::phi(full, {lambda}, P0) - buffer::phi(small, {lambda}, P0)).norm(), 1e-10) << "plant " << r;
+      EXPECT_LT((buffer::phi(full, {lambda}, P0) - buffer::phi(small, {lambda}, P0)).norm(), 1e-10)
+          << "plant " << r;
     }
-    EXPECT_NEAR(buffer::critical_probability_bisection(p).value, buffer::critical_probability_bisection(full).value,
-                1e-6)
+    EXPECT_NEAR(buffer::critical_probability_bisection(p).value,
+                buffer::critical_probability_bisection(full).value, 1e-6)
         << "plant " << r;
-    EXPECT_NEAR(buffer::critical_probability_sdp(p).value, buffer::critical_probability_sdp(full).value, 1e-4)
+    EXPECT_NEAR(buffer::critical_probability_sdp(p).value,
+                buffer::critical_probability_sdp(full).value, 1e-4)
         << "plant " << r;
   }
 }
 
 TEST(BufferDesign, StableExactlyForNAbove1MotorAndAbove7Pendulum) {
   for (int N = 1; N <= 16; ++N) {
-    EXPECT_EQ(buffer::design_static_gains(example(1.0), {paper_lambda(N)}).stable, N > 1) << "motor N=" << N;
-    EXPECT_EQ(buffer::design_static_gains(example(1.2), {paper_lambda(N)}).stable, N > 7) << "pendulum N=" << N;
+    EXPECT_EQ(buffer::design_static_gains(example(1.0), {paper_lambda(N)}).stable, N > 1)
+        << "motor N=" << N;
+    EXPECT_EQ(buffer::design_static_gains(example(1.2), {paper_lambda(N)}).stable, N > 7)
+        << "pendulum N=" << N;
   }
 }
 
@@ -158,16 +164,21 @@ TEST(BufferDesign, CovarianceOfTheDesignedGainsThroughLEqualsTheorem3) {
       const auto T = buffer::covariances_of_gains(p, lam, g.K);
       ASSERT_EQ(T.size(), static_cast<std::size_t>(N) + 1);
       for (int k = 0; k <= N; ++k) {
-        EXPECT_LT((T[static_cast<std::size_t>(k)] - g.V[static_cast<std::size_t>(k)]).cwiseAbs().maxCoeff(),
+        EXPECT_LT((T[static_cast<std::size_t>(k)] - g.V[static_cast<std::size_t>(k)])
+                      .cwiseAbs()
+                      .maxCoeff(),
                   1e-9 * (1.0 + g.V[static_cast<std::size_t>(k)].norm()))
             << "a=" << a << " N=" << N << " k=" << k;
       }
       // Another indexing, K_k = gain(V_k): strictly worse somewhere in the range tested.
       std::vector<buffer::Gains> shifted = g.K;
-      for (int k = 0; k < N; ++k) shifted[static_cast<std::size_t>(k)] = buffer::slot_gains(p, {lam[0][static_cast<std::size_t>(k)]}, g.V[static_cast<std::size_t>(k)]);
+      for (int k = 0; k < N; ++k)
+        shifted[static_cast<std::size_t>(k)] = buffer::slot_gains(
+            p, {lam[0][static_cast<std::size_t>(k)]}, g.V[static_cast<std::size_t>(k)]);
       const auto Ts = buffer::covariances_of_gains(p, lam, shifted);
       if (!Ts.empty()) {
-        EXPECT_GE(Ts[0].trace(), g.V[0].trace() - 1e-9) << "a=" << a << " N=" << N;  // Theorem 3 is optimal
+        EXPECT_GE(Ts[0].trace(), g.V[0].trace() - 1e-9)
+            << "a=" << a << " N=" << N;  // Theorem 3 is optimal
         strictly_worse += Ts[0].trace() > g.V[0].trace() + 1e-9;
       }
     }
@@ -180,13 +191,13 @@ TEST(BufferDesign, FourthMomentRadiusMarksHeavyTailsOfThePendulum) {
   for (int N = 8; N <= 16; ++N) {
     const auto g = buffer::design_static_gains(example(1.2), {paper_lambda(N)});
     EXPECT_LT(g.second_moment_radius, 1.0);
-    EXPECT_EQ(g.fourth_moment_radius >= 1.0, N <= 11) << "N=" << N << " rho4=" << g.fourth_moment_radius;
+    EXPECT_EQ(g.fourth_moment_radius >= 1.0, N <= 11)
+        << "N=" << N << " rho4=" << g.fourth_moment_radius;
   }
 }
 
 // ------------------------------------------------------------------------------------------
 // kalman_buffer
-
 
 // The filterpy peer vectors (tests/data/peers), replayed for buffer 1 and 4.
 TEST(KalmanBuffer, MatchesFilterpyIntermittentObservationsStepByStepForBuffer1And4) {
@@ -211,20 +222,22 @@ TEST(KalmanBuffer, OutOfOrderLateDuplicateAndCounted) {
   const Eigen::VectorXd u0(0), drive = Eigen::VectorXd::Zero(2);
   auto in_order = design->instantiate();
   auto shuffled = design->instantiate();
-  const Eigen::VectorXd y1 = Eigen::VectorXd::Constant(1, 1.0), y2 = Eigen::VectorXd::Constant(1, 3.0);
+  const Eigen::VectorXd y1 = Eigen::VectorXd::Constant(1, 1.0),
+                        y2 = Eigen::VectorXd::Constant(1, 3.0);
   for (std::int64_t k = 0; k < 4; ++k) {
     if (k == 1) in_order->on_packet(packet(0, 1, y1), 1);
     if (k == 2) in_order->on_packet(packet(0, 2, y2), 2);
     if (k == 3) {
-      EXPECT_EQ(shuffled->on_packet(packet(0, 2, y2), 3), 1);   // delay 1
-      EXPECT_EQ(shuffled->on_packet(packet(0, 1, y1), 3), 1);   // delay 2 < 3, older arrives later
-      EXPECT_EQ(shuffled->on_packet(packet(0, 1, y1), 3), 0);   // duplicate
-      EXPECT_EQ(shuffled->on_packet(packet(0, 0, y1), 3), 0);   // delay 3 = N: discarded
+      EXPECT_EQ(shuffled->on_packet(packet(0, 2, y2), 3), 1);  // delay 1
+      EXPECT_EQ(shuffled->on_packet(packet(0, 1, y1), 3), 1);  // delay 2 < 3, older arrives later
+      EXPECT_EQ(shuffled->on_packet(packet(0, 1, y1), 3), 0);  // duplicate
+      EXPECT_EQ(shuffled->on_packet(packet(0, 0, y1), 3), 0);  // delay 3 = N: discarded
     }
     in_order->on_period(k, PeriodInput{u0, drive});
     shuffled->on_period(k, PeriodInput{u0, drive});
   }
-  EXPECT_LT((Eigen::VectorXd(in_order->state()) - Eigen::VectorXd(shuffled->state())).norm(), 1e-12);
+  EXPECT_LT((Eigen::VectorXd(in_order->state()) - Eigen::VectorXd(shuffled->state())).norm(),
+            1e-12);
   EXPECT_LT((*in_order->covariance() - *shuffled->covariance()).norm(), 1e-12);
   const auto* c = shuffled->counters();
   ASSERT_NE(c, nullptr);
@@ -240,7 +253,8 @@ TEST(KalmanBuffer, OutOfOrderLateDuplicateAndCounted) {
 TEST(KalmanBuffer, EqualsKalmanExtendedWithMaxDelayNMinus1OverRandomLinks) {
   std::mt19937_64 gen(5);
   std::uniform_real_distribution<double> U(0.0, 1.0);
-  const auto dir = std::filesystem::temp_directory_path() / ("ncosim_buffer_" + std::to_string(::getpid()));
+  const auto dir =
+      std::filesystem::temp_directory_path() / ("ncosim_buffer_" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir);
   for (int trial = 0; trial < 8; ++trial) {
     const int N = 1 + trial % 5;
@@ -260,9 +274,19 @@ TEST(KalmanBuffer, EqualsKalmanExtendedWithMaxDelayNMinus1OverRandomLinks) {
           links += "kind = \"delay\"\npmf = [" + pmf + "]\n";
           break;
         }
-        case 1: links += "kind = \"negative_binomial\"\nsuccesses = 2\np = " + num(0.3, 0.8) + "\nloss = 0.1\n"; break;
-        case 2: links += "kind = \"delay\"\nindependent = true\npmf = [" + num(0.2, 0.5) + ", " + num(0.1, 0.4) + "]\n"; break;
-        default: links += "kind = \"gilbert_elliott\"\np_good_to_bad = 0.2\np_bad_to_good = 0.4\nloss_bad = 0.9\n"; break;
+        case 1:
+          links += "kind = \"negative_binomial\"\nsuccesses = 2\np = " + num(0.3, 0.8) +
+                   "\nloss = 0.1\n";
+          break;
+        case 2:
+          links += "kind = \"delay\"\nindependent = true\npmf = [" + num(0.2, 0.5) + ", " +
+                   num(0.1, 0.4) + "]\n";
+          break;
+        default:
+          links +=
+              "kind = \"gilbert_elliott\"\np_good_to_bad = 0.2\np_bad_to_good = 0.4\nloss_bad = "
+              "0.9\n";
+          break;
       }
     }
     std::string text = fmt::format(
@@ -271,10 +295,12 @@ TEST(KalmanBuffer, EqualsKalmanExtendedWithMaxDelayNMinus1OverRandomLinks) {
         "[input]\nkind = \"white\"\nstd = 1.0\n\n"
         "[[sensor]]\nC = [[1.0, {}]]\nR = [[0.05]]\nlink = \"net0\"\nbuffer = {}\n\n"
         "[[sensor]]\nC = [[{}, 1.0]]\nR = [[0.1]]\nlink = \"net1\"\n\n{}\n"
-        "[[estimator]]\nname = \"kb\"\nkind = \"kalman_buffer\"\nbuffer = {}\nP0 = [[1.0, 0.0], [0.0, 1.0]]\n\n"
-        "[[estimator]]\nname = \"ke\"\nkind = \"kalman_extended\"\nmax_delay = {}\nP0 = [[1.0, 0.0], [0.0, 1.0]]\n",
-        trial + 1, num(0.5, 1.1), num(-0.3, 0.3), num(-0.3, 0.3), num(0.4, 1.0), num(-1, 1), trial % 4 == 2 ? 0 : trial % 3, num(-1, 1),
-        links, N, N - 1);
+        "[[estimator]]\nname = \"kb\"\nkind = \"kalman_buffer\"\nbuffer = {}\nP0 = [[1.0, 0.0], "
+        "[0.0, 1.0]]\n\n"
+        "[[estimator]]\nname = \"ke\"\nkind = \"kalman_extended\"\nmax_delay = {}\nP0 = [[1.0, "
+        "0.0], [0.0, 1.0]]\n",
+        trial + 1, num(0.5, 1.1), num(-0.3, 0.3), num(-0.3, 0.3), num(0.4, 1.0), num(-1, 1),
+        trial % 4 == 2 ? 0 : trial % 3, num(-1, 1), links, N, N - 1);
     const auto file = (dir / "s.toml").string();
     std::ofstream(file) << text;
     auto sc = testing::load_one(file);
@@ -283,7 +309,8 @@ TEST(KalmanBuffer, EqualsKalmanExtendedWithMaxDelayNMinus1OverRandomLinks) {
     double worst = 0.0;
     for (const auto& row : trace) {
       const double scale = 1.0 + std::abs(row.xhat[1][0]) + std::abs(row.xhat[1][1]);
-      for (int i = 0; i < 2; ++i) worst = std::max(worst, std::abs(row.xhat[0][i] - row.xhat[1][i]) / scale);
+      for (int i = 0; i < 2; ++i)
+        worst = std::max(worst, std::abs(row.xhat[0][i] - row.xhat[1][i]) / scale);
     }
     EXPECT_LT(worst, 1e-9) << "trial " << trial << "\n" << text;
   }
@@ -329,19 +356,21 @@ TEST(StaticBuffer, DesignReportAndStatuses) {
   // max_delay = N - 1 is the same as buffer = N; both at once is an error.
   const auto a = make("static_buffer", toml::table{{"max_delay", 11}}, model);
   EXPECT_EQ(a->report().extra["buffer"].get<int>(), 12);
-  EXPECT_THROW(make("static_buffer", toml::table{{"max_delay", 1}, {"buffer", 2}}, model), sim::ScenarioError);
+  EXPECT_THROW(make("static_buffer", toml::table{{"max_delay", 1}, {"buffer", 2}}, model),
+               sim::ScenarioError);
   EXPECT_THROW(make("static_buffer", toml::table{{"buffer", 0}}, model), sim::ScenarioError);
 }
 
 // design.json of the committed pendulum scenario: the contract fields and the Schenato fields.
 TEST(StaticBuffer, DesignJsonOfThePendulumScenario) {
-  const auto loaded = sim::load_cases(testing::source_path("scenarios/schenato2008_pendulum.toml"), {});
+  const auto loaded =
+      sim::load_cases(testing::source_path("scenarios/schenato2008_pendulum.toml"), {});
   const auto j = sim::design_json(loaded);
   ASSERT_EQ(j["estimators"].size(), 32u);
   for (const auto& e : j["estimators"]) {
-    for (const char* f : {"name", "kind", "method", "design_seconds", "stored_gains", "predicted_mse",
-                          "predicted_mse_ext", "stable", "critical_probability", "critical_probability_sdp",
-                          "critical_probability_bisection", "buffer"}) {
+    for (const char* f : {"name", "kind", "method", "design_seconds", "stored_gains",
+                          "predicted_mse", "predicted_mse_ext", "stable", "critical_probability",
+                          "critical_probability_sdp", "critical_probability_bisection", "buffer"}) {
       EXPECT_TRUE(e.contains(f)) << f << " missing in " << e["name"];
     }
     EXPECT_NEAR(e["critical_probability"].get<double>(), 1.0 - 1.0 / 1.44, 1e-4);

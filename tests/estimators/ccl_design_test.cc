@@ -56,9 +56,11 @@ TEST(CclDesign, IterativeS4IsNeverWorseThanCclS4AndCclIsAboveItsLowerBound) {
       CclInfo info;
       const JumpDesign ccl = design_jump_ccl(ext, prob, Nbar, Grouping::kS4, o, &info);
       ASSERT_TRUE(ccl.stable) << ccl.status;
-      const JumpDesign it = evaluate_jump_gains(ext, prob, Nbar, Grouping::kS4,
-                                                design_jump_iterative(ext, prob, Nbar, Grouping::kS4).gains);
-      SCOPED_TRACE(::testing::Message() << "Nbar " << Nbar << (anchored ? " anchored" : " from the relaxation"));
+      const JumpDesign it =
+          evaluate_jump_gains(ext, prob, Nbar, Grouping::kS4,
+                              design_jump_iterative(ext, prob, Nbar, Grouping::kS4).gains);
+      SCOPED_TRACE(::testing::Message()
+                   << "Nbar " << Nbar << (anchored ? " anchored" : " from the relaxation"));
       EXPECT_LE(it.Pt.trace(), ccl.Pt.trace() * (1.0 + 1e-9));
       EXPECT_LE(it.P.trace(), ccl.P.trace() * (1.0 + 1e-9));
       // tr(P) of the CCL gains lies between the bisection's certified lower end and its upper
@@ -120,7 +122,7 @@ TEST(CclDesign, MomentFormOfSharedGainsIsExactAndSmaller) {
   const auto prob = pattern_probabilities(d.model, ext);
   for (auto [g, Nbar] : {std::pair{Grouping::kS1, 2}, {Grouping::kS2, 1}, {Grouping::kS3, 1}}) {
     CclOptions moments, per_pattern;
-    moments.max_bisections = per_pattern.max_bisections = 0;  // relaxation and first gains only
+    moments.max_bisections = per_pattern.max_bisections = 0;   // relaxation and first gains only
     moments.s4_bound = per_pattern.s4_bound = false;           // solve the relaxation
     moments.sdp_tolerance = per_pattern.sdp_tolerance = 1e-8;  // accurate optima to compare
     per_pattern.group_moments = false;
@@ -128,7 +130,8 @@ TEST(CclDesign, MomentFormOfSharedGainsIsExactAndSmaller) {
     const JumpDesign dm = design_jump_ccl(ext, prob, Nbar, g, moments, &a);
     const JumpDesign dp = design_jump_ccl(ext, prob, Nbar, g, per_pattern, &b);
     ASSERT_TRUE(dm.stable && dp.stable) << dm.status << " " << dp.status;
-    EXPECT_NEAR(a.relaxation_bound, b.relaxation_bound, 1e-5 * b.relaxation_bound) << "grouping " << static_cast<int>(g);
+    EXPECT_NEAR(a.relaxation_bound, b.relaxation_bound, 1e-5 * b.relaxation_bound)
+        << "grouping " << static_cast<int>(g);
     EXPECT_LT(a.size.total_dimension, b.size.total_dimension);
     // The SDPs are solved on the model with its noise normalised (P scales, the gains do not):
     // the relaxation bound, mapped back, is the unnormalised one.
@@ -151,8 +154,10 @@ TEST(CclDesign, MomentFormOfSharedGainsIsExactAndSmaller) {
     ASSERT_TRUE(dm.stable && dp.stable);
     // Equal to the SDP's accuracy (measured: 1.5e-6 relative); a missing or misweighted part of
     // a term changes it by percents.
-    EXPECT_NEAR(dm.Pt.trace(), dp.Pt.trace(), 1e-5 * dp.Pt.trace()) << "grouping " << static_cast<int>(g);
-    for (std::size_t i = 0; i < dm.gains.size(); ++i) EXPECT_LT((dm.gains[i] - dp.gains[i]).norm(), 1e-4 * (1.0 + dp.gains[i].norm()));
+    EXPECT_NEAR(dm.Pt.trace(), dp.Pt.trace(), 1e-5 * dp.Pt.trace())
+        << "grouping " << static_cast<int>(g);
+    for (std::size_t i = 0; i < dm.gains.size(); ++i)
+      EXPECT_LT((dm.gains[i] - dp.gains[i]).norm(), 1e-4 * (1.0 + dp.gains[i].norm()));
   }
 }
 
@@ -164,7 +169,8 @@ TEST(CclDesign, SharedGainCclReachesTheIterationWithOrWithoutTheS4Anchor) {
   const ExtendedModel ext = build_extended(d.model, 1);
   const auto prob = pattern_probabilities(d.model, ext);
   for (Grouping g : {Grouping::kS1, Grouping::kS2, Grouping::kS3}) {
-    const JumpDesign it = evaluate_jump_gains(ext, prob, 1, g, design_jump_iterative(ext, prob, 1, g).gains);
+    const JumpDesign it =
+        evaluate_jump_gains(ext, prob, 1, g, design_jump_iterative(ext, prob, 1, g).gains);
     for (bool anchored : {true, false}) {
       CclOptions o;
       o.s4_bound = anchored;
@@ -189,8 +195,10 @@ TEST(CclDesign, LosslessNetworkWithHistoryHasNoEmptyTerms) {
       const JumpDesign ccl = design_jump_ccl(ext, prob, 2, g, o);
       ASSERT_TRUE(ccl.stable) << ccl.status;
       ASSERT_TRUE(ccl.Pt.allFinite());
-      const JumpDesign it = evaluate_jump_gains(ext, prob, 2, g, design_jump_iterative(ext, prob, 2, g).gains);
-      EXPECT_NEAR(ccl.Pt.trace(), it.Pt.trace(), 1e-3 * it.Pt.trace()) << static_cast<int>(g) << " " << anchored;
+      const JumpDesign it =
+          evaluate_jump_gains(ext, prob, 2, g, design_jump_iterative(ext, prob, 2, g).gains);
+      EXPECT_NEAR(ccl.Pt.trace(), it.Pt.trace(), 1e-3 * it.Pt.trace())
+          << static_cast<int>(g) << " " << anchored;
     }
   }
 }

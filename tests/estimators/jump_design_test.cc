@@ -19,8 +19,8 @@ using testing::dolz_model;
 // E_L{P} of eq. (18) evaluated independently of the design loop, by summing over N up to a
 // large horizon instead of using the closed-form tail: sum_N p0^(N-1) sum_i p_i
 // [F (A^N P A^N' + S_W,N) F' + L eta V eta L'], with gains L(min(N, Nbar), i).
-Eigen::MatrixXd expected_covariance(const ExtendedModel& ext, const std::vector<double>& prob, const JumpDesign& d,
-                                    const Eigen::MatrixXd& P) {
+Eigen::MatrixXd expected_covariance(const ExtendedModel& ext, const std::vector<double>& prob,
+                                    const JumpDesign& d, const Eigen::MatrixXd& P) {
   const Eigen::Index nb = ext.nb;
   Eigen::MatrixXd out = Eigen::MatrixXd::Zero(nb, nb);
   Eigen::MatrixXd AN = Eigen::MatrixXd::Identity(nb, nb);
@@ -31,7 +31,8 @@ Eigen::MatrixXd expected_covariance(const ExtendedModel& ext, const std::vector<
     AN = ext.A * AN;
     const Eigen::MatrixXd X = AN * P * AN.transpose() + SW;
     for (std::size_t m = 1; m < prob.size(); ++m) {
-      const Eigen::MatrixXd LE = d.gains[d.gain_of[std::min(N, d.Nbar) - 1][m]] * ext.row_mask(m).asDiagonal();
+      const Eigen::MatrixXd LE =
+          d.gains[d.gain_of[std::min(N, d.Nbar) - 1][m]] * ext.row_mask(m).asDiagonal();
       const Eigen::MatrixXd F = Eigen::MatrixXd::Identity(nb, nb) - LE * ext.C;
       out += p0N * prob[m] * (F * X * F.transpose() + LE * ext.V * LE.transpose());
     }
@@ -86,12 +87,14 @@ TEST(JumpDesign, IterationConvergesToAFixedPointOfTheCovarianceOperator) {
   auto d = dolz_model();
   const ExtendedModel ext = build_extended(d.model, 1);
   const auto prob = pattern_probabilities(d.model, ext);
-  for (auto [g, Nbar] : {std::pair{Grouping::kS1, 1}, {Grouping::kS2, 1}, {Grouping::kS3, 2}, {Grouping::kS4, 4}}) {
+  for (auto [g, Nbar] :
+       {std::pair{Grouping::kS1, 1}, {Grouping::kS2, 1}, {Grouping::kS3, 2}, {Grouping::kS4, 4}}) {
     const JumpDesign jd = design_jump_iterative(ext, prob, Nbar, g);
     ASSERT_TRUE(jd.stable) << jd.status;
     const Eigen::MatrixXd E = expected_covariance(ext, prob, jd, jd.P);
     EXPECT_LT((E - jd.P).cwiseAbs().maxCoeff(), 1e-10 * jd.P.cwiseAbs().maxCoeff())
-        << "grouping " << static_cast<int>(g) << ": |E{P} - P| = " << (E - jd.P).cwiseAbs().maxCoeff();
+        << "grouping " << static_cast<int>(g)
+        << ": |E{P} - P| = " << (E - jd.P).cwiseAbs().maxCoeff();
   }
 }
 
@@ -101,14 +104,17 @@ TEST(JumpDesign, MoreGainsNeverPredictAWorseCovariance) {
   auto d = dolz_model();
   const ExtendedModel ext = build_extended(d.model, 1);
   const auto prob = pattern_probabilities(d.model, ext);
-  auto tr = [&](Grouping g, int Nbar) { return design_jump_iterative(ext, prob, Nbar, g).Pt.trace(); };
+  auto tr = [&](Grouping g, int Nbar) {
+    return design_jump_iterative(ext, prob, Nbar, g).Pt.trace();
+  };
   const double s1 = tr(Grouping::kS1, 1), s2 = tr(Grouping::kS2, 1), s3 = tr(Grouping::kS3, 1);
   const double s4 = tr(Grouping::kS4, 1), s4n4 = tr(Grouping::kS4, 4);
   EXPECT_LE(s4, s3 + 1e-12);
   EXPECT_LE(s3, s2 + 1e-12);
   EXPECT_LE(s2, s1 + 1e-12);
   EXPECT_LE(s4n4, s4 + 1e-12);
-  std::printf("tr(Pt): S1 %.5f  S2 %.5f  S3 %.5f  S4 %.5f  S4(Nbar=4) %.5f\n", s1, s2, s3, s4, s4n4);
+  std::printf("tr(Pt): S1 %.5f  S2 %.5f  S3 %.5f  S4 %.5f  S4(Nbar=4) %.5f\n", s1, s2, s3, s4,
+              s4n4);
 }
 
 TEST(JumpDesign, NoLossReducesToTheSteadyStateKalmanFilter) {
@@ -136,7 +142,8 @@ TEST(JumpDesign, UnstableWhenTheNoMeasurementProbabilityIsTooHigh) {
   // p0 rho^2 = 2.17 >= 1, so no finite covariance exists: status, not a throw or NaN gain.
   auto d = dolz_model({{0.1}, {0.1}});
   const ExtendedModel ext = build_extended(d.model, 0);
-  const JumpDesign jd = design_jump_iterative(ext, pattern_probabilities(d.model, ext), 1, Grouping::kS4);
+  const JumpDesign jd =
+      design_jump_iterative(ext, pattern_probabilities(d.model, ext), 1, Grouping::kS4);
   EXPECT_FALSE(jd.stable);
   EXPECT_NE(jd.status.find("unstable"), std::string::npos) << jd.status;
 }
@@ -151,28 +158,31 @@ TEST(JumpDesign, ASlowButConvergingIterationIsNotTakenForAStall) {
     d.model.plant.A << 0.9997, jordan ? 0.01 : 0.0, 0.0, jordan ? 0.9997 : 0.5;
     for (auto& sensor : d.model.sensors) sensor.spec.R(0, 0) = 1e4;
     const ExtendedModel ext = build_extended(d.model, 0);
-    const JumpDesign jd = design_jump_iterative(ext, pattern_probabilities(d.model, ext), 1, Grouping::kS4);
+    const JumpDesign jd =
+        design_jump_iterative(ext, pattern_probabilities(d.model, ext), 1, Grouping::kS4);
     EXPECT_EQ(jd.status, "ok") << "jordan " << jordan;
     EXPECT_EQ(jd.iteration_message, "") << "jordan " << jordan;
-    EXPECT_GT(jd.iterations, 3 * 2000) << "jordan " << jordan << ": not slow enough to cross several stall windows";
+    EXPECT_GT(jd.iterations, 3 * 2000)
+        << "jordan " << jordan << ": not slow enough to cross several stall windows";
     EXPECT_LT(jd.iterations, 200000) << "jordan " << jordan;
   }
 }
 
 TEST(JumpDesign, FlopsAreThePaperFormulaForA3) {
   // Dolz et al. section 2 with nb = 4, nu = 1, nw = 2, nmb = 4:
-  // jump 16 + 4 + 32 + 8 + 4 = 64; Kalman 128 + 32 + 16 + 256 + 128 + 320 + 32 + 4 + 32 + 16 + 8 + 4 = 976.
+  // jump 16 + 4 + 32 + 8 + 4 = 64; Kalman 128 + 32 + 16 + 256 + 128 + 320 + 32 + 4 + 32 + 16 + 8 +
+  // 4 = 976.
   auto d = dolz_model();
   const auto& reg = sim::estimator_registry();
   toml::table jt{{"grouping", "S4"}, {"history", 4}, {"max_delay", 1}};
   toml::table kt{{"max_delay", 1}};
   const auto jump = reg.find("jump")->factory(sim::Table(jt, "estimator[0]", "test"), d.model);
-  const auto kf = reg.find("kalman_extended")->factory(sim::Table(kt, "estimator[1]", "test"), d.model);
+  const auto kf =
+      reg.find("kalman_extended")->factory(sim::Table(kt, "estimator[1]", "test"), d.model);
   EXPECT_EQ(jump->flops_per_period().value(), 64.0);
   EXPECT_EQ(kf->flops_per_period().value(), 976.0);
   EXPECT_EQ(jump->report().stored_gains.value(), 60);
 }
-
 
 TEST(JumpDesign, PaperEq28AsPrintedIsKeptApartFromTheCorrectedForm) {
   // Printed (28): (1-p0) P + p0 sum_k p0^k Abar^k (Abar P Abar' + Q/(1-p0)) Abar^k'; corrected:
@@ -193,7 +203,8 @@ TEST(JumpDesign, PaperEq28AsPrintedIsKeptApartFromTheCorrectedForm) {
     term = p0 * ext.A * term * ext.A.transpose();
   }
   const Eigen::MatrixXd printed = (1.0 - p0) * jd.P + p0 * sum;
-  EXPECT_LT((printed - jd.Pt_paper_eq28_erroneous).cwiseAbs().maxCoeff(), 1e-10 * printed.cwiseAbs().maxCoeff());
+  EXPECT_LT((printed - jd.Pt_paper_eq28_erroneous).cwiseAbs().maxCoeff(),
+            1e-10 * printed.cwiseAbs().maxCoeff());
   EXPECT_GT(jd.Pt_paper_eq28_erroneous.trace(), 1.01 * jd.Pt.trace());
   std::printf("A3, S4, Nbar = 4: tr Pt corrected %.6f, printed (28) %.6f\n", jd.Pt.trace(),
               jd.Pt_paper_eq28_erroneous.trace());

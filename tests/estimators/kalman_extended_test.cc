@@ -11,7 +11,8 @@ namespace ncosim::est {
 namespace {
 
 std::unique_ptr<EstimatorDesign> make(const std::string& kind, toml::table t, const Model& model) {
-  return sim::estimator_registry().find(kind)->factory(sim::Table(t, "estimator[0]", "test"), model);
+  return sim::estimator_registry().find(kind)->factory(sim::Table(t, "estimator[0]", "test"),
+                                                       model);
 }
 
 Packet packet(int sensor, std::int64_t stamp, const Eigen::VectorXd& y) {
@@ -30,7 +31,8 @@ Packet packet(int sensor, std::int64_t stamp, const Eigen::VectorXd& y) {
 // step k; here the initial estimate is period 0, so row k is our period k + 1. With
 // max_delay = 0 kalman_extended is exactly that filter.
 TEST(KalmanExtended, MatchesFilterpyIntermittentObservationsStepByStep) {
-  toml::table t{{"max_delay", 0}, {"P0", toml::array{toml::array{1.0, 0.0}, toml::array{0.0, 1.0}}}};
+  toml::table t{{"max_delay", 0},
+                {"P0", toml::array{toml::array{1.0, 0.0}, toml::array{0.0, 1.0}}}};
   const auto design = make("kalman_extended", t, testing::kf_peer_model());
   auto kf = design->instantiate();
   const testing::PeerReplay r = testing::replay_kf_peer(*kf);

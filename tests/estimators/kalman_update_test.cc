@@ -1,6 +1,8 @@
 // tests/estimators/kalman_update_test.cc — the Kalman kernel against the textbook gain form
 // (K = P C' S^-1, x + K r, P - K S K', Eigen's LLT), for state sizes on every code path (the
 // fixed sizes 1..8, the run-time loops up to 16, Eigen's products beyond) and row subsets.
+#include "estimators/kalman_update.h"
+
 #include <gtest/gtest.h>
 
 #include <Eigen/Cholesky>
@@ -8,8 +10,6 @@
 #include <numbers>
 #include <random>
 #include <vector>
-
-#include "estimators/kalman_update.h"
 
 namespace ncosim::est {
 namespace {
@@ -28,7 +28,9 @@ Eigen::MatrixXd random_matrix(Eigen::Index r, Eigen::Index c, std::mt19937_64& r
   return M;
 }
 
-double rel(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) { return (a - b).norm() / (1.0 + b.norm()); }
+double rel(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
+  return (a - b).norm() / (1.0 + b.norm());
+}
 
 TEST(KalmanUpdate, PredictAndUpdateMatchTheTextbookFormOnEverySizeAndRowSubset) {
   std::mt19937_64 rng(16);
@@ -71,8 +73,7 @@ TEST(KalmanUpdate, PredictAndUpdateMatchTheTextbookFormOnEverySizeAndRowSubset) 
       const Eigen::LLT<Eigen::MatrixXd> llt(S);
       const Eigen::MatrixXd K = Pr * Cs.transpose() * llt.solve(Eigen::MatrixXd::Identity(m, m));
       const Eigen::VectorXd r = ys - Cs * xr;
-      const double loglik_ref = -0.5 * r.dot(llt.solve(r)) -
-                                0.5 * std::log(S.determinant()) -
+      const double loglik_ref = -0.5 * r.dot(llt.solve(r)) - 0.5 * std::log(S.determinant()) -
                                 0.5 * static_cast<double>(m) * std::log(2.0 * std::numbers::pi);
       xr += K * r;
       Pr -= K * S * K.transpose();

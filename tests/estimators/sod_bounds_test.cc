@@ -1,6 +1,7 @@
 // tests/estimators/sod_bounds_test.cc — the send-on-delta paper's probability and virtual-noise
 // bounds (29), (30), (33), (34) against Monte Carlo of their assumptions, and (28) on the
-// paper's example 5.1 (checked independently for this project: r = [0.511 0.413] for ||w||inf = [0.8 0.7]).
+// paper's example 5.1 (checked independently for this project: r = [0.511 0.413] for ||w||inf =
+// [0.8 0.7]).
 #include "estimators/design/sod_bounds.h"
 
 #include <gtest/gtest.h>
@@ -17,7 +18,8 @@ TEST(SodBounds, UniformRangeOfExample51) {
   Eigen::MatrixXd C(2, 3), B(3, 2);
   C << 0.519, -0.233, 0.095, 0.569, 0, 0;
   B << -0.229, 0.023, 0.231, 0.211, -0.186, 0.245;
-  const Eigen::VectorXd r = uniform_range(C, B, Eigen::Vector2d(0.8, 0.7), Eigen::Vector2d(0.15, 0.15));
+  const Eigen::VectorXd r =
+      uniform_range(C, B, Eigen::Vector2d(0.8, 0.7), Eigen::Vector2d(0.15, 0.15));
   EXPECT_NEAR(r(0), 0.5113, 5e-4);
   EXPECT_NEAR(r(1), 0.4133, 5e-4);
 }
@@ -34,7 +36,10 @@ TEST(SodBounds, UniformAndGaussianMatchMonteCarlo) {
     double sent = 0, sse = 0;
     for (int i = 0; i < n; ++i) {
       const double d = u(rng) - u(rng);
-      if (std::abs(d) >= delta) ++sent; else sse += d * d;
+      if (std::abs(d) >= delta)
+        ++sent;
+      else
+        sse += d * d;
     }
     EXPECT_NEAR(sent / n, uniform_beta(delta, r), 2.5e-3) << delta;
     EXPECT_NEAR(sse / n, uniform_sigma2(delta, r), 5 * delta * delta / 1e3) << delta;
@@ -45,7 +50,10 @@ TEST(SodBounds, UniformAndGaussianMatchMonteCarlo) {
     sent = sse = 0;
     for (int i = 0; i < n; ++i) {
       const double d = g(rng);
-      if (std::abs(d) >= delta) ++sent; else sse += d * d;
+      if (std::abs(d) >= delta)
+        ++sent;
+      else
+        sse += d * d;
     }
     EXPECT_NEAR(sent / n, gaussian_beta(delta, sigma), 2.5e-3) << delta;
     EXPECT_NEAR(sse / n, gaussian_sigma2(delta, sigma), 5 * delta * delta / 1e3) << delta;
@@ -58,7 +66,8 @@ TEST(SodBounds, UniformAndGaussianMatchMonteCarlo) {
 }
 
 TEST(SodBounds, Costs) {
-  EXPECT_NEAR(cost_deterministic(Eigen::Vector2d(0.5, 0.25), Eigen::Vector2d(0.9, 0.75)), 1.8 + 3.0, 1e-15);
+  EXPECT_NEAR(cost_deterministic(Eigen::Vector2d(0.5, 0.25), Eigen::Vector2d(0.9, 0.75)), 1.8 + 3.0,
+              1e-15);
   EXPECT_NEAR(cost_stochastic(Eigen::Vector2d(0.5, 0.2)), 1.0 - 0.5 * 0.8, 1e-15);
 }
 

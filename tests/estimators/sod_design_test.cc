@@ -33,7 +33,9 @@ SodSystem example51() {
 }
 
 double min_eig(const MatrixXd& M) {
-  return Eigen::SelfAdjointEigenSolver<MatrixXd>(0.5 * (M + M.transpose())).eigenvalues().minCoeff();
+  return Eigen::SelfAdjointEigenSolver<MatrixXd>(0.5 * (M + M.transpose()))
+      .eigenvalues()
+      .minCoeff();
 }
 
 TEST(SodDesign, ZTilde0OfExample51) {
@@ -112,7 +114,8 @@ TEST(SodDesign, DeterministicSolutionSatisfiesTheoremOne) {
       EXPECT_GT(min_eig(D - T * r.P[j] * T.transpose()), -1e-6) << j << "," << k;
     }
   }
-  const double bound = s.w_rms * s.w_rms * r.gamma_w + (s.v_rms.array().square() * r.gamma_v.array()).sum() +
+  const double bound = s.w_rms * s.w_rms * r.gamma_w +
+                       (s.v_rms.array().square() * r.gamma_v.array()).sum() +
                        (spec.sigma2_delta.array() * r.gamma_delta.array()).sum();
   EXPECT_NEAR(r.bound, bound, 1e-9 * bound);
   // The jump and the constant-gain deterministic designs give the same bound (paper, Fig. 1).
@@ -158,7 +161,8 @@ TEST(SodDesign, CodesignMeetsTheTargetAndOrdersTheCases) {
   spec.r = Eigen::Vector2d(0.9, 0.75);
   spec.target = 1.2 * z0;
   spec.delta0 = 0.01 * spec.r;
-  spec.epsilon = 0.005;  // absolute steps of J = 1 - p0 (0.01 stops at once: the first step is too long)
+  spec.epsilon =
+      0.005;  // absolute steps of J = 1 - p0 (0.01 stops at once: the first step is too long)
   const CodesignResult c3 = codesign(s, spec);
   spec.jump = false;
   const CodesignResult c4 = codesign(s, spec);
@@ -172,7 +176,8 @@ TEST(SodDesign, CodesignMeetsTheTargetAndOrdersTheCases) {
     ASSERT_EQ(c->status, "ok");
     EXPECT_LT(c->design.bound, spec.target);
     EXPECT_GT(c->iterations, 0);
-    EXPECT_EQ(c->lmi_problems, 1 + 2 * c->iterations + 2);  // start, 2 per step, the failed last step
+    EXPECT_EQ(c->lmi_problems,
+              1 + 2 * c->iterations + 2);  // start, 2 per step, the failed last step
   }
   EXPECT_GT(c3.delta.sum(), c4.delta.sum());  // jump gains allow larger thresholds
   EXPECT_GT(c4.delta.sum(), c1.delta.sum());  // the stochastic design is less conservative

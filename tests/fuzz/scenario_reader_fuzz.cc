@@ -21,7 +21,8 @@ namespace {
 
 const std::string& scenario_path() {
   static const std::string path = [] {
-    const auto dir = std::filesystem::temp_directory_path() / ("ncosim_reader_fuzz_" + std::to_string(::getpid()));
+    const auto dir = std::filesystem::temp_directory_path() /
+                     ("ncosim_reader_fuzz_" + std::to_string(::getpid()));
     std::filesystem::create_directories(dir);
     ncosim::sim::set_resource_limits({2e8, 2e9});  // 200 MB, 2 GFLOP per design
     return (dir / "s.toml").string();

@@ -46,10 +46,10 @@ namespace {
 namespace fs = std::filesystem;
 using Rng = std::mt19937_64;
 
-constexpr double kMutantSeconds = 20.0;       // CPU seconds per mutant (load + every design)
-constexpr double kMemoryCapBytes = 6e9;       // address space of the test process
-constexpr double kLimitMemoryBytes = 1e9;     // --max-memory of the mutants (1000 MB)
-constexpr double kLimitWorkFlops = 2e10;      // --max-work of the mutants (20 GFLOP)
+constexpr double kMutantSeconds = 20.0;    // CPU seconds per mutant (load + every design)
+constexpr double kMemoryCapBytes = 6e9;    // address space of the test process
+constexpr double kLimitMemoryBytes = 1e9;  // --max-memory of the mutants (1000 MB)
+constexpr double kLimitWorkFlops = 2e10;   // --max-work of the mutants (20 GFLOP)
 
 // CPU time of this process (the mutants load on this thread; designs do not start threads).
 double cpu_seconds() {
@@ -72,7 +72,8 @@ std::vector<Seed> corpus() {
   std::vector<Seed> out;
   std::vector<fs::path> files;
   for (const auto& e : fs::directory_iterator(fs::path(NCOSIM_SOURCE_DIR) / "scenarios")) {
-    if (e.path().extension() == ".toml" && e.path().filename().string().find("sumo") == std::string::npos) {
+    if (e.path().extension() == ".toml" &&
+        e.path().filename().string().find("sumo") == std::string::npos) {
       files.push_back(e.path());
     }
   }
@@ -112,7 +113,8 @@ void collect(toml::table& t, std::vector<Slot>& out) {
         out.push_back({nullptr, "", arr, i, e});
         if (auto* st = e->as_table()) collect(*st, out);
         if (auto* sa = e->as_array()) {
-          for (std::size_t j = 0; j < sa->size(); ++j) out.push_back({nullptr, "", sa, j, sa->get(j)});
+          for (std::size_t j = 0; j < sa->size(); ++j)
+            out.push_back({nullptr, "", sa, j, sa->get(j)});
         }
       }
     }
@@ -130,24 +132,64 @@ std::string random_bytes(Rng& rng, std::size_t max_len) {
 // A value of a random kind, often a boundary.
 template <class F>
 void with_random_value(Rng& rng, const std::vector<Seed>& seeds, F&& use) {
-  static const std::vector<std::int64_t> ints{0,  -1, 1,  2,  3,       7,          16,         62,
-                                              63, 64, 100, 1000, 1000000, 1000000000, 2147483648LL,
+  static const std::vector<std::int64_t> ints{0,
+                                              -1,
+                                              1,
+                                              2,
+                                              3,
+                                              7,
+                                              16,
+                                              62,
+                                              63,
+                                              64,
+                                              100,
+                                              1000,
+                                              1000000,
+                                              1000000000,
+                                              2147483648LL,
                                               std::numeric_limits<std::int64_t>::max(),
                                               std::numeric_limits<std::int64_t>::min()};
   const double inf = std::numeric_limits<double>::infinity();
-  static const std::vector<double> floats{0.0, -0.0, 1e-300, 1e-9, 0.5, 0.999999, 1.0, 1.0000001, 2.0, 1e9, 1e300,
-                                          -1.0, -1e300, std::nan(""), inf, -inf, 4.9e-324, 1e8};
-  static const std::vector<std::string> strings{"", "x", "S4", "S1", "jump", "kalman_extended", "sod_jump", "open_loop",
-                                                "delay", "trace", "output", "all", "lti", "transfer_function",
-                                                "/dev/zero", ".", "send_on_delta", "relay", "white"};
+  static const std::vector<double> floats{0.0,    -0.0,         1e-300, 1e-9, 0.5,      0.999999,
+                                          1.0,    1.0000001,    2.0,    1e9,  1e300,    -1.0,
+                                          -1e300, std::nan(""), inf,    -inf, 4.9e-324, 1e8};
+  static const std::vector<std::string> strings{"",
+                                                "x",
+                                                "S4",
+                                                "S1",
+                                                "jump",
+                                                "kalman_extended",
+                                                "sod_jump",
+                                                "open_loop",
+                                                "delay",
+                                                "trace",
+                                                "output",
+                                                "all",
+                                                "lti",
+                                                "transfer_function",
+                                                "/dev/zero",
+                                                ".",
+                                                "send_on_delta",
+                                                "relay",
+                                                "white"};
   switch (std::uniform_int_distribution<int>(0, 9)(rng)) {
     case 0:
-    case 1: use(toml::value<std::int64_t>(ints[rng() % ints.size()])); break;
+    case 1:
+      use(toml::value<std::int64_t>(ints[rng() % ints.size()]));
+      break;
     case 2:
-    case 3: use(toml::value<double>(floats[rng() % floats.size()])); break;
-    case 4: use(toml::value<std::string>(strings[rng() % strings.size()])); break;
-    case 5: use(toml::value<std::string>(random_bytes(rng, 12))); break;
-    case 6: use(toml::value<bool>(rng() % 2 == 0)); break;
+    case 3:
+      use(toml::value<double>(floats[rng() % floats.size()]));
+      break;
+    case 4:
+      use(toml::value<std::string>(strings[rng() % strings.size()]));
+      break;
+    case 5:
+      use(toml::value<std::string>(random_bytes(rng, 12)));
+      break;
+    case 6:
+      use(toml::value<bool>(rng() % 2 == 0));
+      break;
     case 7: {
       toml::array a;
       const auto len = rng() % 5;
@@ -155,7 +197,9 @@ void with_random_value(Rng& rng, const std::vector<Seed>& seeds, F&& use) {
       use(std::move(a));
       break;
     }
-    case 8: use(toml::table{}); break;
+    case 8:
+      use(toml::table{});
+      break;
     default: {
       // Graft a value from another scenario.
       const Seed& s = seeds[rng() % seeds.size()];
@@ -179,7 +223,8 @@ void replace(const Slot& s, auto&& value) {
   if (s.table != nullptr) {
     s.table->insert_or_assign(s.key, std::forward<decltype(value)>(value));
   } else {
-    s.array->replace(s.array->cbegin() + static_cast<std::ptrdiff_t>(s.index), std::forward<decltype(value)>(value));
+    s.array->replace(s.array->cbegin() + static_cast<std::ptrdiff_t>(s.index),
+                     std::forward<decltype(value)>(value));
   }
 }
 
@@ -191,13 +236,16 @@ void mutate(toml::table& doc, Rng& rng, const std::vector<Seed>& seeds) {
   switch (std::uniform_int_distribution<int>(0, 9)(rng)) {
     case 0:
     case 1:
-    case 2: with_random_value(rng, seeds, [&](auto&& v) { replace(s, std::forward<decltype(v)>(v)); }); break;
+    case 2:
+      with_random_value(rng, seeds, [&](auto&& v) { replace(s, std::forward<decltype(v)>(v)); });
+      break;
     case 3: {  // scale, negate, shift a number
       static const double factors[] = {10.0, 0.1, -1.0, 1000.0, 1e-3, 0.0, 2.0};
       const double f = factors[rng() % 7];
       if (auto i = s.node->value_exact<std::int64_t>()) {
         const double v = static_cast<double>(*i) * f + static_cast<double>(rng() % 3) - 1.0;
-        replace(s, toml::value<std::int64_t>(std::fabs(v) < 9e18 ? static_cast<std::int64_t>(v) : 0));
+        replace(s,
+                toml::value<std::int64_t>(std::fabs(v) < 9e18 ? static_cast<std::int64_t>(v) : 0));
       } else if (auto d = s.node->value_exact<double>()) {
         replace(s, toml::value<double>(*d * f));
       }
@@ -227,7 +275,9 @@ void mutate(toml::table& doc, Rng& rng, const std::vector<Seed>& seeds) {
     case 7: {  // unknown key of random bytes
       toml::table* t = s.table != nullptr ? s.table : s.node->as_table();
       if (t == nullptr) t = &doc;
-      with_random_value(rng, seeds, [&](auto&& v) { t->insert_or_assign(random_bytes(rng, 8), std::forward<decltype(v)>(v)); });
+      with_random_value(rng, seeds, [&](auto&& v) {
+        t->insert_or_assign(random_bytes(rng, 8), std::forward<decltype(v)>(v));
+      });
       break;
     }
     case 8:  // a big matrix or array
@@ -269,7 +319,8 @@ struct Stats {
 
 void keep(const std::string& text, const std::string& what, long index) {
   const char* dir = std::getenv("NCOSIM_FUZZ_KEEP");
-  const fs::path p = fs::path(dir ? dir : fs::temp_directory_path().string()) / fmt::format("ncosim_fuzz_fail_{}.toml", index);
+  const fs::path p = fs::path(dir ? dir : fs::temp_directory_path().string()) /
+                     fmt::format("ncosim_fuzz_fail_{}.toml", index);
   std::ofstream(p) << "# " << what << "\n" << text;
   ADD_FAILURE() << what << " (mutant kept in " << p.string() << ")";
 }
@@ -284,7 +335,8 @@ TEST(StructuredFuzz, ShippedScenarioMutantsLoadOrFailWithFileLine) {
   const long budget = env_long("NCOSIM_FUZZ_SECONDS", 60);
   const long seed = env_long("NCOSIM_FUZZ_SEED", 18);
   const long run_every = env_long("NCOSIM_FUZZ_RUN_EVERY", 25);
-  const long progress_every = env_long("NCOSIM_FUZZ_PROGRESS", 0);  // a progress line every N mutants
+  const long progress_every =
+      env_long("NCOSIM_FUZZ_PROGRESS", 0);  // a progress line every N mutants
   {
     rlimit rl{};
     rl.rlim_cur = rl.rlim_max = static_cast<rlim_t>(kMemoryCapBytes);
@@ -295,14 +347,17 @@ TEST(StructuredFuzz, ShippedScenarioMutantsLoadOrFailWithFileLine) {
   const fs::path dir = fs::temp_directory_path() / fmt::format("ncosim_fuzz_{}", ::getpid());
   fs::create_directories(dir);
   const std::string file = (dir / "mutant.toml").string();
-  const std::regex file_line("^" + std::regex_replace(file, std::regex(R"([.^$|()\[\]{}*+?\\])"), R"(\$&)") + R"(:[0-9]+: )");
+  const std::regex file_line(
+      "^" + std::regex_replace(file, std::regex(R"([.^$|()\[\]{}*+?\\])"), R"(\$&)") +
+      R"(:[0-9]+: )");
   Rng rng(static_cast<std::uint64_t>(seed));
   Stats st;
   std::map<std::string, double> seconds_by_seed;
   std::map<std::string, long> mutants_by_seed;
   const auto start = std::chrono::steady_clock::now();
   for (long m = 0; m < mutants; ++m) {
-    const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const double elapsed =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     if (budget > 0 && elapsed > static_cast<double>(budget)) break;
     const Seed& base = seeds[rng() % seeds.size()];
     toml::table doc = base.doc;
@@ -344,8 +399,9 @@ TEST(StructuredFuzz, ShippedScenarioMutantsLoadOrFailWithFileLine) {
       keep(text, fmt::format("took {:.1f} s of CPU (cap {} s)", s, kMutantSeconds), m);
     }
     if (progress_every > 0 && st.mutants % progress_every == 0) {
-      std::printf("structured fuzz: %ld mutants (%ld loaded, %ld runs), %.0f s, failures %ld\n", st.mutants, st.loaded,
-                  st.runs, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
+      std::printf("structured fuzz: %ld mutants (%ld loaded, %ld runs), %.0f s, failures %ld\n",
+                  st.mutants, st.loaded, st.runs,
+                  std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
                   st.failures);
       std::fflush(stdout);
     }
@@ -356,17 +412,18 @@ TEST(StructuredFuzz, ShippedScenarioMutantsLoadOrFailWithFileLine) {
     ++st.runs;
     const fs::path out = dir / "out";
     fs::remove_all(out);
-    const auto o = ncosim::testing::run_shell(fmt::format(
-        "timeout 120 '{}' run '{}' --runs 2 --periods 60 --set run.warmup=5 --quiet --threads 1 --max-memory 1000 "
-        "--max-work 20 --out '{}'",
-        NCOSIM_BINARY, file, out.string()));
+    const auto o = ncosim::testing::run_shell(
+        fmt::format("timeout 120 '{}' run '{}' --runs 2 --periods 60 --set run.warmup=5 --quiet "
+                    "--threads 1 --max-memory 1000 "
+                    "--max-work 20 --out '{}'",
+                    NCOSIM_BINARY, file, out.string()));
     if (o.code != 0) {
       ++st.failures;
       keep(text, fmt::format("run exit {}: {}", o.code, o.output.substr(0, 2000)), m);
       continue;
     }
-    for (const char* f : {"summary.csv", "summary.md", "runs.csv", "transmissions.csv", "design.json", "manifest.json",
-                          "runs.sqlite"}) {
+    for (const char* f : {"summary.csv", "summary.md", "runs.csv", "transmissions.csv",
+                          "design.json", "manifest.json", "runs.sqlite"}) {
       if (!fs::exists(out / f)) {
         ++st.failures;
         keep(text, fmt::format("run wrote no {}", f), m);
@@ -375,14 +432,17 @@ TEST(StructuredFuzz, ShippedScenarioMutantsLoadOrFailWithFileLine) {
     // The store is part of the set: re-deriving the exports from it alone gives the same tables.
     const fs::path again = dir / "again";
     fs::remove_all(again);
-    const auto e = ncosim::testing::run_shell(
-        fmt::format("timeout 120 '{}' export '{}' --out '{}'", NCOSIM_BINARY, out.string(), again.string()));
+    const auto e = ncosim::testing::run_shell(fmt::format(
+        "timeout 120 '{}' export '{}' --out '{}'", NCOSIM_BINARY, out.string(), again.string()));
     if (e.code != 0) {
       ++st.failures;
-      keep(text, fmt::format("export of the run's store: exit {}: {}", e.code, e.output.substr(0, 2000)), m);
+      keep(text,
+           fmt::format("export of the run's store: exit {}: {}", e.code, e.output.substr(0, 2000)),
+           m);
     } else {
       for (const char* f : {"summary.csv", "runs.csv"}) {
-        if (ncosim::testing::read_text((out / f).string()) != ncosim::testing::read_text((again / f).string())) {
+        if (ncosim::testing::read_text((out / f).string()) !=
+            ncosim::testing::read_text((again / f).string())) {
           ++st.failures;
           keep(text, fmt::format("{} re-derived from the store differs from the run's", f), m);
         }
@@ -395,10 +455,14 @@ TEST(StructuredFuzz, ShippedScenarioMutantsLoadOrFailWithFileLine) {
       }
     }
   }
-  const double total = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  std::printf("structured fuzz: seed %ld, %ld mutants (%ld loaded, %ld refused with FILE:LINE, %ld runs) in %.1f s; "
-              "slowest mutant %.2f s (%s); failures %ld\n",
-              seed, st.mutants, st.loaded, st.refused, st.runs, total, st.max_seconds, st.slowest.c_str(), st.failures);
+  const double total =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  std::printf(
+      "structured fuzz: seed %ld, %ld mutants (%ld loaded, %ld refused with FILE:LINE, %ld runs) "
+      "in %.1f s; "
+      "slowest mutant %.2f s (%s); failures %ld\n",
+      seed, st.mutants, st.loaded, st.refused, st.runs, total, st.max_seconds, st.slowest.c_str(),
+      st.failures);
   for (const auto& [name, secs] : seconds_by_seed) {
     std::printf("  %-36s %5ld mutants, %.1f ms each\n", name.c_str(), mutants_by_seed[name],
                 1e3 * secs / static_cast<double>(mutants_by_seed[name]));

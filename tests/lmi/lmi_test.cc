@@ -24,7 +24,9 @@ MatrixXd StableA() {
 }
 
 double MaxEig(const MatrixXd& M) {
-  return Eigen::SelfAdjointEigenSolver<MatrixXd>(0.5 * (M + M.transpose())).eigenvalues().maxCoeff();
+  return Eigen::SelfAdjointEigenSolver<MatrixXd>(0.5 * (M + M.transpose()))
+      .eigenvalues()
+      .maxCoeff();
 }
 
 // Solution of P = A' P A + Q by fixed-point iteration (A Schur stable).
@@ -42,8 +44,9 @@ MatrixXd Lyapunov(const MatrixXd& A, const MatrixXd& Q) {
 MatrixXd Dare(const MatrixXd& A, const MatrixXd& B, const MatrixXd& Q, const MatrixXd& R) {
   MatrixXd X = MatrixXd::Zero(A.rows(), A.cols());
   for (int i = 0; i < 100000; ++i) {
-    MatrixXd next = A.transpose() * X * A -
-                    A.transpose() * X * B * (R + B.transpose() * X * B).ldlt().solve(B.transpose() * X * A) + Q;
+    MatrixXd next =
+        A.transpose() * X * A -
+        A.transpose() * X * B * (R + B.transpose() * X * B).ldlt().solve(B.transpose() * X * A) + Q;
     if ((next - X).norm() < 1e-14 * next.norm()) return next;
     X = next;
   }
@@ -94,8 +97,10 @@ TEST(Lmi, RiccatiInequalityMaxTraceIsTheDareSolution) {
     Var X = prob.symmetric(3, "X");
     prob.add(block({{A.transpose() * X * A - X + Q, A.transpose() * X * B},
                     {B.transpose() * X * A, R + B.transpose() * X * B}}) >= 0);
-    if (via_minimize) prob.minimize(-1.0 * trace(X));
-    else prob.maximize(trace(X));
+    if (via_minimize)
+      prob.minimize(-1.0 * trace(X));
+    else
+      prob.maximize(trace(X));
     const Solution s = prob.solve();
     ASSERT_TRUE(s.ok()) << s.message;
     const double expect = via_minimize ? -Xstar.trace() : Xstar.trace();
@@ -259,7 +264,8 @@ TEST(Lmi, DataBeyondTheSolversRangeAreAnInvalidProblem) {
     prob.minimize(trace(P));
     const Solution s = prob.solve();
     EXPECT_EQ(s.status, Status::kInvalidProblem) << big;
-    EXPECT_NE(s.message.find("decay has a coefficient of magnitude"), std::string::npos) << s.message;
+    EXPECT_NE(s.message.find("decay has a coefficient of magnitude"), std::string::npos)
+        << s.message;
     EXPECT_NE(s.message.find("rescale the model"), std::string::npos) << s.message;
   }
   Problem prob;  // an objective weight beyond the range
@@ -275,19 +281,19 @@ TEST(Lmi, ExpressionMistakesThrowAtTheirSource) {
   Problem prob;
   Var P = prob.symmetric(2, "P");
   Var L = prob.full(2, 3, "L");
-  EXPECT_THROW(Expr(P) + Expr(L), Error);                        // size mismatch
-  EXPECT_THROW(prob.add(Expr(L) >= 0), Error);                   // not square
+  EXPECT_THROW(Expr(P) + Expr(L), Error);       // size mismatch
+  EXPECT_THROW(prob.add(Expr(L) >= 0), Error);  // not square
   MatrixXd A(2, 2);
   A << 1, 2, 3, 4;
-  EXPECT_THROW(prob.add(A * P >= 0), Error);                     // not symmetric
-  EXPECT_THROW(prob.add(Expr(A) + Expr(P) >= 0), Error);         // constant not symmetric
-  EXPECT_THROW(block({{P, L}, {L, P}}), Error);                  // block shapes
-  EXPECT_THROW(MatrixXd::Identity(3, 3) * Expr(P), Error);       // product shapes
-  EXPECT_THROW(Expr(P) >= 1.0, Error);                           // compare with 0 only
+  EXPECT_THROW(prob.add(A * P >= 0), Error);                // not symmetric
+  EXPECT_THROW(prob.add(Expr(A) + Expr(P) >= 0), Error);    // constant not symmetric
+  EXPECT_THROW(block({{P, L}, {L, P}}), Error);             // block shapes
+  EXPECT_THROW(MatrixXd::Identity(3, 3) * Expr(P), Error);  // product shapes
+  EXPECT_THROW(Expr(P) >= 1.0, Error);                      // compare with 0 only
   EXPECT_THROW(prob.symmetric(0), Error);
   Problem other;
   Var Q = other.symmetric(5, "Q");
-  EXPECT_THROW(prob.add(Expr(Q) >= 0), Error);                   // foreign variable
+  EXPECT_THROW(prob.add(Expr(Q) >= 0), Error);  // foreign variable
   EXPECT_THROW(prob.equal(P, Q), Error);
 }
 

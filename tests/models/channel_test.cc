@@ -1,15 +1,14 @@
 // tests/models/channel_test.cc — the fitting machinery on small inputs: the forward recursion
 // against brute-force enumeration, closed forms, the Gilbert–Elliott conversion by mean loss and
 // mean burst, the per-flow link counters, per-period stepping of Markov links, bad input.
-#include "models/fit.h"
-
 #include <gtest/gtest.h>
 
 #include <cmath>
 
+#include "kernel/rng.h"
+#include "models/fit.h"
 #include "models/link.h"
 #include "models/link_stats.h"
-#include "kernel/rng.h"
 
 namespace ncosim::models {
 namespace {
@@ -28,7 +27,8 @@ TEST(Fit, ForwardLogLikelihoodEqualsTheSumOverEveryStatePath) {
     int prev = -1;
     for (int t = 0; t < 6; ++t) {
       const int s = (path >> t) & 1;
-      p *= (t == 0 ? pi(s) : h.transition(prev, s)) * h.emission(s, sym[static_cast<std::size_t>(t)]);
+      p *= (t == 0 ? pi(s) : h.transition(prev, s)) *
+           h.emission(s, sym[static_cast<std::size_t>(t)]);
       prev = s;
     }
     total += p;
@@ -80,8 +80,8 @@ TEST(Fit, GilbertElliottReportsMeanLossAndMeanBurstWithIntervals) {
   const FitParameter& burst = r.derived[1];
   EXPECT_EQ(loss.name, "mean_loss");
   EXPECT_EQ(burst.name, "mean_burst");
-  const auto fitted = make_gilbert_elliott(r.model.transition(0, 1), r.model.transition(1, 0), r.model.emission(0, 0),
-                                           r.model.emission(1, 0));
+  const auto fitted = make_gilbert_elliott(r.model.transition(0, 1), r.model.transition(1, 0),
+                                           r.model.emission(0, 0), r.model.emission(1, 0));
   EXPECT_NEAR(loss.estimate, fitted->loss_probability(), 1e-9);
   EXPECT_NEAR(burst.estimate, fitted->mean_loss_burst(1).value(), 1e-6);
   EXPECT_LT(loss.ci_low, loss.estimate);
@@ -96,8 +96,10 @@ TEST(Fit, GilbertElliottReportsMeanLossAndMeanBurstWithIntervals) {
 
 TEST(Fit, FateSymbolsRefuseADelayBeyondWhatTheFamiliesHold) {
   // Issue 29: a delay cast to int overflowed (a wrong symbol, or an out-of-bounds write later).
-  EXPECT_EQ(fate_symbols({kMaxFitDelay, std::nullopt, 0}), (std::vector<int>{static_cast<int>(kMaxFitDelay) + 1, 0, 1}));
-  for (const std::int64_t d : {kMaxFitDelay + 1, std::int64_t{4611686018427387903}, std::int64_t{9223372036854775806}}) {
+  EXPECT_EQ(fate_symbols({kMaxFitDelay, std::nullopt, 0}),
+            (std::vector<int>{static_cast<int>(kMaxFitDelay) + 1, 0, 1}));
+  for (const std::int64_t d :
+       {kMaxFitDelay + 1, std::int64_t{4611686018427387903}, std::int64_t{9223372036854775806}}) {
     EXPECT_THROW(fate_symbols({0, d}), std::out_of_range) << d;
   }
 }
@@ -134,8 +136,11 @@ TEST(Fit, GilbertElliottFitsAShortBurstyTraceAndPrintsAReadableTable) {
 }
 
 TEST(GilbertElliottByMean, ConvertsExactlyAndRejectsWhatNoChainReaches) {
-  for (const auto& [P, b, lg, lb] : std::vector<std::tuple<double, double, double, double>>{
-           {0.1, 4.0, 0.0, 1.0}, {0.2, 2.5, 0.05, 0.8}, {0.3, 1.3, 0.1, 0.9}, {0.05, 1.5, 0.01, 0.5}}) {
+  for (const auto& [P, b, lg, lb] :
+       std::vector<std::tuple<double, double, double, double>>{{0.1, 4.0, 0.0, 1.0},
+                                                               {0.2, 2.5, 0.05, 0.8},
+                                                               {0.3, 1.3, 0.1, 0.9},
+                                                               {0.05, 1.5, 0.01, 0.5}}) {
     const GilbertElliottByMean g = gilbert_elliott_by_mean(P, b, lg, lb);
     ASSERT_TRUE(g.error.empty()) << g.error;
     const auto link = make_gilbert_elliott(g.p_good_to_bad, g.p_bad_to_good, lg, lb);
@@ -188,8 +193,10 @@ TEST(LinkCounters, CountRunsDelaysStatesAndCloseAnOpenRun) {
 TEST(MarkovLinkStep, PerPeriodEqualsPerPacketForOneSenderEveryPeriod) {
   Eigen::MatrixXd T(3, 3);
   T << 0.8, 0.15, 0.05, 0.2, 0.7, 0.1, 0.1, 0.3, 0.6;
-  const MarkovLink packet(T, {0.05, 0.4, 0.9}, {{1.0}, {0.5, 0.5}, {0.2, 0.8}}, {}, MarkovLink::Step::kPacket);
-  const MarkovLink period(T, {0.05, 0.4, 0.9}, {{1.0}, {0.5, 0.5}, {0.2, 0.8}}, {}, MarkovLink::Step::kPeriod);
+  const MarkovLink packet(T, {0.05, 0.4, 0.9}, {{1.0}, {0.5, 0.5}, {0.2, 0.8}}, {},
+                          MarkovLink::Step::kPacket);
+  const MarkovLink period(T, {0.05, 0.4, 0.9}, {{1.0}, {0.5, 0.5}, {0.2, 0.8}}, {},
+                          MarkovLink::Step::kPeriod);
   auto a = packet.clone();
   auto b = period.clone();
   sim::Rng ra = sim::make_stream(9, 1, 2), rb = sim::make_stream(9, 1, 2);

@@ -641,9 +641,10 @@ TEST(LoadTrace, ReadsHeaderLostEntriesCrlfAndTrailingBlankLines) {
   EXPECT_EQ(trace, expected);
   int first_row_line = 0;
   EXPECT_EQ(load_trace(file.path(), &first_row_line), expected);
-  EXPECT_EQ(first_row_line, 2);  // after the header
+  EXPECT_EQ(first_row_line, 2);                 // after the header
   const TempFile bare("bare.csv", "0,1\n1,0");  // no header, no final newline
-  EXPECT_EQ(load_trace(bare.path(), &first_row_line), (std::vector<std::optional<std::int64_t>>{1, 0}));
+  EXPECT_EQ(load_trace(bare.path(), &first_row_line),
+            (std::vector<std::optional<std::int64_t>>{1, 0}));
   EXPECT_EQ(first_row_line, 1);
   const TempFile header_only("header_only.csv", "seq,delay\n");
   EXPECT_TRUE(load_trace(header_only.path()).empty());

@@ -12,8 +12,9 @@ TEST(Discretise, ScalarSystemMatchesClosedForm) {
   // dx = (a x + b u) dt + dβ, E dβ² = q dt, period T:
   // A = e^{aT}, Bu = b (e^{aT} - 1)/a, W = q (e^{2aT} - 1)/(2a).
   const double a = -0.7, b = 2.0, q = 0.3, T = 0.25;
-  const LinearPlant p = discretise(Eigen::MatrixXd::Constant(1, 1, a), Eigen::MatrixXd::Constant(1, 1, b),
-                                   Eigen::MatrixXd::Identity(1, 1), Eigen::MatrixXd::Constant(1, 1, q), T);
+  const LinearPlant p =
+      discretise(Eigen::MatrixXd::Constant(1, 1, a), Eigen::MatrixXd::Constant(1, 1, b),
+                 Eigen::MatrixXd::Identity(1, 1), Eigen::MatrixXd::Constant(1, 1, q), T);
   EXPECT_NEAR(p.A(0, 0), std::exp(a * T), 1e-15);
   EXPECT_NEAR(p.Bu(0, 0), b * (std::exp(a * T) - 1) / a, 1e-15);
   EXPECT_NEAR(p.W(0, 0), q * (std::exp(2 * a * T) - 1) / (2 * a), 1e-15);

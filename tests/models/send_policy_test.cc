@@ -54,7 +54,9 @@ TEST(SendPolicy, PeriodicIsTheDefaultAndSendsEverySample) {
 }
 
 TEST(SendPolicy, SendOnDeltaSendsTheFirstSampleThenOnlyMovesOfAtLeastDelta) {
-  const SensorSpec s = read("C = [[1.0, 0.0], [0.0, 1.0]]\nR = [[0.01, 0], [0, 0.01]]\npolicy = \"send_on_delta\"\ndelta = [0.5, 2.0]\n");
+  const SensorSpec s = read(
+      "C = [[1.0, 0.0], [0.0, 1.0]]\nR = [[0.01, 0], [0, 0.01]]\npolicy = \"send_on_delta\"\ndelta "
+      "= [0.5, 2.0]\n");
   EXPECT_EQ(s.policy->name(), "send_on_delta");
   EXPECT_FALSE(s.policy->sends_every_sample());
   ASSERT_NE(s.deadband(), nullptr);
@@ -71,20 +73,26 @@ TEST(SendPolicy, SendOnDeltaSendsTheFirstSampleThenOnlyMovesOfAtLeastDelta) {
 }
 
 TEST(SendPolicy, ReadersNameTheKeyAndTheValidValues) {
-  EXPECT_NE(error_of("C = [[1.0, 0.0]]\nR = [[0.01]]\npolicy = \"send_on_delt\"\n").find("did you mean \"send_on_delta\""),
+  EXPECT_NE(error_of("C = [[1.0, 0.0]]\nR = [[0.01]]\npolicy = \"send_on_delt\"\n")
+                .find("did you mean \"send_on_delta\""),
             std::string::npos);
-  EXPECT_NE(error_of("C = [[1.0, 0.0]]\nR = [[0.01]]\ndelta = 0.1\n").find("expected no threshold with policy = \"periodic\""),
+  EXPECT_NE(error_of("C = [[1.0, 0.0]]\nR = [[0.01]]\ndelta = 0.1\n")
+                .find("expected no threshold with policy = \"periodic\""),
             std::string::npos);
-  EXPECT_NE(error_of("C = [[1.0, 0.0]]\nR = [[0.01]]\npolicy = \"send_on_delta\"\ndelta = -0.1\n").find("key 'sensor[0].delta'"),
+  EXPECT_NE(error_of("C = [[1.0, 0.0]]\nR = [[0.01]]\npolicy = \"send_on_delta\"\ndelta = -0.1\n")
+                .find("key 'sensor[0].delta'"),
             std::string::npos);
   // A range error says what it got, as written (issue 28).
   EXPECT_NE(error_of("C = [[1.0, 0.0]]\nR = [[0.01]]\npolicy = \"send_on_delta\"\ndelta = -0.1\n")
                 .find("expected finite thresholds >= 0, got -0.1"),
             std::string::npos);
-  EXPECT_NE(error_of("C = [[1.0, 0.0]]\nR = [[0.01]]\npolicy = \"send_on_delta\"\ndelta = 0.1\nbuffer = 2\n")
-                .find("expected buffer = 0 with policy = \"send_on_delta\""),
+  EXPECT_NE(
+      error_of(
+          "C = [[1.0, 0.0]]\nR = [[0.01]]\npolicy = \"send_on_delta\"\ndelta = 0.1\nbuffer = 2\n")
+          .find("expected buffer = 0 with policy = \"send_on_delta\""),
+      std::string::npos);
+  EXPECT_NE(error_of("C = [[1.0, 0.0]]\nR = [[0.01]]\npolicy = \"send_on_delta\"\n").find("delta"),
             std::string::npos);
-  EXPECT_NE(error_of("C = [[1.0, 0.0]]\nR = [[0.01]]\npolicy = \"send_on_delta\"\n").find("delta"), std::string::npos);
 }
 
 TEST(SensorProcess, RingPacksTheNewestSamplesFirstWithTheirStamps) {

@@ -19,12 +19,14 @@ TEST(TraceLinkSegment, RunRReplaysItsOwnSegmentCyclically) {
   // 7 rows, segment 2: segments {0, 1}, {2, 3}, {4, 5}; row 6 is never replayed.
   TraceLink link({0, std::nullopt, 1, 2, std::nullopt, 3, 4}, 2);
   ncosim::sim::Rng rng(5);
-  const std::vector<std::vector<std::int64_t>> by_run = {{0, kLost}, {1, 2}, {kLost, 3}, {0, kLost}, {1, 2}};
+  const std::vector<std::vector<std::int64_t>> by_run = {
+      {0, kLost}, {1, 2}, {kLost, 3}, {0, kLost}, {1, 2}};
   for (std::uint64_t r = 0; r < by_run.size(); ++r) {
     auto run = link.clone();
     run->bind_run(nullptr, 9, r);
     run->reset(rng);
-    for (std::size_t k = 0; k < 2; ++k) EXPECT_EQ(run->transmit(rng), by_run[r][k]) << "run " << r << ", packet " << k;
+    for (std::size_t k = 0; k < 2; ++k)
+      EXPECT_EQ(run->transmit(rng), by_run[r][k]) << "run " << r << ", packet " << k;
     run->reset(rng);  // reset rewinds to the run's segment, not to row 0
     EXPECT_EQ(run->transmit(rng), by_run[r][0]) << "run " << r;
   }

@@ -42,7 +42,8 @@ TEST(TransferFunction, SecondOrderMotorOfExample52) {
   for (int k = 0; k < 200; ++k) {
     const double t = 0.005 * k - 0.01;
     // Step response of 5.1 / ((1 + a s)(1 + b s)): 5.1 (1 - (a e^{-t/a} - b e^{-t/b}) / (a - b)).
-    const double expected = t <= 0 ? 0.0 : 5.1 * (1.0 - (a * std::exp(-t / a) - b * std::exp(-t / b)) / (a - b));
+    const double expected =
+        t <= 0 ? 0.0 : 5.1 * (1.0 - (a * std::exp(-t / a) - b * std::exp(-t / b)) / (a - b));
     EXPECT_NEAR(y[static_cast<std::size_t>(k)], expected, 1e-9 * 5.1) << k;
   }
   EXPECT_NEAR(y.back(), 5.1, 1e-6);  // DC gain

@@ -3,11 +3,10 @@
 // `ncosim find` search on scenarios/dolz2014_fig5.toml. tr(Pt) is the plant-state block
 // (predicted_mse): with b = 3 the extended-state trace grows with b and 0.03 would be out of reach
 // (checked for this project).
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <sstream>
-
-#include <fmt/format.h>
 
 #include "sim/campaign.h"
 #include "sim/find.h"
@@ -50,8 +49,9 @@ TEST(DolzFig5, ThresholdsOfTheMinimumDeliveryProbability) {
   ASSERT_TRUE(r.sweeps.empty()) << "the swept delivery axis is searched, not swept";
   const double n1b0 = threshold(r, "S4 N1 b0"), n4b0 = threshold(r, "S4 N4 b0");
   const double n1b3 = threshold(r, "S4 N1 b3"), n4b3 = threshold(r, "S4 N4 b3");
-  std::printf("thresholds: N1 b0 %.5f (paper 0.9730), N4 b0 %.5f, N1 b3 %.5f, N4 b3 %.5f (paper 0.8530)\n", n1b0,
-              n4b0, n1b3, n4b3);
+  std::printf(
+      "thresholds: N1 b0 %.5f (paper 0.9730), N4 b0 %.5f, N1 b3 %.5f, N4 b3 %.5f (paper 0.8530)\n",
+      n1b0, n4b0, n1b3, n4b3);
   // N = 1, b = 0: one fictitious sensor and one gain per N: the paper's design and ours solve
   // the same problem, and the thresholds agree.
   EXPECT_NEAR(n1b0, 0.9730, 0.005);
@@ -94,9 +94,10 @@ namespace {
 // with resend_noise = "fresh" (a new draw per re-send, the design model) it agrees with it.
 TEST(DolzFig5, BufferedPredictionHoldsWithFreshResendNoiseOnly) {
   for (const char* mode : {"same", "fresh"}) {
-    auto sc = testing::load_one(testing::source_path("scenarios/dolz2014_fig5.toml"),
-                                {"sweep[0].values=[0.85]", fmt::format("sensor[0].resend_noise=\"{}\"", mode),
-                                 "run.runs=20", "run.periods=5000"});
+    auto sc = testing::load_one(
+        testing::source_path("scenarios/dolz2014_fig5.toml"),
+        {"sweep[0].values=[0.85]", fmt::format("sensor[0].resend_noise=\"{}\"", mode),
+         "run.runs=20", "run.periods=5000"});
     CampaignOptions opt;
     opt.time_estimators = false;
     const auto rows = summarise(*sc, run_campaign(*sc, opt), {});
@@ -104,8 +105,8 @@ TEST(DolzFig5, BufferedPredictionHoldsWithFreshResendNoiseOnly) {
       if (row.estimator != "S4 N1 b3" && row.estimator != "S4 N4 b3") continue;
       ASSERT_TRUE(row.mse_ext && row.mse_ext_ci95 && row.predicted_mse_ext) << row.estimator;
       const double sim = *row.mse_ext, ci = *row.mse_ext_ci95, pred = *row.predicted_mse_ext;
-      std::printf("resend_noise %-5s %s: predicted %.4f simulated %.4f ± %.4f\n", mode, row.estimator.c_str(), pred,
-                  sim, ci);
+      std::printf("resend_noise %-5s %s: predicted %.4f simulated %.4f ± %.4f\n", mode,
+                  row.estimator.c_str(), pred, sim, ci);
       if (std::string(mode) == "fresh") {
         EXPECT_NEAR(sim, pred, 2.0 * ci) << row.estimator;
       } else {

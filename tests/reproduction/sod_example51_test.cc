@@ -15,7 +15,8 @@ namespace ncosim::sim {
 namespace {
 
 TEST(SodExample51, GuaranteedBoundsHoldInSimulation) {
-  auto sc = testing::load_one(testing::source_path("scenarios/sod_example51.toml"), {"run.runs=2", "run.periods=20000"});
+  auto sc = testing::load_one(testing::source_path("scenarios/sod_example51.toml"),
+                              {"run.runs=2", "run.periods=20000"});
   CampaignOptions opt;
   opt.time_estimators = false;
   const auto rows = summarise(*sc, run_campaign(*sc, opt), {});

@@ -107,7 +107,8 @@ TEST(Campaign, BufferedSensorsKeepEveryEstimatorCorrecting) {
     EXPECT_EQ(r.status, "ok") << r.estimator;
     ASSERT_TRUE(r.mse.has_value() && plain[e].mse.has_value()) << r.estimator;
     EXPECT_LT(*r.mse, *plain[e].mse) << r.estimator;
-    std::printf("%-14s mse %.4f without buffer, %.4f with buffer = 1\n", r.estimator.c_str(), *plain[e].mse, *r.mse);
+    std::printf("%-14s mse %.4f without buffer, %.4f with buffer = 1\n", r.estimator.c_str(),
+                *plain[e].mse, *r.mse);
     EXPECT_LE(*r.delivered_ratio, 1.0) << r.estimator << ": repeats must not count as delivered";
   }
 }
@@ -122,13 +123,15 @@ TEST(ScenarioValidation, NonFiniteScalarsAndClockOverflowAreRejected) {
   // A bare nan/inf where a number array or matrix is expected, and periods x period beyond
   // the nanosecond clock (20000 x 1e6 s = 2e10 s > 4e9 s), are bad input, not a crash.
   const std::string f = testing::source_path("scenarios/dolz2014_table2.toml");
-  for (const std::string set : {"link[0].pmf=nan", "sensor[0].R=inf", "input.std=nan", "run.period=1e6"}) {
+  for (const std::string set :
+       {"link[0].pmf=nan", "sensor[0].R=inf", "input.std=nan", "run.period=1e6"}) {
     try {
       testing::load_one(f, {set});
       ADD_FAILURE() << set << " was accepted";
     } catch (const ScenarioError& e) {
       const std::string what = e.what();
-      EXPECT_TRUE(what.find("finite") != std::string::npos || what.find("clock") != std::string::npos)
+      EXPECT_TRUE(what.find("finite") != std::string::npos ||
+                  what.find("clock") != std::string::npos)
           << set << ": " << what;
     }
   }

@@ -3,12 +3,12 @@
 #include "sim/compare.h"
 
 #include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
 
 #include <cmath>
 #include <filesystem>
-#include <functional>
 #include <fstream>
+#include <functional>
+#include <nlohmann/json.hpp>
 #include <random>
 #include <sstream>
 
@@ -25,7 +25,8 @@ namespace fs = std::filesystem;
 // common random numbers give), scaled by `scale_b` for B; every value times `level`.
 struct Folder {
   fs::path dir;
-  explicit Folder(const std::string& name) : dir(fs::temp_directory_path() / ("ncosim_compare_" + name)) {
+  explicit Folder(const std::string& name)
+      : dir(fs::temp_directory_path() / ("ncosim_compare_" + name)) {
     fs::remove_all(dir);
     fs::create_directories(dir);
   }
@@ -33,20 +34,25 @@ struct Folder {
     std::error_code ec;
     fs::remove_all(dir, ec);
   }
-  void write(const std::string& hash, std::uint64_t seed, int runs, double scale_b, int diverged_b = -1,
-             const std::string& drop = "", std::uint64_t noise_seed = 0, double level = 1.0) const {
-    std::ofstream(dir / "manifest.json") << "{\"scenario\": \"x.toml\", \"scenario_hash\": \"" << hash
-                                         << "\", \"seed\": " << seed << ", \"title\": \"t\"}\n";
+  void write(const std::string& hash, std::uint64_t seed, int runs, double scale_b,
+             int diverged_b = -1, const std::string& drop = "", std::uint64_t noise_seed = 0,
+             double level = 1.0) const {
+    std::ofstream(dir / "manifest.json")
+        << "{\"scenario\": \"x.toml\", \"scenario_hash\": \"" << hash << "\", \"seed\": " << seed
+        << ", \"title\": \"t\"}\n";
     std::mt19937_64 g(noise_seed == 0 ? seed : noise_seed);
     std::normal_distribution<double> z;
     std::ofstream out(dir / "runs.csv");
-    out << "run,estimator,mse,mse_ext,periods,samples_used,samples_taken,diverged,status,flops_mean,late_samples,"
+    out << "run,estimator,mse,mse_ext,periods,samples_used,samples_taken,diverged,status,flops_"
+           "mean,late_samples,"
            "duplicate_samples,mde_percent,rmse_x1\n";
     for (int r = 0; r < runs; ++r) {
       const double shared = 1.0 + 0.1 * z(g);
       const double a = level * (shared + 0.001 * z(g));
       const double b = level * scale_b * (shared + 0.001 * z(g));
-      if (drop != "A, x") out << r << ",\"A, x\"," << a << ",," << "100,1,1,0,ok,,,,,1\n";
+      if (drop != "A, x")
+        out << r << ",\"A, x\"," << a << ",,"
+            << "100,1,1,0,ok,,,,,1\n";
       if (drop != "B") {
         if (r == diverged_b) {
           out << r << ",B,,,50,1,1,1,ok,,,,,\n";
@@ -155,7 +161,9 @@ TEST(Compare, BadInputNamesTheFileOrOption) {
   b.write("h", 7, 5, 1.0);
   n.write("other", 7, 5, 1.0);
   std::string e = error_of([&] { run(b, n); });
-  EXPECT_NE(e.find((n.dir / "manifest.json").string() + ": a different scenario"), std::string::npos) << e;
+  EXPECT_NE(e.find((n.dir / "manifest.json").string() + ": a different scenario"),
+            std::string::npos)
+      << e;
   EXPECT_NE(e.find("--allow-scenario-change"), std::string::npos) << e;
   CompareOptions allow;
   allow.allow_scenario_change = true;
@@ -163,7 +171,9 @@ TEST(Compare, BadInputNamesTheFileOrOption) {
 
   n.write("h", 7, 5, 1.0, -1, "B");
   e = error_of([&] { run(b, n); });
-  EXPECT_NE(e.find((n.dir / "runs.csv").string() + ": missing row estimator \"B\""), std::string::npos) << e;
+  EXPECT_NE(e.find((n.dir / "runs.csv").string() + ": missing row estimator \"B\""),
+            std::string::npos)
+      << e;
   const auto r = run(b, n, allow);
   EXPECT_EQ(row(r, "B").verdict, "not comparable");
   EXPECT_EQ(row(r, "B").note, "only in BASE");
@@ -175,7 +185,8 @@ TEST(Compare, BadInputNamesTheFileOrOption) {
 
   std::ofstream(n.dir / "runs.csv", std::ios::app) << "3,B,0.1\n";
   e = error_of([&] { read_run_folder(n.str(), "mse"); });
-  EXPECT_NE(e.find((n.dir / "runs.csv").string() + ":7: expected 14 fields"), std::string::npos) << e;
+  EXPECT_NE(e.find((n.dir / "runs.csv").string() + ":7: expected 14 fields"), std::string::npos)
+      << e;
   fs::remove(n.dir / "manifest.json");
   e = error_of([&] { read_run_folder(n.str(), "mse"); });
   EXPECT_NE(e.find((n.dir / "manifest.json").string() + ": cannot open"), std::string::npos) << e;
@@ -204,7 +215,8 @@ TEST(Compare, NonFiniteNegativeOrOverflowingValuesAreRefusedAtTheirLine) {
     text.replace(at + cell.size(), end - at - cell.size(), bad);
     std::ofstream(n.dir / "runs.csv") << text;
     const std::string e = error_of([&] { read_run_folder(n.str(), "mse"); });
-    EXPECT_NE(e.find(file + ":7: mse: expected a finite number >= 0"), std::string::npos) << bad << ": " << e;
+    EXPECT_NE(e.find(file + ":7: mse: expected a finite number >= 0"), std::string::npos)
+        << bad << ": " << e;
     EXPECT_NE(e.find("\"" + bad + "\""), std::string::npos) << e;
   }
   // A run index that is not a small integer (inf used to be cast to an integer).
@@ -212,7 +224,8 @@ TEST(Compare, NonFiniteNegativeOrOverflowingValuesAreRefusedAtTheirLine) {
     n.write("h", 7, 5, 1.0);
     std::ofstream(n.dir / "runs.csv", std::ios::app) << bad << ",B,0.1,,100,1,1,0,ok,,,,,1\n";
     const std::string e = error_of([&] { read_run_folder(n.str(), "mse"); });
-    EXPECT_NE(e.find(file + ":12: run: expected a run index"), std::string::npos) << bad << ": " << e;
+    EXPECT_NE(e.find(file + ":12: run: expected a run index"), std::string::npos)
+        << bad << ": " << e;
   }
 }
 
@@ -254,13 +267,15 @@ TEST(Compare, CsvAndMarkdownCarryEveryRow) {
   const auto r = run(b, n);
   const std::string csv = compare_csv(r);
   EXPECT_EQ(csv.substr(0, csv.find('\n')),
-            "estimator,metric,verdict,test,runs_base,runs_new,pairs,base_mean,new_mean,diff,diff_ci_low,diff_ci_high,"
+            "estimator,metric,verdict,test,runs_base,runs_new,pairs,base_mean,new_mean,diff,diff_"
+            "ci_low,diff_ci_high,"
             "relative_change,relative_ci_low,relative_ci_high,p_worse,p_better,note");
   EXPECT_NE(csv.find("\"A, x\",mse,unchanged,paired,10,10,10,"), std::string::npos) << csv;
   EXPECT_NE(csv.find("B,mse,worse,paired,10,10,10,"), std::string::npos) << csv;
   const std::string md = compare_markdown(r);
   EXPECT_NE(md.find("| B | **worse** | paired | 10 |"), std::string::npos) << md;
-  EXPECT_NE(md.find("1 worse, 0 better, 1 unchanged, 0 not comparable: exit 1"), std::string::npos) << md;
+  EXPECT_NE(md.find("1 worse, 0 better, 1 unchanged, 0 not comparable: exit 1"), std::string::npos)
+      << md;
 }
 
 TEST(CompareIdentity, SameScenarioWithAnotherSeedIsComparedUnpairedWithoutTheOption) {
@@ -278,9 +293,11 @@ TEST(CompareIdentity, SameScenarioWithAnotherSeedIsComparedUnpairedWithoutTheOpt
   const std::vector<std::string> diff{"scenario_hash: h7 -> h8", "seed: 7 -> 8"};  // not `date`
   EXPECT_EQ(r.differences, diff);
   const std::string md = compare_markdown(r);
-  EXPECT_NE(md.find("- BASE -> NEW differ in:\n  - scenario_hash: h7 -> h8\n  - seed: 7 -> 8\n"), std::string::npos)
+  EXPECT_NE(md.find("- BASE -> NEW differ in:\n  - scenario_hash: h7 -> h8\n  - seed: 7 -> 8\n"),
+            std::string::npos)
       << md;
-  EXPECT_NE(md.find("- test: Welch's unpaired test: the seeds differ (7 -> 8)"), std::string::npos) << md;
+  EXPECT_NE(md.find("- test: Welch's unpaired test: the seeds differ (7 -> 8)"), std::string::npos)
+      << md;
 }
 
 TEST(CompareIdentity, OtherRunsWithTheSameSeedArePairedOnTheCommonRuns) {
@@ -297,7 +314,8 @@ TEST(CompareIdentity, OtherRunsWithTheSameSeedArePairedOnTheCommonRuns) {
   EXPECT_EQ(row(r, "B").verdict, "worse");  // the +1 % that only pairing finds
   const std::vector<std::string> diff{"runs: 20 -> 30", "scenario_hash: h20 -> h30"};
   EXPECT_EQ(r.differences, diff);
-  EXPECT_NE(compare_markdown(r).find("- test: paired on the runs both folders have"), std::string::npos);
+  EXPECT_NE(compare_markdown(r).find("- test: paired on the runs both folders have"),
+            std::string::npos);
 }
 
 TEST(CompareIdentity, AnotherScenarioTextIsRefusedNamingEveryDifferingField) {
@@ -305,24 +323,33 @@ TEST(CompareIdentity, AnotherScenarioTextIsRefusedNamingEveryDifferingField) {
   b.write("h1", 7, 5, 1.0);
   n.write("h2", 8, 5, 1.0);
   const std::string long_title(100, 'x');
-  b.add_to_manifest({{"scenario_text_hash", "t1"}, {"overrides", nlohmann::json::array()}, {"git_commit", "abc"},
-                     {"inputs", {{"trace.csv", "1111"}, {"net.xml", "3333"}}}, {"threads", 1}});
-  n.add_to_manifest({{"scenario_text_hash", "t2"}, {"overrides", {"plant.W=[[2.0]]"}}, {"git_commit", "def"},
-                     {"inputs", {{"trace.csv", "2222"}, {"net.xml", "3333"}}}, {"threads", 2}, {"title", long_title}});
+  b.add_to_manifest({{"scenario_text_hash", "t1"},
+                     {"overrides", nlohmann::json::array()},
+                     {"git_commit", "abc"},
+                     {"inputs", {{"trace.csv", "1111"}, {"net.xml", "3333"}}},
+                     {"threads", 1}});
+  n.add_to_manifest({{"scenario_text_hash", "t2"},
+                     {"overrides", {"plant.W=[[2.0]]"}},
+                     {"git_commit", "def"},
+                     {"inputs", {{"trace.csv", "2222"}, {"net.xml", "3333"}}},
+                     {"threads", 2},
+                     {"title", long_title}});
   const std::string e = error_of([&] { run(b, n); });
-  EXPECT_NE(e.find((n.dir / "manifest.json").string() + ": a different scenario or different overrides than " +
+  EXPECT_NE(e.find((n.dir / "manifest.json").string() +
+                   ": a different scenario or different overrides than " +
                    (b.dir / "manifest.json").string()),
             std::string::npos)
       << e;
   EXPECT_NE(e.find("--allow-scenario-change"), std::string::npos) << e;
   for (const std::string& line : std::vector<std::string>{
-           "\n  git_commit: abc -> def", "\n  overrides: [] -> [\"plant.W=[[2.0]]\"]", "\n  scenario_hash: h1 -> h2",
-        "\n  scenario_text_hash: t1 -> t2", "\n  seed: 7 -> 8", "\n  inputs 'trace.csv': 1111 -> 2222",
-        "\n  title: t -> " + long_title.substr(0, 77) + "..."}) {
+           "\n  git_commit: abc -> def", "\n  overrides: [] -> [\"plant.W=[[2.0]]\"]",
+           "\n  scenario_hash: h1 -> h2", "\n  scenario_text_hash: t1 -> t2", "\n  seed: 7 -> 8",
+           "\n  inputs 'trace.csv': 1111 -> 2222",
+           "\n  title: t -> " + long_title.substr(0, 77) + "..."}) {
     EXPECT_NE(e.find(line), std::string::npos) << line << " not in: " << e;
   }
-  EXPECT_EQ(e.find("threads"), std::string::npos) << e;   // how it ran, not what
-  EXPECT_EQ(e.find("net.xml"), std::string::npos) << e;   // the same content in both
+  EXPECT_EQ(e.find("threads"), std::string::npos) << e;  // how it ran, not what
+  EXPECT_EQ(e.find("net.xml"), std::string::npos) << e;  // the same content in both
   EXPECT_EQ(e.find("older ncosim"), std::string::npos) << e;
   // With the option: compared (Welch: other seeds), the differences listed in compare.md.
   CompareOptions allow;
@@ -333,7 +360,9 @@ TEST(CompareIdentity, AnotherScenarioTextIsRefusedNamingEveryDifferingField) {
   // Same text, other inputs: refused, the file named on its own line too.
   n.add_to_manifest({{"scenario_text_hash", "t1"}});
   const std::string in = error_of([&] { run(b, n); });
-  EXPECT_NE(in.find("the content of the input file(s) 'trace.csv' (1111 vs 2222) differs"), std::string::npos) << in;
+  EXPECT_NE(in.find("the content of the input file(s) 'trace.csv' (1111 vs 2222) differs"),
+            std::string::npos)
+      << in;
   EXPECT_NE(in.find("\n  inputs 'trace.csv': 1111 -> 2222"), std::string::npos) << in;
 }
 
@@ -345,8 +374,9 @@ TEST(CompareIdentity, AManifestWithoutTheTextHashGoesByTheScenarioHashAndSaysWhy
   n.write("h8", 8, 5, 1.0);
   n.add_to_manifest({{"scenario_text_hash", "t"}});
   const std::string e = error_of([&] { run(b, n); });
-  EXPECT_NE(e.find("(BASE " + b.str() + ": a manifest.json without scenario_text_hash (an older ncosim) and no run "
-                                        "store; its scenario_hash also covers --runs, --periods and --seed"),
+  EXPECT_NE(e.find("(BASE " + b.str() +
+                   ": a manifest.json without scenario_text_hash (an older ncosim) and no run "
+                   "store; its scenario_hash also covers --runs, --periods and --seed"),
             std::string::npos)
       << e;
   EXPECT_EQ(e.find("(NEW "), std::string::npos) << e;
@@ -366,10 +396,13 @@ TEST(CompareIdentity, FirstDifferingLineOfTwoTexts) {
 }
 
 TEST(CompareIdentity, TheTextHashCoversTheTextAndSetOnlyTheScenarioHashAlsoTheRunOptions) {
-  // results/README.md, manifest.json: scenario_hash = FNV-1a of text + "\n--set A"... + "\n--runs N"
-  // + "\n--periods N" + "\n--seed N" for the options given; scenario_text_hash without the last three.
-  const std::string text = "title = \"t\"\n[run]\nperiods = 50\nruns = 2\n[plant]\nA = [[0.5]]\nW = [[1.0]]\n"
-                           "[[sensor]]\nC = [[1.0]]\nR = [[1.0]]\n[[estimator]]\nname = \"ol\"\nkind = \"open_loop\"\n";
+  // results/README.md, manifest.json: scenario_hash = FNV-1a of text + "\n--set A"... + "\n--runs
+  // N"
+  // + "\n--periods N" + "\n--seed N" for the options given; scenario_text_hash without the last
+  // three.
+  const std::string text =
+      "title = \"t\"\n[run]\nperiods = 50\nruns = 2\n[plant]\nA = [[0.5]]\nW = [[1.0]]\n"
+      "[[sensor]]\nC = [[1.0]]\nR = [[1.0]]\n[[estimator]]\nname = \"ol\"\nkind = \"open_loop\"\n";
   const std::vector<std::string> sets{"run.warmup=1"};
   RunOverrides ov;
   ov.runs = 3;

@@ -4,8 +4,8 @@
 
 #include <gtest/gtest.h>
 
-#include <boost/math/distributions/students_t.hpp>
 #include <algorithm>
+#include <boost/math/distributions/students_t.hpp>
 #include <cmath>
 #include <random>
 
@@ -47,15 +47,19 @@ TEST(Consistency, NoteSaysWhichSideAndWhatItMeans) {
   const ConsistencyStat ok{2.0, 1.5, 2.5}, high{3.0, 1.5, 2.5}, low{1.0, 1.5, 2.5};
   EXPECT_EQ(consistency_note(ok, std::nullopt), "ok");
   EXPECT_EQ(consistency_note(ok, ok), "ok");
-  EXPECT_EQ(consistency_note(high, ok), "NEES above its 95 % bound: the covariance is too small (overconfident)");
-  EXPECT_EQ(consistency_note(std::nullopt, low), "NIS below its 95 % bound: the covariance is too large (pessimistic)");
+  EXPECT_EQ(consistency_note(high, ok),
+            "NEES above its 95 % bound: the covariance is too small (overconfident)");
+  EXPECT_EQ(consistency_note(std::nullopt, low),
+            "NIS below its 95 % bound: the covariance is too large (pessimistic)");
   EXPECT_NE(consistency_note(high, low).find("; NIS below"), std::string::npos);
   ConsistencySums none;
   EXPECT_FALSE(nees_stat(none, 2).has_value());
   EXPECT_FALSE(nis_stat(none).has_value());
 }
 
-void add(ErrorCurve& c, std::int64_t k, std::size_t e, const Eigen::VectorXd& err) { c.add(k, e, err.data()); }
+void add(ErrorCurve& c, std::int64_t k, std::size_t e, const Eigen::VectorXd& err) {
+  c.add(k, e, err.data());
+}
 
 TEST(ErrorCurve, MeanBandAndStatesOfKnownErrors) {
   ErrorCurve c(2, 1, 2);
@@ -71,7 +75,8 @@ TEST(ErrorCurve, MeanBandAndStatesOfKnownErrors) {
   EXPECT_DOUBLE_EQ(c.mean(1, 0), 28.0 / 3.0);
   const double m = 7.0 / 3.0;
   const double sd = std::sqrt(((1 - m) * (1 - m) + (4 - m) * (4 - m) + (2 - m) * (2 - m)) / 2.0);
-  const double t = boost::math::quantile(boost::math::complement(boost::math::students_t(2.0), 0.025));
+  const double t =
+      boost::math::quantile(boost::math::complement(boost::math::students_t(2.0), 0.025));
   EXPECT_NEAR(c.ci95(0, 0), t * sd / std::sqrt(3.0), 1e-12);
   // Every run with the same error (an exact start): no spread, a band of exactly 0.
   ErrorCurve same(1, 1, 2);

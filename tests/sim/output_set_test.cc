@@ -44,13 +44,15 @@ fs::path fresh_dir(const std::string& name) {
 
 std::map<std::string, std::string> contents(const fs::path& dir) {
   std::map<std::string, std::string> m;
-  for (const auto& e : fs::directory_iterator(dir)) m[e.path().filename().string()] = testing::read_text(e.path().string());
+  for (const auto& e : fs::directory_iterator(dir))
+    m[e.path().filename().string()] = testing::read_text(e.path().string());
   return m;
 }
 
 // Set `tag` (A or B): B drops trajectory.csv (stale) and adds confusion.csv.
 Files make_set(char tag, std::size_t bytes) {
-  Files f{{"summary.csv", std::string(bytes, tag)}, {"runs.csv", std::string(bytes * 3, tag)},
+  Files f{{"summary.csv", std::string(bytes, tag)},
+          {"runs.csv", std::string(bytes * 3, tag)},
           {"manifest.json", std::string(1, tag)}};
   f.emplace_back(tag == 'A' ? "trajectory.csv" : "confusion.csv", std::string(bytes / 2 + 1, tag));
   return f;
@@ -76,7 +78,8 @@ std::vector<std::string> leftovers(const fs::path& parent, const std::string& na
 }
 
 // Runs write_output_set in a child with the environment `env` set; returns the wait status.
-int write_in_child(const fs::path& dir, const Files& files, const std::vector<std::pair<std::string, std::string>>& env) {
+int write_in_child(const fs::path& dir, const Files& files,
+                   const std::vector<std::pair<std::string, std::string>>& env) {
   const pid_t pid = ::fork();
   if (pid == 0) {
     for (const auto& [k, v] : env) ::setenv(k.c_str(), v.c_str(), 1);
@@ -147,7 +150,8 @@ TEST(OutputSet, LockExcludesASecondProcessAndNamesItsPid) {
     OutputFolderLock second(dir.string());
     ADD_FAILURE() << "a second process took the lock";
   } catch (const ScenarioError& e) {
-    EXPECT_NE(std::string(e.what()).find("PID " + std::to_string(pid)), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("PID " + std::to_string(pid)), std::string::npos)
+        << e.what();
   }
   EXPECT_THROW(write_output_set(dir.string(), make_set('A', 3), kStale), ScenarioError);
   ASSERT_EQ(::write(release[1], &c, 1), 1);
@@ -174,7 +178,8 @@ void kill_at_every_step(bool fallback, int& kills, int& mixed) {
   for (int round = 0; round < 2; ++round) {
     const char next = current == 'A' ? 'B' : 'A';
     for (int k = 1;; ++k) {
-      std::vector<std::pair<std::string, std::string>> env{{"NCOSIM_TEST_KILL_AT", std::to_string(k)}};
+      std::vector<std::pair<std::string, std::string>> env{
+          {"NCOSIM_TEST_KILL_AT", std::to_string(k)}};
       if (fallback) env.emplace_back("NCOSIM_TEST_NO_EXCHANGE", "1");
       const int status = write_in_child(dir, make_set(next, bytes), env);
       const bool killed = WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL;
@@ -187,7 +192,8 @@ void kill_at_every_step(bool fallback, int& kills, int& mixed) {
       ++kills;
       // A reader right after the kill (before any recovery) sees one set; with the fallback, a
       // kill between its two renames leaves no folder until the next writer restores it.
-      const bool whole = fs::exists(dir) ? holds(dir, current, bytes) || holds(dir, next, bytes) : fallback;
+      const bool whole =
+          fs::exists(dir) ? holds(dir, current, bytes) || holds(dir, next, bytes) : fallback;
       if (!whole) ++mixed;
       EXPECT_TRUE(whole) << "kill before step " << k;
       // The next writer restores/cleans, then writes `current` again.
@@ -228,7 +234,8 @@ TEST(OutputSet, RandomKillsLeaveTheOldOrTheNewSet) {
         }
       }
     }
-    std::this_thread::sleep_for(std::chrono::microseconds(std::uniform_int_distribution<int>(0, 20000)(rng)));
+    std::this_thread::sleep_for(
+        std::chrono::microseconds(std::uniform_int_distribution<int>(0, 20000)(rng)));
     ::kill(pid, SIGKILL);
     int status = 0;
     ::waitpid(pid, &status, 0);

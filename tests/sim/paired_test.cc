@@ -28,7 +28,7 @@ TEST(Paired, DifferenceAndRatioByHand) {
   EXPECT_NEAR(*d->ratio_half, 0.5477009, 1e-6);
   EXPECT_DOUBLE_EQ(d->dof, 2.0);
   EXPECT_FALSE(paired_difference({1, 2}, {1, 2, 3}));  // not paired
-  EXPECT_FALSE(paired_difference({1}, {1}));            // one run: no interval
+  EXPECT_FALSE(paired_difference({1}, {1}));           // one run: no interval
   EXPECT_FALSE(paired_difference({1, NAN}, {1, 2}));
 }
 
@@ -92,8 +92,8 @@ TEST(Paired, HolmKeepsTheFamilyWiseErrorOfTheWorseTests) {
     holm_errors += std::any_of(adj.begin(), adj.end(), [](double x) { return x <= 0.05; });
     raw_errors += std::any_of(p.begin(), p.end(), [](double x) { return x <= 0.05; });
   }
-  std::printf("families with a false 'worse': Holm %d, uncorrected %d of %d (bound 126)\n", holm_errors, raw_errors,
-              families);
+  std::printf("families with a false 'worse': Holm %d, uncorrected %d of %d (bound 126)\n",
+              holm_errors, raw_errors, families);
   EXPECT_LE(holm_errors, 126);
   EXPECT_GT(raw_errors, 126);
 }
@@ -138,10 +138,12 @@ TEST(Paired, DefaultReferenceIsTheFirstKalmanTypeRowAndTheFirstCase) {
   const auto loaded = load_cases(f, {});
   EXPECT_EQ(reference_estimator_index(*loaded.cases[0].scenario), 1u);
   EXPECT_EQ(reference_case_index(loaded), 0u);
-  const auto named = load_cases(f, {"paired.reference=\"ol\"", "paired.reference_case={\"plant.W\" = 2.0}"});
+  const auto named =
+      load_cases(f, {"paired.reference=\"ol\"", "paired.reference_case={\"plant.W\" = 2.0}"});
   EXPECT_EQ(reference_estimator_index(*named.cases[0].scenario), 0u);
   EXPECT_EQ(reference_case_index(named), 1u);  // loss 0.1 (first value), W = 2
-  const auto both = load_cases(f, {"paired.reference_case={\"plant.W\" = 2.0, \"link[0].loss\" = 0.5}"});
+  const auto both =
+      load_cases(f, {"paired.reference_case={\"plant.W\" = 2.0, \"link[0].loss\" = 0.5}"});
   EXPECT_EQ(reference_case_index(both), 3u);
   std::filesystem::remove(f);
 }
@@ -158,14 +160,18 @@ TEST(Paired, BadKeysNameTheKeyAndTheValidValues) {
     return std::string("no error");
   };
   const std::string ref = message({"paired.reference=\"KF\""});
-  EXPECT_NE(ref.find("key 'paired.reference': expected an estimator name (\"ol\", \"kf\"), got \"KF\""),
-            std::string::npos)
+  EXPECT_NE(
+      ref.find("key 'paired.reference': expected an estimator name (\"ol\", \"kf\"), got \"KF\""),
+      std::string::npos)
       << ref;
   const std::string key = message({"paired.reference_case={\"plant.w\" = 2.0}"});
-  EXPECT_NE(key.find("key 'paired.reference_case': expected a swept key path"), std::string::npos) << key;
+  EXPECT_NE(key.find("key 'paired.reference_case': expected a swept key path"), std::string::npos)
+      << key;
   EXPECT_NE(key.find("did you mean \"plant.W\""), std::string::npos) << key;
   const std::string value = message({"paired.reference_case={\"plant.W\" = 3.0}"});
-  EXPECT_NE(value.find("expected one of the values of \"plant.W\" (1.0, 2.0), got 3.0"), std::string::npos) << value;
+  EXPECT_NE(value.find("expected one of the values of \"plant.W\" (1.0, 2.0), got 3.0"),
+            std::string::npos)
+      << value;
   const std::string unknown = message({"paired.refrence=\"kf\""});
   EXPECT_NE(unknown.find("paired.refrence"), std::string::npos) << unknown;
   std::filesystem::remove(f);

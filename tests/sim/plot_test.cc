@@ -1,6 +1,8 @@
 // tests/sim/plot_test.cc — `ncosim plot` without gnuplot: the CSV reader, the figure kind chosen
 // for each campaign shape, the .dat files holding summary.csv's numbers as written, the quoting
 // of awkward names in the scripts, and the report's escaping and SVG id prefixing.
+#include "sim/plot.h"
+
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -9,7 +11,6 @@
 #include <sstream>
 
 #include "config/config.h"
-#include "sim/plot.h"
 #include "sim/report.h"
 
 namespace {
@@ -22,7 +23,8 @@ using ncosim::sim::PlotOptions;
 const char* kHead = "estimator,kind,runs,mse,mse_ci95,predicted_mse,status\n";
 
 fs::path temp_dir(const std::string& name) {
-  const fs::path d = fs::temp_directory_path() / ("ncosim_plot_test_" + name + "_" + std::to_string(::getpid()));
+  const fs::path d =
+      fs::temp_directory_path() / ("ncosim_plot_test_" + name + "_" + std::to_string(::getpid()));
   fs::remove_all(d);
   fs::create_directories(d);
   return d;
@@ -34,7 +36,8 @@ void write(const fs::path& p, const std::string& s) {
 }
 
 TEST(ParseCsv, QuotedFieldsKeepCommasQuotesAndLineBreaks) {
-  const CsvTable t = ncosim::sim::parse_csv("a,b\r\n\"x, \"\"y\"\"\",\"line\nbreak\"\n,\n", "t.csv");
+  const CsvTable t =
+      ncosim::sim::parse_csv("a,b\r\n\"x, \"\"y\"\"\",\"line\nbreak\"\n,\n", "t.csv");
   ASSERT_EQ(t.rows.size(), 2u);
   EXPECT_EQ(t.rows[0][0], "x, \"y\"");
   EXPECT_EQ(t.rows[0][1], "line\nbreak");
@@ -59,9 +62,11 @@ TEST(PlotKind, FollowsTheCampaignShape) {
   PlotOptions o;
   const auto one = ncosim::sim::parse_csv(std::string(kHead) + "a,jump,2,1,0.1,,ok\n", "s");
   EXPECT_EQ(ncosim::sim::summary_figure_kind(one, o), FigureKind::kPerEstimator);
-  const auto swept = ncosim::sim::parse_csv(std::string("k,") + kHead + "1,a,jump,2,1,0.1,,ok\n2,a,jump,2,1,0.1,,ok\n", "s");
+  const auto swept = ncosim::sim::parse_csv(
+      std::string("k,") + kHead + "1,a,jump,2,1,0.1,,ok\n2,a,jump,2,1,0.1,,ok\n", "s");
   EXPECT_EQ(ncosim::sim::summary_figure_kind(swept, o), FigureKind::kAgainstKey);
-  const auto two = ncosim::sim::parse_csv(std::string("k,m,") + kHead + "1,x,a,jump,2,1,0.1,,ok\n2,y,a,jump,2,1,0.1,,ok\n", "s");
+  const auto two = ncosim::sim::parse_csv(
+      std::string("k,m,") + kHead + "1,x,a,jump,2,1,0.1,,ok\n2,y,a,jump,2,1,0.1,,ok\n", "s");
   EXPECT_EQ(ncosim::sim::summary_figure_kind(two, o), FigureKind::kPanels);
   o.x_key = "m";
   o.panel_key = "k";
@@ -72,7 +77,8 @@ TEST(PlotKind, FollowsTheCampaignShape) {
   o.panel_key.clear();
   EXPECT_THROW(ncosim::sim::summary_figure_kind(two, o), ncosim::sim::ScenarioError);
   o.x_key = "k";
-  EXPECT_THROW(ncosim::sim::summary_figure_kind(one, o), ncosim::sim::ScenarioError);  // no sweep key
+  EXPECT_THROW(ncosim::sim::summary_figure_kind(one, o),
+               ncosim::sim::ScenarioError);  // no sweep key
 }
 
 // The data rows of a .dat file (comments and blank lines dropped), split on blanks.
@@ -114,11 +120,12 @@ TEST(PlotData, HoldsSummaryNumbersAsWritten) {
 // its value; the metric, CI and prediction columns as written.
 TEST(PlotData, PanelsHoldEveryCaseInBlocks) {
   const fs::path d = temp_dir("panels");
-  write(d / "summary.csv", std::string("loss,preset,") + kHead +
-                               "0.1,\"a, b\",e1,jump,4,1.5,0.25,1.4,ok\n0.1,\"a, b\",e2,jump,4,2.5,0.5,,ok\n"
-                               "0.3,\"a, b\",e1,jump,4,3.5,0.75,3.4,ok\n0.3,\"a, b\",e2,jump,4,4.5,1.5,,ok\n"
-                               "0.1,c,e1,jump,4,5.5,0.1,,ok\n0.1,c,e2,jump,4,6.5,0.2,,ok\n"
-                               "0.3,c,e1,jump,4,7.5,0.3,,ok\n0.3,c,e2,jump,4,8.5,0.4,,ok\n");
+  write(d / "summary.csv",
+        std::string("loss,preset,") + kHead +
+            "0.1,\"a, b\",e1,jump,4,1.5,0.25,1.4,ok\n0.1,\"a, b\",e2,jump,4,2.5,0.5,,ok\n"
+            "0.3,\"a, b\",e1,jump,4,3.5,0.75,3.4,ok\n0.3,\"a, b\",e2,jump,4,4.5,1.5,,ok\n"
+            "0.1,c,e1,jump,4,5.5,0.1,,ok\n0.1,c,e2,jump,4,6.5,0.2,,ok\n"
+            "0.3,c,e1,jump,4,7.5,0.3,,ok\n0.3,c,e2,jump,4,8.5,0.4,,ok\n");
   const auto figs = ncosim::sim::build_figures(d.string(), PlotOptions{});
   ASSERT_EQ(figs.size(), 1u);
   EXPECT_EQ(figs[0].kind, FigureKind::kPanels);
@@ -128,8 +135,8 @@ TEST(PlotData, PanelsHoldEveryCaseInBlocks) {
   ASSERT_EQ(rows.size(), 8u);
   EXPECT_EQ(rows[0], (std::vector<std::string>{"0.1", "1.5", "0.25", "1.4"}));  // panel "a, b", e1
   EXPECT_EQ(rows[1], (std::vector<std::string>{"0.3", "3.5", "0.75", "3.4"}));
-  EXPECT_EQ(rows[2], (std::vector<std::string>{"0.1", "2.5", "0.5", "?"}));     // panel "a, b", e2
-  EXPECT_EQ(rows[7], (std::vector<std::string>{"0.3", "8.5", "0.4", "?"}));     // panel c, e2
+  EXPECT_EQ(rows[2], (std::vector<std::string>{"0.1", "2.5", "0.5", "?"}));  // panel "a, b", e2
+  EXPECT_EQ(rows[7], (std::vector<std::string>{"0.3", "8.5", "0.4", "?"}));  // panel c, e2
   // Categorical x: the preset on x, panels per loss.
   PlotOptions o;
   o.x_key = "preset";
@@ -149,10 +156,12 @@ TEST(PlotData, PanelsHoldEveryCaseInBlocks) {
 TEST(PlotData, PairedDifferencesAreASecondFigure) {
   const fs::path d = temp_dir("paired");
   const std::string head =
-      "estimator,kind,runs,mse,mse_ci95,predicted_mse,status,paired_reference,mse_diff,mse_diff_ci95\n";
-  write(d / "summary.csv", head + "Kalman,kalman_extended,20,0.03,0.001,,ok,Kalman,,\n"
-                                  "S1,jump,20,0.08,0.003,0.1,ok,Kalman,0.05,0.002\n"
-                                  "S4,jump,20,0.0305,0.001,0.04,ok,Kalman,0.0005,0.0008\n");
+      "estimator,kind,runs,mse,mse_ci95,predicted_mse,status,paired_reference,mse_diff,mse_diff_"
+      "ci95\n";
+  write(d / "summary.csv", head +
+                               "Kalman,kalman_extended,20,0.03,0.001,,ok,Kalman,,\n"
+                               "S1,jump,20,0.08,0.003,0.1,ok,Kalman,0.05,0.002\n"
+                               "S4,jump,20,0.0305,0.001,0.04,ok,Kalman,0.0005,0.0008\n");
   const auto figs = ncosim::sim::build_figures(d.string(), PlotOptions{});
   ASSERT_EQ(figs.size(), 2u);
   EXPECT_EQ(figs[0].name, "plot_mse");
@@ -169,25 +178,32 @@ TEST(PlotData, PairedDifferencesAreASecondFigure) {
   EXPECT_NE(figs[1].title.find("reference (Kalman)"), std::string::npos) << figs[1].title;
   EXPECT_EQ(figs[0].gp.find("set xzeroaxis"), std::string::npos);
   // No value in the diff column (e.g. one run): no second figure.
-  write(d / "summary.csv", head + "Kalman,kalman_extended,1,0.03,,,ok,Kalman,,\nS1,jump,1,0.08,,,ok,Kalman,,\n");
+  write(d / "summary.csv",
+        head + "Kalman,kalman_extended,1,0.03,,,ok,Kalman,,\nS1,jump,1,0.08,,,ok,Kalman,,\n");
   EXPECT_EQ(ncosim::sim::build_figures(d.string(), PlotOptions{}).size(), 1u);
   fs::remove_all(d);
 }
 
 TEST(PlotData, LogAxisOnlyWhenTheRangeAsksForIt) {
   const fs::path d = temp_dir("log");
-  write(d / "summary.csv", std::string(kHead) + "a,jump,2,0.02,0.001,,ok\nb,open_loop,2,1.3e7,2e5,,ok\n");
-  EXPECT_NE(ncosim::sim::build_figures(d.string(), PlotOptions{})[0].gp.find("set logscale y"), std::string::npos);
-  write(d / "summary.csv", std::string(kHead) + "a,jump,2,0.02,0.001,,ok\nb,open_loop,2,0.05,0.002,,ok\n");
-  EXPECT_EQ(ncosim::sim::build_figures(d.string(), PlotOptions{})[0].gp.find("set logscale y"), std::string::npos);
+  write(d / "summary.csv",
+        std::string(kHead) + "a,jump,2,0.02,0.001,,ok\nb,open_loop,2,1.3e7,2e5,,ok\n");
+  EXPECT_NE(ncosim::sim::build_figures(d.string(), PlotOptions{})[0].gp.find("set logscale y"),
+            std::string::npos);
+  write(d / "summary.csv",
+        std::string(kHead) + "a,jump,2,0.02,0.001,,ok\nb,open_loop,2,0.05,0.002,,ok\n");
+  EXPECT_EQ(ncosim::sim::build_figures(d.string(), PlotOptions{})[0].gp.find("set logscale y"),
+            std::string::npos);
   PlotOptions on;
   on.logy = "on";
-  EXPECT_NE(ncosim::sim::build_figures(d.string(), on)[0].gp.find("set logscale y"), std::string::npos);
+  EXPECT_NE(ncosim::sim::build_figures(d.string(), on)[0].gp.find("set logscale y"),
+            std::string::npos);
   fs::remove_all(d);
 }
 
 TEST(Report, EscapesTextAndPrefixesSvgIds) {
-  EXPECT_EQ(ncosim::sim::html_escape("<b>\"a\" & 'b'</b>"), "&lt;b&gt;&quot;a&quot; &amp; &#39;b&#39;&lt;/b&gt;");
+  EXPECT_EQ(ncosim::sim::html_escape("<b>\"a\" & 'b'</b>"),
+            "&lt;b&gt;&quot;a&quot; &amp; &#39;b&#39;&lt;/b&gt;");
   const std::string svg =
       "<?xml version=\"1.0\"?>\n<!DOCTYPE svg>\n<svg><g id=\"gnuplot_canvas\"><path id='gpPt0'/>"
       "<use xlink:href='#gpPt0'/><rect fill=\"url(#grad)\"/></g></svg>";
@@ -201,8 +217,9 @@ TEST(Report, EscapesTextAndPrefixesSvgIds) {
 
 TEST(Report, SweepGetsCaseSectionsAndHighlightsStatus) {
   const fs::path d = temp_dir("report");
-  write(d / "summary.csv", std::string("k,") + kHead + "1,<a>,jump,2,1,0.1,,ok\n1,b,jump,2,2,0.1,,diverged\n"
-                                                         "2,<a>,jump,2,3,0.1,,ok\n2,b,jump,2,4,0.1,,ok\n");
+  write(d / "summary.csv", std::string("k,") + kHead +
+                               "1,<a>,jump,2,1,0.1,,ok\n1,b,jump,2,2,0.1,,diverged\n"
+                               "2,<a>,jump,2,3,0.1,,ok\n2,b,jump,2,4,0.1,,ok\n");
   const std::string h = ncosim::sim::build_report(d.string(), {});
   EXPECT_NE(h.find("id=\"case-1\""), std::string::npos);
   EXPECT_NE(h.find("id=\"case-2\""), std::string::npos);

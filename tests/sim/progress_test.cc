@@ -19,7 +19,8 @@ struct Fake {
   double now = 100.0;
   std::vector<std::string> written;
   CampaignProgress make(CampaignProgress::Mode mode) {
-    return CampaignProgress(mode, [this] { return now; }, [this](const std::string& s) { written.push_back(s); });
+    return CampaignProgress(
+        mode, [this] { return now; }, [this](const std::string& s) { written.push_back(s); });
   }
 };
 
@@ -42,7 +43,8 @@ TEST(Progress, RunsStoredBeforeCountAsDoneButNotInTheRate) {
   p.set_total(60, 24, false);
   EXPECT_EQ(p.line(100.0), "ncosim: 24/60 runs (24 stored before), 0.00 runs/s, elapsed 0s, ETA ?");
   p.add_done(12);  // 12 simulated in 4 s: 3 runs/s, 24 left: 8 s
-  EXPECT_EQ(p.line(104.0), "ncosim: 36/60 runs (24 stored before), 3.00 runs/s, elapsed 4s, ETA 8s");
+  EXPECT_EQ(p.line(104.0),
+            "ncosim: 36/60 runs (24 stored before), 3.00 runs/s, elapsed 4s, ETA 8s");
 }
 
 TEST(Progress, TargetCiSaysTheTotalIsAnUpperBound) {
@@ -52,12 +54,14 @@ TEST(Progress, TargetCiSaysTheTotalIsAnUpperBound) {
   p.set_case(0, 2, "runs 20..39");
   p.add_done(150);
   EXPECT_EQ(p.line(110.0),
-            "ncosim: case 1/2 (runs 20..39), 150 of at most 400 runs (--target-ci), 15.0 runs/s, elapsed 10s, "
+            "ncosim: case 1/2 (runs 20..39), 150 of at most 400 runs (--target-ci), 15.0 runs/s, "
+            "elapsed 10s, "
             "ETA at most 17s");
   p.set_case(0, 1, "runs 0..19");
   p.add_done(1850);  // 2000 in 10 s: no exponent
   EXPECT_EQ(p.line(110.0),
-            "ncosim: runs 0..19, 2000 of at most 400 runs (--target-ci), 200 runs/s, elapsed 10s, ETA at most 0s");
+            "ncosim: runs 0..19, 2000 of at most 400 runs (--target-ci), 200 runs/s, elapsed 10s, "
+            "ETA at most 0s");
 }
 
 // A log: the first line 2 s after the start, then at 5, 10, 15 s ... of the campaign, whatever

@@ -2,6 +2,8 @@
 // time (sim/scenario_sections.h), and the component hooks it asks instead of switching on kinds:
 // a plant that names a mobility vehicle, a link that carries a bounded number of packets. The
 // hooks are exercised with kinds registered in local registries (no global state).
+#include "sim/scenario_sections.h"
+
 #include <gtest/gtest.h>
 
 #include <memory>
@@ -10,7 +12,6 @@
 #include "error_of.h"
 #include "models/link.h"
 #include "sim/scenario.h"
-#include "sim/scenario_sections.h"
 
 namespace ncosim::sim {
 namespace {
@@ -78,8 +79,9 @@ TEST(ReadRun, RangeErrorsAndUnknownKeysNameFileLineAndKey) {
 
 TEST(ReadPlant, IsRequiredAndDefaultsToLti) {
   Reader none("[run]\nruns = 2\n");
-  EXPECT_EQ(error_of([&] { none.plant(); }),
-            "s.toml:1: key 'plant': expected a [plant] table (required: the plant model), got none");
+  EXPECT_EQ(
+      error_of([&] { none.plant(); }),
+      "s.toml:1: key 'plant': expected a [plant] table (required: the plant model), got none");
   Reader lti(kPlant);
   EXPECT_EQ(lti.plant(), "plant.A (2 plant states)");
   EXPECT_EQ(lti.sc.plant_kind, "lti");
@@ -145,7 +147,9 @@ class BoundedLink final : public models::Link {
     return p;
   }
   double loss_probability() const override { return 0.0; }
-  std::optional<PacketBound> packet_bound() const override { return PacketBound{capacity_, "capacity", "recording"}; }
+  std::optional<PacketBound> packet_bound() const override {
+    return PacketBound{capacity_, "capacity", "recording"};
+  }
 
  private:
   std::int64_t capacity_;
@@ -160,8 +164,9 @@ models::LinkRegistry bounded_links() {
 }
 
 TEST(ReadLinks, NamesAreUniqueAndKindsRegistered) {
-  Reader twice(kPlant + "[[link]]\nname = \"a\"\nkind = \"bernoulli\"\nloss = 0.1\n"
-                        "[[link]]\nname = \"a\"\nkind = \"bernoulli\"\nloss = 0.2\n");
+  Reader twice(kPlant +
+               "[[link]]\nname = \"a\"\nkind = \"bernoulli\"\nloss = 0.1\n"
+               "[[link]]\nname = \"a\"\nkind = \"bernoulli\"\nloss = 0.2\n");
   twice.plant();
   EXPECT_EQ(error_of([&] { read_links(twice.root, ".", twice.sc); }),
             "s.toml:12: key 'link[1].name': expected a unique link name, got \"a\" twice");
@@ -194,7 +199,8 @@ every = 3
   Reader r(text);
   r.links(bounded_links());
   EXPECT_EQ(error_of([&] { read_sensors(r.root, r.sc); }),
-            "s.toml:13: key 'link[0].capacity': expected a recording of at least 14 packets (one run sends 14), "
+            "s.toml:13: key 'link[0].capacity': expected a recording of at least 14 packets (one "
+            "run sends 14), "
             "got 13");
   // With 14 it holds.
   Reader ok(std::string(text).replace(text.find("capacity = 13"), 13, "capacity = 14"));
@@ -210,8 +216,9 @@ TEST(ReadSensors, AtLeastOneWithUniqueNames) {
   none.plant();
   EXPECT_EQ(error_of([&] { read_sensors(none.root, none.sc); }),
             "s.toml:1: key 'sensor': expected at least one [[sensor]] table, got none");
-  Reader twice(kPlant + "[[sensor]]\nname = \"y\"\nC = [[1.0, 0.0]]\nR = [[0.1]]\n"
-                        "[[sensor]]\nname = \"y\"\nC = [[0.0, 1.0]]\nR = [[0.1]]\n");
+  Reader twice(kPlant +
+               "[[sensor]]\nname = \"y\"\nC = [[1.0, 0.0]]\nR = [[0.1]]\n"
+               "[[sensor]]\nname = \"y\"\nC = [[0.0, 1.0]]\nR = [[0.1]]\n");
   twice.plant();
   EXPECT_EQ(error_of([&] { read_sensors(twice.root, twice.sc); }),
             "s.toml:12: key 'sensor[1].name': expected a unique sensor name, got \"y\" twice");
@@ -229,7 +236,8 @@ capacity = 9
   Reader r(base + "[[actuator]]\nlink = \"rec\"\n");
   r.links(bounded_links());
   EXPECT_EQ(error_of([&] { read_actuators(r.root, r.sc); }),
-            "s.toml:15: key 'actuator[0].link': expected a recording of at least 10 packets (one per period), got 9");
+            "s.toml:15: key 'actuator[0].link': expected a recording of at least 10 packets (one "
+            "per period), got 9");
   Reader two(base + "[[actuator]]\nlink = \"rec\"\n[[actuator]]\nlink = \"rec\"\n");
   two.links(bounded_links());
   EXPECT_EQ(error_of([&] { read_actuators(two.root, two.sc); }),
@@ -249,7 +257,8 @@ R = [[0.1]]
 [input]
 kind = "state_feedback"
 K = [[0.1, 0.1]]
-source = ")" + source + R"("
+source = ")" +
+         source + R"("
 [[estimator]]
 name = "open"
 kind = "open_loop"
@@ -274,13 +283,15 @@ TEST(ReadInputAndEstimators, TheFeedbackSourceIsAnEstimatorByName) {
   const auto in2 = read_input(typo.root, typo.sc);
   read_estimators(typo.root, typo.doc, d2, typo.sc);
   EXPECT_EQ(error_of([&] { bind_feedback_source(in2, typo.sc); }),
-            "s.toml:16: key 'input.source': expected \"plant\" or an estimator name (\"plant\", \"open\"), got "
+            "s.toml:16: key 'input.source': expected \"plant\" or an estimator name (\"plant\", "
+            "\"open\"), got "
             "\"opne\" (did you mean \"open\"?)");
 }
 
 TEST(ChooseRecentre, OnlyAnOpenLoopUnstablePlantIsRecentredByDefault) {
   auto decide = [](const std::string& a, const std::string& recentre) {
-    std::string text = kPlant + "[run]\nrecentre = \"" + recentre + "\"\n[[sensor]]\nC = [[1.0, 0.0]]\nR = [[0.1]]\n";
+    std::string text = kPlant + "[run]\nrecentre = \"" + recentre +
+                       "\"\n[[sensor]]\nC = [[1.0, 0.0]]\nR = [[0.1]]\n";
     const std::string a1 = "[[0.8821, -0.0351], [-0.0351, 0.7347]]";
     text.replace(text.find(a1), a1.size(), a);
     Reader r(text);
@@ -302,7 +313,8 @@ TEST(ChooseRecentre, OnlyAnOpenLoopUnstablePlantIsRecentredByDefault) {
   read_estimators(r.root, r.doc, driver, r.sc);
   bind_feedback_source(input, r.sc);
   EXPECT_EQ(error_of([&] { choose_recentre(r.root, r.sc); }),
-            "s.toml:9: key 'run.recentre': expected \"auto\" or \"never\" with feedback on an estimate (input.source "
+            "s.toml:9: key 'run.recentre': expected \"auto\" or \"never\" with feedback on an "
+            "estimate (input.source "
             "= \"open\"), got \"always\" (the controller would see re-centred estimates)");
 }
 

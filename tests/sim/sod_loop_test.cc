@@ -14,7 +14,8 @@ namespace ncosim::sim {
 namespace {
 
 // Loads a scenario written to a temporary file.
-std::unique_ptr<Scenario> from_text(const std::string& text, const std::vector<std::string>& sets = {}) {
+std::unique_ptr<Scenario> from_text(const std::string& text,
+                                    const std::vector<std::string>& sets = {}) {
   const auto path = std::filesystem::temp_directory_path() /
                     ("ncosim_sod_" + std::to_string(::getpid()) + "_" +
                      ::testing::UnitTest::GetInstance()->current_test_info()->name() + ".toml");
@@ -57,7 +58,8 @@ TEST(SendOnDelta, SendsWhenTheChangeReachesTheThreshold) {
   EXPECT_EQ(m[0].sensor_taken[0], 41);
   EXPECT_EQ(m[0].sensor_sent[0], 11);
   EXPECT_NEAR(m[0].sensor_virtual_sse[0][0], 10 * (0.09 + 0.36 + 0.81), 1e-9);
-  for (const auto& row : trace) EXPECT_EQ(row.arrivals[0], row.period % 4 == 0 ? 1 : 0) << row.period;
+  for (const auto& row : trace)
+    EXPECT_EQ(row.arrivals[0], row.period % 4 == 0 ? 1 : 0) << row.period;
   ASSERT_EQ(trace.size(), 41U);
   EXPECT_NEAR(trace[40].x[0], 12.0, 1e-12);  // the disturbance: x[k] = 0.3 k
 }
@@ -72,7 +74,8 @@ TEST(SendOnDelta, ZeroThresholdSendsEverySample) {
 TEST(SendOnDelta, ReaderRejectsBadThresholds) {
   EXPECT_THROW(from_text(kRamp, {"sensor[0].delta=-1.0"}), ScenarioError);
   EXPECT_THROW(from_text(kRamp, {"sensor[0].delta=[1.0, 2.0]"}), ScenarioError);
-  EXPECT_THROW(from_text(kRamp, {"sensor[0].policy=\"periodic\""}), ScenarioError);  // delta without SOD
+  EXPECT_THROW(from_text(kRamp, {"sensor[0].policy=\"periodic\""}),
+               ScenarioError);  // delta without SOD
   EXPECT_THROW(from_text(kRamp, {"sensor[0].buffer=1"}), ScenarioError);
   try {
     from_text(kRamp, {"sensor[0].policy=\"send_on_delt\""});
@@ -84,7 +87,8 @@ TEST(SendOnDelta, ReaderRejectsBadThresholds) {
 
 TEST(Disturbance, SinesAddToTheOffset) {
   // x[k+1] = x[k] + w[k], w[k] = 0.3 + 0.2 sin(0.5 k + 0.1): x[k] = sum_{j<k} w[j].
-  auto sc = from_text(kRamp, {"plant.disturbance.sine=[{amplitude = 0.2, omega = 0.5, phase = 0.1}]"});
+  auto sc =
+      from_text(kRamp, {"plant.disturbance.sine=[{amplitude = 0.2, omega = 0.5, phase = 0.1}]"});
   std::vector<TraceRow> trace;
   simulate_run(*sc, 0, &trace);
   double x = 0.0;
@@ -134,8 +138,9 @@ TEST(LoopTiming, ActuationDelayShiftsTheInput) {
 
 TEST(Relay, DeadZoneAndLevel) {
   // x0 = 2, relay level 1, dead zone 0.5 on the true output: u = -1, -1, 0, ...
-  auto sc = from_text(kLoop, {"input={kind = \"relay\", level = 1.0, dead_zone = 0.5, sees = \"true\"}",
-                              "plant.x0=[2.0]"});
+  auto sc =
+      from_text(kLoop, {"input={kind = \"relay\", level = 1.0, dead_zone = 0.5, sees = \"true\"}",
+                        "plant.x0=[2.0]"});
   std::vector<TraceRow> t;
   simulate_run(*sc, 0, &t);
   const double x[] = {2, 1, 0, 0, 0, 0};
@@ -145,15 +150,17 @@ TEST(Relay, DeadZoneAndLevel) {
     EXPECT_EQ(t[k].u[0], u[k]) << k;
   }
   // The relay needs one output per input.
-  EXPECT_THROW(from_text(kLoop, {"input={kind = \"relay\"}", "sensor=[{C = 1.0, R = 0.0}, {C = 1.0, R = 0.0}]"}),
+  EXPECT_THROW(from_text(kLoop, {"input={kind = \"relay\"}",
+                                 "sensor=[{C = 1.0, R = 0.0}, {C = 1.0, R = 0.0}]"}),
                ScenarioError);
 }
 
 TEST(Pi, ReferenceWeightingAndIntegral) {
   // u[k] = kp (b r - y[k]) + I[k], I[k+1] = I[k] + ki T (r - y[k]); x[k+1] = x[k] + u[k].
-  auto sc = from_text(kLoop, {"input={kind = \"pi\", kp = 0.4, ki = 2.0, b = 0.5, feedback = \"true\", "
-                              "reference = {kind = \"square\", low = 1.0, high = 3.0, period = 0.4}}",
-                              "run.period=0.1", "plant.x0=[0.0]"});
+  auto sc =
+      from_text(kLoop, {"input={kind = \"pi\", kp = 0.4, ki = 2.0, b = 0.5, feedback = \"true\", "
+                        "reference = {kind = \"square\", low = 1.0, high = 3.0, period = 0.4}}",
+                        "run.period=0.1", "plant.x0=[0.0]"});
   std::vector<TraceRow> t;
   simulate_run(*sc, 0, &t);
   double x = 0.0, integral = 0.0;
@@ -166,22 +173,27 @@ TEST(Pi, ReferenceWeightingAndIntegral) {
     integral += 2.0 * 0.1 * (r - x);
     x += u;
   }
-  EXPECT_THROW(from_text(kLoop, {"input={kind = \"pi\", feedback = \"nobody\", reference = {value = 1.0}}"}),
-               ScenarioError);
-  EXPECT_THROW(from_text(kLoop, {"input={kind = \"pi\", sensor = \"y9\", reference = {value = 1.0}}"}),
-               ScenarioError);
+  EXPECT_THROW(
+      from_text(kLoop, {"input={kind = \"pi\", feedback = \"nobody\", reference = {value = 1.0}}"}),
+      ScenarioError);
+  EXPECT_THROW(
+      from_text(kLoop, {"input={kind = \"pi\", sensor = \"y9\", reference = {value = 1.0}}"}),
+      ScenarioError);
 }
 
 TEST(Pi, InferentialFeedbackOnAnExactEstimateEqualsTrueFeedback) {
   // No noise and an exact initial estimate: the open-loop estimate equals x, so the PI fed
   // with it (inferential control) drives the same trajectory as the PI on the true output.
-  const std::string pi = "input={kind = \"pi\", kp = 0.3, ki = 1.0, b = 0.7, feedback = \"FB\", "
-                         "reference = {kind = \"square\", low = 0.0, high = 1.0, period = 0.4}}";
+  const std::string pi =
+      "input={kind = \"pi\", kp = 0.3, ki = 1.0, b = 0.7, feedback = \"FB\", "
+      "reference = {kind = \"square\", low = 0.0, high = 1.0, period = 0.4}}";
   auto with = [&](const std::string& fb) {
     std::string set = pi;
     set.replace(set.find("FB"), 2, fb);
     std::vector<TraceRow> t;
-    simulate_run(*from_text(kLoop, {set, "run.period=0.1", "plant.A=0.9", "estimator[0].name=\"ol\""}), 0, &t);
+    simulate_run(
+        *from_text(kLoop, {set, "run.period=0.1", "plant.A=0.9", "estimator[0].name=\"ol\""}), 0,
+        &t);
     return t;
   };
   const auto a = with("true"), b = with("ol");
@@ -199,9 +211,10 @@ TEST(SendOnDelta, RecentringIsRejectedAndNotAutomatic) {
 }
 
 TEST(Pi, SaturationHoldsTheIntegral) {
-  auto sc = from_text(kLoop, {"input={kind = \"pi\", kp = 0.0, ki = 1.0, feedback = \"true\", u_max = 0.05, "
-                              "reference = {value = 10.0}}",
-                              "plant.x0=[0.0]", "plant.A=0.0"});
+  auto sc = from_text(
+      kLoop, {"input={kind = \"pi\", kp = 0.0, ki = 1.0, feedback = \"true\", u_max = 0.05, "
+              "reference = {value = 10.0}}",
+              "plant.x0=[0.0]", "plant.A=0.0"});
   std::vector<TraceRow> t;
   simulate_run(*sc, 0, &t);
   // I[1] = 10, then u = min(I, 0.05) saturates and I stops growing: u stays 0.05.
@@ -245,9 +258,10 @@ TEST(SodKalman, WithPeriodicSensorsIsTheKalmanFilter) {
 TEST(SodKalman, VirtualNoiseHelpsOnHeldMeasurements) {
   // With send-on-delta sensors, treating held values as fresh (factor 0) is worse than the
   // Delta^2/3 virtual noise; the sends counted are the same for both (one sensor stream).
-  const std::vector<std::string> sod{"sensor[0].policy=\"send_on_delta\"", "sensor[0].delta=0.3",
-                                     "sensor[1].policy=\"send_on_delta\"", "sensor[1].delta=0.3",
-                                     "estimator[0].kind=\"sod_kalman\"", "estimator[0].virtual_variance_factor=0.0"};
+  const std::vector<std::string> sod{
+      "sensor[0].policy=\"send_on_delta\"", "sensor[0].delta=0.3",
+      "sensor[1].policy=\"send_on_delta\"", "sensor[1].delta=0.3",
+      "estimator[0].kind=\"sod_kalman\"",   "estimator[0].virtual_variance_factor=0.0"};
   auto sc = from_text(kTwoSensors, sod);
   CampaignOptions opt;
   opt.time_estimators = false;
@@ -265,7 +279,8 @@ TEST(SodKalman, VirtualNoiseHelpsOnHeldMeasurements) {
     (void)from_text(kTwoSensors, {"estimator[1].delta=[0.1, -0.5]"});
     ADD_FAILURE() << "a negative threshold was accepted";
   } catch (const ScenarioError& e) {
-    EXPECT_NE(std::string(e.what()).find("thresholds >= 0 (one per output), got [0.1, -0.5]"), std::string::npos)
+    EXPECT_NE(std::string(e.what()).find("thresholds >= 0 (one per output), got [0.1, -0.5]"),
+              std::string::npos)
         << e.what();
   }
 }

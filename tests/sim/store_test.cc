@@ -10,8 +10,8 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
-#include <map>
 #include <limits>
+#include <map>
 
 #include "config/config.h"
 #include "sim/batch.h"
@@ -28,7 +28,8 @@ using testing::source_path;
 struct TempDir {
   fs::path path;
   explicit TempDir(const std::string& name)
-      : path(fs::temp_directory_path() / ("ncosim_store_" + name + "_" + std::to_string(::getpid()))) {
+      : path(fs::temp_directory_path() /
+             ("ncosim_store_" + name + "_" + std::to_string(::getpid()))) {
     fs::remove_all(path);
     fs::create_directories(path);
   }
@@ -58,13 +59,16 @@ EstimatorRunMetrics sample_metrics(int salt) {
   return m;
 }
 
-bool same_bits(double a, double b) { return std::bit_cast<std::uint64_t>(a) == std::bit_cast<std::uint64_t>(b); }
+bool same_bits(double a, double b) {
+  return std::bit_cast<std::uint64_t>(a) == std::bit_cast<std::uint64_t>(b);
+}
 
 void expect_identical(const EstimatorRunMetrics& a, const EstimatorRunMetrics& b) {
   EXPECT_TRUE(same_bits(a.sse, b.sse));
   EXPECT_TRUE(same_bits(a.sse_ext, b.sse_ext));
   ASSERT_EQ(a.sse_state.size(), b.sse_state.size());
-  for (std::size_t i = 0; i < a.sse_state.size(); ++i) EXPECT_TRUE(same_bits(a.sse_state[i], b.sse_state[i]));
+  for (std::size_t i = 0; i < a.sse_state.size(); ++i)
+    EXPECT_TRUE(same_bits(a.sse_state[i], b.sse_state[i]));
   EXPECT_EQ(a.count, b.count);
   EXPECT_EQ(a.samples_used, b.samples_used);
   EXPECT_EQ(a.samples_taken, b.samples_taken);
@@ -149,7 +153,8 @@ TEST(RunStore, LinkCountersAreStoredPerRunAndAStoreWithoutThemStillReads) {
   const std::string path = store_path(dir.path.string());
   {
     RunStore s = RunStore::create(path, {});
-    s.put_runs({{0, 2, {sample_metrics(1)}, sample_links()}, {0, 0, {sample_metrics(2)}, std::nullopt}});
+    s.put_runs(
+        {{0, 2, {sample_metrics(1)}, sample_links()}, {0, 0, {sample_metrics(2)}, std::nullopt}});
     s.close();
   }
   {
@@ -186,10 +191,13 @@ TEST(RunStore, RunsCommitInBatchesAndReadBackInRunOrder) {
   {
     RunStore s = RunStore::create(path, {{"seed", "7"}, {"scenario_text", "title = \"x\"\n"}});
     s.put_estimators(0, {"kf", "s1"});
-    s.put_runs({{0, 3, {sample_metrics(3), sample_metrics(4)}, std::nullopt}, {0, 1, {sample_metrics(1), sample_metrics(2)}, std::nullopt}});
+    s.put_runs({{0, 3, {sample_metrics(3), sample_metrics(4)}, std::nullopt},
+                {0, 1, {sample_metrics(1), sample_metrics(2)}, std::nullopt}});
     s.put_runs({{1, 0, {sample_metrics(5), sample_metrics(6)}, std::nullopt}});
     // A duplicate (case, run) fails the whole batch: nothing of it is stored.
-    EXPECT_THROW(s.put_runs({{0, 5, {sample_metrics(1)}, std::nullopt}, {0, 3, {sample_metrics(1)}, std::nullopt}}), StoreError);
+    EXPECT_THROW(s.put_runs({{0, 5, {sample_metrics(1)}, std::nullopt},
+                             {0, 3, {sample_metrics(1)}, std::nullopt}}),
+                 StoreError);
     EXPECT_EQ(s.count_runs(), 3);
     s.put_timing(0, {12.5, std::nan("")});
     s.put_artifact("trajectory.csv", "period,x1\n0,1\n");
@@ -246,7 +254,8 @@ TEST(Shard, SyntaxAndOwnership) {
 }
 
 TEST(Campaign, RunSubsetsThroughTheSinkEqualTheFullCampaign) {
-  auto sc = load_one(source_path("scenarios/dolz2014_table2.toml"), {"run.runs=6", "run.periods=600"});
+  auto sc =
+      load_one(source_path("scenarios/dolz2014_table2.toml"), {"run.runs=6", "run.periods=600"});
   CampaignOptions full;
   full.threads = 2;
   full.time_estimators = false;
@@ -267,7 +276,8 @@ TEST(Campaign, RunSubsetsThroughTheSinkEqualTheFullCampaign) {
   for (const auto& [r, m] : got) {
     for (std::size_t e = 0; e < m.size(); ++e) expect_identical(m[e], all.runs[r][e]);
   }
-  // The link counters too: one per flow (2 sensors behind 2 links), the same as the full campaign's.
+  // The link counters too: one per flow (2 sensors behind 2 links), the same as the full
+  // campaign's.
   ASSERT_EQ(all.link_runs.size(), 6u);
   for (const auto& [r, l] : got_links) {
     ASSERT_EQ(l.size(), 2u);
@@ -280,7 +290,8 @@ TEST(Campaign, RunSubsetsThroughTheSinkEqualTheFullCampaign) {
   const CampaignResult uncounted = run_campaign(*sc, off);
   EXPECT_TRUE(uncounted.link_runs.empty());
   for (std::size_t r = 0; r < 6; ++r) {
-    for (std::size_t e = 0; e < all.runs[r].size(); ++e) expect_identical(uncounted.runs[r][e], all.runs[r][e]);
+    for (std::size_t e = 0; e < all.runs[r].size(); ++e)
+      expect_identical(uncounted.runs[r][e], all.runs[r][e]);
   }
   // A stop flag already set: no run starts.
   std::atomic<int> stop{15};

@@ -39,11 +39,16 @@ std::size_t count(const std::string& text, const std::string& what) {
 // with their own numbers, a Kalman and an open-loop row without a note.
 std::vector<ViewColumn> flagship_like() {
   const std::string why =
-      "design model not followed (physical packets on delay links 'net1', 'net2': one copy per sample, several "
+      "design model not followed (physical packets on delay links 'net1', 'net2': one copy per "
+      "sample, several "
       "possible delays <= max_delay; the design assumes independent copies per delay)";
   std::vector<ViewColumn> cols{
-      {"estimator", "estimator", {"S1, 1 gain", "S2, 2 gains", "S3, 4 gains", "S3, 8 gains", "S4, 60 gains", "Kalman",
-                                  "open loop"}, 0, false},
+      {"estimator",
+       "estimator",
+       {"S1, 1 gain", "S2, 2 gains", "S3, 4 gains", "S3, 8 gains", "S4, 60 gains", "Kalman",
+        "open loop"},
+       0,
+       false},
       {"mse", "mse ± 95% CI", {}, 1, false},
       {"mse_ext", "mse_ext ± 95% CI", {}, 3, false},
       {"predicted_mse_ext", "pred. mse_ext", {}, 4, false},
@@ -59,14 +64,15 @@ std::vector<ViewColumn> flagship_like() {
     cols[5].cells.push_back(r < 5 ? "0.006145 ± 0.0019" : "–");
     cols[6].cells.push_back("0.1714");
     cols[7].cells.push_back("0.06273");
-    cols[8].cells.push_back(r < 5 ? why + ": predicted mse_ext 0.0" + std::to_string(5 + r) + ", simulated 0.04" : "");
+    cols[8].cells.push_back(
+        r < 5 ? why + ": predicted mse_ext 0.0" + std::to_string(5 + r) + ", simulated 0.04" : "");
   }
   return cols;
 }
 
 std::vector<std::string> flagship_labels() {
-  return {"\"S1, 1 gain\"", "\"S2, 2 gains\"", "\"S3, 4 gains\"", "\"S3, 8 gains\"", "\"S4, 60 gains\"", "\"Kalman\"",
-          "\"open loop\""};
+  return {"\"S1, 1 gain\"",   "\"S2, 2 gains\"", "\"S3, 4 gains\"", "\"S3, 8 gains\"",
+          "\"S4, 60 gains\"", "\"Kalman\"",      "\"open loop\""};
 }
 
 TEST(TableView, FlagshipLikeTableFits120WithTheSharedNotePrintedOnce) {
@@ -77,7 +83,8 @@ TEST(TableView, FlagshipLikeTableFits120WithTheSharedNotePrintedOnce) {
   EXPECT_EQ(count(out, "design model not followed"), 1u) << out;
   EXPECT_EQ(count(out, "| [1]"), 5u) << out;
   EXPECT_EQ(count(out, "[2]"), 0u) << out;
-  EXPECT_NE(out.find("\"S4, 60 gains\": predicted mse_ext 0.09, simulated 0.04"), std::string::npos) << out;
+  EXPECT_NE(out.find("\"S4, 60 gains\": predicted mse_ext 0.09, simulated 0.04"), std::string::npos)
+      << out;
   EXPECT_NE(out.find("diverged (expected)"), std::string::npos);
   // Left out by priority (the rmse columns first), named by their summary.csv names in one line.
   EXPECT_EQ(std::count(kept.begin(), kept.end(), "rmse_x1"), 0);
@@ -91,15 +98,21 @@ TEST(TableView, NothingLeftOutWhenItFits) {
   std::vector<ViewColumn> cols{{"estimator", "estimator", {"a", "b"}, 0, false},
                                {"status", "status", {"ok", "ok"}, 1, false}};
   const std::string out = fit_table(cols, {"a", "b"}, 120, true);
-  EXPECT_EQ(out, "| estimator | status |\n|-----------|--------|\n| a         | ok     |\n| b         | ok     |\n");
+  EXPECT_EQ(out,
+            "| estimator | status |\n|-----------|--------|\n| a         | ok     |\n| b         | "
+            "ok     |\n");
 }
 
 TEST(TableView, ManySweepKeysLeaveOutLowerPrioritiesAndNeverWrap) {
   // Eight sweep keys of 16 characters: the identity alone is 153 wide, wider than 120. Every
   // other column goes, the rows stay whole (one line each), and the line says what went.
   std::vector<ViewColumn> cols;
-  for (int k = 0; k < 8; ++k) cols.push_back({fmt::format("link[{}].delivery", k), fmt::format("link[{}].delivery", k),
-                                              {"0.5", "0.9"}, 0, false});
+  for (int k = 0; k < 8; ++k)
+    cols.push_back({fmt::format("link[{}].delivery", k),
+                    fmt::format("link[{}].delivery", k),
+                    {"0.5", "0.9"},
+                    0,
+                    false});
   cols.push_back({"estimator", "estimator", {"kf", "jump"}, 0, false});
   cols.push_back({"mse", "mse ± 95% CI", {"1 ± 0.1", "2 ± 0.2"}, 1, false});
   cols.push_back({"status", "status", {"ok", "ok"}, 1, false});
@@ -117,9 +130,11 @@ TEST(TableView, ChosenColumnsAreNeverLeftOutAndLongCellsBecomeFootnotes) {
   const std::string long_status = "design_unstable: p0 rho(A)^2 = 1.7 >= 1 (no stable design)";
   std::vector<ViewColumn> cols{{"estimator", "estimator", {"a", "b", "c"}, 0, false},
                                {"status", "status", {long_status, long_status, "ok"}, 1, false}};
-  const std::string out = fit_table(cols, {"a", "b", "c"}, 20, false);  // the table is 22 wide: kept whole
+  const std::string out =
+      fit_table(cols, {"a", "b", "c"}, 20, false);  // the table is 22 wide: kept whole
   EXPECT_EQ(out.rfind("| estimator | status |\n", 0), 0u) << out;
-  EXPECT_EQ(count(out, "[1] design_unstable:"), 1u) << out;  // one footnote for both rows, wrapped at 20
+  EXPECT_EQ(count(out, "[1] design_unstable:"), 1u)
+      << out;  // one footnote for both rows, wrapped at 20
   EXPECT_EQ(count(out, "| [1]"), 2u) << out;
   EXPECT_EQ(out.find("Left out"), std::string::npos) << out;
 }
@@ -131,7 +146,8 @@ TEST(TableView, WrapTextBreaksAtSpacesWithAHangingIndent) {
 }
 
 TEST(TableView, ColumnListAndFormatAreChecked) {
-  EXPECT_EQ(parse_column_list("mse, status ,estimator"), (std::vector<std::string>{"mse", "status", "estimator"}));
+  EXPECT_EQ(parse_column_list("mse, status ,estimator"),
+            (std::vector<std::string>{"mse", "status", "estimator"}));
   EXPECT_THROW(parse_column_list("mse,,status"), ScenarioError);
   EXPECT_THROW(parse_column_list(""), ScenarioError);
   const std::vector<std::string> valid{"estimator", "mse", "status", "expected_status"};
@@ -141,14 +157,17 @@ TEST(TableView, ColumnListAndFormatAreChecked) {
     ADD_FAILURE() << "no error";
   } catch (const ScenarioError& e) {
     const std::string m = e.what();
-    EXPECT_NE(m.find("--columns: no summary.csv column \"msee\" (did you mean \"mse\"?)"), std::string::npos) << m;
+    EXPECT_NE(m.find("--columns: no summary.csv column \"msee\" (did you mean \"mse\"?)"),
+              std::string::npos)
+        << m;
     EXPECT_NE(m.find("estimator, mse, status, expected_status"), std::string::npos) << m;
   }
   try {
     check_table_request({{}, "xml"}, valid);
     ADD_FAILURE() << "no error";
   } catch (const ScenarioError& e) {
-    EXPECT_NE(std::string(e.what()).find("--format: expected md, csv or json, got \"xml\""), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("--format: expected md, csv or json, got \"xml\""),
+              std::string::npos);
   }
 }
 
@@ -187,7 +206,8 @@ TEST(ExpectedStatus, IsTheLastColumnOfSummaryCsvAfterStop) {
   EXPECT_TRUE(lines[1].ends_with("," + no_statistic)) << lines[1];  // not declared: empty
   EXPECT_TRUE(lines[2].ends_with(",diverged" + no_statistic)) << lines[2];
   a.stop = b.stop = "target_ci";
-  EXPECT_TRUE(lines_of(summary_csv({}, {a, b}, 1))[0].ends_with(",model_check,stop,expected_status" + consistency));
+  EXPECT_TRUE(lines_of(summary_csv({}, {a, b}, 1))[0].ends_with(
+      ",model_check,stop,expected_status" + consistency));
   const auto cols = summary_csv_columns({}, 1, true);
   EXPECT_EQ(cols[cols.size() - 8], "expected_status");
 }

@@ -43,7 +43,9 @@ TEST(ModelCheck, IndependentCopiesFollowTheModelAndAreCheckedAgainstTheMonteCarl
   SummaryRow none = s4_row(*sc, p, 0.001);
   none.mse_ext.reset();
   none.status = "diverged";
-  EXPECT_EQ(model_check_note(*sc, kS4, none).rfind("no simulated mse_ext to check (status diverged)", 0), 0u);
+  EXPECT_EQ(
+      model_check_note(*sc, kS4, none).rfind("no simulated mse_ext to check (status diverged)", 0),
+      0u);
   // The Kalman filter has no prediction: no note.
   SummaryRow kf;
   kf.runs = 20;
@@ -55,8 +57,10 @@ TEST(ModelCheck, DeparturesFromTheDesignModelAreNamed) {
   // The flagship as committed: physical packets, delays 0 and 1 both possible.
   auto phys = load_one(kTable2);
   const std::string d = design_model_departure(*phys, kS4);
-  EXPECT_EQ(d, "physical packets on delay links 'net1', 'net2': one copy per sample, several possible delays <= "
-               "max_delay; the design assumes independent copies per delay");
+  EXPECT_EQ(d,
+            "physical packets on delay links 'net1', 'net2': one copy per sample, several possible "
+            "delays <= "
+            "max_delay; the design assumes independent copies per delay");
   const std::string note = model_check_note(*phys, kS4, s4_row(*phys, 0.0449, 0.0004));
   EXPECT_EQ(note.rfind("design model not followed (physical packets", 0), 0u) << note;
   EXPECT_NE(note.find("simulated 0.0449"), std::string::npos) << note;
@@ -64,11 +68,15 @@ TEST(ModelCheck, DeparturesFromTheDesignModelAreNamed) {
   auto d0 = load_one(kTable2, {"estimator[4].max_delay=0"});
   EXPECT_EQ(design_model_departure(*d0, kS4), "");
   // Bursty losses.
-  auto ge = load_one(kTable2, {"link=[{name=\"net1\", kind=\"gilbert_elliott\", p_good_to_bad=0.1, p_bad_to_good=0.3}, "
-                               "{name=\"net2\", kind=\"delay\", pmf=[0.3761, 0.3403]}]"});
+  auto ge = load_one(
+      kTable2,
+      {"link=[{name=\"net1\", kind=\"gilbert_elliott\", p_good_to_bad=0.1, p_bad_to_good=0.3}, "
+       "{name=\"net2\", kind=\"delay\", pmf=[0.3761, 0.3403]}]"});
   EXPECT_EQ(design_model_departure(*ge, kS4),
-            "link 'net1' (gilbert_elliott): bursty or recorded losses; the design uses only the marginal law; "
-            "physical packets on delay link 'net2': one copy per sample, several possible delays <= max_delay; the "
+            "link 'net1' (gilbert_elliott): bursty or recorded losses; the design uses only the "
+            "marginal law; "
+            "physical packets on delay link 'net2': one copy per sample, several possible delays "
+            "<= max_delay; the "
             "design assumes independent copies per delay");
 }
 

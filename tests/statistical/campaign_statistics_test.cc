@@ -1,12 +1,11 @@
 // tests/statistical/campaign_statistics_test.cc — Monte Carlo properties of whole campaigns,
 // with bounds from the number of runs (Release only: too long under the sanitizers).
-#include "sim/campaign.h"
-
 #include <gtest/gtest.h>
 
 #include <boost/math/distributions/students_t.hpp>
 #include <cmath>
 
+#include "sim/campaign.h"
 #include "sim/output.h"
 #include "test_util.h"
 
@@ -37,15 +36,16 @@ std::vector<double> per_run(const CampaignResult& r, int e, bool ext) {
 
 // Two-sided 99.9% Student-t quantile for n - 1 degrees of freedom.
 double t999(std::size_t n) {
-  return boost::math::quantile(boost::math::complement(boost::math::students_t(static_cast<double>(n - 1)), 0.0005));
+  return boost::math::quantile(
+      boost::math::complement(boost::math::students_t(static_cast<double>(n - 1)), 0.0005));
 }
 
 TEST(CampaignStatistics, SimulatedS4MatchesItsPredictionUnderTheDesignModel) {
   // With independent copies per fictitious sensor (Dolz Remark 2.3) the simulation is the
   // design model, so the time-averaged |xbar - xhat|^2 of S4 (Nbar = 4) must equal tr(Pt) of
   // the corrected eq. (28) within Monte Carlo error: |mean - predicted| < t_0.999 * SE.
-  auto sc = load_one(kTable2, {"link[0].independent=true", "link[1].independent=true", "run.runs=24",
-                               "run.periods=40000"});
+  auto sc = load_one(kTable2, {"link[0].independent=true", "link[1].independent=true",
+                               "run.runs=24", "run.periods=40000"});
   CampaignOptions opt;
   opt.time_estimators = false;
   const CampaignResult r = run_campaign(*sc, opt);
@@ -56,9 +56,11 @@ TEST(CampaignStatistics, SimulatedS4MatchesItsPredictionUnderTheDesignModel) {
   mean /= static_cast<double>(v.size());
   double ss = 0.0;
   for (double x : v) ss += (x - mean) * (x - mean);
-  const double se = std::sqrt(ss / static_cast<double>(v.size() - 1) / static_cast<double>(v.size()));
+  const double se =
+      std::sqrt(ss / static_cast<double>(v.size() - 1) / static_cast<double>(v.size()));
   const double half = t999(v.size()) * se;
-  const double predicted = sc->estimators[static_cast<std::size_t>(s4)].design->report().predicted_mse_ext.value();
+  const double predicted =
+      sc->estimators[static_cast<std::size_t>(s4)].design->report().predicted_mse_ext.value();
   std::printf("S4 simulated %.5f, predicted %.5f, 99.9%% half-width %.5f\n", mean, predicted, half);
   EXPECT_LT(std::abs(mean - predicted), half);
   EXPECT_LT(half, 0.05 * predicted) << "the test must be sharp: the interval is wider than 5%";
@@ -67,8 +69,9 @@ TEST(CampaignStatistics, SimulatedS4MatchesItsPredictionUnderTheDesignModel) {
 TEST(CampaignStatistics, KalmanIsNeverWorseAndOpenLoopNeverBetterOnTheSameRealisation) {
   // Paired per run (common random numbers): for every jump observer J,
   // mean(mse_J - mse_KF) > -t_0.999 SE, and open loop is worse than every other estimator.
-  auto sc = load_one(kTable2, {"run.runs=12", "run.periods=20000", "run.recentre=\"never\"",
-                               "plant.A=[[0.8821, -0.0351], [-0.0351, 0.7347]]"});  // A1: open loop finite
+  auto sc = load_one(kTable2,
+                     {"run.runs=12", "run.periods=20000", "run.recentre=\"never\"",
+                      "plant.A=[[0.8821, -0.0351], [-0.0351, 0.7347]]"});  // A1: open loop finite
   CampaignOptions opt;
   opt.time_estimators = false;
   const CampaignResult r = run_campaign(*sc, opt);
@@ -88,10 +91,12 @@ TEST(CampaignStatistics, KalmanIsNeverWorseAndOpenLoopNeverBetterOnTheSameRealis
     mean /= static_cast<double>(d.size());
     double ss = 0.0;
     for (double x : d) ss += (x - mean) * (x - mean);
-    const double se = std::sqrt(ss / static_cast<double>(d.size() - 1) / static_cast<double>(d.size()));
+    const double se =
+        std::sqrt(ss / static_cast<double>(d.size() - 1) / static_cast<double>(d.size()));
     EXPECT_GT(mean, -t999(d.size()) * se) << sc->estimators[e].name << " beats the Kalman filter";
     for (std::size_t i = 0; i < v.size(); ++i) {
-      EXPECT_LT(v[i], ol_mse[i]) << sc->estimators[e].name << " is worse than open loop in run " << i;
+      EXPECT_LT(v[i], ol_mse[i]) << sc->estimators[e].name << " is worse than open loop in run "
+                                 << i;
     }
   }
 }

@@ -1,17 +1,16 @@
 // tests/statistical/compare_statistics_test.cc — `ncosim compare` as a CI gate on the flagship
 // (Dolz et al. 2014, Table 2; 20 runs x 20000 periods): an injected regression of one row is
 // flagged at every one of 20 seeds, and an unchanged build is not.
-#include "sim/compare.h"
-
 #include <gtest/gtest.h>
 
-#include <boost/math/distributions/binomial.hpp>
 #include <algorithm>
+#include <boost/math/distributions/binomial.hpp>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 
 #include "sim/campaign.h"
+#include "sim/compare.h"
 #include "sim/paired.h"
 #include "test_util.h"
 
@@ -32,10 +31,13 @@ std::unique_ptr<Scenario> flagship_with_variants() {
   std::string text = read_text(source_path("scenarios/dolz2014_table2.toml"));
   for (int h : {2, 3}) {
     text += "\n[[estimator]]\nname = \"S4 h" + std::to_string(h) +
-            "\"\nkind = \"jump\"\ngrouping = \"S4\"\nhistory = " + std::to_string(h) + "\nmax_delay = 1\n";
+            "\"\nkind = \"jump\"\ngrouping = \"S4\"\nhistory = " + std::to_string(h) +
+            "\nmax_delay = 1\n";
   }
-  text += "\n[[estimator]]\nname = \"S1 ccl\"\nkind = \"jump\"\ngrouping = \"S1\"\nhistory = 1\nmax_delay = 1\n"
-          "design = \"ccl\"\n";
+  text +=
+      "\n[[estimator]]\nname = \"S1 ccl\"\nkind = \"jump\"\ngrouping = \"S1\"\nhistory = "
+      "1\nmax_delay = 1\n"
+      "design = \"ccl\"\n";
   const auto p = std::filesystem::temp_directory_path() / "ncosim_compare_flagship.toml";
   std::ofstream(p) << text;
   auto sc = testing::load_one(p.string());
@@ -45,8 +47,8 @@ std::unique_ptr<Scenario> flagship_with_variants() {
 
 // A run folder as read_run_folder() would give for the 7 flagship rows; the row named `row`
 // takes its values from the estimator `from`.
-RunFolder folder(const Scenario& sc, const CampaignResult& r, std::uint64_t seed, const std::string& row_name = "",
-                 const std::string& from = "") {
+RunFolder folder(const Scenario& sc, const CampaignResult& r, std::uint64_t seed,
+                 const std::string& row_name = "", const std::string& from = "") {
   RunFolder f;
   f.dir = "seed" + std::to_string(seed);
   f.scenario = "scenarios/dolz2014_table2.toml";
@@ -65,7 +67,8 @@ RunFolder folder(const Scenario& sc, const CampaignResult& r, std::uint64_t seed
       const auto& m = r.runs[run][src];
       row.run.push_back(static_cast<std::int64_t>(run));
       row.diverged.push_back(m.diverged);
-      row.value.push_back(m.diverged ? std::nullopt : std::optional<double>(m.sse / static_cast<double>(m.count)));
+      row.value.push_back(m.diverged ? std::nullopt
+                                     : std::optional<double>(m.sse / static_cast<double>(m.count)));
     }
     f.rows.push_back(std::move(row));
   }
@@ -127,10 +130,12 @@ TEST(CompareStatistics, InjectedRegressionIsFlaggedAndAnUnchangedBuildIsNotOver2
   std::sort(gain_mse.begin(), gain_mse.end());
   std::sort(gain_close.begin(), gain_close.end());
   ASSERT_EQ(sc->estimators[8].name, "S4 h3");
-  std::printf("S4 vs Kalman, Welch / paired half-width over %zu seeds: mse_ext min %.2f median %.2f max %.2f; "
-              "mse min %.2f median %.2f max %.2f\n",
-              gain_ext.size(), gain_ext.front(), gain_ext[gain_ext.size() / 2], gain_ext.back(), gain_mse.front(),
-              gain_mse[gain_mse.size() / 2], gain_mse.back());
+  std::printf(
+      "S4 vs Kalman, Welch / paired half-width over %zu seeds: mse_ext min %.2f median %.2f max "
+      "%.2f; "
+      "mse min %.2f median %.2f max %.2f\n",
+      gain_ext.size(), gain_ext.front(), gain_ext[gain_ext.size() / 2], gain_ext.back(),
+      gain_mse.front(), gain_mse[gain_mse.size() / 2], gain_mse.back());
   std::printf("S4 history 3 vs 4, mse: min %.1f median %.1f max %.1f\n", gain_close.front(),
               gain_close[gain_close.size() / 2], gain_close.back());
   // Pairing must gain at every seed; on close rows at least the 5x the issue asks for.
@@ -159,8 +164,8 @@ TEST(CompareStatistics, InjectedRegressionIsFlaggedAndAnUnchangedBuildIsNotOver2
     // Unchanged build, same seed: identical runs.csv (paired, zero differences).
     fp_same_seed += compare_folders(base, base, o).exit_code();
     // Unchanged build, another seed: nothing to pair, Welch on every row.
-    const RunFolder other =
-        folder(*sc, results[static_cast<std::size_t>(seeds + i)], seed_of[static_cast<std::size_t>(seeds + i)]);
+    const RunFolder other = folder(*sc, results[static_cast<std::size_t>(seeds + i)],
+                                   seed_of[static_cast<std::size_t>(seeds + i)]);
     const CompareResult u = compare_folders(base, other, o);
     for (const auto& row : u.rows) {
       if (row.test != "none") {
@@ -171,15 +176,17 @@ TEST(CompareStatistics, InjectedRegressionIsFlaggedAndAnUnchangedBuildIsNotOver2
   }
   // A false "worse" in a family of 6 Holm-corrected rows has probability <= 0.05 per seed: the
   // 99.9 % upper bound of Binomial(20, 0.05) bounds the unpaired false-positive count.
-  const double bound =
-      boost::math::quantile(boost::math::complement(boost::math::binomial_distribution<>(seeds, 0.05), 0.001));
+  const double bound = boost::math::quantile(
+      boost::math::complement(boost::math::binomial_distribution<>(seeds, 0.05), 0.001));
   for (const auto& in : inj) {
-    std::printf("%s: %s -> %s, mean change %+.3f %%: flagged worse at %d/%d seeds; other rows flagged %d\n", in.row,
-                in.base_from, in.new_from, 100.0 * in.relative, in.flagged, seeds, in.others);
+    std::printf(
+        "%s: %s -> %s, mean change %+.3f %%: flagged worse at %d/%d seeds; other rows flagged %d\n",
+        in.row, in.base_from, in.new_from, 100.0 * in.relative, in.flagged, seeds, in.others);
     EXPECT_EQ(in.others, 0);
   }
-  std::printf("unchanged build: false positives same seed %d/%d, other seed (Welch) %d/%d (bound %g)\n", fp_same_seed,
-              seeds, fp_other_seed, seeds, bound);
+  std::printf(
+      "unchanged build: false positives same seed %d/%d, other seed (Welch) %d/%d (bound %g)\n",
+      fp_same_seed, seeds, fp_other_seed, seeds, bound);
   EXPECT_EQ(inj[0].flagged, seeds);  // +0.75 %
   EXPECT_EQ(inj[1].flagged, seeds);  // +1.9 %
   EXPECT_EQ(fp_same_seed, 0);

@@ -1,13 +1,13 @@
 // tests/statistical/consistency_statistics_test.cc — the error curve against the Kalman
 // filter's covariance recursion, and the NEES/NIS consistency check on a correctly tuned and a
 // mistuned filter (fixed seeds; bounds from the number of runs).
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <boost/math/distributions/normal.hpp>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
-#include <fmt/format.h>
 
 #include "sim/campaign.h"
 #include "sim/output.h"
@@ -46,8 +46,10 @@ link = "l2"
 
 // Sensor 1's link loses `loss` of its packets, sensor 2's none; no delay.
 std::string links(double loss) {
-  return fmt::format("\n[[link]]\nname = \"l1\"\nkind = \"bernoulli\"\nloss = {}\n\n"
-                     "[[link]]\nname = \"l2\"\nkind = \"bernoulli\"\nloss = 0.0\n", loss);
+  return fmt::format(
+      "\n[[link]]\nname = \"l1\"\nkind = \"bernoulli\"\nloss = {}\n\n"
+      "[[link]]\nname = \"l2\"\nkind = \"bernoulli\"\nloss = 0.0\n",
+      loss);
 }
 
 std::string write_scenario(const std::string& name, const std::string& text) {
@@ -106,7 +108,8 @@ kind = "kalman_extended"
   for (int k = 1; k < kPeriods; ++k) {
     const double half = z * r.curve.ci95(k, 0);
     EXPECT_NEAR(r.curve.mean(k, 0), tr[static_cast<std::size_t>(k)], half) << "period " << k;
-    EXPECT_LT(half, 0.12 * tr[static_cast<std::size_t>(k)]) << "the band is too wide to test anything";
+    EXPECT_LT(half, 0.12 * tr[static_cast<std::size_t>(k)])
+        << "the band is too wide to test anything";
   }
   EXPECT_GT(tr[10], 1.5 * tr[1]);  // the transient is visible
 }
@@ -144,9 +147,9 @@ TEST(ConsistencyStatistics, ATunedKalmanFilterIsConsistentAndOneWithQTimesPointO
   for (const auto& r : tuned) {
     ASSERT_TRUE(r.nees.has_value()) << r.estimator;
     ASSERT_TRUE(r.nis.has_value()) << r.estimator;
-    EXPECT_EQ(r.consistency, "ok") << r.estimator << ": nees " << r.nees->mean << " in [" << r.nees->lo << ", "
-                                   << r.nees->hi << "], nis " << r.nis->mean << " in [" << r.nis->lo << ", "
-                                   << r.nis->hi << "]";
+    EXPECT_EQ(r.consistency, "ok")
+        << r.estimator << ": nees " << r.nees->mean << " in [" << r.nees->lo << ", " << r.nees->hi
+        << "], nis " << r.nis->mean << " in [" << r.nis->lo << ", " << r.nis->hi << "]";
     EXPECT_NEAR(r.nees->mean, 2.0, 0.1) << r.estimator;
     // One update of 1 or 2 rows per period: the expected NIS is the mean rows per update (1.7).
     EXPECT_NEAR(r.nis->mean, 1.7, 0.1) << r.estimator;
@@ -157,7 +160,8 @@ TEST(ConsistencyStatistics, ATunedKalmanFilterIsConsistentAndOneWithQTimesPointO
   const SummaryRow& bad = mistuned[1];
   ASSERT_TRUE(bad.nees.has_value());
   EXPECT_GT(bad.nees->mean, bad.nees->hi);
-  EXPECT_NE(bad.consistency.find("NEES above its 95 % bound"), std::string::npos) << bad.consistency;
+  EXPECT_NE(bad.consistency.find("NEES above its 95 % bound"), std::string::npos)
+      << bad.consistency;
   EXPECT_NE(bad.consistency.find("NIS above its 95 % bound"), std::string::npos) << bad.consistency;
   // Estimators without a covariance have no statistic.
 }

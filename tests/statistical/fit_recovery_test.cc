@@ -6,8 +6,6 @@
 // count is Binomial(20, 0.95): P(count < 18) = 0.075 per parameter, so a miscalibrated interval
 // (coverage 80 %: P(count >= 18) = 0.21) or a biased estimator fails; the seeds are fixed, so the
 // test is deterministic. The hidden-state families use 20 seeds as well (3 to 4 s in Release).
-#include "models/fit.h"
-
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
@@ -15,8 +13,9 @@
 #include <functional>
 #include <map>
 
-#include "models/link.h"
 #include "kernel/rng.h"
+#include "models/fit.h"
+#include "models/link.h"
 
 namespace ncosim::models {
 namespace {
@@ -39,13 +38,15 @@ std::vector<int> synthesize(Link& link, std::uint64_t seed, int n) {
 
 // Fits `family` to 20 traces of `link` and counts, per parameter, the seeds whose interval
 // holds `truth` (parameters not in `truth` are not scored).
-void expect_coverage(const Link& proto, const std::string& family, const std::map<std::string, double>& truth) {
+void expect_coverage(const Link& proto, const std::string& family,
+                     const std::map<std::string, double>& truth) {
   std::map<std::string, int> covered;
   double seconds = 0.0;
   int iterations = 0;
   for (int seed = 0; seed < kSeeds; ++seed) {
     auto link = proto.clone();
-    const std::vector<int> sym = synthesize(*link, 100 + static_cast<std::uint64_t>(seed), kPackets);
+    const std::vector<int> sym =
+        synthesize(*link, 100 + static_cast<std::uint64_t>(seed), kPackets);
     const auto t0 = std::chrono::steady_clock::now();
     const FitResult r = fit_family(family, sym, FitOptions{});
     seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -66,8 +67,8 @@ void expect_coverage(const Link& proto, const std::string& family, const std::ma
     EXPECT_GE(covered[name], kMinCovered) << family << " " << name << " (true " << value << ")";
   }
   ::testing::Test::RecordProperty(family, summary);
-  std::printf("%s coverage:%s; %.2f s and %d EM iterations for %d fits\n", family.c_str(), summary.c_str(), seconds,
-              iterations, kSeeds);
+  std::printf("%s coverage:%s; %.2f s and %d EM iterations for %d fits\n", family.c_str(),
+              summary.c_str(), seconds, iterations, kSeeds);
 }
 
 TEST(FitRecovery, BernoulliLoss) {
@@ -81,8 +82,9 @@ TEST(FitRecovery, DelayPmf) {
 
 TEST(FitRecovery, HiddenGilbertElliottWithLossInBothStates) {
   const auto ge = make_gilbert_elliott(0.02, 0.15, 0.02, 0.6);
-  expect_coverage(*ge, "gilbert_elliott",
-                  {{"p_good_to_bad", 0.02}, {"p_bad_to_good", 0.15}, {"loss_good", 0.02}, {"loss_bad", 0.6}});
+  expect_coverage(
+      *ge, "gilbert_elliott",
+      {{"p_good_to_bad", 0.02}, {"p_bad_to_good", 0.15}, {"loss_good", 0.02}, {"loss_bad", 0.6}});
 }
 
 TEST(FitRecovery, TwoStateMarkovWithPerStateDelays) {
@@ -105,14 +107,17 @@ TEST(FitSelection, AicAndBicPickTheGeneratingFamily) {
   const auto ge = make_gilbert_elliott(0.02, 0.15, 0.02, 0.6);
   const BernoulliLink bernoulli(0.12, 2);
   const DelayPmfLink delay({0.55, 0.25, 0.1});
-  const std::vector<std::pair<const Link*, std::string>> cases{
-      {&bernoulli, "bernoulli"}, {&delay, "delay"}, {ge.get(), "gilbert_elliott"}, {&markov, "markov2"}};
+  const std::vector<std::pair<const Link*, std::string>> cases{{&bernoulli, "bernoulli"},
+                                                               {&delay, "delay"},
+                                                               {ge.get(), "gilbert_elliott"},
+                                                               {&markov, "markov2"}};
   FitOptions o;
   o.intervals = false;
   for (const auto& [proto, family] : cases) {
     for (int seed = 0; seed < 3; ++seed) {
       auto link = proto->clone();
-      const std::vector<int> sym = synthesize(*link, 500 + static_cast<std::uint64_t>(seed), kPackets);
+      const std::vector<int> sym =
+          synthesize(*link, 500 + static_cast<std::uint64_t>(seed), kPackets);
       std::vector<FitResult> fits;
       for (const std::string f : {"bernoulli", "delay", "gilbert_elliott", "markov2", "markov3"}) {
         try {

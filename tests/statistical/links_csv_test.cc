@@ -9,8 +9,6 @@
 // test at the 0.999 quantile of chi^2(bins - 1), bins pooled to expected counts >= 5. Mean loss-run
 // lengths of independent packets (and of Gilbert's chain, loss 0 / 1) are geometric: the mean of
 // c runs lies within 3.29 sd / sqrt(c) of the nominal mean.
-#include "sim/link_stats.h"
-
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -24,6 +22,7 @@
 
 #include "models/plant.h"
 #include "sim/campaign.h"
+#include "sim/link_stats.h"
 #include "sim/scenario.h"
 #include "test_util.h"
 
@@ -65,7 +64,8 @@ std::vector<Row> parse(const std::string& csv) {
   return rows;
 }
 
-std::string scenario(const std::string& link, int periods, int runs, const std::string& extra = "") {
+std::string scenario(const std::string& link, int periods, int runs,
+                     const std::string& extra = "") {
   return fmt::format(R"(title = "links"
 [run]
 periods = {}
@@ -99,7 +99,8 @@ struct Outcome {
 };
 
 Outcome run(const std::string& text) {
-  const auto dir = std::filesystem::temp_directory_path() / fmt::format("ncosim_links_{}", ::getpid());
+  const auto dir =
+      std::filesystem::temp_directory_path() / fmt::format("ncosim_links_{}", ::getpid());
   std::filesystem::create_directories(dir);
   const auto file = dir / "s.toml";
   std::ofstream(file) << text;
@@ -125,11 +126,13 @@ Outcome run(const std::string& text) {
   return r;
 }
 
-::testing::AssertionResult CountWithin(const std::string& what, double k, double n, double p, double s2) {
+::testing::AssertionResult CountWithin(const std::string& what, double k, double n, double p,
+                                       double s2) {
   const double half = kZ * std::sqrt(n * s2);
   const double dev = std::abs(k - n * p);
-  const std::string msg = fmt::format("{}: {} of {} = {:.6g}, nominal {:.6g}, |k - np| = {:.4g} vs 99.9% bound {:.4g}",
-                                      what, k, n, k / n, p, dev, half);
+  const std::string msg =
+      fmt::format("{}: {} of {} = {:.6g}, nominal {:.6g}, |k - np| = {:.4g} vs 99.9% bound {:.4g}",
+                  what, k, n, k / n, p, dev, half);
   ::testing::Test::RecordProperty(what, msg);
   if (dev <= half + 1e-9) return ::testing::AssertionSuccess() << msg;
   return ::testing::AssertionFailure() << msg;
@@ -170,9 +173,10 @@ Outcome run(const std::string& text) {
   double chi2 = 0.0;
   for (std::size_t i = 0; i < po.size(); ++i) chi2 += (po[i] - pe[i]) * (po[i] - pe[i]) / pe[i];
   if (po.size() < 2) return ::testing::AssertionSuccess() << "one bin";
-  const double crit = boost::math::quantile(boost::math::chi_squared(static_cast<double>(po.size() - 1)), 0.999);
-  const std::string msg = fmt::format("delay law {}: chi2 = {:.4g} on {} bins, critical {:.4g}", r.at("kind"), chi2,
-                                      po.size(), crit);
+  const double crit =
+      boost::math::quantile(boost::math::chi_squared(static_cast<double>(po.size() - 1)), 0.999);
+  const std::string msg = fmt::format("delay law {}: chi2 = {:.4g} on {} bins, critical {:.4g}",
+                                      r.at("kind"), chi2, po.size(), crit);
   ::testing::Test::RecordProperty("delay_law_" + r.at("kind"), msg);
   if (chi2 <= crit) return ::testing::AssertionSuccess() << msg;
   return ::testing::AssertionFailure() << msg;
@@ -185,10 +189,12 @@ Outcome run(const std::string& text) {
   const double mean = std::stod(r.at("burst_mean"));
   const double nominal = std::stod(r.at("nominal_burst_mean"));
   const double half = kZ * std::sqrt(q) / (1.0 - q) / std::sqrt(c);
-  const std::string msg = fmt::format("burst mean {}: {:.5g} over {} runs, nominal {:.5g}, 99.9% bound {:.4g}",
-                                      r.at("kind"), mean, c, nominal, half);
+  const std::string msg =
+      fmt::format("burst mean {}: {:.5g} over {} runs, nominal {:.5g}, 99.9% bound {:.4g}",
+                  r.at("kind"), mean, c, nominal, half);
   // links.csv prints 6 significant digits.
-  if (std::abs(nominal - 1.0 / (1.0 - q)) > 5e-6 * nominal) return ::testing::AssertionFailure() << "nominal " << msg;
+  if (std::abs(nominal - 1.0 / (1.0 - q)) > 5e-6 * nominal)
+    return ::testing::AssertionFailure() << "nominal " << msg;
   if (std::abs(mean - nominal) <= half) return ::testing::AssertionSuccess() << msg;
   return ::testing::AssertionFailure() << msg;
 }
@@ -224,7 +230,8 @@ TEST(LinksCsv, IndependentKindsMatchTheirNominalLossDelayLawAndBurstLength) {
     EXPECT_EQ(row.at("packets_sent"), "80000");
     const double n = std::stod(row.at("packets_sent"));
     const double p = std::stod(row.at("nominal_delivered_ratio"));
-    EXPECT_TRUE(CountWithin(row.at("kind") + " delivered", std::stod(row.at("packets_delivered")), n, p, p * (1 - p)));
+    EXPECT_TRUE(CountWithin(row.at("kind") + " delivered", std::stod(row.at("packets_delivered")),
+                            n, p, p * (1 - p)));
     EXPECT_TRUE(DelayLawFits(row));
     EXPECT_TRUE(GeometricBurstMean(row, 1.0 - p));
     EXPECT_LE(std::stoi(row.at("burst_p95")), std::stoi(row.at("burst_max")));
@@ -233,7 +240,8 @@ TEST(LinksCsv, IndependentKindsMatchTheirNominalLossDelayLawAndBurstLength) {
 }
 
 TEST(LinksCsv, IndependentCopiesCountEveryCopyAtItsDelay) {
-  const Outcome r = run(scenario("kind = \"delay\"\npmf = [0.6, 0.5, 0.3]\nindependent = true", 20000, 3));
+  const Outcome r =
+      run(scenario("kind = \"delay\"\npmf = [0.6, 0.5, 0.3]\nindependent = true", 20000, 3));
   ASSERT_EQ(r.rows.size(), 1u);
   const Row& row = r.rows[0];
   const double n = std::stod(row.at("packets_sent"));
@@ -244,16 +252,19 @@ TEST(LinksCsv, IndependentCopiesCountEveryCopyAtItsDelay) {
   for (std::size_t d = 0; d < 3; ++d) {
     const std::vector<double> pmf{0.6, 0.5, 0.3};
     EXPECT_NEAR(nom[d], pmf[d], 1e-12);
-    EXPECT_TRUE(CountWithin(fmt::format("copy {}", d), obs[d] * n, n, nom[d], nom[d] * (1 - nom[d])));
+    EXPECT_TRUE(
+        CountWithin(fmt::format("copy {}", d), obs[d] * n, n, nom[d], nom[d] * (1 - nom[d])));
   }
   const double lost = 0.4 * 0.5 * 0.7;
   EXPECT_NEAR(std::stod(row.at("nominal_delivered_ratio")), 1.0 - lost, 1e-9);
-  EXPECT_TRUE(CountWithin("delivered", std::stod(row.at("packets_delivered")), n, 1 - lost, lost * (1 - lost)));
+  EXPECT_TRUE(CountWithin("delivered", std::stod(row.at("packets_delivered")), n, 1 - lost,
+                          lost * (1 - lost)));
 }
 
 TEST(LinksCsv, GilbertBurstsAreGeometricAndGilbertElliottLossAndOccupancyFollowTheChain) {
   {  // Gilbert (loss 0 / 1): runs of losses are the bad state's sojourns, geometric with 1 - p_bg.
-    const Outcome r = run(scenario("kind = \"gilbert_elliott\"\np_good_to_bad = 0.05\np_bad_to_good = 0.25", 50000, 4));
+    const Outcome r = run(scenario(
+        "kind = \"gilbert_elliott\"\np_good_to_bad = 0.05\np_bad_to_good = 0.25", 50000, 4));
     const Row& row = r.rows.at(0);
     EXPECT_NEAR(std::stod(row.at("nominal_burst_mean")), 4.0, 1e-9);
     EXPECT_TRUE(GeometricBurstMean(row, 0.75));
@@ -261,9 +272,10 @@ TEST(LinksCsv, GilbertBurstsAreGeometricAndGilbertElliottLossAndOccupancyFollowT
   // General Gilbert–Elliott: loss in both states.
   Eigen::MatrixXd T(2, 2);
   T << 0.97, 0.03, 0.1, 0.9;
-  const Outcome r = run(scenario(
-      "kind = \"gilbert_elliott\"\np_good_to_bad = 0.03\np_bad_to_good = 0.1\nloss_good = 0.05\nloss_bad = 0.7", 50000,
-      4));
+  const Outcome r =
+      run(scenario("kind = \"gilbert_elliott\"\np_good_to_bad = 0.03\np_bad_to_good = "
+                   "0.1\nloss_good = 0.05\nloss_bad = 0.7",
+                   50000, 4));
   const Row& row = r.rows.at(0);
   const double n = std::stod(row.at("packets_sent"));
   const Eigen::Vector2d loss(0.05, 0.7);
@@ -271,7 +283,8 @@ TEST(LinksCsv, GilbertBurstsAreGeometricAndGilbertElliottLossAndOccupancyFollowT
   const double p = std::stod(row.at("nominal_delivered_ratio"));
   const Eigen::VectorXd pi = models::stationary_law(T);
   EXPECT_NEAR(p, pi.dot(delivered), 1e-12);
-  EXPECT_TRUE(CountWithin("GE delivered", std::stod(row.at("packets_delivered")), n, p, markov_s2(T, delivered)));
+  EXPECT_TRUE(CountWithin("GE delivered", std::stod(row.at("packets_delivered")), n, p,
+                          markov_s2(T, delivered)));
   const auto occ = numbers(row.at("state_occupancy"));
   const auto nom = numbers(row.at("nominal_state_occupancy"));
   ASSERT_EQ(occ.size(), 2u);
@@ -280,7 +293,8 @@ TEST(LinksCsv, GilbertBurstsAreGeometricAndGilbertElliottLossAndOccupancyFollowT
     Eigen::VectorXd g = Eigen::VectorXd::Zero(2);
     g(s) = 1.0;
     EXPECT_NEAR(nom[static_cast<std::size_t>(s)], pi(s), 1e-6);
-    EXPECT_TRUE(CountWithin(fmt::format("GE state {}", s), occ[static_cast<std::size_t>(s)] * n, n, pi(s), markov_s2(T, g)));
+    EXPECT_TRUE(CountWithin(fmt::format("GE state {}", s), occ[static_cast<std::size_t>(s)] * n, n,
+                            pi(s), markov_s2(T, g)));
   }
   // The nominal mean burst: P(L) / (P(L) - P(L, L)).
   const double pl = pi.dot(loss), pll = pi.cwiseProduct(loss).dot(T * loss);
@@ -307,7 +321,8 @@ TEST(LinksCsv, MarkovWithPerStateDelaysMatchesLossDelayRatesAndOccupancy) {
       const auto& p = pmf[static_cast<std::size_t>(s)];
       g(s) = (1.0 - loss(s)) * (d < p.size() ? p[d] : 0.0);
     }
-    EXPECT_TRUE(CountWithin(fmt::format("markov delay {}", d), obs[d] * n, n, nom[d], markov_s2(T, g)));
+    EXPECT_TRUE(
+        CountWithin(fmt::format("markov delay {}", d), obs[d] * n, n, nom[d], markov_s2(T, g)));
   }
   const auto occ = numbers(row.at("state_occupancy"));
   const Eigen::VectorXd pi = models::stationary_law(T);
@@ -315,19 +330,22 @@ TEST(LinksCsv, MarkovWithPerStateDelaysMatchesLossDelayRatesAndOccupancy) {
   for (int s = 0; s < 3; ++s) {
     Eigen::VectorXd g = Eigen::VectorXd::Zero(3);
     g(s) = 1.0;
-    EXPECT_TRUE(CountWithin(fmt::format("markov state {}", s), occ[static_cast<std::size_t>(s)] * n, n, pi(s), markov_s2(T, g)));
+    EXPECT_TRUE(CountWithin(fmt::format("markov state {}", s), occ[static_cast<std::size_t>(s)] * n,
+                            n, pi(s), markov_s2(T, g)));
   }
 }
 
 TEST(LinksCsv, TraceRowsCountTheReplayExactly) {
-  const auto dir = std::filesystem::temp_directory_path() / fmt::format("ncosim_links_trace_{}", ::getpid());
+  const auto dir =
+      std::filesystem::temp_directory_path() / fmt::format("ncosim_links_trace_{}", ::getpid());
   std::filesystem::create_directories(dir);
   // 0, lost, 1, lost, lost, 0, ... (period 6): per 6 packets 3 delivered, runs of 1 and 2.
   std::ofstream out(dir / "t.csv");
   const char* pattern[] = {"0", "", "1", "", "", "0"};
   for (int i = 0; i < 600; ++i) out << i << "," << pattern[i % 6] << "\n";
   out.close();
-  const Outcome r = run(scenario(fmt::format("kind = \"trace\"\nfile = \"{}\"", (dir / "t.csv").string()), 600, 3));
+  const Outcome r = run(
+      scenario(fmt::format("kind = \"trace\"\nfile = \"{}\"", (dir / "t.csv").string()), 600, 3));
   std::filesystem::remove_all(dir);
   const Row& row = r.rows.at(0);
   EXPECT_EQ(row.at("packets_sent"), "1800");
@@ -343,8 +361,9 @@ TEST(LinksCsv, TraceRowsCountTheReplayExactly) {
 TEST(LinksCsv, SharedLinkGivesARowPerSenderAndAMarkovBurstNominalOnlyWhenStepsAreRegular) {
   const std::string s2 = "[[sensor]]\nname = \"s2\"\nC = [[1.0]]\nR = [[1.0]]\nlink = \"net\"\n";
   {  // Per packet, the two senders interleave on one chain: no nominal run length.
-    const Outcome r = run(scenario("kind = \"gilbert_elliott\"\np_good_to_bad = 0.1\np_bad_to_good = 0.3\nstep = \"packet\"",
-                               2000, 2, s2));
+    const Outcome r = run(scenario(
+        "kind = \"gilbert_elliott\"\np_good_to_bad = 0.1\np_bad_to_good = 0.3\nstep = \"packet\"",
+        2000, 2, s2));
     ASSERT_EQ(r.rows.size(), 2u);
     EXPECT_EQ(r.rows[0].at("sender"), "s1");
     EXPECT_EQ(r.rows[1].at("sender"), "s2");
@@ -356,7 +375,8 @@ TEST(LinksCsv, SharedLinkGivesARowPerSenderAndAMarkovBurstNominalOnlyWhenStepsAr
     }
   }
   // Per period (the default), each sender meets the chain once per period: runs of the bad state.
-  const Outcome r = run(scenario("kind = \"gilbert_elliott\"\np_good_to_bad = 0.1\np_bad_to_good = 0.3", 20000, 4, s2));
+  const Outcome r = run(scenario(
+      "kind = \"gilbert_elliott\"\np_good_to_bad = 0.1\np_bad_to_good = 0.3", 20000, 4, s2));
   ASSERT_EQ(r.rows.size(), 2u);
   for (const auto& row : r.rows) {
     EXPECT_EQ(row.at("step"), "period");
@@ -365,7 +385,8 @@ TEST(LinksCsv, SharedLinkGivesARowPerSenderAndAMarkovBurstNominalOnlyWhenStepsAr
 }
 
 TEST(LinksCsv, PerPeriodChainSeenEveryThirdPeriodHasTheRunsOfTheCubedChain) {
-  std::string text = scenario("kind = \"gilbert_elliott\"\np_good_to_bad = 0.1\np_bad_to_good = 0.3", 60000, 4);
+  std::string text =
+      scenario("kind = \"gilbert_elliott\"\np_good_to_bad = 0.1\np_bad_to_good = 0.3", 60000, 4);
   const std::string from = "link = \"net\"\n";
   text.replace(text.find(from), from.size(), from + "every = 3\n");
   const Outcome r = run(text);
@@ -378,7 +399,8 @@ TEST(LinksCsv, PerPeriodChainSeenEveryThirdPeriodHasTheRunsOfTheCubedChain) {
 }
 
 TEST(LinksCsv, ActuatorChannelsGetTheirOwnRows) {
-  auto loaded = load_cases(testing::source_path("scenarios/cstr_mode_estimation.toml"), {"run.runs=20", "run.periods=2001"});
+  auto loaded = load_cases(testing::source_path("scenarios/cstr_mode_estimation.toml"),
+                           {"run.runs=20", "run.periods=2001"});
   const Scenario& sc = *loaded.cases[0].scenario;
   CampaignOptions o;
   o.time_estimators = false;
@@ -390,8 +412,8 @@ TEST(LinksCsv, ActuatorChannelsGetTheirOwnRows) {
   for (const auto& row : rows) {
     EXPECT_EQ(row.at("packets_sent"), "40020");
     const double n = 40020;
-    EXPECT_TRUE(CountWithin(row.at("sender") + " delivered", std::stod(row.at("packets_delivered")), n, 2.0 / 3.0,
-                            markov_s2(T, Eigen::Vector2d(1.0, 0.0))));
+    EXPECT_TRUE(CountWithin(row.at("sender") + " delivered", std::stod(row.at("packets_delivered")),
+                            n, 2.0 / 3.0, markov_s2(T, Eigen::Vector2d(1.0, 0.0))));
     EXPECT_NEAR(std::stod(row.at("nominal_burst_mean")), 2.5, 1e-9);  // 1 / p_bad_to_good
   }
   EXPECT_EQ(rows[0].at("sender"), "u1");
@@ -410,10 +432,12 @@ namespace {
 // out in sending order: s1 gets rows 0, 2, 4, 5, 7, 8 and s2 rows 1, 3, 6, the only delivered
 // ones. In the sensors' index order s2 would get rows 1, 4, 7 instead.
 TEST(LinksCsv, SensorsDueTogetherSendInTheOrderTheirSamplesWereScheduled) {
-  const auto dir = std::filesystem::temp_directory_path() / fmt::format("ncosim_links_{}", ::getpid());
+  const auto dir =
+      std::filesystem::temp_directory_path() / fmt::format("ncosim_links_{}", ::getpid());
   std::filesystem::create_directories(dir);
   std::ofstream(dir / "order.csv") << "seq,delay\n0,\n1,0\n2,\n3,0\n4,\n5,\n6,0\n7,\n8,\n";
-  const std::string s2 = "[[sensor]]\nname = \"s2\"\nC = [[1.0]]\nR = [[1.0]]\nlink = \"net\"\nevery = 2\n";
+  const std::string s2 =
+      "[[sensor]]\nname = \"s2\"\nC = [[1.0]]\nR = [[1.0]]\nlink = \"net\"\nevery = 2\n";
   const Outcome r = run(scenario("kind = \"trace\"\nfile = \"order.csv\"", 6, 1, s2));
   ASSERT_EQ(r.rows.size(), 2u);
   EXPECT_EQ(r.rows[0].at("sender"), "s1");

@@ -1,8 +1,6 @@
 // tests/statistical/paired_statistics_test.cc — the paired columns of summary.csv (sim/paired.h):
 // coverage of the paired CI at its nominal rate on a scenario with a known difference, and the
 // gain over the unpaired interval on the flagship.
-#include "sim/paired.h"
-
 #include <gtest/gtest.h>
 
 #include <boost/math/distributions/binomial.hpp>
@@ -13,6 +11,7 @@
 
 #include "sim/campaign.h"
 #include "sim/output.h"
+#include "sim/paired.h"
 #include "test_util.h"
 
 namespace ncosim::sim {
@@ -55,7 +54,8 @@ std::string write_temp(const std::string& name, const std::string& text) {
 // [lo, hi]: the central 99.9 % range of the number of misses of a 95 % interval in `reps` trials.
 std::pair<double, double> miss_range(int reps) {
   const boost::math::binomial_distribution<> b(reps, 0.05);
-  return {boost::math::quantile(b, 0.0005), boost::math::quantile(boost::math::complement(b, 0.0005))};
+  return {boost::math::quantile(b, 0.0005),
+          boost::math::quantile(boost::math::complement(b, 0.0005))};
 }
 
 TEST(PairedStatistics, PairedIntervalCoversTheKnownDifferenceAtItsNominalRate) {
@@ -95,9 +95,11 @@ TEST(PairedStatistics, PairedIntervalCoversTheKnownDifferenceAtItsNominalRate) {
     width_welch += welch_difference(rows[0].per_run.mse, rows[1].per_run.mse)->diff_half.value();
   }
   const auto [lo, hi] = miss_range(reps);
-  std::printf("true difference %.5f, ratio %.5f; misses of the 95%% CI in %d repetitions: difference %d, "
-              "ratio %d (99.9%% binomial range [%g, %g]); mean half-width paired %.4f, Welch %.4f\n",
-              true_diff, true_ratio, reps, miss_diff, miss_ratio, lo, hi, width_paired / reps, width_welch / reps);
+  std::printf(
+      "true difference %.5f, ratio %.5f; misses of the 95%% CI in %d repetitions: difference %d, "
+      "ratio %d (99.9%% binomial range [%g, %g]); mean half-width paired %.4f, Welch %.4f\n",
+      true_diff, true_ratio, reps, miss_diff, miss_ratio, lo, hi, width_paired / reps,
+      width_welch / reps);
   EXPECT_GE(miss_diff, lo);
   EXPECT_LE(miss_diff, hi);
   EXPECT_GE(miss_ratio, lo);
@@ -134,13 +136,15 @@ TEST(PairedStatistics, FlagshipPairedIntervalOfS4VsKalmanIsNarrowerThanTheUnpair
     const auto welch = welch_difference(a, b);
     ASSERT_TRUE(m.diff_ci95 && welch && welch->diff_half);
     const double factor = *welch->diff_half / *m.diff_ci95;
-    std::printf("%s: S4 - Kalman = %.6f, paired half-width %.3g, unpaired (Welch) %.3g: %.1fx narrower\n",
-                ext ? "mse_ext" : "mse", *m.diff, *m.diff_ci95, *welch->diff_half, factor);
+    std::printf(
+        "%s: S4 - Kalman = %.6f, paired half-width %.3g, unpaired (Welch) %.3g: %.1fx narrower\n",
+        ext ? "mse_ext" : "mse", *m.diff, *m.diff_ci95, *welch->diff_half, factor);
     EXPECT_NEAR(*m.diff, welch->diff, 1e-12);  // the same estimate, only the interval differs
     EXPECT_GE(factor, 4.0);
   }
   // Physical packets: the prediction (0.056) is not compared with the simulation (0.045).
-  EXPECT_EQ(s4->model_check.rfind("design model not followed (physical packets", 0), 0u) << s4->model_check;
+  EXPECT_EQ(s4->model_check.rfind("design model not followed (physical packets", 0), 0u)
+      << s4->model_check;
 }
 
 TEST(PairedStatistics, ModelCheckFindsS4ConsistentWithItsPredictionUnderIndependentCopies) {
@@ -153,7 +157,8 @@ TEST(PairedStatistics, ModelCheckFindsS4ConsistentWithItsPredictionUnderIndepend
   opt.threads = 2;
   const auto rows = summarise(*sc, run_campaign(*sc, opt), {});
   std::printf("%s\n", rows[4].model_check.c_str());
-  EXPECT_EQ(rows[4].model_check.rfind("consistent: simulated mse_ext", 0), 0u) << rows[4].model_check;
+  EXPECT_EQ(rows[4].model_check.rfind("consistent: simulated mse_ext", 0), 0u)
+      << rows[4].model_check;
 }
 
 }  // namespace

@@ -3,10 +3,10 @@
 // buffer lengths), with bounds from the number of runs.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <boost/math/distributions/students_t.hpp>
 #include <cmath>
 #include <cstdio>
-#include <algorithm>
 
 #include "sim/campaign.h"
 #include "sim/output.h"
@@ -66,8 +66,10 @@ std::size_t index_of(const Scenario& sc, const std::string& name) {
 // inside the 95 % CI of predicted_mse (Bonferroni over the N checked: each at 95 %/m), and
 // kalman_buffer not worse than static_buffer on the same runs beyond Monte Carlo error (paired).
 // Rows with an infinite fourth moment say heavy_tail and are not compared.
-void check_example(const std::string& file, const std::vector<int>& buffers, std::int64_t runs, std::int64_t periods) {
-  auto sc = load_one(source_path(file), {"run.runs=" + std::to_string(runs), "run.periods=" + std::to_string(periods)});
+void check_example(const std::string& file, const std::vector<int>& buffers, std::int64_t runs,
+                   std::int64_t periods) {
+  auto sc = load_one(source_path(file), {"run.runs=" + std::to_string(runs),
+                                         "run.periods=" + std::to_string(periods)});
   std::vector<std::string> names;
   for (int N : buffers) {
     names.push_back(fmt::format("static N={}", N));
@@ -90,8 +92,8 @@ void check_example(const std::string& file, const std::vector<int>& buffers, std
     const Stats st = stats(per_run(r, s));
     const double predicted = rep.predicted_mse.value();
     const double half = t_quantile(st.n, alpha) * st.se;
-    std::printf("%s N=%d: static %.4f +- %.4f (predicted %.4f)%s\n", file.c_str(), N, st.mean, half, predicted,
-                heavy ? " heavy_tail" : "");
+    std::printf("%s N=%d: static %.4f +- %.4f (predicted %.4f)%s\n", file.c_str(), N, st.mean, half,
+                predicted, heavy ? " heavy_tail" : "");
     if (!heavy) {
       EXPECT_LT(std::abs(st.mean - predicted), half) << st.mean << " vs " << predicted;
     }
@@ -99,7 +101,8 @@ void check_example(const std::string& file, const std::vector<int>& buffers, std
     const auto a = per_run(r, k), b = per_run(r, s);
     for (std::size_t i = 0; i < a.size(); ++i) diff.push_back(a[i] - b[i]);
     const Stats d = stats(diff);
-    EXPECT_LT(d.mean, t_quantile(d.n, alpha) * d.se) << "kalman_buffer worse than static_buffer by " << d.mean;
+    EXPECT_LT(d.mean, t_quantile(d.n, alpha) * d.se)
+        << "kalman_buffer worse than static_buffer by " << d.mean;
   }
 }
 
@@ -135,7 +138,8 @@ class LateByOne final : public est::Estimator {
 
 class LateByOneDesign final : public est::EstimatorDesign {
  public:
-  explicit LateByOneDesign(std::unique_ptr<est::EstimatorDesign> inner) : inner_(std::move(inner)) {}
+  explicit LateByOneDesign(std::unique_ptr<est::EstimatorDesign> inner)
+      : inner_(std::move(inner)) {}
   std::unique_ptr<est::Estimator> instantiate() const override {
     return std::make_unique<LateByOne>(inner_->instantiate());
   }
@@ -149,22 +153,25 @@ class LateByOneDesign final : public est::EstimatorDesign {
 TEST(Schenato2008, FeedingPacketsOnePeriodLateLeavesThePrediction) {
   // Motor, N = 4: the correct estimator inside its CI, the late one (a second copy of the same
   // design) far outside: above the prediction by more than 5 CI half-widths and by 20 %.
-  auto sc = load_one(source_path("scenarios/schenato2008_motor.toml"), {"run.runs=24", "run.periods=20000"});
+  auto sc = load_one(source_path("scenarios/schenato2008_motor.toml"),
+                     {"run.runs=24", "run.periods=20000"});
   keep_only(*sc, {"static N=4", "optimal N=4"});
   const std::size_t s = index_of(*sc, "static N=4");
   const std::size_t other = index_of(*sc, "optimal N=4");
   // Replace the kalman_buffer of N = 4 by a late-fed copy of the static design of N = 4.
   auto copy = load_one(source_path("scenarios/schenato2008_motor.toml"));
-  sc->estimators[other].design =
-      std::make_unique<LateByOneDesign>(std::move(copy->estimators[index_of(*copy, "static N=4")].design));
+  sc->estimators[other].design = std::make_unique<LateByOneDesign>(
+      std::move(copy->estimators[index_of(*copy, "static N=4")].design));
   CampaignOptions opt;
   opt.time_estimators = false;
   const CampaignResult r = run_campaign(*sc, opt);
   const double predicted = sc->estimators[s].design->report().predicted_mse.value();
   const Stats good = stats(per_run(r, s)), late = stats(per_run(r, other));
-  const double half_good = t_quantile(good.n, 0.05) * good.se, half_late = t_quantile(late.n, 0.05) * late.se;
-  std::printf("motor N=4: predicted %.4f, correct timing %.4f +- %.4f, one period late %.4f +- %.4f\n", predicted,
-              good.mean, half_good, late.mean, half_late);
+  const double half_good = t_quantile(good.n, 0.05) * good.se,
+               half_late = t_quantile(late.n, 0.05) * late.se;
+  std::printf(
+      "motor N=4: predicted %.4f, correct timing %.4f +- %.4f, one period late %.4f +- %.4f\n",
+      predicted, good.mean, half_good, late.mean, half_late);
   EXPECT_LT(std::abs(good.mean - predicted), half_good);
   EXPECT_GT(late.mean - predicted, 5 * half_late);
   EXPECT_GT(late.mean - predicted, 0.2 * predicted);

@@ -39,11 +39,14 @@ class RecordLinkSumo : public ::testing::Test {
     fs::remove_all(dir_, ec);
   }
   int ncosim(const std::string& args) {
-    const std::string cmd = "cd '" + dir_.string() + "' && '" + NCOSIM_BINARY + "' " + args + " >out.txt 2>&1";
+    const std::string cmd =
+        "cd '" + dir_.string() + "' && '" + NCOSIM_BINARY + "' " + args + " >out.txt 2>&1";
     const int status = std::system(cmd.c_str());
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   }
-  std::string text(const std::string& name) { return ncosim::testing::read_text((dir_ / name).string()); }
+  std::string text(const std::string& name) {
+    return ncosim::testing::read_text((dir_ / name).string());
+  }
   std::vector<std::string> lines(const std::string& name) {
     std::vector<std::string> out;
     std::istringstream in(text(name));
@@ -77,16 +80,20 @@ TEST_F(RecordLinkSumo, ASegmentedReplayOfTheRecordGivesTheCampaignsErrors) {
   EXPECT_GT(delivered, 100);
   EXPECT_LT(delivered, 3500);
   std::string replay = scenario_text();
-  const std::string from = "kind = \"sumo_distance\"\nsender = \"leader\"\nreceiver = \"follower\"\npreset = \"cheng2007\"\n";
+  const std::string from =
+      "kind = \"sumo_distance\"\nsender = \"leader\"\nreceiver = \"follower\"\npreset = "
+      "\"cheng2007\"\n";
   ASSERT_NE(replay.find(from), std::string::npos);
-  replay.replace(replay.find(from), from.size(), "kind = \"trace\"\nfile = \"rec/v2v.csv\"\nsegment = 900\n");
+  replay.replace(replay.find(from), from.size(),
+                 "kind = \"trace\"\nfile = \"rec/v2v.csv\"\nsegment = 900\n");
   std::ofstream(dir_ / "replay.toml") << replay;
   ASSERT_EQ(ncosim("run replay.toml --out replayed --quiet --no-timing"), 0) << text("out.txt");
   const auto a = lines("live/runs.csv"), b = lines("replayed/runs.csv");
   ASSERT_EQ(a.size(), 5u);
   ASSERT_EQ(b.size(), 5u);
   for (std::size_t i = 1; i < a.size(); ++i) {
-    EXPECT_EQ(a[i].substr(0, a[i].find(",ok,")), b[i].substr(0, b[i].find(",ok,"))) << "run " << i - 1;
+    EXPECT_EQ(a[i].substr(0, a[i].find(",ok,")), b[i].substr(0, b[i].find(",ok,")))
+        << "run " << i - 1;
   }
 }
 

@@ -6,19 +6,18 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
-#include <csignal>
-#include <cstring>
-#include <iomanip>
-#include <random>
-#include <sstream>
-
 #include <boost/math/distributions/gamma.hpp>
 #include <boost/math/distributions/normal.hpp>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iomanip>
 #include <numbers>
+#include <random>
+#include <sstream>
 
 #include "sim/campaign.h"
 #include "sumo/channel.h"
@@ -43,7 +42,8 @@ TEST(Channel, VeinsPresetIsKillatHartensteinClosedForm) {
   // Range R: the distance at which the mean free-space power equals the threshold.
   const double lambda = kSpeedOfLight / 5.89e9;
   const double pt_dbm = 10.0 * std::log10(20.0);
-  const double range = lambda / (4.0 * std::numbers::pi) * std::pow(10.0, (pt_dbm - (-89.0)) / 20.0);
+  const double range =
+      lambda / (4.0 * std::numbers::pi) * std::pow(10.0, (pt_dbm - (-89.0)) / 20.0);
   EXPECT_NEAR(range, 510.5, 0.1);  // by hand: 0.0509 m / 4 pi x 10^(102.01 / 20)
   for (double d = 1.5; d < 1500.0; d += 7.3) {
     EXPECT_NEAR(ch.reception_probability(d), killat(d, range), 1e-9) << d;
@@ -64,11 +64,14 @@ TEST(Channel, Ns3PresetIsThreeLogDistanceWithNakagami) {
     } else if (d <= 500.0) {
       loss += 19.0 * std::log10(200.0) + 38.0 * std::log10(d / 200.0);
     } else {
-      loss += 19.0 * std::log10(200.0) + 38.0 * std::log10(500.0 / 200.0) + 38.0 * std::log10(d / 500.0);
+      loss += 19.0 * std::log10(200.0) + 38.0 * std::log10(500.0 / 200.0) +
+              38.0 * std::log10(d / 500.0);
     }
     const double mean_mw = std::pow(10.0, (20.0 - loss) / 10.0);
     const double m = d < 80.0 ? 1.5 : 0.75;
-    EXPECT_NEAR(ch.reception_probability(d), gamma_tail(m, mean_mw, std::pow(10.0, -96.0 / 10.0)), 1e-9) << d;
+    EXPECT_NEAR(ch.reception_probability(d), gamma_tail(m, mean_mw, std::pow(10.0, -96.0 / 10.0)),
+                1e-9)
+        << d;
   }
 }
 
@@ -80,18 +83,22 @@ TEST(Channel, ChengPresetIsDualSlopeWithBinnedNakagami) {
   const double edges[] = {4.7, 11.7, 28.9, 71.6, 177.3};
   const double ms[] = {3.01, 1.18, 1.94, 1.86, 0.45, 0.32};
   for (double d = 1.2; d < 1200.0; d += 1.7) {
-    const double loss = d <= 100.0 ? pl0 + 20.0 * std::log10(d) : pl0 + 40.0 + 40.0 * std::log10(d / 100.0);
+    const double loss =
+        d <= 100.0 ? pl0 + 20.0 * std::log10(d) : pl0 + 40.0 + 40.0 * std::log10(d / 100.0);
     int bin = 0;
     while (bin < 5 && d >= edges[bin]) ++bin;
     const double mean_mw = std::pow(10.0, (20.0 - loss) / 10.0);
-    EXPECT_NEAR(ch.reception_probability(d), gamma_tail(ms[bin], mean_mw, std::pow(10.0, -8.9)), 1e-9) << d;
+    EXPECT_NEAR(ch.reception_probability(d), gamma_tail(ms[bin], mean_mw, std::pow(10.0, -8.9)),
+                1e-9)
+        << d;
   }
 }
 
 TEST(Channel, IntegerAndRealNakagamiAgreeAndLognormalIsTheNormalTail) {
   for (double z : {0.01, 0.3, 1.0, 2.5, 7.0}) {
     for (int m = 1; m <= 6; ++m) {
-      EXPECT_NEAR(nakagami_exceedance(m, z), boost::math::gamma_q(static_cast<double>(m), m * z), 1e-12);
+      EXPECT_NEAR(nakagami_exceedance(m, z), boost::math::gamma_q(static_cast<double>(m), m * z),
+                  1e-12);
     }
   }
   Channel ch = make_preset("ns3_vanet");
@@ -100,7 +107,8 @@ TEST(Channel, IntegerAndRealNakagamiAgreeAndLognormalIsTheNormalTail) {
   boost::math::normal_distribution<double> n(0.0, 4.0);
   for (double d = 10.0; d < 1500.0; d += 37.0) {
     const double margin = ch.threshold_dbm - ch.mean_rx_dbm(d);
-    EXPECT_NEAR(ch.reception_probability(d), boost::math::cdf(boost::math::complement(n, margin)), 1e-9);
+    EXPECT_NEAR(ch.reception_probability(d), boost::math::cdf(boost::math::complement(n, margin)),
+                1e-9);
   }
 }
 
@@ -119,7 +127,8 @@ TEST(Channel, DelayLaws) {
   double sum = 0.0;
   for (int j = 0; j < 10; ++j) sum += ch.delay_period_probability(100.0, 0.02, j);
   EXPECT_NEAR(sum, 1.0, 1e-12);
-  EXPECT_NEAR(ch.delay_period_probability(100.0, 0.02, 0), (0.02 - 1e-3 - 100.0 / kSpeedOfLight) / 0.099, 1e-9);
+  EXPECT_NEAR(ch.delay_period_probability(100.0, 0.02, 0),
+              (0.02 - 1e-3 - 100.0 / kSpeedOfLight) / 0.099, 1e-9);
 }
 
 TEST(Channel, KeyedDrawsAreDeterministicAndDistinct) {
@@ -142,7 +151,8 @@ struct Road {
   Road() {
     dir = fs::temp_directory_path() / ("ncosim_sumo_test_" + std::to_string(::getpid()));
     ok = testing::write_sumo_road(dir, 5000, testing::kLeaderAndFollower);
-    std::ofstream(dir / "s.toml") << testing::sumo_scenario(600, 6, 2, "follower", "ns3_vanet", R"([[estimator]]
+    std::ofstream(dir / "s.toml") << testing::sumo_scenario(600, 6, 2, "follower", "ns3_vanet",
+                                                            R"([[estimator]]
 kind = "kalman_extended"
 max_delay = 1
 
@@ -174,10 +184,11 @@ struct Output {
 
 Output run_ncosim(const std::string& args, const std::string& env = "") {
   const fs::path dir = road().dir;
-  const std::string cmd =
-      "cd '" + dir.string() + "' && " + env + "'" + NCOSIM_BINARY + "' " + args + " >stdout.txt 2>stderr.txt";
+  const std::string cmd = "cd '" + dir.string() + "' && " + env + "'" + NCOSIM_BINARY + "' " +
+                          args + " >stdout.txt 2>stderr.txt";
   const int status = std::system(cmd.c_str());
-  return Output{WIFEXITED(status) ? WEXITSTATUS(status) : -1, testing::read_text((dir / "stdout.txt").string()),
+  return Output{WIFEXITED(status) ? WEXITSTATUS(status) : -1,
+                testing::read_text((dir / "stdout.txt").string()),
                 testing::read_text((dir / "stderr.txt").string())};
 }
 
@@ -207,7 +218,8 @@ TEST(SumoCampaign, RecordsOnceReusesAndLiveEqualsReplay) {
   ASSERT_TRUE(road().ok) << "netconvert failed";
   const Output first = run_ncosim("run s.toml --out r1 --quiet");
   ASSERT_EQ(first.code, 0) << first.err;
-  EXPECT_NE(first.err.find("sumo: 2 realisation(s) recorded, 0 reused"), std::string::npos) << first.err;
+  EXPECT_NE(first.err.find("sumo: 2 realisation(s) recorded, 0 reused"), std::string::npos)
+      << first.err;
   // Nothing from SUMO on stdout: it is exactly the summary table and the closing line.
   EXPECT_EQ(first.out.rfind("# s\n", 0), 0u) << first.out;
   for (const char* noise : {"Loading", "Success", "Warning", "Step #", "sumo:"}) {
@@ -215,20 +227,23 @@ TEST(SumoCampaign, RecordsOnceReusesAndLiveEqualsReplay) {
   }
   // The second campaign cannot start SUMO: the `sumo` binary and the libsumo module are
   // pointed at nothing.
-  const Output second = run_ncosim("run s.toml --out r2 --quiet",
-                                   "NCOSIM_SUMO_BINARY=/nonexistent/sumo NCOSIM_SUMO_MODULE=/nonexistent/libsumo.so ");
+  const Output second = run_ncosim(
+      "run s.toml --out r2 --quiet",
+      "NCOSIM_SUMO_BINARY=/nonexistent/sumo NCOSIM_SUMO_MODULE=/nonexistent/libsumo.so ");
   ASSERT_EQ(second.code, 0) << second.err;
-  EXPECT_NE(second.err.find("sumo: 0 realisation(s) recorded, 2 reused"), std::string::npos) << second.err;
+  EXPECT_NE(second.err.find("sumo: 0 realisation(s) recorded, 2 reused"), std::string::npos)
+      << second.err;
   // Live: libsumo in worker processes; the recordings exist, so the `sumo` binary is not needed.
-  const Output live =
-      run_ncosim("run s.toml --out r3 --quiet --set 'sumo.mode=\"live\"'", "NCOSIM_SUMO_BINARY=/nonexistent/sumo ");
+  const Output live = run_ncosim("run s.toml --out r3 --quiet --set 'sumo.mode=\"live\"'",
+                                 "NCOSIM_SUMO_BINARY=/nonexistent/sumo ");
   ASSERT_EQ(live.code, 0) << live.err;
   // The guard is real: live mode needs the module (in its worker) and fails without it (a
   // run-time failure, not bad input).
   const Output no_module = run_ncosim("run s.toml --out r4 --quiet --set 'sumo.mode=\"live\"'",
                                       "NCOSIM_SUMO_MODULE=/nonexistent/libsumo.so ");
   EXPECT_NE(no_module.code, 0);
-  EXPECT_NE(no_module.err.find("cannot load the libsumo module"), std::string::npos) << no_module.err;
+  EXPECT_NE(no_module.err.find("cannot load the libsumo module"), std::string::npos)
+      << no_module.err;
   const std::string a = summary_without_timing("r1");
   EXPECT_GT(a.size(), 100u);
   EXPECT_EQ(a, summary_without_timing("r2"));
@@ -241,7 +256,8 @@ TEST(SumoCampaign, RecordsOnceReusesAndLiveEqualsReplay) {
 
 SumoInputs road_inputs() {
   SumoInputs in;
-  in.args = {"-n", (road().dir / "net.net.xml").string(), "-r", (road().dir / "r.rou.xml").string()};
+  in.args = {"-n", (road().dir / "net.net.xml").string(), "-r",
+             (road().dir / "r.rou.xml").string()};
   in.step_ms = 100;
   return in;
 }
@@ -291,8 +307,9 @@ TEST(SumoRecording, FcdRecordingEqualsLiveLibsumoBitForBit) {
       const double ra[] = {a.x, a.y, a.pos, a.speed, a.accel};
       const double rb[] = {b.x, b.y, b.pos, b.speed, b.accel};
       for (int k = 0; k < 5; ++k) {
-        ASSERT_EQ(std::memcmp(&ra[k], &rb[k], sizeof(double)), 0) << "frame " << f << " vehicle " << v << " field "
-                                                                 << k << ": " << ra[k] << " vs " << rb[k];
+        ASSERT_EQ(std::memcmp(&ra[k], &rb[k], sizeof(double)), 0)
+            << "frame " << f << " vehicle " << v << " field " << k << ": " << ra[k] << " vs "
+            << rb[k];
         tiny += rb[k] != 0.0 && std::abs(rb[k]) < 1e-23;
       }
       compared += a.present;
@@ -300,9 +317,9 @@ TEST(SumoRecording, FcdRecordingEqualsLiveLibsumoBitForBit) {
   }
   EXPECT_GT(compared, 1000);
   EXPECT_EQ(tiny, 0);  // no value the 40-decimal text could not carry (see the next test)
-  EXPECT_FALSE(r.at(0, 0).present);     // frame 0: before the first step
-  EXPECT_TRUE(r.at(1, 0).present);      // departed at t = 0
-  EXPECT_FALSE(r.at(599, 2).present);   // "nobody" never drives
+  EXPECT_FALSE(r.at(0, 0).present);    // frame 0: before the first step
+  EXPECT_TRUE(r.at(1, 0).present);     // departed at t = 0
+  EXPECT_FALSE(r.at(599, 2).present);  // "nobody" never drives
   // This process never loaded libsumo: only the worker did.
   EXPECT_FALSE(libsumo_loaded());
   live.reset();
@@ -339,9 +356,11 @@ TEST(SumoRecording, ATeleportingVehicleIsAbsentInTheRecordingAndLiveAlike) {
   set_worker_executable(NCOSIM_BINARY);
   const fs::path dir = road().dir / "teleport";
   fs::create_directories(dir);
-  std::ofstream(dir / "n.nod.xml") << R"(<nodes><node id="a" x="0" y="0"/><node id="b" x="1000" y="0"/>
+  std::ofstream(dir / "n.nod.xml")
+      << R"(<nodes><node id="a" x="0" y="0"/><node id="b" x="1000" y="0"/>
 <node id="c" x="1007" y="0"/><node id="d" x="3000" y="0"/></nodes>)";
-  std::ofstream(dir / "e.edg.xml") << R"(<edges><edge id="ab" from="a" to="b" numLanes="1" speed="20"/>
+  std::ofstream(dir / "e.edg.xml")
+      << R"(<edges><edge id="ab" from="a" to="b" numLanes="1" speed="20"/>
 <edge id="bc" from="b" to="c" numLanes="1" speed="20"/><edge id="cd" from="c" to="d" numLanes="1" speed="20"/></edges>)";
   std::ofstream(dir / "t.rou.xml") << R"(<routes>
   <vType id="car" maxSpeed="20" sigma="0"/>
@@ -352,10 +371,16 @@ TEST(SumoRecording, ATeleportingVehicleIsAbsentInTheRecordingAndLiveAlike) {
   <vehicle id="stuck" type="car" route="r" depart="0" departPos="0"/>
 </routes>)";
   const std::string cmd = "cd '" + dir.string() +
-                          "' && SUMO_HOME=/usr/share/sumo netconvert -n n.nod.xml -e e.edg.xml -o net.net.xml >/dev/null 2>&1";
+                          "' && SUMO_HOME=/usr/share/sumo netconvert -n n.nod.xml -e e.edg.xml -o "
+                          "net.net.xml >/dev/null 2>&1";
   ASSERT_EQ(std::system(cmd.c_str()), 0);
   SumoInputs in;
-  in.args = {"-n", (dir / "net.net.xml").string(), "-r", (dir / "t.rou.xml").string(), "--time-to-teleport", "2"};
+  in.args = {"-n",
+             (dir / "net.net.xml").string(),
+             "-r",
+             (dir / "t.rou.xml").string(),
+             "--time-to-teleport",
+             "2"};
   in.step_ms = 100;
   const std::vector<std::string> vehicles{"stuck"};
   const Recording r = record(in, 1, 1200, vehicles);
@@ -369,14 +394,16 @@ TEST(SumoRecording, ATeleportingVehicleIsAbsentInTheRecordingAndLiveAlike) {
     ASSERT_EQ(a.present, b.present) << "frame " << f;
     const double ra[] = {a.x, a.y, a.pos, a.speed, a.accel};
     const double rb[] = {b.x, b.y, b.pos, b.speed, b.accel};
-    for (int k = 0; k < 5; ++k) ASSERT_EQ(std::memcmp(&ra[k], &rb[k], sizeof(double)), 0) << "frame " << f << " field " << k;
+    for (int k = 0; k < 5; ++k)
+      ASSERT_EQ(std::memcmp(&ra[k], &rb[k], sizeof(double)), 0) << "frame " << f << " field " << k;
     back_after_absence += absent_after_departure > 0 && a.present;
     departed = departed || a.present;
     absent_after_departure += departed && !a.present;
   }
   EXPECT_TRUE(departed);
   // Absent while teleporting (27.6 s to 34.8 s measured), then present again on cd.
-  EXPECT_GT(absent_after_departure, 10) << "the vehicle never teleported: the test does not test anything";
+  EXPECT_GT(absent_after_departure, 10)
+      << "the vehicle never teleported: the test does not test anything";
   EXPECT_GT(back_after_absence, 10);
   live.reset();
   EXPECT_TRUE(children().empty());
@@ -390,7 +417,8 @@ TEST(SumoRecording, SumoErrorsAndMissingBinaryAreClear) {
     record(in, 1, 10, {"leader"});
     ADD_FAILURE() << "no error";
   } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find("missing.net.xml' is not accessible"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("missing.net.xml' is not accessible"), std::string::npos)
+        << e.what();
     EXPECT_EQ(std::string(e.what()).find("Quitting"), std::string::npos) << e.what();
   }
   ::setenv("NCOSIM_SUMO_BINARY", "/nonexistent/sumo", 1);
@@ -408,15 +436,18 @@ TEST(SumoRecording, FcdReaderIsStrict) {
 <!-- generated by sumo <configuration> ... -->
 <fcd-export xmlns:xsi="http://www.w3.org/2001/XMLSchema-instance">
 )";
-  const std::string a = R"(<vehicle id="a" x="1.5" y="2" speed="3" acceleration="-0.25" odometer="7"/>)";
-  const fs::path file = fs::temp_directory_path() / ("ncosim_fcd_test_" + std::to_string(::getpid()) + ".xml");
+  const std::string a =
+      R"(<vehicle id="a" x="1.5" y="2" speed="3" acceleration="-0.25" odometer="7"/>)";
+  const fs::path file =
+      fs::temp_directory_path() / ("ncosim_fcd_test_" + std::to_string(::getpid()) + ".xml");
   auto parse = [&](const std::string& body) {
     std::ofstream(file) << head << body;
     return parse_fcd(file.string(), 100, 5, {"a", "b"});
   };
   // Good: a at t = 0 and 0.1, absent at 0.2 (keeps its last state), SUMO stopped after 0.2.
-  const Recording r = parse("<timestep time=\"0.000\">\n  " + a + "\n</timestep>\n<timestep time=\"0.100\">" + a +
-                            "</timestep>\n<timestep time=\"0.200\"/>\n</fcd-export>\n");
+  const Recording r =
+      parse("<timestep time=\"0.000\">\n  " + a + "\n</timestep>\n<timestep time=\"0.100\">" + a +
+            "</timestep>\n<timestep time=\"0.200\"/>\n</fcd-export>\n");
   EXPECT_FALSE(r.at(0, 0).present);
   EXPECT_EQ(r.at(0, 0).x, 0.0);
   EXPECT_TRUE(r.at(1, 0).present);
@@ -431,16 +462,21 @@ TEST(SumoRecording, FcdReaderIsStrict) {
   const std::vector<FcdCase> bad{
       {"<timestep time=\"0.100\"/></fcd-export>", "timestep time=\"0.100\" where 0.000 s"},
       {"<timestep time=\"0.000\"/><timestep time=\"0.000\"/></fcd-export>", "where 0.100 s"},
-      {"<timestep time=\"0.000\"><person id=\"p\"/></timestep></fcd-export>", "expected '<vehicle'"},
-      {"<timestep time=\"0.000\"><vehicle id=\"c\" x=\"1\" y=\"2\" speed=\"3\" acceleration=\"0\" odometer=\"0\"/>"
+      {"<timestep time=\"0.000\"><person id=\"p\"/></timestep></fcd-export>",
+       "expected '<vehicle'"},
+      {"<timestep time=\"0.000\"><vehicle id=\"c\" x=\"1\" y=\"2\" speed=\"3\" acceleration=\"0\" "
+       "odometer=\"0\"/>"
        "</timestep></fcd-export>",
        "vehicle \"c\" was not asked for"},
-      {"<timestep time=\"0.000\"><vehicle id=\"a\" x=\"1\" y=\"2\" speed=\"fast\" acceleration=\"0\" odometer=\"0\"/>"
+      {"<timestep time=\"0.000\"><vehicle id=\"a\" x=\"1\" y=\"2\" speed=\"fast\" "
+       "acceleration=\"0\" odometer=\"0\"/>"
        "</timestep></fcd-export>",
        "expected a finite number, got \"fast\""},
-      {"<timestep time=\"0.000\"><vehicle id=\"a\" x=\"1\" y=\"2\" speed=\"3\" odometer=\"0\"/></timestep></fcd-export>",
+      {"<timestep time=\"0.000\"><vehicle id=\"a\" x=\"1\" y=\"2\" speed=\"3\" "
+       "odometer=\"0\"/></timestep></fcd-export>",
        "expected <vehicle id x y"},
-      {"<timestep time=\"0.000\">" + a + a + "</timestep></fcd-export>", "\"a\" twice in one timestep"},
+      {"<timestep time=\"0.000\">" + a + a + "</timestep></fcd-export>",
+       "\"a\" twice in one timestep"},
       {"<timestep time=\"0.000\"/>", "expected '<timestep'"},
       {"<timestep time=\"0.000\"/></fcd-export>junk", "unexpected content after </fcd-export>"},
       {"<timestep time=\"0.000\" lane=\"x\"/></fcd-export>", "expected <timestep time="},
@@ -450,7 +486,8 @@ TEST(SumoRecording, FcdReaderIsStrict) {
       parse(c.body);
       ADD_FAILURE() << "accepted: " << c.body;
     } catch (const std::runtime_error& e) {
-      EXPECT_NE(std::string(e.what()).find(c.expect), std::string::npos) << c.body << "\n" << e.what();
+      EXPECT_NE(std::string(e.what()).find(c.expect), std::string::npos) << c.body << "\n"
+                                                                         << e.what();
       EXPECT_NE(std::string(e.what()).find("byte "), std::string::npos) << e.what();
     }
   }
@@ -471,7 +508,8 @@ TEST(SumoLive, WorkerDeathIsAClearErrorAndNoZombieRemains) {
     live->advance(20 * sim::kSecond);
     ADD_FAILURE() << "no error after the worker died";
   } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find("SUMO live worker (seed 1)"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("SUMO live worker (seed 1)"), std::string::npos)
+        << e.what();
     EXPECT_NE(std::string(e.what()).find("killed by signal 9"), std::string::npos) << e.what();
   }
   EXPECT_TRUE(children().empty());
@@ -482,7 +520,9 @@ TEST(SumoLive, WorkerDeathIsAClearErrorAndNoZombieRemains) {
     start_live(road_inputs(), 1, vehicles);
     ADD_FAILURE() << "no error";
   } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find("closed the connection (exit status 1)"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("closed the connection (exit status 1)"),
+              std::string::npos)
+        << e.what();
   }
   set_worker_executable(NCOSIM_BINARY);
   SumoInputs bad = road_inputs();
@@ -505,12 +545,14 @@ TEST(SumoCampaign, SumoErrorsExitTwoWithAClearMessage) {
   struct Case {
     std::string set, expect;
   };
-  std::ofstream(road().dir / "bad.rou.xml") << R"(<routes><vehicle id="x" route="nowhere" depart="0"/></routes>)";
+  std::ofstream(road().dir / "bad.rou.xml")
+      << R"(<routes><vehicle id="x" route="nowhere" depart="0"/></routes>)";
   const std::vector<Case> cases{
       {"sumo.step=0.0005", "whole number of milliseconds"},
       {"sumo.routes='missing.rou.xml'", "missing.rou.xml' (not found)"},
       {"plant.vehicle='nobody'", "key 'plant.vehicle': vehicle \"nobody\" never drives"},
-      {"sumo.routes='bad.rou.xml'", "SUMO failed (seed 1): The route 'nowhere' for vehicle 'x' is not known"},
+      {"sumo.routes='bad.rou.xml'",
+       "SUMO failed (seed 1): The route 'nowhere' for vehicle 'x' is not known"},
       {"link[0].tx_powr=10", "did you mean 'tx_power'"},
       {"link[0].preset='ns3'", "key 'link[0].preset': expected one of"},
       {"link[0].receiver='leader'", "expected a receiver other than the sender"},
@@ -518,7 +560,8 @@ TEST(SumoCampaign, SumoErrorsExitTwoWithAClearMessage) {
       {"run.recentre='always'", "with a SUMO vehicle as the plant"},
   };
   for (const auto& c : cases) {
-    const Output o = run_ncosim("run s.toml --out bad --quiet --set \"" + c.set + "\" --set 'sumo.cache=\"cache_bad\"'");
+    const Output o = run_ncosim("run s.toml --out bad --quiet --set \"" + c.set +
+                                "\" --set 'sumo.cache=\"cache_bad\"'");
     EXPECT_EQ(o.code, 2) << c.set << "\n" << o.err;
     EXPECT_NE(o.err.find(c.expect), std::string::npos) << c.set << "\n" << o.err;
     EXPECT_TRUE(o.out.empty()) << o.out;
@@ -526,15 +569,20 @@ TEST(SumoCampaign, SumoErrorsExitTwoWithAClearMessage) {
   }
   // A range error says what it got, as written (issue 28).
   const Output bounds = run_ncosim(
-      "run s.toml --out bad --quiet --set \"link[0].fading='nakagami'\" --set 'link[0].m=[1.0, 2.0]' "
+      "run s.toml --out bad --quiet --set \"link[0].fading='nakagami'\" --set 'link[0].m=[1.0, "
+      "2.0]' "
       "--set 'link[0].m_bounds=[-5.0]' --set 'sumo.cache=\"cache_bad\"'");
   EXPECT_EQ(bounds.code, 2) << bounds.err;
-  EXPECT_NE(bounds.err.find("expected increasing positive distances (m), got -5"), std::string::npos) << bounds.err;
+  EXPECT_NE(bounds.err.find("expected increasing positive distances (m), got -5"),
+            std::string::npos)
+      << bounds.err;
   // No `sumo` binary anywhere: exit 2 saying so, and no recording left behind.
-  const Output nobin =
-      run_ncosim("run s.toml --out bad --quiet --set 'sumo.cache=\"cache_nobin\"'", "PATH=/nonexistent SUMO_HOME= ");
+  const Output nobin = run_ncosim("run s.toml --out bad --quiet --set 'sumo.cache=\"cache_nobin\"'",
+                                  "PATH=/nonexistent SUMO_HOME= ");
   EXPECT_EQ(nobin.code, 2) << nobin.err;
-  EXPECT_NE(nobin.err.find("cannot find the `sumo` binary on PATH or in $SUMO_HOME/bin"), std::string::npos) << nobin.err;
+  EXPECT_NE(nobin.err.find("cannot find the `sumo` binary on PATH or in $SUMO_HOME/bin"),
+            std::string::npos)
+      << nobin.err;
   EXPECT_TRUE(fs::is_empty(road().dir / "cache_nobin"));
 }
 
@@ -648,13 +696,14 @@ TEST(SumoVehiclePlant, TrueStateIsTheVehiclesMotionAndDesignIsConstantVelocity) 
 TEST(SumoVehiclePlant, ConstantAccelerationModelTracksPositionSpeedAndAcceleration) {
   ASSERT_TRUE(road().ok);
   fs::create_directories(road().dir / "unit");
-  auto sc = testing::load_one(road().scenario(),
-                              {"sumo.cache=\"unit\"", "plant.model=\"constant_acceleration\"", "plant.q=0.5",
-                               "sensor[0].C=[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]", "run.runs=2"});
+  auto sc = testing::load_one(
+      road().scenario(),
+      {"sumo.cache=\"unit\"", "plant.model=\"constant_acceleration\"", "plant.q=0.5",
+       "sensor[0].C=[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]", "run.runs=2"});
   const auto& p = sc->model.plant;
   ASSERT_EQ(p.n(), 3);
-  EXPECT_NEAR(p.A(0, 2), 0.005, 1e-15);            // T^2 / 2
-  EXPECT_NEAR(p.W(2, 2), 0.5 * 0.1, 1e-15);        // q T
+  EXPECT_NEAR(p.A(0, 2), 0.005, 1e-15);              // T^2 / 2
+  EXPECT_NEAR(p.W(2, 2), 0.5 * 0.1, 1e-15);          // q T
   EXPECT_NEAR(p.W(0, 0), 0.5 * 1e-5 / 20.0, 1e-18);  // q T^5 / 20
   sim::CampaignOptions opt;
   opt.time_estimators = false;

@@ -22,7 +22,9 @@ struct Road3 {
   bool ok = false;
   Road3() {
     dir = fs::temp_directory_path() / ("ncosim_sumo_traffic_" + std::to_string(::getpid()));
-    ok = ncosim::testing::write_sumo_road(dir, 3000, R"(  <vehicle id="leader" type="fast" route="r" depart="0" departPos="200" departSpeed="max"/>
+    ok = ncosim::testing::write_sumo_road(
+        dir, 3000,
+        R"(  <vehicle id="leader" type="fast" route="r" depart="0" departPos="200" departSpeed="max"/>
   <vehicle id="near" type="fast" route="r" depart="0" departPos="100" departSpeed="max"/>
   <vehicle id="far" type="slow" route="r" depart="0" departPos="0" departSpeed="max"/>
   <vehicle id="other" type="slow" route="r" depart="0" departPos="50" departSpeed="max"/>
@@ -47,7 +49,8 @@ values = ["veins_nakagami3", "ns3_vanet"]
 
 int count(const std::string& text, const std::string& needle) {
   int n = 0;
-  for (std::size_t at = text.find(needle); at != std::string::npos; at = text.find(needle, at + 1)) ++n;
+  for (std::size_t at = text.find(needle); at != std::string::npos; at = text.find(needle, at + 1))
+    ++n;
   return n;
 }
 
