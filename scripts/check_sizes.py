@@ -21,7 +21,8 @@ import os
 import re
 import sys
 
-SCOPE_HEAD = re.compile(r"\b(namespace|class|struct|union|enum)\b|\bextern\s*$")
+# `extern "C" {`: the literal is blanked to `" "` before the heads are read.
+SCOPE_HEAD = re.compile(r"\b(namespace|class|struct|union|enum)\b|\bextern\s*(\"[^\"]*\")?\s*$")
 CONTROL = re.compile(r"^(if|for|while|switch|catch|do|else|try|return)\b")
 QUALIFIERS = re.compile(r"(\s*(const|noexcept|override|final|mutable|&|&&|volatile)\b|\s*->[^{;]*)*\s*$")
 
@@ -107,8 +108,12 @@ def is_function_head(head):
         return False
     # Strip a constructor's initialiser list: ") : a_(x), b_{y}" -> ")".
     body = h
+    # The list is complete only when its last item is: at `c_{` in ") : a_(x), c_{y} {" the head
+    # ends in `c_`, and that brace is c_'s initialiser, not the body.
     m = re.search(r"\)\s*(?:noexcept\s*)?:\s*[\w:]+\s*[({]", body)
     if m:
+        if not re.search(r"[)}]\s*$", body):
+            return False
         body = body[:m.start() + 1]
     body = QUALIFIERS.sub("", body)
     return body.endswith(")")
@@ -123,7 +128,10 @@ def functions(text):
         line_of.append(line)
         if ch == "\n":
             line += 1
-    stack = []  # "scope", "function", or "other" per open brace
+    # Per open brace: ("scope" | "function" | "other", name, first line, head start). An "other"
+    # brace at namespace or class scope is a brace initialiser (`int a_{0};`, a constructor's
+    # `: a_{x}, b_(y) {`, a default argument `= {}`): its head goes on after it closes.
+    stack = []
     head_start = 0
     found = []
     for i, ch in enumerate(code):
@@ -132,18 +140,20 @@ def functions(text):
             inside_function = any(k[0] == "function" for k in stack)
             if not inside_function and is_function_head(head):
                 s = head_start + (len(head) - len(head.lstrip()))
-                stack.append(("function", function_name(head.strip()), line_of[s]))
+                stack.append(("function", function_name(head.strip()), line_of[s], None))
             elif not inside_function and (SCOPE_HEAD.search(head) or not head.strip()):
-                stack.append(("scope", None, None))
+                stack.append(("scope", None, None, None))
             else:
-                stack.append(("other", None, None))
+                stack.append(("other", None, None, None if inside_function else head_start))
             head_start = i + 1
         elif ch == "}":
+            head_start = i + 1
             if stack:
-                kind, name, first = stack.pop()
+                kind, name, first, resume = stack.pop()
                 if kind == "function":
                     found.append((name, first, line_of[i]))
-            head_start = i + 1
+                elif resume is not None:
+                    head_start = resume
         elif ch == ";":
             head_start = i + 1
         elif ch == ":" and code[i - 1:i] != ":" and code[i + 1:i + 2] != ":":
