@@ -215,7 +215,7 @@ class Problem {
   SdpSize size() const;  // what solve() would hand to CSDP (validation aside)
   Solution solve() const;
 
-  struct Impl;  // implementation detail (lmi.cc)
+  struct Impl;  // implementation detail (lmi/problem_impl.h)
 
  private:
   std::unique_ptr<Impl> impl_;
