@@ -93,86 +93,22 @@ class JumpObserverDesign final : public EstimatorDesign, public JumpDesignAccess
   JumpObserverDesign(const Model& model, JumpParams params)
       : params_(std::move(params)), ext_(build_extended(model, params_.dbar)) {
     const auto probs = pattern_probabilities(model, ext_);
-    auto clock = [] { return std::chrono::steady_clock::now(); };
-    auto seconds = [](auto a, auto b) { return std::chrono::duration<double>(b - a).count(); };
     std::optional<JumpDesign> iterative, ccl;
     double t_iter = 0.0, t_ccl = 0.0;
     CclInfo info;
-    if (params_.design != "ccl") {
-      const auto start = clock();
-      // Reported through evaluate_jump_gains like CCL, so both predictions are computed alike.
-      JumpDesign it = design_jump_iterative(ext_, probs, params_.Nbar, params_.grouping);
-      if (it.stable) {
-        JumpDesign ev = evaluate_jump_gains(ext_, probs, params_.Nbar, params_.grouping, it.gains);
-        if (ev.stable) {
-          ev.iterations = it.iterations;
-          it = std::move(ev);
-        }
-      }
-      iterative = std::move(it);
-      t_iter = seconds(start, clock());
-    }
-    if (params_.design != "iterative") {
-      const auto start = clock();
-      CclOptions o;
-      o.verbose = params_.verbose;
-      if (params_.ccl_start == "paper") {  // section 4's steps (bench: BM_DesignCclLiteral)
-        o.start = CclStart::kFeasible;
-        o.patience = o.max_ccl_iterations;
-        o.s4_bound = false;
-      }
-      ccl = design_jump_ccl(ext_, probs, params_.Nbar, params_.grouping, o, &info);
-      t_ccl = seconds(start, clock());
-    }
+    if (params_.design != "ccl") iterative = design_iterative(probs, t_iter);
+    if (params_.design != "iterative") ccl = design_ccl(probs, info, t_ccl);
     const bool use_ccl =
         !iterative ||
         (ccl && ccl->stable && (!iterative->stable || ccl->Pt.trace() < iterative->Pt.trace()));
     design_ = use_ccl ? *ccl : *iterative;
     report_.method = use_ccl ? "ccl" : "iterative";
     report_.design_seconds = t_iter + t_ccl;
-    report_.stored_gains = design_.stored_gains;
-    report_.stable = design_.stable;
-    report_.status = design_.status;
-    if (design_.stable) {
-      report_.predicted_mse_ext = design_.Pt.trace();
-      report_.predicted_mse = design_.Pt.topLeftCorner(ext_.n, ext_.n).trace();
-      // The paper's printed eq. (28), which is wrong: only to reproduce its Fig. 3
-      // (results/README.md).
-      report_.extra["predicted_mse_paper_eq28_erroneous"] =
-          design_.Pt_paper_eq28_erroneous.topLeftCorner(ext_.n, ext_.n).trace();
-      report_.extra["predicted_mse_ext_paper_eq28_erroneous"] =
-          design_.Pt_paper_eq28_erroneous.trace();
-    }
+    report_chosen();
     report_.extra["design"] = params_.design;
     if (ccl) report_.extra["ccl_start"] = params_.ccl_start;
-    if (iterative) {
-      report_.extra["design_seconds_iterative"] = t_iter;
-      report_.extra["iterations"] = iterative->iterations;
-      if (iterative->stable)
-        report_.extra["predicted_mse_ext_iterative"] = iterative->Pt.trace();
-      else
-        report_.extra["status_iterative"] = iterative->status;
-      if (!iterative->iteration_message.empty())
-        report_.extra["iteration_message"] = iterative->iteration_message;
-    }
-    if (ccl) {
-      report_.extra["design_seconds_ccl"] = t_ccl;
-      if (ccl->stable)
-        report_.extra["predicted_mse_ext_ccl"] = ccl->Pt.trace();
-      else
-        report_.extra["status_ccl"] = ccl->status;
-      report_.extra["sdp"] = {{"variables", info.size.variables},
-                              {"blocks", info.size.blocks},
-                              {"block_sizes", info.size.block_sizes},
-                              {"solves", info.sdp_solves},
-                              {"bisections", info.bisections},
-                              {"ccl_iterations", info.ccl_iterations},
-                              {"relaxation_trP", info.relaxation_bound},
-                              {"s4_bound_trP", info.s4_bound},
-                              {"bisection_stop", info.stop.empty() ? "none" : info.stop},
-                              {"bisection_low_trP", info.lower_bound},
-                              {"bisection_high_trP", info.upper_bound}};
-    }
+    if (iterative) report_iterative(*iterative, t_iter);
+    if (ccl) report_ccl(*ccl, info, t_ccl);
     if (iterative && ccl) report_.extra["chosen"] = report_.method;
     // A failed iterative design keeps its historical row status; a failed LMI design is
     // design_<lmi status> (design_infeasible, design_numerical_trouble, ...).
@@ -203,6 +139,85 @@ class JumpObserverDesign final : public EstimatorDesign, public JumpDesignAccess
   const InitialEstimate& initial_estimate() const override { return params_.init; }
 
  private:
+  static double seconds_since(std::chrono::steady_clock::time_point start) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  }
+
+  // The value-iteration design, reported through evaluate_jump_gains like CCL, so that both
+  // predictions are computed alike.
+  JumpDesign design_iterative(const std::vector<double>& probs, double& seconds) const {
+    const auto start = std::chrono::steady_clock::now();
+    JumpDesign it = design_jump_iterative(ext_, probs, params_.Nbar, params_.grouping);
+    if (it.stable) {
+      JumpDesign ev = evaluate_jump_gains(ext_, probs, params_.Nbar, params_.grouping, it.gains);
+      if (ev.stable) {
+        ev.iterations = it.iterations;
+        it = std::move(ev);
+      }
+    }
+    seconds = seconds_since(start);
+    return it;
+  }
+
+  JumpDesign design_ccl(const std::vector<double>& probs, CclInfo& info, double& seconds) const {
+    const auto start = std::chrono::steady_clock::now();
+    CclOptions o;
+    o.verbose = params_.verbose;
+    if (params_.ccl_start == "paper") {  // section 4's steps (bench: BM_DesignCclLiteral)
+      o.start = CclStart::kFeasible;
+      o.patience = o.max_ccl_iterations;
+      o.s4_bound = false;
+    }
+    JumpDesign d = design_jump_ccl(ext_, probs, params_.Nbar, params_.grouping, o, &info);
+    seconds = seconds_since(start);
+    return d;
+  }
+
+  // The chosen design's figures.
+  void report_chosen() {
+    report_.stored_gains = design_.stored_gains;
+    report_.stable = design_.stable;
+    report_.status = design_.status;
+    if (!design_.stable) return;
+    report_.predicted_mse_ext = design_.Pt.trace();
+    report_.predicted_mse = design_.Pt.topLeftCorner(ext_.n, ext_.n).trace();
+    // The paper's printed eq. (28), which is wrong: only to reproduce its Fig. 3
+    // (results/README.md).
+    report_.extra["predicted_mse_paper_eq28_erroneous"] =
+        design_.Pt_paper_eq28_erroneous.topLeftCorner(ext_.n, ext_.n).trace();
+    report_.extra["predicted_mse_ext_paper_eq28_erroneous"] =
+        design_.Pt_paper_eq28_erroneous.trace();
+  }
+
+  void report_iterative(const JumpDesign& iterative, double t_iter) {
+    report_.extra["design_seconds_iterative"] = t_iter;
+    report_.extra["iterations"] = iterative.iterations;
+    if (iterative.stable)
+      report_.extra["predicted_mse_ext_iterative"] = iterative.Pt.trace();
+    else
+      report_.extra["status_iterative"] = iterative.status;
+    if (!iterative.iteration_message.empty())
+      report_.extra["iteration_message"] = iterative.iteration_message;
+  }
+
+  void report_ccl(const JumpDesign& ccl, const CclInfo& info, double t_ccl) {
+    report_.extra["design_seconds_ccl"] = t_ccl;
+    if (ccl.stable)
+      report_.extra["predicted_mse_ext_ccl"] = ccl.Pt.trace();
+    else
+      report_.extra["status_ccl"] = ccl.status;
+    report_.extra["sdp"] = {{"variables", info.size.variables},
+                            {"blocks", info.size.blocks},
+                            {"block_sizes", info.size.block_sizes},
+                            {"solves", info.sdp_solves},
+                            {"bisections", info.bisections},
+                            {"ccl_iterations", info.ccl_iterations},
+                            {"relaxation_trP", info.relaxation_bound},
+                            {"s4_bound_trP", info.s4_bound},
+                            {"bisection_stop", info.stop.empty() ? "none" : info.stop},
+                            {"bisection_low_trP", info.lower_bound},
+                            {"bisection_high_trP", info.upper_bound}};
+  }
   JumpParams params_;
   ExtendedModel ext_;
   JumpDesign design_;

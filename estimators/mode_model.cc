@@ -12,6 +12,60 @@ namespace ncosim::est {
 
 namespace {
 
+// The modes of a plant without its own: one per pattern j of delivered input channels (r
+// channels, 2^r modes), a channel that holds on loss keeping its last value as a state.
+void add_loss_modes(ModeModel& mm, const Model& model, const Eigen::MatrixXd& E) {
+  const auto& p = model.plant;
+  const Eigen::Index n = mm.n, h = static_cast<Eigen::Index>(mm.hold.size());
+  const int r = mm.channels;
+  const int s = r > 0 ? 1 << r : 1;
+  Eigen::MatrixXd Q = Eigen::MatrixXd::Zero(mm.na, mm.na);
+  Q.topLeftCorner(n, n) = p.Bw * p.W * p.Bw.transpose();
+  for (int j = 0; j < s; ++j) {
+    Eigen::MatrixXd A = Eigen::MatrixXd::Zero(mm.na, mm.na);
+    Eigen::MatrixXd B = Eigen::MatrixXd::Zero(mm.na, mm.nue);
+    A.topLeftCorner(n, n) = p.A;
+    B.rightCols(n) = E;
+    for (int i = 0; i < r; ++i) {
+      const bool delivered = models::channel_delivered(j, i, r);
+      if (delivered) B.block(0, i, n, 1) = p.Bu.col(i);
+    }
+    for (Eigen::Index c = 0; c < h; ++c) {
+      const int i = mm.hold[static_cast<std::size_t>(c)];
+      if (models::channel_delivered(j, i, r)) {
+        B(n + c, i) = 1.0;  // the delivered value is the new held one
+      } else {
+        A.block(0, n + c, n, 1) = p.Bu.col(i);  // the held value is applied again
+        A(n + c, n + c) = 1.0;
+      }
+    }
+    mm.A.push_back(std::move(A));
+    mm.B.push_back(std::move(B));
+    mm.Q.push_back(Q);
+  }
+}
+
+// Independent links (Moayedi et al., Remark 1, eq. 26): Kronecker product of the on-time
+// chains, channel 0 the most significant factor (the mode numbering).
+Eigen::MatrixXd loss_transition(const Model& model, int channels) {
+  Eigen::MatrixXd T = Eigen::MatrixXd::Ones(1, 1);
+  for (int i = 0; i < channels; ++i) {
+    const models::Link* link = model.actuators[static_cast<std::size_t>(i)].link;
+    Eigen::Matrix2d c;
+    if (link == nullptr) {
+      c << 1.0, 0.0, 1.0, 0.0;
+    } else {
+      c = link->on_time_chain();
+    }
+    Eigen::MatrixXd K(T.rows() * 2, T.cols() * 2);
+    for (Eigen::Index a = 0; a < T.rows(); ++a) {
+      for (Eigen::Index b = 0; b < T.cols(); ++b) K.block(2 * a, 2 * b, 2, 2) = T(a, b) * c;
+    }
+    T = std::move(K);
+  }
+  return T;
+}
+
 ModeModel build(const Model& model) {
   ModeModel mm;
   const auto& p = model.plant;
@@ -46,50 +100,8 @@ ModeModel build(const Model& model) {
     }
     mm.transition = p.mode_transition;
   } else {
-    const int r = mm.channels;
-    const int s = r > 0 ? 1 << r : 1;
-    Eigen::MatrixXd Q = Eigen::MatrixXd::Zero(mm.na, mm.na);
-    Q.topLeftCorner(n, n) = p.Bw * p.W * p.Bw.transpose();
-    for (int j = 0; j < s; ++j) {
-      Eigen::MatrixXd A = Eigen::MatrixXd::Zero(mm.na, mm.na);
-      Eigen::MatrixXd B = Eigen::MatrixXd::Zero(mm.na, mm.nue);
-      A.topLeftCorner(n, n) = p.A;
-      B.rightCols(n) = E;
-      for (int i = 0; i < r; ++i) {
-        const bool delivered = models::channel_delivered(j, i, r);
-        if (delivered) B.block(0, i, n, 1) = p.Bu.col(i);
-      }
-      for (Eigen::Index c = 0; c < h; ++c) {
-        const int i = mm.hold[static_cast<std::size_t>(c)];
-        if (models::channel_delivered(j, i, r)) {
-          B(n + c, i) = 1.0;  // the delivered value is the new held one
-        } else {
-          A.block(0, n + c, n, 1) = p.Bu.col(i);  // the held value is applied again
-          A(n + c, n + c) = 1.0;
-        }
-      }
-      mm.A.push_back(std::move(A));
-      mm.B.push_back(std::move(B));
-      mm.Q.push_back(Q);
-    }
-    // Independent links (Moayedi et al., Remark 1, eq. 26): Kronecker product of the on-time
-    // chains, channel 0 the most significant factor (the mode numbering).
-    Eigen::MatrixXd T = Eigen::MatrixXd::Ones(1, 1);
-    for (int i = 0; i < r; ++i) {
-      const models::Link* link = model.actuators[static_cast<std::size_t>(i)].link;
-      Eigen::Matrix2d c;
-      if (link == nullptr) {
-        c << 1.0, 0.0, 1.0, 0.0;
-      } else {
-        c = link->on_time_chain();
-      }
-      Eigen::MatrixXd K(T.rows() * 2, T.cols() * 2);
-      for (Eigen::Index a = 0; a < T.rows(); ++a) {
-        for (Eigen::Index b = 0; b < T.cols(); ++b) K.block(2 * a, 2 * b, 2, 2) = T(a, b) * c;
-      }
-      T = std::move(K);
-    }
-    mm.transition = T;
+    add_loss_modes(mm, model, E);
+    mm.transition = loss_transition(model, mm.channels);
   }
   return mm;
 }

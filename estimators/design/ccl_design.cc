@@ -150,53 +150,31 @@ std::vector<MatrixXd> gains_of(const Setup& s, const Built& b, const lmi::Soluti
   return gains;
 }
 
-}  // namespace
-
-JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& prob, int Nbar,
-                           Grouping grouping, const CclOptions& opt, CclInfo* info_out) {
-  CclInfo info;
-  const Eigen::Index nb = ext.nb, nm = ext.nmb;
-  const double p0 = prob[0];
-  const int per_N = groups_per_N(grouping, ext);
-  // Checks shared with the evaluation (p0 >= 1, p0 rho^2 >= 1): a zero-gain evaluation.
-  const std::vector<MatrixXd> zero(static_cast<std::size_t>(per_N) * Nbar, MatrixXd::Zero(nb, nm));
-  JumpDesign failed = evaluate_jump_gains(ext, prob, Nbar, grouping, zero);
-  failed.stable = false;
-  if (failed.status.rfind("unstable:", 0) == 0 || failed.status == "no_measurements") {
-    if (info_out) *info_out = info;
-    return failed;
-  }
-  failed.P.setConstant(std::nan(""));
-  failed.Pt.setConstant(std::nan(""));
-
-  // The SDPs are built on the model with its noise covariances divided by `scale` (then P, S_P
-  // scale by 1/scale, Q, R by scale and the gains are unchanged), so that their variables are
-  // of order one; every gain set is evaluated on the original model.
+// The SDPs are built on the model with its noise covariances divided by this scale (then P, S_P
+// scale by 1/scale, Q, R by scale and the gains are unchanged), so that their variables are
+// of order one; every gain set is evaluated on the original model.
+double noise_scale(const ExtendedModel& ext, const CclOptions& opt) {
   double scale = 1.0;
   if (opt.normalise) {
-    const double t = (ext.Q.trace() + ext.V.trace()) / static_cast<double>(nb + nm);
+    const double t = (ext.Q.trace() + ext.V.trace()) / static_cast<double>(ext.nb + ext.nmb);
     if (t > 0.0 && std::isfinite(t)) scale = t;
   }
-  ExtendedModel sext = ext;
-  sext.Q /= scale;
-  sext.V /= scale;
-  Setup s{sext, prob, Nbar, grouping, p0, {}, {}, {}, {}, 0};
-  HistoryTerms h = history_terms(sext, p0, Nbar);  // noise terms on the normalised model
-  const MatrixXd& stein = h.stein;
-  s.noise_factor.resize(Nbar + 1);
-  for (int N = 1; N < Nbar; ++N) s.noise_factor[N] = psd_factor(h.SW[N]);
-  s.noise_factor[Nbar] = psd_factor(h.tail_noise);
-  s.Apow = std::move(h.Apow);
-  s.groups = static_cast<std::size_t>(per_N) * Nbar;
-  // Patterns of positive probability per group (the same for every N) and the rows they use.
+  return scale;
+}
+
+// Patterns of positive probability per group (the same for every N), returned, and the rows of
+// each group's gain they use (s.select: the gain's rows that are variables).
+std::vector<std::vector<std::uint64_t>> select_rows(Setup& s, const ExtendedModel& ext, int per_N) {
+  const std::vector<double>& prob = s.prob;
+  const Eigen::Index nm = ext.nmb;
   std::vector<std::vector<std::uint64_t>> members(static_cast<std::size_t>(per_N));
   std::vector<Eigen::VectorXd> used(s.groups, Eigen::VectorXd::Zero(nm));
   for (std::size_t m = 1; m < prob.size(); ++m) {
     if (prob[m] <= 0.0) continue;
-    const int k = group_of(grouping, ext, m);
+    const int k = group_of(s.grouping, ext, m);
     members[static_cast<std::size_t>(k)].push_back(m);
-    for (int N = 1; N <= Nbar; ++N) {
-      if (history_weight(p0, N, Nbar) <= 0.0)
+    for (int N = 1; N <= s.Nbar; ++N) {
+      if (history_weight(s.p0, N, s.Nbar) <= 0.0)
         continue;  // p0 = 0: no update ever waits N >= 2 periods
       const std::size_t g = static_cast<std::size_t>((N - 1) * per_N + k);
       used[g] = used[g].cwiseMax(ext.row_mask(m));
@@ -209,212 +187,328 @@ JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& 
     for (Eigen::Index r = 0, i = 0; r < nm; ++r)
       if (used[g](r) > 0.0) s.select[g](i++, r) = 1.0;
   }
+  return members;
+}
+
+// The pieces of LMI (25) for group g (history length N, weight wN) with patterns `pats`: one per
+// pattern, or the moment form when it is smaller (see Piece).
+std::vector<Piece> group_pieces(const Setup& s, const ExtendedModel& ext,
+                                const std::vector<std::uint64_t>& pats, int N, int g,
+                                bool group_moments) {
+  const Eigen::Index nb = ext.nb, nm = ext.nmb;
+  const double wN = history_weight(s.p0, N, s.Nbar);
+  const double tailA =
+      N < s.Nbar ? 1.0 : 1.0 - s.p0;  // the tail's A^N part is weighted by (1 - p0)
+  const Eigen::Index zw = s.noise_factor[N].cols();
+  const MatrixXd& V = s.ext.V;  // the normalised model's
+  const MatrixXd& E = s.select[static_cast<std::size_t>(g)];
+  // One piece per pattern ...
+  std::vector<Piece> each;
+  Eigen::Index each_size = 0;
+  double W = 0.0;
+  Eigen::VectorXd mean = Eigen::VectorXd::Zero(nm);
+  MatrixXd second = MatrixXd::Zero(nm, nm);
+  for (std::uint64_t m : pats) {
+    const double w = wN * s.prob[m];
+    const Eigen::VectorXd eta = ext.row_mask(m);
+    const MatrixXd mask = eta.asDiagonal();
+    Piece pc{N,
+             g,
+             std::sqrt(w),
+             std::sqrt(w * tailA),
+             1.0,
+             eta,
+             psd_factor(E * mask * V * mask * E.transpose())};
+    each_size += nb + zw + pc.Zv.cols();
+    each.push_back(std::move(pc));
+    W += w;
+    mean += w * eta;
+    second += w * eta * eta.transpose();
+  }
+  // ... or the moment form.
+  mean /= W;
+  second /= W;
+  const MatrixXd cov = second - mean * mean.transpose();
+  const MatrixXd Sk = cov.isZero(0.0) ? MatrixXd(nm, 0) : psd_factor(cov);
+  std::vector<Piece> moments;
+  moments.push_back({N, g, std::sqrt(W), std::sqrt(W * tailA), 1.0, mean,
+                     psd_factor(E * second.cwiseProduct(V) * E.transpose())});
+  for (Eigen::Index c = 0; c < Sk.cols(); ++c)
+    moments.push_back(
+        {N, g, std::sqrt(W), std::sqrt(W * tailA), 0.0, Sk.col(c), MatrixXd(E.rows(), 0)});
+  Eigen::Index moment_size = 0;
+  for (const auto& pc : moments) moment_size += nb + zw + pc.Zv.cols();
+  return group_moments && moment_size < each_size ? moments : each;
+}
+
+// The terms of (25) on the normalised model sext (its noise factors from h, whose powers of A
+// are moved in), per history length N and group.
+Setup make_setup(const ExtendedModel& ext, const ExtendedModel& sext,
+                 const std::vector<double>& prob, int Nbar, Grouping grouping, HistoryTerms& h,
+                 bool group_moments) {
+  const int per_N = groups_per_N(grouping, ext);
+  Setup s{sext, prob, Nbar, grouping, prob[0], {}, {}, {}, {}, 0};
+  s.noise_factor.resize(Nbar + 1);
+  for (int N = 1; N < Nbar; ++N) s.noise_factor[N] = psd_factor(h.SW[N]);
+  s.noise_factor[Nbar] = psd_factor(h.tail_noise);
+  s.Apow = std::move(h.Apow);
+  s.groups = static_cast<std::size_t>(per_N) * Nbar;
+  const auto members = select_rows(s, ext, per_N);
   for (int N = 1; N <= Nbar; ++N) {
-    const double wN = history_weight(p0, N, Nbar);
-    if (wN <= 0.0) continue;  // its gains are never used: no variables, no terms
-    const double tailA = N < Nbar ? 1.0 : 1.0 - p0;  // the tail's A^N part is weighted by (1 - p0)
-    const Eigen::Index zw = s.noise_factor[N].cols();
+    if (history_weight(s.p0, N, Nbar) <= 0.0)
+      continue;  // its gains are never used: no variables, no terms
     for (int k = 0; k < per_N; ++k) {
       const auto& pats = members[static_cast<std::size_t>(k)];
       if (pats.empty()) continue;
-      const int g = (N - 1) * per_N + k;
-      const MatrixXd& E = s.select[static_cast<std::size_t>(g)];
-      // One piece per pattern ...
-      std::vector<Piece> each;
-      Eigen::Index each_size = 0;
-      double W = 0.0;
-      Eigen::VectorXd mean = Eigen::VectorXd::Zero(nm);
-      MatrixXd second = MatrixXd::Zero(nm, nm);
-      for (std::uint64_t m : pats) {
-        const double w = wN * prob[m];
-        const Eigen::VectorXd eta = ext.row_mask(m);
-        const MatrixXd mask = eta.asDiagonal();
-        Piece pc{N,
-                 g,
-                 std::sqrt(w),
-                 std::sqrt(w * tailA),
-                 1.0,
-                 eta,
-                 psd_factor(E * mask * sext.V * mask * E.transpose())};
-        each_size += nb + zw + pc.Zv.cols();
-        each.push_back(std::move(pc));
-        W += w;
-        mean += w * eta;
-        second += w * eta * eta.transpose();
-      }
-      // ... or the moment form.
-      mean /= W;
-      second /= W;
-      const MatrixXd cov = second - mean * mean.transpose();
-      const MatrixXd Sk = cov.isZero(0.0) ? MatrixXd(nm, 0) : psd_factor(cov);
-      std::vector<Piece> moments;
-      moments.push_back({N, g, std::sqrt(W), std::sqrt(W * tailA), 1.0, mean,
-                         psd_factor(E * second.cwiseProduct(sext.V) * E.transpose())});
-      for (Eigen::Index c = 0; c < Sk.cols(); ++c)
-        moments.push_back(
-            {N, g, std::sqrt(W), std::sqrt(W * tailA), 0.0, Sk.col(c), MatrixXd(E.rows(), 0)});
-      Eigen::Index moment_size = 0;
-      for (const auto& pc : moments) moment_size += nb + zw + pc.Zv.cols();
-      auto& chosen = opt.group_moments && moment_size < each_size ? moments : each;
-      for (auto& pc : chosen) s.pieces.push_back(std::move(pc));
+      for (auto& pc : group_pieces(s, ext, pats, N, (N - 1) * per_N + k, group_moments))
+        s.pieces.push_back(std::move(pc));
     }
   }
+  return s;
+}
 
-  lmi::Options lo;
-  lo.verbose = opt.verbose;
-  lo.max_iterations = opt.sdp_max_iterations;
-  lo.tolerance = opt.sdp_tolerance;
-  JumpDesign best = failed;
-  double best_trP = std::numeric_limits<double>::infinity();
-  auto solve = [&](Built& b) {
-    b.prob.options() = lo;
-    lmi::Solution sol = b.prob.solve();
-    ++info.sdp_solves;
-    if (opt.verbose) std::fputs(sol.log.c_str(), stderr);
-    if (opt.verbose)
-      std::fprintf(stderr, "sdp %d: %s obj %.6g %.3fs k=%d blocks=%d best %.8g\n", info.sdp_solves,
-                   lmi::to_string(sol.status), sol.objective, sol.seconds, sol.size.variables,
-                   sol.size.blocks, best_trP);
-    return sol;
-  };
-  // Gains of a solution: keep the best exact fixed point.
-  auto consider = [&](const Built& b, const lmi::Solution& sol) {
-    JumpDesign d = evaluate_jump_gains(ext, prob, Nbar, grouping, gains_of(s, b, sol));
-    if (!d.stable) {
-      if (opt.verbose) std::fprintf(stderr, "gains: %s\n", d.status.c_str());
-      return std::numeric_limits<double>::infinity();
+// CCL (the paper's steps 2-4) inside a bisection on gamma = tr(P) (steps 1 and 5); every gain
+// set found is evaluated exactly and the best exact fixed point is kept.
+class CclSearch {
+ public:
+  CclSearch(const ExtendedModel& ext, const std::vector<double>& prob, int Nbar, Grouping grouping,
+            const CclOptions& opt, double scale, const Setup& s, const MatrixXd& stein,
+            const JumpDesign& failed)
+      : ext_(ext),
+        prob_(prob),
+        Nbar_(Nbar),
+        grouping_(grouping),
+        opt_(opt),
+        scale_(scale),
+        s_(s),
+        stein_(stein),
+        failed_(failed),
+        best_(failed) {
+    lo_.verbose = opt.verbose;
+    lo_.max_iterations = opt.sdp_max_iterations;
+    lo_.tolerance = opt.sdp_tolerance;
+  }
+
+  JumpDesign run();
+  const CclInfo& info() const { return info_; }
+
+ private:
+  lmi::Solution solve(Built& b);
+  double consider(const Built& b, const lmi::Solution& sol);
+  bool exact_linearisation_point(MatrixXd& Pk, MatrixXd& Qk, MatrixXd& Sk, MatrixXd& Rk) const;
+  bool ccl(double gamma);
+  bool first_gains(Built& first, double& lower);
+  void bisect(double lower);
+
+  const ExtendedModel& ext_;
+  const std::vector<double>& prob_;
+  const int Nbar_;
+  const Grouping grouping_;
+  const CclOptions& opt_;
+  const double scale_;
+  const Setup& s_;
+  const MatrixXd& stein_;
+  lmi::Options lo_;
+  CclInfo info_;
+  JumpDesign failed_;
+  JumpDesign best_;
+  double best_trP_ = std::numeric_limits<double>::infinity();
+  JumpDesign s4_;
+  bool s4_ok_ = false;
+  std::string fail_status_;
+};
+
+lmi::Solution CclSearch::solve(Built& b) {
+  b.prob.options() = lo_;
+  lmi::Solution sol = b.prob.solve();
+  ++info_.sdp_solves;
+  if (opt_.verbose) std::fputs(sol.log.c_str(), stderr);
+  if (opt_.verbose)
+    std::fprintf(stderr, "sdp %d: %s obj %.6g %.3fs k=%d blocks=%d best %.8g\n", info_.sdp_solves,
+                 lmi::to_string(sol.status), sol.objective, sol.seconds, sol.size.variables,
+                 sol.size.blocks, best_trP_);
+  return sol;
+}
+
+// Gains of a solution: keep the best exact fixed point. Its tr(P), infinity when unstable.
+double CclSearch::consider(const Built& b, const lmi::Solution& sol) {
+  JumpDesign d = evaluate_jump_gains(ext_, prob_, Nbar_, grouping_, gains_of(s_, b, sol));
+  if (!d.stable) {
+    if (opt_.verbose) std::fprintf(stderr, "gains: %s\n", d.status.c_str());
+    return std::numeric_limits<double>::infinity();
+  }
+  const double tr = d.P.trace();
+  if (tr < best_trP_) {
+    best_trP_ = tr;
+    best_ = std::move(d);
+  }
+  return tr;
+}
+
+// Step 2 from the best exact fixed point so far (before any, the S4 optimum): (25) holds there
+// with Q = P^-1, R = S_P^-1. False when there is none, or when P is singular (e.g. a noise-free
+// measured direction): then the paper's feasible point is needed.
+bool CclSearch::exact_linearisation_point(MatrixXd& Pk, MatrixXd& Qk, MatrixXd& Sk,
+                                          MatrixXd& Rk) const {
+  if (opt_.start != CclStart::kBestExact) return false;
+  const JumpDesign* from = std::isfinite(best_trP_) ? &best_ : s4_ok_ ? &s4_ : nullptr;
+  if (from == nullptr) return false;
+  Pk = from->P / scale_;
+  Sk = stein_sum(stein_, from->P) / scale_;  // eq. (19): S_P = sum_k p0^k Abar^k P Abar^k'
+  const Eigen::LLT<MatrixXd> lp(Pk), ls(Sk);
+  if (lp.info() == Eigen::Success && ls.info() == Eigen::Success) {
+    Qk = lp.solve(MatrixXd::Identity(ext_.nb, ext_.nb));
+    Rk = ls.solve(MatrixXd::Identity(ext_.nb, ext_.nb));
+  }
+  return !(Qk.size() == 0 || !Qk.allFinite() || !Rk.allFinite());
+}
+
+// CCL at gamma from a feasible point: true when gains with tr(P) <= gamma were found.
+bool CclSearch::ccl(double gamma) {
+  Built b = build(s_, gamma / scale_);
+  lmi::Solution sol;
+  MatrixXd Pk, Qk, Sk, Rk;
+  if (!exact_linearisation_point(Pk, Qk, Sk, Rk)) {
+    sol = solve(b);  // step 2: a feasible point (no objective)
+    if (!sol.ok()) {
+      if (sol.status != lmi::Status::kInfeasible && fail_status_.empty())
+        fail_status_ = lmi::to_string(sol.status);
+      return false;
     }
-    const double tr = d.P.trace();
-    if (tr < best_trP) {
-      best_trP = tr;
-      best = std::move(d);
+    if (const double tr = consider(b, sol); std::isfinite(tr) && tr <= gamma) return true;
+    Pk = sol.value(b.P), Qk = sol.value(b.Q), Sk = sol.value(b.S), Rk = sol.value(b.R);
+  }
+  int idle = 0;
+  for (int k = 0; k < opt_.max_ccl_iterations; ++k) {
+    if (k > 0) Pk = sol.value(b.P), Qk = sol.value(b.Q), Sk = sol.value(b.S), Rk = sol.value(b.R);
+    // Step 3: the linearised objective at (Pk, Qk, Sk, Rk).
+    b.prob.minimize(lmi::trace(Pk * lmi::Expr(b.Q)) + lmi::trace(Qk * b.P) +
+                    lmi::trace(Sk * lmi::Expr(b.R)) + lmi::trace(Rk * lmi::Expr(b.S)));
+    sol = solve(b);
+    ++info_.ccl_iterations;
+    if (!sol.ok()) {
+      if (fail_status_.empty()) fail_status_ = lmi::to_string(sol.status);
+      return false;
     }
-    return tr;
-  };
+    const double before = best_trP_;
+    if (const double tr = consider(b, sol); std::isfinite(tr) && tr <= gamma * (1.0 + 1e-12))
+      return true;
+    // Stalled: the best exact tr(P) did not move for `patience` iterations (k_max of step 4
+    // bounds the loop in any case).
+    // Until some iterate has stable gains, only k_max ends the loop.
+    const bool moved =
+        !std::isfinite(best_trP_) || best_trP_ < before * (1.0 - opt_.stall_tolerance);
+    idle = moved ? 0 : idle + 1;
+    if (idle >= opt_.patience) return false;
+  }
+  return false;
+}
+
+// The first gains without the S4 linearisation: from the relaxation (Q, R free: min tr(P), a
+// certified lower bound, then `lower`) or the paper's feasible point. False when the SDP failed.
+bool CclSearch::first_gains(Built& first, double& lower) {
+  const bool relax = !s4_ok_;
+  if (relax) first.prob.minimize(lmi::trace(first.P));
+  const lmi::Solution sol = solve(first);
+  if (!sol.ok()) {
+    failed_.status = lmi::to_string(sol.status);
+    info_.lmi_status = failed_.status;
+    return false;
+  }
+  if (relax) {
+    lower = std::max(0.0, sol.objective * scale_);
+    info_.relaxation_bound = lower;
+  }
+  consider(first, sol);
+  return true;
+}
+
+// Bisection (section 4, steps 1-5) from [lower, best tr(P)].
+void CclSearch::bisect(double lower) {
+  double upper = best_trP_;
+  int fruitless = 0;  // consecutive steps that found nothing better
+  for (; info_.bisections < opt_.max_bisections && upper - lower >= opt_.relative_gap * upper;
+       ++info_.bisections) {
+    if (s4_ok_ && opt_.max_fruitless_steps > 0 && fruitless >= opt_.max_fruitless_steps) {
+      info_.stopped_fruitless = true;
+      info_.stop = "no_improvement";
+      break;
+    }
+    const double gamma = 0.5 * (lower + upper);
+    const double before = best_trP_;
+    if (!ccl(gamma)) lower = gamma;
+    fruitless = best_trP_ < before * (1.0 - opt_.stall_tolerance) ? 0 : fruitless + 1;
+    upper = std::min(upper, best_trP_);  // the best exact fixed point so far bounds the optimum
+    if (opt_.verbose)
+      std::fprintf(stderr, "gamma %.6g -> [%.6g, %.6g] best %.6g\n", gamma, lower, upper,
+                   best_trP_);
+  }
+  if (info_.stop.empty())
+    info_.stop = upper - lower < opt_.relative_gap * upper ? "gap" : "max_bisections";
+  info_.lower_bound = lower;
+  info_.upper_bound = best_trP_;
+}
+
+JumpDesign CclSearch::run() {
   // The exact S4 design (value iteration). Every grouping's feasible set lies in
   // S4's (S1-S3 only add equalities): its tr(P) is a certified lower bound for the bisection,
   // far tighter than the LMI relaxation's (the paper starts at 0), and its (P, S_P) is where
   // the first CCL iterate is linearised.
-  JumpDesign s4;
-  bool s4_ok = false;
-  if (opt.s4_bound) {
-    s4 = design_jump_iterative(ext, prob, Nbar, Grouping::kS4);
-    s4_ok = s4.stable && s4.status == "ok";
+  if (opt_.s4_bound) {
+    s4_ = design_jump_iterative(ext_, prob_, Nbar_, Grouping::kS4);
+    s4_ok_ = s4_.stable && s4_.status == "ok";
   }
-  std::string fail_status;
-  // CCL at gamma from a feasible point: true when gains with tr(P) <= gamma were found.
-  auto ccl = [&](double gamma) {
-    Built b = build(s, gamma / scale);
-    lmi::Solution sol;
-    MatrixXd Pk, Qk, Sk, Rk;
-    const JumpDesign* from = nullptr;
-    if (opt.start == CclStart::kBestExact)
-      from = std::isfinite(best_trP) ? &best : s4_ok ? &s4 : nullptr;
-    if (from != nullptr) {
-      // Step 2 from the best exact fixed point so far (before any, the S4 optimum): (25) holds
-      // there with Q = P^-1, R = S_P^-1. A singular P (e.g. a noise-free measured direction)
-      // has no such point: then the paper's feasible point below.
-      Pk = from->P / scale;
-      Sk = stein_sum(stein, from->P) / scale;  // eq. (19): S_P = sum_k p0^k Abar^k P Abar^k'
-      const Eigen::LLT<MatrixXd> lp(Pk), ls(Sk);
-      if (lp.info() == Eigen::Success && ls.info() == Eigen::Success) {
-        Qk = lp.solve(MatrixXd::Identity(nb, nb));
-        Rk = ls.solve(MatrixXd::Identity(nb, nb));
-      }
-      if (Qk.size() == 0 || !Qk.allFinite() || !Rk.allFinite()) from = nullptr;
-    }
-    if (from == nullptr) {
-      sol = solve(b);  // step 2: a feasible point (no objective)
-      if (!sol.ok()) {
-        if (sol.status != lmi::Status::kInfeasible && fail_status.empty())
-          fail_status = lmi::to_string(sol.status);
-        return false;
-      }
-      if (const double tr = consider(b, sol); std::isfinite(tr) && tr <= gamma) return true;
-      Pk = sol.value(b.P), Qk = sol.value(b.Q), Sk = sol.value(b.S), Rk = sol.value(b.R);
-    }
-    int idle = 0;
-    for (int k = 0; k < opt.max_ccl_iterations; ++k) {
-      if (k > 0) Pk = sol.value(b.P), Qk = sol.value(b.Q), Sk = sol.value(b.S), Rk = sol.value(b.R);
-      b.prob.minimize(lmi::trace(Pk * lmi::Expr(b.Q)) + lmi::trace(Qk * b.P) +
-                      lmi::trace(Sk * lmi::Expr(b.R)) + lmi::trace(Rk * lmi::Expr(b.S)));
-      sol = solve(b);
-      ++info.ccl_iterations;
-      if (!sol.ok()) {
-        if (fail_status.empty()) fail_status = lmi::to_string(sol.status);
-        return false;
-      }
-      const double before = best_trP;
-      if (const double tr = consider(b, sol); std::isfinite(tr) && tr <= gamma * (1.0 + 1e-12))
-        return true;
-      // Stalled: the best exact tr(P) did not move for `patience` iterations (k_max of step 4
-      // bounds the loop in any case).
-      // Until some iterate has stable gains, only k_max ends the loop.
-      const bool moved =
-          !std::isfinite(best_trP) || best_trP < before * (1.0 - opt.stall_tolerance);
-      idle = moved ? 0 : idle + 1;
-      if (idle >= opt.patience) return false;
-    }
-    return false;
-  };
-
   double lower = 0.0;
-  if (s4_ok) {
-    info.s4_bound = s4.P.trace();
-    lower = info.s4_bound * (1.0 - 1e-9);
+  if (s4_ok_) {
+    info_.s4_bound = s4_.P.trace();
+    lower = info_.s4_bound * (1.0 - 1e-9);
   }
   // The first gains: from CCL linearised at the S4 optimum (below), or, without it, from the
-  // relaxation (Q, R free: min tr(P), a certified lower bound) or the paper's feasible point.
-  Built first = build(s, std::numeric_limits<double>::infinity());
-  info.size = build(s, 1.0).prob.size();  // a bisection step's SDP (with its tr(P) <= gamma block)
-  if (!s4_ok || opt.start != CclStart::kBestExact) {
-    const bool relax = !s4_ok;
-    if (relax) first.prob.minimize(lmi::trace(first.P));
-    const lmi::Solution sol = solve(first);
-    if (!sol.ok()) {
-      failed.status = lmi::to_string(sol.status);
-      info.lmi_status = failed.status;
-      if (info_out) *info_out = info;
-      return failed;
-    }
-    if (relax) {
-      lower = std::max(0.0, sol.objective * scale);
-      info.relaxation_bound = lower;
-    }
-    consider(first, sol);
+  // relaxation or the paper's feasible point (first_gains).
+  Built first = build(s_, std::numeric_limits<double>::infinity());
+  info_.size =
+      build(s_, 1.0).prob.size();  // a bisection step's SDP (with its tr(P) <= gamma block)
+  if (!s4_ok_ || opt_.start != CclStart::kBestExact) {
+    if (!first_gains(first, lower)) return failed_;
   }
-  if (!std::isfinite(best_trP)) ccl(std::numeric_limits<double>::infinity());
-  if (!std::isfinite(best_trP)) {
-    failed.status = fail_status.empty() ? "no_feasible_gains" : fail_status;
-    info.lmi_status = fail_status.empty() ? "optimal" : fail_status;
-    info.lower_bound = lower;
-    if (info_out) *info_out = info;
+  if (!std::isfinite(best_trP_)) ccl(std::numeric_limits<double>::infinity());
+  if (!std::isfinite(best_trP_)) {
+    failed_.status = fail_status_.empty() ? "no_feasible_gains" : fail_status_;
+    info_.lmi_status = fail_status_.empty() ? "optimal" : fail_status_;
+    info_.lower_bound = lower;
+    return failed_;
+  }
+  bisect(lower);
+  return best_;
+}
+
+}  // namespace
+
+JumpDesign design_jump_ccl(const ExtendedModel& ext, const std::vector<double>& prob, int Nbar,
+                           Grouping grouping, const CclOptions& opt, CclInfo* info_out) {
+  const Eigen::Index nb = ext.nb, nm = ext.nmb;
+  const int per_N = groups_per_N(grouping, ext);
+  // Checks shared with the evaluation (p0 >= 1, p0 rho^2 >= 1): a zero-gain evaluation.
+  const std::vector<MatrixXd> zero(static_cast<std::size_t>(per_N) * Nbar, MatrixXd::Zero(nb, nm));
+  JumpDesign failed = evaluate_jump_gains(ext, prob, Nbar, grouping, zero);
+  failed.stable = false;
+  if (failed.status.rfind("unstable:", 0) == 0 || failed.status == "no_measurements") {
+    if (info_out) *info_out = CclInfo{};
     return failed;
   }
-  // Bisection (section 4, steps 1-5).
-  double upper = best_trP;
-  int fruitless = 0;  // consecutive steps that found nothing better
-  for (; info.bisections < opt.max_bisections && upper - lower >= opt.relative_gap * upper;
-       ++info.bisections) {
-    if (s4_ok && opt.max_fruitless_steps > 0 && fruitless >= opt.max_fruitless_steps) {
-      info.stopped_fruitless = true;
-      info.stop = "no_improvement";
-      break;
-    }
-    const double gamma = 0.5 * (lower + upper);
-    const double before = best_trP;
-    if (!ccl(gamma)) lower = gamma;
-    fruitless = best_trP < before * (1.0 - opt.stall_tolerance) ? 0 : fruitless + 1;
-    upper = std::min(upper, best_trP);  // the best exact fixed point so far bounds the optimum
-    if (opt.verbose)
-      std::fprintf(stderr, "gamma %.6g -> [%.6g, %.6g] best %.6g\n", gamma, lower, upper, best_trP);
-  }
-  if (info.stop.empty())
-    info.stop = upper - lower < opt.relative_gap * upper ? "gap" : "max_bisections";
-  info.lower_bound = lower;
-  info.upper_bound = best_trP;
-  if (info_out) *info_out = info;
-  return best;
+  failed.P.setConstant(std::nan(""));
+  failed.Pt.setConstant(std::nan(""));
+
+  const double scale = noise_scale(ext, opt);
+  ExtendedModel sext = ext;
+  sext.Q /= scale;
+  sext.V /= scale;
+  HistoryTerms h = history_terms(sext, prob[0], Nbar);  // noise terms on the normalised model
+  const Setup s = make_setup(ext, sext, prob, Nbar, grouping, h, opt.group_moments);
+  CclSearch search(ext, prob, Nbar, grouping, opt, scale, s, h.stein, failed);
+  JumpDesign d = search.run();
+  if (info_out) *info_out = search.info();
+  return d;
 }
 
 }  // namespace ncosim::est

@@ -99,20 +99,19 @@ std::string design_precheck(const ExtendedModel& ext, double p0) {
   return "";
 }
 
-JumpDesign design_jump_iterative(const ExtendedModel& ext, const std::vector<double>& prob,
-                                 int Nbar, Grouping grouping, int max_iterations,
-                                 double tolerance) {
+namespace {
+
+// The parts of a design that do not depend on its gains: the grouping, p0, which gain each
+// (N, pattern) uses, and the patterns' row masks.
+JumpDesign design_frame(const ExtendedModel& ext, const std::vector<double>& prob, int Nbar,
+                        Grouping grouping) {
   JumpDesign d;
   d.grouping = grouping;
   d.Nbar = Nbar;
-  const Eigen::Index nb = ext.nb;
-  const Eigen::Index nm = ext.nmb;
   const std::size_t patterns = prob.size();
   d.p0 = prob[0];
-  const double p0 = d.p0;
   const int per_N = groups_per_N(grouping, ext);
   d.stored_gains = static_cast<long>(per_N) * Nbar;
-  d.gains.assign(static_cast<std::size_t>(per_N) * Nbar, Eigen::MatrixXd::Zero(nb, nm));
   d.gain_of.assign(Nbar, std::vector<int>(patterns, -1));
   for (int N = 1; N <= Nbar; ++N) {
     for (std::size_t m = 1; m < patterns; ++m) {
@@ -120,89 +119,166 @@ JumpDesign design_jump_iterative(const ExtendedModel& ext, const std::vector<dou
     }
   }
   for (std::size_t m = 0; m < patterns; ++m) d.masks.push_back(ext.row_mask(m));
-  d.P = Eigen::MatrixXd::Zero(nb, nb);
-  d.Pt = Eigen::MatrixXd::Constant(nb, nb, std::nan(""));
+  return d;
+}
 
-  if (std::string why = design_precheck(ext, p0); !why.empty()) {
-    d.status = std::move(why);
-    return d;
-  }
+// Pt at the fixed point P (corrected eq. 28; the printed one kept beside it): the design is done.
+void finish_design(JumpDesign& d, const ExtendedModel& ext, const HistoryTerms& h) {
+  const double p0 = d.p0;
+  const Eigen::MatrixXd SP = stein_sum(h.stein, d.P);
+  d.Pt = (1.0 - p0) * d.P + p0 * ((1.0 - p0) * ext.A * SP * ext.A.transpose() + h.SWinf);
+  d.Pt = 0.5 * (d.Pt + d.Pt.transpose());
+  d.Pt_paper_eq28_erroneous = paper_eq28_erroneous(ext, p0, h.stein, d.P);
+  d.stable = true;
+}
 
-  const HistoryTerms h = history_terms(ext, p0, Nbar);
-  // References, not a structured binding: lambdas below capture them (clang 14 refuses bindings).
-  const auto& Apow = h.Apow;
-  const auto& SW = h.SW;
-  const auto& stein = h.stein;
-  const auto& SWinf = h.SWinf;
-  const auto& tail_noise = h.tail_noise;
-  const Eigen::MatrixXd& AN = Apow[Nbar];
-
+// The terms of (18) of positive weight: per N and pattern of positive probability.
+std::vector<Term> weighted_terms(const JumpDesign& d, const std::vector<double>& prob) {
   std::vector<Term> terms;
-  for (int N = 1; N <= Nbar; ++N) {
-    const double wN = history_weight(p0, N, Nbar);
-    for (std::size_t m = 1; m < patterns; ++m) {
+  for (int N = 1; N <= d.Nbar; ++N) {
+    const double wN = history_weight(d.p0, N, d.Nbar);
+    for (std::size_t m = 1; m < prob.size(); ++m) {
       if (prob[m] <= 0.0) continue;
       terms.push_back({N, m, wN * prob[m], d.masks[m], d.gain_of[N - 1][m]});
     }
   }
+  return terms;
+}
 
-  std::vector<Eigen::MatrixXd> X(Nbar + 1);
+// Patterns the design model gives probability 0 (e.g. a buffered sample seen alone) may still
+// occur: the terms, of equal weights, of the groups no weighted term uses.
+std::vector<Term> unweighted_terms(const JumpDesign& d, const std::vector<Term>& terms,
+                                   std::size_t patterns) {
+  std::vector<bool> weighted(d.gains.size(), false);
+  for (const Term& t : terms) weighted[static_cast<std::size_t>(t.group)] = true;
+  std::vector<Term> unweighted;
+  for (int N = 1; N <= d.Nbar; ++N) {
+    for (std::size_t m = 1; m < patterns; ++m) {
+      const int g = d.gain_of[N - 1][m];
+      if (!weighted[static_cast<std::size_t>(g)]) unweighted.push_back({N, m, 1.0, d.masks[m], g});
+    }
+  }
+  return unweighted;
+}
+
+// One step of value iteration on (18): the prior covariances at P, the gains at those priors and
+// the covariance they give.
+class ValueIteration {
+ public:
+  ValueIteration(const ExtendedModel& ext, const HistoryTerms& h, JumpDesign& d)
+      : ext_(ext),
+        h_(h),
+        d_(d),
+        X_(d.Nbar + 1),
+        num_(d.gains.size()),
+        den_(d.gains.size()),
+        I_(Eigen::MatrixXd::Identity(ext.nb, ext.nb)) {}
+
   // Prior covariance before an update N periods after the last one (tail: N >= Nbar,
   // conditional mixture).
-  auto priors = [&](const Eigen::MatrixXd& P) {
-    for (int N = 1; N < Nbar; ++N) X[N] = Apow[N] * P * Apow[N].transpose() + SW[N];
-    X[Nbar] = (1.0 - p0) * AN * stein_sum(stein, P) * AN.transpose() + tail_noise;
-  };
-  // Gains of the groups present in `ts` at the current X: the closed form per term (S4) or
+  void priors(const Eigen::MatrixXd& P) {
+    const int Nbar = d_.Nbar;
+    const Eigen::MatrixXd& AN = h_.Apow[Nbar];
+    for (int N = 1; N < Nbar; ++N) X_[N] = h_.Apow[N] * P * h_.Apow[N].transpose() + h_.SW[N];
+    X_[Nbar] = (1.0 - d_.p0) * AN * stein_sum(h_.stein, P) * AN.transpose() + h_.tail_noise;
+  }
+
+  // Gains of the groups present in `ts` at the current priors: the closed form per term (S4) or
   // the weighted trace-minimising shared gain (S1-S3).
-  std::vector<Eigen::MatrixXd> num(d.gains.size()), den(d.gains.size());
-  auto update_gains = [&](const std::vector<Term>& ts) {
-    if (grouping == Grouping::kS4) {
-      for (const Term& t : ts) d.gains[t.group] = optimal_gain(ext, X[t.N], t.mask);
+  void update_gains(const std::vector<Term>& ts) {
+    if (d_.grouping == Grouping::kS4) {
+      for (const Term& t : ts) d_.gains[t.group] = optimal_gain(ext_, X_[t.N], t.mask);
       return;
     }
     for (const Term& t : ts) {
-      num[t.group].setZero(nb, nm);
-      den[t.group].setZero(nm, nm);
+      num_[t.group].setZero(ext_.nb, ext_.nmb);
+      den_[t.group].setZero(ext_.nmb, ext_.nmb);
     }
     for (const Term& t : ts) {
-      num[t.group] += t.weight * X[t.N] * ext.C.transpose() * t.mask.asDiagonal();
-      den[t.group] += t.weight * t.mask.asDiagonal() *
-                      (ext.C * X[t.N] * ext.C.transpose() + ext.V) * t.mask.asDiagonal();
+      num_[t.group] += t.weight * X_[t.N] * ext_.C.transpose() * t.mask.asDiagonal();
+      den_[t.group] += t.weight * t.mask.asDiagonal() *
+                       (ext_.C * X_[t.N] * ext_.C.transpose() + ext_.V) * t.mask.asDiagonal();
     }
     for (const Term& t : ts) {
-      if (den[t.group].isZero(0.0)) continue;
-      d.gains[t.group] =
-          num[t.group] * den[t.group].completeOrthogonalDecomposition().pseudoInverse();
+      if (den_[t.group].isZero(0.0)) continue;
+      d_.gains[t.group] =
+          num_[t.group] * den_[t.group].completeOrthogonalDecomposition().pseudoInverse();
     }
-  };
-  Eigen::MatrixXd Pnew(nb, nb);
-  const Eigen::MatrixXd I = Eigen::MatrixXd::Identity(nb, nb);
-  // Stall detection: a badly scaled model (an entry of 1e6 beside entries of 1e-2) reaches a
-  // floor of rounding noise far above the tolerance (relative change ~1e-8, not decreasing), and
-  // would go on to max_iterations (seconds per design). Windows of kStallWindow iterations: when
-  // a window's smallest relative change is below kStallBelow and not below kStallRatio times the
-  // previous window's, the iteration has stopped converging (at iteration 4000 at the earliest).
-  // A converging iteration (change ~ k^j r^k) passes every window while its change falls by 10 %
-  // per window, e.g. r < 0.99994 at j = 0: slower ones need more than max_iterations anyway.
-  // Changes above kStallBelow (a cycling or slowly converging iteration far from its fixed point)
-  // go on to max_iterations as before.
-  constexpr int kStallWindow = 2000;
-  constexpr double kStallRatio = 0.9;
-  constexpr double kStallBelow = 1e-6;
-  double best_before = std::numeric_limits<double>::infinity();  // the previous window's smallest
-  double best_window = std::numeric_limits<double>::infinity();
-  for (d.iterations = 1; d.iterations <= max_iterations; ++d.iterations) {
-    priors(d.P);
-    update_gains(terms);
+  }
 
+  // Pnew = sum_t w_t (F X_N F' + L E V E' L'), F = I - L E C: the operator (18), symmetrised.
+  void covariance(const std::vector<Term>& terms, Eigen::MatrixXd& Pnew) const {
     Pnew.setZero();
     for (const Term& t : terms) {
-      const Eigen::MatrixXd LE = d.gains[t.group] * t.mask.asDiagonal();
-      const Eigen::MatrixXd F = I - LE * ext.C;
-      Pnew += t.weight * (F * X[t.N] * F.transpose() + LE * ext.V * LE.transpose());
+      const Eigen::MatrixXd LE = d_.gains[t.group] * t.mask.asDiagonal();
+      const Eigen::MatrixXd F = I_ - LE * ext_.C;
+      Pnew += t.weight * (F * X_[t.N] * F.transpose() + LE * ext_.V * LE.transpose());
     }
     Pnew = 0.5 * (Pnew + Pnew.transpose());
+  }
+
+ private:
+  const ExtendedModel& ext_;
+  const HistoryTerms& h_;
+  JumpDesign& d_;
+  std::vector<Eigen::MatrixXd> X_;
+  std::vector<Eigen::MatrixXd> num_, den_;
+  const Eigen::MatrixXd I_;
+};
+
+// Stall detection: a badly scaled model (an entry of 1e6 beside entries of 1e-2) reaches a
+// floor of rounding noise far above the tolerance (relative change ~1e-8, not decreasing), and
+// would go on to max_iterations (seconds per design). Windows of kStallWindow iterations: when
+// a window's smallest relative change is below kStallBelow and not below kStallRatio times the
+// previous window's, the iteration has stopped converging (at iteration 4000 at the earliest).
+// A converging iteration (change ~ k^j r^k) passes every window while its change falls by 10 %
+// per window, e.g. r < 0.99994 at j = 0: slower ones need more than max_iterations anyway.
+// Changes above kStallBelow (a cycling or slowly converging iteration far from its fixed point)
+// go on to max_iterations as before.
+class StallWatch {
+ public:
+  // True when iteration `iteration`, of relative change `change`, ends a stalled window.
+  bool stalled(int iteration, double change) {
+    best_window_ = std::min(best_window_, change);
+    if (iteration % kStallWindow != 0) return false;
+    if (best_window_ < kStallBelow && best_window_ >= kStallRatio * best_before_) return true;
+    best_before_ = best_window_;
+    best_window_ = std::numeric_limits<double>::infinity();
+    return false;
+  }
+  double smallest_change() const { return best_window_; }
+
+ private:
+  static constexpr int kStallWindow = 2000;
+  static constexpr double kStallRatio = 0.9;
+  static constexpr double kStallBelow = 1e-6;
+  double best_before_ = std::numeric_limits<double>::infinity();  // the previous window's smallest
+  double best_window_ = std::numeric_limits<double>::infinity();
+};
+
+}  // namespace
+
+JumpDesign design_jump_iterative(const ExtendedModel& ext, const std::vector<double>& prob,
+                                 int Nbar, Grouping grouping, int max_iterations,
+                                 double tolerance) {
+  JumpDesign d = design_frame(ext, prob, Nbar, grouping);
+  const Eigen::Index nb = ext.nb;
+  d.gains.assign(static_cast<std::size_t>(d.stored_gains), Eigen::MatrixXd::Zero(nb, ext.nmb));
+  d.P = Eigen::MatrixXd::Zero(nb, nb);
+  d.Pt = Eigen::MatrixXd::Constant(nb, nb, std::nan(""));
+  if (std::string why = design_precheck(ext, d.p0); !why.empty()) {
+    d.status = std::move(why);
+    return d;
+  }
+  const HistoryTerms h = history_terms(ext, d.p0, Nbar);
+  const std::vector<Term> terms = weighted_terms(d, prob);
+  ValueIteration step(ext, h, d);
+  Eigen::MatrixXd Pnew(nb, nb);
+  StallWatch watch;
+  for (d.iterations = 1; d.iterations <= max_iterations; ++d.iterations) {
+    step.priors(d.P);
+    step.update_gains(terms);
+    step.covariance(terms, Pnew);
     if (!Pnew.allFinite() || Pnew.trace() > 1e15) {
       d.status = "diverged";
       return d;
@@ -211,19 +287,14 @@ JumpDesign design_jump_iterative(const ExtendedModel& ext, const std::vector<dou
     d.P = Pnew;
     const double scale = std::max(1.0, d.P.cwiseAbs().maxCoeff());
     if (change <= tolerance * scale) break;
-    best_window = std::min(best_window, change / scale);
-    if (d.iterations % kStallWindow == 0) {
-      if (best_window < kStallBelow && best_window >= kStallRatio * best_before) {
-        d.status = "not_converged";
-        d.iteration_message = fmt::format(
-            "stopped after {} iterations: the relative change stalled at {:.1e} (tolerance {:g}), "
-            "rounding noise "
-            "of a badly scaled model; rescale the plant and sensor matrices",
-            d.iterations, best_window, tolerance);
-        return d;
-      }
-      best_before = best_window;
-      best_window = std::numeric_limits<double>::infinity();
+    if (watch.stalled(d.iterations, change / scale)) {
+      d.status = "not_converged";
+      d.iteration_message = fmt::format(
+          "stopped after {} iterations: the relative change stalled at {:.1e} (tolerance {:g}), "
+          "rounding noise "
+          "of a badly scaled model; rescale the plant and sensor matrices",
+          d.iterations, watch.smallest_change(), tolerance);
+      return d;
     }
   }
   if (d.iterations > max_iterations) {
@@ -231,107 +302,70 @@ JumpDesign design_jump_iterative(const ExtendedModel& ext, const std::vector<dou
     d.status = "not_converged";
     return d;
   }
-  // Patterns the design model gives probability 0 (e.g. a buffered sample seen alone) may
-  // still occur: give their groups the gain of the same formula at the fixed point, with
-  // equal weights, instead of none.
-  std::vector<bool> weighted(d.gains.size(), false);
-  for (const Term& t : terms) weighted[static_cast<std::size_t>(t.group)] = true;
-  std::vector<Term> unweighted;
-  for (int N = 1; N <= Nbar; ++N) {
-    for (std::size_t m = 1; m < patterns; ++m) {
-      const int g = d.gain_of[N - 1][m];
-      if (!weighted[static_cast<std::size_t>(g)]) unweighted.push_back({N, m, 1.0, d.masks[m], g});
-    }
+  // Groups of probability-0 patterns: the gain of the same formula at the fixed point.
+  if (const std::vector<Term> unweighted = unweighted_terms(d, terms, prob.size());
+      !unweighted.empty()) {
+    step.priors(d.P);
+    step.update_gains(unweighted);
   }
-  if (!unweighted.empty()) {
-    priors(d.P);
-    update_gains(unweighted);
-  }
-  const Eigen::MatrixXd SP = stein_sum(stein, d.P);
-  d.Pt = (1.0 - p0) * d.P + p0 * ((1.0 - p0) * ext.A * SP * ext.A.transpose() + SWinf);
-  d.Pt = 0.5 * (d.Pt + d.Pt.transpose());
-  d.Pt_paper_eq28_erroneous = paper_eq28_erroneous(ext, p0, stein, d.P);
-  d.stable = true;
+  finish_design(d, ext, h);
   return d;
 }
 
-JumpDesign evaluate_jump_gains(const ExtendedModel& ext, const std::vector<double>& prob, int Nbar,
-                               Grouping grouping, const std::vector<Eigen::MatrixXd>& gains) {
-  JumpDesign d;
-  d.grouping = grouping;
-  d.Nbar = Nbar;
-  const Eigen::Index nb = ext.nb;
-  const std::size_t patterns = prob.size();
-  d.p0 = prob[0];
+namespace {
+
+Eigen::MatrixXd kron(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
+  Eigen::MatrixXd k(a.rows() * b.rows(), a.cols() * b.cols());
+  for (Eigen::Index i = 0; i < a.rows(); ++i)
+    for (Eigen::Index j = 0; j < a.cols(); ++j)
+      k.block(i * b.rows(), j * b.cols(), b.rows(), b.cols()) = a(i, j) * b;
+  return k;
+}
+
+// The operator (18) with fixed gains as vec(P) = T vec(P) + vec(U): T = sum w (F A^N (x) F A^N),
+// the tail through the Stein sum.
+struct LinearOperator {
+  Eigen::MatrixXd T, U;
+};
+LinearOperator gains_operator(const JumpDesign& d, const ExtendedModel& ext,
+                              const std::vector<double>& prob, const HistoryTerms& h) {
+  const Eigen::Index nb = ext.nb, n2 = nb * nb;
+  const int Nbar = d.Nbar;
   const double p0 = d.p0;
-  const int per_N = groups_per_N(grouping, ext);
-  d.stored_gains = static_cast<long>(per_N) * Nbar;
-  d.gains = gains;
-  d.gain_of.assign(Nbar, std::vector<int>(patterns, -1));
-  for (int N = 1; N <= Nbar; ++N)
-    for (std::size_t m = 1; m < patterns; ++m)
-      d.gain_of[N - 1][m] = (N - 1) * per_N + group_of(grouping, ext, m);
-  for (std::size_t m = 0; m < patterns; ++m) d.masks.push_back(ext.row_mask(m));
-  d.P = Eigen::MatrixXd::Constant(nb, nb, std::nan(""));
-  d.Pt = d.P;
-  if (gains.size() != static_cast<std::size_t>(per_N) * Nbar) {
-    d.status = "wrong_gain_count";
-    return d;
-  }
-  if (std::string why = design_precheck(ext, p0); !why.empty()) {
-    d.status = std::move(why);
-    return d;
-  }
-  const HistoryTerms h = history_terms(ext, p0, Nbar);
-  // References, not a structured binding: lambdas below capture them (clang 14 refuses bindings).
-  const auto& Apow = h.Apow;
-  const auto& SW = h.SW;
-  const auto& stein = h.stein;
-  const auto& SWinf = h.SWinf;
-  const auto& tail_noise = h.tail_noise;
-  const Eigen::MatrixXd& AN = Apow[Nbar];
-  // vec(P) = T vec(P) + vec(U): T = sum w (F A^N (x) F A^N), the tail through the Stein sum.
-  const Eigen::Index n2 = nb * nb;
-  Eigen::MatrixXd T = Eigen::MatrixXd::Zero(n2, n2);
-  Eigen::MatrixXd U = Eigen::MatrixXd::Zero(nb, nb);
+  LinearOperator op{Eigen::MatrixXd::Zero(n2, n2), Eigen::MatrixXd::Zero(nb, nb)};
   const Eigen::MatrixXd I = Eigen::MatrixXd::Identity(nb, nb);
-  auto kron = [](const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
-    Eigen::MatrixXd k(a.rows() * b.rows(), a.cols() * b.cols());
-    for (Eigen::Index i = 0; i < a.rows(); ++i)
-      for (Eigen::Index j = 0; j < a.cols(); ++j)
-        k.block(i * b.rows(), j * b.cols(), b.rows(), b.cols()) = a(i, j) * b;
-    return k;
-  };
   Eigen::MatrixXd tailT = Eigen::MatrixXd::Zero(n2, n2);
   for (int N = 1; N <= Nbar; ++N) {
     const double wN = history_weight(p0, N, Nbar);
-    for (std::size_t m = 1; m < patterns; ++m) {
+    for (std::size_t m = 1; m < prob.size(); ++m) {
       if (prob[m] <= 0.0) continue;
       const double w = wN * prob[m];
       const Eigen::MatrixXd LE = d.gains[d.gain_of[N - 1][m]] * d.masks[m].asDiagonal();
       const Eigen::MatrixXd F = I - LE * ext.C;
       if (N < Nbar) {
-        const Eigen::MatrixXd FA = F * Apow[N];
-        T += w * kron(FA, FA);
-        U += w * (F * SW[N] * F.transpose() + LE * ext.V * LE.transpose());
+        const Eigen::MatrixXd FA = F * h.Apow[N];
+        op.T += w * kron(FA, FA);
+        op.U += w * (F * h.SW[N] * F.transpose() + LE * ext.V * LE.transpose());
       } else {
-        const Eigen::MatrixXd FA = F * AN;
+        const Eigen::MatrixXd FA = F * h.Apow[Nbar];
         tailT += w * (1.0 - p0) * kron(FA, FA);
-        U += w * (F * tail_noise * F.transpose() + LE * ext.V * LE.transpose());
+        op.U += w * (F * h.tail_noise * F.transpose() + LE * ext.V * LE.transpose());
       }
     }
   }
-  T += tailT * stein;  // vec(S_P) = stein vec(P)
-  const double radius = T.eigenvalues().cwiseAbs().maxCoeff();
-  if (!std::isfinite(radius) || radius >= 1.0) {
-    d.status = "unstable_gains";
-    return d;
-  }
-  Eigen::VectorXd vecU = Eigen::Map<const Eigen::VectorXd>(U.data(), n2);
-  Eigen::VectorXd vecP = (Eigen::MatrixXd::Identity(n2, n2) - T).partialPivLu().solve(vecU);
-  d.P = Eigen::Map<const Eigen::MatrixXd>(vecP.data(), nb, nb);
-  d.P = 0.5 * (d.P + d.P.transpose());
-  // Groups without a weighted term: the fallback of design_jump_iterative, at this P.
+  op.T += tailT * h.stein;  // vec(S_P) = stein vec(P)
+  return op;
+}
+
+// Groups without a weighted term: the fallback of design_jump_iterative, at d.P.
+void fallback_gains(JumpDesign& d, const ExtendedModel& ext, const std::vector<double>& prob,
+                    const HistoryTerms& h) {
+  const Eigen::Index nb = ext.nb;
+  const int Nbar = d.Nbar;
+  const double p0 = d.p0;
+  const std::size_t patterns = prob.size();
+  const int per_N = groups_per_N(d.grouping, ext);
+  const Eigen::MatrixXd& AN = h.Apow[Nbar];
   std::vector<bool> weighted(d.gains.size(), false);
   for (int N = 1; N <= Nbar; ++N)
     for (std::size_t m = 1; m < patterns; ++m)
@@ -340,9 +374,9 @@ JumpDesign evaluate_jump_gains(const ExtendedModel& ext, const std::vector<doubl
     if (weighted[g]) continue;
     const int N = static_cast<int>(g) / per_N + 1;
     const Eigen::MatrixXd X =
-        N < Nbar ? Eigen::MatrixXd(Apow[N] * d.P * Apow[N].transpose() + SW[N])
-                 : Eigen::MatrixXd((1.0 - p0) * AN * stein_sum(stein, d.P) * AN.transpose() +
-                                   tail_noise);
+        N < Nbar ? Eigen::MatrixXd(h.Apow[N] * d.P * h.Apow[N].transpose() + h.SW[N])
+                 : Eigen::MatrixXd((1.0 - p0) * AN * stein_sum(h.stein, d.P) * AN.transpose() +
+                                   h.tail_noise);
     Eigen::MatrixXd num = Eigen::MatrixXd::Zero(nb, ext.nmb),
                     den = Eigen::MatrixXd::Zero(ext.nmb, ext.nmb);
     for (std::size_t m = 1; m < patterns; ++m) {
@@ -353,11 +387,39 @@ JumpDesign evaluate_jump_gains(const ExtendedModel& ext, const std::vector<doubl
     }
     if (!den.isZero(0.0)) d.gains[g] = num * den.completeOrthogonalDecomposition().pseudoInverse();
   }
-  const Eigen::MatrixXd SP = stein_sum(stein, d.P);
-  d.Pt = (1.0 - p0) * d.P + p0 * ((1.0 - p0) * ext.A * SP * ext.A.transpose() + SWinf);
-  d.Pt = 0.5 * (d.Pt + d.Pt.transpose());
-  d.Pt_paper_eq28_erroneous = paper_eq28_erroneous(ext, p0, stein, d.P);
-  d.stable = true;
+}
+
+}  // namespace
+
+JumpDesign evaluate_jump_gains(const ExtendedModel& ext, const std::vector<double>& prob, int Nbar,
+                               Grouping grouping, const std::vector<Eigen::MatrixXd>& gains) {
+  JumpDesign d = design_frame(ext, prob, Nbar, grouping);
+  const Eigen::Index nb = ext.nb;
+  d.gains = gains;
+  d.P = Eigen::MatrixXd::Constant(nb, nb, std::nan(""));
+  d.Pt = d.P;
+  if (gains.size() != static_cast<std::size_t>(d.stored_gains)) {
+    d.status = "wrong_gain_count";
+    return d;
+  }
+  if (std::string why = design_precheck(ext, d.p0); !why.empty()) {
+    d.status = std::move(why);
+    return d;
+  }
+  const HistoryTerms h = history_terms(ext, d.p0, Nbar);
+  const LinearOperator op = gains_operator(d, ext, prob, h);
+  const double radius = op.T.eigenvalues().cwiseAbs().maxCoeff();
+  if (!std::isfinite(radius) || radius >= 1.0) {
+    d.status = "unstable_gains";
+    return d;
+  }
+  const Eigen::Index n2 = nb * nb;
+  Eigen::VectorXd vecU = Eigen::Map<const Eigen::VectorXd>(op.U.data(), n2);
+  Eigen::VectorXd vecP = (Eigen::MatrixXd::Identity(n2, n2) - op.T).partialPivLu().solve(vecU);
+  d.P = Eigen::Map<const Eigen::MatrixXd>(vecP.data(), nb, nb);
+  d.P = 0.5 * (d.P + d.P.transpose());
+  fallback_gains(d, ext, prob, h);
+  finish_design(d, ext, h);
   d.status = "ok";
   return d;
 }

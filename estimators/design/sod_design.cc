@@ -174,101 +174,141 @@ SodDesignResult collect(const lmi::Solution& sol, const Vars& v, std::size_t pat
   return r;
 }
 
+// The pattern probabilities at each vertex of the box beta_s in {beta'_s, 1} (or only at beta'),
+// and in `needed` the patterns with positive probability at some vertex (with delta = 0 every
+// sensor always sends, and only the all-delivered pattern occurs).
+std::vector<std::vector<double>> vertex_probabilities(const SodSystem& sys,
+                                                      const SodDesignSpec& spec,
+                                                      std::size_t patterns,
+                                                      std::vector<bool>& needed) {
+  std::vector<std::vector<double>> vertex_p;
+  needed.assign(patterns, false);
+  const auto ns = static_cast<unsigned>(sys.ns());
+  const unsigned vertices = spec.vertices == Vertices::kAll ? 1U << ns : 1U;
+  for (unsigned c = 0; c < vertices; ++c) {
+    VectorXd beta = spec.beta_lower;
+    for (unsigned s = 0; s < ns; ++s) {
+      if ((c >> s) & 1U) beta(s) = 1.0;
+    }
+    vertex_p.push_back(pattern_probabilities(beta));
+    for (std::size_t j = 0; j < patterns; ++j) needed[j] = needed[j] || vertex_p.back()[j] > 0.0;
+  }
+  return vertex_p;
+}
+
+// The blocks of (11) and (20) per pattern j: Abar = (Q - X C) A, Bbar = (Q - X C) Bw, -X',
+// -(I - diag(eta_j)) X' and Q + Q'.
+struct PatternBlocks {
+  std::vector<lmi::Expr> Abar, Bbar, Xt, Xeta, QQ;
+};
+PatternBlocks pattern_blocks(const SodSystem& sys, const Vars& v, std::size_t patterns) {
+  const MatrixXd I = MatrixXd::Identity(sys.ny(), sys.ny());
+  PatternBlocks pb;
+  for (std::size_t j = 0; j < patterns; ++j) {
+    const lmi::Expr qxc = lmi::Expr(v.Q[j]) - v.X[j] * sys.C;
+    pb.Abar.push_back(qxc * sys.A);
+    pb.Bbar.push_back(qxc * sys.Bw);
+    pb.Xt.push_back(-v.X[j].transpose());
+    const MatrixXd Ieta = I - MatrixXd(sys.eta(static_cast<unsigned>(j)).asDiagonal());
+    pb.Xeta.push_back(-(Ieta * v.X[j].transpose()));
+    pb.QQ.push_back(lmi::Expr(v.Q[j]) + lmi::Expr(v.Q[j]).transpose());
+  }
+  return pb;
+}
+
+// The diagonal blocks of the noise variables: Gw (nw x nw), Gv, Gd (ny x ny).
+struct NoiseBlocks {
+  lmi::Expr Gw, Gv, Gd;
+};
+
+// (11) for every (j, k): blocks x~ (P_j), x~ (P_k - Cz'Cz), w, v, delta. Returns the LMIs added.
+int add_deterministic_lmis(lmi::Problem& prob, const SodSystem& sys, const Vars& v,
+                           const PatternBlocks& pb, const NoiseBlocks& g, std::size_t patterns,
+                           double margin) {
+  const Eigen::Index n = sys.A.rows(), nw = sys.Bw.cols(), ny = sys.ny();
+  const MatrixXd CzCz = sys.Cz.transpose() * sys.Cz;
+  int lmis = 0;
+  for (std::size_t j = 0; j < patterns; ++j) {
+    for (std::size_t k = 0; k < patterns; ++k) {
+      prob.add(lmi::lmi(symmetric_from_lower(
+                            {{pb.QQ[j] - v.P[j]},
+                             {pb.Abar[j].transpose(), lmi::Expr(v.P[k]) - CzCz},
+                             {pb.Bbar[j].transpose(), zeros(nw, n), g.Gw},
+                             {pb.Xt[j], zeros(ny, n), zeros(ny, nw), g.Gv},
+                             {pb.Xeta[j], zeros(ny, n), zeros(ny, nw), zeros(ny, ny), g.Gd}}) > 0,
+                        margin));
+      ++lmis;
+    }
+  }
+  return lmis;
+}
+
+// (20) at one vertex of the box (pattern probabilities p), zero-probability pattern blocks
+// dropped.
+void add_stochastic_lmi(lmi::Problem& prob, const SodSystem& sys, const Vars& v,
+                        const PatternBlocks& pb, const NoiseBlocks& g, const std::vector<double>& p,
+                        double margin) {
+  const Eigen::Index n = sys.A.rows(), nw = sys.Bw.cols(), ny = sys.ny();
+  const MatrixXd CzCz = sys.Cz.transpose() * sys.Cz;
+  std::vector<std::size_t> live;
+  for (std::size_t j = 0; j < p.size(); ++j) {
+    if (p[j] > 0.0) live.push_back(j);
+  }
+  const auto L = static_cast<Eigen::Index>(live.size());
+  // Rows: L blocks of n (M1), then n (P - Cz'Cz), nw, ny, ny.
+  std::vector<std::vector<lmi::Expr>> lower;
+  for (Eigen::Index a = 0; a < L; ++a) {
+    std::vector<lmi::Expr> row;
+    for (Eigen::Index b = 0; b < a; ++b) row.push_back(zeros(n, n));
+    const std::size_t j = live[static_cast<std::size_t>(a)];
+    row.push_back(p[j] * (pb.QQ[j] - v.P[0]));
+    lower.push_back(std::move(row));
+  }
+  std::vector<lmi::Expr> r2, r3, r4, r5;
+  for (const std::size_t j : live) {
+    r2.push_back(p[j] * pb.Abar[j].transpose());
+    r3.push_back(p[j] * pb.Bbar[j].transpose());
+    r4.push_back(p[j] * pb.Xt[j]);
+    r5.push_back(p[j] * pb.Xeta[j]);
+  }
+  r2.push_back(lmi::Expr(v.P[0]) - CzCz);
+  r3.push_back(zeros(nw, n));
+  r3.push_back(g.Gw);
+  r4.push_back(zeros(ny, n));
+  r4.push_back(zeros(ny, nw));
+  r4.push_back(g.Gv);
+  r5.push_back(zeros(ny, n));
+  r5.push_back(zeros(ny, nw));
+  r5.push_back(zeros(ny, ny));
+  r5.push_back(g.Gd);
+  lower.push_back(r2);
+  lower.push_back(r3);
+  lower.push_back(r4);
+  lower.push_back(r5);
+  prob.add(lmi::lmi(symmetric_from_lower(lower) > 0, margin));
+}
+
 }  // namespace
 
 SodDesignResult design_sod(const SodSystem& sys, const SodDesignSpec& spec) {
-  const Eigen::Index n = sys.A.rows(), nw = sys.Bw.cols(), ny = sys.ny();
+  const Eigen::Index nw = sys.Bw.cols();
   const std::size_t patterns = std::size_t{1} << sys.ns();
-  const MatrixXd I = MatrixXd::Identity(ny, ny);
   lmi::Problem prob;
   const bool det = spec.approach == Approach::kDeterministic;
-  // Stochastic design: the patterns with positive probability at some vertex of the box (with
-  // delta = 0 every sensor always sends, and only the all-delivered pattern occurs).
-  // The pattern probabilities at each vertex of the box beta_s in {beta'_s, 1} (or only at beta').
+  // Stochastic design: the vertices' pattern probabilities and the patterns they need.
   std::vector<std::vector<double>> vertex_p;
   std::vector<bool> needed;
-  if (!det) {
-    needed.assign(patterns, false);
-    const auto ns = static_cast<unsigned>(sys.ns());
-    const unsigned vertices = spec.vertices == Vertices::kAll ? 1U << ns : 1U;
-    for (unsigned c = 0; c < vertices; ++c) {
-      VectorXd beta = spec.beta_lower;
-      for (unsigned s = 0; s < ns; ++s) {
-        if ((c >> s) & 1U) beta(s) = 1.0;
-      }
-      vertex_p.push_back(pattern_probabilities(beta));
-      for (std::size_t j = 0; j < patterns; ++j) needed[j] = needed[j] || vertex_p.back()[j] > 0.0;
-    }
-  }
+  if (!det) vertex_p = vertex_probabilities(sys, spec, patterns, needed);
   const Vars v = make_vars(prob, sys, patterns, spec.jump, det ? patterns : 1, true, false, needed);
-  const lmi::Expr Gv = diag_of(v.gv), Gd = diag_of(v.gd);
-  const lmi::Expr Gw = diag_of(std::vector<lmi::Var>(static_cast<std::size_t>(nw), v.gw));
-  const MatrixXd CzCz = sys.Cz.transpose() * sys.Cz;
+  const NoiseBlocks g{diag_of(std::vector<lmi::Var>(static_cast<std::size_t>(nw), v.gw)),
+                      diag_of(v.gv), diag_of(v.gd)};
+  const PatternBlocks pb = pattern_blocks(sys, v, patterns);
   int lmis = 0;
-  std::vector<lmi::Expr> Abar, Bbar, Xt, Xeta, QQ;  // per pattern
-  for (std::size_t j = 0; j < patterns; ++j) {
-    const lmi::Expr qxc = lmi::Expr(v.Q[j]) - v.X[j] * sys.C;
-    Abar.push_back(qxc * sys.A);
-    Bbar.push_back(qxc * sys.Bw);
-    Xt.push_back(-v.X[j].transpose());
-    const MatrixXd Ieta = I - MatrixXd(sys.eta(static_cast<unsigned>(j)).asDiagonal());
-    Xeta.push_back(-(Ieta * v.X[j].transpose()));
-    QQ.push_back(lmi::Expr(v.Q[j]) + lmi::Expr(v.Q[j]).transpose());
-  }
   if (det) {
-    // (11) for every (j, k): blocks x~ (P_j), x~ (P_k - Cz'Cz), w, v, delta.
-    for (std::size_t j = 0; j < patterns; ++j) {
-      for (std::size_t k = 0; k < patterns; ++k) {
-        prob.add(lmi::lmi(
-            symmetric_from_lower({{QQ[j] - v.P[j]},
-                                  {Abar[j].transpose(), lmi::Expr(v.P[k]) - CzCz},
-                                  {Bbar[j].transpose(), zeros(nw, n), Gw},
-                                  {Xt[j], zeros(ny, n), zeros(ny, nw), Gv},
-                                  {Xeta[j], zeros(ny, n), zeros(ny, nw), zeros(ny, ny), Gd}}) > 0,
-            spec.margin));
-        ++lmis;
-      }
-    }
+    lmis = add_deterministic_lmis(prob, sys, v, pb, g, patterns, spec.margin);
   } else {
-    // (20) at each vertex of the box beta_s in {beta'_s, 1} (or only at beta'), zero-probability
-    // pattern blocks dropped.
     for (const std::vector<double>& p : vertex_p) {
-      std::vector<std::size_t> live;
-      for (std::size_t j = 0; j < patterns; ++j) {
-        if (p[j] > 0.0) live.push_back(j);
-      }
-      const auto L = static_cast<Eigen::Index>(live.size());
-      // Rows: L blocks of n (M1), then n (P - Cz'Cz), nw, ny, ny.
-      std::vector<std::vector<lmi::Expr>> lower;
-      for (Eigen::Index a = 0; a < L; ++a) {
-        std::vector<lmi::Expr> row;
-        for (Eigen::Index b = 0; b < a; ++b) row.push_back(zeros(n, n));
-        const std::size_t j = live[static_cast<std::size_t>(a)];
-        row.push_back(p[j] * (QQ[j] - v.P[0]));
-        lower.push_back(std::move(row));
-      }
-      std::vector<lmi::Expr> r2, r3, r4, r5;
-      for (const std::size_t j : live) {
-        r2.push_back(p[j] * Abar[j].transpose());
-        r3.push_back(p[j] * Bbar[j].transpose());
-        r4.push_back(p[j] * Xt[j]);
-        r5.push_back(p[j] * Xeta[j]);
-      }
-      r2.push_back(lmi::Expr(v.P[0]) - CzCz);
-      r3.push_back(zeros(nw, n));
-      r3.push_back(Gw);
-      r4.push_back(zeros(ny, n));
-      r4.push_back(zeros(ny, nw));
-      r4.push_back(Gv);
-      r5.push_back(zeros(ny, n));
-      r5.push_back(zeros(ny, nw));
-      r5.push_back(zeros(ny, ny));
-      r5.push_back(Gd);
-      lower.push_back(r2);
-      lower.push_back(r3);
-      lower.push_back(r4);
-      lower.push_back(r5);
-      prob.add(lmi::lmi(symmetric_from_lower(lower) > 0, spec.margin));
+      add_stochastic_lmi(prob, sys, v, pb, g, p, spec.margin);
       ++lmis;
     }
   }
