@@ -65,23 +65,9 @@ const char* grouping_name(Grouping g) {
   return names[static_cast<int>(g)];
 }
 
-std::string header(const CExportItem& it, const std::string& generator) {
-  const ExtendedModel& e = it.jump->extended_model();
-  const JumpDesign& d = it.jump->jump_design();
-  const std::string P = it.prefix, U = upper(it.prefix);
-  const long gains = static_cast<long>(d.gains.size());
-  const long table_bytes = gains * static_cast<long>(e.nb * e.nmb) * 8;
-  const long other_bytes = static_cast<long>(e.n * e.n + e.n * e.nu + e.nmb * e.n + e.n) * 8 +
-                           static_cast<long>(e.nmb) * 2 * 2;
-  std::string sensors;
-  for (int i = 0; i < e.sensors; ++i) {
-    const auto& f = e.fict[static_cast<std::size_t>(e.index(i, 0))];
-    sensors +=
-        fmt::format(" *     sensor {}: {} value(s) per sample, fictitious sensors j = {}..{}\n", i,
-                    f.rows, e.index(i, 0), e.index(i, e.dbar));
-  }
-  std::string h = fmt::format(
-      R"(/* {P}.h — jump observer "{name}" ({grouping}, history Nbar = {Nbar}, max delay dbar = {dbar}),
+// The header up to {P}_step: the usage, sizes and state ({P}.h).
+constexpr char kHeader[] =
+    R"(/* {P}.h — jump observer "{name}" ({grouping}, history Nbar = {Nbar}, max delay dbar = {dbar}),
  * exported by {generator} from {origin}.
  * Dolz, Penarrocha & Sanchis (2014), eqs. (6), (10), (16): self-contained C99, no allocation,
  * no library (not even libm), no global state: every observer instance is a {P}_state.
@@ -147,27 +133,61 @@ int {P}_receive({P}_state *s, int sensor, int delay, const double *y);
 /* One control period: prediction with `drive` ({U}_N values, Bu u[k-1]; skipped at the
    first step), then the correction with the samples received since the previous step. */
 void {P}_step({P}_state *s, const double *drive);
-)",
-      fmt::arg("P", P), fmt::arg("U", U), fmt::arg("name", it.name),
+)";
+
+// The header after {P}_step (and {P}_step_input when the plant has inputs).
+constexpr char kHeaderEnd[] =
+    R"(/* xhat[k|k] after the last step: {U}_N values (the first block of s->x). */
+const double *{P}_estimate(const {P}_state *s);
+/* Gain index for N periods since the last update (saturated at {U}_NBAR) and an availability
+   pattern; -1 for pattern 0 (no update). */
+int {P}_gain_index(unsigned int N, unsigned long pattern);
+
+#endif /* {U}_H_ */
+)";
+
+// One comment line per sensor: its values per sample and its fictitious sensors.
+std::string sensor_lines(const ExtendedModel& e) {
+  std::string sensors;
+  for (int i = 0; i < e.sensors; ++i) {
+    const auto& f = e.fict[static_cast<std::size_t>(e.index(i, 0))];
+    sensors +=
+        fmt::format(" *     sensor {}: {} value(s) per sample, fictitious sensors j = {}..{}\n", i,
+                    f.rows, e.index(i, 0), e.index(i, e.dbar));
+  }
+  return sensors;
+}
+
+std::string group_rule(Grouping g) {
+  return g == Grouping::kS1   ? std::string("0 (S1: one gain per N)")
+         : g == Grouping::kS2 ? std::string("number of real sensors in the pattern - 1 (S2)")
+         : g == Grouping::kS3 ? std::string("number of fictitious sensors in the pattern - 1 (S3)")
+                              : std::string("pattern - 1 (S4: one gain per pattern)");
+}
+
+// Floating-point operations of one step at most (the paper's count).
+double step_flops(const ExtendedModel& e) {
+  const double nb = static_cast<double>(e.nb), nu = static_cast<double>(e.nu),
+               nmb = static_cast<double>(e.nmb);
+  return nb * nb + nb * nu + 2 * nb * nmb + 2 * nb + nmb;
+}
+
+std::string header(const CExportItem& it, const std::string& generator) {
+  const ExtendedModel& e = it.jump->extended_model();
+  const JumpDesign& d = it.jump->jump_design();
+  const std::string P = it.prefix, U = upper(it.prefix);
+  const long gains = static_cast<long>(d.gains.size());
+  const long table_bytes = gains * static_cast<long>(e.nb * e.nmb) * 8;
+  const long other_bytes = static_cast<long>(e.n * e.n + e.n * e.nu + e.nmb * e.n + e.n) * 8 +
+                           static_cast<long>(e.nmb) * 2 * 2;
+  std::string h = fmt::format(
+      kHeader, fmt::arg("P", P), fmt::arg("U", U), fmt::arg("name", it.name),
       fmt::arg("grouping", grouping_name(d.grouping)), fmt::arg("Nbar", d.Nbar),
       fmt::arg("dbar", e.dbar), fmt::arg("generator", generator), fmt::arg("origin", it.origin),
       fmt::arg("period", it.period), fmt::arg("ny_note", "values (the sensor's outputs, in order)"),
-      fmt::arg("sensors", sensors),
-      fmt::arg("group_rule",
-               d.grouping == Grouping::kS1 ? std::string("0 (S1: one gain per N)")
-               : d.grouping == Grouping::kS2
-                   ? std::string("number of real sensors in the pattern - 1 (S2)")
-               : d.grouping == Grouping::kS3
-                   ? std::string("number of fictitious sensors in the pattern - 1 (S3)")
-                   : std::string("pattern - 1 (S4: one gain per pattern)")),
+      fmt::arg("sensors", sensor_lines(e)), fmt::arg("group_rule", group_rule(d.grouping)),
       fmt::arg("table_bytes", table_bytes), fmt::arg("other_bytes", other_bytes),
-      fmt::arg("state_bytes", (e.nb + e.nmb) * 8 + 16),
-      fmt::arg("flops",
-               [&] {
-                 const double nb = static_cast<double>(e.nb), nu = static_cast<double>(e.nu),
-                              nmb = static_cast<double>(e.nmb);
-                 return nb * nb + nb * nu + 2 * nb * nmb + 2 * nb + nmb;
-               }()),
+      fmt::arg("state_bytes", (e.nb + e.nmb) * 8 + 16), fmt::arg("flops", step_flops(e)),
       fmt::arg("pred_ext", d.stable ? num(d.Pt.trace()) : "none"),
       fmt::arg("pred", d.stable ? num(d.Pt.topLeftCorner(e.n, e.n).trace()) : "none"),
       fmt::arg("n", e.n), fmt::arg("nu", e.nu), fmt::arg("nb", e.nb), fmt::arg("sens", e.sensors),
@@ -179,62 +199,23 @@ void {P}_step({P}_state *s, const double *drive);
         "void {P}_step_input({P}_state *s, const double *u);\n",
         fmt::arg("P", P), fmt::arg("U", U));
   }
-  h += fmt::format(R"(/* xhat[k|k] after the last step: {U}_N values (the first block of s->x). */
-const double *{P}_estimate(const {P}_state *s);
-/* Gain index for N periods since the last update (saturated at {U}_NBAR) and an availability
-   pattern; -1 for pattern 0 (no update). */
-int {P}_gain_index(unsigned int N, unsigned long pattern);
-
-#endif /* {U}_H_ */
-)",
-                   fmt::arg("P", P), fmt::arg("U", U));
+  h += fmt::format(kHeaderEnd, fmt::arg("P", P), fmt::arg("U", U));
   return h;
 }
 
-std::string source(const CExportItem& it) {
-  const ExtendedModel& e = it.jump->extended_model();
-  const JumpDesign& d = it.jump->jump_design();
-  const std::string P = it.prefix, U = upper(it.prefix);
-  const Eigen::Index n = e.n;
-  // Per fictitious output row: the plant-output row it measures, its delay block, its sensor j.
-  Eigen::MatrixXd crow(e.nmb, n);
-  std::vector<int> row_delay(static_cast<std::size_t>(e.nmb)),
-      row_fict(static_cast<std::size_t>(e.nmb));
-  for (int j = 0; j < e.fictitious_count(); ++j) {
-    const auto& f = e.fict[static_cast<std::size_t>(j)];
-    for (Eigen::Index r = 0; r < f.rows; ++r) {
-      crow.row(f.row + r) = e.C.block(f.row + r, f.delay * n, 1, n);
-      row_delay[static_cast<std::size_t>(f.row + r)] = f.delay;
-      row_fict[static_cast<std::size_t>(f.row + r)] = j;
-    }
-  }
-  auto int_list = [](const std::vector<int>& v) {
-    std::string s;
-    for (std::size_t i = 0; i < v.size(); ++i) s += (i ? ", " : "") + std::to_string(v[i]);
-    return s;
-  };
-  std::vector<int> fict_row, fict_rows, fict_sensor;
-  for (const auto& f : e.fict) {
-    fict_row.push_back(static_cast<int>(f.row));
-    fict_rows.push_back(static_cast<int>(f.rows));
-    fict_sensor.push_back(f.sensor);
-  }
-  std::string s = fmt::format(
-      R"(/* {P}.c — see {P}.h. Generated: edit the scenario and re-export instead. */
+// The source's start: the plant's A ({P}.c).
+constexpr char kSourceHead[] =
+    R"(/* {P}.c — see {P}.h. Generated: edit the scenario and re-export instead. */
 #include "{P}.h"
 
 /* Plant A (n x n): the first block of Abar. */
 static const double {P}_a[{U}_N][{U}_N] = {{
 {a}}};
-)",
-      fmt::arg("P", P), fmt::arg("U", U), fmt::arg("a", matrix_init(it.plant->A, "  ")));
-  if (e.nu > 0) {
-    s += fmt::format(
-        "/* Plant Bu (n x nu). */\nstatic const double {P}_bu[{U}_N][{U}_NU] = {{\n{b}}};\n",
-        fmt::arg("P", P), fmt::arg("U", U), fmt::arg("b", matrix_init(it.plant->Bu, "  ")));
-  }
-  s += fmt::format(
-      R"(/* Per fictitious output row: the sensor's C row, the delay block it reads, its fictitious sensor. */
+)";
+
+// The fictitious rows' tables, xhat0, and the gain table's opening.
+constexpr char kSourceTables[] =
+    R"(/* Per fictitious output row: the sensor's C row, the delay block it reads, its fictitious sensor. */
 static const double {P}_crow[{U}_NMB][{U}_N] = {{
 {c}}};
 static const unsigned char {P}_row_delay[{U}_NMB] = {{{rd}}};
@@ -247,45 +228,10 @@ static const double {P}_xhat0[{U}_N] = {{{x0}}};
 
 /* Gains L[index][extended state][fictitious row]. */
 static const double {P}_gain[{U}_GAINS][{U}_NB][{U}_NMB] = {{
-)",
-      fmt::arg("P", P), fmt::arg("U", U), fmt::arg("c", matrix_init(crow, "  ")),
-      fmt::arg("rd", int_list(row_delay)), fmt::arg("rf", int_list(row_fict)),
-      fmt::arg("fr", int_list(fict_row)), fmt::arg("frs", int_list(fict_rows)), fmt::arg("x0", [&] {
-        std::string x;
-        const Eigen::VectorXd& v = it.jump->initial_estimate().xhat0;
-        for (Eigen::Index i = 0; i < v.size(); ++i) x += (i ? ", " : "") + num(v(i));
-        return x;
-      }()));
-  for (std::size_t g = 0; g < d.gains.size(); ++g) {
-    s += fmt::format("  {{ /* {} */\n{}  }}{}\n", g, matrix_init(d.gains[g], "    "),
-                     g + 1 < d.gains.size() ? "," : "");
-  }
-  s += "};\n\n";
-  // Group rule, as group_of() in estimators/design/jump_design.cc.
-  std::string group;
-  switch (d.grouping) {
-    case Grouping::kS1:
-      group = "  group = 0;\n";
-      break;
-    case Grouping::kS2:
-      group = fmt::format(
-          "  {{\n    int i, count = 0;\n    for (i = 0; i < {U}_SENSORS; ++i) {{\n"
-          "      if ((pattern >> (i * ({U}_DBAR + 1))) & ((1UL << ({U}_DBAR + 1)) - 1UL)) "
-          "++count;\n    }}\n"
-          "    group = count - 1;\n  }}\n",
-          fmt::arg("U", U));
-      break;
-    case Grouping::kS3:
-      group =
-          "  {\n    unsigned long m = pattern;\n    int count = 0;\n    while (m) {\n      m &= m "
-          "- 1UL;\n"
-          "      ++count;\n    }\n    group = count - 1;\n  }\n";
-      break;
-    case Grouping::kS4:
-      group = "  group = (int)pattern - 1;\n";
-      break;
-  }
-  s += fmt::format(R"(int {P}_gain_index(unsigned int N, unsigned long pattern) {{
+)";
+
+// The functions (eqs. (6), (10)), after the gain table and the group rule.
+constexpr char kSourceFunctions[] = R"(int {P}_gain_index(unsigned int N, unsigned long pattern) {{
   int group;
   if (pattern == 0UL || pattern >= (1UL << {U}_NF)) return -1;
   if (N < 1U) N = 1U;
@@ -355,10 +301,10 @@ void {P}_step({P}_state *s, const double *drive) {{
 }}
 
 const double *{P}_estimate(const {P}_state *s) {{ return s->x; }}
-)",
-                   fmt::arg("P", P), fmt::arg("U", U), fmt::arg("group", group));
-  if (e.nu > 0) {
-    s += fmt::format(R"(
+)";
+
+// {P}_step_input, when the plant has inputs.
+constexpr char kSourceStepInput[] = R"(
 void {P}_step_input({P}_state *s, const double *u) {{
   double drive[{U}_N];
   int i, c;
@@ -369,9 +315,98 @@ void {P}_step_input({P}_state *s, const double *u) {{
   }}
   {P}_step(s, drive);
 }}
-)",
-                     fmt::arg("P", P), fmt::arg("U", U));
+)";
+
+std::string int_list(const std::vector<int>& v) {
+  std::string s;
+  for (std::size_t i = 0; i < v.size(); ++i) s += (i ? ", " : "") + std::to_string(v[i]);
+  return s;
+}
+
+// Per fictitious output row: the plant-output row it measures, its delay block, its sensor j.
+struct FictitiousRows {
+  Eigen::MatrixXd crow;
+  std::vector<int> delay, fict;
+};
+FictitiousRows fictitious_rows(const ExtendedModel& e) {
+  const Eigen::Index n = e.n;
+  FictitiousRows t{Eigen::MatrixXd(e.nmb, n), std::vector<int>(static_cast<std::size_t>(e.nmb)),
+                   std::vector<int>(static_cast<std::size_t>(e.nmb))};
+  for (int j = 0; j < e.fictitious_count(); ++j) {
+    const auto& f = e.fict[static_cast<std::size_t>(j)];
+    for (Eigen::Index r = 0; r < f.rows; ++r) {
+      t.crow.row(f.row + r) = e.C.block(f.row + r, f.delay * n, 1, n);
+      t.delay[static_cast<std::size_t>(f.row + r)] = f.delay;
+      t.fict[static_cast<std::size_t>(f.row + r)] = j;
+    }
   }
+  return t;
+}
+
+// The fictitious-row tables, xhat0 and the gains.
+std::string source_tables(const CExportItem& it, const std::string& P, const std::string& U) {
+  const ExtendedModel& e = it.jump->extended_model();
+  const JumpDesign& d = it.jump->jump_design();
+  const FictitiousRows rows = fictitious_rows(e);
+  std::vector<int> fict_row, fict_rows;
+  for (const auto& f : e.fict) {
+    fict_row.push_back(static_cast<int>(f.row));
+    fict_rows.push_back(static_cast<int>(f.rows));
+  }
+  std::string x0;
+  const Eigen::VectorXd& v = it.jump->initial_estimate().xhat0;
+  for (Eigen::Index i = 0; i < v.size(); ++i) x0 += (i ? ", " : "") + num(v(i));
+  std::string s =
+      fmt::format(kSourceTables, fmt::arg("P", P), fmt::arg("U", U),
+                  fmt::arg("c", matrix_init(rows.crow, "  ")), fmt::arg("rd", int_list(rows.delay)),
+                  fmt::arg("rf", int_list(rows.fict)), fmt::arg("fr", int_list(fict_row)),
+                  fmt::arg("frs", int_list(fict_rows)), fmt::arg("x0", x0));
+  for (std::size_t g = 0; g < d.gains.size(); ++g) {
+    s += fmt::format("  {{ /* {} */\n{}  }}{}\n", g, matrix_init(d.gains[g], "    "),
+                     g + 1 < d.gains.size() ? "," : "");
+  }
+  s += "};\n\n";
+  return s;
+}
+
+// The group rule in C, as group_of() in estimators/design/jump_design.cc.
+std::string group_code(Grouping grouping, const std::string& U) {
+  switch (grouping) {
+    case Grouping::kS1:
+      return "  group = 0;\n";
+    case Grouping::kS2:
+      return fmt::format(
+          "  {{\n    int i, count = 0;\n    for (i = 0; i < {U}_SENSORS; ++i) {{\n"
+          "      if ((pattern >> (i * ({U}_DBAR + 1))) & ((1UL << ({U}_DBAR + 1)) - 1UL)) "
+          "++count;\n    }}\n"
+          "    group = count - 1;\n  }}\n",
+          fmt::arg("U", U));
+    case Grouping::kS3:
+      return "  {\n    unsigned long m = pattern;\n    int count = 0;\n    while (m) {\n      m &= "
+             "m "
+             "- 1UL;\n"
+             "      ++count;\n    }\n    group = count - 1;\n  }\n";
+    case Grouping::kS4:
+      return "  group = (int)pattern - 1;\n";
+  }
+  return "";
+}
+
+std::string source(const CExportItem& it) {
+  const ExtendedModel& e = it.jump->extended_model();
+  const JumpDesign& d = it.jump->jump_design();
+  const std::string P = it.prefix, U = upper(it.prefix);
+  std::string s = fmt::format(kSourceHead, fmt::arg("P", P), fmt::arg("U", U),
+                              fmt::arg("a", matrix_init(it.plant->A, "  ")));
+  if (e.nu > 0) {
+    s += fmt::format(
+        "/* Plant Bu (n x nu). */\nstatic const double {P}_bu[{U}_N][{U}_NU] = {{\n{b}}};\n",
+        fmt::arg("P", P), fmt::arg("U", U), fmt::arg("b", matrix_init(it.plant->Bu, "  ")));
+  }
+  s += source_tables(it, P, U);
+  s += fmt::format(kSourceFunctions, fmt::arg("P", P), fmt::arg("U", U),
+                   fmt::arg("group", group_code(d.grouping, U)));
+  if (e.nu > 0) s += fmt::format(kSourceStepInput, fmt::arg("P", P), fmt::arg("U", U));
   return s;
 }
 
