@@ -129,6 +129,10 @@ Key& Key::says(std::string phrase) {
   says_ = std::move(phrase);
   return *this;
 }
+Key& Key::fields(const Keys& keys) {
+  fields_ = std::make_shared<const Keys>(keys);
+  return *this;
+}
 
 std::string Key::type_text() const {
   if (type_ == KeyType::kAny) return any_text_;
@@ -368,22 +372,35 @@ std::string values_text(const Key& k) {
   return k.range_text();
 }
 
+// Every key with its name prefixed (`reference.` for a table's fields), fields after their table.
+void flatten(const Keys& keys, const std::string& prefix,
+             std::vector<std::pair<std::string, const Key*>>& out) {
+  for (const Key& k : keys.list()) {
+    out.emplace_back(prefix + k.name(), &k);
+    if (k.fields() != nullptr) flatten(*k.fields(), prefix + k.name() + ".", out);
+  }
+}
+
 }  // namespace
 
 std::string format_keys(const Keys& keys, bool markdown) {
+  std::vector<std::pair<std::string, const Key*>> all;
+  flatten(keys, "", all);
   std::string out;
   if (markdown) {
     out += "| key | type | unit | default | allowed | meaning |\n";
     out += "|---|---|---|---|---|---|\n";
-    for (const Key& k : keys.list()) {
+    for (const auto& [name, key] : all) {
+      const Key& k = *key;
       const std::string def = k.required() ? "required" : k.default_text();
-      out += fmt::format("| `{}` | {} | {} | {} | {} | {} |\n", k.name(), k.type_text(),
+      out += fmt::format("| `{}` | {} | {} | {} | {} | {} |\n", name, k.type_text(),
                          cell(k.unit_text()), cell(def), cell(values_text(k)), cell(k.help_text()));
     }
     return out;
   }
-  for (const Key& k : keys.list()) {
-    std::string line = fmt::format("  {:<16} {:<8}", k.name(), k.type_text());
+  for (const auto& [name, key] : all) {
+    const Key& k = *key;
+    std::string line = fmt::format("  {:<16} {:<8}", name, k.type_text());
     if (!k.unit_text().empty()) line += fmt::format(" [{}]", k.unit_text());
     line += k.required()
                 ? "  required"

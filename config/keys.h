@@ -9,6 +9,7 @@
 #include <Eigen/Dense>
 #include <cstdint>
 #include <initializer_list>
+#include <memory>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -36,6 +37,8 @@ enum class KeyType {
 
 // "number", "integer", ... as printed in docs.
 std::string_view key_type_name(KeyType type);
+
+class Keys;
 
 // One declared key. Built by chaining: Key::number("loss").probability().or_default(0.0)
 //   .help("probability that a packet is lost").
@@ -87,6 +90,9 @@ class Key {
   // The whole "expected ..." phrase of a range error, when a bound is not a plain number
   // ("an integer in 1..1000000 (1e6)").
   Key& says(std::string phrase);
+  // A table key's own keys (docs print them as `reference.kind`, ...); read the sub-table with
+  // KeyReader(sub, key.fields()).
+  Key& fields(const Keys& keys);
 
   // --- the declaration ---
   const std::string& name() const { return name_; }
@@ -103,6 +109,7 @@ class Key {
   std::optional<double> hi() const { return hi_; }
   bool lo_open() const { return lo_open_; }
   bool hi_open() const { return hi_open_; }
+  const Keys* fields() const { return fields_.get(); }  // null when none
 
   // Does `v` satisfy the range? (true when unbounded)
   bool in_range(double v) const;
@@ -124,6 +131,7 @@ class Key {
   std::optional<double> lo_, hi_;
   bool lo_open_ = false, hi_open_ = false;
   std::string noun_, plural_, says_;
+  std::shared_ptr<const Keys> fields_;
 };
 
 // The ordered keys of one component (a kind, a section).
@@ -186,7 +194,8 @@ class KeyReader {
   const Keys& keys_;
 };
 
-// One registry entry's keys as text: a Markdown table (`markdown`) or aligned plain text.
+// One registry entry's keys as text: a Markdown table (`markdown`) or aligned plain text. A table
+// key's fields follow it, named `table.field`.
 std::string format_keys(const Keys& keys, bool markdown);
 
 }  // namespace ncosim::sim

@@ -19,36 +19,39 @@ using sim::Key;
 Key step_key() {
   return Key::choice("step", {"period", "packet"})
       .or_default("period")
-      .help("when the chain moves: once per control period, or once per packet sent");
+      .help(
+          "when the chain moves: once per control period (time-driven) or once per packet sent "
+          "on the link");
 }
 
 const sim::Keys& delay_keys() {
   static const sim::Keys keys{
       Key::numbers("pmf")
           .optional("required unless delivery")
-          .unit("per delay")
-          .help("pmf[d] = P[delay = d periods]; entries >= 0 summing to <= 1 (the rest is lost); "
-                "with independent, each entry in [0, 1] on its own"),
+          .help("pmf[d] = P[delay = d periods], d = 0..len-1, lost with probability 1 - sum: "
+                "non-empty, entries >= 0, sum <= 1 (+1e-9); with independent, each entry in [0, "
+                "1], any sum"),
       Key::number("delivery")
-          .optional("")
+          .optional("none (use pmf)")
           .probability()
-          .help("instead of pmf: the probability that a sample is delivered at all (swept or "
-                "searched as one scalar)"),
+          .help("not with pmf: pmf[d] = delivery * shape[d] / sum(shape), one scalar (the "
+                "probability that a sample is delivered; with independent, the scale of every "
+                "copy's probability) to sweep or search with `ncosim find`"),
       Key::numbers("shape")
           .optional("[1.0] (delay 0)")
-          .help("with delivery: non-negative delay weights, pmf[d] = delivery * shape[d] / "
-                "sum(shape)"),
+          .help("only with delivery: relative weights of the delays 0..len-1 (entries >= 0 and "
+                "finite, at least one > 0)"),
       Key::boolean("independent")
           .or_default(false)
-          .help("each pmf[d] is its own chance of a copy arriving after d periods (copies are "
-                "independent; the pmf need not sum to <= 1)"),
+          .help("true: every d is an independent copy, delivered with probability pmf[d]; a "
+                "sample may arrive 0..len times (sensors on the link need buffer = 0)"),
   };
   return keys;
 }
 
 const sim::Keys& bernoulli_keys() {
   static const sim::Keys keys{
-      Key::number("loss").probability().or_default(0.0).help("probability that a packet is lost"),
+      Key::number("loss").probability().or_default(0.0).help("P[lost]"),
       Key::integer("delay")
           .range(0, 1'000'000)
           .or_default(0)
@@ -62,9 +65,13 @@ const sim::Keys& negative_binomial_keys() {
   static const sim::Keys keys{
       Key::integer("successes")
           .range(1, 10000)
-          .help("r: the delay is the number of failures before r successes"),
-      Key::number("p").above(0.0).max(1.0).noun("a probability").help("probability of a success"),
-      Key::number("loss").probability().or_default(0.0).help("probability that a packet is lost"),
+          .help("r: the delay is the number of failures before the r-th success"),
+      Key::number("p")
+          .above(0.0)
+          .max(1.0)
+          .noun("a probability")
+          .help("success probability of a trial (p = 1: delay 0)"),
+      Key::number("loss").probability().or_default(0.0).help("P[lost], before the delay is drawn"),
   };
   return keys;
 }
@@ -72,54 +79,55 @@ const sim::Keys& negative_binomial_keys() {
 const sim::Keys& arrival_cdf_keys() {
   static const sim::Keys keys{
       Key::numbers("cdf").help(
-          "cdf[h] = lambda_h = P[delay <= h periods]: non-decreasing, each in [0, 1]"),
+          "lambda_h = P[delay <= h periods] for h = 0, 1, ...: non-empty, entries in [0, 1], "
+          "non-decreasing"),
       Key::number("tail")
           .optional("the last cdf value")
           .probability()
-          .help("P[delivered at all] (>= the last cdf value); the delays beyond the cdf are "
-                "spread after it"),
+          .help("lambda_h for every h >= len(cdf), >= the last cdf value (1 - tail is lost)"),
   };
   return keys;
 }
 
 const sim::Keys& gilbert_elliott_keys() {
   static const sim::Keys keys{
-      step_key(),
-      Key::number("loss_good").probability().or_default(0.0).help("loss probability when good"),
-      Key::number("loss_bad").probability().or_default(1.0).help("loss probability when bad"),
       Key::number("p_good_to_bad")
-          .optional("required unless mean_loss, mean_burst")
+          .optional("required unless mean_loss")
           .probability()
-          .help("per-step probability good -> bad"),
+          .help("P[good -> bad] per step"),
       Key::number("p_bad_to_good")
-          .optional("required unless mean_loss, mean_burst")
+          .optional("required unless mean_loss")
           .probability()
-          .help("per-step probability bad -> good (p_good_to_bad + p_bad_to_good > 0)"),
+          .help("P[bad -> good] per step; p_good_to_bad + p_bad_to_good > 0"),
+      Key::number("loss_good").probability().or_default(0.0).help("P[lost] in the good state"),
+      Key::number("loss_bad").probability().or_default(1.0).help("P[lost] in the bad state"),
+      step_key(),
       Key::number("mean_loss")
-          .optional("")
-          .help("instead of the transition probabilities: the stationary loss rate"),
+          .optional("none")
+          .help("stationary loss probability P, loss_good < P < loss_bad; with mean_burst, "
+                "instead of p_good_to_bad and p_bad_to_good"),
       Key::number("mean_burst")
-          .optional("")
-          .unit("steps")
-          .help("with mean_loss: the mean length of a bad burst"),
+          .optional("none")
+          .help("mean length of a run of consecutive lost packets: >= 1 and in the range these "
+                "losses allow (below)"),
   };
   return keys;
 }
 
 const sim::Keys& markov_keys() {
   static const sim::Keys keys{
-      step_key(),
       Key::matrix("transition")
-          .help("row-stochastic transition matrix of the hidden state (rows >= 0 summing to 1)"),
-      Key::numbers("loss").help("per-state loss probability (one per state, each in [0, 1])"),
+          .help("S x S transition matrix of the chain: square, entries >= 0, rows sum to 1 "
+                "(+-1e-9)"),
+      Key::numbers("loss").help("per-state loss probability: S entries in [0, 1]"),
       Key::ragged("delay_pmf")
-          .optional("delay 0 in every state")
-          .unit("per delay")
-          .help("per-state delay pmf of a delivered packet (one row per state, each summing to "
-                "1)"),
+          .optional("delay 0")
+          .help("per-state delay law of a delivered packet (loss is `loss`): S rows of any "
+                "length, entries >= 0 summing to 1 (+-1e-9)"),
       Key::numbers("initial")
           .optional("the stationary law")
-          .help("initial state distribution (one per state, summing to 1)"),
+          .help("law of the first state: S entries >= 0 summing to 1 (+-1e-9)"),
+      step_key(),
   };
   return keys;
 }
@@ -127,10 +135,15 @@ const sim::Keys& markov_keys() {
 const sim::Keys& trace_keys() {
   static const sim::Keys keys{
       Key::string("file").help(
-          "CSV of seq,delay (empty delay = lost), relative to the scenario file"),
+          "the CSV of seq,delay (empty delay = lost), relative to the scenario file's folder "
+          "unless absolute: a readable regular file of at most 10^9 bytes, lines of at most 4096 "
+          "bytes, at most 5e7 packets and (without segment) at least sum ceil(periods / every) "
+          "rows over the sensors on this link"),
       Key::integer("segment")
-          .optional("the whole trace")
-          .help("rows per run, in 1..rows: run r replays segment r mod floor(rows / segment)"),
+          .optional("none (every run replays from row 0)")
+          .help("rows per run, 1 .. the trace's rows (and at least the rows one run sends): run "
+                "r replays segment r mod floor(rows / segment) from its start (the layout of "
+                "`ncosim record-link`)"),
   };
   return keys;
 }
