@@ -1,5 +1,6 @@
-// config/registry.h — one registry per component kind: a name, a one-line help and a factory
-// that reads its own table. A failed lookup lists the valid names (with a did-you-mean).
+// config/registry.h — one registry per component kind: a name, a one-line help, the kind's
+// declared keys (config/keys.h; empty for a kind that declares none) and a factory that reads its
+// own table. A failed lookup lists the valid names (with a did-you-mean).
 // Built-ins are registered by explicit calls from one place (sim/registry.cc).
 #pragma once
 
@@ -11,6 +12,7 @@
 #include <vector>
 
 #include "config/config.h"
+#include "config/keys.h"
 
 namespace ncosim::sim {
 
@@ -22,10 +24,16 @@ class Registry {
     std::string name;
     std::string help;
     Factory factory;
+    Keys keys;  // the kind's own keys (not the section's common ones)
   };
 
   void add(std::string name, std::string help, Factory factory) {
-    entries_.push_back(Entry{std::move(name), std::move(help), std::move(factory)});
+    entries_.push_back(Entry{std::move(name), std::move(help), std::move(factory), {}});
+  }
+  // A kind that declares its keys: its factory reads them through a KeyReader over `keys`.
+  void add(std::string name, std::string help, Keys keys, Factory factory) {
+    entries_.push_back(
+        Entry{std::move(name), std::move(help), std::move(factory), std::move(keys)});
   }
 
   const Entry* find(std::string_view name) const {

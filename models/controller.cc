@@ -20,9 +20,9 @@ namespace {
 
 enum class Signal { kTrue, kMeasured, kReceived, kEstimate };
 
-Signal read_signal(const sim::Table& t, std::string_view key, std::string_view fallback,
-                   bool allow_estimate, std::string* estimator) {
-  const std::string v = t.string_or(key, fallback);
+Signal read_signal(const sim::KeyReader& t, std::string_view key, bool allow_estimate,
+                   std::string* estimator) {
+  const std::string v = t.string(key);
   if (v == "true") return Signal::kTrue;
   if (v == "measured") return Signal::kMeasured;
   if (v == "received") return Signal::kReceived;
@@ -184,41 +184,103 @@ class PiDesign final : public ControllerDesign {
   PiParams p_;
 };
 
-Reference read_reference(const sim::Table& t) {
+using sim::Key;
+
+const sim::Keys& reference_keys() {
+  static const sim::Keys keys{
+      Key::choice("kind", {"constant", "square"})
+          .or_default("constant")
+          .help("a constant reference (value) or a square wave (low during the first half of "
+                "each period, then high)"),
+      Key::number("value")
+          .optional("required with kind = \"constant\"")
+          .help("the constant reference"),
+      Key::number("low")
+          .optional("required with kind = \"square\"")
+          .help("the square wave's first half-period value"),
+      Key::number("high")
+          .optional("required with kind = \"square\"")
+          .help("the square wave's second half-period value"),
+      Key::number("period")
+          .optional("required with kind = \"square\"")
+          .above(0.0)
+          .says("a period > 0 s")
+          .unit("s")
+          .help("the square wave's period"),
+  };
+  return keys;
+}
+
+Reference read_reference(const sim::KeyReader& t) {
   Reference r;
-  const sim::Table ref = t.table("reference");
-  const std::string kind = ref.choice_or("kind", "constant", {"constant", "square"});
+  const sim::Table table = t.table("reference");
+  const sim::KeyReader ref(table, *t.keys().at("reference").fields());
+  const std::string kind = ref.string("kind");
   if (kind == "constant") {
     r.low = r.high = ref.number("value");
   } else {
     r.low = ref.number("low");
     r.high = ref.number("high");
     r.period = ref.number("period");
-    if (!(r.period > 0.0) || !std::isfinite(r.period))
-      ref.fail("period", fmt::format("expected a period > 0 s, got {}", r.period));
   }
-  if (!std::isfinite(r.low) || !std::isfinite(r.high))
-    ref.fail_here("expected finite reference values");
-  ref.finish();
+  table.finish();
   return r;
-}
-
-double finite_number(const sim::Table& t, std::string_view key, double fallback) {
-  const double v = t.number_or(key, fallback);
-  if (!std::isfinite(v)) t.fail(key, fmt::format("expected a finite number, got {}", v));
-  return v;
 }
 
 }  // namespace
 
-std::shared_ptr<ControllerDesign> read_relay(const sim::Table& t, Eigen::Index nu) {
+const sim::Keys& relay_keys() {
+  static const sim::Keys keys{
+      Key::number("level").or_default(1.0).help("the relay's output magnitude"),
+      Key::number("dead_zone")
+          .or_default(0.0)
+          .min(0.0)
+          .noun("a dead zone")
+          .help("|y| at or below it gives u = 0"),
+      Key::string("sees")
+          .or_default("measured")
+          .help("\"true\" (C x[k]), \"measured\" (the sensor's newest sample C x + v, whether "
+                "sent or not) or \"received\" (the newest value that reached the controller "
+                "node)"),
+      Key::numbers("outputs")
+          .optional("output i drives input i")
+          .help("y of input j: outputs[j], 0-based over the sensors' outputs stacked in sensor "
+                "order (the default needs as many outputs as inputs)"),
+  };
+  return keys;
+}
+
+const sim::Keys& pi_keys() {
+  static const sim::Keys keys{
+      Key::number("kp").or_default(0.0).help("proportional gain"),
+      Key::number("ki").or_default(0.0).unit("1/s").help("integral gain"),
+      Key::number("b").or_default(1.0).help("reference weight of the proportional term"),
+      Key::number("u_min").optional("none").help(
+          "lower limit of u: clamped, the integral held while saturated in the same direction"),
+      Key::number("u_max").optional("none").help("upper limit of u, > u_min"),
+      Key::table("reference").fields(reference_keys()).help("the reference r(t)"),
+      Key::string("feedback")
+          .or_default("received")
+          .help("y: \"received\" (the last received measurement, held between arrivals), "
+                "\"measured\", \"true\", or an estimator's name (inferential control: y = C "
+                "xhat[k|k] with the sensor's C)"),
+      Key::string("sensor").optional("the first sensor").help("the [[sensor]] whose output is y"),
+      Key::integer("output")
+          .or_default(0)
+          .min(0)
+          .noun("an output index")
+          .help("the index of y among the sensor's outputs"),
+  };
+  return keys;
+}
+
+std::shared_ptr<ControllerDesign> read_relay(const sim::Table& table, Eigen::Index nu) {
+  const sim::KeyReader t(table, relay_keys());
   RelayParams p;
-  p.level = finite_number(t, "level", 1.0);
-  p.dead_zone = finite_number(t, "dead_zone", 0.0);
-  if (p.dead_zone < 0.0)
-    t.fail("dead_zone", fmt::format("expected a dead zone >= 0, got {}", p.dead_zone));
+  p.level = t.number("level");
+  p.dead_zone = t.number("dead_zone");
   std::string unused;
-  p.sees = read_signal(t, "sees", "measured", false, &unused);
+  p.sees = read_signal(t, "sees", false, &unused);
   auto design = std::make_shared<RelayDesign>(std::move(p), nu);
   if (t.has("outputs")) {
     for (const double v : t.numbers("outputs")) {
@@ -234,21 +296,20 @@ std::shared_ptr<ControllerDesign> read_relay(const sim::Table& t, Eigen::Index n
   return design;
 }
 
-std::shared_ptr<ControllerDesign> read_pi(const sim::Table& t, Eigen::Index nu) {
+std::shared_ptr<ControllerDesign> read_pi(const sim::Table& table, Eigen::Index nu) {
+  const sim::KeyReader t(table, pi_keys());
   PiParams p;
-  p.kp = finite_number(t, "kp", 0.0);
-  p.ki = finite_number(t, "ki", 0.0);
-  p.b = finite_number(t, "b", 1.0);
-  if (t.has("u_min")) p.u_min = finite_number(t, "u_min", 0.0);
-  if (t.has("u_max")) p.u_max = finite_number(t, "u_max", 0.0);
+  p.kp = t.number("kp");
+  p.ki = t.number("ki");
+  p.b = t.number("b");
+  if (t.has("u_min")) p.u_min = t.number("u_min");
+  if (t.has("u_max")) p.u_max = t.number("u_max");
   if (p.u_min >= p.u_max)
     t.fail("u_max", fmt::format("expected u_max > u_min ({}), got {}", p.u_min, p.u_max));
   p.ref = read_reference(t);
-  p.feedback = read_signal(t, "feedback", "received", true, &p.estimator);
-  p.sensor_name = t.string_or("sensor", "");
-  const auto out = t.integer_or("output", 0);
-  if (out < 0) t.fail("output", fmt::format("expected an output index >= 0, got {}", out));
-  p.output = out;
+  p.feedback = read_signal(t, "feedback", true, &p.estimator);
+  p.sensor_name = t.opt_string("sensor").value_or("");
+  p.output = t.integer("output");
   (void)nu;  // u(0) is driven; further inputs stay 0
   return std::make_shared<PiDesign>(std::move(p));
 }

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "config/config.h"
+#include "config/keys.h"
 #include "kernel/rng.h"
 #include "models/sensor.h"
 
@@ -61,6 +62,9 @@ class ControllerDesign {
 };
 
 // Readers of the built-in controllers (registered by models/input.cc).
+// The declared keys of the relay and PI inputs (config/keys.h), read by read_relay / read_pi.
+const sim::Keys& relay_keys();
+const sim::Keys& pi_keys();
 std::shared_ptr<ControllerDesign> read_relay(const sim::Table& t, Eigen::Index nu);
 std::shared_ptr<ControllerDesign> read_pi(const sim::Table& t, Eigen::Index nu);
 

@@ -1,4 +1,6 @@
-// models/fit.cc — maximum-likelihood fits of the packet-fate families (models/fit.h).
+// models/fit.cc — the machinery of the maximum-likelihood fits (models/fit.h): the HMM
+// likelihood, Baum–Welch from several starts, Wald intervals and goodness of fit. The families
+// themselves are declared entries in models/fit_families.cc.
 #include "models/fit.h"
 
 #include <fmt/format.h>
@@ -8,12 +10,13 @@
 #include <numeric>
 #include <stdexcept>
 
+#include "models/fit_internal.h"
 #include "models/link.h"
 #include "models/plant.h"  // stationary_law
 
 namespace ncosim::models {
 
-namespace {
+namespace fit_detail {
 
 constexpr double kTiny = 1e-300;
 
@@ -216,13 +219,6 @@ void normalise_rows(Eigen::MatrixXd& m) {
   }
 }
 
-struct EmOutcome {
-  FateHmm hmm;
-  double loglik = 0.0;
-  int iterations = 0;
-  bool converged = false;
-};
-
 // One EM step: the log-likelihood of `h` and the updated model.
 double em_map(const FateHmm& h, const std::vector<int>& sym, FateHmm& next,
               std::vector<double>& alpha, std::vector<double>& scale, Eigen::MatrixXd& A,
@@ -415,13 +411,6 @@ EmOutcome fit_hidden(int K, const std::vector<int>& sym, const FitOptions& o, in
 
 // The free coordinates of a model: in every row of `transition` and `emission`, the entries
 // other than the largest (the largest is 1 - the others); zero entries stay fixed at 0.
-struct Coordinates {
-  struct Entry {
-    bool emission;
-    Eigen::Index row, col, dependent;
-  };
-  std::vector<Entry> entries;
-};
 
 Coordinates free_coordinates(const FateHmm& h) {
   Coordinates c;
@@ -478,33 +467,6 @@ Eigen::MatrixXd covariance(const FateHmm& h, const Coordinates& c, const std::ve
   Eigen::LLT<Eigen::MatrixXd> llt(-H);
   if (llt.info() != Eigen::Success) return {};
   return llt.solve(Eigen::MatrixXd::Identity(F, F));
-}
-
-// A reported quantity of the model and its Wald interval (delta method on the coordinates).
-// The interval is clipped to [lo, hi] (probabilities: [0, 1]).
-template <class G>
-FitParameter wald(const std::string& name, const FateHmm& h, const Coordinates& c,
-                  const Eigen::MatrixXd& cov, G g, double lo = 0.0, double hi = 1.0) {
-  FitParameter p;
-  p.name = name;
-  p.estimate = g(h);
-  p.ci_low = p.ci_high = std::nan("");
-  if (cov.size() == 0 && !c.entries.empty()) return p;
-  const auto F = static_cast<Eigen::Index>(c.entries.size());
-  Eigen::VectorXd grad(F);
-  for (Eigen::Index k = 0; k < F; ++k) {
-    Eigen::VectorXd d = Eigen::VectorXd::Zero(F);
-    const double s = 1e-7;
-    d(k) = s;
-    const double up = g(moved(h, c, d));
-    d(k) = -s;
-    grad(k) = (up - g(moved(h, c, d))) / (2.0 * s);
-  }
-  const double se = F > 0 ? std::sqrt(std::max(0.0, grad.dot(cov * grad))) : 0.0;
-  if (!std::isfinite(p.estimate) || !std::isfinite(se)) return p;
-  p.ci_low = std::max(lo, p.estimate - 1.959963985 * se);
-  p.ci_high = std::min(hi, p.estimate + 1.959963985 * se);
-  return p;
 }
 
 FitParameter binomial(const std::string& name, double p, double n) {
@@ -590,7 +552,9 @@ void goodness_of_fit(FitResult& r, const std::vector<int>& sym, int lags) {
   r.acf_rmse = used > 0 ? std::sqrt(ss / used) : 0.0;
 }
 
-}  // namespace
+}  // namespace fit_detail
+
+using namespace fit_detail;
 
 Eigen::VectorXd FateHmm::stationary() const {
   if (transition.rows() == 1) return Eigen::VectorXd::Ones(1);
@@ -624,235 +588,6 @@ std::size_t best_fit(const std::vector<FitResult>& fits, const std::string& crit
     if (a < b - 1e-6 * std::max(1.0, std::abs(b))) best = i;  // ties: the family listed first
   }
   return best;
-}
-
-int family_states(const std::string& family) {
-  if (family == "bernoulli" || family == "delay") return 1;
-  if (family == "gilbert_elliott") return 2;
-  if (family.starts_with("markov") && family.size() > 6) {
-    const int K = std::atoi(family.c_str() + 6);
-    if (K >= 2 && K <= 8 && family == fmt::format("markov{}", K)) return K;
-  }
-  return 0;
-}
-
-FitResult fit_family(const std::string& family, const std::vector<int>& sym, const FitOptions& o) {
-  FitResult r;
-  r.family = family;
-  const auto N = static_cast<double>(sym.size());
-  const int M = std::max(alphabet(sym), 2);
-  const int D = M - 2;  // the longest delay seen (0 when none delivered)
-  std::vector<double> counts(static_cast<std::size_t>(M), 0.0);
-  for (const int s : sym) counts[static_cast<std::size_t>(s)] += 1.0;
-  const double lost = counts[0], delivered = N - lost;
-  // The delays of the delivered packets: their empirical law and its log-likelihood.
-  double delay_ll = 0.0;
-  std::vector<double> q(static_cast<std::size_t>(D + 1), 0.0);
-  int delay_outcomes = 0;
-  for (int d = 0; d <= D; ++d) {
-    const double c = counts[static_cast<std::size_t>(d + 1)];
-    if (delivered > 0.0) q[static_cast<std::size_t>(d)] = c / delivered;
-    if (c > 0.0) {
-      delay_ll += c * std::log(c / delivered);
-      ++delay_outcomes;
-    }
-  }
-  if (delivered == 0.0) q[0] = 1.0;
-  const double loss_ll = (lost > 0.0 ? lost * std::log(lost / N) : 0.0) +
-                         (delivered > 0.0 ? delivered * std::log(delivered / N) : 0.0);
-  const int K = family_states(family);
-  if (K == 0) {
-    throw std::invalid_argument(fmt::format(
-        "unknown family '{}' (expected bernoulli, delay, gilbert_elliott or markov2 .. markov8)",
-        family));
-  }
-  r.states = K;
-  if (family == "bernoulli") {
-    r.parameters = 1;
-    if (delay_outcomes > 1) {
-      throw std::domain_error(
-          "the delivered packets have different delays; a bernoulli link has one fixed delay");
-    }
-  } else if (family == "delay") {
-    r.parameters = M - 1;
-  } else if (family == "gilbert_elliott") {
-    r.parameters = 4 + D;
-  } else {
-    r.parameters = K * (K - 1) + K * (M - 1);
-  }
-  if (N < r.parameters) {
-    throw std::invalid_argument(
-        fmt::format("{} packet(s), fewer than the {} parameters of the {} family", sym.size(),
-                    r.parameters, family));
-  }
-  const std::vector<std::int64_t> runs = loss_runs(sym);
-  double run_count = 0.0;
-  for (const auto n : runs) run_count += static_cast<double>(n);
-  const double mean_burst = run_count > 0.0 ? lost / run_count : 1.0;
-
-  if (K == 1) {
-    r.model.transition = Eigen::MatrixXd::Ones(1, 1);
-    r.model.emission = Eigen::MatrixXd::Zero(1, M);
-    r.model.emission(0, 0) = lost / N;
-    for (int d = 0; d <= D; ++d)
-      r.model.emission(0, d + 1) = counts[static_cast<std::size_t>(d + 1)] / N;
-    r.loglik = loss_ll + delay_ll;
-    r.params.push_back(binomial("loss", lost / N, N));
-    if (family == "bernoulli") {
-      int delay = 0;
-      for (int d = 0; d <= D; ++d) {
-        if (counts[static_cast<std::size_t>(d + 1)] > 0.0) delay = d;
-      }
-      r.link_toml =
-          fmt::format("kind = \"bernoulli\"\nloss = {}\ndelay = {}\n", num(lost / N), delay);
-    } else {
-      std::vector<double> pmf;
-      for (int d = 0; d <= D; ++d) {
-        pmf.push_back(counts[static_cast<std::size_t>(d + 1)] / N);
-        r.params.push_back(binomial(fmt::format("pmf[{}]", d), pmf.back(), N));
-      }
-      r.link_toml = fmt::format("kind = \"delay\"\npmf = {}\n", list(pmf));
-    }
-  } else if (family == "gilbert_elliott") {
-    // The loss indicator carries the chain; the delays are independent of it.
-    std::vector<int> binary(sym.size());
-    for (std::size_t t = 0; t < sym.size(); ++t) binary[t] = sym[t] == 0 ? 0 : 1;
-    EmOutcome em;
-    if (lost == 0.0 || delivered == 0.0) {  // degenerate: one state explains the trace
-      em.hmm.transition.resize(2, 2);
-      em.hmm.transition << 0.5, 0.5, 0.5, 0.5;
-      em.hmm.emission.resize(2, 2);
-      const double l = lost / N;
-      em.hmm.emission << l, 1.0 - l, l, 1.0 - l;
-      em.loglik = loss_ll;
-      em.converged = true;
-      r.starts = 0;
-    } else {
-      em = fit_hidden(2, binary, o, r.starts, mean_burst);
-    }
-    r.iterations = em.iterations;
-    r.converged = em.converged;
-    r.loglik = em.loglik + delay_ll;
-    const FateHmm& b = em.hmm;
-    r.model.transition = b.transition;
-    r.model.emission = Eigen::MatrixXd::Zero(2, M);
-    for (int s = 0; s < 2; ++s) {
-      r.model.emission(s, 0) = b.emission(s, 0);
-      for (int d = 0; d <= D; ++d)
-        r.model.emission(s, d + 1) = (1.0 - b.emission(s, 0)) * q[static_cast<std::size_t>(d)];
-    }
-    Coordinates c;
-    Eigen::MatrixXd cov;
-    if (o.intervals && lost > 0.0 && delivered > 0.0) {
-      c = free_coordinates(b);
-      cov = covariance(b, c, binary);
-    }
-    const auto ge = [&](const char* name, auto g) { r.params.push_back(wald(name, b, c, cov, g)); };
-    ge("p_good_to_bad", [](const FateHmm& h) { return h.transition(0, 1); });
-    ge("p_bad_to_good", [](const FateHmm& h) { return h.transition(1, 0); });
-    ge("loss_good", [](const FateHmm& h) { return h.emission(0, 0); });
-    ge("loss_bad", [](const FateHmm& h) { return h.emission(1, 0); });
-    // Mean loss P(L) = pi' e and mean burst P(L) / (P(L) - P(L, L)), P(L, L) = pi' diag(e) T e
-    // (e: the loss probability per state), smooth in the free coordinates: delta method.
-    const auto loss_pair = [](const FateHmm& h) {
-      const Eigen::VectorXd pi = h.stationary();
-      const Eigen::VectorXd e = h.emission.col(0);
-      return std::make_pair(pi.dot(e), pi.cwiseProduct(e).dot(h.transition * e));
-    };
-    r.derived.push_back(
-        wald("mean_loss", b, c, cov, [&](const FateHmm& h) { return loss_pair(h).first; }));
-    r.derived.push_back(wald(
-        "mean_burst", b, c, cov,
-        [&](const FateHmm& h) {
-          const auto [pl, pll] = loss_pair(h);
-          return pl > 0.0 && pl > pll ? pl / (pl - pll) : std::nan("");
-        },
-        1.0, INFINITY));
-    if (D > 0) {
-      for (int d = 0; d <= D; ++d)
-        r.params.push_back(
-            binomial(fmt::format("delay_pmf[{}]", d), q[static_cast<std::size_t>(d)], delivered));
-    }
-    if (D == 0) {
-      r.link_toml = fmt::format(
-          "kind = \"gilbert_elliott\"\nstep = \"packet\"\np_good_to_bad = {}\np_bad_to_good = "
-          "{}\nloss_good = {}\n"
-          "loss_bad = {}\n",
-          num(b.transition(0, 1)), num(b.transition(1, 0)), num(b.emission(0, 0)),
-          num(b.emission(1, 0)));
-    } else {
-      const std::vector<double> qq = law(q);
-      r.link_toml = fmt::format(
-          "kind = \"markov\"  # Gilbert–Elliott with state-independent delays\nstep = "
-          "\"packet\"\ntransition = [{}, {}]\n"
-          "loss = [{}, {}]\ndelay_pmf = [{}, {}]\n",
-          list(law({b.transition(0, 0), b.transition(0, 1)})),
-          list(law({b.transition(1, 0), b.transition(1, 1)})), num(b.emission(0, 0)),
-          num(b.emission(1, 0)), list(qq), list(qq));
-    }
-  } else {
-    EmOutcome em = fit_hidden(K, sym, o, r.starts, mean_burst);
-    r.iterations = em.iterations;
-    r.converged = em.converged;
-    r.loglik = em.loglik;
-    r.model = em.hmm;
-    if (r.model.emission.cols() < M) {
-      Eigen::MatrixXd e = Eigen::MatrixXd::Zero(K, M);
-      e.leftCols(r.model.emission.cols()) = r.model.emission;
-      r.model.emission = e;
-    }
-    Coordinates c;
-    Eigen::MatrixXd cov;
-    if (o.intervals) {
-      c = free_coordinates(r.model);
-      if (c.entries.size() <= 30)
-        cov = covariance(r.model, c, sym);
-      else
-        c.entries.clear(), cov.resize(0, 0);
-    }
-    const bool have_ci = cov.size() > 0 || (o.intervals && c.entries.empty());
-    auto add = [&](const std::string& name, auto g) {
-      FitParameter p = wald(name, r.model, c, have_ci ? cov : Eigen::MatrixXd(), g);
-      if (!have_ci) p.ci_low = p.ci_high = std::nan("");
-      r.params.push_back(p);
-    };
-    for (int i = 0; i < K; ++i) {
-      for (int j = 0; j < K; ++j)
-        add(fmt::format("transition[{}][{}]", i, j),
-            [i, j](const FateHmm& h) { return h.transition(i, j); });
-    }
-    for (int i = 0; i < K; ++i)
-      add(fmt::format("loss[{}]", i), [i](const FateHmm& h) { return h.emission(i, 0); });
-    for (int i = 0; i < K; ++i) {
-      for (int d = 0; d <= D; ++d) {
-        add(fmt::format("delay_pmf[{}][{}]", i, d), [i, d](const FateHmm& h) {
-          const double del = 1.0 - h.emission(i, 0);
-          return del > 0.0 ? h.emission(i, d + 1) / del : (d == 0 ? 1.0 : 0.0);
-        });
-      }
-    }
-    std::string rows, loss, pmfs;
-    for (int i = 0; i < K; ++i) {
-      std::vector<double> row(r.model.transition.row(i).data(),
-                              r.model.transition.row(i).data() + 0);
-      row.clear();
-      for (int j = 0; j < K; ++j) row.push_back(r.model.transition(i, j));
-      std::vector<double> pmf;
-      for (int d = 0; d <= D; ++d) pmf.push_back(r.model.emission(i, d + 1));
-      if (std::accumulate(pmf.begin(), pmf.end(), 0.0) <= 0.0) pmf.assign(1, 1.0);
-      rows += (i ? ", " : "") + list(law(row));
-      loss += (i ? ", " : "") + num(r.model.emission(i, 0));
-      pmfs += (i ? ", " : "") + list(law(pmf));
-    }
-    r.link_toml = fmt::format(
-        "kind = \"markov\"\nstep = \"packet\"\ntransition = [{}]\nloss = [{}]\ndelay_pmf = [{}]\n",
-        rows, loss, pmfs);
-  }
-  r.aic = 2.0 * r.parameters - 2.0 * r.loglik;
-  r.bic = r.parameters * std::log(N) - 2.0 * r.loglik;
-  r.link_toml = fmt::format("[[link]]\nname = \"{}\"\n{}", o.link_name, r.link_toml);
-  goodness_of_fit(r, sym, o.acf_lags);
-  return r;
 }
 
 }  // namespace ncosim::models

@@ -81,6 +81,15 @@ std::vector<int> fate_symbols(const std::vector<std::optional<std::int64_t>>& tr
 // (scaled forward recursion).
 double hmm_loglik(const FateHmm& hmm, const std::vector<int>& symbols);
 
+// A fit family as declared in models/fit_families.cc (`ncosim list` prints them).
+struct FitFamily {
+  std::string name;       // bernoulli | delay | gilbert_elliott | markov2 .. markov8
+  std::string help;       // one line
+  int states = 1;         // hidden states (1: iid)
+  std::string link_kind;  // the [[link]] kind it writes
+};
+const std::vector<FitFamily>& fit_families();
+
 // Fits one family (names as above). Throws std::invalid_argument for an unknown family and
 // when the trace has fewer packets than the family has parameters.
 FitResult fit_family(const std::string& family, const std::vector<int>& symbols,

@@ -3,6 +3,7 @@
 
 #include <fmt/format.h>
 
+#include "config/keys.h"
 #include "models/noise.h"
 
 namespace ncosim::models {
@@ -86,10 +87,32 @@ InputSpec with(std::shared_ptr<ControllerDesign> design) {
   return s;
 }
 
+using sim::Key;
+
+const sim::Keys& white_keys() {
+  static const sim::Keys keys{
+      Key::vector("std").help(
+          "standard deviation of each input channel (>= 0; one value for every channel, or one "
+          "per channel)"),
+  };
+  return keys;
+}
+
+const sim::Keys& state_feedback_keys() {
+  static const sim::Keys keys{
+      Key::matrix("K").help("the gain, nu x n: u = -K x"),
+      Key::string("source").or_default("plant").help(
+          "\"plant\" (the true state) or the name of the [[estimator]] whose estimate is fed "
+          "back"),
+  };
+  return keys;
+}
+
 InputSpec read_none(const sim::Table&, const LinearPlant&) { return with(no_input()); }
 
-InputSpec read_white(const sim::Table& t, const LinearPlant& plant) {
-  require_input_channel(t, plant);
+InputSpec read_white(const sim::Table& table, const LinearPlant& plant) {
+  require_input_channel(table, plant);
+  const sim::KeyReader t(table, white_keys());
   Eigen::VectorXd std = t.vector("std");
   if (std.size() == 1 && plant.nu() > 1) std = Eigen::VectorXd::Constant(plant.nu(), std(0));
   if (std.size() != plant.nu()) {
@@ -104,11 +127,12 @@ InputSpec read_white(const sim::Table& t, const LinearPlant& plant) {
   return with(std::make_shared<WhiteInputDesign>(std::move(std)));
 }
 
-InputSpec read_state_feedback(const sim::Table& t, const LinearPlant& plant) {
-  require_input_channel(t, plant);
+InputSpec read_state_feedback(const sim::Table& table, const LinearPlant& plant) {
+  require_input_channel(table, plant);
+  const sim::KeyReader t(table, state_feedback_keys());
   Eigen::MatrixXd K = t.matrix("K");
-  sim::require_shape(t, "K", K, plant.nu(), plant.n());
-  const std::string source = t.string_or("source", "plant");
+  sim::require_shape(table, "K", K, plant.nu(), plant.n());
+  const std::string source = t.string("source");
   if (source.empty()) t.fail("source", "expected \"plant\" or an estimator name, got \"\"");
   return with(std::make_shared<StateFeedbackDesign>(std::move(K), source));
 }
@@ -128,16 +152,18 @@ std::shared_ptr<ControllerDesign> no_input() {
 }
 
 void register_inputs(InputRegistry& registry) {
-  registry.add("none", "u = 0", read_none);
-  registry.add("white", "u ~ N(0, std^2) each period, independent channels: std", read_white);
+  registry.add("none", "u = 0", sim::Keys{}, read_none);
+  registry.add("white", "u ~ N(0, std^2) each period, independent channels: std", white_keys(),
+               read_white);
   registry.add("state_feedback",
                "u = -K x on the true state (source = \"plant\") or on an estimator's estimate "
                "(source = its name): K, source",
-               read_state_feedback);
+               state_feedback_keys(), read_state_feedback);
   registry.add(
       "relay",
       "relay with dead zone, output i drives input i: u_i = -level if y_i > dead_zone, +level if "
       "y_i < -dead_zone, else 0; sees = \"true\" | \"measured\" | \"received\"",
+      relay_keys(),
       [](const sim::Table& t, const LinearPlant& p) { return read_controller(t, p, read_relay); });
   registry.add(
       "pi",
@@ -145,6 +171,7 @@ void register_inputs(InputRegistry& registry) {
       "y); "
       "kp, ki, b, reference = {kind = \"square\", low, high, period} or {value}, feedback = "
       "\"received\" | \"measured\" | \"true\" | an estimator name, sensor, output, u_min, u_max",
+      pi_keys(),
       [](const sim::Table& t, const LinearPlant& p) { return read_controller(t, p, read_pi); });
 }
 

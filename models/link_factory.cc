@@ -7,31 +7,160 @@
 #include <filesystem>
 
 #include "config/input_files.h"
+#include "config/keys.h"
 
 namespace ncosim::models {
 
 namespace {
 
-std::vector<double> read_pmf(const sim::Table& t, std::string_view key) {
-  std::vector<double> pmf = t.numbers(key);
-  if (pmf.empty()) t.fail(key, "expected at least one probability, got an empty array");
-  sim::require_subprobability(t, key, pmf);
-  return pmf;
+using sim::Key;
+
+// `step` of the Markov-chain links.
+Key step_key() {
+  return Key::choice("step", {"period", "packet"})
+      .or_default("period")
+      .help(
+          "when the chain moves: once per control period (time-driven) or once per packet sent "
+          "on the link");
 }
 
-double read_probability(const sim::Table& t, std::string_view key, double fallback) {
-  const double p = t.number_or(key, fallback);
-  sim::require_probability(t, key, p);
-  return p;
+const sim::Keys& delay_keys() {
+  static const sim::Keys keys{
+      Key::numbers("pmf")
+          .optional("required unless delivery")
+          .help("pmf[d] = P[delay = d periods], d = 0..len-1, lost with probability 1 - sum: "
+                "non-empty, entries >= 0, sum <= 1 (+1e-9); with independent, each entry in [0, "
+                "1], any sum"),
+      Key::number("delivery")
+          .optional("none (use pmf)")
+          .probability()
+          .help("not with pmf: pmf[d] = delivery * shape[d] / sum(shape), one scalar (the "
+                "probability that a sample is delivered; with independent, the scale of every "
+                "copy's probability) to sweep or search with `ncosim find`"),
+      Key::numbers("shape")
+          .optional("[1.0] (delay 0)")
+          .help("only with delivery: relative weights of the delays 0..len-1 (entries >= 0 and "
+                "finite, at least one > 0)"),
+      Key::boolean("independent")
+          .or_default(false)
+          .help("true: every d is an independent copy, delivered with probability pmf[d]; a "
+                "sample may arrive 0..len times (sensors on the link need buffer = 0)"),
+  };
+  return keys;
+}
+
+const sim::Keys& bernoulli_keys() {
+  static const sim::Keys keys{
+      Key::number("loss").probability().or_default(0.0).help("P[lost]"),
+      Key::integer("delay")
+          .range(0, 1'000'000)
+          .or_default(0)
+          .unit("periods")
+          .help("delay of every delivered packet"),
+  };
+  return keys;
+}
+
+const sim::Keys& negative_binomial_keys() {
+  static const sim::Keys keys{
+      Key::integer("successes")
+          .range(1, 10000)
+          .help("r: the delay is the number of failures before the r-th success"),
+      Key::number("p")
+          .above(0.0)
+          .max(1.0)
+          .noun("a probability")
+          .help("success probability of a trial (p = 1: delay 0)"),
+      Key::number("loss").probability().or_default(0.0).help("P[lost], before the delay is drawn"),
+  };
+  return keys;
+}
+
+const sim::Keys& arrival_cdf_keys() {
+  static const sim::Keys keys{
+      Key::numbers("cdf").help(
+          "lambda_h = P[delay <= h periods] for h = 0, 1, ...: non-empty, entries in [0, 1], "
+          "non-decreasing"),
+      Key::number("tail")
+          .optional("the last cdf value")
+          .probability()
+          .help("lambda_h for every h >= len(cdf), >= the last cdf value (1 - tail is lost)"),
+  };
+  return keys;
+}
+
+const sim::Keys& gilbert_elliott_keys() {
+  static const sim::Keys keys{
+      Key::number("p_good_to_bad")
+          .optional("required unless mean_loss")
+          .probability()
+          .help("P[good -> bad] per step"),
+      Key::number("p_bad_to_good")
+          .optional("required unless mean_loss")
+          .probability()
+          .help("P[bad -> good] per step; p_good_to_bad + p_bad_to_good > 0"),
+      Key::number("loss_good").probability().or_default(0.0).help("P[lost] in the good state"),
+      Key::number("loss_bad").probability().or_default(1.0).help("P[lost] in the bad state"),
+      step_key(),
+      Key::number("mean_loss")
+          .optional("none")
+          .help("stationary loss probability P, loss_good < P < loss_bad; with mean_burst, "
+                "instead of p_good_to_bad and p_bad_to_good"),
+      Key::number("mean_burst")
+          .optional("none")
+          .help("mean length of a run of consecutive lost packets: >= 1 and in the range these "
+                "losses allow (below)"),
+  };
+  return keys;
+}
+
+const sim::Keys& markov_keys() {
+  static const sim::Keys keys{
+      Key::matrix("transition")
+          .help("S x S transition matrix of the chain: square, entries >= 0, rows sum to 1 "
+                "(+-1e-9)"),
+      Key::numbers("loss").help("per-state loss probability: S entries in [0, 1]"),
+      Key::ragged("delay_pmf")
+          .optional("delay 0")
+          .help("per-state delay law of a delivered packet (loss is `loss`): S rows of any "
+                "length, entries >= 0 summing to 1 (+-1e-9)"),
+      Key::numbers("initial")
+          .optional("the stationary law")
+          .help("law of the first state: S entries >= 0 summing to 1 (+-1e-9)"),
+      step_key(),
+  };
+  return keys;
+}
+
+const sim::Keys& trace_keys() {
+  static const sim::Keys keys{
+      Key::string("file").help(
+          "the CSV of seq,delay (empty delay = lost), relative to the scenario file's folder "
+          "unless absolute: a readable regular file of at most 10^9 bytes, lines of at most 4096 "
+          "bytes, at most 5e7 packets and (without segment) at least sum ceil(periods / every) "
+          "rows over the sensors on this link"),
+      Key::integer("segment")
+          .optional("none (every run replays from row 0)")
+          .help("rows per run, 1 .. the trace's rows (and at least the rows one run sends): run "
+                "r replays segment r mod floor(rows / segment) from its start (the layout of "
+                "`ncosim record-link`)"),
+  };
+  return keys;
+}
+
+std::vector<double> read_pmf(const sim::KeyReader& r, std::string_view key) {
+  std::vector<double> pmf = r.numbers(key);
+  if (pmf.empty()) r.fail(key, "expected at least one probability, got an empty array");
+  sim::require_subprobability(r.table(), key, pmf);
+  return pmf;
 }
 
 // `delivery` + `shape`: pmf[d] = delivery * shape[d] / sum(shape), so that one scalar (the
 // probability that a sample is delivered at all, or with `independent`, the scale of every
 // copy's probability) can be swept or searched by `ncosim find`.
-std::vector<double> read_delivery(const sim::Table& t) {
+std::vector<double> read_delivery(const sim::KeyReader& t) {
   if (t.has("pmf")) t.fail("delivery", "expected either pmf or delivery (with shape), got both");
   const double delivery = t.number("delivery");
-  sim::require_probability(t, "delivery", delivery);
   std::vector<double> shape = t.has("shape") ? t.numbers("shape") : std::vector<double>{1.0};
   if (shape.empty()) t.fail("shape", "expected at least one weight, got an empty array");
   double sum = 0.0;
@@ -47,8 +176,9 @@ std::vector<double> read_delivery(const sim::Table& t) {
   return shape;
 }
 
-std::unique_ptr<Link> read_delay(const sim::Table& t, const LinkContext&) {
-  const bool independent = t.boolean_or("independent", false);
+std::unique_ptr<Link> read_delay(const sim::Table& table, const LinkContext&) {
+  const sim::KeyReader t(table, delay_keys());
+  const bool independent = t.boolean("independent");
   if (t.has("delivery")) return std::make_unique<DelayPmfLink>(read_delivery(t), independent);
   if (t.has("shape")) t.fail("shape", "expected shape only with delivery, got no delivery");
   if (!independent) return std::make_unique<DelayPmfLink>(read_pmf(t, "pmf"), false);
@@ -64,25 +194,20 @@ std::unique_ptr<Link> read_delay(const sim::Table& t, const LinkContext&) {
 }
 
 std::unique_ptr<Link> read_bernoulli(const sim::Table& t, const LinkContext&) {
-  const double loss = read_probability(t, "loss", 0.0);
-  const auto delay = t.integer_or("delay", 0);
-  if (delay < 0 || delay > 1'000'000)
-    t.fail("delay", fmt::format("expected an integer in 0..1000000, got {}", delay));
-  return std::make_unique<BernoulliLink>(loss, delay);
+  const sim::KeyReader r(t, bernoulli_keys());
+  return std::make_unique<BernoulliLink>(r.number("loss"), r.integer("delay"));
 }
 
-std::unique_ptr<Link> read_negative_binomial(const sim::Table& t, const LinkContext&) {
+std::unique_ptr<Link> read_negative_binomial(const sim::Table& table, const LinkContext&) {
+  const sim::KeyReader t(table, negative_binomial_keys());
   const auto r = t.integer("successes");
-  if (r < 1 || r > 10000)
-    t.fail("successes", fmt::format("expected an integer in 1..10000, got {}", r));
   const double p = t.number("p");
-  if (!(p > 0.0 && p <= 1.0))
-    t.fail("p", fmt::format("expected a probability in (0, 1], got {}", p));
-  const double loss = read_probability(t, "loss", 0.0);
+  const double loss = t.number("loss");
   return std::make_unique<NegativeBinomialLink>(static_cast<int>(r), p, loss);
 }
 
-std::unique_ptr<Link> read_arrival_cdf(const sim::Table& t, const LinkContext&) {
+std::unique_ptr<Link> read_arrival_cdf(const sim::Table& table, const LinkContext&) {
+  const sim::KeyReader t(table, arrival_cdf_keys());
   std::vector<double> cdf = t.numbers("cdf");
   if (cdf.empty()) t.fail("cdf", "expected at least one value, got an empty array");
   for (std::size_t h = 0; h < cdf.size(); ++h) {
@@ -95,8 +220,7 @@ std::unique_ptr<Link> read_arrival_cdf(const sim::Table& t, const LinkContext&) 
                          cdf[h], cdf[h - 1], h));
     }
   }
-  const double tail = t.number_or("tail", cdf.back());
-  sim::require_probability(t, "tail", tail);
+  const double tail = t.opt_number("tail").value_or(cdf.back());
   if (tail < cdf.back()) {
     t.fail("tail", fmt::format("expected tail >= the last cdf value {}, got {}", cdf.back(), tail));
   }
@@ -104,16 +228,15 @@ std::unique_ptr<Link> read_arrival_cdf(const sim::Table& t, const LinkContext&) 
 }
 
 // `step`: "period" (default: the chain moves once per control period) or "packet".
-MarkovLink::Step read_step(const sim::Table& t) {
-  return t.choice_or("step", "period", {"period", "packet"}) == "packet"
-             ? MarkovLink::Step::kPacket
-             : MarkovLink::Step::kPeriod;
+MarkovLink::Step read_step(const sim::KeyReader& t) {
+  return t.string("step") == "packet" ? MarkovLink::Step::kPacket : MarkovLink::Step::kPeriod;
 }
 
-std::unique_ptr<Link> read_gilbert_elliott(const sim::Table& t, const LinkContext&) {
+std::unique_ptr<Link> read_gilbert_elliott(const sim::Table& table, const LinkContext&) {
+  const sim::KeyReader t(table, gilbert_elliott_keys());
   const MarkovLink::Step step = read_step(t);
-  const double lg = read_probability(t, "loss_good", 0.0);
-  const double lb = read_probability(t, "loss_bad", 1.0);
+  const double lg = t.number("loss_good");
+  const double lb = t.number("loss_bad");
   const bool by_mean = t.has("mean_loss") || t.has("mean_burst");
   if (by_mean) {
     for (const char* key : {"p_good_to_bad", "p_bad_to_good"}) {
@@ -126,9 +249,7 @@ std::unique_ptr<Link> read_gilbert_elliott(const sim::Table& t, const LinkContex
     return make_gilbert_elliott(ge.p_good_to_bad, ge.p_bad_to_good, lg, lb, step);
   }
   const double gb = t.number("p_good_to_bad");
-  sim::require_probability(t, "p_good_to_bad", gb);
   const double bg = t.number("p_bad_to_good");
-  sim::require_probability(t, "p_bad_to_good", bg);
   if (gb + bg <= 0.0) {
     t.fail("p_bad_to_good",
            fmt::format(
@@ -138,7 +259,8 @@ std::unique_ptr<Link> read_gilbert_elliott(const sim::Table& t, const LinkContex
   return make_gilbert_elliott(gb, bg, lg, lb, step);
 }
 
-std::unique_ptr<Link> read_markov(const sim::Table& t, const LinkContext&) {
+std::unique_ptr<Link> read_markov(const sim::Table& table, const LinkContext&) {
+  const sim::KeyReader t(table, markov_keys());
   const MarkovLink::Step step = read_step(t);
   const Eigen::MatrixXd T = t.matrix("transition");
   if (T.rows() != T.cols()) {
@@ -187,7 +309,7 @@ std::unique_ptr<Link> read_markov(const sim::Table& t, const LinkContext&) {
     if (static_cast<Eigen::Index>(initial.size()) != s) {
       t.fail("initial", fmt::format("expected {} probabilities, got {}", s, initial.size()));
     }
-    sim::require_subprobability(t, "initial", initial);
+    sim::require_subprobability(table, "initial", initial);
     double sum = 0.0;
     for (double p : initial) sum += p;
     if (std::abs(sum - 1.0) > 1e-9)
@@ -197,7 +319,8 @@ std::unique_ptr<Link> read_markov(const sim::Table& t, const LinkContext&) {
                                       step);
 }
 
-std::unique_ptr<Link> read_trace(const sim::Table& t, const LinkContext& ctx) {
+std::unique_ptr<Link> read_trace(const sim::Table& table, const LinkContext& ctx) {
+  const sim::KeyReader t(table, trace_keys());
   const std::string file = t.string("file");
   std::filesystem::path path(file);
   if (path.is_relative() && !ctx.scenario_dir.empty())
@@ -214,9 +337,10 @@ std::unique_ptr<Link> read_trace(const sim::Table& t, const LinkContext& ctx) {
         if (delays[i] && (largest == delays.size() || *delays[i] > *delays[largest])) largest = i;
       }
       if (largest < delays.size()) {
-        ctx.check_trace_delay(
-            path.string(), first_row_line + static_cast<int>(largest), *delays[largest],
-            fmt::format("{}:{}: key '{}'", t.file(), t.line_of("file"), t.key_path("file")));
+        ctx.check_trace_delay(path.string(), first_row_line + static_cast<int>(largest),
+                              *delays[largest],
+                              fmt::format("{}:{}: key '{}'", table.file(), table.line_of("file"),
+                                          table.key_path("file")));
       }
     }
     // `segment`: rows per run (run r replays segment r mod floor(rows / segment)).
@@ -236,10 +360,10 @@ std::unique_ptr<Link> read_trace(const sim::Table& t, const LinkContext& ctx) {
              fmt::format("expected a readable trace file, got '{}' ({})", path.string(), e.what()));
     // The error is in the trace: its file and line first, then the key that named it.
     // format_error escapes every byte that is not printable (file names included).
-    throw sim::ScenarioError(
-        sim::format_error(e.file, e.line, "",
-                          fmt::format("{} (the trace named by {}:{}: key '{}')", e.what(), t.file(),
-                                      t.line_of("file"), t.key_path("file"))));
+    throw sim::ScenarioError(sim::format_error(
+        e.file, e.line, "",
+        fmt::format("{} (the trace named by {}:{}: key '{}')", e.what(), table.file(),
+                    table.line_of("file"), table.key_path("file"))));
   }
 }
 
@@ -249,24 +373,25 @@ void register_links(LinkRegistry& registry) {
   registry.add("delay",
                "delay d periods with probability pmf[d], lost otherwise: pmf (or delivery, shape), "
                "independent",
-               read_delay);
+               delay_keys(), read_delay);
   registry.add("bernoulli", "lost with probability loss, else delayed `delay` periods: loss, delay",
-               read_bernoulli);
+               bernoulli_keys(), read_bernoulli);
   registry.add("negative_binomial",
                "negative-binomial delay (failures before `successes` successes of probability p): "
                "successes, p, loss",
-               read_negative_binomial);
-  registry.add("arrival_cdf", "Schenato's lambda_h = P[delay <= h]: cdf, tail", read_arrival_cdf);
+               negative_binomial_keys(), read_negative_binomial);
+  registry.add("arrival_cdf", "Schenato's lambda_h = P[delay <= h]: cdf, tail", arrival_cdf_keys(),
+               read_arrival_cdf);
   registry.add("gilbert_elliott",
                "two-state Markov loss: p_good_to_bad, p_bad_to_good (or mean_loss, mean_burst), "
                "loss_good, loss_bad, step",
-               read_gilbert_elliott);
+               gilbert_elliott_keys(), read_gilbert_elliott);
   registry.add(
       "markov",
       "finite Markov chain (per period or per packet): transition, loss, delay_pmf, initial, step",
-      read_markov);
+      markov_keys(), read_markov);
   registry.add("trace", "replay a recorded CSV of seq,delay (empty delay = lost): file[, segment]",
-               read_trace);
+               trace_keys(), read_trace);
 }
 
 }  // namespace ncosim::models

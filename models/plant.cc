@@ -5,6 +5,7 @@
 
 #include <unsupported/Eigen/MatrixFunctions>
 
+#include "config/keys.h"
 #include "models/plant_process.h"
 
 namespace ncosim::models {
@@ -161,7 +162,79 @@ LinearPlant discretise_transfer_function(const std::vector<double>& num,
 
 namespace {
 
-Eigen::MatrixXd read_square(const sim::Table& t, std::string_view key) {
+using sim::Key;
+
+Key x0_key() { return Key::vector("x0").optional("zeros").help("initial state (n entries)"); }
+
+const sim::Keys& lti_keys() {
+  static const sim::Keys keys{
+      Key::matrix("A").help("state matrix, n x n (square); n = its size"),
+      Key::matrix("Bu").optional("no input (nu = 0)").help("input matrix, n x nu"),
+      Key::matrix("Bw").optional("identity n x n").help("noise input matrix, n x nw"),
+      Key::matrix("W").help(
+          "process-noise covariance, nw x nw (nw = columns of Bw), symmetric positive "
+          "semidefinite"),
+      x0_key(),
+  };
+  return keys;
+}
+
+const sim::Keys& lti_continuous_keys() {
+  static const sim::Keys keys{
+      Key::matrix("Ac").unit("1/s").help("continuous state matrix, n x n (square)"),
+      Key::matrix("Bc").optional("no input").help("continuous input matrix, n x nu"),
+      Key::matrix("Gc").optional("identity n x n").help("noise input matrix, n x q"),
+      Key::matrix("Wc").help(
+          "noise intensity (per second), q x q (q = columns of Gc), symmetric positive "
+          "semidefinite"),
+      x0_key(),
+  };
+  return keys;
+}
+
+const sim::Keys& mode_keys() {
+  static const sim::Keys keys{
+      Key::matrix("A").optional("the base A").help("this mode's A, n x n"),
+      Key::matrix("Bu").optional("the base Bu").help("this mode's Bu, n x nu"),
+      Key::matrix("Bw").optional("the base Bw").help("this mode's Bw, n x nw"),
+      Key::matrix("W").optional("the base W").help("this mode's W, covariance nw x nw"),
+  };
+  return keys;
+}
+
+const sim::Keys& jump_linear_keys() {
+  static const sim::Keys keys =
+      lti_keys() +
+      sim::Keys{
+          Key::tables("mode")
+              .fields(mode_keys())
+              .help("[[plant.mode]]: 2 .. 64 tables; mode j = the j-th table (0-based), each "
+                    "overriding any of the base A, Bu, Bw, W"),
+          Key::matrix("transition").help("mode chain, s x s: entries >= 0, rows sum to 1 (+-1e-9)"),
+          Key::vector("initial_mode")
+              .optional("the stationary law of transition")
+              .help("law of theta[0]: s entries >= 0 summing to 1"),
+      };
+  return keys;
+}
+
+const sim::Keys& transfer_function_keys() {
+  static const sim::Keys keys{
+      Key::numbers("num").help(
+          "numerator, descending powers of s: 1 .. deg(den) finite coefficients"),
+      Key::numbers("den").help(
+          "denominator, descending powers of s: degree >= 1, leading coefficient non-zero"),
+      Key::number("dead_time").or_default(0.0).unit("s").help("input dead time, 0 .. 1000 periods"),
+      Key::number("W")
+          .or_default(0.0)
+          .min(0.0)
+          .noun("a variance")
+          .help("variance of the input disturbance (per period)"),
+  };
+  return keys;
+}
+
+Eigen::MatrixXd read_square(const sim::KeyReader& t, std::string_view key) {
   Eigen::MatrixXd A = t.matrix(key);
   if (A.rows() != A.cols()) {
     t.fail(key, fmt::format("expected a square matrix, got {}x{}", A.rows(), A.cols()));
@@ -169,7 +242,7 @@ Eigen::MatrixXd read_square(const sim::Table& t, std::string_view key) {
   return A;
 }
 
-Eigen::VectorXd read_x0(const sim::Table& t, Eigen::Index n) {
+Eigen::VectorXd read_x0(const sim::KeyReader& t, Eigen::Index n) {
   if (!t.has("x0")) return Eigen::VectorXd::Zero(n);
   Eigen::VectorXd x0 = t.vector("x0");
   if (x0.size() != n)
@@ -177,60 +250,69 @@ Eigen::VectorXd read_x0(const sim::Table& t, Eigen::Index n) {
   return x0;
 }
 
-LinearPlant read_lti(const sim::Table& t, double /*period*/) {
+LinearPlant read_lti_keys(const sim::KeyReader& t) {
+  const sim::Table& table = t.table();
   LinearPlant p;
   p.A = read_square(t, "A");
   const Eigen::Index n = p.A.rows();
   p.Bu = t.has("Bu") ? t.matrix("Bu") : Eigen::MatrixXd::Zero(n, 0);
-  if (p.Bu.rows() != n) sim::require_shape(t, "Bu", p.Bu, n, p.Bu.cols());
+  if (p.Bu.rows() != n) sim::require_shape(table, "Bu", p.Bu, n, p.Bu.cols());
   p.Bw = t.has("Bw") ? t.matrix("Bw") : Eigen::MatrixXd::Identity(n, n);
-  if (p.Bw.rows() != n) sim::require_shape(t, "Bw", p.Bw, n, p.Bw.cols());
+  if (p.Bw.rows() != n) sim::require_shape(table, "Bw", p.Bw, n, p.Bw.cols());
   p.W = t.matrix("W");
-  sim::require_shape(t, "W", p.W, p.Bw.cols(), p.Bw.cols());
-  sim::require_psd(t, "W", p.W);
+  sim::require_shape(table, "W", p.W, p.Bw.cols(), p.Bw.cols());
+  sim::require_psd(table, "W", p.W);
   p.x0 = read_x0(t, n);
   return p;
 }
 
-LinearPlant read_lti_continuous(const sim::Table& t, double period) {
+LinearPlant read_lti(const sim::Table& t, double /*period*/) {
+  return read_lti_keys(sim::KeyReader(t, lti_keys()));
+}
+
+LinearPlant read_lti_continuous(const sim::Table& table, double period) {
+  const sim::KeyReader t(table, lti_continuous_keys());
   const Eigen::MatrixXd Ac = read_square(t, "Ac");
   const Eigen::Index n = Ac.rows();
   Eigen::MatrixXd Bc = t.has("Bc") ? t.matrix("Bc") : Eigen::MatrixXd::Zero(n, 0);
-  if (Bc.rows() != n) sim::require_shape(t, "Bc", Bc, n, Bc.cols());
+  if (Bc.rows() != n) sim::require_shape(table, "Bc", Bc, n, Bc.cols());
   Eigen::MatrixXd Gc = t.has("Gc") ? t.matrix("Gc") : Eigen::MatrixXd::Identity(n, n);
-  if (Gc.rows() != n) sim::require_shape(t, "Gc", Gc, n, Gc.cols());
+  if (Gc.rows() != n) sim::require_shape(table, "Gc", Gc, n, Gc.cols());
   Eigen::MatrixXd Wc = t.matrix("Wc");
-  sim::require_shape(t, "Wc", Wc, Gc.cols(), Gc.cols());
-  sim::require_psd(t, "Wc", Wc);
+  sim::require_shape(table, "Wc", Wc, Gc.cols(), Gc.cols());
+  sim::require_psd(table, "Wc", Wc);
   LinearPlant p = discretise(Ac, Bc, Gc, Wc, period);
   p.x0 = read_x0(t, n);
   return p;
 }
 
 // jump_linear: the lti keys are the base; each [[plant.mode]] overrides A, Bu, Bw, W.
-LinearPlant read_jump_linear(const sim::Table& t, double period) {
-  LinearPlant p = read_lti(t, period);
+LinearPlant read_jump_linear(const sim::Table& table, double /*period*/) {
+  const sim::KeyReader t(table, jump_linear_keys());
+  LinearPlant p = read_lti_keys(t);
   const Eigen::Index n = p.n();
   const auto tables = t.tables("mode");
   if (tables.size() < 2 || tables.size() > 64) {
     t.fail("mode", fmt::format("expected 2..64 [[plant.mode]] tables, got {}", tables.size()));
   }
-  for (const sim::Table& m : tables) {
+  for (const sim::Table& mt : tables) {
+    const sim::KeyReader mr(mt, mode_keys());
+    const sim::Table& m = mt;
     PlantMode pm{p.A, p.Bu, p.Bw, p.W};
-    if (m.has("A")) {
-      pm.A = m.matrix("A");
+    if (mr.has("A")) {
+      pm.A = mr.matrix("A");
       sim::require_shape(m, "A", pm.A, n, n);
     }
-    if (m.has("Bu")) {
-      pm.Bu = m.matrix("Bu");
+    if (mr.has("Bu")) {
+      pm.Bu = mr.matrix("Bu");
       sim::require_shape(m, "Bu", pm.Bu, n, p.nu());
     }
-    if (m.has("Bw")) {
-      pm.Bw = m.matrix("Bw");
+    if (mr.has("Bw")) {
+      pm.Bw = mr.matrix("Bw");
       sim::require_shape(m, "Bw", pm.Bw, n, p.nw());
     }
-    if (m.has("W")) {
-      pm.W = m.matrix("W");
+    if (mr.has("W")) {
+      pm.W = mr.matrix("W");
       sim::require_shape(m, "W", pm.W, p.nw(), p.nw());
       sim::require_psd(m, "W", pm.W);
     }
@@ -239,7 +321,7 @@ LinearPlant read_jump_linear(const sim::Table& t, double period) {
   }
   const auto s = static_cast<Eigen::Index>(p.modes.size());
   p.mode_transition = t.matrix("transition");
-  sim::require_shape(t, "transition", p.mode_transition, s, s);
+  sim::require_shape(table, "transition", p.mode_transition, s, s);
   for (Eigen::Index i = 0; i < s; ++i) {
     const auto row = p.mode_transition.row(i);
     if (row.minCoeff() < 0.0 || std::abs(row.sum() - 1.0) > 1e-9) {
@@ -263,7 +345,8 @@ LinearPlant read_jump_linear(const sim::Table& t, double period) {
   return p;
 }
 
-LinearPlant read_transfer_function(const sim::Table& t, double period) {
+LinearPlant read_transfer_function(const sim::Table& table, double period) {
+  const sim::KeyReader t(table, transfer_function_keys());
   const std::vector<double> num = t.numbers("num");
   const std::vector<double> den = t.numbers("den");
   if (den.size() < 2 || den[0] == 0.0) {
@@ -283,38 +366,37 @@ LinearPlant read_transfer_function(const sim::Table& t, double period) {
     if (!std::isfinite(v)) t.fail("num", "expected finite coefficients");
   for (double v : den)
     if (!std::isfinite(v)) t.fail("den", "expected finite coefficients");
-  const double dead_time = t.number_or("dead_time", 0.0);
+  const double dead_time = t.number("dead_time");
   if (!(dead_time >= 0.0) || dead_time > 1000.0 * period) {
     t.fail("dead_time",
            fmt::format("expected a dead time in [0, 1000 periods] seconds, got {}", dead_time));
   }
   LinearPlant p = discretise_transfer_function(num, den, dead_time, period);
   // The input disturbance: variance of the held disturbance on the input channel.
-  p.W = Eigen::MatrixXd::Constant(1, 1, t.number_or("W", 0.0));
-  if (!(p.W(0, 0) >= 0.0) || !std::isfinite(p.W(0, 0)))
-    t.fail("W", fmt::format("expected a variance >= 0, got {}", p.W(0, 0)));
+  p.W = Eigen::MatrixXd::Constant(1, 1, t.number("W"));
   return p;
 }
 
 }  // namespace
 
 void register_plants(PlantRegistry& registry) {
-  registry.add("lti", "discrete LTI plant: A, Bu (optional), Bw (default I), W, x0", read_lti);
+  registry.add("lti", "discrete LTI plant: A, Bu (optional), Bw (default I), W, x0", lti_keys(),
+               read_lti);
   registry.add("lti_continuous",
                "continuous LTI plant discretised at the period: Ac, Bc, Gc (default I), Wc "
                "(noise intensity), x0 (ZOH, Van Loan)",
-               read_lti_continuous);
+               lti_continuous_keys(), read_lti_continuous);
   registry.add(
       "jump_linear",
       "Markov jump linear plant: the lti keys as base, [[plant.mode]] tables overriding A, Bu, "
       "Bw, W, transition (mode chain), initial_mode (default: stationary)",
-      read_jump_linear);
+      jump_linear_keys(), read_jump_linear);
   registry.add(
       "transfer_function",
       "continuous SISO transfer function with dead time, ZOH at the period: num, den (descending "
       "powers of s), dead_time (s), W (variance of the input disturbance); sensors use C = "
       "\"output\"",
-      read_transfer_function);
+      transfer_function_keys(), read_transfer_function);
 }
 
 }  // namespace ncosim::models

@@ -3,6 +3,7 @@
 
 #include <fmt/format.h>
 
+#include "config/keys.h"
 #include "models/sensor.h"
 
 namespace ncosim::models {
@@ -55,6 +56,16 @@ class SendOnDeltaDesign final : public SendPolicyDesign {
   Eigen::VectorXd delta_;
 };
 
+using sim::Key;
+
+const sim::Keys& send_on_delta_keys() {
+  static const sim::Keys keys{
+      Key::vector("delta").help(
+          "threshold per output (finite, >= 0; one value for every output, or one per output)"),
+  };
+  return keys;
+}
+
 std::shared_ptr<const SendPolicyDesign> read_periodic(const sim::Table& t, const SensorSpec&) {
   if (t.has("delta"))
     t.fail("delta",
@@ -62,8 +73,9 @@ std::shared_ptr<const SendPolicyDesign> read_periodic(const sim::Table& t, const
   return periodic_policy();
 }
 
-std::shared_ptr<const SendPolicyDesign> read_send_on_delta(const sim::Table& t,
+std::shared_ptr<const SendPolicyDesign> read_send_on_delta(const sim::Table& table,
                                                            const SensorSpec& s) {
+  const sim::KeyReader t(table, send_on_delta_keys());
   Eigen::VectorXd delta = t.vector("delta");
   if (delta.size() == 1 && s.ny() > 1) delta = Eigen::VectorXd::Constant(s.ny(), delta(0));
   if (delta.size() != s.ny()) {
@@ -74,8 +86,8 @@ std::shared_ptr<const SendPolicyDesign> read_send_on_delta(const sim::Table& t,
     t.fail("delta", fmt::format("expected finite thresholds >= 0, got {}",
                                 fmt::join(delta.data(), delta.data() + delta.size(), ", ")));
   if (s.buffer > 0)
-    t.fail("buffer",
-           fmt::format("expected buffer = 0 with policy = \"send_on_delta\", got {}", s.buffer));
+    table.fail("buffer", fmt::format("expected buffer = 0 with policy = \"send_on_delta\", got {}",
+                                     s.buffer));
   return std::make_shared<SendOnDeltaDesign>(std::move(delta));
 }
 
@@ -87,12 +99,12 @@ std::shared_ptr<const SendPolicyDesign> periodic_policy() {
 }
 
 void register_send_policies(SendPolicyRegistry& registry) {
-  registry.add("periodic", "every sample is sent (default)", read_periodic);
+  registry.add("periodic", "every sample is sent (default)", sim::Keys{}, read_periodic);
   registry.add("send_on_delta",
                "a sample is sent when |y_i - y_i(last sent)| >= delta_i for some output i (the "
                "first is always "
                "sent): delta (one threshold, or one per output); buffer = 0",
-               read_send_on_delta);
+               send_on_delta_keys(), read_send_on_delta);
 }
 
 }  // namespace ncosim::models

@@ -25,6 +25,7 @@
 #include "sim/find.h"
 #include "sim/fit_cmd.h"
 #include "sim/limits.h"
+#include "sim/list_keys.h"
 #include "sim/mpi_campaign.h"
 #include "sim/output.h"
 #include "sim/output_set.h"
@@ -294,6 +295,7 @@ int cmd_list() {
   list_registry("input kinds ([input] kind)", input_registry());
   list_registry("estimator kinds ([[estimator]] kind)", estimator_registry());
   list_registry("send policies ([[sensor]] policy)", send_policy_registry());
+  list_fit_families();  // sim/list_keys.h
 #if NCOSIM_HAVE_SUMO
   std::cout << "channel presets (sumo_distance preset; see `ncosim channel PRESET`):\n";
   for (const auto& n : sumo::preset_names())
@@ -318,6 +320,7 @@ struct CommandLine {
   int threads = 0;
   bool trace = false;
   bool quiet = false;
+  std::string keys_kind, keys_format = "text";  // list --keys [KIND] --format
   double max_memory_mb = resource_limits().memory_bytes / 1e6;
   double max_work_gflop = resource_limits().work_flops / 1e9;
   std::vector<CLI::Option*> out_options;
@@ -481,7 +484,12 @@ struct CommandLine {
                         "also write compare.csv and compare.md into this directory");
     check = app.add_subcommand("check", "parse and validate only");
     add_common(check, false);
-    app.add_subcommand("list", "list every registered kind with a one-line help");
+    CLI::App* list = app.add_subcommand("list", "list every registered kind with a one-line help");
+    list->add_option("--keys", keys_kind,
+                     "print the declared keys of KIND (e.g. link.bernoulli), or of every kind")
+        ->expected(0, 1);
+    list->add_option("--format", keys_format, "text (default) or md (a Markdown table)")
+        ->check(CLI::IsMember({"text", "md"}));
     add_figure_commands(app, figure_commands);
     fit = app.add_subcommand(
         "fit", "fit channel models to a packet trace (seq,delay): a [[link]] table and fit.csv");
@@ -556,6 +564,8 @@ struct CommandLine {
     if (channel != nullptr && channel->parsed())
       return sumo::channel_command(preset, csv, gnuplot, max_distance, step);
 #endif
+    if (keys_format == "md" || app.get_subcommand("list")->get_option("--keys")->count() > 0)
+      return cmd_list_keys(keys_kind, keys_format == "md");  // sim/list_keys.h
     return cmd_list();
   }
 };

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <iostream>
 
+#include "config/keys.h"
 #include "kernel/time.h"
 #include "models/plant_process.h"
 #include "sumo/channel.h"
@@ -107,28 +108,110 @@ class DistanceLink final : public models::Link {
   std::uint64_t key_ = 0, seq_ = 0;
 };
 
-std::unique_ptr<models::Link> read_sumo_distance(const sim::Table& t,
+using sim::Key;
+
+// The keys of sumo_distance: the link's own, then the channel's (read by sumo/channel.cc's
+// read_channel; defaults are the preset's).
+const sim::Keys& sumo_distance_keys() {
+  static const sim::Keys keys{
+      Key::string("sender").help("transmitting vehicle: a vehicle id driving in the horizon"),
+      Key::string("receiver")
+          .optional("one of receiver, receiver_position required")
+          .help("receiving vehicle: a vehicle id other than sender"),
+      Key::numbers("receiver_position")
+          .optional("")
+          .unit("m")
+          .help("a fixed receiver (roadside unit) at [x, y] in SUMO network coordinates, finite"),
+      Key::string("receiver_name")
+          .optional("rsu@X,Y")
+          .help("the fixed receiver's name in the draw key"),
+      Key::choice("preset", preset_names())
+          .or_default("veins_nakagami3")
+          .help("the channel preset (below); the keys below override its values"),
+      Key::number("tx_power")
+          .optional("preset")
+          .unit("dBm")
+          .help("transmit power (antenna gains included), finite"),
+      Key::number("threshold")
+          .optional("preset")
+          .unit("dBm")
+          .help("reception threshold (sensitivity), finite"),
+      Key::choice("fading", {"none", "lognormal", "nakagami"})
+          .optional("preset")
+          .help("fading on the received power; setting it drops the preset's fading"),
+      Key::number("sigma")
+          .optional("required with lognormal")
+          .unit("dB")
+          .help("shadowing standard deviation, 0 .. 100: p = 1/2 erfc((threshold - mean) / "
+                "(sigma sqrt(2)))"),
+      Key::numbers("m")
+          .optional("preset (required with fading = \"nakagami\")")
+          .help("Nakagami shape per distance bin, each in (0, 1000]: p = Q(m, m threshold / "
+                "mean), the regularised upper incomplete gamma"),
+      Key::numbers("m_bounds")
+          .optional("none")
+          .unit("m")
+          .help("bin edges, increasing, > 0, one fewer than m: m[i] applies for d < "
+                "m_bounds[i], the last beyond"),
+      Key::choice("mac", {"80211p", "cv2x_mode4"}).or_default("80211p").help("delay law"),
+      Key::number("rate").or_default(6.0).unit("Mbit/s").help("802.11p data rate, 1 .. 54"),
+      Key::integer("size").or_default(300).unit("bytes").help(
+          "802.11p frame (MPDU) size, 1 .. 65535"),
+      Key::integer("aifsn").or_default(6).help("802.11p AIFSN (6: AC_BE), 1 .. 15"),
+      Key::integer("cw").or_default(15).help(
+          "802.11p contention window (backoff slots 0 .. cw), 0 .. 1023"),
+      Key::boolean("backoff").or_default(false).help("add a uniform backoff of 0 .. cw slots"),
+      Key::number("t1").or_default(0.001).unit("s").help(
+          "C-V2X mode 4: access delay uniform in [t1, t2] (the SB-SPS selection window); 0 <= "
+          "t1 < t2"),
+      Key::number("t2").or_default(0.1).unit("s").help("C-V2X mode 4: t1 < t2 <= 10"),
+  };
+  return keys;
+}
+
+const sim::Keys& sumo_vehicle_keys() {
+  static const sim::Keys keys{
+      Key::string("vehicle").help(
+          "the SUMO vehicle: an id that drives during the horizon in every realisation (else "
+          "exit 2 naming this key)"),
+      Key::choice("model", {"constant_velocity", "constant_acceleration"})
+          .or_default("constant_velocity")
+          .help("design model: white acceleration (constant_velocity, n = 2) or white jerk "
+                "(constant_acceleration, n = 3)"),
+      Key::number("q")
+          .above(0.0)
+          .says("a positive process-noise intensity")
+          .unit("(m/s^2)^2 s (CV) or (m/s^3)^2 s (CA)")
+          .help("intensity of the white noise driving the last state"),
+      Key::vector("x0").optional("zeros").help("the design's initial state (n entries)"),
+  };
+  return keys;
+}
+
+std::unique_ptr<models::Link> read_sumo_distance(const sim::Table& table,
                                                  const models::LinkContext& ctx) {
+  const sim::Table& t = table;
+  const sim::KeyReader r(table, sumo_distance_keys());
   auto mobility = std::dynamic_pointer_cast<Mobility>(ctx.mobility);
   if (!mobility)
     t.fail("kind", "expected a [sumo] table (the vehicles' mobility) for a sumo_distance link");
   const int sender = mobility->vehicle(t, "sender");
-  const std::string sender_id = t.string("sender");
+  const std::string sender_id = r.string("sender");
   int receiver = -1;
   double rx = 0.0, ry = 0.0;
   std::string receiver_id;
   if (t.has("receiver")) {
     receiver = mobility->vehicle(t, "receiver");
-    receiver_id = t.string("receiver");
+    receiver_id = r.string("receiver");
     if (receiver == sender) t.fail("receiver", "expected a receiver other than the sender");
   } else if (t.has("receiver_position")) {
-    const auto p = t.numbers("receiver_position");
+    const auto p = r.numbers("receiver_position");
     if (p.size() != 2 || !std::isfinite(p[0]) || !std::isfinite(p[1])) {
       t.fail("receiver_position", "expected [x, y] in network coordinates (m)");
     }
     rx = p[0];
     ry = p[1];
-    receiver_id = t.string_or("receiver_name", fmt::format("rsu@{},{}", rx, ry));
+    receiver_id = r.opt_string("receiver_name").value_or(fmt::format("rsu@{},{}", rx, ry));
   } else {
     t.fail_here(
         "expected `receiver` (a vehicle id) or `receiver_position` ([x, y] of a roadside unit)");
@@ -141,13 +224,11 @@ std::unique_ptr<models::Link> read_sumo_distance(const sim::Table& t,
 
 // The declared kinematic design model of a SUMO vehicle's longitudinal motion. The true
 // state (position along the route, speed[, acceleration]) comes from SUMO.
-models::LinearPlant read_sumo_vehicle(const sim::Table& t, double period) {
-  t.allow("vehicle");  // bound to the mobility by the scenario reader (LinearPlant::vehicle_key)
-  const std::string model =
-      t.choice_or("model", "constant_velocity", {"constant_velocity", "constant_acceleration"});
+models::LinearPlant read_sumo_vehicle(const sim::Table& table, double period) {
+  const sim::KeyReader t(table, sumo_vehicle_keys());
+  table.allow("vehicle");  // bound to the mobility by the scenario reader (vehicle_key)
+  const std::string model = t.string("model");
   const double q = t.number("q");
-  if (!(q > 0.0 && std::isfinite(q)))
-    t.fail("q", fmt::format("expected a positive process-noise intensity, got {}", q));
   const Eigen::Index n = model == "constant_velocity" ? 2 : 3;
   Eigen::MatrixXd Ac = Eigen::MatrixXd::Zero(n, n);
   for (Eigen::Index i = 0; i + 1 < n; ++i) Ac(i, i + 1) = 1.0;
@@ -173,7 +254,7 @@ void register_links(models::LinkRegistry& registry) {
                "receiver_position, "
                "preset, tx_power, threshold, fading, sigma, m, m_bounds, mac, rate, size, aifsn, "
                "cw, backoff, t1, t2",
-               read_sumo_distance);
+               sumo_distance_keys(), read_sumo_distance);
 }
 
 void register_plants(models::PlantRegistry& registry) {
@@ -182,7 +263,7 @@ void register_plants(models::PlantRegistry& registry) {
       "a SUMO vehicle's longitudinal motion (position, speed[, acceleration]) as true state; "
       "design "
       "model: model = constant_velocity | constant_acceleration, q (intensity), vehicle, x0",
-      read_sumo_vehicle);
+      sumo_vehicle_keys(), read_sumo_vehicle);
 }
 
 std::shared_ptr<sim::MobilitySource> make_mobility(const sim::Table& t, const sim::RunSettings& run,
