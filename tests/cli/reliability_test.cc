@@ -264,6 +264,32 @@ TEST_F(Reliability, StaticBufferFourthMomentIsCountedPerSensor) {
   EXPECT_LT(s, 10.0);
 }
 
+// Issue 26: a 60-state plant with static_buffer and kalman_buffer at buffer = 400 ran `check` for
+// minutes without a word, even with --max-work 1 (the estimate read max_delay, not buffer, and
+// missed static_buffer's 3600 x 3600 second-moment operators). Each kind now estimates its own
+// design: refused at the default limits within seconds, naming the operator.
+TEST_F(Reliability, SixtyStateBufferDesignsAreRefusedWithinSeconds) {
+  const std::string file =
+      (kSource / "tests" / "cli" / "data" / "sixty_states_buffer.toml").string();
+  const std::vector<std::vector<std::string>> limits{{}, {"--max-work", "1"}};
+  for (const auto& extra : limits) {
+    std::vector<std::string> args{"check", file};
+    args.insert(args.end(), extra.begin(), extra.end());
+    const auto t0 = std::chrono::steady_clock::now();
+    const Outcome o = ncosim(args, "timeout 60 ");
+    const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    EXPECT_EQ(o.code, 2) << o.output;
+    EXPECT_NE(o.output.find("key 'estimator[0].kind': the static_buffer design needs an estimated"),
+              std::string::npos)
+        << o.output;
+    EXPECT_NE(o.output.find("(--max-work); its size is driven by plant.A (60 plant states) (the "
+                            "second-moment operator is 3600 x 3600)"),
+              std::string::npos)
+        << o.output;
+    EXPECT_LT(s, 10.0);
+  }
+}
+
 // Finding 2: threads that cannot be created gave `terminate called without an active
 // exception` (SIGABRT); now exit 1 with a message.
 TEST_F(Reliability, ThreadCreationFailureIsExitOneWithAMessage) {
