@@ -110,11 +110,13 @@ inline void report_critical_probability(const buffer::Plant& p, nlohmann::json& 
 // an n^2 x n^2 matrix built with one dense product per sensor, then an eigenvalue solve (about 15
 // products' work) and an LU solve: l_fixed_point, (2 sensors + 16) n^6 flops and about 8 such
 // matrices alive at once. kBufferMomentSolves is how many of those one Riccati fixed point takes
-// (value iterations until a gain stabilises, then policy iterations), and the critical
-// probability's bisection (unstable plants only; 24 halvings to 1e-7) runs one fixed point per
-// halving on the compressed plant. The constants are calibrated by tests/costs/cost_test.cc.
+// when it exists (value iterations until a gain stabilises, then policy iterations). The critical
+// probability (unstable plants only) bisects 24 times to 1e-7; about half the steps fall below
+// lambda_c, where the value iteration runs until the covariance blows up or 20000 iterations,
+// with a moment operator every 4th: kBufferBisectionSolves in all. Calibrated by
+// tests/costs/cost_test.cc (bench/README.md, "Design cost estimates").
 inline constexpr double kBufferMomentSolves = 8.0;
-inline constexpr double kBufferBisectionSteps = 26.0;
+inline constexpr double kBufferBisectionSolves = 12.0 * 5000.0;
 
 inline double moment_solve_flops(double n, double sensors) {
   const double m = n * n;
@@ -137,8 +139,7 @@ inline DesignCost critical_probability_cost(const Model& model, bool stable) {
   const double n = static_cast<double>(model.plant.n());
   if (stable || model.sensors.empty()) return {};
   const double m = n * n;
-  return {8.0 * 8.0 * m * m,
-          kBufferBisectionSteps * kBufferMomentSolves * moment_solve_flops(n, 1.0), ""};
+  return {8.0 * 8.0 * m * m, kBufferBisectionSolves * moment_solve_flops(n, 1.0), ""};
 }
 
 // The buffer N of `raw` (buffer, or max_delay + 1), as read_buffer reads it.

@@ -132,9 +132,10 @@ TEST_F(Reliability, SendOnDeltaDesignsGetTheLargeDesignNote) {
 // GFLOP".
 TEST_F(Reliability, SmallWorkLimitsArePrintedWithTheirDigits) {
   write("trace.csv", trace_csv(400));
-  const Outcome o = ncosim({"check", write("small.toml", kSmall), "--max-work", "0.00001"});
+  // (kalman_extended's estimate is its design since issue 26: 4 products of the extended state.)
+  const Outcome o = ncosim({"check", write("small.toml", kSmall), "--max-work", "0.0000001"});
   EXPECT_EQ(o.code, 2) << o.output;
-  EXPECT_NE(o.output.find("needs an estimated 5e-05 GFLOP, above the work limit of 1e-05 GFLOP"),
+  EXPECT_NE(o.output.find("needs an estimated 5e-07 GFLOP, above the work limit of 1e-07 GFLOP"),
             std::string::npos)
       << o.output;
 }
@@ -237,7 +238,9 @@ TEST_F(Reliability, ThousandSensorsOnAnUnstablePlantAreCheckedInSeconds) {
 }
 
 // Issue 29, finding 12: static_buffer's fourth-moment radius multiplies an n^4 x n^4 matrix once
-// per sensor (5 states and 1001 sensors: about 7 minutes) and was not in the estimate. It is now:
+// per sensor (5 states and 1001 sensors: about 7 minutes) and was not in the estimate. It is now
+// (522 GFLOP since issue 26: the eigenvalue solve measured at 64 products, and the critical
+// probability's bisection on this unstable plant):
 // a work limit refuses it at once naming the plant and the sensors, and the default limits print
 // the large-design note before the design starts.
 TEST_F(Reliability, StaticBufferFourthMomentIsCountedPerSensor) {
@@ -254,7 +257,7 @@ TEST_F(Reliability, StaticBufferFourthMomentIsCountedPerSensor) {
   EXPECT_EQ(o.code, 2) << o.output.substr(0, 2000);
   EXPECT_NE(
       o.output.find(
-          "key 'estimator[0].kind': the static_buffer design needs an estimated 491 GFLOP, above "
+          "key 'estimator[0].kind': the static_buffer design needs an estimated 522 GFLOP, above "
           "the "
           "work limit of 100 GFLOP (--max-work); its size is driven by plant.A (5 plant states) "
           "and "
