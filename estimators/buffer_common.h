@@ -5,6 +5,7 @@
 
 #include <fmt/format.h>
 
+#include <Eigen/Eigenvalues>
 #include <cmath>
 #include <map>
 #include <mutex>
@@ -102,6 +103,54 @@ inline void report_critical_probability(const buffer::Plant& p, nlohmann::json& 
   extra["critical_probability_bisection_seconds"] = both.bisection.seconds;
   extra["critical_probability_bounds"] = {both.bisection.lower_bound, both.bisection.upper_bound};
   extra["detectable"] = both.bisection.detectable;
+}
+
+// Cost estimates of the two buffer kinds (DesignCost, estimator.h), from the designs of
+// estimators/design/buffer_design.cc. The dominant part is the second-moment operator of a gain,
+// an n^2 x n^2 matrix built with one dense product per sensor, then an eigenvalue solve (about 15
+// products' work) and an LU solve: l_fixed_point, (2 sensors + 16) n^6 flops and about 8 such
+// matrices alive at once. kBufferMomentSolves is how many of those one Riccati fixed point takes
+// when it exists (value iterations until a gain stabilises, then policy iterations). The critical
+// probability (unstable plants only) bisects 24 times to 1e-7; about half the steps fall below
+// lambda_c, where the value iteration runs until the covariance blows up or 20000 iterations,
+// with a moment operator every 4th: kBufferBisectionSolves in all. Calibrated by
+// tests/costs/cost_test.cc (bench/README.md, "Design cost estimates").
+inline constexpr double kBufferMomentSolves = 8.0;
+inline constexpr double kBufferBisectionSolves = 12.0 * 5000.0;
+
+inline double moment_solve_flops(double n, double sensors) {
+  const double m = n * n;
+  return (2.0 * sensors + 16.0) * m * m * m;
+}
+
+// True when the plant is open-loop stable (spectral radius of A below 1): the critical
+// probability is then 0 without a bisection. Large plants are assumed unstable (an upper bound).
+inline bool buffer_plant_stable(const Model& model) {
+  const auto& A = model.plant.A;
+  if (A.rows() == 0) return true;
+  if (A.rows() > 400 || !A.allFinite()) return false;
+  return A.eigenvalues().cwiseAbs().maxCoeff() < 1.0;
+}
+
+// The critical probability of design.json (both kinds): nothing for a stable plant, else the
+// bisection's fixed points on the plant with its sensors compressed to one. The SDP's LMIs are
+// estimated and limited by the LMI layer when they are built.
+inline DesignCost critical_probability_cost(const Model& model, bool stable) {
+  const double n = static_cast<double>(model.plant.n());
+  if (stable || model.sensors.empty()) return {};
+  const double m = n * n;
+  return {8.0 * 8.0 * m * m, kBufferBisectionSolves * moment_solve_flops(n, 1.0), ""};
+}
+
+// The buffer N of `raw` (buffer, or max_delay + 1), as read_buffer reads it.
+inline double peek_buffer(const toml::table& raw) {
+  if (raw.get("max_delay") != nullptr)
+    return static_cast<double>(peek_integer(raw, "max_delay", 0, 0, 999) + 1);
+  return static_cast<double>(peek_integer(raw, "buffer", 1, 1, 1000));
+}
+
+inline std::string moment_driver(const std::string& driver, double n) {
+  return fmt::format("{} (the second-moment operator is {:.0f} x {:.0f})", driver, n * n, n * n);
 }
 
 }  // namespace ncosim::est

@@ -3,6 +3,9 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <cmath>
+
 #include "estimators/kinds.h"
 
 namespace ncosim::est {
@@ -50,6 +53,34 @@ int read_max_delay(const sim::Table& t, int fallback) {
   const auto d = t.integer_or("max_delay", fallback);
   if (d < 0 || d > 62) t.fail("max_delay", fmt::format("expected an integer in 0..62, got {}", d));
   return static_cast<int>(d);
+}
+
+DesignCost generic_design_cost(const Model& model) {
+  const double n = static_cast<double>(model.plant.n());
+  return {16.0 * 8.0 * n * n, 200.0 * 2.0 * n * n * n, ""};
+}
+
+std::int64_t peek_integer(const toml::table& raw, std::string_view key, std::int64_t fallback,
+                          std::int64_t lo, std::int64_t hi) {
+  std::int64_t v = fallback;
+  if (const toml::node* n = raw.get(key)) {
+    if (auto i = n->value_exact<std::int64_t>()) {
+      v = *i;
+    } else if (auto d = n->value_exact<double>()) {
+      if (std::isfinite(*d) && std::floor(*d) == *d && std::fabs(*d) < 1e9)
+        v = static_cast<std::int64_t>(*d);
+    }
+  }
+  return std::max(lo, std::min(v, hi));
+}
+
+DesignCost EstimatorRegistry::cost(std::string_view kind, const sim::Table& t,
+                                   const toml::table& raw, const Model& model,
+                                   const std::string& state_driver) const {
+  for (const auto& [name, estimate] : costs_) {
+    if (name == kind && estimate) return estimate(t, raw, model, state_driver);
+  }
+  return generic_design_cost(model);
 }
 
 void register_estimators(EstimatorRegistry& registry) {

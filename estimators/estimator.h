@@ -6,10 +6,13 @@
 
 #include <Eigen/Dense>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
+#include <string_view>
+#include <utility>
 #include <vector>
 
 #include "config/config.h"
@@ -22,6 +25,9 @@
 #include "models/sensor.h"
 
 namespace ncosim::est {
+
+class JumpDesignAccess;  // estimators/jump_observer.h
+class SodJumpDesign;     // estimators/sod_jump.h
 
 // What an estimator may know of the scenario: the plant model, the sensors and the
 // statistics of the links their packets cross.
@@ -127,9 +133,62 @@ class EstimatorDesign {
   // delays (the design assumes an independent copy per delay) and buffered re-sends that carry
   // the same noise (resend_noise = "same"; the design assumes fresh noise). Default: false.
   virtual bool models_independent_fictitious_sensors() const { return false; }
+
+  // Capabilities: what tools ask a design instead of its kind's name (nullptr / false: none).
+  // A minimum-variance (Kalman) filter: the default reference of paired comparisons (the first
+  // such estimator; sim/paired.cc). Default: false.
+  virtual bool is_kalman_reference() const { return false; }
+  // Read access for the embedded C export (`ncosim design --export-c`, estimators/export_c.h).
+  virtual const JumpDesignAccess* c_export() const { return nullptr; }
+  // The send-on-delta threshold co-design (`ncosim codesign`, sim/codesign.cc).
+  virtual const SodJumpDesign* sod_codesign() const { return nullptr; }
 };
 
-using EstimatorRegistry = sim::Registry<std::unique_ptr<EstimatorDesign>, const Model&>;
+// A design's cost, estimated by its kind BEFORE designing, from its table and the model:
+// peak memory in bytes and work in floating-point operations. sim/limits.cc compares them with
+// --max-memory / --max-work, refuses a design beyond them and notes a large one before it starts.
+struct DesignCost {
+  double bytes = 0.0;
+  double flops = 0.0;
+  // What drives the size, for the messages ("its size is driven by ..."); empty: the plant's
+  // state driver (sim::state_driver, e.g. "plant.A (60 plant states)").
+  std::string driver;
+};
+
+// The kind's estimate. `raw` is the estimator's TOML table, read without marking keys known (the
+// kind's reader validates them: use peek_integer); `t` names keys in messages (t.key_path);
+// `state_driver` is the plant's state driver. Must be cheap (no design work) and must not throw
+// for values the reader would reject.
+using CostEstimate = std::function<DesignCost(const sim::Table& t, const toml::table& raw,
+                                              const Model& model, const std::string& state_driver)>;
+
+// The estimate of a kind that declares none (an extension registered with add(name, help,
+// factory)): a Riccati or Lyapunov iteration on the plant state, 16 n x n matrices and 200
+// products of them (16 * 8 n^2 bytes, 400 n^3 flops).
+DesignCost generic_design_cost(const Model& model);
+
+// An integer key of `raw` read without marking it known: `fallback` when absent or not an
+// integer (the reader reports that), clamped to [lo, hi].
+std::int64_t peek_integer(const toml::table& raw, std::string_view key, std::int64_t fallback,
+                          std::int64_t lo, std::int64_t hi);
+
+// The estimator registry: sim::Registry's name, help and factory, plus an optional cost estimate
+// per kind, declared with the kind in its own file: registry.add(name, help, factory, cost).
+class EstimatorRegistry : public sim::Registry<std::unique_ptr<EstimatorDesign>, const Model&> {
+ public:
+  using Base = sim::Registry<std::unique_ptr<EstimatorDesign>, const Model&>;
+  using Base::add;
+  void add(std::string name, std::string help, Factory factory, CostEstimate cost) {
+    costs_.emplace_back(name, std::move(cost));
+    Base::add(std::move(name), std::move(help), std::move(factory));
+  }
+  // The estimate of kind `kind` (generic_design_cost when it declared none).
+  DesignCost cost(std::string_view kind, const sim::Table& t, const toml::table& raw,
+                  const Model& model, const std::string& state_driver) const;
+
+ private:
+  std::vector<std::pair<std::string, CostEstimate>> costs_;
+};
 void register_estimators(EstimatorRegistry& registry);
 
 // Common keys of every estimator: xhat0 (default: the plant's x0) and P0 (default 0).

@@ -11,6 +11,8 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+
 #include "estimators/imm_filter.h"
 #include "estimators/kinds.h"
 #include "estimators/mode_model.h"
@@ -101,6 +103,15 @@ std::unique_ptr<EstimatorDesign> read_imm(const sim::Table& t, const Model& mode
   return std::make_unique<ImmDesign>(read_mode_setup(t, model));
 }
 
+// The mode model of every mode (mode_model.h: A, B, W per mode and the transition matrix), a
+// few n x n products per mode, no iteration.
+DesignCost imm_cost(const sim::Table& /*t*/, const toml::table& /*raw*/, const Model& model,
+                    const std::string& /*driver*/) {
+  const double n = static_cast<double>(model.plant.n());
+  const double modes = std::max(1.0, static_cast<double>(model.mode_count()));
+  return {modes * 8.0 * 8.0 * n * n + 8.0 * modes * modes, modes * 10.0 * n * n * n, ""};
+}
+
 }  // namespace
 
 const ImmFilter* imm_filter_of(const Estimator& estimator) {
@@ -113,7 +124,7 @@ void register_imm(EstimatorRegistry& registry) {
       "imm",
       "interacting multiple model filter over the actuator delivery patterns (hold/zero) or "
       "a jump_linear plant's modes: mode_prior, transition, xhat0, P0, use_y0",
-      read_imm);
+      read_imm, imm_cost);
 }
 
 }  // namespace ncosim::est

@@ -90,6 +90,7 @@ class JumpObserver final : public Estimator {
 
 class JumpObserverDesign final : public EstimatorDesign, public JumpDesignAccess {
  public:
+  const JumpDesignAccess* c_export() const override { return this; }
   JumpObserverDesign(const Model& model, JumpParams params)
       : params_(std::move(params)), ext_(build_extended(model, params_.dbar)) {
     const auto probs = pattern_probabilities(model, ext_);
@@ -261,13 +262,38 @@ std::unique_ptr<EstimatorDesign> read_jump(const sim::Table& t, const Model& mod
   return std::make_unique<JumpObserverDesign>(model, std::move(p));
 }
 
+// A Riccati-like iteration on the plant state (the generic estimate) plus history x
+// 2^(fictitious sensors) terms, each with gains n x (fictitious outputs) and an update of the
+// n x n covariance, over ~50 iterations. Memory per term: about two nyf x nyf matrices besides the
+// gain and covariance (measured on Table 2's A3 with S4: 1.9, 3.1 and 4.3 kB per term at nyf =
+// 12, 14, 16, i.e. max_delay 5, 6, 7; 1.1 GB at history 4, max_delay 7, where this formula gives
+// 1.2 GB). The ccl design's LMIs are estimated by the LMI layer when they are built.
+DesignCost jump_cost(const sim::Table& t, const toml::table& raw, const Model& model,
+                     const std::string& driver) {
+  const double n = static_cast<double>(model.plant.n());
+  const double ny = static_cast<double>(model.total_outputs());
+  const double sensors = static_cast<double>(model.sensors.size());
+  const std::int64_t dbar = peek_integer(raw, "max_delay", 0, 0, 62);
+  const std::int64_t history = peek_integer(raw, "history", 1, 1, 1000);
+  DesignCost c = generic_design_cost(model);
+  const double nf = sensors * static_cast<double>(dbar + 1);
+  const double terms =
+      static_cast<double>(history) * std::ldexp(1.0, static_cast<int>(std::min(nf, 60.0)));
+  const double nyf = ny * static_cast<double>(dbar + 1);
+  c.bytes += terms * 8.0 * (2.0 * nyf * nyf + 2.0 * n * nyf + 2.0 * n * n);
+  c.flops += 50.0 * terms * (2.0 * n * n * n + 2.0 * n * nyf * nyf + nyf * nyf * nyf);
+  c.driver = fmt::format("{} and {} ({} x 2^{} terms, {})", t.key_path("history"),
+                         t.key_path("max_delay"), history, nf, driver);
+  return c;
+}
+
 }  // namespace
 
 void register_jump(EstimatorRegistry& registry) {
   registry.add("jump",
                "jump observer with precomputed gains L(N, pattern), Dolz et al. 2014: grouping "
                "(S1..S4), history (Nbar), max_delay (dbar), design (iterative, ccl or both)",
-               read_jump);
+               read_jump, jump_cost);
 }
 
 }  // namespace ncosim::est

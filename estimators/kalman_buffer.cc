@@ -218,6 +218,7 @@ class KalmanBufferDesign final : public EstimatorDesign {
   // The worst case: every one of the N slots re-run, each with every sensor's sample (the mean
   // over a run is the summary's flops_mean).
   std::optional<double> flops_per_period() const override { return worst_; }
+  bool is_kalman_reference() const override { return true; }
 
  private:
   BufferShape sh_;
@@ -231,12 +232,24 @@ std::unique_ptr<EstimatorDesign> read_kalman_buffer(const sim::Table& t, const M
   return std::make_unique<KalmanBufferDesign>(model, N, read_initial(t, model));
 }
 
+// The design only computes design.json's critical probability (buffer_common.h) and keeps the
+// model: the generic estimate on the plant state plus that.
+DesignCost kalman_buffer_cost(const sim::Table& /*t*/, const toml::table& /*raw*/,
+                              const Model& model, const std::string& driver) {
+  DesignCost c = critical_probability_cost(model, buffer_plant_stable(model));
+  const DesignCost base = generic_design_cost(model);
+  if (c.flops > base.flops) c.driver = moment_driver(driver, static_cast<double>(model.plant.n()));
+  c.flops += base.flops;
+  c.bytes += base.bytes;
+  return c;
+}
+
 }  // namespace
 
 void register_kalman_buffer(EstimatorRegistry& registry) {
   registry.add("kalman_buffer",
                "optimal Kalman filter re-run over a buffer of N periods (Schenato 2008): buffer",
-               read_kalman_buffer);
+               read_kalman_buffer, kalman_buffer_cost);
 }
 
 }  // namespace ncosim::est

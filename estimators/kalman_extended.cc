@@ -98,6 +98,7 @@ class KalmanExtendedDesign final : public EstimatorDesign {
            5 * nmb * nmb * nmb + 2 * nb * nb + nb * nu + 2 * nb * nmb + nmb * nmb + 2 * nb + nmb;
   }
   Eigen::Index extended_size() const override { return ext_.nb; }
+  bool is_kalman_reference() const override { return true; }
 
  private:
   ExtendedModel ext_;
@@ -117,12 +118,26 @@ std::unique_ptr<EstimatorDesign> read_kalman_extended(const sim::Table& t, const
   return std::make_unique<KalmanExtendedDesign>(model, dbar, read_initial(t, model));
 }
 
+// The design builds the delay-extended model (n (dbar + 1) + ny dbar states) and no offline
+// Riccati iteration (the filter runs its recursion online): about 4 products of that size, and
+// 16 matrices of it (the model, and the covariance and workspace every run then keeps).
+DesignCost kalman_extended_cost(const sim::Table& t, const toml::table& raw, const Model& model,
+                                const std::string& driver) {
+  const double n = static_cast<double>(model.plant.n());
+  const double ny = static_cast<double>(model.total_outputs());
+  const std::int64_t dbar = peek_integer(raw, "max_delay", 0, 0, 62);
+  const double dim = n * static_cast<double>(dbar + 1) + ny * static_cast<double>(dbar);
+  DesignCost c{16.0 * 8.0 * dim * dim, 4.0 * dim * dim * dim, ""};
+  if (dbar > 0) c.driver = fmt::format("{} (with {})", t.key_path("max_delay"), driver);
+  return c;
+}
+
 }  // namespace
 
 void register_kalman_extended(EstimatorRegistry& registry) {
   registry.add("kalman_extended",
                "time-varying Kalman filter on the delay-extended model: max_delay (dbar)",
-               read_kalman_extended);
+               read_kalman_extended, kalman_extended_cost);
 }
 
 }  // namespace ncosim::est

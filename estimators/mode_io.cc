@@ -281,6 +281,16 @@ std::unique_ptr<EstimatorDesign> read_mode_io(const sim::Table& t, const Model& 
   return design;
 }
 
+// The mode model of every mode and, per mode, the ARMAX form by Cayley-Hamilton (the
+// characteristic polynomial and n powers of A: about 2 n products of n x n matrices per mode).
+DesignCost mode_io_cost(const sim::Table& /*t*/, const toml::table& /*raw*/, const Model& model,
+                        const std::string& /*driver*/) {
+  const double n = static_cast<double>(model.plant.n());
+  const double modes = std::max(1.0, static_cast<double>(model.mode_count()));
+  return {modes * 8.0 * 8.0 * n * n * 2.0 + 8.0 * modes * modes,
+          modes * (30.0 + 4.0 * n) * n * n * n, ""};
+}
+
 }  // namespace
 
 void register_mode_io(EstimatorRegistry& registry) {
@@ -288,7 +298,7 @@ void register_mode_io(EstimatorRegistry& registry) {
       "mode_io",
       "Algorithm 1 of Moayedi et al.: mode by the input-output (ARMAX) form, then one Kalman "
       "filter: mode_prior, transition, startup, xhat0, P0, use_y0",
-      read_mode_io);
+      read_mode_io, mode_io_cost);
 }
 
 }  // namespace ncosim::est

@@ -8,6 +8,8 @@
 // Cholesky marks the run "numerical_failure" (the prediction is kept).
 #include <fmt/format.h>
 
+#include <algorithm>
+
 #include "estimators/kinds.h"
 #include "estimators/mode_model.h"
 
@@ -103,6 +105,15 @@ std::unique_ptr<EstimatorDesign> read_mode_ss(const sim::Table& t, const Model& 
   return std::make_unique<ModeSsDesign>(read_mode_setup(t, model));
 }
 
+// The mode model of every mode (mode_model.h: A, B, W per mode and the transition matrix), a
+// few n x n products per mode, no iteration.
+DesignCost mode_ss_cost(const sim::Table& /*t*/, const toml::table& /*raw*/, const Model& model,
+                        const std::string& /*driver*/) {
+  const double n = static_cast<double>(model.plant.n());
+  const double modes = std::max(1.0, static_cast<double>(model.mode_count()));
+  return {modes * 8.0 * 8.0 * n * n + 8.0 * modes * modes, modes * 10.0 * n * n * n, ""};
+}
+
 }  // namespace
 
 void register_mode_ss(EstimatorRegistry& registry) {
@@ -110,7 +121,7 @@ void register_mode_ss(EstimatorRegistry& registry) {
       "mode_ss",
       "Algorithm 2 of Moayedi et al.: mode by one-step state-space likelihoods, one Kalman "
       "filter: mode_prior, transition, xhat0, P0, use_y0",
-      read_mode_ss);
+      read_mode_ss, mode_ss_cost);
 }
 
 }  // namespace ncosim::est

@@ -70,13 +70,20 @@ std::unique_ptr<EstimatorDesign> read_open_loop(const sim::Table& t, const Model
   return std::make_unique<OpenLoopDesign>(model, dbar, std::move(init.xhat0));
 }
 
+// No design: the initial estimate and the model kept (a few n x n matrices).
+DesignCost open_loop_cost(const sim::Table& /*t*/, const toml::table& /*raw*/, const Model& model,
+                          const std::string& /*driver*/) {
+  const double n = static_cast<double>(model.plant.n());
+  return {4.0 * 8.0 * n * n, 2.0 * n * n, ""};
+}
+
 }  // namespace
 
 void register_open_loop(EstimatorRegistry& registry) {
   registry.add("open_loop",
                "open-loop prediction, ignores every packet (the floor): max_delay (optional, for "
                "mse_ext)",
-               read_open_loop);
+               read_open_loop, open_loop_cost);
 }
 
 }  // namespace ncosim::est

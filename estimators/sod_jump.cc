@@ -5,7 +5,9 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 
 #include "estimators/design/sod_bounds.h"
 #include "estimators/kinds.h"
@@ -58,6 +60,7 @@ struct CodesignKeys {
 
 class SodJumpDesignImpl final : public SodJumpDesign {
  public:
+  const SodJumpDesign* sod_codesign() const override { return this; }
   SodJumpDesignImpl(const Model& model, sod::SodSystem sys, sod::SodDesignSpec spec,
                     CodesignKeys cd, VectorXd xhat0, nlohmann::json extra)
       : model_(model),
@@ -267,6 +270,35 @@ std::unique_ptr<EstimatorDesign> read_sod_jump(const sim::Table& t, const Model&
                                              std::move(init.xhat0), std::move(extra));
 }
 
+// One LMI problem (estimators/design/sod_design.cc), sized before it is built and costed by the
+// LMI layer's formula (lmi/lmi.cc, Problem::Impl::estimate: 50 interior-point iterations of a
+// Schur complement build and factorisation): with p = 2^sensors delivery patterns, variables Q_j,
+// X_j per pattern (one with gain = "constant"), P_j per pattern (deterministic) or one
+// (stochastic); the deterministic design has p^2 LMIs of 2n + nw + 2ny rows, the stochastic one
+// an LMI of p n + n + nw + 2 ny rows per vertex. The LMI layer checks its own estimate again when
+// the problem is built.
+DesignCost sod_jump_cost(const sim::Table& /*t*/, const toml::table& raw, const Model& model,
+                         const std::string& /*driver*/) {
+  const double n = static_cast<double>(model.plant.n());
+  const double ny = static_cast<double>(model.total_outputs());
+  const double nw = static_cast<double>(model.plant.nw());
+  const double ns = static_cast<double>(model.sensors.size());
+  auto peek = [&raw](const char* key, const char* fallback) {
+    const auto v = raw[key].value<std::string>();
+    return v ? *v : std::string(fallback);
+  };
+  const bool det = peek("design", "deterministic") != "stochastic";
+  const bool jump = peek("gain", "jump") != "constant";
+  const double p = std::ldexp(1.0, static_cast<int>(std::min(ns, 20.0)));
+  const double k =
+      (jump ? p : 1.0) * (n * n + n * ny) + (det ? p : 1.0) * n * (n + 1.0) / 2.0 + 1.0 + 2.0 * ny;
+  const double lmis = det ? p * p : (peek("vertices", "all") == "lower" ? 1.0 : p);
+  const double m = det ? 2.0 * n + nw + 2.0 * ny : p * n + n + nw + 2.0 * ny;
+  const double flops = 50.0 * (k * k * m + k * k * k / 3.0 + 10.0 * lmis * m * m * m);
+  const double bytes = 16.0 * k * k + 11.0 * lmis * 8.0 * m * m + 48.0 * lmis * m * m * 4.0;
+  return {bytes, flops, ""};
+}
+
 }  // namespace
 
 void register_sod_jump(EstimatorRegistry& registry) {
@@ -277,7 +309,7 @@ void register_sod_jump(EstimatorRegistry& registry) {
                "\"jump\" | \"constant\", "
                "w_rms, v_rms, virtual_noise, r | w_inf + v_inf | sigma, assumption, vertices, "
                "delta, Cz, [codesign]",
-               read_sod_jump);
+               read_sod_jump, sod_jump_cost);
 }
 
 }  // namespace ncosim::est

@@ -94,6 +94,7 @@ class SodKalman final : public Estimator {
 
 class SodKalmanDesign final : public EstimatorDesign {
  public:
+  bool is_kalman_reference() const override { return true; }
   SodKalmanDesign(SodKalmanParams p, const Model& model, double factor)
       : p_(std::move(p)), model_(model) {
     report_.method = "online";
@@ -164,6 +165,15 @@ std::unique_ptr<EstimatorDesign> read_sod_kalman(const sim::Table& t, const Mode
   return std::make_unique<SodKalmanDesign>(std::move(p), model, factor);
 }
 
+// No offline iteration: the model, noise covariances and the virtual noise per sensor are kept
+// (the filter runs online); a few n x n products.
+DesignCost sod_kalman_cost(const sim::Table& /*t*/, const toml::table& /*raw*/, const Model& model,
+                           const std::string& /*driver*/) {
+  const double n = static_cast<double>(model.plant.n());
+  const double ny = static_cast<double>(model.total_outputs());
+  return {8.0 * 8.0 * (n * n + ny * ny), 10.0 * n * n * n, ""};
+}
+
 }  // namespace
 
 void register_sod_kalman(EstimatorRegistry& registry) {
@@ -171,7 +181,7 @@ void register_sod_kalman(EstimatorRegistry& registry) {
                "Kalman filter on held send-on-delta measurements with virtual noise (Suh et al. "
                "2007): W, R, "
                "delta (default: the sensors' thresholds), virtual_variance_factor (default 1/3)",
-               read_sod_kalman);
+               read_sod_kalman, sod_kalman_cost);
 }
 
 }  // namespace ncosim::est

@@ -130,7 +130,7 @@ std::vector<std::pair<std::string, std::string>> export_c_files(const LoadedScen
                             loaded.cases[c].labels[a]);
     }
     for (const auto& e : sc.estimators) {
-      const auto* jump = dynamic_cast<const est::JumpDesignAccess*>(e.design.get());
+      const est::JumpDesignAccess* jump = e.design->c_export();
       if (jump == nullptr) {
         if (c == 0) skipped.push_back(e.name);
         continue;

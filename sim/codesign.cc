@@ -20,7 +20,7 @@ nlohmann::json run_codesign(const Scenario& sc, const CodesignOptions& options) 
   bool found = false;
   for (const auto& e : sc.estimators) {
     if (!options.estimator.empty() && e.name != options.estimator) continue;
-    const auto* d = dynamic_cast<const est::SodJumpDesign*>(e.design.get());
+    const est::SodJumpDesign* d = e.design->sod_codesign();
     if (d == nullptr) continue;
     found = true;
     const double mu = options.mu > 0.0 ? options.mu : d->mu();

@@ -36,18 +36,6 @@ std::string gflop(double flops) {
   const double g = flops / 1e9;
   return g >= 100.0 ? fmt::format("{:.0f} GFLOP", g) : fmt::format("{:.3g} GFLOP", g);
 }
-
-// An integer key read without marking it known (the estimator's own reader validates it).
-std::int64_t peek_integer(const toml::table& t, std::string_view key, std::int64_t fallback) {
-  const toml::node* n = t.get(key);
-  if (n == nullptr) return fallback;
-  if (auto i = n->value_exact<std::int64_t>()) return *i;
-  if (auto d = n->value_exact<double>()) {
-    if (std::isfinite(*d) && std::floor(*d) == *d && std::fabs(*d) < 1e9)
-      return static_cast<std::int64_t>(*d);
-  }
-  return fallback;
-}
 }  // namespace
 
 const ResourceLimits& resource_limits() { return storage(); }
@@ -78,54 +66,11 @@ std::string state_driver(const Table& plant, const toml::table& raw, const est::
   return fmt::format("{} ({} plant states)", plant.path().empty() ? "plant" : plant.path(), n);
 }
 
-void check_estimator_resources(const Table& t, const toml::table& raw, const std::string& kind,
-                               const est::Model& model, const std::string& driver) {
+void check_estimator_resources(const Table& t, const std::string& kind, const est::DesignCost& cost,
+                               const std::string& driver) {
   const ResourceLimits& lim = resource_limits();
-  const double n = static_cast<double>(model.plant.n());
-  const double ny = static_cast<double>(model.total_outputs());
-  const double sensors = static_cast<double>(model.sensors.size());
-  const std::int64_t dbar =
-      std::max<std::int64_t>(0, std::min<std::int64_t>(peek_integer(raw, "max_delay", 0), 62));
-  const std::int64_t history =
-      std::max<std::int64_t>(1, std::min<std::int64_t>(peek_integer(raw, "history", 1), 1000));
-  // The state the design iterates on: the plant, or the plant with its delay line.
-  double dim = n;
-  std::string key = driver;
-  if (kind == "kalman_extended" || kind == "static_buffer" || kind == "kalman_buffer") {
-    dim = n * static_cast<double>(dbar + 1) + ny * static_cast<double>(dbar);
-    if (dbar > 0) key = fmt::format("{} (with {})", t.key_path("max_delay"), driver);
-  }
-  // Riccati / Lyapunov iterations on dim x dim matrices: ~16 matrices, ~200 products.
-  double bytes = 16.0 * 8.0 * dim * dim;
-  double flops = 200.0 * 2.0 * dim * dim * dim;
-  if (kind == "jump") {
-    // history x 2^(fictitious sensors) terms, each with gains n x (fictitious outputs) and an
-    // update of the n x n covariance, over ~50 iterations. Memory per term: about two nyf x nyf
-    // matrices besides the gain and covariance (measured on Table 2's A3 with S4: 1.9, 3.1 and
-    // 4.3 kB per term at nyf = 12, 14, 16, i.e. max_delay 5, 6, 7; 1.1 GB at history 4,
-    // max_delay 7, where this formula gives 1.2 GB).
-    const double nf = sensors * static_cast<double>(dbar + 1);
-    const double terms =
-        static_cast<double>(history) * std::ldexp(1.0, static_cast<int>(std::min(nf, 60.0)));
-    const double nyf = ny * static_cast<double>(dbar + 1);
-    bytes += terms * 8.0 * (2.0 * nyf * nyf + 2.0 * n * nyf + 2.0 * n * n);
-    flops += 50.0 * terms * (2.0 * n * n * n + 2.0 * n * nyf * nyf + nyf * nyf * nyf);
-    key = fmt::format("{} and {} ({} x 2^{} terms, {})", t.key_path("history"),
-                      t.key_path("max_delay"), history, nf, driver);
-  }
-  if (kind == "static_buffer" && n <= 7.0) {
-    // The fourth-moment radius of the oldest slot's recursion (estimators/design/buffer_design.cc,
-    // n <= 7): E[F^{x4}] is an n^4 x n^4 matrix, one dense product per sensor, then an eigenvalue
-    // solve (~6 products: 89 s for n = 7 and one sensor on a 2-core Zen 4 guest, where this
-    // formula gives 10 products, 1.4e11 flops). Five states and 1001 sensors: about 7 minutes.
-    const double big = n * n * n * n;
-    bytes += 8.0 * 4.0 * big * big;
-    flops += (2.0 * sensors + 8.0) * big * big * big;
-    key = fmt::format(
-        "{} and the {} sensor(s) (the fourth-moment operator is {:.0f} x {:.0f}, one product per "
-        "sensor)",
-        driver, sensors, big, big);
-  }
+  const double bytes = cost.bytes, flops = cost.flops;
+  const std::string& key = cost.driver.empty() ? driver : cost.driver;
   if (lim.memory_bytes > 0.0 && bytes > lim.memory_bytes) {
     t.fail("kind", fmt::format("the {} design needs an estimated {}, above the memory limit of {} "
                                "(--max-memory); its size is driven by {}",

@@ -30,11 +30,11 @@ std::string human_bytes(double bytes);
 // `raw` is the plant's TOML table (read without marking keys known).
 std::string state_driver(const Table& plant, const toml::table& raw, const est::Model& model);
 
-// Before the design of estimator table `t` of kind `kind`: a coarse estimate from the plant
-// size and the keys max_delay / history (read without marking them). Throws ScenarioError.
-// `raw` is the estimator's TOML table.
-void check_estimator_resources(const Table& t, const toml::table& raw, const std::string& kind,
-                               const est::Model& model, const std::string& driver);
+// Before the design of estimator table `t` of kind `kind`: its kind's estimate `cost`
+// (est::EstimatorRegistry::cost) against the limits. Throws ScenarioError naming what drives the
+// size (cost.driver, else `driver`, the plant's state driver); prints a note for a large design.
+void check_estimator_resources(const Table& t, const std::string& kind, const est::DesignCost& cost,
+                               const std::string& driver);
 
 // While estimator table `t` is designed: an observer of its LMI solves (lmi::ScopedSolveObserver)
 // that prints, once, the note of a design estimated above 256 MB or 10 GFLOP (the LMI designs'

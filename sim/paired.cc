@@ -211,7 +211,8 @@ std::size_t reference_estimator_index(const Scenario& sc) {
     }
   }
   for (std::size_t i = 0; i < sc.estimators.size(); ++i) {
-    if (sc.estimators[i].kind.find("kalman") != std::string::npos) return i;
+    const auto& d = sc.estimators[i].design;
+    if (d && d->is_kalman_reference()) return i;
   }
   return 0;
 }

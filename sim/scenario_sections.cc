@@ -244,8 +244,9 @@ void read_estimators(const Table& root, const toml::table& doc, const std::strin
       t.fail("name", fmt::format("expected a unique estimator name, got \"{}\" twice", e.name));
     }
     e.expected_status = read_expected_status(t);
-    check_estimator_resources(t, *doc.get("estimator")->as_array()->get(i)->as_table(), k.name,
-                              sc.model,
+    const toml::table& raw = *doc.get("estimator")->as_array()->get(i)->as_table();
+    check_estimator_resources(t, k.name,
+                              estimator_registry().cost(k.name, t, raw, sc.model, state_driver),
                               state_driver);  // sim/limits.h
     try {
       const lmi::ScopedSolveObserver note(

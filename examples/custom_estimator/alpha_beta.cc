@@ -88,11 +88,20 @@ std::unique_ptr<EstimatorDesign> read_alpha_beta(const ncosim::sim::Table& t, co
   return std::make_unique<AlphaBetaDesign>(std::move(g), alpha, beta);
 }
 
+// The design's cost before it starts (optional; without it ncosim assumes a Riccati iteration on
+// the plant state): it copies A, C and the gains, a few n x n matrices and no iteration.
+ncosim::est::DesignCost alpha_beta_cost(const ncosim::sim::Table& /*t*/, const toml::table& /*raw*/,
+                                        const ncosim::est::Model& model,
+                                        const std::string& /*state_driver*/) {
+  const double n = static_cast<double>(model.plant.n());
+  return {4.0 * 8.0 * n * n, 4.0 * n * n, ""};
+}
+
 }  // namespace
 
 void register_alpha_beta(ncosim::est::EstimatorRegistry& registry) {
   registry.add(
       "alpha_beta",
       "alpha-beta tracker of position and velocity (example extension): alpha, beta, xhat0",
-      read_alpha_beta);
+      read_alpha_beta, alpha_beta_cost);
 }

@@ -121,7 +121,7 @@ TEST(ExportC, CompilesSelectsAndTracksTheCppEstimatorTo1e12) {
   std::vector<std::string> taken;
   int exported = 0;
   for (const auto& entry : sc->estimators) {
-    const auto* jump = dynamic_cast<const est::JumpDesignAccess*>(entry.design.get());
+    const est::JumpDesignAccess* jump = entry.design->c_export();
     if (jump == nullptr) continue;
     ++exported;
     const std::string p = est::c_identifier(entry.name, taken);
