@@ -227,7 +227,7 @@ class KalmanBufferDesign final : public EstimatorDesign {
 };
 
 std::unique_ptr<EstimatorDesign> read_kalman_buffer(const sim::Table& t, const Model& model) {
-  const int N = read_buffer(t);
+  const int N = read_buffer(sim::KeyReader(t, buffer_keys()));
   return std::make_unique<KalmanBufferDesign>(model, N, read_initial(t, model));
 }
 
@@ -236,7 +236,7 @@ std::unique_ptr<EstimatorDesign> read_kalman_buffer(const sim::Table& t, const M
 void register_kalman_buffer(EstimatorRegistry& registry) {
   registry.add("kalman_buffer",
                "optimal Kalman filter re-run over a buffer of N periods (Schenato 2008): buffer",
-               read_kalman_buffer);
+               buffer_keys(), read_kalman_buffer);
 }
 
 }  // namespace ncosim::est

@@ -32,6 +32,7 @@
 #include "sim/record_link.h"
 #include "sim/registries.h"
 #include "sim/scenario.h"
+#include "sim/schema.h"
 #include "sim/table_view.h"
 
 #if NCOSIM_HAVE_SUMO
@@ -340,6 +341,8 @@ struct CommandLine {
            *channel = nullptr, *fit = nullptr;
   FitArgs fit_args;
   CLI::App* record_link = nullptr;  // sim/record_link.h
+  CLI::App* schema = nullptr;       // sim/schema.h
+  std::string schema_out;
   std::string record_link_name;
 
   // FILE, --set, --out (when `with_out`) and the resource limits of a command that reads a
@@ -482,6 +485,9 @@ struct CommandLine {
     check = app.add_subcommand("check", "parse and validate only");
     add_common(check, false);
     app.add_subcommand("list", "list every registered kind with a one-line help");
+    schema = app.add_subcommand(
+        "schema", "write a JSON Schema (draft-07) of the scenario format, for TOML editors");
+    schema->add_option("--out", schema_out, "write it into this file (default: stdout)");
     add_figure_commands(app, figure_commands);
     fit = app.add_subcommand(
         "fit", "fit channel models to a packet trace (seq,delay): a [[link]] table and fit.csv");
@@ -542,6 +548,7 @@ struct CommandLine {
     if (check->parsed()) return cmd_check(a);
     if (compare->parsed()) return run_compare_command(cmp);
     if (fit->parsed()) return cmd_fit(fit_args);
+    if (schema->parsed()) return cmd_schema(schema_out);
     if (record_link->parsed()) {
       RecordLinkArgs r{a.file, a.sets, a.overrides, record_link_name, a.out, quiet};
       if (a.seed >= 0) r.overrides.seed = static_cast<std::uint64_t>(a.seed);
