@@ -3,6 +3,7 @@
 
 #include <fmt/format.h>
 
+#include <cstdint>
 #include <fstream>
 #include <iostream>
 #include <stdexcept>
@@ -19,8 +20,12 @@ using Json = nlohmann::ordered_json;
 // A number with the key's range (for arrays: every entry).
 Json number_schema(const Key& k, const char* type) {
   Json s{{"type", type}};
-  if (k.lo()) s[k.lo_open() ? "exclusiveMinimum" : "minimum"] = *k.lo();
-  if (k.hi()) s[k.hi_open() ? "exclusiveMaximum" : "maximum"] = *k.hi();
+  // Integer bounds as integers (1, not 1.0).
+  auto bound = [&](double v) {
+    return k.type() == KeyType::kInteger ? Json(static_cast<std::int64_t>(v)) : Json(v);
+  };
+  if (k.lo()) s[k.lo_open() ? "exclusiveMinimum" : "minimum"] = bound(*k.lo());
+  if (k.hi()) s[k.hi_open() ? "exclusiveMaximum" : "maximum"] = bound(*k.hi());
   return s;
 }
 
