@@ -19,21 +19,31 @@
 namespace ncosim::est {
 
 // `buffer` = N >= 1: samples with delay 0 .. N-1 are used, older ones discarded. `max_delay`
-// = N - 1 is accepted instead (the key of the delay-extended estimators); not both.
-inline int read_buffer(const sim::Table& t) {
-  t.allow("buffer");
-  t.allow("max_delay");
-  if (t.has("max_delay")) {
-    if (t.has("buffer"))
-      t.fail("max_delay", "expected either buffer or max_delay (= buffer - 1), got both");
-    const auto d = t.integer_or("max_delay", 0);
-    if (d < 0 || d > 999)
-      t.fail("max_delay", fmt::format("expected an integer in 0..999, got {}", d));
-    return static_cast<int>(d) + 1;
+// = N - 1 is accepted instead (the key of the delay-extended estimators); not both. With
+// xhat0 and P0 these are the keys of both kinds.
+inline const sim::Keys& buffer_keys() {
+  using sim::Key;
+  static const sim::Keys keys =
+      sim::Keys{
+          Key::integer("buffer").range(1, 1000).or_default(1).unit("periods").help(
+              "N: samples with delay 0 .. N - 1 are used"),
+          Key::integer("max_delay")
+              .range(0, 999)
+              .optional("none")
+              .unit("periods")
+              .help("alternative to buffer: N = max_delay + 1 (not both)"),
+      } +
+      initial_keys();
+  return keys;
+}
+
+inline int read_buffer(const sim::KeyReader& r) {
+  if (r.has("max_delay")) {
+    if (r.has("buffer"))
+      r.fail("max_delay", "expected either buffer or max_delay (= buffer - 1), got both");
+    return static_cast<int>(*r.opt_integer("max_delay")) + 1;
   }
-  const auto n = t.integer_or("buffer", 1);
-  if (n < 1 || n > 1000) t.fail("buffer", fmt::format("expected an integer in 1..1000, got {}", n));
-  return static_cast<int>(n);
+  return static_cast<int>(r.integer("buffer"));
 }
 
 // lambda[i][h] = P[a sample of sensor i arrives with delay <= h], h = 0 .. N-1.

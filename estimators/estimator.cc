@@ -31,28 +31,43 @@ int Model::mode_count() const {
   return 0;
 }
 
+const sim::Keys& initial_keys() {
+  using sim::Key;
+  static const sim::Keys keys{
+      Key::vector("xhat0")
+          .optional("the plant's x0")
+          .help("initial estimate, n entries (copied into every block of a delay-extended "
+                "estimate)"),
+      Key::matrix("P0").optional("zeros").help(
+          "initial error covariance, n x n, symmetric positive semidefinite"),
+  };
+  return keys;
+}
+
 InitialEstimate read_initial(const sim::Table& t, const Model& model) {
+  const sim::KeyReader r(t, initial_keys());
   const Eigen::Index n = model.plant.n();
   InitialEstimate init{model.plant.x0, Eigen::MatrixXd::Zero(n, n)};
-  if (t.has("xhat0")) {
-    init.xhat0 = t.vector("xhat0");
+  if (r.has("xhat0")) {
+    init.xhat0 = r.vector("xhat0");
     if (init.xhat0.size() != n) {
       t.fail("xhat0",
              fmt::format("expected {} entries (the state size), got {}", n, init.xhat0.size()));
     }
   }
-  if (t.has("P0")) {
-    init.P0 = t.matrix("P0");
+  if (r.has("P0")) {
+    init.P0 = r.matrix("P0");
     sim::require_shape(t, "P0", init.P0, n, n);
     sim::require_psd(t, "P0", init.P0);
   }
   return init;
 }
 
-int read_max_delay(const sim::Table& t, int fallback) {
-  const auto d = t.integer_or("max_delay", fallback);
-  if (d < 0 || d > 62) t.fail("max_delay", fmt::format("expected an integer in 0..62, got {}", d));
-  return static_cast<int>(d);
+sim::Key max_delay_key() {
+  return sim::Key::integer("max_delay")
+      .range(0, 62)
+      .unit("periods")
+      .help("d-bar: samples with delay 0 .. max_delay are used, later ones discarded");
 }
 
 DesignCost generic_design_cost(const Model& model) {

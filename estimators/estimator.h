@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "config/config.h"
+#include "config/keys.h"
 #include "config/registry.h"
 #include "estimators/kalman_update.h"
 #include "models/actuator.h"
@@ -182,6 +183,12 @@ class EstimatorRegistry : public sim::Registry<std::unique_ptr<EstimatorDesign>,
     costs_.emplace_back(name, std::move(cost));
     Base::add(std::move(name), std::move(help), std::move(factory));
   }
+  // A kind that declares its keys (config/keys.h) and estimates its design's cost.
+  void add(std::string name, std::string help, sim::Keys keys, Factory factory,
+           CostEstimate cost) {
+    costs_.emplace_back(name, std::move(cost));
+    Base::add(std::move(name), std::move(help), std::move(keys), std::move(factory));
+  }
   // The estimate of kind `kind` (generic_design_cost when it declared none).
   DesignCost cost(std::string_view kind, const sim::Table& t, const toml::table& raw,
                   const Model& model, const std::string& state_driver) const;
@@ -191,14 +198,16 @@ class EstimatorRegistry : public sim::Registry<std::unique_ptr<EstimatorDesign>,
 };
 void register_estimators(EstimatorRegistry& registry);
 
-// Common keys of every estimator: xhat0 (default: the plant's x0) and P0 (default 0).
+// Keys every kind declares with its own (config/keys.h): xhat0 (default: the plant's x0) and P0
+// (default 0), read by read_initial (the mode estimators declare their own, mode_model.h).
 struct InitialEstimate {
   Eigen::VectorXd xhat0;
   Eigen::MatrixXd P0;
 };
+const sim::Keys& initial_keys();
 InitialEstimate read_initial(const sim::Table& t, const Model& model);
 
-// Reads `max_delay` (dbar) in 0..max.
-int read_max_delay(const sim::Table& t, int fallback);
+// `max_delay` (dbar), 0..62 periods, without a default (a kind adds or_default / optional).
+sim::Key max_delay_key();
 
 }  // namespace ncosim::est

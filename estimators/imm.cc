@@ -100,7 +100,7 @@ class ImmDesign final : public EstimatorDesign {
 };
 
 std::unique_ptr<EstimatorDesign> read_imm(const sim::Table& t, const Model& model) {
-  return std::make_unique<ImmDesign>(read_mode_setup(t, model));
+  return std::make_unique<ImmDesign>(read_mode_setup(sim::KeyReader(t, mode_keys()), model));
 }
 
 // The mode model of every mode (mode_model.h: A, B, W per mode and the transition matrix), a
@@ -124,7 +124,7 @@ void register_imm(EstimatorRegistry& registry) {
       "imm",
       "interacting multiple model filter over the actuator delivery patterns (hold/zero) or "
       "a jump_linear plant's modes: mode_prior, transition, xhat0, P0, use_y0",
-      read_imm, imm_cost);
+      mode_keys(), read_imm, imm_cost);
 }
 
 }  // namespace ncosim::est

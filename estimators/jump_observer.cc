@@ -226,17 +226,43 @@ class JumpObserverDesign final : public EstimatorDesign, public JumpDesignAccess
   std::string row_status_ = "design_failed";
 };
 
+const sim::Keys& jump_keys() {
+  using sim::Key;
+  static const sim::Keys keys =
+      sim::Keys{
+          Key::choice("grouping", {"S1", "S2", "S3", "S4"})
+              .or_default("S4")
+              .help("gain sharing: S1 one gain per N; S2 per number of real sensors delivered; S3 "
+                    "per "
+                    "number of fictitious sensors delivered; S4 per availability pattern (2^nf - 1 "
+                    "per N)"),
+          Key::integer("history").range(1, 1000).or_default(1).unit("periods").help(
+              "N-bar: gains per N = 1 .. N-bar (N-bar covers N >= N-bar); history x 2^nf <= 2^18"),
+          max_delay_key().or_default(0).help(
+              "d-bar; nf = sensors x (max_delay + 1) <= 20 (<= 16 for S4)"),
+          Key::choice("design", {"iterative", "ccl", "both"})
+              .or_default("iterative")
+              .help("design method: value iteration, the paper's LMI method (cone-complementarity "
+                    "linearisation in a bisection on tr(P)), or both (keeps the lower predicted "
+                    "tr(Pt))"),
+          Key::choice("ccl_start", {"s4", "paper"})
+              .or_default("s4")
+              .help("how ccl starts: at the exact S4 design (fast), or by the paper's section 4 "
+                    "steps (10-100x slower)"),
+      } +
+      initial_keys();
+  return keys;
+}
+
 std::unique_ptr<EstimatorDesign> read_jump(const sim::Table& t, const Model& model) {
+  const sim::KeyReader r(t, jump_keys());
   JumpParams p;
-  const std::string g = t.choice_or("grouping", "S4", {"S1", "S2", "S3", "S4"});
+  const std::string g = r.string("grouping");
   p.grouping = static_cast<Grouping>(g[1] - '1');
-  const auto Nbar = t.integer_or("history", 1);
-  if (Nbar < 1 || Nbar > 1000)
-    t.fail("history", fmt::format("expected an integer in 1..1000, got {}", Nbar));
-  p.Nbar = static_cast<int>(Nbar);
-  p.dbar = read_max_delay(t, 0);
-  p.design = t.choice_or("design", "iterative", {"iterative", "ccl", "both"});
-  p.ccl_start = t.choice_or("ccl_start", "s4", {"s4", "paper"});
+  p.Nbar = static_cast<int>(r.integer("history"));
+  p.dbar = static_cast<int>(r.integer("max_delay"));
+  p.design = r.string("design");
+  p.ccl_start = r.string("ccl_start");
   // CSDP's iteration log on stderr (it is never written to stdout).
   const char* lmi_log = std::getenv("NCOSIM_LMI_VERBOSE");
   p.verbose = lmi_log != nullptr && std::string(lmi_log) == "1";
@@ -293,7 +319,7 @@ void register_jump(EstimatorRegistry& registry) {
   registry.add("jump",
                "jump observer with precomputed gains L(N, pattern), Dolz et al. 2014: grouping "
                "(S1..S4), history (Nbar), max_delay (dbar), design (iterative, ccl or both)",
-               read_jump, jump_cost);
+               jump_keys(), read_jump, jump_cost);
 }
 
 }  // namespace ncosim::est

@@ -228,7 +228,7 @@ class KalmanBufferDesign final : public EstimatorDesign {
 };
 
 std::unique_ptr<EstimatorDesign> read_kalman_buffer(const sim::Table& t, const Model& model) {
-  const int N = read_buffer(t);
+  const int N = read_buffer(sim::KeyReader(t, buffer_keys()));
   return std::make_unique<KalmanBufferDesign>(model, N, read_initial(t, model));
 }
 
@@ -249,7 +249,7 @@ DesignCost kalman_buffer_cost(const sim::Table& /*t*/, const toml::table& /*raw*
 void register_kalman_buffer(EstimatorRegistry& registry) {
   registry.add("kalman_buffer",
                "optimal Kalman filter re-run over a buffer of N periods (Schenato 2008): buffer",
-               read_kalman_buffer, kalman_buffer_cost);
+               buffer_keys(), read_kalman_buffer, kalman_buffer_cost);
 }
 
 }  // namespace ncosim::est

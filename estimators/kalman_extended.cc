@@ -106,8 +106,18 @@ class KalmanExtendedDesign final : public EstimatorDesign {
   DesignReport report_;
 };
 
+const sim::Keys& kalman_extended_keys() {
+  static const sim::Keys keys =
+      sim::Keys{max_delay_key().or_default(0).help(
+          "d-bar; sensors x (max_delay + 1) <= 64 (the fictitious sensors of one period are a "
+          "64-bit pattern)")} +
+      initial_keys();
+  return keys;
+}
+
 std::unique_ptr<EstimatorDesign> read_kalman_extended(const sim::Table& t, const Model& model) {
-  const int dbar = read_max_delay(t, 0);
+  const sim::KeyReader r(t, kalman_extended_keys());
+  const int dbar = static_cast<int>(r.integer("max_delay"));
   const auto nf = static_cast<long>(model.sensors.size()) * (dbar + 1);
   if (nf > 64) {
     t.fail("max_delay",
@@ -137,7 +147,7 @@ DesignCost kalman_extended_cost(const sim::Table& t, const toml::table& raw, con
 void register_kalman_extended(EstimatorRegistry& registry) {
   registry.add("kalman_extended",
                "time-varying Kalman filter on the delay-extended model: max_delay (dbar)",
-               read_kalman_extended, kalman_extended_cost);
+               kalman_extended_keys(), read_kalman_extended, kalman_extended_cost);
 }
 
 }  // namespace ncosim::est

@@ -264,15 +264,27 @@ class ModeIoDesign final : public EstimatorDesign {
   DesignReport report_;
 };
 
+const sim::Keys& mode_io_keys() {
+  static const sim::Keys keys =
+      mode_keys() + sim::Keys{sim::Key::choice("startup", {"state", "prior_mean", "skip"})
+                                  .or_default("state")
+                                  .help("while a lag of the ARMAX form precedes period 0: the "
+                                        "filter's state-space likelihoods (as Algorithm 2), the "
+                                        "prior mean for the unknown outputs and inputs, or no "
+                                        "likelihood (the chain's prediction)")};
+  return keys;
+}
+
 std::unique_ptr<EstimatorDesign> read_mode_io(const sim::Table& t, const Model& model) {
+  const sim::KeyReader r(t, mode_io_keys());
   if (!model.plant.modes.empty()) {
     t.fail_here(
         "expected actuator modes ([[actuator]] tables); mode_io does not model a jump_linear "
         "plant");
   }
-  ModeSetup setup = read_mode_setup(t, model);
+  ModeSetup setup = read_mode_setup(r, model);
   IoModel io = build_io(model, setup.model);
-  const std::string startup = t.choice_or("startup", "state", {"state", "prior_mean", "skip"});
+  const std::string startup = r.string("startup");
   io.startup = startup == "state"        ? IoModel::Startup::kState
                : startup == "prior_mean" ? IoModel::Startup::kPriorMean
                                          : IoModel::Startup::kSkip;
@@ -298,7 +310,7 @@ void register_mode_io(EstimatorRegistry& registry) {
       "mode_io",
       "Algorithm 1 of Moayedi et al.: mode by the input-output (ARMAX) form, then one Kalman "
       "filter: mode_prior, transition, startup, xhat0, P0, use_y0",
-      read_mode_io, mode_io_cost);
+      mode_io_keys(), read_mode_io, mode_io_cost);
 }
 
 }  // namespace ncosim::est

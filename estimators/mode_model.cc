@@ -108,7 +108,35 @@ ModeModel build(const Model& model) {
 
 }  // namespace
 
-ModeSetup read_mode_setup(const sim::Table& t, const Model& model) {
+const sim::Keys& mode_keys() {
+  using sim::Key;
+  static const sim::Keys keys{
+      Key::vector("xhat0")
+          .optional("the plant's x0, held inputs at the actuators' u0")
+          .help("the initial estimate, the prior of period 0: n entries (held inputs from u0), n "
+                "+ (hold channels), or n + r (one per actuator; entries of zero channels are "
+                "ignored)"),
+      Key::matrix("P0").optional("zeros").help(
+          "its covariance, of the same sizes as xhat0 (size n: the held inputs get covariance "
+          "0)"),
+      Key::choice("mode_prior", {"uniform", "stationary"})
+          .or_default("uniform")
+          .help("p(theta[-1] = j | Y0): 1/s each (the paper), or the chain's stationary law"),
+      Key::matrix("transition")
+          .optional("derived from the links, or the jump_linear plant's")
+          .help("the mode chain the estimator assumes, s x s: entries >= 0, rows sum to 1 "
+                "(+-1e-9)"),
+      Key::boolean("use_y0").or_default(true).help(
+          "correct with y[0] at period 0 (xhat0, P0 are the prior of period 0); false: they are "
+          "xhat(0|0), P(0|0)"),
+  };
+  return keys;
+}
+
+namespace {
+
+// The scenario must have modes, at most 6 actuators and sensors sampled every period.
+void check_mode_scenario(const sim::Table& t, const Model& model) {
   if (model.plant.modes.empty() && model.actuators.empty()) {
     t.fail_here(
         "expected a scenario with modes: [[actuator]] tables or a jump_linear plant, got neither");
@@ -123,16 +151,18 @@ ModeSetup read_mode_setup(const sim::Table& t, const Model& model) {
                               s.spec.name));
     }
   }
-  ModeSetup setup;
-  setup.model = build(model);
+}
+
+// `transition` (default: the model's chain), the stationary law and the mode prior mu0.
+void read_mode_chain(const sim::KeyReader& r, ModeSetup& setup) {
   ModeModel& mm = setup.model;
   const auto s = static_cast<Eigen::Index>(mm.modes());
-  if (t.has("transition")) {
-    Eigen::MatrixXd T = t.matrix("transition");
-    sim::require_shape(t, "transition", T, s, s);
+  if (r.has("transition")) {
+    Eigen::MatrixXd T = r.matrix("transition");
+    sim::require_shape(r.table(), "transition", T, s, s);
     for (Eigen::Index i = 0; i < s; ++i) {
       if (T.row(i).minCoeff() < 0.0 || std::abs(T.row(i).sum() - 1.0) > 1e-9) {
-        t.fail("transition",
+        r.fail("transition",
                fmt::format("expected non-negative rows summing to 1, row {} sums to {}", i,
                            T.row(i).sum()));
       }
@@ -140,12 +170,15 @@ ModeSetup read_mode_setup(const sim::Table& t, const Model& model) {
     mm.transition = std::move(T);
   }
   mm.stationary = models::stationary_law(mm.transition);
-  const std::string prior = t.choice_or("mode_prior", "uniform", {"uniform", "stationary"});
-  setup.mu0 = prior == "uniform" ? Eigen::VectorXd::Constant(s, 1.0 / static_cast<double>(s))
-                                 : mm.stationary;
+  setup.mu0 = r.string("mode_prior") == "uniform"
+                  ? Eigen::VectorXd::Constant(s, 1.0 / static_cast<double>(s))
+                  : mm.stationary;
+}
 
-  // Initial estimate: the plant part from xhat0 (default x0), the held inputs from the
-  // actuators' u0 (known); or the whole augmented vector.
+// Initial estimate: the plant part from xhat0 (default x0), the held inputs from the
+// actuators' u0 (known); or the whole augmented vector.
+void read_mode_initial(const sim::KeyReader& r, const Model& model, ModeSetup& setup) {
+  const ModeModel& mm = setup.model;
   const Eigen::Index n = mm.n, na = mm.na;
   setup.x0 = Eigen::VectorXd::Zero(na);
   setup.x0.head(n) = model.plant.x0;
@@ -156,14 +189,14 @@ ModeSetup read_mode_setup(const sim::Table& t, const Model& model) {
   setup.P0 = Eigen::MatrixXd::Zero(na, na);
   // Sizes accepted: n (the plant state), n + hold channels (the estimator's state), or
   // n + r (one entry per actuator; entries of "zero" channels are ignored).
-  const auto r = static_cast<Eigen::Index>(mm.channels);
+  const auto ch = static_cast<Eigen::Index>(mm.channels);
   std::vector<Eigen::Index> pick;  // index into the given vector for each entry of z
   auto pick_for = [&](Eigen::Index size) {
     pick.clear();
     for (Eigen::Index i = 0; i < n; ++i) pick.push_back(i);
     if (size == na) {
       for (Eigen::Index c = 0; c < na - n; ++c) pick.push_back(n + c);
-    } else if (size == n + r) {
+    } else if (size == n + ch) {
       for (const int c : mm.hold) pick.push_back(n + c);
     } else if (size != n) {
       return false;
@@ -171,20 +204,20 @@ ModeSetup read_mode_setup(const sim::Table& t, const Model& model) {
     return true;
   };
   const std::string sizes =
-      r > 0 ? fmt::format("{} (the state), {} (and the held inputs) or {} (and one per actuator)",
-                          n, na, n + r)
-            : fmt::format("{} (the state)", n);
-  if (t.has("xhat0")) {
-    const Eigen::VectorXd v = t.vector("xhat0");
+      ch > 0 ? fmt::format("{} (the state), {} (and the held inputs) or {} (and one per actuator)",
+                           n, na, n + ch)
+             : fmt::format("{} (the state)", n);
+  if (r.has("xhat0")) {
+    const Eigen::VectorXd v = r.vector("xhat0");
     if (!pick_for(v.size()))
-      t.fail("xhat0", fmt::format("expected {} entries, got {}", sizes, v.size()));
+      r.fail("xhat0", fmt::format("expected {} entries, got {}", sizes, v.size()));
     for (std::size_t a = 0; a < pick.size(); ++a)
       setup.x0(static_cast<Eigen::Index>(a)) = v(pick[a]);
   }
-  if (t.has("P0")) {
-    const Eigen::MatrixXd P = t.matrix("P0");
+  if (r.has("P0")) {
+    const Eigen::MatrixXd P = r.matrix("P0");
     if (P.rows() != P.cols() || !pick_for(P.rows())) {
-      t.fail("P0", fmt::format("expected a square matrix of size {}, got {}x{}", sizes, P.rows(),
+      r.fail("P0", fmt::format("expected a square matrix of size {}, got {}x{}", sizes, P.rows(),
                                P.cols()));
     }
     for (std::size_t a = 0; a < pick.size(); ++a) {
@@ -192,9 +225,19 @@ ModeSetup read_mode_setup(const sim::Table& t, const Model& model) {
         setup.P0(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(b)) = P(pick[a], pick[b]);
       }
     }
-    sim::require_psd(t, "P0", setup.P0);
+    sim::require_psd(r.table(), "P0", setup.P0);
   }
-  setup.use_y0 = t.boolean_or("use_y0", true);
+}
+
+}  // namespace
+
+ModeSetup read_mode_setup(const sim::KeyReader& r, const Model& model) {
+  check_mode_scenario(r.table(), model);
+  ModeSetup setup;
+  setup.model = build(model);
+  read_mode_chain(r, setup);
+  read_mode_initial(r, model, setup);
+  setup.use_y0 = r.boolean("use_y0");
   return setup;
 }
 

@@ -49,7 +49,10 @@ struct ModeSetup {
   Eigen::VectorXd mu0;  // s: p(theta[-1] = j | Y0)
   bool use_y0 = true;   // correct with y[0] at period 0 (xhat0 is the prior of period 0)
 };
-ModeSetup read_mode_setup(const sim::Table& t, const Model& model);
+// The keys of every mode estimator (imm, mode_ss; mode_io adds startup): xhat0, P0 (over the
+// augmented state), mode_prior, transition, use_y0.
+const sim::Keys& mode_keys();
+ModeSetup read_mode_setup(const sim::KeyReader& r, const Model& model);
 
 // Packets of the current period (delay 0) as a stacked measurement and a 0/1 row mask.
 class CurrentMeasurement {

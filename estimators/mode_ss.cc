@@ -102,7 +102,7 @@ class ModeSsDesign final : public EstimatorDesign {
 };
 
 std::unique_ptr<EstimatorDesign> read_mode_ss(const sim::Table& t, const Model& model) {
-  return std::make_unique<ModeSsDesign>(read_mode_setup(t, model));
+  return std::make_unique<ModeSsDesign>(read_mode_setup(sim::KeyReader(t, mode_keys()), model));
 }
 
 // The mode model of every mode (mode_model.h: A, B, W per mode and the transition matrix), a
@@ -121,7 +121,7 @@ void register_mode_ss(EstimatorRegistry& registry) {
       "mode_ss",
       "Algorithm 2 of Moayedi et al.: mode by one-step state-space likelihoods, one Kalman "
       "filter: mode_prior, transition, xhat0, P0, use_y0",
-      read_mode_ss, mode_ss_cost);
+      mode_keys(), read_mode_ss, mode_ss_cost);
 }
 
 }  // namespace ncosim::est

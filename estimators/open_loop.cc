@@ -64,8 +64,18 @@ class OpenLoopDesign final : public EstimatorDesign {
   DesignReport report_;
 };
 
+const sim::Keys& open_loop_keys() {
+  static const sim::Keys keys =
+      sim::Keys{max_delay_key().optional("none").help(
+          "when given, it also keeps the delay-extended estimate, so that mse_ext "
+          "is reported")} +
+      initial_keys();
+  return keys;
+}
+
 std::unique_ptr<EstimatorDesign> read_open_loop(const sim::Table& t, const Model& model) {
-  const int dbar = t.has("max_delay") ? read_max_delay(t, 0) : -1;
+  const auto d = sim::KeyReader(t, open_loop_keys()).opt_integer("max_delay");
+  const int dbar = d ? static_cast<int>(*d) : -1;
   InitialEstimate init = read_initial(t, model);
   return std::make_unique<OpenLoopDesign>(model, dbar, std::move(init.xhat0));
 }
@@ -83,7 +93,7 @@ void register_open_loop(EstimatorRegistry& registry) {
   registry.add("open_loop",
                "open-loop prediction, ignores every packet (the floor): max_delay (optional, for "
                "mse_ext)",
-               read_open_loop, open_loop_cost);
+               open_loop_keys(), read_open_loop, open_loop_cost);
 }
 
 }  // namespace ncosim::est

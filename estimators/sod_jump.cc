@@ -139,24 +139,96 @@ class SodJumpDesignImpl final : public SodJumpDesign {
   DesignReport report_;
 };
 
-VectorXd per_output(const sim::Table& t, std::string_view key, Eigen::Index ny) {
-  VectorXd v = t.vector(key);
+const sim::Keys& codesign_keys() {
+  using sim::Key;
+  static const sim::Keys keys{
+      Key::number("mu").min(1.0).says("mu >= 1").help(
+          "the bound on the estimation cost relative to periodic sending (required)"),
+      Key::number("epsilon")
+          .min(0.0)
+          .below(1.0)
+          .says("a step in (0, 1) (0: the default)")
+          .or_default(0.0)
+          .help("cost step (0: 0.02 relative for deterministic, 0.005 absolute for stochastic)"),
+      Key::choice("step", {"relative", "absolute"})
+          .optional("\"relative\" (deterministic), \"absolute\" (stochastic)")
+          .help("relative: J_k = J_{k-1} (1 - epsilon); absolute: J_k = J_{k-1} - epsilon"),
+      Key::vector("delta0").optional("0.01 r").help("the starting thresholds, one per output"),
+  };
+  return keys;
+}
+
+const sim::Keys& sod_jump_keys() {
+  using sim::Key;
+  static const sim::Keys keys =
+      sim::Keys{
+          Key::choice("design", {"deterministic", "stochastic"})
+              .or_default("deterministic")
+              .help("LMI (11) for every pair of patterns, or LMI (20) at the vertices of the "
+                    "probability box"),
+          Key::choice("gain", {"jump", "constant"})
+              .or_default("jump")
+              .help("2^ns gains, or one (Q_j = Q, X_j = X)"),
+          Key::number("w_rms")
+              .min(0.0)
+              .says("||w||_RMS >= 0")
+              .help("||w||_RMS of the whole disturbance vector (required)"),
+          Key::vector("v_rms")
+              .optional("sqrt of the sensors' R diagonals")
+              .help("||v_i||_RMS: 1 or total outputs values >= 0"),
+          Key::any("Cz", "matrix nz x n or \"output\"")
+              .optional("identity")
+              .help("the signal of interest z = Cz x, n columns (\"output\": the stacked "
+                    "sensors' C)"),
+          Key::vector("delta")
+              .optional("the sensors' thresholds")
+              .help("thresholds designed for: 1 or total outputs values >= 0"),
+          Key::choice("virtual_noise", {"delta2", "delta2_over_3"})
+              .or_default("delta2")
+              .help("deterministic only: sigma2_delta = delta^2 (the theorem's bound) or "
+                    "delta^2 / 3 (delta uniform)"),
+          Key::choice("assumption", {"uniform", "gaussian"})
+              .or_default("uniform")
+              .help("stochastic only: the law of the sensor noise (eqs. 29-30 or 33-34)"),
+          Key::vector("r").optional("none").help(
+              "stochastic: the uniform range r_i > 0 (or w_inf and v_inf by eq. 28); "
+              "deterministic: the co-design cost weights g_i of eq. 35 (default 1)"),
+          Key::vector("w_inf").optional("none").help("||w_j||_inf, nw values, for eq. 28"),
+          Key::vector("v_inf").optional("none").help("||v_i||_inf, total outputs, for eq. 28"),
+          Key::vector("sigma").optional("none").help(
+              "sigma_i > 0 of eq. 31 (required with assumption = \"gaussian\")"),
+          Key::choice("vertices", {"all", "lower"})
+              .or_default("all")
+              .help("stochastic only: LMI (20) at every vertex of the box (robust), or only at "
+                    "beta = beta'"),
+          Key::table("codesign")
+              .optional("none")
+              .help("parameters of ncosim codesign: mu (>= 1, required), epsilon, step, delta0"),
+      } +
+      initial_keys();
+  return keys;
+}
+
+VectorXd per_output(const sim::KeyReader& r, std::string_view key, Eigen::Index ny) {
+  VectorXd v = r.vector(key);
   if (v.size() == 1 && ny > 1) v = VectorXd::Constant(ny, v(0));
   if (v.size() != ny || !v.allFinite() || v.minCoeff() < 0.0) {
-    t.fail(key, fmt::format("expected 1 or {} non-negative values (one per output), got {}", ny,
+    r.fail(key, fmt::format("expected 1 or {} non-negative values (one per output), got {}", ny,
                             v.size()));
   }
   return v;
 }
 
-std::unique_ptr<EstimatorDesign> read_sod_jump(const sim::Table& t, const Model& model) {
+// The plant and its outputs (A, Bw, C, the sensors' rows), Cz, w_rms and v_rms; `all_sod`: every
+// sensor sends on delta.
+sod::SodSystem read_sod_system(const sim::KeyReader& r, const Model& model, bool& all_sod) {
   sod::SodSystem sys;
   MatrixXd R;
   stacked_outputs(model, sys.C, R);
   sys.A = model.plant.A;
   sys.Bw = model.plant.Bw;
   sys.sensor_rows.push_back(0);
-  bool all_sod = true;
+  all_sod = true;
   for (const auto& s : model.sensors) {
     sys.sensor_rows.push_back(sys.sensor_rows.back() + s.spec.ny());
     const bool sod = s.spec.deadband() != nullptr;
@@ -165,35 +237,99 @@ std::unique_ptr<EstimatorDesign> read_sod_jump(const sim::Table& t, const Model&
   }
   const Eigen::Index ny = sys.ny(), n = sys.A.rows();
   if (model.sensors.size() > 6) {
-    t.fail("kind", fmt::format("expected at most 6 sensors (2^ns gains and (2^ns)^2 LMIs), got {}",
+    r.fail("kind", fmt::format("expected at most 6 sensors (2^ns gains and (2^ns)^2 LMIs), got {}",
                                model.sensors.size()));
   }
-  if (t.is_string("Cz")) {
+  const sim::Table& t = r.table();
+  if (r.has("Cz") && t.is_string("Cz")) {
     t.choice_or("Cz", "output", {"output"});
     sys.Cz = sys.C;  // the signal of interest is the measured output (the paper's example 5.2)
   } else {
-    sys.Cz = t.has("Cz") ? t.matrix("Cz") : MatrixXd::Identity(n, n);
+    sys.Cz = r.has("Cz") ? r.matrix("Cz") : MatrixXd::Identity(n, n);
   }
   if (sys.Cz.cols() != n)
-    t.fail("Cz", fmt::format("expected {} columns (the state size), got {}", n, sys.Cz.cols()));
-  sys.w_rms = t.number("w_rms");
-  if (!(sys.w_rms >= 0.0) || !std::isfinite(sys.w_rms))
-    t.fail("w_rms", fmt::format("expected ||w||_RMS >= 0, got {}", sys.w_rms));
-  sys.v_rms = t.has("v_rms") ? per_output(t, "v_rms", ny) : VectorXd(R.diagonal().cwiseSqrt());
+    r.fail("Cz", fmt::format("expected {} columns (the state size), got {}", n, sys.Cz.cols()));
+  sys.w_rms = r.number("w_rms");
+  sys.v_rms = r.has("v_rms") ? per_output(r, "v_rms", ny) : VectorXd(R.diagonal().cwiseSqrt());
+  return sys;
+}
 
+// The stochastic design's keys (vertices, assumption, r | w_inf + v_inf | sigma): beta' and
+// sigma2_delta into `spec`, the ranges into `cd`.
+void read_stochastic(const sim::KeyReader& r, const Model& model, const sod::SodSystem& sys,
+                     const VectorXd& delta, sod::SodDesignSpec& spec, CodesignKeys& cd,
+                     nlohmann::json& extra) {
+  const Eigen::Index ny = sys.ny();
+  if (static_cast<Eigen::Index>(model.sensors.size()) != ny) {
+    r.fail("design",
+           "expected one output per sensor for the stochastic design (beta is per output)");
+  }
+  const std::string vert = r.string("vertices");
+  spec.vertices = vert == "all" ? sod::Vertices::kAll : sod::Vertices::kLower;
+  const std::string as = r.string("assumption");
+  cd.assumption = as == "uniform" ? sod::Assumption::kUniform : sod::Assumption::kGaussian;
+  if (cd.assumption == sod::Assumption::kUniform) {
+    if (r.has("r")) {
+      cd.r = per_output(r, "r", ny);
+    } else if (r.has("w_inf")) {  // (28)
+      const VectorXd w_inf = per_output(r, "w_inf", sys.Bw.cols());
+      const VectorXd v_inf = per_output(r, "v_inf", ny);
+      cd.r = sod::uniform_range(sys.C, sys.Bw, w_inf, v_inf);
+    } else {
+      r.fail("r",
+             "expected the uniform range r (one per output) or w_inf and v_inf to compute it by "
+             "(28)");
+    }
+  } else {
+    cd.r = per_output(r, "sigma", ny);
+  }
+  if (cd.r.minCoeff() <= 0.0)
+    r.fail(cd.assumption == sod::Assumption::kUniform ? "r" : "sigma",
+           fmt::format("expected values > 0, got {}",
+                       fmt::join(cd.r.data(), cd.r.data() + cd.r.size(), ", ")));
+  sod::CodesignSpec tmp;
+  tmp.approach = spec.approach;
+  tmp.assumption = cd.assumption;
+  tmp.r = cd.r;
+  sod::codesign_bounds(tmp, delta, spec.sigma2_delta, spec.beta_lower);
+  extra["vertices"] =
+      vert == "all" ? "all (robust over the probability box)" : "lower (beta = beta' only)";
+  extra["assumption"] = as;
+  extra[cd.assumption == sod::Assumption::kUniform ? "r" : "sigma"] =
+      std::vector<double>(cd.r.data(), cd.r.data() + ny);
+  extra["beta_lower"] = std::vector<double>(spec.beta_lower.data(), spec.beta_lower.data() + ny);
+}
+
+// [codesign]: the parameters of `ncosim codesign`.
+void read_codesign(const sim::KeyReader& r, const sod::SodDesignSpec& spec, Eigen::Index ny,
+                   CodesignKeys& cd) {
+  const auto table = r.opt_table("codesign");
+  if (!table) return;
+  const sim::KeyReader c(*table, codesign_keys());
+  cd.mu = c.number("mu");
+  cd.epsilon = c.number("epsilon");
+  const char* step = spec.approach == sod::Approach::kDeterministic ? "relative" : "absolute";
+  cd.relative = c.opt_string("step").value_or(step) == "relative";
+  if (c.has("delta0")) cd.delta0 = per_output(c, "delta0", ny);
+  table->finish();
+}
+
+std::unique_ptr<EstimatorDesign> read_sod_jump(const sim::Table& t, const Model& model) {
+  const sim::KeyReader r(t, sod_jump_keys());
+  bool all_sod = true;
+  sod::SodSystem sys = read_sod_system(r, model, all_sod);
+  const Eigen::Index ny = sys.ny();
   sod::SodDesignSpec spec;
-  const std::string approach =
-      t.choice_or("design", "deterministic", {"deterministic", "stochastic"});
+  const std::string approach = r.string("design");
   spec.approach =
       approach == "deterministic" ? sod::Approach::kDeterministic : sod::Approach::kStochastic;
-  spec.jump = t.choice_or("gain", "jump", {"jump", "constant"}) == "jump";
+  spec.jump = r.string("gain") == "jump";
   if (!spec.jump && !all_sod) {
-    t.fail("gain",
+    r.fail("gain",
            "expected gain = \"jump\" with periodic sensors (a constant gain would use their stale "
-           "held "
-           "values), got \"constant\"");
+           "held values), got \"constant\"");
   }
-  VectorXd delta = t.has("delta") ? per_output(t, "delta", ny) : stacked_delta(model);
+  VectorXd delta = r.has("delta") ? per_output(r, "delta", ny) : stacked_delta(model);
 
   CodesignKeys cd;
   nlohmann::json extra;
@@ -201,70 +337,19 @@ std::unique_ptr<EstimatorDesign> read_sod_jump(const sim::Table& t, const Model&
   extra["gain"] = spec.jump ? "jump" : "constant";
   extra["delta"] = std::vector<double>(delta.data(), delta.data() + delta.size());
   if (spec.approach == sod::Approach::kDeterministic) {
-    const std::string vn = t.choice_or("virtual_noise", "delta2", {"delta2", "delta2_over_3"});
+    const std::string vn = r.string("virtual_noise");
     cd.sigma2_factor = vn == "delta2" ? 1.0 : 1.0 / 3.0;
     spec.sigma2_delta = cd.sigma2_factor * delta.cwiseProduct(delta);
     extra["virtual_noise"] = vn;
     // The deterministic co-design weights g_i = r_i (35) when given.
-    cd.r = t.has("r") ? per_output(t, "r", ny) : VectorXd::Ones(ny);
+    cd.r = r.has("r") ? per_output(r, "r", ny) : VectorXd::Ones(ny);
   } else {
-    if (!all_sod) t.fail("design", "expected send_on_delta sensors only for the stochastic design");
-    if (static_cast<Eigen::Index>(model.sensors.size()) != ny) {
-      t.fail("design",
-             "expected one output per sensor for the stochastic design (beta is per output)");
-    }
-    const std::string vert = t.choice_or("vertices", "all", {"all", "lower"});
-    spec.vertices = vert == "all" ? sod::Vertices::kAll : sod::Vertices::kLower;
-    const std::string as = t.choice_or("assumption", "uniform", {"uniform", "gaussian"});
-    cd.assumption = as == "uniform" ? sod::Assumption::kUniform : sod::Assumption::kGaussian;
-    if (cd.assumption == sod::Assumption::kUniform) {
-      if (t.has("r")) {
-        cd.r = per_output(t, "r", ny);
-      } else if (t.has("w_inf")) {  // (28)
-        const VectorXd w_inf = per_output(t, "w_inf", sys.Bw.cols());
-        const VectorXd v_inf = per_output(t, "v_inf", ny);
-        cd.r = sod::uniform_range(sys.C, sys.Bw, w_inf, v_inf);
-      } else {
-        t.fail("r",
-               "expected the uniform range r (one per output) or w_inf and v_inf to compute it by "
-               "(28)");
-      }
-    } else {
-      cd.r = per_output(t, "sigma", ny);
-    }
-    if (cd.r.minCoeff() <= 0.0)
-      t.fail(cd.assumption == sod::Assumption::kUniform ? "r" : "sigma",
-             fmt::format("expected values > 0, got {}",
-                         fmt::join(cd.r.data(), cd.r.data() + cd.r.size(), ", ")));
-    sod::CodesignSpec tmp;
-    tmp.approach = spec.approach;
-    tmp.assumption = cd.assumption;
-    tmp.r = cd.r;
-    sod::codesign_bounds(tmp, delta, spec.sigma2_delta, spec.beta_lower);
-    extra["vertices"] =
-        vert == "all" ? "all (robust over the probability box)" : "lower (beta = beta' only)";
-    extra["assumption"] = as;
-    extra[cd.assumption == sod::Assumption::kUniform ? "r" : "sigma"] =
-        std::vector<double>(cd.r.data(), cd.r.data() + ny);
-    extra["beta_lower"] = std::vector<double>(spec.beta_lower.data(), spec.beta_lower.data() + ny);
+    if (!all_sod) r.fail("design", "expected send_on_delta sensors only for the stochastic design");
+    read_stochastic(r, model, sys, delta, spec, cd, extra);
   }
   extra["sigma2_delta"] =
       std::vector<double>(spec.sigma2_delta.data(), spec.sigma2_delta.data() + ny);
-  if (const auto c = t.opt_table("codesign")) {
-    cd.mu = c->number("mu");
-    if (!(cd.mu >= 1.0) || !std::isfinite(cd.mu))
-      c->fail("mu", fmt::format("expected mu >= 1, got {}", cd.mu));
-    cd.epsilon = c->number_or("epsilon", 0.0);
-    if (!(cd.epsilon >= 0.0) || cd.epsilon >= 1.0)
-      c->fail("epsilon",
-              fmt::format("expected a step in (0, 1) (0: the default), got {}", cd.epsilon));
-    cd.relative =
-        c->choice_or("step",
-                     spec.approach == sod::Approach::kDeterministic ? "relative" : "absolute",
-                     {"relative", "absolute"}) == "relative";
-    if (c->has("delta0")) cd.delta0 = per_output(*c, "delta0", ny);
-    c->finish();
-  }
+  read_codesign(r, spec, ny, cd);
   InitialEstimate init = read_initial(t, model);
   return std::make_unique<SodJumpDesignImpl>(model, std::move(sys), std::move(spec), std::move(cd),
                                              std::move(init.xhat0), std::move(extra));
@@ -309,7 +394,7 @@ void register_sod_jump(EstimatorRegistry& registry) {
                "\"jump\" | \"constant\", "
                "w_rms, v_rms, virtual_noise, r | w_inf + v_inf | sigma, assumption, vertices, "
                "delta, Cz, [codesign]",
-               read_sod_jump, sod_jump_cost);
+               sod_jump_keys(), read_sod_jump, sod_jump_cost);
 }
 
 }  // namespace ncosim::est

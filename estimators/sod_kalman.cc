@@ -124,13 +124,37 @@ class SodKalmanDesign final : public EstimatorDesign {
   DesignReport report_;
 };
 
+const sim::Keys& sod_kalman_keys() {
+  using sim::Key;
+  static const sim::Keys keys =
+      sim::Keys{
+          Key::matrix("W")
+              .optional("the plant's W")
+              .help("the filter's process-noise covariance, nw x nw (PSD) or a number (x I)"),
+          Key::vector("R")
+              .optional("the sensors' R diagonals")
+              .help("the filter's noise variances: total outputs, >= 0"),
+          Key::vector("delta")
+              .optional("the sensors' thresholds (0 for periodic)")
+              .help("thresholds the filter assumes: total outputs, >= 0"),
+          Key::number("virtual_variance_factor")
+              .min(0.0)
+              .noun("a factor")
+              .or_default(1.0 / 3.0)
+              .help("virtual-noise variance / delta^2 (1/3: delta uniform in (-D, D))"),
+      } +
+      initial_keys();
+  return keys;
+}
+
 std::unique_ptr<EstimatorDesign> read_sod_kalman(const sim::Table& t, const Model& model) {
+  const sim::KeyReader r(t, sod_kalman_keys());
   SodKalmanParams p;
   p.A = model.plant.A;
   stacked_outputs(model, p.C, p.R);
   Eigen::MatrixXd W = model.plant.W;
-  if (t.has("W")) {
-    W = t.matrix("W");
+  if (r.has("W")) {
+    W = r.matrix("W");
     if (W.size() == 1 && model.plant.nw() > 1)
       W = W(0, 0) * Eigen::MatrixXd::Identity(model.plant.nw(), model.plant.nw());
     sim::require_shape(t, "W", W, model.plant.nw(), model.plant.nw());
@@ -138,27 +162,24 @@ std::unique_ptr<EstimatorDesign> read_sod_kalman(const sim::Table& t, const Mode
   }
   p.Q = model.plant.Bw * W * model.plant.Bw.transpose();
   const Eigen::Index ny = model.total_outputs();
-  if (t.has("R")) {
-    const Eigen::VectorXd r = t.vector("R");
-    if (r.size() != ny || !r.allFinite() || r.minCoeff() < 0.0) {
+  if (r.has("R")) {
+    const Eigen::VectorXd v = r.vector("R");
+    if (v.size() != ny || !v.allFinite() || v.minCoeff() < 0.0) {
       t.fail("R", fmt::format("expected {} non-negative variances (one per output, replacing the "
                               "sensors' R), got [{}]",
-                              ny, fmt::join(r.data(), r.data() + r.size(), ", ")));
+                              ny, fmt::join(v.data(), v.data() + v.size(), ", ")));
     }
-    p.R = r.asDiagonal();
+    p.R = v.asDiagonal();
   }
   Eigen::VectorXd delta = stacked_delta(model);
-  if (t.has("delta")) {
-    delta = t.vector("delta");
+  if (r.has("delta")) {
+    delta = r.vector("delta");
     if (delta.size() != ny || !delta.allFinite() || delta.minCoeff() < 0.0) {
       t.fail("delta", fmt::format("expected {} thresholds >= 0 (one per output), got [{}]", ny,
                                   fmt::join(delta.data(), delta.data() + delta.size(), ", ")));
     }
   }
-  const double factor = t.number_or("virtual_variance_factor", 1.0 / 3.0);
-  if (!(factor >= 0.0) || !std::isfinite(factor)) {
-    t.fail("virtual_variance_factor", fmt::format("expected a factor >= 0, got {}", factor));
-  }
+  const double factor = r.number("virtual_variance_factor");
   p.virtual_var = factor * delta.cwiseProduct(delta);
   p.init = read_initial(t, model);
   for (const auto& sm : model.sensors) p.send_on_delta.push_back(sm.spec.deadband() != nullptr);
@@ -181,7 +202,7 @@ void register_sod_kalman(EstimatorRegistry& registry) {
                "Kalman filter on held send-on-delta measurements with virtual noise (Suh et al. "
                "2007): W, R, "
                "delta (default: the sensors' thresholds), virtual_variance_factor (default 1/3)",
-               read_sod_kalman, sod_kalman_cost);
+               sod_kalman_keys(), read_sod_kalman, sod_kalman_cost);
 }
 
 }  // namespace ncosim::est

@@ -193,7 +193,7 @@ class StaticBufferDesign final : public EstimatorDesign {
 };
 
 std::unique_ptr<EstimatorDesign> read_static_buffer(const sim::Table& t, const Model& model) {
-  const int N = read_buffer(t);
+  const int N = read_buffer(sim::KeyReader(t, buffer_keys()));
   if (model.sensors.empty()) t.fail("kind", "static_buffer needs at least one [[sensor]]");
   for (const auto& s : model.sensors) {
     if (s.spec.every != 1) {
@@ -244,7 +244,7 @@ void register_static_buffer(EstimatorRegistry& registry) {
   registry.add(
       "static_buffer",
       "constant optimal gains over a buffer of N periods (Schenato 2008, Theorem 3): buffer",
-      read_static_buffer, static_buffer_cost);
+      buffer_keys(), read_static_buffer, static_buffer_cost);
 }
 
 }  // namespace ncosim::est

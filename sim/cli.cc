@@ -33,6 +33,7 @@
 #include "sim/record_link.h"
 #include "sim/registries.h"
 #include "sim/scenario.h"
+#include "sim/schema.h"
 #include "sim/table_view.h"
 
 #if NCOSIM_HAVE_SUMO
@@ -343,6 +344,8 @@ struct CommandLine {
            *channel = nullptr, *fit = nullptr;
   FitArgs fit_args;
   CLI::App* record_link = nullptr;  // sim/record_link.h
+  CLI::App* schema = nullptr;       // sim/schema.h
+  std::string schema_out;
   std::string record_link_name;
 
   // FILE, --set, --out (when `with_out`) and the resource limits of a command that reads a
@@ -490,6 +493,9 @@ struct CommandLine {
         ->expected(0, 1);
     list->add_option("--format", keys_format, "text (default) or md (a Markdown table)")
         ->check(CLI::IsMember({"text", "md"}));
+    schema = app.add_subcommand(
+        "schema", "write a JSON Schema (draft-07) of the scenario format, for TOML editors");
+    schema->add_option("--out", schema_out, "write it into this file (default: stdout)");
     add_figure_commands(app, figure_commands);
     fit = app.add_subcommand(
         "fit", "fit channel models to a packet trace (seq,delay): a [[link]] table and fit.csv");
@@ -550,6 +556,7 @@ struct CommandLine {
     if (check->parsed()) return cmd_check(a);
     if (compare->parsed()) return run_compare_command(cmp);
     if (fit->parsed()) return cmd_fit(fit_args);
+    if (schema->parsed()) return cmd_schema(schema_out);
     if (record_link->parsed()) {
       RecordLinkArgs r{a.file, a.sets, a.overrides, record_link_name, a.out, quiet};
       if (a.seed >= 0) r.overrides.seed = static_cast<std::uint64_t>(a.seed);

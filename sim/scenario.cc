@@ -12,6 +12,7 @@
 
 #include "sim/limits.h"
 #include "sim/registries.h"
+#include "sim/scenario_keys.h"
 #include "sim/scenario_sections.h"
 
 namespace ncosim::sim {
@@ -61,12 +62,12 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
   auto sc = std::make_unique<Scenario>();
   sc->file = file;
   Table root(doc, "", file);
-  sc->title = root.string_or("title", std::filesystem::path(file).stem().string());
+  sc->title = KeyReader(root, top_level_keys())
+                  .opt_string("title")
+                  .value_or(std::filesystem::path(file).stem().string());
   // Unknown top-level keys first (a misspelt [[sensor]] is reported as such, not as a missing
-  // table). Every top-level key read below must be listed here.
-  for (const char* key : {"run", "sweep", "plant", "link", "sensor", "input", "estimator",
-                          "actuator", "sumo", "paired"})
-    root.allow(key);
+  // table): the declared ones (sim/scenario_keys.h) are known.
+  for (const Key& key : top_level_keys().list()) root.allow(key.name());
   root.finish();
   // The sections, each by its reader (sim/scenario_sections.h), in an order where every reader
   // finds what it refers to.
@@ -178,7 +179,8 @@ int read_sweeps(toml::table& doc, const std::string& file, LoadedScenario& out,
   for (std::size_t a = 0; a < sweep_tables.size(); ++a) {
     const Table& t = sweep_tables[a];
     SweepAxis axis;
-    axis.key = t.string("key");
+    const KeyReader k(t, sweep_keys());
+    axis.key = k.string("key");
     const int key_line = t.line_of("key");
     if (axis.key == "sweep" || axis.key.starts_with("sweep.") || axis.key.starts_with("sweep[")) {
       t.fail("key",
@@ -187,7 +189,7 @@ int read_sweeps(toml::table& doc, const std::string& file, LoadedScenario& out,
                          axis.key));
     }
     t.allow("values");
-    const std::string zip = t.string_or("zip", "");
+    const std::string zip = k.opt_string("zip").value_or("");
     const toml::node* vals = doc.get("sweep")->as_array()->get(a)->as_table()->get("values");
     if (vals == nullptr || !vals->is_array() || vals->as_array()->empty()) {
       t.fail("values", fmt::format("expected a non-empty array of values, got {}",

@@ -12,6 +12,7 @@
 #include "lmi/lmi.h"
 #include "sim/limits.h"
 #include "sim/registries.h"
+#include "sim/scenario_keys.h"
 
 namespace ncosim::sim {
 
@@ -40,25 +41,17 @@ RunSettings read_run(const Table& root) {
   RunSettings r;
   const auto t = root.opt_table("run");
   if (!t) return r;
-  r.periods = t->integer_or("periods", r.periods);
-  if (r.periods < 1 || r.periods > 1'000'000'000) {
-    t->fail("periods",
-            fmt::format("expected an integer in 1..1000000000 (1e9), got {}", r.periods));
-  }
-  r.warmup = t->integer_or("warmup", std::min<std::int64_t>(r.warmup, r.periods / 10));
+  const KeyReader k(*t, run_keys());
+  r.periods = k.integer("periods");
+  r.warmup = k.opt_integer("warmup").value_or(std::min<std::int64_t>(r.warmup, r.periods / 10));
   if (r.warmup < 0 || r.warmup >= r.periods) {
     t->fail("warmup", fmt::format("expected an integer in 0..periods-1 ({}), got {}", r.periods - 1,
                                   r.warmup));
   }
-  r.runs = t->integer_or("runs", r.runs);
-  if (r.runs < 1 || r.runs > 10'000'000) {
-    t->fail("runs", fmt::format("expected an integer in 1..10000000 (1e7), got {}", r.runs));
-  }
-  const auto seed = t->integer_or("seed", 1);
-  if (seed < 0) t->fail("seed", fmt::format("expected a non-negative integer, got {}", seed));
-  r.seed = static_cast<std::uint64_t>(seed);
-  r.period = t->number_or("period", 1.0);
-  if (!(r.period > 0.0 && r.period <= 1e6) || seconds_to_time(r.period) <= 0) {
+  r.runs = k.integer("runs");
+  r.seed = static_cast<std::uint64_t>(k.integer("seed"));
+  r.period = k.number("period");
+  if (seconds_to_time(r.period) <= 0) {
     t->fail("period", fmt::format("expected a period in seconds in (1e-9, 1e6], got {}", r.period));
   }
   // The integer-ns clock must hold every event time (arrivals may lie beyond the horizon).
@@ -67,8 +60,8 @@ RunSettings read_run(const Table& root) {
             fmt::format("expected periods x period <= 4e9 s (the nanosecond clock), got {} x {} s",
                         r.periods, r.period));
   }
-  r.recentre = t->choice_or("recentre", "auto", {"auto", "always", "never"});
-  r.error_curve = t->boolean_or("error_curve", false);
+  r.recentre = k.string("recentre");
+  r.error_curve = k.boolean("error_curve");
   t->finish();
   return r;
 }
@@ -104,7 +97,7 @@ void read_links(const Table& root, const std::string& dir, Scenario& sc,
   };
   for (const Table& t : root.tables("link")) {
     LinkEntry e;
-    e.name = t.string("name");
+    e.name = KeyReader(t, link_common_keys()).string("name");
     if (std::any_of(sc.links.begin(), sc.links.end(),
                     [&](const LinkEntry& l) { return l.name == e.name; })) {
       t.fail("name", fmt::format("expected a unique link name, got \"{}\" twice", e.name));
@@ -194,12 +187,8 @@ std::optional<Table> read_input(const Table& root, Scenario& sc) {
   if (!input) return input;
   const auto& ik = input_registry().lookup(*input, "kind", "none");
   sc.input = ik.factory(*input, sc.model.plant);
-  const auto delay = input->integer_or("actuation_delay", 0);
-  if (delay < 0 || delay > 1000) {
-    input->fail("actuation_delay",
-                fmt::format("expected an integer in 0..1000 (periods), got {}", delay));
-  }
-  sc.input.actuation_delay = static_cast<int>(delay);
+  sc.input.actuation_delay =
+      static_cast<int>(KeyReader(*input, input_common_keys()).integer("actuation_delay"));
   if (sc.input.controller) {
     std::vector<models::SensorSpec> specs;
     for (const auto& s : sc.model.sensors) specs.push_back(s.spec);
@@ -208,25 +197,6 @@ std::optional<Table> read_input(const Table& root, Scenario& sc) {
   input->finish();
   return input;
 }
-
-namespace {
-
-// [[estimator]] expected_status (every kind): one of the row statuses of summary.csv
-// (results/README.md `### status`); "design_failed" stands for every design_<status>.
-std::string read_expected_status(const Table& t) {
-  if (!t.has("expected_status")) return "";
-  const std::string v = t.string("expected_status");
-  const auto& valid = expected_status_values();
-  if (std::find(valid.begin(), valid.end(), v) != valid.end()) return v;
-  std::string list;
-  for (const auto& s : valid) list += (list.empty() ? "" : ", ") + fmt::format("\"{}\"", s);
-  const std::string hint = did_you_mean(v, valid);
-  t.fail("expected_status",
-         fmt::format("expected one of {}, got \"{}\"{}", list, v,
-                     hint.empty() ? "" : fmt::format(" (did you mean \"{}\"?)", hint)));
-}
-
-}  // namespace
 
 void read_estimators(const Table& root, const toml::table& doc, const std::string& state_driver,
                      Scenario& sc) {
@@ -239,11 +209,13 @@ void read_estimators(const Table& root, const toml::table& doc, const std::strin
     EstimatorEntry e;
     const auto& k = estimator_registry().lookup(t, "kind", "");
     e.kind = k.name;
-    e.name = t.string_or("name", fmt::format("{} {}", e.kind, i));
+    const KeyReader common(t, estimator_common_keys());
+    e.name = common.opt_string("name").value_or(fmt::format("{} {}", e.kind, i));
     if (!est_names.insert(e.name).second) {
       t.fail("name", fmt::format("expected a unique estimator name, got \"{}\" twice", e.name));
     }
-    e.expected_status = read_expected_status(t);
+    // One of the row statuses of summary.csv (results/README.md `### status`).
+    e.expected_status = common.opt_string("expected_status").value_or("");
     const toml::table& raw = *doc.get("estimator")->as_array()->get(i)->as_table();
     check_estimator_resources(t, k.name,
                               estimator_registry().cost(k.name, t, raw, sc.model, state_driver),

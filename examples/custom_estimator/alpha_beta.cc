@@ -69,17 +69,29 @@ class AlphaBetaDesign final : public EstimatorDesign {
   ncosim::est::DesignReport report_;
 };
 
+// The keys, declared as data (config/keys.h): the reader gets its values through them, and
+// `ncosim list --keys`, the docs and `ncosim schema` show them. Defaults and ranges live here only.
+const ncosim::sim::Keys& alpha_beta_keys() {
+  using ncosim::sim::Key;
+  static const ncosim::sim::Keys keys =
+      ncosim::sim::Keys{
+          Key::number("alpha").above(0.0).max(1.0).noun("a gain").or_default(0.5).help(
+              "position gain"),
+          Key::number("beta").above(0.0).below(2.0).noun("a gain").or_default(0.1).help(
+              "velocity gain (divided by the period)"),
+      } +
+      ncosim::est::initial_keys();  // xhat0, P0 (read by read_initial)
+  return keys;
+}
+
 std::unique_ptr<EstimatorDesign> read_alpha_beta(const ncosim::sim::Table& t, const Model& model) {
   if (model.plant.n() != 2 || model.sensors.size() != 1 || model.sensors[0].spec.ny() != 1) {
     t.fail_here(fmt::format(
         "expected a 2-state plant and one sensor with one output, got {} states and {} sensors",
         model.plant.n(), model.sensors.size()));
   }
-  const double alpha = t.number_or("alpha", 0.5), beta = t.number_or("beta", 0.1);
-  if (!(alpha > 0.0 && alpha <= 1.0))
-    t.fail("alpha", fmt::format("expected a gain in (0, 1], got {}", alpha));
-  if (!(beta > 0.0 && beta < 2.0))
-    t.fail("beta", fmt::format("expected a gain in (0, 2), got {}", beta));
+  const ncosim::sim::KeyReader r(t, alpha_beta_keys());
+  const double alpha = r.number("alpha"), beta = r.number("beta");
   Gains g;
   g.A = model.plant.A;
   g.C = model.sensors[0].spec.C;
@@ -103,5 +115,5 @@ void register_alpha_beta(ncosim::est::EstimatorRegistry& registry) {
   registry.add(
       "alpha_beta",
       "alpha-beta tracker of position and velocity (example extension): alpha, beta, xhat0",
-      read_alpha_beta, alpha_beta_cost);
+      alpha_beta_keys(), read_alpha_beta, alpha_beta_cost);
 }
