@@ -494,7 +494,7 @@ std::unique_ptr<Link> TraceLink::clone() const {
   return copy;
 }
 
-void TraceLink::bind_run(const sim::MobilityRun* mobility, std::uint64_t seed, std::uint64_t run) {
+void TraceLink::bind_run(const MobilityRun* mobility, std::uint64_t seed, std::uint64_t run) {
   (void)mobility, (void)seed;
   start_ =
       segment_ > 0 ? static_cast<std::size_t>(run % (delays_.size() / segment_)) * segment_ : 0;

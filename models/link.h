@@ -16,8 +16,8 @@
 #include <utility>
 #include <vector>
 
-#include "config/mobility.h"
 #include "kernel/rng.h"
+#include "models/mobility.h"
 
 namespace ncosim::models {
 
@@ -34,7 +34,7 @@ class Link {
   // Called once per run before reset() with the run's mobility (null without [sumo]) and the
   // campaign seed and run index: a mobility-driven link reads positions at send time and
   // keys its draws by (seed, run, ...) (sumo/).
-  virtual void bind_run(const sim::MobilityRun* mobility, std::uint64_t seed, std::uint64_t run) {
+  virtual void bind_run(const MobilityRun* mobility, std::uint64_t seed, std::uint64_t run) {
     (void)mobility, (void)seed, (void)run;
   }
   // Called with the send period k before every packet (periods never decrease within a run): a
@@ -249,7 +249,7 @@ class TraceLink final : public Link {
  public:
   explicit TraceLink(std::vector<std::optional<std::int64_t>> delays, std::size_t segment = 0);
   std::unique_ptr<Link> clone() const override;
-  void bind_run(const sim::MobilityRun* mobility, std::uint64_t seed, std::uint64_t run) override;
+  void bind_run(const MobilityRun* mobility, std::uint64_t seed, std::uint64_t run) override;
   void reset(sim::Rng& rng) override;
   std::int64_t transmit(sim::Rng& rng) override;
   std::vector<double> delay_pmf(int max_delay) const override;

@@ -105,8 +105,8 @@ void announce_mobility(const toml::table& case_doc, const std::string& file,
 #endif
 }
 
-std::shared_ptr<MobilitySource> make_mobility(const Table& t, const RunSettings& run,
-                                              const std::string& dir) {
+std::shared_ptr<models::MobilitySource> make_mobility(const Table& t, const RunSettings& run,
+                                                      const std::string& dir) {
 #if NCOSIM_HAVE_SUMO
   return sumo::make_mobility(t, run, dir);
 #else

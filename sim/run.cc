@@ -322,7 +322,8 @@ class RunSimulation {
   std::vector<LinkFlow> flows_;
   FlowIndex flow_of_;
   std::vector<models::LinkCounters> link_counters_;
-  std::unique_ptr<MobilityRun> mobility_;  // before the plant and links: they hold a pointer to it
+  std::unique_ptr<models::MobilityRun>
+      mobility_;  // before the plant and links: they hold a pointer to it
   std::unique_ptr<models::PlantProcess> plant_;
   models::PlantSignals signals_;
   Eigen::VectorXd known_drive_;  // nominal Bu u(sent) + recentre, when the applied drive differs

@@ -85,11 +85,11 @@ std::vector<std::string> config_inputs(const fs::path& cfg) {
   return out;
 }
 
-class ReplayRun final : public sim::MobilityRun {
+class ReplayRun final : public models::MobilityRun {
  public:
   explicit ReplayRun(const Recording& r) : r_(r), step_ns_(r.step_ms * 1'000'000) {}
   void advance(sim::SimTime t) override { frame_ = std::min(t / step_ns_, r_.frames - 1); }
-  const sim::VehicleState& vehicle(int index) const override { return r_.at(frame_, index); }
+  const models::VehicleState& vehicle(int index) const override { return r_.at(frame_, index); }
 
  private:
   const Recording& r_;
@@ -101,8 +101,8 @@ class ReplayRun final : public sim::MobilityRun {
 // when set), else the build's module (NCOSIM_SUMO_MODULE_PATH), else libncosim_sumo_session.so
 // beside the executable. Only the live worker process (`ncosim sumo-live`) opens it.
 struct SessionApi {
-  sim::MobilityRun* (*start_live)(const SumoInputs*, std::uint64_t,
-                                  const std::vector<std::string>*);
+  models::MobilityRun* (*start_live)(const SumoInputs*, std::uint64_t,
+                                     const std::vector<std::string>*);
 };
 
 const SessionApi& session_api() {
@@ -277,7 +277,8 @@ class FcdReader {
     r.states.resize(static_cast<std::size_t>(frames) * n);
     std::unordered_map<std::string_view, std::size_t> index;
     for (std::size_t v = 0; v < n; ++v) index.emplace(vehicles[v], v);
-    std::vector<sim::VehicleState> cur(n);  // zeros before departure, the last state after arrival
+    std::vector<models::VehicleState> cur(
+        n);  // zeros before departure, the last state after arrival
     auto store = [&](std::int64_t frame) {
       if (frame < frames)
         std::copy(cur.begin(), cur.end(), r.states.begin() + frame * static_cast<std::int64_t>(n));
@@ -400,7 +401,7 @@ class FcdReader {
     return x;
   }
   void vehicle(const std::unordered_map<std::string_view, std::size_t>& index,
-               std::vector<char>& seen, std::vector<sim::VehicleState>& cur) {
+               std::vector<char>& seen, std::vector<models::VehicleState>& cur) {
     static constexpr std::array<std::string_view, 6> kNames{"id",           "x",       "y", "speed",
                                                             "acceleration", "odometer"};
     if (attrs_.size() != kNames.size())
@@ -417,7 +418,7 @@ class FcdReader {
     if (it == index.end()) fail(fmt::format("vehicle \"{}\" was not asked for", *v[0]));
     if (seen[it->second] != 0) fail(fmt::format("vehicle \"{}\" twice in one timestep", *v[0]));
     seen[it->second] = 1;
-    sim::VehicleState& s = cur[it->second];
+    models::VehicleState& s = cur[it->second];
     s.x = number(*v[1]);
     s.y = number(*v[2]);
     s.speed = number(*v[3]);
@@ -463,7 +464,7 @@ bool read_all(int fd, void* data, std::size_t n) {
   return true;
 }
 
-void put_state(std::string& buf, const sim::VehicleState& s) {
+void put_state(std::string& buf, const models::VehicleState& s) {
   buf.push_back(s.present ? '\1' : '\0');
   for (double x : {s.x, s.y, s.pos, s.speed, s.accel})
     buf.append(reinterpret_cast<const char*>(&x), sizeof x);
@@ -480,7 +481,7 @@ bool send_error(int fd, const std::string& msg) {
 std::atomic<int> g_live_counter{0};
 
 // One live run: `ncosim sumo-live` steps libsumo; this process only reads the states.
-class WorkerRun final : public sim::MobilityRun {
+class WorkerRun final : public models::MobilityRun {
  public:
   WorkerRun(const SumoInputs& in, std::uint64_t seed, const std::vector<std::string>& vehicles)
       : seed_(seed), step_ns_(in.step_ms * 1'000'000), states_(vehicles.size()) {
@@ -528,7 +529,7 @@ class WorkerRun final : public sim::MobilityRun {
     receive();
     frame_ = target;
   }
-  const sim::VehicleState& vehicle(int index) const override {
+  const models::VehicleState& vehicle(int index) const override {
     return states_[static_cast<std::size_t>(index)];
   }
 
@@ -584,7 +585,7 @@ class WorkerRun final : public sim::MobilityRun {
 
   std::uint64_t seed_;
   std::int64_t step_ns_;
-  std::vector<sim::VehicleState> states_;
+  std::vector<models::VehicleState> states_;
   int fd_ = -1;
   pid_t pid_ = -1;
   std::string log_;
@@ -633,8 +634,8 @@ Recording record(const SumoInputs& in, std::uint64_t seed, std::int64_t frames,
   return finish_sumo(p, in, frames, vehicles);
 }
 
-std::unique_ptr<sim::MobilityRun> start_live(const SumoInputs& in, std::uint64_t seed,
-                                             const std::vector<std::string>& vehicles) {
+std::unique_ptr<models::MobilityRun> start_live(const SumoInputs& in, std::uint64_t seed,
+                                                const std::vector<std::string>& vehicles) {
   return std::make_unique<WorkerRun>(in, seed, vehicles);
 }
 
@@ -998,7 +999,7 @@ void Mobility::prepare() {
                            reused_, cache_dir_);
 }
 
-std::unique_ptr<sim::MobilityRun> Mobility::start(std::uint64_t run) const {
+std::unique_ptr<models::MobilityRun> Mobility::start(std::uint64_t run) const {
   const auto s = static_cast<std::size_t>(run % static_cast<std::uint64_t>(seeds_));
   if (live_) return start_live(inputs_, first_seed_ + s, vehicles_);
   return std::make_unique<ReplayRun>(recordings_[s]);
@@ -1007,7 +1008,7 @@ std::unique_ptr<sim::MobilityRun> Mobility::start(std::uint64_t run) const {
 int live_worker_main(const std::vector<std::string>& args) {
   constexpr int fd = 3;  // the socket to the main process
   std::int64_t step_ns = 0;
-  std::unique_ptr<sim::MobilityRun> run;
+  std::unique_ptr<models::MobilityRun> run;
   std::size_t n = 0;
   try {
     SumoInputs in;

@@ -20,8 +20,8 @@
 #include <vector>
 
 #include "config/config.h"
-#include "config/mobility.h"
 #include "config/run_settings.h"
+#include "models/mobility.h"
 
 namespace ncosim::sumo {
 
@@ -38,8 +38,8 @@ struct Recording {
   std::int64_t step_ms = 0;
   std::int64_t frames = 0;
   std::vector<std::string> vehicles;
-  std::vector<sim::VehicleState> states;  // frame-major
-  const sim::VehicleState& at(std::int64_t frame, int v) const {
+  std::vector<models::VehicleState> states;  // frame-major
+  const models::VehicleState& at(std::int64_t frame, int v) const {
     return states[static_cast<std::size_t>(frame * static_cast<std::int64_t>(vehicles.size()) + v)];
   }
 };
@@ -81,15 +81,15 @@ std::string sumo_binary();
 
 // libsumo stepped live for one run in a worker process (`ncosim sumo-live`, the executable set
 // by set_worker_executable; throws std::runtime_error without one).
-std::unique_ptr<sim::MobilityRun> start_live(const SumoInputs& in, std::uint64_t seed,
-                                             const std::vector<std::string>& vehicles);
+std::unique_ptr<models::MobilityRun> start_live(const SumoInputs& in, std::uint64_t seed,
+                                                const std::vector<std::string>& vehicles);
 
-class Mobility final : public sim::MobilitySource {
+class Mobility final : public models::MobilitySource {
  public:
   Mobility(const sim::Table& t, const sim::RunSettings& run, const std::string& dir);
   int vehicle(const sim::Table& t, std::string_view key) override;
   void prepare() override;
-  std::unique_ptr<sim::MobilityRun> start(std::uint64_t run) const override;
+  std::unique_ptr<models::MobilityRun> start(std::uint64_t run) const override;
   bool single_threaded() const override { return live_; }
 
   const std::vector<Recording>& recordings() const { return recordings_; }

@@ -5,9 +5,9 @@
 #include <string>
 #include <vector>
 
-#include "config/mobility.h"
 #include "config/run_settings.h"
 #include "models/link_factory.h"
+#include "models/mobility.h"
 #include "models/plant.h"
 
 namespace ncosim::sumo {
@@ -16,8 +16,9 @@ namespace ncosim::sumo {
 void register_links(models::LinkRegistry& registry);
 void register_plants(models::PlantRegistry& registry);
 // The [sumo] table read (files checked); recording happens in MobilitySource::prepare().
-std::shared_ptr<sim::MobilitySource> make_mobility(const sim::Table& t, const sim::RunSettings& run,
-                                                   const std::string& dir);
+std::shared_ptr<models::MobilitySource> make_mobility(const sim::Table& t,
+                                                      const sim::RunSettings& run,
+                                                      const std::string& dir);
 // Before the cases of a scenario are built: the vehicles that case document `doc` will read
 // (the sumo_vehicle plant's vehicle, every sumo_distance link's sender and receiver) are noted
 // under its traffic key, so that the first case's prepare() records them all in one SUMO run per

@@ -36,7 +36,8 @@ class DistanceLink final : public models::Link {
   }
   LossModel loss_model() const override { return LossModel::kPosition; }
 
-  void bind_run(const sim::MobilityRun* mobility, std::uint64_t seed, std::uint64_t run) override {
+  void bind_run(const models::MobilityRun* mobility, std::uint64_t seed,
+                std::uint64_t run) override {
     run_ = mobility;
     key_ = stream_key(seed, run, sender_hash_, receiver_hash_);
     seq_ = 0;
@@ -79,7 +80,7 @@ class DistanceLink final : public models::Link {
   }
 
  private:
-  double distance(const sim::VehicleState& s, const sim::VehicleState* r) const {
+  double distance(const models::VehicleState& s, const models::VehicleState* r) const {
     if (!s.present || (r != nullptr && !r->present)) return -1.0;
     return r != nullptr ? std::hypot(s.x - r->x, s.y - r->y) : std::hypot(s.x - rx_, s.y - ry_);
   }
@@ -103,7 +104,7 @@ class DistanceLink final : public models::Link {
   Channel channel_;
   double period_;
   std::uint64_t sender_hash_, receiver_hash_;
-  const sim::MobilityRun* run_ = nullptr;
+  const models::MobilityRun* run_ = nullptr;
   std::uint64_t key_ = 0, seq_ = 0;
 };
 
@@ -185,8 +186,9 @@ void register_plants(models::PlantRegistry& registry) {
       read_sumo_vehicle);
 }
 
-std::shared_ptr<sim::MobilitySource> make_mobility(const sim::Table& t, const sim::RunSettings& run,
-                                                   const std::string& dir) {
+std::shared_ptr<models::MobilitySource> make_mobility(const sim::Table& t,
+                                                      const sim::RunSettings& run,
+                                                      const std::string& dir) {
   return std::make_shared<Mobility>(t, run, dir);
 }
 
