@@ -99,6 +99,7 @@ bool have_sumo() { return NCOSIM_HAVE_SUMO != 0; }
 void announce_mobility(const toml::table& case_doc, const std::string& file,
                        const std::string& dir) {
 #if NCOSIM_HAVE_SUMO
+  (void)all_registries();  // the kinds declare their vehicle keys when they register
   sumo::announce_vehicles(case_doc, file, dir);
 #else
   (void)case_doc, (void)file, (void)dir;

@@ -11,7 +11,7 @@
 #include <stdexcept>
 #include <unordered_map>
 
-#include "sumo/mobility.h"
+#include "sumo/traffic.h"
 
 namespace ncosim::sumo {
 

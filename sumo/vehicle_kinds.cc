@@ -1,4 +1,5 @@
-// sumo/kinds.cc — the `sumo_distance` link and the `sumo_vehicle` plant.
+// sumo/vehicle_kinds.cc — the kinds driven by the SUMO vehicles: the `sumo_distance` link and the
+// `sumo_vehicle` plant.
 #include <fmt/format.h>
 
 #include <cmath>
@@ -7,8 +8,8 @@
 #include "kernel/time.h"
 #include "models/plant_process.h"
 #include "sumo/channel.h"
-#include "sumo/mobility.h"
 #include "sumo/sumo.h"
+#include "sumo/traffic.h"
 
 namespace ncosim::sumo {
 
@@ -16,7 +17,9 @@ namespace {
 
 // Reception from the distance between two vehicles (or a vehicle and a fixed receiver) at
 // send time; each packet's draws come from (seed, run, sender, receiver, sequence number).
-class DistanceLink final : public models::Link {
+class DistanceLink final : public models::Link,
+                           public models::LinkReporting,
+                           public models::RunBinding {
  public:
   DistanceLink(std::shared_ptr<const Mobility> mobility, int sender, int receiver, double rx,
                double ry, Channel channel, double period, std::uint64_t sender_hash,
@@ -34,7 +37,14 @@ class DistanceLink final : public models::Link {
   std::unique_ptr<models::Link> clone() const override {
     return std::make_unique<DistanceLink>(*this);
   }
+  const models::LinkReporting* reporting() const override { return this; }
+  models::RunBinding* run_binding() override { return this; }
   LossModel loss_model() const override { return LossModel::kPosition; }
+  // Position-driven losses come in bursts no model fixes.
+  std::optional<double> mean_loss_burst(std::optional<int> gap) const override {
+    (void)gap;
+    return std::nullopt;
+  }
 
   void bind_run(const models::MobilityRun* mobility, std::uint64_t seed,
                 std::uint64_t run) override {
@@ -175,6 +185,8 @@ void register_links(models::LinkRegistry& registry) {
                "preset, tx_power, threshold, fading, sigma, m, m_bounds, mac, rate, size, aifsn, "
                "cw, backoff, t1, t2",
                read_sumo_distance);
+  // The vehicles it reads, announced before the cases are built (announce_vehicles).
+  declare_vehicle_keys(VehicleTable::kLink, "sumo_distance", {"sender", "receiver"});
 }
 
 void register_plants(models::PlantRegistry& registry) {
@@ -184,6 +196,7 @@ void register_plants(models::PlantRegistry& registry) {
       "design "
       "model: model = constant_velocity | constant_acceleration, q (intensity), vehicle, x0",
       read_sumo_vehicle);
+  declare_vehicle_keys(VehicleTable::kPlant, "sumo_vehicle", {"vehicle"});
 }
 
 std::shared_ptr<models::MobilitySource> make_mobility(const sim::Table& t,

@@ -21,8 +21,8 @@
 
 #include "sim/campaign.h"
 #include "sumo/channel.h"
-#include "sumo/mobility.h"
 #include "sumo/sumo_fixture.h"
+#include "sumo/traffic.h"
 #include "test_util.h"
 
 namespace ncosim::sumo {
