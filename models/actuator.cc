@@ -47,7 +47,7 @@ int ActuatorStage::actuate(const Eigen::VectorXd& sent) {
     bool delivered = true;
     if (c.link != nullptr) {
       c.link->advance(period_, c.rng);
-      const int state = c.link->state();
+      const int state = state_of(*c.link);
       const std::int64_t delay = c.link->transmit(c.rng);
       counters_[static_cast<std::size_t>(i)].record(delay, state);
       delivered = delay == 0;  // late = lost

@@ -16,13 +16,57 @@
 #include <utility>
 #include <vector>
 
-#include "config/mobility.h"
 #include "kernel/rng.h"
+#include "models/mobility.h"
 
 namespace ncosim::models {
 
 inline constexpr std::int64_t kLost = -1;
 
+// What links.csv and summary.csv's model_check report of a link (optional: a link without it
+// reports no state, and its losses are taken as kCorrelated, see the *_of functions below).
+class LinkReporting {
+ public:
+  virtual ~LinkReporting() = default;
+  // How this link's losses compare with the model of every design (each packet's fate drawn
+  // afresh from one delay law), for summary.csv's model_check note: kIndependent, the model
+  // itself; kCorrelated, bursty or recorded losses of which a design uses only the marginal law
+  // (the answer for a link without this interface, so that a new kind is never taken for the
+  // model unless it says so); kPosition, losses driven by the vehicles' positions (SUMO), which
+  // come in bursts.
+  enum class LossModel { kIndependent, kCorrelated, kPosition };
+  virtual LossModel loss_model() const = 0;
+  // Mean length of a run of consecutive lost packets of one sender whose consecutive packets
+  // are `gap` channel steps apart, where the model fixes it (nullopt: it does not, e.g. a
+  // mobility-driven link, or a link with memory whose packets of this sender meet the channel
+  // at irregular steps: gap = nullopt). 1 / (1 - loss_probability()) for independent losses.
+  virtual std::optional<double> mean_loss_burst(std::optional<int> gap) const = 0;
+  // What moves the channel's state, for links.csv (its `step` column and the packet gap of
+  // mean_loss_burst): kPacket, one transition per packet sent; kPeriod, one per control period
+  // (Link::advance()); kNone (the default), no chain state to report, counted like kPacket (one
+  // step per packet of a sole sender): memoryless links, a replayed trace (one record per
+  // packet), position-driven links. A link whose state moves with time must say kPeriod.
+  enum class StateStep { kNone, kPacket, kPeriod };
+  virtual StateStep state_step() const { return StateStep::kNone; }
+  // The channel state the next packet meets (Markov kinds; -1: the link has no state) and the
+  // stationary law of that state (empty without states): links.csv's state occupancy.
+  virtual int state() const { return -1; }
+  virtual std::vector<double> state_law() const { return {}; }
+};
+
+// A link bound to each run (optional): called once per run before Link::reset() with the run's
+// mobility (null without [sumo]) and the campaign seed and run index: a mobility-driven link
+// reads positions at send time and keys its draws by (seed, run, ...) (sumo/); a segmented trace
+// picks the run's segment.
+class RunBinding {
+ public:
+  virtual ~RunBinding() = default;
+  virtual void bind_run(const MobilityRun* mobility, std::uint64_t seed, std::uint64_t run) = 0;
+};
+
+// What every link answers: the fate of each packet (what the kernel needs) and its law (what an
+// offline design assumes). The optional interfaces above are reached through reporting() and
+// run_binding() (nullptr: the link has none).
 class Link {
  public:
   virtual ~Link() = default;
@@ -31,12 +75,6 @@ class Link {
   // Called once before period 0 of every run: a Markov link draws its initial state
   // from its stationary law here; a trace link rewinds.
   virtual void reset(sim::Rng& rng) { (void)rng; }
-  // Called once per run before reset() with the run's mobility (null without [sumo]) and the
-  // campaign seed and run index: a mobility-driven link reads positions at send time and
-  // keys its draws by (seed, run, ...) (sumo/).
-  virtual void bind_run(const sim::MobilityRun* mobility, std::uint64_t seed, std::uint64_t run) {
-    (void)mobility, (void)seed, (void)run;
-  }
   // Called with the send period k before every packet (periods never decrease within a run): a
   // time-driven link (Markov kinds with step = "period") moves its channel state to period k
   // here, one transition per period, so the state a packet meets depends on when it is sent.
@@ -65,16 +103,6 @@ class Link {
   // whose states deliver on time with probability 0 or 1; otherwise the one-step Markov fit
   // of the stationary pair law. Default: independent packets, P(on time) = delay_pmf(0)[0].
   virtual Eigen::Matrix2d on_time_chain() const;
-  // The channel state the next packet meets (Markov kinds; -1: the link has no state) and the
-  // stationary law of that state (empty without states): links.csv's state occupancy.
-  virtual int state() const { return -1; }
-  virtual std::vector<double> state_law() const { return {}; }
-  // Mean length of a run of consecutive lost packets of one sender whose consecutive packets
-  // are `gap` channel steps apart, where the model fixes it (nullopt: it does not, e.g. a
-  // mobility-driven link, or a link with memory whose packets of this sender meet the channel
-  // at irregular steps: gap = nullopt). Default: 1 / (1 - loss_probability()) for a link whose
-  // loss_model() is kIndependent (any gap), nullopt otherwise.
-  virtual std::optional<double> mean_loss_burst(std::optional<int> gap) const;
   // The most packets one run may send over this link, when bounded (a replayed trace holds a
   // fixed number): the scenario reader refuses, before t = 0, sensors or actuators that would
   // send more, naming the table key `key` and calling the link a `noun` ("trace"). nullopt:
@@ -85,30 +113,38 @@ class Link {
     std::string_view noun;
   };
   virtual std::optional<PacketBound> packet_bound() const { return std::nullopt; }
-  // How this link's losses compare with the model of every design (each packet's fate drawn
-  // afresh from one delay law), for summary.csv's model_check note: kIndependent, the model
-  // itself; kCorrelated, bursty or recorded losses of which a design uses only the marginal law
-  // (the default, so that a new kind is never taken for the model unless it says so);
-  // kPosition, losses driven by the vehicles' positions (SUMO), which come in bursts.
-  enum class LossModel { kIndependent, kCorrelated, kPosition };
-  virtual LossModel loss_model() const { return LossModel::kCorrelated; }
-  // What moves the channel's state, for links.csv (its `step` column and the packet gap of
-  // mean_loss_burst): kPacket, one transition per packet sent; kPeriod, one per control period
-  // (advance()); kNone (the default), no chain state to report, counted like kPacket (one step
-  // per packet of a sole sender): memoryless links, a replayed trace (one record per packet),
-  // position-driven links. A link whose state moves with time must say kPeriod.
-  enum class StateStep { kNone, kPacket, kPeriod };
-  virtual StateStep state_step() const { return StateStep::kNone; }
+  // The optional interfaces this link implements (nullptr: none).
+  virtual const LinkReporting* reporting() const { return nullptr; }
+  virtual RunBinding* run_binding() { return nullptr; }
 };
+
+// The reporting answers of any link: its LinkReporting's, or for a link without one, kCorrelated,
+// kNone, no state (-1), no state law and no mean loss burst (nullopt).
+LinkReporting::LossModel loss_model_of(const Link& link);
+LinkReporting::StateStep state_step_of(const Link& link);
+int state_of(const Link& link);
+std::vector<double> state_law_of(const Link& link);
+std::optional<double> mean_loss_burst_of(const Link& link, std::optional<int> gap);
+// Binds `link` to a run when it implements RunBinding; nothing otherwise.
+void bind_run(Link& link, const MobilityRun* mobility, std::uint64_t seed, std::uint64_t run);
 
 // 1 / (1 - p): the mean length of a run of losses of independent packets lost with probability p
 // (nullopt when p = 1: the run never ends).
 std::optional<double> independent_loss_burst(double p);
 
+// A memoryless link: each packet's fate drawn afresh from one law (the model of every design:
+// loss_model() is kIndependent, mean_loss_burst() 1 / (1 - loss_probability()) for any gap).
+class MemorylessLink : public Link, public LinkReporting {
+ public:
+  const LinkReporting* reporting() const override { return this; }
+  LossModel loss_model() const override { return LossModel::kIndependent; }
+  std::optional<double> mean_loss_burst(std::optional<int> gap) const override;
+};
+
 // Each packet: delay d with probability pmf[d] (d = 0..size-1); lost otherwise.
 // With independent = true, every d is an independent copy delivered with probability
 // pmf[d] (the design model of Dolz Remark 2.3), so a packet may arrive 0..size times.
-class DelayPmfLink final : public Link {
+class DelayPmfLink final : public MemorylessLink {
  public:
   explicit DelayPmfLink(std::vector<double> pmf, bool independent = false);
   std::unique_ptr<Link> clone() const override;
@@ -117,7 +153,6 @@ class DelayPmfLink final : public Link {
   bool independent_copies() const override { return independent_; }
   std::vector<double> delay_pmf(int max_delay) const override;
   double loss_probability() const override;
-  LossModel loss_model() const override { return LossModel::kIndependent; }
 
  private:
   std::vector<double> pmf_;
@@ -126,14 +161,13 @@ class DelayPmfLink final : public Link {
 };
 
 // Lost with probability `loss`, else delivered after `delay` periods.
-class BernoulliLink final : public Link {
+class BernoulliLink final : public MemorylessLink {
  public:
   BernoulliLink(double loss, std::int64_t delay);
   std::unique_ptr<Link> clone() const override;
   std::int64_t transmit(sim::Rng& rng) override;
   std::vector<double> delay_pmf(int max_delay) const override;
   double loss_probability() const override { return loss_; }
-  LossModel loss_model() const override { return LossModel::kIndependent; }
 
  private:
   double loss_;
@@ -143,14 +177,13 @@ class BernoulliLink final : public Link {
 // Lost with probability `loss`; else the delay is negative-binomial: the number of
 // failures before the `successes`-th success of trials that succeed with probability p,
 // P[d] = C(d + r - 1, d) p^r (1 - p)^d (Dolz example 2: p = 0.5, r = 3).
-class NegativeBinomialLink final : public Link {
+class NegativeBinomialLink final : public MemorylessLink {
  public:
   NegativeBinomialLink(int successes, double p, double loss);
   std::unique_ptr<Link> clone() const override;
   std::int64_t transmit(sim::Rng& rng) override;
   std::vector<double> delay_pmf(int max_delay) const override;
   double loss_probability() const override { return loss_; }
-  LossModel loss_model() const override { return LossModel::kIndependent; }
 
  private:
   int successes_;
@@ -160,14 +193,13 @@ class NegativeBinomialLink final : public Link {
 
 // Schenato (2008): lambda_h = P[delay <= h] = cdf[h] for h < cdf.size(), and `tail` for
 // every h >= cdf.size(); the packet is lost with probability 1 - tail.
-class ArrivalCdfLink final : public Link {
+class ArrivalCdfLink final : public MemorylessLink {
  public:
   ArrivalCdfLink(std::vector<double> cdf, double tail);
   std::unique_ptr<Link> clone() const override;
   std::int64_t transmit(sim::Rng& rng) override;
   std::vector<double> delay_pmf(int max_delay) const override;
   double loss_probability() const override { return 1.0 - tail_; }
-  LossModel loss_model() const override { return LossModel::kIndependent; }
 
  private:
   std::vector<double> cdf_;  // non-decreasing, cdf_.back() <= tail_
@@ -182,13 +214,16 @@ class ArrivalCdfLink final : public Link {
 // period both give the same draws in the same order, hence the same results. s_0 is drawn from
 // `initial`, or from the stationary law when `initial` is empty.
 // Gilbert–Elliott is the two-state case (make_gilbert_elliott).
-class MarkovLink final : public Link {
+class MarkovLink final : public Link, public LinkReporting {
  public:
   using Step = StateStep;  // kPacket or kPeriod
   MarkovLink(Eigen::MatrixXd transition, std::vector<double> loss,
              std::vector<std::vector<double>> delay_pmf = {}, std::vector<double> initial = {},
              Step step = Step::kPacket);
   void advance(std::int64_t period, sim::Rng& rng) override;
+  const LinkReporting* reporting() const override { return this; }
+  // Bursty losses of which a design uses only the marginal law.
+  LossModel loss_model() const override { return LossModel::kCorrelated; }
   StateStep state_step() const override { return step_; }
   std::unique_ptr<Link> clone() const override;
   void reset(sim::Rng& rng) override;
@@ -245,11 +280,15 @@ GilbertElliottByMean gilbert_elliott_by_mean(double mean_loss, double mean_burst
 // writes: run r's packets in rows r S .. r S + S - 1). Sending more packets than the trace
 // (or a segment) holds is a programmer error: the scenario reader checks the length before
 // the run.
-class TraceLink final : public Link {
+class TraceLink final : public Link, public LinkReporting, public RunBinding {
  public:
   explicit TraceLink(std::vector<std::optional<std::int64_t>> delays, std::size_t segment = 0);
   std::unique_ptr<Link> clone() const override;
-  void bind_run(const sim::MobilityRun* mobility, std::uint64_t seed, std::uint64_t run) override;
+  const LinkReporting* reporting() const override { return this; }
+  RunBinding* run_binding() override { return this; }
+  // Recorded losses: a design uses only their marginal law.
+  LossModel loss_model() const override { return LossModel::kCorrelated; }
+  void bind_run(const MobilityRun* mobility, std::uint64_t seed, std::uint64_t run) override;
   void reset(sim::Rng& rng) override;
   std::int64_t transmit(sim::Rng& rng) override;
   std::vector<double> delay_pmf(int max_delay) const override;

@@ -5,16 +5,16 @@
 #include <memory>
 #include <string>
 
-#include "config/mobility.h"
 #include "config/registry.h"
 #include "models/link.h"
+#include "models/mobility.h"
 
 namespace ncosim::models {
 
 struct LinkContext {
-  std::string scenario_dir;                       // relative trace paths are resolved from here
-  double period = 1.0;                            // the control period (s)
-  std::shared_ptr<sim::MobilitySource> mobility;  // the [sumo] mobility, null without it
+  std::string scenario_dir;                  // relative trace paths are resolved from here
+  double period = 1.0;                       // the control period (s)
+  std::shared_ptr<MobilitySource> mobility;  // the [sumo] mobility, null without it
   // Called by the trace kind with its largest delay, the trace's file and the line of the first
   // row holding it, and `named_by` ("FILE:LINE: key 'link[0].file'"); throws when the runs
   // cannot hold it (the scenario reader checks it against the resource limits, sim/limits.h).

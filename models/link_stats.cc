@@ -49,8 +49,8 @@ LinkNominal nominal_of(const Link& link, int max_delay, std::optional<int> gap) 
   const double loss = link.loss_probability();
   if (loss >= 0.0 && loss <= 1.0) n.delivered_ratio = 1.0 - loss;
   n.delay_pmf = link.delay_pmf(std::max(0, max_delay));
-  n.states = link.state_law();
-  n.burst_mean = link.mean_loss_burst(gap);
+  n.states = state_law_of(link);
+  n.burst_mean = mean_loss_burst_of(link, gap);
   return n;
 }
 

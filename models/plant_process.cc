@@ -131,14 +131,14 @@ class VehicleProcess final : public PlantProcess {
  public:
   explicit VehicleProcess(const PlantRun& run) : mobility_(*run.mobility), vehicle_(run.vehicle) {}
   bool step(std::int64_t, const Eigen::VectorXd&, PlantSignals& s) override {
-    const sim::VehicleState& v = mobility_.vehicle(vehicle_);
+    const VehicleState& v = mobility_.vehicle(vehicle_);
     const double m[3] = {v.pos, v.speed, v.accel};
     for (Eigen::Index i = 0; i < s.x.size() && i < 3; ++i) s.x(i) = m[i];
     return true;
   }
 
  private:
-  sim::MobilityRun& mobility_;
+  MobilityRun& mobility_;
   int vehicle_;
 };
 

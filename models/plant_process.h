@@ -13,8 +13,8 @@
 #include <functional>
 #include <memory>
 
-#include "config/mobility.h"
 #include "kernel/rng.h"
+#include "models/mobility.h"
 #include "models/plant.h"
 
 namespace ncosim::models {
@@ -22,7 +22,7 @@ namespace ncosim::models {
 // What a run hands its plant process.
 struct PlantRun {
   std::uint64_t seed = 0, run = 0;           // for the plant's random streams
-  sim::MobilityRun* mobility = nullptr;      // the run's mobility ([sumo]; nullptr without)
+  MobilityRun* mobility = nullptr;           // the run's mobility ([sumo]; nullptr without)
   int vehicle = -1;                          // the plant vehicle's index in the mobility
   const Disturbance* disturbance = nullptr;  // deterministic part of w ([plant.disturbance])
   bool recentre = false;                     // simulate in re-centred coordinates

@@ -38,8 +38,8 @@
 
 #if NCOSIM_HAVE_SUMO
 #include "sumo/channel.h"
-#include "sumo/mobility.h"
 #include "sumo/sumo.h"
+#include "sumo/traffic.h"
 #endif
 
 namespace ncosim::sim {

@@ -28,8 +28,8 @@ std::vector<LinkFlow> link_flows(const Scenario& sc) {
         flows.push_back({l, true, a, spec.name, true, std::nullopt, ""});
     }
     using StateStep =
-        models::Link::StateStep;  // the link says what moves its state (models/link.h)
-    const StateStep step = sc.links[l].link->state_step();
+        models::LinkReporting::StateStep;  // the link says what moves its state (models/link.h)
+    const StateStep step = models::state_step_of(*sc.links[l].link);
     const bool per_period = step == StateStep::kPeriod;
     for (std::size_t f = first; f < flows.size(); ++f) {
       LinkFlow& flow = flows[f];

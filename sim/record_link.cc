@@ -80,11 +80,11 @@ RecordedTrace record_link(const Scenario& sc, std::size_t l, std::int64_t runs) 
   for (std::int64_t r = 0; r < runs; ++r) {
     const auto run = static_cast<std::uint64_t>(r);
     // As the campaign (sim/campaign.cc): a fresh instance, the run's mobility and link stream.
-    std::unique_ptr<MobilityRun> mobility;
+    std::unique_ptr<models::MobilityRun> mobility;
     if (sc.mobility) mobility = sc.mobility->start(run);
     auto link = sc.links[l].link->clone();
     Rng rng = make_stream(seed, run, stream_id(StreamKind::kLink, l));
-    link->bind_run(mobility.get(), seed, run);
+    models::bind_run(*link, mobility.get(), seed, run);
     link->reset(rng);
     for (std::int64_t k = 0; k < periods; ++k) {
       if (mobility) mobility->advance(k * period_ns);  // the plant event of period k comes first

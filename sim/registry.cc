@@ -99,14 +99,15 @@ bool have_sumo() { return NCOSIM_HAVE_SUMO != 0; }
 void announce_mobility(const toml::table& case_doc, const std::string& file,
                        const std::string& dir) {
 #if NCOSIM_HAVE_SUMO
+  (void)all_registries();  // the kinds declare their vehicle keys when they register
   sumo::announce_vehicles(case_doc, file, dir);
 #else
   (void)case_doc, (void)file, (void)dir;
 #endif
 }
 
-std::shared_ptr<MobilitySource> make_mobility(const Table& t, const RunSettings& run,
-                                              const std::string& dir) {
+std::shared_ptr<models::MobilitySource> make_mobility(const Table& t, const RunSettings& run,
+                                                      const std::string& dir) {
 #if NCOSIM_HAVE_SUMO
   return sumo::make_mobility(t, run, dir);
 #else

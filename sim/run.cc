@@ -122,7 +122,7 @@ class RunSimulation {
       LinkState ls;
       ls.link = sc.links[l].link->clone();
       ls.rng = make_stream(seed, run, stream_id(StreamKind::kLink, l));
-      ls.link->bind_run(mobility_.get(), seed, run);
+      models::bind_run(*ls.link, mobility_.get(), seed, run);
       ls.link->reset(ls.rng);
       links_.push_back(std::move(ls));
     }
@@ -245,7 +245,7 @@ class RunSimulation {
     }
     LinkState& ls = links_[static_cast<std::size_t>(sensor.spec().link)];
     ls.link->advance(k, ls.rng);
-    const int state = ls.link->state();
+    const int state = models::state_of(*ls.link);
     ls.link->transmit_copies(ls.rng, delays_);
     if (link_out_ != nullptr)
       link_counters_[static_cast<std::size_t>(flow_of_.sensor[s])].record(delays_, state);
@@ -322,7 +322,8 @@ class RunSimulation {
   std::vector<LinkFlow> flows_;
   FlowIndex flow_of_;
   std::vector<models::LinkCounters> link_counters_;
-  std::unique_ptr<MobilityRun> mobility_;  // before the plant and links: they hold a pointer to it
+  std::unique_ptr<models::MobilityRun>
+      mobility_;  // before the plant and links: they hold a pointer to it
   std::unique_ptr<models::PlantProcess> plant_;
   models::PlantSignals signals_;
   Eigen::VectorXd known_drive_;  // nominal Bu u(sent) + recentre, when the applied drive differs

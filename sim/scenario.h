@@ -13,12 +13,12 @@
 
 #include "config/config.h"
 #include "config/input_files.h"
-#include "config/mobility.h"
 #include "config/run_settings.h"
 #include "config/toml_path.h"
 #include "estimators/estimator.h"
 #include "models/input.h"
 #include "models/link.h"
+#include "models/mobility.h"
 #include "models/plant.h"
 #include "sim/paired.h"
 
@@ -58,7 +58,7 @@ struct Scenario {
   bool recentre = false;  // simulate in re-centred coordinates (see scenarios/README.md)
   // [sumo]: the mobility source (null without it) and the vehicle whose longitudinal motion is
   // the true plant state (-1: the plant is simulated from its model).
-  std::shared_ptr<MobilitySource> mobility;
+  std::shared_ptr<models::MobilitySource> mobility;
   int plant_vehicle = -1;
   PairedSettings paired;  // [paired]: the reference of the paired columns (sim/paired.h)
 };

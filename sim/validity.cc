@@ -49,14 +49,15 @@ std::string design_model_departure(const Scenario& sc, std::size_t e) {
     }
     if (spec.link < 0) continue;  // ideal: q[0] = 1
     const auto& l = sc.links[static_cast<std::size_t>(spec.link)];
-    using LossModel = models::Link::LossModel;  // each kind says how it departs (models/link.h)
-    if (l.link->loss_model() == LossModel::kPosition) {
+    using LossModel = models::LinkReporting::LossModel;  // each kind says how (models/link.h)
+    const LossModel loss_model = models::loss_model_of(*l.link);
+    if (loss_model == LossModel::kPosition) {
       why.push_back(
           fmt::format("SUMO {}: reception depends on the vehicles' distance, losses come in bursts",
                       link_name(sc, spec.link)));
       continue;
     }
-    if (l.link->loss_model() != LossModel::kIndependent) {
+    if (loss_model != LossModel::kIndependent) {
       why.push_back(
           fmt::format("{}: bursty or recorded losses; the design uses only the marginal law",
                       link_name(sc, spec.link)));

@@ -11,7 +11,7 @@
 #include <stdexcept>
 #include <unordered_map>
 
-#include "sumo/mobility.h"
+#include "sumo/traffic.h"
 
 namespace ncosim::sumo {
 
@@ -66,7 +66,7 @@ class Session {
           states_[static_cast<std::size_t>(it->second)].present = false;
       }
       for (const auto& [id, i] : index_) {
-        sim::VehicleState& s = states_[static_cast<std::size_t>(i)];
+        models::VehicleState& s = states_[static_cast<std::size_t>(i)];
         if (!s.present) continue;  // before departure: zeros; after arrival: the last state
         const auto p = libsumo::Vehicle::getPosition(id);
         s.x = p.x;
@@ -79,16 +79,16 @@ class Session {
       throw std::runtime_error(e.what());
     }
   }
-  const sim::VehicleState& state(int i) const { return states_[static_cast<std::size_t>(i)]; }
-  const std::vector<sim::VehicleState>& states() const { return states_; }
+  const models::VehicleState& state(int i) const { return states_[static_cast<std::size_t>(i)]; }
+  const std::vector<models::VehicleState>& states() const { return states_; }
 
  private:
   std::unordered_map<std::string, int> index_;
-  std::vector<sim::VehicleState> states_;
+  std::vector<models::VehicleState> states_;
   bool open_ = false;
 };
 
-class LiveRun final : public sim::MobilityRun {
+class LiveRun final : public models::MobilityRun {
  public:
   LiveRun(const SumoInputs& in, std::uint64_t seed, const std::vector<std::string>& vehicles)
       : session_(in, seed, vehicles), step_ns_(in.step_ms * 1'000'000) {}
@@ -99,7 +99,7 @@ class LiveRun final : public sim::MobilityRun {
       ++frame_;
     }
   }
-  const sim::VehicleState& vehicle(int index) const override { return session_.state(index); }
+  const models::VehicleState& vehicle(int index) const override { return session_.state(index); }
 
  private:
   Session session_;
@@ -114,13 +114,13 @@ class LiveRun final : public sim::MobilityRun {
 // The module's entry points (looked up by name with dlsym; C++ exceptions cross the boundary:
 // same compiler and runtime).
 extern "C" {
-ncosim::sim::MobilityRun* ncosim_sumo_start_live(const ncosim::sumo::SumoInputs* in,
-                                                 std::uint64_t seed,
-                                                 const std::vector<std::string>* vehicles);
+ncosim::models::MobilityRun* ncosim_sumo_start_live(const ncosim::sumo::SumoInputs* in,
+                                                    std::uint64_t seed,
+                                                    const std::vector<std::string>* vehicles);
 }
 
-ncosim::sim::MobilityRun* ncosim_sumo_start_live(const ncosim::sumo::SumoInputs* in,
-                                                 std::uint64_t seed,
-                                                 const std::vector<std::string>* vehicles) {
+ncosim::models::MobilityRun* ncosim_sumo_start_live(const ncosim::sumo::SumoInputs* in,
+                                                    std::uint64_t seed,
+                                                    const std::vector<std::string>* vehicles) {
   return new ncosim::sumo::LiveRun(*in, seed, *vehicles);
 }

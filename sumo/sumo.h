@@ -5,9 +5,9 @@
 #include <string>
 #include <vector>
 
-#include "config/mobility.h"
 #include "config/run_settings.h"
 #include "models/link_factory.h"
+#include "models/mobility.h"
 #include "models/plant.h"
 
 namespace ncosim::sumo {
@@ -16,13 +16,20 @@ namespace ncosim::sumo {
 void register_links(models::LinkRegistry& registry);
 void register_plants(models::PlantRegistry& registry);
 // The [sumo] table read (files checked); recording happens in MobilitySource::prepare().
-std::shared_ptr<sim::MobilitySource> make_mobility(const sim::Table& t, const sim::RunSettings& run,
-                                                   const std::string& dir);
-// Before the cases of a scenario are built: the vehicles that case document `doc` will read
-// (the sumo_vehicle plant's vehicle, every sumo_distance link's sender and receiver) are noted
-// under its traffic key, so that the first case's prepare() records them all in one SUMO run per
+std::shared_ptr<models::MobilitySource> make_mobility(const sim::Table& t,
+                                                      const sim::RunSettings& run,
+                                                      const std::string& dir);
+// A kind whose table names vehicles of the [sumo] mobility (models::MobilitySource::vehicle)
+// declares those keys when it registers, so that they are known before its table is read: the
+// [plant] kind or a [[link]] kind `kind`, naming vehicles under the table keys `keys`.
+enum class VehicleTable { kPlant, kLink };
+void declare_vehicle_keys(VehicleTable table, std::string kind, std::vector<std::string> keys);
+
+// Before the cases of a scenario are built: the vehicles that case document `doc` will read (the
+// values of the declared vehicle keys of its [plant] and [[link]] tables) are noted under its
+// traffic key, so that the first case's prepare() records them all in one SUMO run per
 // realisation and every later case (a sweep over receivers, presets, ...) reuses that recording.
-// Errors are ignored here: the case's own build reports them.
+// A bad [sumo] table (ScenarioError) is ignored here: the case's own build reports it.
 void announce_vehicles(const toml::table& doc, const std::string& file, const std::string& dir);
 
 // `ncosim channel PRESET [--csv] [--gnuplot] [--max-distance M] [--step S]`.

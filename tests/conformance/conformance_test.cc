@@ -149,7 +149,7 @@ TEST(Conformance, EveryLinkHonoursItsMarginalLaw) {
 }
 
 TEST(Conformance, EveryLinkThatClaimsTheDesignModelLosesPacketsIndependently) {
-  // A kind whose loss_model() is kIndependent is taken by summary.csv's model_check for the
+  // A kind whose loss_model_of() is kIndependent is taken by summary.csv's model_check for the
   // designs' model (sim/validity.cc): its consecutive packets must be lost independently. Over
   // n = 20000 packets the count of consecutive lost pairs must be within 4.5 sigmas of
   // (n - 1) p^2 (sigma of a sum of overlapping pair indicators: variance
@@ -179,7 +179,7 @@ TEST(Conformance, EveryLinkThatClaimsTheDesignModelLosesPacketsIndependently) {
     const double sigma =
         std::sqrt(m * p * p * (1 - p * p) + 2.0 * (m - 1.0) * (p * p * p - p * p * p * p)) + 1e-9;
     const bool independent_looking = std::abs(pairs - m * p * p) < 4.5 * sigma + 1;
-    if (proto.loss_model() == models::Link::LossModel::kIndependent) {
+    if (models::loss_model_of(proto) == models::LinkReporting::LossModel::kIndependent) {
       EXPECT_TRUE(independent_looking)
           << pairs << " consecutive losses, expected " << m * p * p << " +- " << sigma;
     } else if (!independent_looking) {

@@ -23,7 +23,7 @@ TEST(TraceLinkSegment, RunRReplaysItsOwnSegmentCyclically) {
       {0, kLost}, {1, 2}, {kLost, 3}, {0, kLost}, {1, 2}};
   for (std::uint64_t r = 0; r < by_run.size(); ++r) {
     auto run = link.clone();
-    run->bind_run(nullptr, 9, r);
+    ncosim::models::bind_run(*run, nullptr, 9, r);
     run->reset(rng);
     for (std::size_t k = 0; k < 2; ++k)
       EXPECT_EQ(run->transmit(rng), by_run[r][k]) << "run " << r << ", packet " << k;
@@ -38,7 +38,7 @@ TEST(TraceLinkSegment, RunRReplaysItsOwnSegmentCyclically) {
   // Without a segment every run replays from row 0 and the bound is the file.
   TraceLink whole({0, std::nullopt, 1});
   auto run = whole.clone();
-  run->bind_run(nullptr, 9, 4);
+  ncosim::models::bind_run(*run, nullptr, 9, 4);
   run->reset(rng);
   EXPECT_EQ(run->transmit(rng), 0);
   EXPECT_EQ(whole.packet_bound()->packets, 3);

@@ -91,9 +91,9 @@ TEST(ReadPlant, IsRequiredAndDefaultsToLti) {
 }
 
 // A mobility source with one vehicle per name, at index 3 + the order of asking.
-class FakeMobility final : public MobilitySource {
+class FakeMobility final : public models::MobilitySource {
  public:
-  std::unique_ptr<MobilityRun> start(std::uint64_t) const override { return nullptr; }
+  std::unique_ptr<models::MobilityRun> start(std::uint64_t) const override { return nullptr; }
   bool single_threaded() const override { return false; }
   int vehicle(const Table& t, std::string_view key) override {
     names.push_back(t.string(key));

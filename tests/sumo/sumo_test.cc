@@ -21,8 +21,8 @@
 
 #include "sim/campaign.h"
 #include "sumo/channel.h"
-#include "sumo/mobility.h"
 #include "sumo/sumo_fixture.h"
+#include "sumo/traffic.h"
 #include "test_util.h"
 
 namespace ncosim::sumo {
@@ -624,7 +624,8 @@ TEST(SumoDistanceLink, DeliveryPerDistanceBinMatchesPd) {
   const auto* mobility = dynamic_cast<const Mobility*>(sc->mobility.get());
   ASSERT_NE(mobility, nullptr);
   // summary.csv's model_check calls its losses position-driven, not the designs' model.
-  EXPECT_EQ(sc->links.front().link->loss_model(), models::Link::LossModel::kPosition);
+  EXPECT_EQ(models::loss_model_of(*sc->links.front().link),
+            models::LinkReporting::LossModel::kPosition);
   const Channel ch = make_preset("ns3_vanet");
   const int bins = 12;
   std::vector<double> n(bins), delivered(bins), expected(bins), var(bins);
@@ -633,7 +634,7 @@ TEST(SumoDistanceLink, DeliveryPerDistanceBinMatchesPd) {
     auto m = sc->mobility->start(run);
     auto link = sc->links.front().link->clone();
     sim::Rng rng = sim::make_stream(1, run, 0);
-    link->bind_run(m.get(), sc->run.seed, run);
+    models::bind_run(*link, m.get(), sc->run.seed, run);
     link->reset(rng);
     for (std::int64_t k = 0; k < sc->run.periods; ++k) {
       m->advance(k * period);

@@ -1,4 +1,4 @@
-// config/mobility.h — the kernel's view of an external mobility source (SUMO, see sumo/): the
+// models/mobility.h — the kernel's view of an external mobility source (SUMO, see sumo/): the
 // state of the vehicles a scenario names, advanced by the kernel's clock. Header only, so the
 // kernel builds without SUMO; the sumo/ component implements it (replay of recorded
 // trajectories, or libsumo stepped live in a worker process).
@@ -11,7 +11,7 @@
 #include "config/config.h"
 #include "kernel/time.h"
 
-namespace ncosim::sim {
+namespace ncosim::models {
 
 struct VehicleState {
   double x = 0.0, y = 0.0;  // network coordinates (m)
@@ -26,7 +26,7 @@ struct VehicleState {
 class MobilityRun {
  public:
   virtual ~MobilityRun() = default;
-  virtual void advance(SimTime t) = 0;
+  virtual void advance(sim::SimTime t) = 0;
   virtual const VehicleState& vehicle(int index) const = 0;
 };
 
@@ -38,10 +38,10 @@ class MobilitySource {
   // True when runs must not run concurrently (one libsumo simulation per process).
   virtual bool single_threaded() const = 0;
   // Scenario reading: the index of the vehicle named by t[key] (recorded from then on).
-  virtual int vehicle(const Table& t, std::string_view key) = 0;
+  virtual int vehicle(const sim::Table& t, std::string_view key) = 0;
   // Records (or reuses) every realisation once all readers have named their vehicles.
   // Throws ScenarioError (bad input, SUMO errors).
   virtual void prepare() = 0;
 };
 
-}  // namespace ncosim::sim
+}  // namespace ncosim::models

@@ -1,4 +1,5 @@
-// sumo/kinds.cc — the `sumo_distance` link and the `sumo_vehicle` plant.
+// sumo/vehicle_kinds.cc — the kinds driven by the SUMO vehicles: the `sumo_distance` link and the
+// `sumo_vehicle` plant.
 #include <fmt/format.h>
 
 #include <cmath>
@@ -8,8 +9,8 @@
 #include "kernel/time.h"
 #include "models/plant_process.h"
 #include "sumo/channel.h"
-#include "sumo/mobility.h"
 #include "sumo/sumo.h"
+#include "sumo/traffic.h"
 
 namespace ncosim::sumo {
 
@@ -17,7 +18,9 @@ namespace {
 
 // Reception from the distance between two vehicles (or a vehicle and a fixed receiver) at
 // send time; each packet's draws come from (seed, run, sender, receiver, sequence number).
-class DistanceLink final : public models::Link {
+class DistanceLink final : public models::Link,
+                           public models::LinkReporting,
+                           public models::RunBinding {
  public:
   DistanceLink(std::shared_ptr<const Mobility> mobility, int sender, int receiver, double rx,
                double ry, Channel channel, double period, std::uint64_t sender_hash,
@@ -35,9 +38,17 @@ class DistanceLink final : public models::Link {
   std::unique_ptr<models::Link> clone() const override {
     return std::make_unique<DistanceLink>(*this);
   }
+  const models::LinkReporting* reporting() const override { return this; }
+  models::RunBinding* run_binding() override { return this; }
   LossModel loss_model() const override { return LossModel::kPosition; }
+  // Position-driven losses come in bursts no model fixes.
+  std::optional<double> mean_loss_burst(std::optional<int> gap) const override {
+    (void)gap;
+    return std::nullopt;
+  }
 
-  void bind_run(const sim::MobilityRun* mobility, std::uint64_t seed, std::uint64_t run) override {
+  void bind_run(const models::MobilityRun* mobility, std::uint64_t seed,
+                std::uint64_t run) override {
     run_ = mobility;
     key_ = stream_key(seed, run, sender_hash_, receiver_hash_);
     seq_ = 0;
@@ -80,7 +91,7 @@ class DistanceLink final : public models::Link {
   }
 
  private:
-  double distance(const sim::VehicleState& s, const sim::VehicleState* r) const {
+  double distance(const models::VehicleState& s, const models::VehicleState* r) const {
     if (!s.present || (r != nullptr && !r->present)) return -1.0;
     return r != nullptr ? std::hypot(s.x - r->x, s.y - r->y) : std::hypot(s.x - rx_, s.y - ry_);
   }
@@ -104,7 +115,7 @@ class DistanceLink final : public models::Link {
   Channel channel_;
   double period_;
   std::uint64_t sender_hash_, receiver_hash_;
-  const sim::MobilityRun* run_ = nullptr;
+  const models::MobilityRun* run_ = nullptr;
   std::uint64_t key_ = 0, seq_ = 0;
 };
 
@@ -255,6 +266,8 @@ void register_links(models::LinkRegistry& registry) {
                "preset, tx_power, threshold, fading, sigma, m, m_bounds, mac, rate, size, aifsn, "
                "cw, backoff, t1, t2",
                sumo_distance_keys(), read_sumo_distance);
+  // The vehicles it reads, announced before the cases are built (announce_vehicles).
+  declare_vehicle_keys(VehicleTable::kLink, "sumo_distance", {"sender", "receiver"});
 }
 
 void register_plants(models::PlantRegistry& registry) {
@@ -264,10 +277,12 @@ void register_plants(models::PlantRegistry& registry) {
       "design "
       "model: model = constant_velocity | constant_acceleration, q (intensity), vehicle, x0",
       sumo_vehicle_keys(), read_sumo_vehicle);
+  declare_vehicle_keys(VehicleTable::kPlant, "sumo_vehicle", {"vehicle"});
 }
 
-std::shared_ptr<sim::MobilitySource> make_mobility(const sim::Table& t, const sim::RunSettings& run,
-                                                   const std::string& dir) {
+std::shared_ptr<models::MobilitySource> make_mobility(const sim::Table& t,
+                                                      const sim::RunSettings& run,
+                                                      const std::string& dir) {
   return std::make_shared<Mobility>(t, run, dir);
 }
 

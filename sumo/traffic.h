@@ -1,4 +1,4 @@
-// sumo/mobility.h — SUMO as the mobility source of a scenario ([sumo] table).
+// sumo/traffic.h — SUMO traffic as the mobility source of a scenario ([sumo] table).
 // Record and replay: every mobility realisation (SUMO seed) is simulated once by the `sumo`
 // binary itself, one process per realisation (at most one per core at a time), writing FCD
 // output (x, y, speed, acceleration, odometer at 40 decimals) for the named vehicles only; the
@@ -20,8 +20,8 @@
 #include <vector>
 
 #include "config/config.h"
-#include "config/mobility.h"
 #include "config/run_settings.h"
+#include "models/mobility.h"
 
 namespace ncosim::sumo {
 
@@ -38,8 +38,8 @@ struct Recording {
   std::int64_t step_ms = 0;
   std::int64_t frames = 0;
   std::vector<std::string> vehicles;
-  std::vector<sim::VehicleState> states;  // frame-major
-  const sim::VehicleState& at(std::int64_t frame, int v) const {
+  std::vector<models::VehicleState> states;  // frame-major
+  const models::VehicleState& at(std::int64_t frame, int v) const {
     return states[static_cast<std::size_t>(frame * static_cast<std::int64_t>(vehicles.size()) + v)];
   }
 };
@@ -68,6 +68,17 @@ Recording read_recording(const std::string& path);  // throws std::runtime_error
 Recording record(const SumoInputs& in, std::uint64_t seed, std::int64_t frames,
                  const std::vector<std::string>& vehicles);
 
+// Records realisation `seed` of the traffic into the recording file `path`.
+struct RecordingJob {
+  std::uint64_t seed;
+  std::string path;
+};
+// Runs the jobs with the `sumo` binary, one process per realisation and at most one per core at
+// a time, writing the recordings of `vehicles`; throws std::runtime_error with the first failure
+// (after waiting for every process started).
+void record_all(const SumoInputs& in, std::int64_t frames, const std::vector<std::string>& vehicles,
+                const std::vector<RecordingJob>& jobs);
+
 // Reads SUMO FCD output (the elements and attributes record() asks for, nothing else: any
 // other content is an error naming the byte offset). Frame f (state after f steps) is
 // <timestep time="(f-1)*step">; a vehicle absent from a timestep is present = false and keeps
@@ -81,15 +92,15 @@ std::string sumo_binary();
 
 // libsumo stepped live for one run in a worker process (`ncosim sumo-live`, the executable set
 // by set_worker_executable; throws std::runtime_error without one).
-std::unique_ptr<sim::MobilityRun> start_live(const SumoInputs& in, std::uint64_t seed,
-                                             const std::vector<std::string>& vehicles);
+std::unique_ptr<models::MobilityRun> start_live(const SumoInputs& in, std::uint64_t seed,
+                                                const std::vector<std::string>& vehicles);
 
-class Mobility final : public sim::MobilitySource {
+class Mobility final : public models::MobilitySource {
  public:
   Mobility(const sim::Table& t, const sim::RunSettings& run, const std::string& dir);
   int vehicle(const sim::Table& t, std::string_view key) override;
   void prepare() override;
-  std::unique_ptr<sim::MobilityRun> start(std::uint64_t run) const override;
+  std::unique_ptr<models::MobilityRun> start(std::uint64_t run) const override;
   bool single_threaded() const override { return live_; }
 
   const std::vector<Recording>& recordings() const { return recordings_; }
@@ -104,6 +115,10 @@ class Mobility final : public sim::MobilitySource {
 
  private:
   std::string key_for(std::uint64_t seed) const;
+  // Throws the ScenarioError `why` at the [sumo] table's input key.
+  [[noreturn]] void fail(const std::string& why) const;
+  // Reads job j's recording into recordings_ (this case's vehicles only) and checks it.
+  void load(const RecordingJob& j);
   std::string file_, config_key_;
   int line_ = 0;
   SumoInputs inputs_;
