@@ -15,7 +15,7 @@ foreach(t IN LISTS NCOSIM_EXPORTED)
   string(REPLACE "ncosim_" "" short ${t})
   set_target_properties(${t} PROPERTIES EXPORT_NAME ${short})
   add_library(ncosim::${short} ALIAS ${t})
-  # Headers are installed under include/ncosim, keeping the in-tree paths ("sim/scenario.h").
+  # Headers are installed under include/ncosim, keeping the in-tree paths ("sim/scenario/scenario.h").
   target_include_directories(${t} INTERFACE $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}/ncosim>)
 endforeach()
 
