@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "sim/analysis/compare.h"
+#include "sim/analysis/run_folder.h"
 
 namespace ncosim::sim {
 

@@ -5,8 +5,6 @@
 
 #include <boost/math/distributions/chi_squared.hpp>
 
-#include "sim/analysis/output.h"
-
 namespace ncosim::sim {
 
 namespace {
@@ -47,32 +45,6 @@ std::string consistency_note(const std::optional<ConsistencyStat>& nees,
   if (nees && !nees->inside()) out = side("NEES", *nees);
   if (nis && !nis->inside()) out += (out.empty() ? "" : "; ") + side("NIS", *nis);
   return out.empty() ? "ok" : out;
-}
-
-std::string consistency_notes(const std::vector<SweepAxis>& sweeps,
-                              const std::vector<SummaryRow>& rows) {
-  std::string out;
-  auto stat = [](const char* name, const std::optional<ConsistencyStat>& s) {
-    return s ? fmt::format("{} {:.4g} in [{:.4g}, {:.4g}]", name, s->mean, s->lo, s->hi)
-             : std::string();
-  };
-  for (const auto& r : rows) {
-    if (r.consistency.empty() || r.consistency == "ok") continue;
-    std::string where;
-    for (std::size_t i = 0; i < r.sweep_labels.size() && i < sweeps.size(); ++i) {
-      where += fmt::format("{} = {}, ", sweeps[i].key, r.sweep_labels[i]);
-    }
-    std::string stats = stat("NEES", r.nees);
-    if (r.nis) stats += (stats.empty() ? "" : ", ") + stat("NIS", r.nis);
-    out += fmt::format("- {}\"{}\": {} ({}).\n", where, r.estimator, r.consistency, stats);
-  }
-  if (out.empty()) return out;
-  // A 95 % test: a consistent filter falls outside its bounds one time in twenty, so the header
-  // says so rather than calling every flag a fault.
-  return "\nFilter consistency (average NEES and NIS against two-sided 95 % chi-square bounds, "
-         "which a\n"
-         "consistent filter misses 1 time in 20; summary.csv nees.. columns):\n" +
-         out;
 }
 
 }  // namespace ncosim::sim

@@ -170,21 +170,6 @@ std::vector<SummaryRow> summarise(const Scenario& sc, const CampaignResult& resu
   return rows;
 }
 
-std::string csv_field(const std::string& s) {
-  if (s.find_first_of(",\"\n\r") == std::string::npos) return s;
-  std::string out = "\"";
-  for (char c : s) {
-    if (c == '"') out += '"';
-    out += c;
-  }
-  return out + "\"";
-}
-
-std::string fmt_number(std::optional<double> v) {
-  if (!v || !std::isfinite(*v)) return "";
-  return fmt::format("{:.6g}", *v);
-}
-
 std::vector<std::string> summary_columns(const std::vector<SweepAxis>& sweeps, Eigen::Index n) {
   std::vector<std::string> cols;
   for (const auto& s : sweeps) cols.push_back(s.key);
@@ -279,13 +264,6 @@ std::string summary_text_csv(const SummaryText& t) {
 std::string summary_csv(const std::vector<SweepAxis>& sweeps, const std::vector<SummaryRow>& rows,
                         Eigen::Index n) {
   return summary_text_csv(summary_text(sweeps, rows, n));
-}
-
-std::string status_text(const SummaryRow& r) {
-  if (r.expected_status.empty()) return r.status;
-  if (status_as_expected(r.status, r.expected_status))
-    return r.status == "ok" ? r.status : r.status + " (expected)";
-  return fmt::format("{} (expected {})", r.status, r.expected_status);
 }
 
 std::string confusion_csv(const std::vector<SweepAxis>& sweeps,
@@ -642,36 +620,6 @@ std::string trajectory_csv(const Scenario& sc, const std::vector<TraceRow>& trac
     out += "\n";
   }
   return out;
-}
-
-void prepare_output_dir(const std::string& dir) {
-  namespace fs = std::filesystem;
-  const fs::path folder = output_set_folder(dir);  // refuses "", "/", the current folder
-  // Under the folder's lock, which first restores a set left aside by an interrupted swap: the
-  // folder created here must never stand in for it.
-  const OutputFolderLock lock(dir);
-  std::error_code ec;
-  fs::create_directories(folder, ec);
-  if (ec)
-    throw std::runtime_error(
-        fmt::format("cannot create the output directory '{}': {}", dir, ec.message()));
-  // The result set is written into a sibling folder and swapped in: the parent must be writable.
-  const fs::path probe =
-      folder.parent_path() /
-      fmt::format(".{}.probe.tmp{}", folder.filename().string(), static_cast<long>(::getpid()));
-  fs::create_directory(probe, ec);
-  if (ec) {
-    throw std::runtime_error(
-        fmt::format("cannot write next to the output directory '{}' (in '{}'): {}", dir,
-                    folder.parent_path().string(), ec.message()));
-  }
-  fs::remove(probe, ec);
-}
-
-void write_files_atomically(const std::string& dir,
-                            const std::vector<std::pair<std::string, std::string>>& files,
-                            const std::vector<std::string>& stale) {
-  write_output_set(dir, files, stale);  // sim/files/output_set.h
 }
 
 }  // namespace ncosim::sim

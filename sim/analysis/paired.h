@@ -14,13 +14,9 @@
 #include <vector>
 
 #include "config/config.h"
+#include "sim/analysis/summary_row.h"
 
 namespace ncosim::sim {
-
-class Table;
-struct Scenario;
-struct LoadedScenario;
-struct SummaryRow;
 
 // ---- statistics ------------------------------------------------------------------------------
 
@@ -67,19 +63,6 @@ double t_two_sided(double dof, double level);
 
 // ---- the [paired] table ----------------------------------------------------------------------
 
-struct PairedSettings {
-  std::string reference;  // estimator name ("" : the default, see reference_estimator_index)
-  int reference_line = 0;
-  // [paired] reference_case: (sweep key path, value as the sweep label text), in file order.
-  std::vector<std::pair<std::string, std::string>> reference_case;
-  int reference_case_line = 0;
-  std::string file;
-};
-
-// Reads [paired] (absent: defaults). Call after the estimators are read: an unknown
-// `reference` name is reported at its line with the valid names.
-PairedSettings read_paired(const Table& root, const toml::table& doc, const Scenario& sc);
-
 // The reference estimator of a case: [paired] reference, else the first estimator whose kind
 // contains "kalman" (kalman_extended, kalman_buffer, sod_kalman), else the first estimator.
 std::size_t reference_estimator_index(const Scenario& sc);
@@ -90,25 +73,6 @@ std::size_t reference_estimator_index(const Scenario& sc);
 std::size_t reference_case_index(const LoadedScenario& loaded);
 
 // ---- summary columns -------------------------------------------------------------------------
-
-// Per metric: the paired difference and ratio of a row against its reference, 95 % CI.
-struct PairedMetric {
-  std::optional<double> diff, diff_ci95, ratio, ratio_ci95;
-};
-struct PairedColumns {
-  std::string reference;           // the reference estimator (within the case)
-  PairedMetric mse, mse_ext, mde;  // against the reference estimator, same case and runs
-  std::string reference_case;      // "KEY=VALUE; ..." (sweeps only)
-  PairedMetric case_mse, case_mse_ext,
-      case_mde;  // against the same estimator in the reference case
-};
-
-// The per-run values summarise() uses (empty when any run diverged, as the summary columns).
-struct PerRunValues {
-  std::vector<double> mse, mse_ext, mde;  // in the order of `run`
-  std::vector<std::uint64_t> run;         // the run index of each value (runs are paired by it)
-  std::uint64_t seed = 0;
-};
 
 // Fills rows[i].paired for one case's rows (in estimator order) against rows[reference].
 void add_paired_within(std::vector<SummaryRow>& case_rows, std::size_t reference);

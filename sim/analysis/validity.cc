@@ -8,7 +8,7 @@
 #include <cmath>
 #include <vector>
 
-#include "sim/analysis/output.h"
+#include "sim/analysis/summary_row.h"
 #include "sim/scenario/scenario.h"
 
 namespace ncosim::sim {

@@ -27,7 +27,7 @@
 #include "ncosim_version.h"
 #include "sim/analysis/output.h"
 #include "sim/analysis/paired.h"
-#include "sim/cmd/cli.h"
+#include "sim/cmd/manifest.h"
 #include "sim/cmd/mpi_campaign.h"
 #include "sim/files/output_set.h"
 #include "sim/present/table_view.h"

@@ -25,6 +25,7 @@
 #include "sim/cmd/figure_cli.h"
 #include "sim/cmd/find.h"
 #include "sim/cmd/fit_cmd.h"
+#include "sim/cmd/manifest.h"
 #include "sim/cmd/mpi_campaign.h"
 #include "sim/cmd/record_link.h"
 #include "sim/files/output_set.h"
@@ -43,15 +44,6 @@
 namespace ncosim::sim {
 
 namespace {
-
-std::string utc_now() {
-  const std::time_t t = std::time(nullptr);
-  std::tm tm{};
-  gmtime_r(&t, &tm);
-  char buf[32];
-  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return buf;
-}
 
 // out/<stem>: git-ignored, so a user's first `ncosim run scenarios/X.toml` never modifies the
 // committed reference results/X/ (references are made with an explicit --out).
@@ -76,27 +68,7 @@ std::string default_out(const std::string& file) {
 
 nlohmann::json manifest(const LoadedScenario& loaded, const std::string& command_line, int threads,
                         double wall_seconds) {
-  const Scenario& sc = *loaded.cases.front().scenario;
-  nlohmann::json j;
-  j["scenario"] = loaded.file;
-  j["title"] = sc.title;
-  j["scenario_hash"] = loaded.hash;
-  j["scenario_text_hash"] =
-      loaded.text_hash;  // without --runs/--periods/--seed: what `compare` matches
-  j["overrides"] = loaded.overrides;
-  j["seed"] = sc.run.seed;
-  j["runs"] = sc.run.runs;
-  j["periods"] = sc.run.periods;
-  j["warmup"] = sc.run.warmup;
-  j["cases"] = loaded.cases.size();
-  j["command_line"] = command_line;
-  j["ncosim_version"] = NCOSIM_VERSION;
-  j["git_commit"] = NCOSIM_GIT_COMMIT;
-  j["date"] = utc_now();
-  j["threads"] = threads;
-  j["wall_seconds"] = wall_seconds;
-  j["recentred"] = sc.recentre;
-  return j;
+  return campaign_manifest(loaded, command_line, threads, wall_seconds);  // sim/cmd/manifest.h
 }
 
 struct CommonArgs {
@@ -303,11 +275,6 @@ int cmd_list() {
 }
 
 }  // namespace
-
-nlohmann::json campaign_manifest(const LoadedScenario& loaded, const std::string& command_line,
-                                 int threads, double wall_seconds) {
-  return manifest(loaded, command_line, threads, wall_seconds);
-}
 
 namespace {
 

@@ -9,10 +9,6 @@
 
 namespace ncosim::sim {
 
-// manifest.json of a campaign (scenario, hash, overrides, seed, version, commit, date, ...).
-nlohmann::json campaign_manifest(const LoadedScenario& loaded, const std::string& command_line,
-                                 int threads, double wall_seconds);
-
 int run_cli(int argc, char** argv);
 
 }  // namespace ncosim::sim

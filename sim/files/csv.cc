@@ -3,6 +3,7 @@
 
 #include <fmt/format.h>
 
+#include <cmath>
 #include <sstream>
 
 #include "config/config.h"
@@ -98,6 +99,21 @@ CsvTable parse_csv(const std::string& text, const std::string& what) {
     t.rows.push_back(std::move(r.fields));
   }
   return t;
+}
+
+std::string csv_field(const std::string& s) {
+  if (s.find_first_of(",\"\n\r") == std::string::npos) return s;
+  std::string out = "\"";
+  for (char c : s) {
+    if (c == '"') out += '"';
+    out += c;
+  }
+  return out + "\"";
+}
+
+std::string fmt_number(std::optional<double> v) {
+  if (!v || !std::isfinite(*v)) return "";
+  return fmt::format("{:.6g}", *v);
 }
 
 }  // namespace ncosim::sim

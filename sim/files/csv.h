@@ -5,6 +5,7 @@
 #pragma once
 
 #include <istream>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -44,5 +45,9 @@ struct CsvTable {
 // Throws ScenarioError naming `what` and the line on malformed input (unterminated quote, a row
 // with a different number of fields, no header).
 CsvTable parse_csv(const std::string& text, const std::string& what);
+
+// CSV field quoting (RFC 4180) and number formatting (empty for nullopt / non-finite).
+std::string csv_field(const std::string& s);
+std::string fmt_number(std::optional<double> v);
 
 }  // namespace ncosim::sim

@@ -439,4 +439,34 @@ int write_output_set(const std::string& dir,
   return removed;
 }
 
+void prepare_output_dir(const std::string& dir) {
+  namespace fs = std::filesystem;
+  const fs::path folder = output_set_folder(dir);  // refuses "", "/", the current folder
+  // Under the folder's lock, which first restores a set left aside by an interrupted swap: the
+  // folder created here must never stand in for it.
+  const OutputFolderLock lock(dir);
+  std::error_code ec;
+  fs::create_directories(folder, ec);
+  if (ec)
+    throw std::runtime_error(
+        fmt::format("cannot create the output directory '{}': {}", dir, ec.message()));
+  // The result set is written into a sibling folder and swapped in: the parent must be writable.
+  const fs::path probe =
+      folder.parent_path() /
+      fmt::format(".{}.probe.tmp{}", folder.filename().string(), static_cast<long>(::getpid()));
+  fs::create_directory(probe, ec);
+  if (ec) {
+    throw std::runtime_error(
+        fmt::format("cannot write next to the output directory '{}' (in '{}'): {}", dir,
+                    folder.parent_path().string(), ec.message()));
+  }
+  fs::remove(probe, ec);
+}
+
+void write_files_atomically(const std::string& dir,
+                            const std::vector<std::pair<std::string, std::string>>& files,
+                            const std::vector<std::string>& stale) {
+  write_output_set(dir, files, stale);  // sim/files/output_set.h
+}
+
 }  // namespace ncosim::sim

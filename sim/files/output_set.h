@@ -63,4 +63,19 @@ std::string output_set_folder(const std::string& dir);
 // on stderr ("ncosim: output step K: WHAT"); NCOSIM_TEST_KILL_AT=K sends SIGKILL to the process
 // just before step K (1-based), so tests can kill at every rename and fsync.
 
+// Writes every (name, content) as the new result set of `dir`, atomically as a whole (a sibling
+// folder fsynced and swapped in; see write_output_set above). Creates `dir` if needed. Throws
+// std::runtime_error on failure (the previous set stays) and ScenarioError when another process
+// holds the folder's lock. `stale` names earlier outputs to drop when they are not part of this
+// set (e.g. a trajectory.csv of an earlier --trace run); every other existing entry is carried
+// over, so the folder never mixes two result sets.
+void write_files_atomically(const std::string& dir,
+                            const std::vector<std::pair<std::string, std::string>>& files,
+                            const std::vector<std::string>& stale = {});
+
+// Creates `dir` and checks that its parent is writable (the set is swapped in from a sibling),
+// before any work: throws std::runtime_error (ScenarioError for an empty folder name, the root or
+// the current directory).
+void prepare_output_dir(const std::string& dir);
+
 }  // namespace ncosim::sim

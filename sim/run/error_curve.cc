@@ -10,7 +10,7 @@
 #include <stdexcept>
 #include <utility>
 
-#include "sim/analysis/output.h"
+#include "sim/files/csv.h"
 
 namespace ncosim::sim {
 

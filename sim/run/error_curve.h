@@ -15,6 +15,8 @@
 #include <string>
 #include <vector>
 
+#include "sim/scenario/scenario_types.h"
+
 namespace ncosim::sim {
 
 class ErrorCurve {
@@ -84,5 +86,12 @@ class ErrorCurve {
   mutable std::size_t t_runs_ = 0;
   mutable double t975_ = 0.0;
 };
+
+// error_curve.csv ([run] error_curve): per case, estimator and period, the run-averaged squared
+// error with its 95 % CI half-width and per state (sim/run/error_curve.h); curves[c] of case c.
+std::string error_curve_csv(const std::vector<SweepAxis>& sweeps,
+                            const std::vector<std::vector<std::string>>& labels,
+                            const std::vector<const Scenario*>& scenarios,
+                            const std::vector<ErrorCurve>& curves);
 
 }  // namespace ncosim::sim

@@ -5,7 +5,7 @@
 
 #include <algorithm>
 
-#include "sim/analysis/output.h"
+#include "sim/files/csv.h"
 
 namespace ncosim::sim {
 

@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "models/link_stats.h"
-#include "sim/run/campaign.h"
+#include "sim/run/run_results.h"
 #include "sim/scenario/scenario.h"
 
 namespace ncosim::sim {

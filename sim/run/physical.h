@@ -9,7 +9,7 @@
 #include <optional>
 #include <vector>
 
-#include "sim/run/campaign.h"
+#include "sim/run/run_results.h"
 #include "sim/scenario/scenario.h"
 
 namespace ncosim::sim {

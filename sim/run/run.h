@@ -9,7 +9,8 @@
 #include <cstdint>
 #include <vector>
 
-#include "sim/run/campaign.h"
+#include "sim/run/run_results.h"
+#include "sim/scenario/scenario_types.h"
 
 namespace ncosim::sim {
 

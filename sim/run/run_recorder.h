@@ -8,7 +8,8 @@
 #include <memory>
 #include <vector>
 
-#include "sim/run/campaign.h"
+#include "sim/run/run_results.h"
+#include "sim/scenario/scenario_types.h"
 
 namespace ncosim::sim {
 

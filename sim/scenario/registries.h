@@ -2,12 +2,17 @@
 // built-ins.
 #pragma once
 
+#include <memory>
+#include <string>
+
+#include "config/config.h"
+#include "config/mobility.h"
+#include "config/run_settings.h"
 #include "estimators/estimator.h"
 #include "models/input.h"
 #include "models/link_factory.h"
 #include "models/plant.h"
 #include "models/send_policy.h"
-#include "sim/scenario/scenario.h"
 
 namespace ncosim::sim {
 

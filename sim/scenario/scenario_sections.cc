@@ -328,4 +328,41 @@ void choose_recentre(const Table& root, Scenario& sc) {
   }
 }
 
+PairedSettings read_paired(const Table& root, const toml::table& doc, const Scenario& sc) {
+  PairedSettings p;
+  p.file = root.file();
+  const auto t = root.opt_table("paired");
+  if (!t) return p;
+  if (t->has("reference")) {
+    p.reference = t->string("reference");
+    p.reference_line = t->line_of("reference");
+    std::vector<std::string> names;
+    for (const auto& e : sc.estimators) names.push_back(e.name);
+    if (std::find(names.begin(), names.end(), p.reference) == names.end()) {
+      std::string list;
+      for (const auto& n : names) list += (list.empty() ? "" : ", ") + fmt::format("\"{}\"", n);
+      const std::string hint = did_you_mean(p.reference, names);
+      t->fail("reference",
+              fmt::format("expected an estimator name ({}), got \"{}\"{}", list, p.reference,
+                          hint.empty() ? "" : fmt::format(" (did you mean \"{}\"?)", hint)));
+    }
+  }
+  t->allow("reference_case");
+  if (t->has("reference_case")) {
+    const toml::node* n = doc.at_path("paired.reference_case").node();
+    p.reference_case_line = t->line_of("reference_case");
+    if (n == nullptr || !n->is_table()) {
+      t->fail("reference_case", fmt::format("expected a table of sweep key paths and values, e.g. "
+                                            "{{ \"link[0].preset\" = \"ns3_vanet\" }}, got {}",
+                                            n == nullptr ? std::string("nothing") : describe(*n)));
+    }
+    for (auto&& [k, v] : *n->as_table()) {
+      const auto s = v.value_exact<std::string>();
+      p.reference_case.emplace_back(std::string(k.str()), s ? *s : compact_toml(v));
+    }
+  }
+  t->finish();
+  return p;
+}
+
 }  // namespace ncosim::sim

@@ -13,7 +13,7 @@
 #include "config/config.h"
 #include "config/run_settings.h"
 #include "sim/scenario/registries.h"
-#include "sim/scenario/scenario.h"
+#include "sim/scenario/scenario_types.h"
 
 namespace ncosim::sim {
 
@@ -54,5 +54,9 @@ void bind_feedback_source(const std::optional<Table>& input, Scenario& sc);
 
 // run.recentre resolved against the plant, the input and the sensors: sc.recentre.
 void choose_recentre(const Table& root, Scenario& sc);
+
+// Reads [paired] (absent: defaults). Call after the estimators are read: an unknown
+// `reference` name is reported at its line with the valid names.
+PairedSettings read_paired(const Table& root, const toml::table& doc, const Scenario& sc);
 
 }  // namespace ncosim::sim
