@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "config/config.h"
+#include "sim/analysis/compare_manifest.h"
 #include "sim/analysis/run_folder.h"
 
 namespace ncosim::sim {
@@ -31,14 +32,6 @@ struct CompareOptions {
   bool holm = true;            // Holm's correction over every tested row
   bool allow_scenario_change = false;  // compare folders of another scenario text, --set or inputs
 };
-
-// Reads DIR/manifest.json and DIR/runs.csv for `metric`. Throws CompareInputError.
-RunFolder read_run_folder(const std::string& dir, const std::string& metric);
-// Fills each row's status and expected_status from DIR/summary.csv (left empty when the file, a
-// column or the row is missing: folders of older versions). Throws CompareInputError on a
-// malformed file. Divergence in NEW only is "worse" unless NEW's row expects `diverged`; a
-// status that changed is said in the row's note, "(unexpected)" when NEW's row does not expect it.
-void read_row_statuses(RunFolder& f);
 
 struct CompareRow {
   std::vector<std::string> labels;

@@ -9,6 +9,9 @@
 #include <string>
 #include <vector>
 
+#include "sim/cmd/campaign_meta.h"
+#include "sim/cmd/exports.h"
+#include "sim/cmd/merge.h"
 #include "sim/scenario/scenario.h"
 
 namespace ncosim::sim {
@@ -38,19 +41,5 @@ struct RunCommand {
 // with a row not ok, `codesign` with a status not ok).
 inline constexpr int kExitFlagged = 3;
 
-struct Shard {
-  std::uint64_t index = 0;  // 0-based
-  std::uint64_t count = 1;
-  bool owns(std::uint64_t run) const { return run % count == index; }
-};
-// "I/N" with 1 <= I <= N: throws ScenarioError naming --shard otherwise.
-Shard parse_shard(const std::string& text);
-
 int cmd_run_campaign(const RunCommand& cmd);
-// Re-derives every export of the store in `dir` into `out` (default: `dir`).
-int cmd_export(const std::string& dir, const std::string& out, const std::string& command_line);
-// Combines the stores of `dirs` (shards of one campaign) into `out`, then exports.
-int cmd_merge(const std::string& out, const std::vector<std::string>& dirs,
-              const std::string& command_line);
-
 }  // namespace ncosim::sim

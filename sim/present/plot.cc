@@ -23,80 +23,14 @@
 
 #include "config/config.h"
 #include "sim/analysis/output.h"
+#include "sim/present/plot_trace.h"
 
 namespace ncosim::sim {
 
 namespace fs = std::filesystem;
-
-const char* figure_kind_name(FigureKind k) {
-  switch (k) {
-    case FigureKind::kPerEstimator:
-      return "per_estimator";
-    case FigureKind::kAgainstKey:
-      return "against_key";
-    case FigureKind::kPanels:
-      return "panels";
-    case FigureKind::kTrace:
-      return "trace";
-  }
-  return "?";
-}
-
-std::string gnuplot_quote(const std::string& s) {
-  std::string out = "'";
-  for (char c : s) {
-    if (c == '\'') {
-      out += "''";
-    } else if (c == '\n' || c == '\r' || c == '\t') {
-      out += ' ';
-    } else {
-      out += c;
-    }
-  }
-  return out + "'";
-}
+using namespace figure_text;  // sim/present/figure.h
 
 namespace {
-
-std::string read_file(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  if (!in)
-    throw ScenarioError(
-        fmt::format("{}: cannot read (is this an ncosim output folder?)", p.string()));
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-std::optional<double> number(const std::string& s) {
-  if (s.empty()) return std::nullopt;
-  char* end = nullptr;
-  errno = 0;
-  const double v = std::strtod(s.c_str(), &end);
-  if (end != s.c_str() + s.size() || !std::isfinite(v)) return std::nullopt;
-  return v;
-}
-
-// The field as written in the CSV, or '?' (gnuplot's missing value) when it is not a number.
-std::string dat_field(const std::string& s) { return number(s) ? s : std::string("?"); }
-
-// One-line comment text for a .dat file.
-std::string comment(const std::string& s) {
-  std::string out;
-  for (char c : s) out += (c == '\n' || c == '\r') ? ' ' : c;
-  return out;
-}
-
-std::string scenario_title(const std::string& dir) {
-  std::ifstream in(fs::path(dir) / "manifest.json");
-  if (!in) return "";
-  try {
-    const auto j = nlohmann::json::parse(in);
-    if (j.contains("title") && j["title"].is_string()) return j["title"].get<std::string>();
-  } catch (const std::exception&) {
-  }
-  return "";
-}
 
 // The summary as the figures see it: sweep keys, cases in file order, estimators in order.
 struct Summary {
@@ -217,40 +151,10 @@ bool want_log(const std::string& mode, const Range& r, const char* option) {
   return !r.empty() && !r.any_nonpositive && r.hi / r.lo >= 100.0;
 }
 
-std::string colour_of(std::size_t e) {
-  static const char* colours[] = {"#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e",
-                                  "#17becf", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22"};
-  return fmt::format("lc rgb '{}'", colours[e % 10]);
-}
-
 std::string palette_style(std::size_t e) {
   static const char* colours[] = {"#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e",
                                   "#17becf", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22"};
   return fmt::format("lc rgb '{}' pt {}", colours[e % 10], 1 + static_cast<int>(e % 13));
-}
-
-// The gnuplot script around a body: one pass per output format, images named <name>.<format>.
-std::string script(const std::string& name, const std::string& what, int width, int height,
-                   const std::string& body) {
-  return fmt::format(
-      "# {0}.gp — {1}, written by `ncosim plot`.\n"
-      "# Run in this folder: gnuplot {0}.gp   (one format: gnuplot -e \"formats='svg'\" {0}.gp)\n"
-      "set encoding utf8\n"
-      "if (!exists(\"formats\")) formats = 'png svg'\n"
-      "set datafile missing '?'\n"
-      "do for [fmt in formats] {{\n"
-      "  if (fmt eq 'png') {{ set terminal pngcairo size {2},{3} noenhanced font 'Sans,10'; set "
-      "output '{0}.png' }}\n"
-      "  if (fmt eq 'svg') {{ set terminal svg size {2},{3} noenhanced font 'Sans,10' background "
-      "'#ffffff'; "
-      "set output '{0}.svg' }}\n"
-      "  reset\n"
-      "  set datafile missing '?'\n"
-      "{4}"
-      "  unset multiplot\n"
-      "  set output\n"
-      "}}\n",
-      name, comment(what), width, height, body);
 }
 
 // Lower end of an error bar on a log axis: a CI reaching below zero is drawn to y/1000.
@@ -258,13 +162,6 @@ std::string errorbar_using(const std::string& x, bool ci, bool log) {
   if (!ci) return fmt::format("{}:2", x);
   if (log) return fmt::format("{}:2:($2-$3 > 0 ? $2-$3 : $2*1e-3):($2+$3)", x);
   return fmt::format("{}:2:($2-$3):($2+$3)", x);
-}
-
-std::string tics(const std::vector<std::string>& labels) {
-  std::string out = "(";
-  for (std::size_t i = 0; i < labels.size(); ++i)
-    out += fmt::format("{}{} {}", i ? ", " : "", gnuplot_quote(labels[i]), i);
-  return out + ")";
 }
 
 // The columns of summary.csv that one summary figure reads.
@@ -542,7 +439,7 @@ std::string panel_plot(const Summary& s, const MetricColumns& mc, const KeyAxes&
                     palette_style(e), gnuplot_quote(s.estimators[e]));
     if (bc.pred) {
       plot += fmt::format(", \\\n       '' index {} using {}:4 with lines dt 2 {} title {}", b, x,
-                          colour_of(e), gnuplot_quote(s.estimators[e] + ", predicted"));
+                          gnuplot_colour(e), gnuplot_quote(s.estimators[e] + ", predicted"));
     }
   }
   if (drawn) return "  plot " + plot + "\n";
@@ -622,235 +519,11 @@ Figure summary_figure(const std::string& dir, const Summary& s, const PlotOption
     plot_against_key(s, mc, c, opt, f.name, f.title, yr, logy, p);
   }
   f.dat = p.dat;
-  f.gp = script(f.name, f.title, p.width, p.height, p.body);
-  return f;
-}
-
-// The columns of trajectory.csv: period, states (and their physical coordinates), each
-// estimator's estimate, each sensor's arrivals.
-struct Trajectory {
-  fs::path path;
-  CsvTable t;
-  int period = -1;
-  std::vector<int> x, xphys;            // x1..xn and x<i>_physical (-1 when absent)
-  std::vector<std::string> estimators;  // in column order
-  std::vector<std::vector<int>> xhat;   // per estimator: <name>:xhat1 ..
-  std::vector<std::string> sensors;
-  std::vector<int> arrived;  // per sensor: arrived:<name>
-};
-
-Trajectory read_trajectory(const std::string& dir) {
-  Trajectory tr;
-  tr.path = fs::path(dir) / "trajectory.csv";
-  const fs::path& p = tr.path;
-  if (!fs::exists(p)) {
-    throw ScenarioError(fmt::format(
-        "--trace: {} does not exist (run the campaign with `ncosim run --trace`)", p.string()));
-  }
-  tr.t = parse_csv(read_file(p), p.string());
-  const CsvTable& t = tr.t;
-  for (int i = 1;; ++i) {
-    const int c = t.column(fmt::format("x{}", i));
-    if (c < 0) break;
-    tr.x.push_back(c);
-    tr.xphys.push_back(t.column(fmt::format("x{}_physical", i)));
-  }
-  if (tr.x.empty())
-    throw ScenarioError(format_error(p.string(), 1, "", "expected columns x1 .. xn"));
-  for (std::size_t c = 0; c < t.header.size(); ++c) {
-    const std::string& h = t.header[c];
-    if (h.rfind("arrived:", 0) == 0) {
-      tr.sensors.push_back(h.substr(8));
-      tr.arrived.push_back(static_cast<int>(c));
-      continue;
-    }
-    const auto pos = h.rfind(":xhat");
-    if (pos == std::string::npos || h.size() == pos + 5) continue;
-    const std::string name = h.substr(0, pos);
-    if (h.substr(pos + 5) == "1") {
-      tr.estimators.push_back(name);
-      tr.xhat.emplace_back();
-    }
-    if (!tr.xhat.empty() && tr.estimators.back() == name)
-      tr.xhat.back().push_back(static_cast<int>(c));
-  }
-  tr.period = t.column("period");
-  return tr;
-}
-
-// The rows of the periods from..from+periods-1; throws when there is none.
-std::vector<const std::vector<std::string>*> trace_window(const Trajectory& tr,
-                                                          const PlotOptions& opt) {
-  std::vector<const std::vector<std::string>*> window;
-  for (const auto& r : tr.t.rows) {
-    const auto k = number(r[static_cast<std::size_t>(tr.period)]);
-    if (k && *k >= static_cast<double>(opt.trace_from) &&
-        *k < static_cast<double>(opt.trace_from) + static_cast<double>(opt.trace_periods)) {
-      window.push_back(&r);
-    }
-  }
-  if (window.empty()) {
-    throw ScenarioError(fmt::format("--from {}: no period of {} in the window of {} periods",
-                                    opt.trace_from, tr.path.string(), opt.trace_periods));
-  }
-  return window;
-}
-
-// The trace .dat: period, x, every estimate and every arrival count per row. With `physical`,
-// x is written as x_physical and each estimate of a state is shifted by (x_physical - x).
-std::string trace_dat(const Trajectory& tr,
-                      const std::vector<const std::vector<std::string>*>& window, bool physical,
-                      const std::string& title) {
-  const std::size_t n = tr.x.size();
-  std::string dat = fmt::format("# {}\n# period", comment(title));
-  for (std::size_t i = 0; i < n; ++i) dat += fmt::format(" x{}", i + 1);
-  for (std::size_t e = 0; e < tr.estimators.size(); ++e) {
-    for (std::size_t i = 0; i < tr.xhat[e].size(); ++i)
-      dat += fmt::format(" [{}]:xhat{}", comment(tr.estimators[e]), i + 1);
-  }
-  for (const auto& s : tr.sensors) dat += fmt::format(" arrived:[{}]", comment(s));
-  dat +=
-      physical
-          ? "\n# x and xhat in physical coordinates: xhat + (x_physical - x) from trajectory.csv\n"
-          : "\n# numbers copied from trajectory.csv as written\n";
-  for (const auto* rp : window) {
-    const auto& r = *rp;
-    dat += r[static_cast<std::size_t>(tr.period)];
-    std::vector<double> offset(n, 0.0);
-    for (std::size_t i = 0; i < n; ++i) {
-      if (physical) {
-        offset[i] = *number(r[static_cast<std::size_t>(tr.xphys[i])]) -
-                    number(r[static_cast<std::size_t>(tr.x[i])]).value_or(0.0);
-        dat += " " + r[static_cast<std::size_t>(tr.xphys[i])];
-      } else {
-        dat += " " + dat_field(r[static_cast<std::size_t>(tr.x[i])]);
-      }
-    }
-    for (const auto& cols : tr.xhat) {
-      for (std::size_t i = 0; i < cols.size(); ++i) {
-        const std::string& v = r[static_cast<std::size_t>(cols[i])];
-        if (physical && i < n && number(v)) {
-          dat += fmt::format(" {:.9g}", *number(v) + offset[i]);
-        } else {
-          dat += " " + dat_field(v);
-        }
-      }
-    }
-    for (int a : tr.arrived) dat += " " + dat_field(r[static_cast<std::size_t>(a)]);
-    dat += "\n";
-  }
-  return dat;
-}
-
-// Whether column c holds a finite number in some row of the window.
-bool any_finite(const std::vector<const std::vector<std::string>*>& window, int c) {
-  return std::any_of(window.begin(), window.end(), [&](const auto* r) {
-    return number((*r)[static_cast<std::size_t>(c)]).has_value();
-  });
-}
-
-// The trace gnuplot body: one panel per shown state (true x and every estimate), then one of
-// the arrivals per sensor (dots where packets arrived, crosses where none did).
-std::string trace_body(const Trajectory& tr,
-                       const std::vector<const std::vector<std::string>*>& window,
-                       std::size_t shown, const std::string& title) {
-  const std::size_t n = tr.x.size();
-  std::string body = fmt::format("  set multiplot layout {},1 title {}\n",
-                                 shown + (tr.sensors.empty() ? 0 : 1), gnuplot_quote(title));
-  body += "  set lmargin 12\n  set rmargin 30\n  set grid\n  set key outside right top font ',8'\n";
-  std::size_t col = 2 + n;  // trace.dat's column of the first estimate
-  std::vector<std::size_t> first_col;
-  for (const auto& cols : tr.xhat) {
-    first_col.push_back(col);
-    col += cols.size();
-  }
-  for (std::size_t i = 0; i < shown; ++i) {
-    body += fmt::format("  set ylabel {}\n", gnuplot_quote(fmt::format("x{}", i + 1)));
-    // A series without a finite value in the window (a diverged estimate) is a legend entry saying
-    // so: gnuplot warns about a data series without a valid point.
-    std::string plot =
-        any_finite(window, tr.x[i])
-            ? fmt::format("'trace.dat' using 1:{} with lines lw 2 lc rgb 'black' title 'true x{}'",
-                          2 + i, i + 1)
-            : fmt::format(
-                  "keyentry with lines lw 2 lc rgb 'black' title 'true x{}: no finite value'",
-                  i + 1);
-    bool drawn = any_finite(window, tr.x[i]);  // the last series read trace.dat ('' reads it again)
-    for (std::size_t e = 0; e < tr.estimators.size(); ++e) {
-      if (i >= tr.xhat[e].size()) continue;
-      if (!any_finite(window, tr.xhat[e][i])) {
-        plot += fmt::format(", \\\n       keyentry with lines {} title {}", colour_of(e),
-                            gnuplot_quote(tr.estimators[e] + ": no finite value (diverged)"));
-        continue;
-      }
-      plot += fmt::format(", \\\n       {} using 1:{} with lines {} title {}",
-                          drawn ? "''" : "'trace.dat'", first_col[e] + i, colour_of(e),
-                          gnuplot_quote(tr.estimators[e]));
-      drawn = true;
-    }
-    body += drawn ? "  plot " + plot + "\n"
-                  : "  set yrange [1:10]\n  plot " + plot + ", 1/0 notitle\n  set autoscale y\n";
-  }
-  if (!tr.sensors.empty()) {
-    body += "  set ylabel 'packets'\n  set xlabel 'period'\n";
-    body += fmt::format("  set yrange [-0.5:{}]\n  set ytics {}\n",
-                        static_cast<double>(tr.sensors.size()) - 0.5, tics(tr.sensors));
-    std::string plot;
-    for (std::size_t s = 0; s < tr.sensors.size(); ++s) {
-      const std::size_t c = col + s;
-      plot += fmt::format(
-          "{}'trace.dat' using 1:(${} > 0 ? {} : 1/0) with points pt 7 ps 0.5 lc rgb '#2ca02c' "
-          "title {}",
-          plot.empty() ? "" : ", \\\n       ", c, s, s == 0 ? "'packet(s) arrived'" : "''");
-      plot += fmt::format(
-          ", \\\n       '' using 1:(${} == 0 ? {} : 1/0) with points pt 2 ps 0.6 lc rgb '#d62728' "
-          "title {}",
-          c, s, s == 0 ? "'nothing arrived'" : "''");
-    }
-    body += "  plot " + plot + "\n";
-  }
-  return body;
-}
-
-// The trace figure from trajectory.csv: true state and estimates against time, arrivals marked.
-Figure trace_figure(const std::string& dir, const PlotOptions& opt) {
-  const Trajectory tr = read_trajectory(dir);
-  const auto window = trace_window(tr, opt);
-  // Physical coordinates where the re-centred run has them over the whole window.
-  bool physical = std::all_of(tr.xphys.begin(), tr.xphys.end(), [](int c) { return c >= 0; });
-  const bool recentred = physical;
-  for (const auto* r : window) {
-    for (int c : tr.xphys)
-      physical = physical && c >= 0 && number((*r)[static_cast<std::size_t>(c)]).has_value();
-  }
-  const std::size_t n = tr.x.size();
-  const std::size_t shown = std::min<std::size_t>(n, 6);
-  Figure f;
-  f.name = "trace";
-  f.kind = FigureKind::kTrace;
-  const std::string title0 = scenario_title(dir);
-  f.title = fmt::format(
-      "run 0, periods {}..{}{}{}", (*window.front())[static_cast<std::size_t>(tr.period)],
-      (*window.back())[static_cast<std::size_t>(tr.period)],
-      recentred ? (physical ? ", physical coordinates (re-centring added back)"
-                            : ", re-centred coordinates (the physical state exceeds 1e10 here)")
-                : "",
-      title0.empty() ? "" : " — " + title0);
-  f.dat = trace_dat(tr, window, physical, f.title);
-  if (n > shown) f.dat += fmt::format("# the figure shows x1..x{} of {} states\n", shown, n);
-  f.gp = script(f.name, f.title, 1000, static_cast<int>(260 * (shown + 1) + 60),
-                trace_body(tr, window, shown, f.title));
+  f.gp = gnuplot_script(f.name, f.title, p.width, p.height, p.body);
   return f;
 }
 
 }  // namespace
-
-std::string gnuplot_script(const std::string& name, const std::string& what, int width, int height,
-                           const std::string& body) {
-  return script(name, what, width, height, body);
-}
-
-std::string gnuplot_colour(std::size_t e) { return colour_of(e); }
 
 FigureKind summary_figure_kind(const CsvTable& summary, const PlotOptions& opt) {
   Summary s;

@@ -22,25 +22,11 @@
 #include <vector>
 
 #include "sim/run/campaign.h"
+#include "sim/store/store_format.h"
 
 struct sqlite3;
 
 namespace ncosim::sim {
-
-class StoreError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
-
-// Binary form of one run's metrics (every estimator): exact (doubles by their bits), versioned.
-std::string serialize_run(const RunMetrics& m);
-// Throws StoreError on a malformed or truncated blob.
-RunMetrics deserialize_run(const std::string& blob);
-
-// Binary form of one run's link counters (every flow): exact, versioned. Throws StoreError
-// on a malformed or truncated blob.
-std::string serialize_links(const RunLinks& links);
-RunLinks deserialize_links(const std::string& blob);
 
 // One completed run, ready to commit.
 struct StoredRun {
