@@ -289,6 +289,64 @@ std::string confusion_csv(const std::vector<SweepAxis>& sweeps,
   return out;
 }
 
+namespace {
+
+// A markdown table with every column padded to its widest cell (width in code points, so "±" and
+// "–" count once).
+std::string markdown_table(const std::vector<std::string>& head,
+                           const std::vector<std::vector<std::string>>& body) {
+  auto width = [](const std::string& s) {
+    std::size_t w = 0;
+    for (unsigned char ch : s) w += (ch & 0xC0) != 0x80;
+    return w;
+  };
+  std::vector<std::size_t> wid(head.size(), 3);
+  for (std::size_t i = 0; i < head.size(); ++i) wid[i] = std::max(wid[i], width(head[i]));
+  for (const auto& r : body) {
+    for (std::size_t i = 0; i < r.size(); ++i) wid[i] = std::max(wid[i], width(r[i]));
+  }
+  auto line = [&](const std::vector<std::string>& cells) {
+    std::string out = "|";
+    for (std::size_t i = 0; i < cells.size(); ++i) {
+      out += " " + cells[i] + std::string(wid[i] - width(cells[i]), ' ') + " |";
+    }
+    return out + "\n";
+  };
+  std::string out = line(head);
+  std::string sep = "|";
+  for (std::size_t i = 0; i < head.size(); ++i) sep += std::string(wid[i] + 2, '-') + "|";
+  out += sep + "\n";
+  for (const auto& r : body) out += line(r);
+  return out;
+}
+
+// The note under summary.md's table naming the paired columns' references ("" without rows).
+std::string paired_note(const std::vector<SummaryRow>& rows, bool swept) {
+  // Name the references under the table (one line; the reference may differ between cases).
+  std::vector<std::string> refs;
+  for (const auto& r : rows) {
+    if (std::find(refs.begin(), refs.end(), r.paired.reference) == refs.end())
+      refs.push_back(r.paired.reference);
+  }
+  std::string names;
+  for (const auto& ref : refs) names += (names.empty() ? "" : ", ") + fmt::format("\"{}\"", ref);
+  std::string out;
+  if (!rows.empty()) {
+    out += fmt::format(
+        "\nPaired columns: each row minus the reference estimator {} of its case, per run on the "
+        "same "
+        "realisation (common random numbers); ratio = row / reference.",
+        names);
+    if (swept)
+      out += fmt::format(" Δ vs ref. case: against the same estimator in the case {}.",
+                         rows.front().paired.reference_case);
+    out += " Columns mse_diff.. in summary.csv.\n";
+  }
+  return out;
+}
+
+}  // namespace
+
 std::string summary_markdown(const std::string& title, const std::vector<SweepAxis>& sweeps,
                              const std::vector<SummaryRow>& rows, Eigen::Index n) {
   // Readable columns: mse ± ci, mse_ext ± ci, predicted, FLOPs, gains, ns, delivered, status.
@@ -345,49 +403,8 @@ std::string summary_markdown(const std::string& title, const std::vector<SweepAx
     if (checks) c.push_back(r.model_check.empty() ? "–" : r.model_check);
     body.push_back(std::move(c));
   }
-  // Pad for alignment (width in code points, so "±" and "–" count once).
-  auto width = [](const std::string& s) {
-    std::size_t w = 0;
-    for (unsigned char ch : s) w += (ch & 0xC0) != 0x80;
-    return w;
-  };
-  std::vector<std::size_t> wid(head.size(), 3);
-  for (std::size_t i = 0; i < head.size(); ++i) wid[i] = std::max(wid[i], width(head[i]));
-  for (const auto& r : body) {
-    for (std::size_t i = 0; i < r.size(); ++i) wid[i] = std::max(wid[i], width(r[i]));
-  }
-  auto line = [&](const std::vector<std::string>& cells) {
-    std::string out = "|";
-    for (std::size_t i = 0; i < cells.size(); ++i) {
-      out += " " + cells[i] + std::string(wid[i] - width(cells[i]), ' ') + " |";
-    }
-    return out + "\n";
-  };
-  std::string out = fmt::format("# {}\n\n", title);
-  out += line(head);
-  std::string sep = "|";
-  for (std::size_t i = 0; i < head.size(); ++i) sep += std::string(wid[i] + 2, '-') + "|";
-  out += sep + "\n";
-  for (const auto& r : body) out += line(r);
-  // Name the references under the table (one line; the reference may differ between cases).
-  std::vector<std::string> refs;
-  for (const auto& r : rows) {
-    if (std::find(refs.begin(), refs.end(), r.paired.reference) == refs.end())
-      refs.push_back(r.paired.reference);
-  }
-  std::string names;
-  for (const auto& ref : refs) names += (names.empty() ? "" : ", ") + fmt::format("\"{}\"", ref);
-  if (!rows.empty()) {
-    out += fmt::format(
-        "\nPaired columns: each row minus the reference estimator {} of its case, per run on the "
-        "same "
-        "realisation (common random numbers); ratio = row / reference.",
-        names);
-    if (swept)
-      out += fmt::format(" Δ vs ref. case: against the same estimator in the case {}.",
-                         rows.front().paired.reference_case);
-    out += " Columns mse_diff.. in summary.csv.\n";
-  }
+  std::string out = fmt::format("# {}\n\n", title) + markdown_table(head, body);
+  out += paired_note(rows, swept);
   return out;
 }
 

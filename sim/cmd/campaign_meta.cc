@@ -150,25 +150,33 @@ std::string identity_difference(const std::map<std::string, std::string>& a,
   return out;
 }
 
-void check_campaign_meta(const std::map<std::string, std::string>& meta, const std::string& path) {
-  auto bad = [&](const std::string& key, const std::string& expected) {
-    const auto it = meta.find(key);
-    std::string got = it == meta.end() ? std::string("nothing (the field is missing)")
-                                       : fmt::format("'{}'", it->second.substr(0, 60));
-    if (it != meta.end() && it->second.size() > 60) got += "...";
+namespace {
+
+// The typed fields of a stored campaign table, each checked with one StoreError naming the store,
+// the field, what it must hold and what it holds.
+class MetaChecker {
+ public:
+  MetaChecker(const std::map<std::string, std::string>& meta, const std::string& path)
+      : meta_(meta), path_(path) {}
+
+  StoreError bad(const std::string& key, const std::string& expected) const {
+    const auto it = meta_.find(key);
+    std::string got = it == meta_.end() ? std::string("nothing (the field is missing)")
+                                        : fmt::format("'{}'", it->second.substr(0, 60));
+    if (it != meta_.end() && it->second.size() > 60) got += "...";
     return StoreError(fmt::format(
         "run store '{}': campaign field '{}': expected {}, got {} (the store is damaged or "
         "was edited; re-run the campaign)",
-        path, key, expected, got));
-  };
-  auto text = [&](const std::string& key) -> const std::string& {
-    const auto it = meta.find(key);
-    if (it == meta.end()) throw bad(key, "a value");
+        path_, key, expected, got));
+  }
+  const std::string& text(const std::string& key) const {
+    const auto it = meta_.find(key);
+    if (it == meta_.end()) throw bad(key, "a value");
     return it->second;
-  };
-  auto whole = [&](const std::string& key, std::uint64_t min, bool optional) {
-    const auto it = meta.find(key);
-    if (it == meta.end() || it->second.empty()) {
+  }
+  void whole(const std::string& key, std::uint64_t min, bool optional) const {
+    const auto it = meta_.find(key);
+    if (it == meta_.end() || it->second.empty()) {
       if (optional) return;
       throw bad(key, fmt::format("a whole number >= {}", min));
     }
@@ -178,54 +186,22 @@ void check_campaign_meta(const std::map<std::string, std::string>& meta, const s
     if (r.ec != std::errc() || r.ptr != t.data() + t.size() || v < min) {
       throw bad(key, fmt::format("{}a whole number >= {}", optional ? "empty or " : "", min));
     }
-  };
-  auto json_of = [&](const std::string& key, bool optional, auto&& ok, const char* expected) {
-    const auto it = meta.find(key);
-    if (it == meta.end()) {
+  }
+  template <class Ok>
+  void json_of(const std::string& key, bool optional, Ok&& ok, const char* expected) const {
+    const auto it = meta_.find(key);
+    if (it == meta_.end()) {
       if (optional) return;
       throw bad(key, expected);
     }
     if (optional && it->second.empty()) return;
     const auto j = nlohmann::json::parse(it->second, nullptr, false);
     if (j.is_discarded() || !ok(j)) throw bad(key, expected);
-  };
-  auto strings = [](const nlohmann::json& j) {
-    if (!j.is_array()) return false;
-    return std::all_of(j.begin(), j.end(), [](const nlohmann::json& e) { return e.is_string(); });
-  };
-  for (const char* key :
-       {"scenario_file", "scenario_path", "scenario_text", "ncosim_version", "git_commit"}) {
-    (void)text(key);
   }
-  const std::string& hash = text("scenario_hash");
-  if (hash.size() != 16 || hash.find_first_not_of("0123456789abcdef") != std::string::npos) {
-    throw bad("scenario_hash", "16 hexadecimal digits");
-  }
-  whole("seed", 0, false);
-  whole("runs", 1, false);
-  whole("periods", 1, false);
-  whole("cases", 1, false);
-  whole("override_runs", 1, true);
-  whole("override_periods", 1, true);
-  whole("override_seed", 0, true);
-  whole("max_runs", 1, true);
-  for (const char* key : {"threads", "ranks"}) {  // absent in stores of older versions, never empty
-    if (meta.count(key) != 0) whole(key, 1, false);
-  }
-  json_of("overrides", false, strings, "a JSON array of strings (the --set overrides)");
-  json_of("merged_from", true, strings, "a JSON array of folder names");
-  json_of(
-      "inputs", true,
-      [](const nlohmann::json& j) {
-        if (!j.is_object()) return false;
-        return std::all_of(j.begin(), j.end(),
-                           [](const nlohmann::json& v) { return v.is_string(); });
-      },
-      "a JSON object of input file -> content hash");
-  auto number = [&](const std::string& key, bool optional, double lo, double hi,
-                    const char* expected) {
-    const auto it = meta.find(key);
-    if (it == meta.end() || it->second.empty()) {
+  void number(const std::string& key, bool optional, double lo, double hi,
+              const char* expected) const {
+    const auto it = meta_.find(key);
+    if (it == meta_.end() || it->second.empty()) {
       if (optional) return;
       throw bad(key, expected);
     }
@@ -236,16 +212,58 @@ void check_campaign_meta(const std::map<std::string, std::string>& meta, const s
         v > hi) {
       throw bad(key, expected);
     }
-  };
-  number("wall_seconds", true, 0.0, std::numeric_limits<double>::max(),
-         "a finite number of seconds >= 0");
-  number("target_ci", true, std::numeric_limits<double>::min(), 1.0 - 1e-16,
-         "empty or a number in (0, 1)");
+  }
+
+ private:
+  const std::map<std::string, std::string>& meta_;
+  const std::string& path_;
+};
+
+bool json_strings(const nlohmann::json& j) {
+  if (!j.is_array()) return false;
+  return std::all_of(j.begin(), j.end(), [](const nlohmann::json& e) { return e.is_string(); });
+}
+
+bool json_string_map(const nlohmann::json& j) {
+  if (!j.is_object()) return false;
+  return std::all_of(j.begin(), j.end(), [](const nlohmann::json& v) { return v.is_string(); });
+}
+
+}  // namespace
+
+void check_campaign_meta(const std::map<std::string, std::string>& meta, const std::string& path) {
+  const MetaChecker m(meta, path);
+  for (const char* key :
+       {"scenario_file", "scenario_path", "scenario_text", "ncosim_version", "git_commit"}) {
+    (void)m.text(key);
+  }
+  const std::string& hash = m.text("scenario_hash");
+  if (hash.size() != 16 || hash.find_first_not_of("0123456789abcdef") != std::string::npos) {
+    throw m.bad("scenario_hash", "16 hexadecimal digits");
+  }
+  m.whole("seed", 0, false);
+  m.whole("runs", 1, false);
+  m.whole("periods", 1, false);
+  m.whole("cases", 1, false);
+  m.whole("override_runs", 1, true);
+  m.whole("override_periods", 1, true);
+  m.whole("override_seed", 0, true);
+  m.whole("max_runs", 1, true);
+  for (const char* key : {"threads", "ranks"}) {  // absent in stores of older versions, never empty
+    if (meta.count(key) != 0) m.whole(key, 1, false);
+  }
+  m.json_of("overrides", false, json_strings, "a JSON array of strings (the --set overrides)");
+  m.json_of("merged_from", true, json_strings, "a JSON array of folder names");
+  m.json_of("inputs", true, json_string_map, "a JSON object of input file -> content hash");
+  m.number("wall_seconds", true, 0.0, std::numeric_limits<double>::max(),
+           "a finite number of seconds >= 0");
+  m.number("target_ci", true, std::numeric_limits<double>::min(), 1.0 - 1e-16,
+           "empty or a number in (0, 1)");
   if (const auto it = meta.find("shard"); it != meta.end() && !it->second.empty()) {
     try {
       (void)parse_shard(it->second);
     } catch (const ScenarioError&) {
-      throw bad("shard", "empty or I/N with 1 <= I <= N");
+      throw m.bad("shard", "empty or I/N with 1 <= I <= N");
     }
   }
 }

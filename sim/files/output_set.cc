@@ -333,6 +333,50 @@ OutputFolderLock::~OutputFolderLock() {
   }
 }
 
+namespace {
+
+// The new set in `tmp`: created, `files` written and `installs` made, then every entry of the
+// previous set in `folder` (if any) that is neither written again nor stale carried over (temporary
+// leftovers inside it are counted in `removed` and dropped), and `tmp` fsynced. Returns whether a
+// previous set exists.
+bool fill_new_set(const fs::path& tmp, const fs::path& folder,
+                  const std::vector<std::pair<std::string, std::string>>& files,
+                  const std::vector<InstalledFile>& installs, const std::vector<std::string>& names,
+                  const std::vector<std::string>& stale, Steps& step, int& removed) {
+  step("create the temporary folder");
+  if (::mkdir(tmp.c_str(), 0777) != 0) {
+    throw std::runtime_error(
+        fmt::format("cannot create '{}': {}", tmp.string(), errno_text(errno)));
+  }
+  for (const auto& [fname, content] : files) write_file(tmp / fname, content, step, fname);
+  for (const auto& f : installs) {
+    step("install " + f.name);
+    f.make(tmp / f.name);
+  }
+  std::error_code ec;
+  const bool exists = fs::is_directory(folder, ec);
+  if (exists) {
+    struct stat st {};
+    if (::stat(folder.c_str(), &st) == 0) ::chmod(tmp.c_str(), st.st_mode & 07777);
+    for (const auto& e : fs::directory_iterator(folder)) {
+      const std::string n = e.path().filename().string();
+      const bool written = std::find(names.begin(), names.end(), n) != names.end();
+      if (written || is_stale(n, stale)) continue;
+      if (is_inner_temp(n)) {
+        ++removed;  // dropped with the previous folder
+        continue;
+      }
+      step("carry over " + n);
+      carry_over(e.path(), tmp / n);
+    }
+  }
+  step("fsync the temporary folder");
+  fsync_path(tmp, true);
+  return exists;
+}
+
+}  // namespace
+
 int write_output_set(const std::string& dir,
                      const std::vector<std::pair<std::string, std::string>>& files,
                      const std::vector<std::string>& stale,
@@ -355,34 +399,7 @@ int write_output_set(const std::string& dir,
   const fs::path tmp = parent / fmt::format(".{}.new.{}", name, static_cast<long>(::getpid()));
   bool tmp_is_new = true;  // false once the exchange has put the previous set there
   try {
-    step("create the temporary folder");
-    if (::mkdir(tmp.c_str(), 0777) != 0) {
-      throw std::runtime_error(
-          fmt::format("cannot create '{}': {}", tmp.string(), errno_text(errno)));
-    }
-    for (const auto& [fname, content] : files) write_file(tmp / fname, content, step, fname);
-    for (const auto& f : installs) {
-      step("install " + f.name);
-      f.make(tmp / f.name);
-    }
-    const bool exists = fs::is_directory(folder, ec);
-    if (exists) {
-      struct stat st {};
-      if (::stat(folder.c_str(), &st) == 0) ::chmod(tmp.c_str(), st.st_mode & 07777);
-      for (const auto& e : fs::directory_iterator(folder)) {
-        const std::string n = e.path().filename().string();
-        const bool written = std::find(names.begin(), names.end(), n) != names.end();
-        if (written || is_stale(n, stale)) continue;
-        if (is_inner_temp(n)) {
-          ++removed;  // dropped with the previous folder
-          continue;
-        }
-        step("carry over " + n);
-        carry_over(e.path(), tmp / n);
-      }
-    }
-    step("fsync the temporary folder");
-    fsync_path(tmp, true);
+    const bool exists = fill_new_set(tmp, folder, files, installs, names, stale, step, removed);
     if (exists) {
       step("exchange the folders");
       const char* no_exchange =

@@ -74,15 +74,43 @@ RunMetrics simulate_run(const Scenario& sc, std::uint64_t run, std::vector<Trace
   return m;
 }
 
+namespace {
+
+// The run indices a campaign simulates: options.only_runs, else 0 .. runs-1.
+std::vector<std::uint64_t> runs_to_do(const Scenario& sc, const CampaignOptions& options) {
+  if (options.only_runs) return *options.only_runs;
+  std::vector<std::uint64_t> todo(static_cast<std::size_t>(sc.run.runs));
+  for (std::size_t r = 0; r < todo.size(); ++r) todo[r] = r;
+  return todo;
+}
+
+// Worker threads: options.threads (0: every core), at most one per run, one with libsumo.
+int campaign_threads(const Scenario& sc, const CampaignOptions& options, std::size_t runs) {
+  int threads =
+      options.threads > 0 ? options.threads : static_cast<int>(std::thread::hardware_concurrency());
+  threads = std::max(1, std::min<int>(threads, static_cast<int>(std::max<std::size_t>(runs, 1))));
+  if (sc.mobility && sc.mobility->single_threaded()) threads = 1;  // one libsumo per process
+  return threads;
+}
+
+// ns_per_period: timed alone, after the campaign, on a replay of the first run simulated (at
+// most kReplayPeriods periods; not part of the results' identity). Budget per estimator: 2 % of
+// the campaign's time, between 1 ms and 200 ms. NaN when not timed.
+std::vector<double> time_campaign(const Scenario& sc, const ReplayLog& log, bool timed,
+                                  double wall_seconds) {
+  if (!timed) return std::vector<double>(sc.estimators.size(), std::nan(""));
+  const double share =
+      0.02 * wall_seconds / static_cast<double>(std::max<std::size_t>(sc.estimators.size(), 1));
+  const auto budget =
+      std::chrono::nanoseconds(static_cast<std::int64_t>(std::clamp(share, 0.001, 0.2) * 1e9));
+  return time_estimators(sc, log, budget);
+}
+
+}  // namespace
+
 CampaignResult run_campaign(const Scenario& sc, const CampaignOptions& options) {
   CampaignResult result;
-  std::vector<std::uint64_t> todo;
-  if (options.only_runs) {
-    todo = *options.only_runs;
-  } else {
-    todo.resize(static_cast<std::size_t>(sc.run.runs));
-    for (std::size_t r = 0; r < todo.size(); ++r) todo[r] = r;
-  }
+  const std::vector<std::uint64_t> todo = runs_to_do(sc, options);
   const std::size_t runs = todo.size();
   const bool keep = !options.on_run;
   if (keep) {
@@ -90,10 +118,7 @@ CampaignResult run_campaign(const Scenario& sc, const CampaignOptions& options) 
     if (options.link_counters) result.link_runs.resize(runs);
     if (options.only_runs) result.run_ids = todo;
   }
-  int threads =
-      options.threads > 0 ? options.threads : static_cast<int>(std::thread::hardware_concurrency());
-  threads = std::max(1, std::min<int>(threads, static_cast<int>(std::max<std::size_t>(runs, 1))));
-  if (sc.mobility && sc.mobility->single_threaded()) threads = 1;  // one libsumo per process
+  const int threads = campaign_threads(sc, options, runs);
   result.threads = threads;
   const auto start = std::chrono::steady_clock::now();
 
@@ -104,8 +129,7 @@ CampaignResult run_campaign(const Scenario& sc, const CampaignOptions& options) 
   log.limit = std::min<std::size_t>(
       kReplayPeriods,
       std::max<std::size_t>(200, static_cast<std::size_t>(sc.run.periods) * runs / 50));
-  std::atomic<std::size_t> next{0};
-  std::atomic<std::size_t> done{0};
+  std::atomic<std::size_t> next{0}, done{0};
   std::exception_ptr error;
   std::mutex error_mutex, sink_mutex;
   std::atomic<bool> failed{false};
@@ -160,18 +184,8 @@ CampaignResult run_campaign(const Scenario& sc, const CampaignOptions& options) 
   if (keep && result.stopped) keep_completed(todo, completed, options.link_counters, result);
   result.wall_seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  if (options.time_estimators && !log.u.empty() && !stop_requested()) {
-    // Timed alone, after the campaign, on a replay of the first run simulated (at most
-    // kReplayPeriods periods; not part of the results' identity). Budget per estimator: 2 %
-    // of the campaign's time, between 1 ms and 200 ms.
-    const double share = 0.02 * result.wall_seconds /
-                         static_cast<double>(std::max<std::size_t>(sc.estimators.size(), 1));
-    const auto budget =
-        std::chrono::nanoseconds(static_cast<std::int64_t>(std::clamp(share, 0.001, 0.2) * 1e9));
-    result.ns_per_period = time_estimators(sc, log, budget);
-  } else {
-    result.ns_per_period.assign(sc.estimators.size(), std::nan(""));
-  }
+  result.ns_per_period = time_campaign(
+      sc, log, options.time_estimators && !log.u.empty() && !stop_requested(), result.wall_seconds);
   return result;
 }
 
