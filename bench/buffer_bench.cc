@@ -7,8 +7,8 @@
 #include <vector>
 
 #include "estimators/design/buffer_design.h"
-#include "sim/registries.h"
-#include "sim/scenario.h"
+#include "sim/scenario/registries.h"
+#include "sim/scenario/scenario.h"
 
 namespace ncosim {
 namespace {

@@ -7,7 +7,7 @@
 #include <fstream>
 #include <random>
 
-#include "sim/compare.h"
+#include "sim/analysis/compare.h"
 
 namespace {
 

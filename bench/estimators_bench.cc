@@ -8,9 +8,9 @@
 
 #include "estimators/design/jump_design.h"
 #include "estimators/extended_model.h"
-#include "sim/campaign.h"
-#include "sim/registries.h"
-#include "sim/scenario.h"
+#include "sim/run/campaign.h"
+#include "sim/scenario/registries.h"
+#include "sim/scenario/scenario.h"
 
 namespace ncosim {
 namespace {

@@ -7,8 +7,8 @@
 #include "kernel/rng.h"
 #include "models/fit.h"
 #include "models/link.h"
-#include "sim/campaign.h"
-#include "sim/scenario.h"
+#include "sim/run/campaign.h"
+#include "sim/scenario/scenario.h"
 
 namespace ncosim {
 namespace {

@@ -80,7 +80,7 @@ void BM_ScheduleDispatchSteadyState(benchmark::State& state) {
 }
 BENCHMARK(BM_ScheduleDispatchSteadyState)->Arg(100)->Arg(10'000)->Arg(1'000'000);
 
-// The pattern of a campaign run (sim/campaign.cc): N periodic components, component c in
+// The pattern of a campaign run (sim/run/campaign.cc): N periodic components, component c in
 // phase c % 8 with period (1, 2, 5 or 10) ms, so every instant holds many events that only
 // the (phase, sequence) order separates.
 class Periodic final : public EventHandler {

@@ -10,10 +10,10 @@
 #include <chrono>
 #include <vector>
 
-#include "sim/campaign.h"
-#include "sim/link_stats.h"
-#include "sim/scenario.h"
-#include "sim/store.h"
+#include "sim/run/campaign.h"
+#include "sim/run/link_report.h"
+#include "sim/scenario/scenario.h"
+#include "sim/store/store.h"
 
 namespace ncosim {
 namespace {

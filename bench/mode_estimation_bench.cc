@@ -9,7 +9,7 @@
 #include <string>
 
 #include "kernel/rng.h"
-#include "sim/scenario.h"
+#include "sim/scenario/scenario.h"
 
 namespace ncosim {
 namespace {

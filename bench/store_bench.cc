@@ -7,9 +7,9 @@
 
 #include <filesystem>
 
-#include "sim/campaign.h"
-#include "sim/scenario.h"
-#include "sim/store.h"
+#include "sim/run/campaign.h"
+#include "sim/scenario/scenario.h"
+#include "sim/store/store.h"
 
 namespace {
 

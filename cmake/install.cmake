@@ -1,13 +1,16 @@
 # cmake/install.cmake — `cmake --install` exports the libraries, their headers, the ncosim
 # executable and a CMake package: find_package(ncosim) gives ncosim::core (the whole simulator:
 # scenario reader, campaign, outputs, CLI and every built-in kind) and the layers below it
-# (ncosim::kernel, ncosim::config, ncosim::models, ncosim::lmi, ncosim::estimators, and
-# ncosim::sumo when built with SUMO). docs/extending.md shows a program built on it.
+# (ncosim::kernel, ncosim::config, ncosim::models, ncosim::lmi, ncosim::estimators, ncosim::sumo
+# when built with SUMO, and sim/'s sub-layers ncosim::sim_files, ncosim::sim_scenario,
+# ncosim::sim_run, ncosim::sim_store, ncosim::sim_analysis and ncosim::sim_present). docs/extending.md shows a program built on it.
 include(GNUInstallDirs)
 include(CMakePackageConfigHelpers)
 
 set(NCOSIM_INSTALL_CMAKEDIR ${CMAKE_INSTALL_LIBDIR}/cmake/ncosim)
-set(NCOSIM_EXPORTED ncosim_kernel ncosim_config ncosim_models ncosim_lmi ncosim_estimators ncosim_core)
+set(NCOSIM_EXPORTED ncosim_kernel ncosim_config ncosim_models ncosim_lmi ncosim_estimators
+    ncosim_sim_files ncosim_sim_scenario ncosim_sim_run ncosim_sim_store ncosim_sim_analysis
+    ncosim_sim_present ncosim_core)
 if(NCOSIM_SUMO)
   list(APPEND NCOSIM_EXPORTED ncosim_sumo)
 endif()
@@ -15,7 +18,7 @@ foreach(t IN LISTS NCOSIM_EXPORTED)
   string(REPLACE "ncosim_" "" short ${t})
   set_target_properties(${t} PROPERTIES EXPORT_NAME ${short})
   add_library(ncosim::${short} ALIAS ${t})
-  # Headers are installed under include/ncosim, keeping the in-tree paths ("sim/scenario.h").
+  # Headers are installed under include/ncosim, keeping the in-tree paths ("sim/scenario/scenario.h").
   target_include_directories(${t} INTERFACE $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}/ncosim>)
 endforeach()
 

@@ -4,8 +4,8 @@
 // A campaign's identity is its scenario text and options *and* the content of every file that
 // text names: two shards run against different contents of one trace file are different
 // campaigns. Readers that open a file named by a scenario call note_input_file(); the scenario
-// loader (sim/scenario.cc) holds an InputFileRecorder for the duration of a load and keeps what it
-// recorded in LoadedScenario::inputs. Without a recorder the call does nothing.
+// loader (sim/scenario/scenario.cc) holds an InputFileRecorder for the duration of a load and keeps
+// what it recorded in LoadedScenario::inputs. Without a recorder the call does nothing.
 #pragma once
 
 #include <map>

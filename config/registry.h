@@ -1,7 +1,7 @@
 // config/registry.h — one registry per component kind: a name, a one-line help, the kind's
 // declared keys (config/keys.h; empty for a kind that declares none) and a factory that reads its
 // own table. A failed lookup lists the valid names (with a did-you-mean).
-// Built-ins are registered by explicit calls from one place (sim/registry.cc).
+// Built-ins are registered by explicit calls from one place (sim/scenario/registries.cc).
 #pragma once
 
 #include <fmt/format.h>

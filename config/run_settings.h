@@ -1,7 +1,7 @@
 // config/run_settings.h — the [run] table's values (horizon, runs, seed, period, re-centring):
-// what a campaign is made of, read by the scenario reader (sim/scenario_sections.cc) and by
-// the components that must know the horizon before t = 0 (the SUMO mobility source records
-// that many periods). Plain data: the ranges are checked where it is read.
+// what a campaign is made of, read by the scenario reader (sim/scenario/scenario_sections.cc) and
+// by the components that must know the horizon before t = 0 (the SUMO mobility source records that
+// many periods). Plain data: the ranges are checked where it is read.
 #pragma once
 
 #include <cstdint>

@@ -137,16 +137,17 @@ class EstimatorDesign {
 
   // Capabilities: what tools ask a design instead of its kind's name (nullptr / false: none).
   // A minimum-variance (Kalman) filter: the default reference of paired comparisons (the first
-  // such estimator; sim/paired.cc). Default: false.
+  // such estimator; sim/analysis/paired.cc). Default: false.
   virtual bool is_kalman_reference() const { return false; }
   // Read access for the embedded C export (`ncosim design --export-c`, estimators/export_c.h).
   virtual const JumpDesignAccess* c_export() const { return nullptr; }
-  // The send-on-delta threshold co-design (`ncosim codesign`, sim/codesign.cc).
+  // The send-on-delta threshold co-design (`ncosim codesign`, sim/cmd/codesign.cc).
   virtual const SodJumpDesign* sod_codesign() const { return nullptr; }
 };
 
 // A design's cost, estimated by its kind BEFORE designing, from its table and the model:
-// peak memory in bytes and work in floating-point operations. sim/limits.cc compares them with
+// peak memory in bytes and work in floating-point operations. sim/scenario/resource_limits.cc
+// compares them with
 // --max-memory / --max-work, refuses a design beyond them and notes a large one before it starts.
 struct DesignCost {
   double bytes = 0.0;
@@ -184,8 +185,7 @@ class EstimatorRegistry : public sim::Registry<std::unique_ptr<EstimatorDesign>,
     Base::add(std::move(name), std::move(help), std::move(factory));
   }
   // A kind that declares its keys (config/keys.h) and estimates its design's cost.
-  void add(std::string name, std::string help, sim::Keys keys, Factory factory,
-           CostEstimate cost) {
+  void add(std::string name, std::string help, sim::Keys keys, Factory factory, CostEstimate cost) {
     costs_.emplace_back(name, std::move(cost));
     Base::add(std::move(name), std::move(help), std::move(keys), std::move(factory));
   }

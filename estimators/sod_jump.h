@@ -2,7 +2,7 @@
 // eq. (3), (7)): x^[t-] = A x^[t-1] + (known input), x^[t] = x^[t-] + L(alpha[t]) (m[t] - C
 // x^[t-]), with m the held measurements and alpha[t] the sensors that sent at t; gains from the
 // H-infinity LMI designs (estimators/design/sod_design.h). Its design also carries the threshold
-// co-design parameters, run by `ncosim codesign` (sim/cli.cc).
+// co-design parameters, run by `ncosim codesign` (sim/cmd/cli.cc).
 #pragma once
 
 #include <optional>

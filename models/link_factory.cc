@@ -331,7 +331,8 @@ std::unique_ptr<Link> read_trace(const sim::Table& table, const LinkContext& ctx
     sim::note_input_file(path.string());  // the trace's content is part of the campaign's identity
     if (delays.empty()) t.fail("file", fmt::format("trace '{}' holds no packet", path.string()));
     if (ctx.check_trace_delay) {
-      // The runs count delivered packets per delay up to the largest one (sim/limits.h).
+      // The runs count delivered packets per delay up to the largest one
+      // (sim/scenario/resource_limits.h).
       std::size_t largest = delays.size();
       for (std::size_t i = 0; i < delays.size(); ++i) {
         if (delays[i] && (largest == delays.size() || *delays[i] > *delays[largest])) largest = i;

@@ -17,7 +17,8 @@ struct LinkContext {
   std::shared_ptr<MobilitySource> mobility;  // the [sumo] mobility, null without it
   // Called by the trace kind with its largest delay, the trace's file and the line of the first
   // row holding it, and `named_by` ("FILE:LINE: key 'link[0].file'"); throws when the runs
-  // cannot hold it (the scenario reader checks it against the resource limits, sim/limits.h).
+  // cannot hold it (the scenario reader checks it against the resource limits,
+  // sim/scenario/resource_limits.h).
   std::function<void(const std::string& trace, int line, std::int64_t delay,
                      const std::string& named_by)>
       check_trace_delay;

@@ -1,7 +1,7 @@
 // models/plant_process.h — the true plant of one run: a per-run behaviour object that steps the
 // state. Which process a plant kind runs is part of what its reader returns
 // (LinearPlant::process, empty = the linear process below), so a new plant kind brings its own
-// process with it and the run loop (sim/run.cc) never tests the kind. Built in:
+// process with it and the run loop (sim/run/run.cc) never tests the kind. Built in:
 // - linear (lti, lti_continuous, transfer_function): x[k] = A x[k-1] + Bu u[k-1] + Bw w[k-1]
 //   (+ the known re-centring), w = W^1/2 N(0, I) plus the deterministic disturbance;
 // - jump_linear: the same with the mode m = theta[k-1] of a Markov chain choosing A, Bu, Bw, W;

@@ -18,7 +18,7 @@
 
 #include "estimators/estimator.h"
 #include "models/link.h"
-#include "sim/scenario.h"
+#include "sim/scenario/scenario.h"
 
 namespace ncosim::testing {
 

@@ -1,8 +1,8 @@
 // main.cc — the ncosim command line with this example's kinds added: one add_extension() call
 // before run_cli(). `my_ncosim list` shows them beside the built-ins; every command works.
 #include "kinds.h"
-#include "sim/cli.h"
-#include "sim/extensions.h"
+#include "sim/cmd/cli.h"
+#include "sim/scenario/extensions.h"
 
 int main(int argc, char** argv) {
   ncosim::sim::add_extension([](ncosim::sim::Registries& r) {

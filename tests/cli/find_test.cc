@@ -1,6 +1,6 @@
 // tests/cli/find_test.cc — `ncosim find` as a user drives it (exit codes, messages, find.csv),
 // the monotonicity check behind it, and design.csv of `ncosim design` with a sweep.
-#include "sim/find.h"
+#include "sim/cmd/find.h"
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>

@@ -14,7 +14,7 @@
 #include <set>
 #include <sstream>
 
-#include "sim/plot.h"
+#include "sim/present/plot.h"
 #include "test_util.h"
 
 namespace {

@@ -21,7 +21,7 @@
 #include <thread>
 #include <vector>
 
-#include "sim/store.h"
+#include "sim/store/store.h"
 #include "spawn_ncosim.h"
 #include "temp_dir_test.h"
 #include "test_util.h"

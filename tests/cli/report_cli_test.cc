@@ -11,7 +11,7 @@
 #include <fstream>
 #include <string>
 
-#include "sim/plot.h"
+#include "sim/present/plot.h"
 #include "test_util.h"
 
 namespace {

@@ -24,7 +24,7 @@
 #include <thread>
 #include <vector>
 
-#include "sim/store.h"
+#include "sim/store/store.h"
 #include "spawn_ncosim.h"
 #include "test_util.h"
 

@@ -21,7 +21,7 @@
 
 #include "cli/small_trace_scenario.h"
 #include "cli/temp_dir_test.h"
-#include "sim/store.h"
+#include "sim/store/store.h"
 #include "test_util.h"
 
 namespace {

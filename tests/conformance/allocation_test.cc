@@ -20,8 +20,8 @@
 
 #include "conformance/fixtures.h"
 #include "kernel/rng.h"
-#include "sim/campaign.h"
-#include "sim/registries.h"
+#include "sim/run/campaign.h"
+#include "sim/scenario/registries.h"
 #include "test_util.h"
 
 namespace {

@@ -9,9 +9,9 @@
 #include <map>
 
 #include "conformance/fixtures.h"
-#include "sim/campaign.h"
-#include "sim/output.h"
-#include "sim/registries.h"
+#include "sim/analysis/output.h"
+#include "sim/run/campaign.h"
+#include "sim/scenario/registries.h"
 #include "test_util.h"
 
 namespace ncosim::sim {
@@ -150,12 +150,12 @@ TEST(Conformance, EveryLinkHonoursItsMarginalLaw) {
 
 TEST(Conformance, EveryLinkThatClaimsTheDesignModelLosesPacketsIndependently) {
   // A kind whose loss_model_of() is kIndependent is taken by summary.csv's model_check for the
-  // designs' model (sim/validity.cc): its consecutive packets must be lost independently. Over
-  // n = 20000 packets the count of consecutive lost pairs must be within 4.5 sigmas of
-  // (n - 1) p^2 (sigma of a sum of overlapping pair indicators: variance
-  // (n - 1) p^2 (1 - p^2) + 2 (n - 2) (p^3 - p^4)). The fixtures' dependent kinds break this
-  // bound (the bursty chains above it, the trace, which never loses two in a row, below it), so
-  // the check can tell them apart: at least one kind must fail it and not claim.
+  // designs' model (sim/analysis/validity.cc): its consecutive packets must be lost independently.
+  // Over n = 20000 packets the count of consecutive lost pairs must be within 4.5 sigmas of (n - 1)
+  // p^2 (sigma of a sum of overlapping pair indicators: variance (n - 1) p^2 (1 - p^2) + 2 (n - 2)
+  // (p^3 - p^4)). The fixtures' dependent kinds break this bound (the bursty chains above it, the
+  // trace, which never loses two in a row, below it), so the check can tell them apart: at least
+  // one kind must fail it and not claim.
   int dependent_seen = 0;
   for (const auto& l : link_registry().entries()) {
     if (needs_sumo(l.name)) continue;

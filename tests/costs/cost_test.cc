@@ -31,8 +31,8 @@
 #include <string>
 #include <vector>
 
-#include "sim/registries.h"
-#include "sim/scenario.h"
+#include "sim/scenario/registries.h"
+#include "sim/scenario/scenario_types.h"
 
 namespace ncosim::sim {
 namespace {

@@ -9,9 +9,9 @@
 #include <sstream>
 
 #include "estimators/design/buffer_design.h"
-#include "sim/campaign.h"
-#include "sim/output.h"
-#include "sim/registries.h"
+#include "sim/analysis/output.h"
+#include "sim/run/campaign.h"
+#include "sim/scenario/registries.h"
 #include "test_util.h"
 
 namespace ncosim::est {

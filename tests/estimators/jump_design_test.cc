@@ -8,7 +8,7 @@
 #include <numeric>
 
 #include "estimators/extended_model.h"
-#include "sim/registries.h"
+#include "sim/scenario/registries.h"
 #include "test_util.h"
 
 namespace ncosim::est {

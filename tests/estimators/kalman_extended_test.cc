@@ -4,7 +4,7 @@
 #include <fstream>
 #include <sstream>
 
-#include "sim/registries.h"
+#include "sim/scenario/registries.h"
 #include "test_util.h"
 
 namespace ncosim::est {

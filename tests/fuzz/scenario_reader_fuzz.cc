@@ -14,8 +14,8 @@
 #include <fstream>
 #include <string>
 
-#include "sim/limits.h"
-#include "sim/scenario.h"
+#include "sim/scenario/resource_limits.h"
+#include "sim/scenario/scenario.h"
 
 namespace {
 

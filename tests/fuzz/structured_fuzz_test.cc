@@ -37,8 +37,8 @@
 #include <string>
 #include <vector>
 
-#include "sim/limits.h"
-#include "sim/scenario.h"
+#include "sim/scenario/resource_limits.h"
+#include "sim/scenario/scenario.h"
 #include "test_util.h"
 
 namespace {

@@ -8,9 +8,9 @@
 
 #include <sstream>
 
-#include "sim/campaign.h"
-#include "sim/find.h"
-#include "sim/output.h"
+#include "sim/analysis/output.h"
+#include "sim/cmd/find.h"
+#include "sim/run/campaign.h"
 #include "test_util.h"
 
 namespace ncosim::sim {

@@ -7,8 +7,8 @@
 
 #include <map>
 
-#include "sim/campaign.h"
-#include "sim/output.h"
+#include "sim/analysis/output.h"
+#include "sim/run/campaign.h"
 #include "test_util.h"
 
 namespace ncosim::sim {

@@ -1,11 +1,11 @@
 // tests/sim/campaign_test.cc — whole-run properties of the simulation and the campaign.
-#include "sim/campaign.h"
+#include "sim/run/campaign.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 
-#include "sim/output.h"
+#include "sim/analysis/output.h"
 #include "test_util.h"
 
 namespace ncosim::sim {

@@ -1,6 +1,6 @@
 // tests/sim/compare_test.cc — `ncosim compare` in process: reading folders, matching rows and
 // runs, the paired and Welch tests, tolerance, verdicts and bad input.
-#include "sim/compare.h"
+#include "sim/analysis/compare.h"
 
 #include <gtest/gtest.h>
 
@@ -12,8 +12,8 @@
 #include <random>
 #include <sstream>
 
-#include "sim/compare_manifest.h"
-#include "sim/scenario.h"
+#include "sim/analysis/compare_manifest.h"
+#include "sim/scenario/scenario.h"
 
 namespace ncosim::sim {
 namespace {

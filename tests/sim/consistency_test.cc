@@ -1,6 +1,6 @@
 // tests/sim/consistency_test.cc — NEES/NIS averages against their chi-square bounds
-// (sim/consistency.h) and the run-averaged error curve's sums (sim/error_curve.h).
-#include "sim/consistency.h"
+// (sim/analysis/consistency.h) and the run-averaged error curve's sums (sim/run/error_curve.h).
+#include "sim/analysis/consistency.h"
 
 #include <gtest/gtest.h>
 
@@ -9,7 +9,7 @@
 #include <cmath>
 #include <random>
 
-#include "sim/error_curve.h"
+#include "sim/run/error_curve.h"
 
 namespace ncosim::sim {
 namespace {

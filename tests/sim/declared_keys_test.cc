@@ -9,7 +9,7 @@
 #include <variant>
 
 #include "config/keys.h"
-#include "sim/registries.h"
+#include "sim/scenario/registries.h"
 
 namespace ncosim::sim {
 namespace {

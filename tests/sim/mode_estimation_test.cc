@@ -7,9 +7,9 @@
 
 #include "models/actuator.h"
 #include "models/link.h"
-#include "sim/campaign.h"
-#include "sim/output.h"
-#include "sim/scenario.h"
+#include "sim/analysis/output.h"
+#include "sim/run/campaign.h"
+#include "sim/scenario/scenario.h"
 
 namespace ncosim::sim {
 namespace {

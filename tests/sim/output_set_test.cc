@@ -1,7 +1,7 @@
-// tests/sim/output_set_test.cc — the atomic output set (sim/output_set.h): carry-over of foreign
-// entries, the output-folder lock, and kills at every step of the write sequence and at random
-// moments (fork + SIGKILL): a folder always holds the previous complete set or the new one.
-#include "sim/output_set.h"
+// tests/sim/output_set_test.cc — the atomic output set (sim/files/output_set.h): carry-over of
+// foreign entries, the output-folder lock, and kills at every step of the write sequence and at
+// random moments (fork + SIGKILL): a folder always holds the previous complete set or the new one.
+#include "sim/files/output_set.h"
 
 #include <gtest/gtest.h>
 #include <signal.h>

@@ -1,5 +1,5 @@
 // tests/sim/paired_test.cc — paired and Welch differences, Holm, the [paired] table.
-#include "sim/paired.h"
+#include "sim/analysis/paired.h"
 
 #include <gtest/gtest.h>
 
@@ -8,8 +8,8 @@
 #include <fstream>
 #include <random>
 
-#include "sim/campaign.h"
-#include "sim/output.h"
+#include "sim/analysis/output.h"
+#include "sim/run/campaign.h"
 #include "test_util.h"
 
 namespace ncosim::sim {

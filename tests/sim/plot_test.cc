@@ -1,7 +1,7 @@
 // tests/sim/plot_test.cc — `ncosim plot` without gnuplot: the CSV reader, the figure kind chosen
 // for each campaign shape, the .dat files holding summary.csv's numbers as written, the quoting
 // of awkward names in the scripts, and the report's escaping and SVG id prefixing.
-#include "sim/plot.h"
+#include "sim/present/plot.h"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -11,7 +11,7 @@
 #include <sstream>
 
 #include "config/config.h"
-#include "sim/report.h"
+#include "sim/present/report.h"
 
 namespace {
 

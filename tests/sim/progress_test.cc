@@ -1,8 +1,8 @@
-// tests/sim/progress_test.cc — the campaign's progress line (sim/progress.h), on an injected
+// tests/sim/progress_test.cc — the campaign's progress line (sim/run/progress.h), on an injected
 // clock (no sleeps): one format; in a log a line 2 s after the start and then on the 5 s grid
 // over the whole campaign (never restarted by a new case); on a terminal the line redrawn in
 // place; the runs stored before counted as done but not in the rate.
-#include "sim/progress.h"
+#include "sim/run/progress.h"
 
 #include <gtest/gtest.h>
 

@@ -1,8 +1,8 @@
 // tests/sim/scenario_sections_test.cc — the scenario reader in process, one section reader at a
-// time (sim/scenario_sections.h), and the component hooks it asks instead of switching on kinds:
-// a plant that names a mobility vehicle, a link that carries a bounded number of packets. The
-// hooks are exercised with kinds registered in local registries (no global state).
-#include "sim/scenario_sections.h"
+// time (sim/scenario/scenario_sections.h), and the component hooks it asks instead of switching on
+// kinds: a plant that names a mobility vehicle, a link that carries a bounded number of packets.
+// The hooks are exercised with kinds registered in local registries (no global state).
+#include "sim/scenario/scenario_sections.h"
 
 #include <gtest/gtest.h>
 
@@ -11,7 +11,7 @@
 
 #include "error_of.h"
 #include "models/link.h"
-#include "sim/scenario.h"
+#include "sim/scenario/scenario.h"
 
 namespace ncosim::sim {
 namespace {

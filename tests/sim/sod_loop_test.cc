@@ -6,8 +6,8 @@
 #include <filesystem>
 #include <fstream>
 
-#include "sim/campaign.h"
-#include "sim/output.h"
+#include "sim/analysis/output.h"
+#include "sim/run/campaign.h"
 #include "test_util.h"
 
 namespace ncosim::sim {

@@ -1,6 +1,6 @@
 // tests/sim/store_test.cc — the run store (runs.sqlite): exact serialization, transactions,
 // reading back; the campaign's run subsets, sink and stop flag; shard syntax.
-#include "sim/store.h"
+#include "sim/store/store.h"
 
 #include <gtest/gtest.h>
 #include <sqlite3.h>
@@ -14,7 +14,7 @@
 #include <map>
 
 #include "config/config.h"
-#include "sim/batch.h"
+#include "sim/cmd/batch.h"
 #include "test_util.h"
 
 namespace ncosim::sim {

@@ -2,7 +2,7 @@
 // width, long notes become footnotes printed once for the rows that share them, columns are left
 // out (and named) by priority, rows never wrap; the column list and format options; the
 // expected statuses of part 5 (status_as_expected, status_text, the expected_status column).
-#include "sim/table_view.h"
+#include "sim/present/table_view.h"
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
@@ -11,7 +11,7 @@
 #include <sstream>
 
 #include "config/config.h"
-#include "sim/output.h"
+#include "sim/analysis/output.h"
 
 namespace ncosim::sim {
 namespace {

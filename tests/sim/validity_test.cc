@@ -1,10 +1,10 @@
 // tests/sim/validity_test.cc — the model_check note: prediction against simulation, and the
 // departures from the design model that make the comparison meaningless.
-#include "sim/validity.h"
+#include "sim/analysis/validity.h"
 
 #include <gtest/gtest.h>
 
-#include "sim/output.h"
+#include "sim/analysis/output.h"
 #include "test_util.h"
 
 namespace ncosim::sim {

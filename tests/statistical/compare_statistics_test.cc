@@ -9,9 +9,9 @@
 #include <filesystem>
 #include <fstream>
 
-#include "sim/campaign.h"
-#include "sim/compare.h"
-#include "sim/paired.h"
+#include "sim/analysis/compare.h"
+#include "sim/analysis/paired.h"
+#include "sim/run/campaign.h"
 #include "test_util.h"
 
 namespace ncosim::sim {

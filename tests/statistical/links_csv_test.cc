@@ -21,9 +21,9 @@
 #include <sstream>
 
 #include "models/plant.h"
-#include "sim/campaign.h"
-#include "sim/link_stats.h"
-#include "sim/scenario.h"
+#include "sim/run/campaign.h"
+#include "sim/run/link_report.h"
+#include "sim/scenario/scenario.h"
 #include "test_util.h"
 
 namespace ncosim::sim {

@@ -1,6 +1,6 @@
-// tests/statistical/paired_statistics_test.cc — the paired columns of summary.csv (sim/paired.h):
-// coverage of the paired CI at its nominal rate on a scenario with a known difference, and the
-// gain over the unpaired interval on the flagship.
+// tests/statistical/paired_statistics_test.cc — the paired columns of summary.csv
+// (sim/analysis/paired.h): coverage of the paired CI at its nominal rate on a scenario with a known
+// difference, and the gain over the unpaired interval on the flagship.
 #include <gtest/gtest.h>
 
 #include <boost/math/distributions/binomial.hpp>
@@ -9,9 +9,9 @@
 #include <filesystem>
 #include <fstream>
 
-#include "sim/campaign.h"
-#include "sim/output.h"
-#include "sim/paired.h"
+#include "sim/analysis/output.h"
+#include "sim/analysis/paired.h"
+#include "sim/run/campaign.h"
 #include "test_util.h"
 
 namespace ncosim::sim {

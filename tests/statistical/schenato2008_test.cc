@@ -8,8 +8,8 @@
 #include <cmath>
 #include <cstdio>
 
-#include "sim/campaign.h"
-#include "sim/output.h"
+#include "sim/analysis/output.h"
+#include "sim/run/campaign.h"
 #include "test_util.h"
 
 namespace ncosim::sim {

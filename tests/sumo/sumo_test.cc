@@ -19,7 +19,7 @@
 #include <random>
 #include <sstream>
 
-#include "sim/campaign.h"
+#include "sim/run/campaign.h"
 #include "sumo/channel.h"
 #include "sumo/sumo_fixture.h"
 #include "sumo/traffic.h"

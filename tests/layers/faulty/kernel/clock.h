@@ -2,7 +2,8 @@
 #pragma once
 
 #include <toml++/toml.h>  // fault: the kernel uses the standard library and Boost only
+
 #include <vector>
 
 #include "kernel/time.h"
-#include "sim/scenario.h"  // fault: the application is above the kernel
+#include "sim/scenario/scenario.h"  // fault: the application is above the kernel

@@ -1,0 +1,103 @@
+// sim/cmd/codesign.cc
+#include "sim/cmd/codesign.h"
+
+#include <fmt/format.h>
+
+#include <cstdio>
+
+#include "estimators/sod_jump.h"
+
+namespace ncosim::sim {
+
+namespace {
+
+std::vector<double> vec(const Eigen::VectorXd& v) { return {v.data(), v.data() + v.size()}; }
+
+}  // namespace
+
+nlohmann::json run_codesign(const Scenario& sc, const CodesignOptions& options) {
+  nlohmann::json out = nlohmann::json::array();
+  bool found = false;
+  for (const auto& e : sc.estimators) {
+    if (!options.estimator.empty() && e.name != options.estimator) continue;
+    const est::SodJumpDesign* d = e.design->sod_codesign();
+    if (d == nullptr) continue;
+    found = true;
+    const double mu = options.mu > 0.0 ? options.mu : d->mu();
+    if (!(mu >= 1.0)) {
+      throw ScenarioError(format_error(
+          sc.file, 0, e.name, fmt::format("expected mu >= 1 ([codesign] mu or --mu), got {}", mu)));
+    }
+    const est::sod::SodDesignResult z0 = est::sod::design_all_measurements(d->system());
+    if (!z0.ok)
+      throw std::runtime_error(fmt::format("{}: the z~0 LMI failed ({})", e.name, z0.status));
+    const auto spec = d->codesign_spec(mu, z0.bound);
+    if (!spec) {
+      throw ScenarioError(
+          format_error(sc.file, 0, e.name, "expected one output per sensor for the co-design"));
+    }
+    auto progress = [&](const est::sod::CodesignStep& s) {
+      if (!options.progress) return;
+      std::fprintf(stderr, "%s: step %d  delta = [", e.name.c_str(), s.iteration);
+      for (Eigen::Index i = 0; i < s.delta.size(); ++i)
+        std::fprintf(stderr, "%s%.4g", i ? " " : "", s.delta(i));
+      std::fprintf(stderr, "]  cost %.5g  bound %.5g (target %.5g)\n", s.cost, s.bound,
+                   spec->target);
+    };
+    const est::sod::CodesignResult r = est::sod::codesign(d->system(), *spec, progress);
+    nlohmann::json j;
+    j["estimator"] = e.name;
+    j["design"] =
+        d->spec().approach == est::sod::Approach::kDeterministic ? "deterministic" : "stochastic";
+    j["gain"] = d->spec().jump ? "jump" : "constant";
+    if (d->spec().approach == est::sod::Approach::kStochastic) {
+      j["vertices"] = d->spec().vertices == est::sod::Vertices::kAll ? "all" : "lower";
+      j["assumption"] = spec->assumption == est::sod::Assumption::kUniform ? "uniform" : "gaussian";
+    } else {
+      j["sigma2_delta_factor"] = spec->sigma2_factor;
+    }
+    j["r"] = vec(spec->r);
+    j["z0"] = z0.bound;
+    j["mu"] = mu;
+    j["target"] = spec->target;
+    j["epsilon"] = spec->epsilon;
+    j["step"] = spec->relative_step ? "relative" : "absolute";
+    j["delta0"] = vec(spec->delta0);
+    j["status"] = r.status;
+    j["delta"] = vec(r.delta);
+    j["cost"] = r.cost;
+    j["bound"] = r.design.ok ? nlohmann::json(r.design.bound) : nlohmann::json(nullptr);
+    j["iterations"] = r.iterations;
+    j["lmi_problems"] = r.lmi_problems;
+    j["lmi_seconds"] = r.lmi_seconds;
+    j["seconds"] = r.seconds;
+    j["sdp_dimension"] = r.design.size.total_dimension;
+    j["sdp_variables"] = r.design.size.variables;
+    j["lmis_per_problem"] = r.design.lmis;
+    nlohmann::json path = nlohmann::json::array();
+    for (const auto& s : r.path)
+      path.push_back({{"iteration", s.iteration},
+                      {"delta", vec(s.delta)},
+                      {"cost", s.cost},
+                      {"bound", s.bound}});
+    j["path"] = path;
+    std::string sets;
+    Eigen::Index row = 0;
+    for (std::size_t s = 0; s < sc.model.sensors.size(); ++s, ++row) {
+      sets += fmt::format("{}--set sensor[{}].delta={:.6g}", s ? " " : "", s, r.delta(row));
+    }
+    // Only thresholds that meet the target are worth applying.
+    j["apply"] = r.status == "ok" ? nlohmann::json(sets) : nlohmann::json(nullptr);
+    out.push_back(j);
+  }
+  if (!found) {
+    throw ScenarioError(format_error(
+        sc.file, 0, "estimator",
+        options.estimator.empty()
+            ? "expected at least one sod_jump estimator to co-design"
+            : fmt::format("expected a sod_jump estimator named \"{}\"", options.estimator)));
+  }
+  return out;
+}
+
+}  // namespace ncosim::sim

@@ -1,0 +1,400 @@
+// sim/cmd/exports.cc — see sim/cmd/exports.h.
+#include "sim/cmd/exports.h"
+
+#include <fcntl.h>
+#include <fmt/format.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cerrno>
+#include <charconv>
+#include <chrono>
+#include <cmath>
+#include <condition_variable>
+#include <csignal>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <iostream>
+#include <limits>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <thread>
+
+#include "ncosim_version.h"
+#include "sim/analysis/output.h"
+#include "sim/analysis/paired.h"
+#include "sim/cmd/campaign_meta.h"
+#include "sim/cmd/manifest.h"
+#include "sim/cmd/mpi_campaign.h"
+#include "sim/files/output_set.h"
+#include "sim/present/table_view.h"
+#include "sim/run/campaign.h"
+#include "sim/run/link_report.h"
+#include "sim/run/progress.h"
+#include "sim/scenario/resource_limits.h"
+#include "sim/store/store.h"
+
+namespace ncosim::sim {
+
+LinkCoverage load_link_runs(const RunStore& store, std::vector<CampaignResult>& results) {
+  LinkCoverage cov;
+  for (std::size_t c = 0; c < results.size(); ++c) {
+    CampaignResult& res = results[c];
+    auto stored = store.load_case_links(c);
+    std::size_t j = 0;
+    res.link_runs.reserve(res.run_ids.size());
+    for (const std::uint64_t run : res.run_ids) {
+      while (j < stored.size() && stored[j].first < run) ++j;
+      if (j < stored.size() && stored[j].first == run) {
+        res.link_runs.push_back(std::move(stored[j].second));
+        ++cov.present;
+      } else {
+        res.link_runs.emplace_back();
+        ++cov.missing;
+      }
+    }
+  }
+  cov.complete = cov.missing == 0;
+  if (!cov.complete) {
+    for (auto& res : results) res.link_runs.clear();
+  }
+  return cov;
+}
+
+ErrorCurve error_curve_for(const LoadedScenario& loaded, const RunStore& store, std::size_t c,
+                           const CampaignResult& res) {
+  const Scenario& sc = *loaded.cases[c].scenario;
+  ErrorCurve curve = store.curve(c);
+  if (!curve.empty() &&
+      (curve.periods() != sc.run.periods || curve.estimators() != sc.estimators.size() ||
+       curve.states() != sc.model.plant.n())) {
+    throw StoreError(fmt::format(
+        "run store {}: the error curve of case {} has {} periods x {} estimators x {} states, "
+        "the scenario {} x {} x {}",
+        store.path(), c + 1, curve.periods(), curve.estimators(), curve.states(), sc.run.periods,
+        sc.estimators.size(), sc.model.plant.n()));
+  }
+  std::vector<std::uint64_t> covered = curve.runs();
+  std::sort(covered.begin(), covered.end());
+  std::vector<std::uint64_t> used = res.run_ids;
+  std::sort(used.begin(), used.end());
+  if (!std::includes(used.begin(), used.end(), covered.begin(), covered.end())) {
+    curve = ErrorCurve();
+    covered.clear();
+  }
+  std::vector<std::uint64_t> missing;
+  std::set_difference(used.begin(), used.end(), covered.begin(), covered.end(),
+                      std::back_inserter(missing));
+  if (!missing.empty()) {  // on every core, as a campaign of those runs
+    CampaignOptions opt;
+    opt.time_estimators = false;
+    opt.link_counters = false;
+    opt.only_runs = std::move(missing);
+    opt.on_run = [](std::uint64_t, RunMetrics&&, RunLinks&&) {};
+    curve.merge(run_campaign(sc, opt).curve);
+  }
+  return curve;
+}
+
+std::vector<std::pair<std::string, std::string>> derive_exports(const LoadedScenario& loaded,
+                                                                const RunStore& store,
+                                                                const ExportInfo& info,
+                                                                std::string* markdown) {
+  const auto meta = store.meta();
+  const Shard shard = shard_of(meta);
+  const TargetRule rule = target_of(meta, loaded);
+  std::vector<CampaignResult> results(loaded.cases.size());
+  std::vector<SummaryRow> rows;
+  std::uint64_t done = 0, expected = 0;
+  for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
+    CampaignResult& res = results[c];
+    for (auto& [run, m] : store.load_case(c)) {
+      res.run_ids.push_back(run);
+      res.runs.push_back(std::move(m));
+    }
+  }
+  // Link counters: links.csv needs them for every run the exports use (sim/run/link_report.h).
+  const LinkCoverage links = load_link_runs(store, results);
+  TargetDecision decision;
+  if (rule.on() && shard.count <= 1) {
+    decision = decide_target(loaded, results, rule);
+    if (decision.decided) {  // runs beyond the stopping point (e.g. of shards) are not used
+      for (auto& res : results) {
+        res.runs.resize(decision.runs);
+        res.run_ids.resize(decision.runs);
+        if (!res.link_runs.empty()) res.link_runs.resize(decision.runs);
+      }
+    }
+  }
+  for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
+    const Scenario& sc = *loaded.cases[c].scenario;
+    CampaignResult& res = results[c];
+    res.ns_per_period = store.timing(c, sc.estimators.size());
+    done += res.runs.size();
+    if (decision.decided) {
+      expected += decision.runs;
+    } else if (rule.on()) {
+      expected += shard.count <= 1 ? rule.max_runs
+                                   : rule.max_runs / shard.count +
+                                         (shard.index < rule.max_runs % shard.count ? 1 : 0);
+    } else {
+      expected += owned_runs(sc, shard);
+    }
+    auto case_rows = summarise(sc, res, loaded.cases[c].labels);
+    for (std::size_t e = 0; e < case_rows.size(); ++e) {
+      if (!decision.decided) continue;
+      case_rows[e].stop = decision.reason;
+      if (decision.met[c][e] == 0 && case_rows[e].status == "ok")
+        case_rows[e].status = "ci_target_not_met";
+    }
+    rows.insert(rows.end(), case_rows.begin(), case_rows.end());
+  }
+  add_paired_across_cases(rows, loaded, reference_case_index(loaded));  // sim/analysis/paired.h
+  if (info.not_ok != nullptr) {
+    for (const auto& r : rows) {
+      if (status_as_expected(r.status, r.expected_status))
+        continue;  // [[estimator]] expected_status
+      std::string where;
+      for (std::size_t i = 0; i < r.sweep_labels.size(); ++i) {
+        where += fmt::format("{} = {}, ", loaded.sweeps[i].key, r.sweep_labels[i]);
+      }
+      info.not_ok->push_back(fmt::format("{}\"{}\": {}", where, r.estimator, status_text(r)));
+    }
+  }
+  const Scenario& first = *loaded.cases.front().scenario;
+  const Eigen::Index n = first.model.plant.n();
+  std::vector<std::vector<std::string>> labels;
+  std::vector<const Scenario*> scs;
+  std::vector<const CampaignResult*> res;
+  for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
+    labels.push_back(loaded.cases[c].labels);
+    scs.push_back(loaded.cases[c].scenario.get());
+    res.push_back(&results[c]);
+  }
+  const bool complete = decision.decided || (!rule.on() && done == expected);
+  if (info.complete != nullptr) *info.complete = complete;
+  const std::string table_md = summary_markdown(first.title, loaded.sweeps, rows, n);
+  std::string extras = consistency_notes(loaded.sweeps, rows);  // the lines under the table
+  if (decision.decided) {
+    extras += decision.reason == "target_ci"
+                  ? fmt::format(
+                        "\nStopped at {} runs per case: every row's 95 % CI half-width of mse is "
+                        "within {:g} % of "
+                        "its mean (`--target-ci {:g}`, batches of {}).\n",
+                        decision.runs, 100.0 * rule.rel, rule.rel, rule.batch)
+                  : fmt::format(
+                        "\nStopped at `--max-runs {}`: the rows with status `ci_target_not_met` "
+                        "did not reach "
+                        "the 95 % CI half-width target of {:g} % of mse (`--target-ci {:g}`).\n",
+                        decision.runs, 100.0 * rule.rel, rule.rel);
+  }
+  if (!complete || shard.count > 1) {
+    extras += fmt::format(
+        "\n**Partial results**: {} of {} runs{}{}.\n", done, expected,
+        shard.count > 1 ? fmt::format(" of shard {}/{}", shard.index + 1, shard.count) : "",
+        info.stopped.empty() ? "" : fmt::format(" (stopped by {})", info.stopped));
+    if (!complete)
+      extras += "`ncosim run FILE --out DIR --resume` (same options) runs the missing ones.\n";
+    if (shard.count > 1)
+      extras += "`ncosim merge OUT DIR...` combines the shards' stores into the whole campaign.\n";
+  }
+  const std::string md = table_md + extras;
+  double wall = 0.0;
+  int threads = 1;
+  try {
+    wall = std::stod(meta.at("wall_seconds"));
+    threads = std::stoi(meta.at("threads"));
+  } catch (...) {
+  }
+  nlohmann::json man = campaign_manifest(loaded, info.command_line, threads, wall);
+  man["store"] = "runs.sqlite";
+  if (const auto it = meta.find("inputs"); it != meta.end() && !it->second.empty()) {
+    man["inputs"] =
+        nlohmann::json::parse(it->second);  // every file the scenario read: path -> content hash
+  }
+  man["ranks"] = meta.count("ranks") != 0 ? std::stoi(meta.at("ranks")) : 1;
+  man["runs_done"] = done;
+  man["runs_expected"] = expected;
+  man["complete"] = complete;
+  man["stopped"] = info.stopped.empty() ? nlohmann::json(nullptr) : nlohmann::json(info.stopped);
+  man["shard"] = shard.count > 1 ? nlohmann::json(meta.at("shard")) : nlohmann::json(nullptr);
+  if (rule.on()) {
+    man["target_ci"] = {
+        {"rel", rule.rel},
+        {"max_runs", rule.max_runs},
+        {"batch", rule.batch},
+        {"runs", decision.decided ? nlohmann::json(decision.runs) : nlohmann::json(nullptr)},
+        {"stop", decision.decided ? nlohmann::json(decision.reason) : nlohmann::json(nullptr)}};
+  }
+  if (!links.complete) {
+    man["links_csv"] = fmt::format(
+        "not written: {} of the {} stored runs have no link counters (a store written "
+        "before ncosim counted them)",
+        links.missing, links.missing + links.present);
+  }
+  std::vector<std::pair<std::string, std::string>> files{
+      {"summary.csv", summary_csv(loaded.sweeps, rows, n)},
+      {"summary.md", md},
+      {"runs.csv", runs_csv(loaded.sweeps, labels, scs, res)},
+      {"transmissions.csv", transmissions_csv(loaded.sweeps, labels, scs, res)},
+      {"design.json", design_json(loaded).dump(2) + "\n"},
+      {"manifest.json", man.dump(2) + "\n"},
+  };
+  if (links.complete) files.emplace_back("links.csv", links_csv(loaded.sweeps, labels, scs, res));
+  const auto art = store.artifacts();
+  if (const auto it = art.find("trajectory.csv"); it != art.end())
+    files.emplace_back("trajectory.csv", it->second);
+  const std::string confusion = confusion_csv(loaded.sweeps, rows);
+  if (confusion.find('\n') + 1 < confusion.size()) files.emplace_back("confusion.csv", confusion);
+  if (first.run.error_curve) {
+    std::vector<ErrorCurve> curves;
+    for (std::size_t c = 0; c < loaded.cases.size(); ++c)
+      curves.push_back(error_curve_for(loaded, store, c, results[c]));
+    files.emplace_back("error_curve.csv", error_curve_csv(loaded.sweeps, labels, scs, curves));
+  }
+  if (markdown != nullptr) {  // what `run` prints (sim/present/table_view.h), else summary.md
+    // csv and json keep stdout to the data: the lines under the table go to stderr.
+    if (info.table != nullptr && info.table->machine() && !extras.empty())
+      std::cerr << extras.substr(1);
+    *markdown = info.table != nullptr ? stdout_table(*info.table, first.title, loaded.sweeps, rows,
+                                                     n, table_md, extras)
+                                      : md;
+  }
+  return files;
+}
+
+namespace {
+
+// Exports that a set may lack (dropped when the new set does not write them).
+const std::vector<std::string> kStale{"trajectory.csv", "confusion.csv", "links.csv",
+                                      "error_curve.csv"};
+// Files derived from a campaign's results by `ncosim plot` and `ncosim report`: dropped when a set
+// describes other results than the folder's (a new campaign, a merge, an export from elsewhere).
+const std::vector<std::string> kDerived{"plot_*",    "trace.dat", "trace.gp",
+                                        "trace.png", "trace.svg", "report.html"};
+
+std::vector<std::string> stale_with_derived() {
+  auto out = kStale;
+  out.insert(out.end(), kDerived.begin(), kDerived.end());
+  return out;
+}
+
+// Makes `to` the file `from`: a hard link (same filesystem: the folder's sibling), else a copy,
+// synced before the set that holds it is swapped in.
+void link_or_copy(const std::string& from, const std::filesystem::path& to) {
+  if (::link(from.c_str(), to.c_str()) == 0) return;
+  std::error_code ec;
+  std::filesystem::copy_file(from, to, ec);
+  if (ec)
+    throw std::runtime_error(fmt::format("cannot put the run store '{}' into '{}': {}", from,
+                                         to.string(), ec.message()));
+  const int fd = ::open(to.c_str(), O_RDONLY | O_CLOEXEC);
+  const bool synced = fd >= 0 && ::fsync(fd) == 0;
+  if (fd >= 0) ::close(fd);
+  if (!synced)
+    throw std::runtime_error(
+        fmt::format("cannot sync the copy '{}' of the run store", to.string()));
+}
+
+}  // namespace
+
+void note_replaced_partial(const std::string& out, const std::string& partial) {
+  std::error_code ec;
+  if (!std::filesystem::exists(partial, ec)) return;
+  std::string runs = "an unknown number of";
+  try {
+    runs = std::to_string(RunStore::open(partial, false).count_runs());
+  } catch (const std::exception&) {
+  }
+  std::cerr << fmt::format(
+      "ncosim: replacing the store of an unfinished campaign into '{}' ({}, {} run(s) "
+      "committed; `run ... --resume` would have continued it)\n",
+      out, partial, runs);
+}
+
+std::string export_and_install(const LoadedScenario& loaded, RunStore& store,
+                               const std::string& out, const ExportInfo& info) {
+  std::string md;
+  auto files = derive_exports(loaded, store, info, &md);
+  const std::string partial = store.path();
+  store.close();
+  write_output_set(out, files, stale_with_derived(),
+                   {InstalledFile{"runs.sqlite", [&](const std::filesystem::path& to) {
+                                    link_or_copy(partial, to);
+                                  }}});
+  remove_store_files(partial);
+  return md;
+}
+
+std::uint64_t run_limit(const LoadedScenario& loaded,
+                        const std::map<std::string, std::string>& meta) {
+  const TargetRule rule = target_of(meta, loaded);
+  std::uint64_t limit = rule.on() ? rule.max_runs : 0;
+  for (const auto& c : loaded.cases)
+    limit = std::max(limit, static_cast<std::uint64_t>(c.scenario->run.runs));
+  return limit;
+}
+
+void settle_partial(const std::string& out) {
+  const std::string partial = partial_store_path(out), live = store_path(out);
+  std::error_code ec;
+  if (std::filesystem::exists(partial, ec) && std::filesystem::exists(live, ec) &&
+      std::filesystem::equivalent(partial, live, ec)) {
+    remove_store_files(partial);
+  }
+}
+
+int cmd_export(const std::string& dir, const std::string& out, const std::string& command_line) {
+  const std::string path = store_path(dir);
+  const std::string target = out.empty() ? dir : out;
+  // One writer per folder, for the whole command: a set swapped in by another process between
+  // reading the store and writing the exports would otherwise pair its store with these exports.
+  const OutputFolderLock folder_lock(target);
+  RunStore store;
+  LoadedScenario loaded;
+  std::map<std::string, std::string> meta;
+  try {
+    store = RunStore::open(path, false);  // reading never writes the store
+    meta = store.meta();
+    loaded = reload(meta, path);
+    store.verify(loaded.cases.size(), run_limit(loaded, meta));
+  } catch (const StoreError& e) {
+    throw ScenarioError(fmt::format("export: {}", e.what()));
+  }
+  bool same_folder = false;
+  {
+    std::error_code ec;
+    same_folder =
+        output_set_folder(dir) == output_set_folder(target) ||
+        (std::filesystem::exists(target, ec) && std::filesystem::equivalent(dir, target, ec));
+  }
+  ExportInfo info;
+  info.command_line = command_line;
+  info.stopped = meta.count("stopped") != 0 ? meta.at("stopped") : "";
+  std::vector<std::pair<std::string, std::string>> files;
+  try {
+    files = derive_exports(loaded, store, info, nullptr);
+  } catch (const StoreError& e) {
+    throw ScenarioError(fmt::format("export: {}", e.what()));
+  }
+  if (same_folder) {
+    // The set's own store is carried over as it is; figures derived from it stay valid.
+    write_output_set(target, files, kStale);
+  } else {
+    // Another folder: its set becomes this store's, with a copy of it; what was derived from the
+    // folder's previous results goes.
+    write_output_set(target, files, stale_with_derived(),
+                     {InstalledFile{"runs.sqlite", [&](const std::filesystem::path& to) {
+                                      store.copy_to(to.string());
+                                    }}});
+  }
+  store.close();
+  std::cout << fmt::format("exports of {} written to {}/\n", path, target);
+  return 0;
+}
+
+}  // namespace ncosim::sim

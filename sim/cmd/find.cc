@@ -1,0 +1,279 @@
+// sim/cmd/find.cc — scan + bisection of a design quantity over one scenario key.
+#include "sim/cmd/find.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <set>
+
+#include "sim/analysis/output.h"
+
+namespace ncosim::sim {
+
+FindTarget parse_target(const std::string& text, const std::string& origin) {
+  FindTarget t;
+  std::size_t at = std::string::npos, len = 0;
+  for (const char* op : {"<=", ">=", "<", ">"}) {
+    const std::size_t p = text.find(op);
+    if (p != std::string::npos) {
+      at = p;
+      len = std::string(op).size();
+      t.op = op;
+      break;
+    }
+  }
+  auto bad = [&](const std::string& why) {
+    throw ScenarioError(
+        fmt::format("{}: expected QUANTITY<=VALUE (or >=, <, >), e.g. "
+                    "'predicted_mse<=0.03', got '{}' ({})",
+                    origin, text, why));
+  };
+  if (at == std::string::npos) bad("no comparison");
+  auto trim = [](std::string s) {
+    s.erase(0, s.find_first_not_of(" \t"));
+    s.erase(s.find_last_not_of(" \t") + 1);
+    return s;
+  };
+  t.quantity = trim(text.substr(0, at));
+  const std::string num = trim(text.substr(at + len));
+  if (t.quantity.empty()) bad("no quantity");
+  try {
+    std::size_t used = 0;
+    t.value = std::stod(num, &used);
+    if (used != num.size()) bad("the value is not a number");
+  } catch (const std::logic_error&) {
+    bad("the value is not a number");
+  }
+  if (!std::isfinite(t.value)) bad("the value is not finite");
+  return t;
+}
+
+std::string toml_float(double v) {
+  std::string s = fmt::format("{}", v);  // shortest exact form
+  if (s.find_first_of(".eEn") == std::string::npos) s += ".0";
+  return s;
+}
+
+namespace {
+
+// The quantity of every estimator of one case at one key value; nullopt where the design
+// failed or the field is not a number.
+using Sample = std::map<std::string, std::optional<double>>;
+
+// The --set that gives the key the value v: the key itself, or, when the key is swept (axis
+// `swept`), that axis reduced to the one value (a sweep is applied after --set).
+std::string assignment(const FindOptions& opt, std::optional<std::size_t> swept, double v) {
+  if (swept) return fmt::format("sweep[{}].values=[{}]", *swept, toml_float(v));
+  return fmt::format("{}={}", opt.key, toml_float(v));
+}
+
+Sample evaluate(const std::string& file, const std::vector<std::string>& sets,
+                const FindOptions& opt, std::optional<std::size_t> swept, std::size_t case_index,
+                double v) {
+  std::vector<std::string> s = sets;
+  s.push_back(assignment(opt, swept, v));
+  const LoadedScenario loaded = load_cases(file, s, {}, case_index);
+  const nlohmann::json dj = design_json(loaded);
+  const nlohmann::json& ests =
+      dj.contains("cases") ? dj["cases"][0]["estimators"] : dj["estimators"];
+  Sample out;
+  for (const auto& e : ests) {
+    std::optional<double> q;
+    const auto it = e.find(opt.target.quantity);
+    if (e["status"] == "ok" && it != e.end() && it->is_number()) q = it->get<double>();
+    out[e["name"].get<std::string>()] = q;
+  }
+  return out;
+}
+
+bool met(const FindTarget& t, const std::optional<double>& q) {
+  if (!q || !std::isfinite(*q)) return false;
+  if (t.op == "<=") return *q <= t.value;
+  if (t.op == ">=") return *q >= t.value;
+  if (t.op == "<") return *q < t.value;
+  return *q > t.value;
+}
+
+}  // namespace
+
+bool is_monotone(const std::map<double, std::optional<double>>& pts) {
+  int dir = 0;
+  std::optional<double> prev;
+  for (const auto& [k, q] : pts) {
+    if (!q) continue;
+    if (prev) {
+      const double d = *q - *prev;
+      const double slack = 1e-9 * std::max(std::abs(*q), std::abs(*prev));
+      const int s = d > slack ? 1 : d < -slack ? -1 : 0;
+      if (s != 0) {
+        if (dir != 0 && s != dir) return false;
+        dir = s;
+      }
+    }
+    prev = q;
+  }
+  return true;
+}
+
+FindResult find_threshold(const std::string& file, const std::vector<std::string>& sets,
+                          const FindOptions& opt, std::ostream& log) {
+  if (!(opt.lo < opt.hi))
+    throw ScenarioError(fmt::format("--lo: expected lo < hi, got {} and {}", opt.lo, opt.hi));
+  if (!(opt.tol > 0.0))
+    throw ScenarioError(fmt::format("--tol: expected a positive tolerance, got {}", opt.tol));
+  if (opt.scan < 1)
+    throw ScenarioError(fmt::format("--scan: expected at least 1 interval, got {}", opt.scan));
+  FindResult res;
+  // Case 0 at lo: the sweep axes, the estimator names, and a check that the key loads.
+  // A swept key is searched instead of swept: its axis is reduced to the searched value and
+  // left out of the output's sweep columns.
+  std::optional<std::size_t> swept;
+  std::vector<std::string> names;
+  {
+    const LoadedScenario probe = load_cases(file, sets, {}, 0);
+    for (std::size_t a = 0; a < probe.sweeps.size(); ++a) {
+      if (probe.sweeps[a].key == opt.key) swept = a;
+    }
+    std::vector<std::string> s = sets;
+    s.push_back(assignment(opt, swept, opt.lo));
+    const LoadedScenario first = load_cases(file, s, {}, 0);
+    for (const auto& e : first.cases.front().scenario->estimators) names.push_back(e.name);
+    res.sweeps = first.sweeps;
+  }
+  std::size_t total = 1;
+  for (const auto& a : res.sweeps) total *= a.labels.size();
+  std::vector<std::string> chosen = opt.estimators.empty() ? names : opt.estimators;
+  for (const auto& n : chosen) {
+    if (std::find(names.begin(), names.end(), n) == names.end()) {
+      const std::string hint = did_you_mean(n, names);
+      throw ScenarioError(
+          fmt::format("--estimator: expected an estimator name of {}, got \"{}\"{}", file, n,
+                      hint.empty() ? "" : fmt::format(" (did you mean \"{}\"?)", hint)));
+    }
+  }
+  for (std::size_t c = 0; c < total; ++c) {
+    std::vector<std::string> labels;
+    {
+      std::size_t rem = c;
+      labels.resize(res.sweeps.size());
+      for (std::size_t a = res.sweeps.size(); a-- > 0;) {
+        labels[a] = res.sweeps[a].labels[rem % res.sweeps[a].labels.size()];
+        rem /= res.sweeps[a].labels.size();
+      }
+    }
+    std::map<double, Sample> cache;  // key value -> every estimator's quantity
+    auto at = [&](double v) -> const Sample& {
+      auto it = cache.find(v);
+      if (it == cache.end()) it = cache.emplace(v, evaluate(file, sets, opt, swept, c, v)).first;
+      return it->second;
+    };
+    std::vector<std::string> shown;
+    for (std::size_t a = 0; a < labels.size(); ++a) {
+      if (!swept || a != *swept) shown.push_back(labels[a]);
+    }
+    std::string where;
+    for (std::size_t a = 0; a < labels.size(); ++a) {
+      if (swept && a == *swept) continue;
+      where += fmt::format("{}{} = {}", where.empty() ? " (" : ", ", res.sweeps[a].key, labels[a]);
+    }
+    if (!where.empty()) where += ")";
+    for (const auto& name : chosen) {
+      FindRow row;
+      row.sweep_labels = shown;
+      row.estimator = name;
+      std::map<double, std::optional<double>> pts;
+      auto q = [&](double v) {
+        const std::optional<double> r = at(v).at(name);
+        pts[v] = r;
+        ++row.evaluations;
+        return r;
+      };
+      std::vector<double> xs;
+      std::vector<bool> ok;
+      for (int i = 0; i <= opt.scan; ++i) {
+        const double v = i == opt.scan ? opt.hi : opt.lo + (opt.hi - opt.lo) * i / opt.scan;
+        xs.push_back(v);
+        ok.push_back(met(opt.target, q(v)));
+      }
+      std::size_t first = xs.size();
+      for (std::size_t i = 0; i + 1 < xs.size(); ++i) {
+        if (ok[i] != ok[i + 1]) {
+          ++row.crossings;
+          if (first == xs.size()) first = i;
+        }
+      }
+      if (row.crossings == 0) {
+        row.status = "not_bracketed";
+        log << fmt::format(
+            "ncosim find: warning: \"{}\"{}: {} {} over [{}, {}]: no threshold in the range\n",
+            name, where, opt.target.quantity,
+            ok.front() ? "meets the target everywhere" : "never meets the target", opt.lo, opt.hi);
+      } else {
+        double a = xs[first], b = xs[first + 1];
+        const bool ok_a = ok[first];
+        while (b - a > opt.tol) {
+          const double mid = 0.5 * (a + b);
+          if (mid <= a || mid >= b) break;
+          (met(opt.target, q(mid)) == ok_a ? a : b) = mid;
+        }
+        row.threshold = ok_a ? a : b;
+        row.other = ok_a ? b : a;
+        row.value = pts[*row.threshold];
+        row.status = row.crossings > 1 ? "several_crossings" : "ok";
+        if (row.crossings > 1) {
+          log << fmt::format(
+              "ncosim find: warning: \"{}\"{}: the target is crossed {} times over the scan; "
+              "the crossing nearest lo is reported\n",
+              name, where, row.crossings);
+        }
+      }
+      row.monotone = is_monotone(pts);
+      if (!row.monotone) {
+        if (row.status == "ok") row.status = "not_monotone";
+        log << fmt::format(
+            "ncosim find: warning: \"{}\"{}: {} is not monotone in {} over the evaluated "
+            "points; a bisection threshold may not be unique\n",
+            name, where, opt.target.quantity, opt.key);
+      }
+      res.rows.push_back(std::move(row));
+    }
+  }
+  if (swept) res.sweeps.erase(res.sweeps.begin() + static_cast<std::ptrdiff_t>(*swept));
+  return res;
+}
+
+std::string find_csv(const FindResult& result, const FindOptions& opt) {
+  std::string out;
+  std::vector<std::string> cols;
+  for (const auto& s : result.sweeps) cols.push_back(s.key);
+  for (const char* c : {"estimator", "key", "quantity", "op", "target", "threshold", "other_end",
+                        "value_at_threshold", "evaluations", "monotone", "status"}) {
+    cols.push_back(c);
+  }
+  for (std::size_t i = 0; i < cols.size(); ++i) out += (i ? "," : "") + csv_field(cols[i]);
+  out += "\n";
+  auto num = [](const std::optional<double>& v) {
+    return v ? fmt::format("{:.10g}", *v) : std::string();
+  };
+  for (const auto& r : result.rows) {
+    std::vector<std::string> cells = r.sweep_labels;
+    cells.push_back(r.estimator);
+    cells.push_back(opt.key);
+    cells.push_back(opt.target.quantity);
+    cells.push_back(opt.target.op);
+    cells.push_back(fmt::format("{}", opt.target.value));
+    cells.push_back(num(r.threshold));
+    cells.push_back(num(r.other));
+    cells.push_back(num(r.value));
+    cells.push_back(std::to_string(r.evaluations));
+    cells.push_back(r.monotone ? "true" : "false");
+    cells.push_back(r.status);
+    for (std::size_t i = 0; i < cells.size(); ++i) out += (i ? "," : "") + csv_field(cells[i]);
+    out += "\n";
+  }
+  return out;
+}
+
+}  // namespace ncosim::sim

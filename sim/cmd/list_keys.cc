@@ -1,0 +1,86 @@
+// sim/cmd/list_keys.cc — the declared keys of every registered kind, as text or Markdown.
+#include "sim/cmd/list_keys.h"
+
+#include <fmt/format.h>
+
+#include <iostream>
+#include <vector>
+
+#include "config/keys.h"
+#include "models/fit.h"
+#include "sim/scenario/registries.h"
+
+namespace ncosim::sim {
+
+namespace {
+
+struct NamedKeys {
+  std::string name;  // "link.bernoulli"
+  std::string kind;  // "bernoulli"
+  std::string help;
+  const Keys* keys;
+};
+
+template <class R>
+void collect(const char* prefix, const R& registry, std::vector<NamedKeys>& out) {
+  for (const auto& e : registry.entries())
+    out.push_back({fmt::format("{}.{}", prefix, e.name), e.name, e.help, &e.keys});
+}
+
+std::vector<NamedKeys> all_kinds() {
+  std::vector<NamedKeys> out;
+  collect("plant", plant_registry(), out);
+  collect("link", link_registry(), out);
+  collect("input", input_registry(), out);
+  collect("estimator", estimator_registry(), out);
+  collect("send_policy", send_policy_registry(), out);
+  return out;
+}
+
+void print(const NamedKeys& k, bool markdown) {
+  if (markdown) {
+    if (k.keys->empty()) {
+      std::cout << "No keys of its own.\n";
+      return;
+    }
+    std::cout << format_keys(*k.keys, true);
+    return;
+  }
+  std::cout << fmt::format("{}: {}\n", k.name, k.help);
+  std::cout << (k.keys->empty() ? "  (no keys of its own)\n" : format_keys(*k.keys, false));
+}
+
+}  // namespace
+
+int cmd_list_keys(const std::string& kind, bool markdown) {
+  const std::vector<NamedKeys> all = all_kinds();
+  std::vector<const NamedKeys*> chosen;
+  for (const auto& k : all) {
+    if (kind.empty() || k.name == kind || k.kind == kind) chosen.push_back(&k);
+  }
+  if (chosen.empty()) {
+    std::vector<std::string> names;
+    for (const auto& k : all) names.push_back(k.name);
+    const std::string hint = did_you_mean(kind, names);
+    std::cerr << fmt::format(
+        "ncosim: expected a kind (e.g. link.bernoulli; `ncosim list` lists "
+        "them), got '{}'{}\n",
+        escape_text(kind), hint.empty() ? "" : fmt::format(" (did you mean '{}'?)", hint));
+    return 2;
+  }
+  for (std::size_t i = 0; i < chosen.size(); ++i) {
+    if (i > 0) std::cout << "\n";
+    if (markdown && chosen.size() > 1) std::cout << fmt::format("### {}\n\n", chosen[i]->name);
+    print(*chosen[i], markdown);
+  }
+  return 0;
+}
+
+void list_fit_families() {
+  std::cout << "fit families (ncosim fit --family):\n";
+  for (const auto& f : models::fit_families())
+    std::cout << fmt::format("  {:<18} {} (writes a [[link]] of kind {})\n", f.name, f.help,
+                             f.link_kind);
+}
+
+}  // namespace ncosim::sim

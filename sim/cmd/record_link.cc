@@ -1,0 +1,162 @@
+// sim/cmd/record_link.cc — `ncosim record-link`.
+#include "sim/cmd/record_link.h"
+
+#include <fmt/format.h>
+
+#include <filesystem>
+#include <iostream>
+#include <string>
+
+#include "config/config.h"
+#include "kernel/rng.h"
+#include "kernel/time.h"
+#include "models/link.h"
+#include "sim/analysis/output.h"
+#include "sim/files/output_set.h"
+
+namespace ncosim::sim {
+
+namespace {
+
+// What a trace link reads at most (models/link.cc): a longer record could not be replayed.
+constexpr std::int64_t kMaxPackets = 50'000'000;
+
+// The senders of link `l`: its sensors, in sensor order. Refuses what cannot be recorded alone.
+std::vector<std::size_t> senders(const Scenario& sc, std::size_t l) {
+  const auto& name = sc.links[l].name;
+  for (const auto& a : sc.model.actuators) {
+    if (a.spec.link == static_cast<int>(l)) {
+      throw ScenarioError(
+          fmt::format("--link: link '{}' carries an actuator's commands: only links of periodic "
+                      "sensors can be recorded",
+                      name));
+    }
+  }
+  if (sc.links[l].link->independent_copies()) {
+    throw ScenarioError(
+        fmt::format("--link: link '{}' delivers independent copies (several delays per packet): a "
+                    "trace holds one",
+                    name));
+  }
+  std::vector<std::size_t> out;
+  for (std::size_t s = 0; s < sc.model.sensors.size(); ++s) {
+    const auto& spec = sc.model.sensors[s].spec;
+    if (spec.link != static_cast<int>(l)) continue;
+    if (!spec.policy->sends_every_sample()) {
+      throw ScenarioError(
+          fmt::format("--link: sensor {} on link '{}' sends by policy \"{}\" (its send times "
+                      "depend on the simulation): only "
+                      "sensors that send every sample can be recorded",
+                      s, name, spec.policy->name()));
+    }
+    out.push_back(s);
+  }
+  if (out.empty())
+    throw ScenarioError(fmt::format("--link: link '{}' carries no sensor's packets", name));
+  return out;
+}
+
+}  // namespace
+
+RecordedTrace record_link(const Scenario& sc, std::size_t l, std::int64_t runs) {
+  const std::vector<std::size_t> from = senders(sc, l);
+  const std::int64_t periods = sc.run.periods;
+  RecordedTrace out;
+  for (const std::size_t s : from) {
+    const std::int64_t every = sc.model.sensors[s].spec.every;
+    out.per_run += (periods + every - 1) / every;
+  }
+  if (out.per_run * runs > kMaxPackets) {
+    throw ScenarioError(
+        fmt::format("--runs/--periods: recording link '{}' gives {} runs x {} packets, more than "
+                    "the {} packets a trace link "
+                    "reads",
+                    sc.links[l].name, runs, out.per_run, kMaxPackets));
+  }
+  out.delays.reserve(static_cast<std::size_t>(out.per_run * runs));
+  const std::uint64_t seed = sc.run.seed;
+  const SimTime period_ns = seconds_to_time(sc.run.period);
+  std::vector<std::int64_t> copies;
+  for (std::int64_t r = 0; r < runs; ++r) {
+    const auto run = static_cast<std::uint64_t>(r);
+    // As the campaign (sim/run/campaign.cc): a fresh instance, the run's mobility and link stream.
+    std::unique_ptr<models::MobilityRun> mobility;
+    if (sc.mobility) mobility = sc.mobility->start(run);
+    auto link = sc.links[l].link->clone();
+    Rng rng = make_stream(seed, run, stream_id(StreamKind::kLink, l));
+    models::bind_run(*link, mobility.get(), seed, run);
+    link->reset(rng);
+    for (std::int64_t k = 0; k < periods; ++k) {
+      if (mobility) mobility->advance(k * period_ns);  // the plant event of period k comes first
+      for (const std::size_t s : from) {
+        if (k % sc.model.sensors[s].spec.every != 0) continue;
+        link->advance(k, rng);
+        link->transmit_copies(rng, copies);
+        out.delays.push_back(copies.empty() ? models::kLost : copies.front());
+      }
+    }
+  }
+  return out;
+}
+
+int cmd_record_link(const RecordLinkArgs& a) {
+  LoadedScenario loaded = load_cases(a.file, a.sets, a.overrides);
+  const Scenario& first = *loaded.cases.front().scenario;
+  std::size_t l = first.links.size();
+  std::string names;
+  for (std::size_t i = 0; i < first.links.size(); ++i) {
+    if (first.links[i].name == a.link) l = i;
+    names += (i ? ", " : "") + first.links[i].name;
+  }
+  if (l == first.links.size()) {
+    throw ScenarioError(fmt::format("--link: expected the name of a [[link]] of {} ({}), got '{}'",
+                                    a.file, names.empty() ? "it has none" : names, a.link));
+  }
+  const std::string out = a.out.empty()
+                              ? (std::filesystem::path("out") /
+                                 ("record_" + std::filesystem::path(a.file).stem().string()))
+                                    .string()
+                              : a.out;
+  std::string index;
+  for (const auto& axis : loaded.sweeps) index += csv_field(axis.key) + ",";
+  index += "link,file,runs,periods,segment,packets,delivered,delivered_ratio\n";
+  std::vector<std::pair<std::string, std::string>> files;
+  for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
+    const Scenario& sc = *loaded.cases[c].scenario;
+    const RecordedTrace t = record_link(sc, l, sc.run.runs);
+    const std::string name = loaded.cases.size() == 1 ? fmt::format("{}.csv", a.link)
+                                                      : fmt::format("{}_case{}.csv", a.link, c);
+    std::string csv = "seq,delay\n";
+    std::int64_t delivered = 0;
+    for (std::size_t i = 0; i < t.delays.size(); ++i) {
+      if (t.delays[i] == models::kLost) {
+        csv += fmt::format("{},\n", i);
+      } else {
+        csv += fmt::format("{},{}\n", i, t.delays[i]);
+        ++delivered;
+      }
+    }
+    for (const auto& label : loaded.cases[c].labels) index += csv_field(label) + ",";
+    const auto packets = static_cast<std::int64_t>(t.delays.size());
+    index += fmt::format("{},{},{},{},{},{},{},{}\n", csv_field(a.link), csv_field(name),
+                         sc.run.runs, sc.run.periods, t.per_run, packets, delivered,
+                         fmt_number(static_cast<double>(delivered) / static_cast<double>(packets)));
+    if (!a.quiet) {
+      std::cerr << fmt::format(
+          "record-link: case {} of {}: {} runs x {} packets, delivered {:.6g}\n", c + 1,
+          loaded.cases.size(), sc.run.runs, t.per_run,
+          static_cast<double>(delivered) / static_cast<double>(packets));
+    }
+    files.emplace_back(name, std::move(csv));
+  }
+  files.emplace_back("record.csv", std::move(index));
+  // Everything recorded (bad input already refused): only now is the folder touched.
+  prepare_output_dir(out);
+  const OutputFolderLock lock(out);  // one writer per folder (sim/files/output_set.h)
+  write_files_atomically(out, files);
+  std::cout << fmt::format("{} trace(s) of link '{}' and record.csv written to {}/\n",
+                           files.size() - 1, a.link, out);
+  return 0;
+}
+
+}  // namespace ncosim::sim

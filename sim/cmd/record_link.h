@@ -1,0 +1,45 @@
+// sim/cmd/record_link.h — `ncosim record-link FILE --link NAME`: the per-packet fate (delay or
+// lost) of every packet a campaign sends on one link, in the `trace` link's format (seq,delay), run
+// after run, so that `ncosim fit` can fit it and a `trace` link with `segment` can replay it.
+//
+// The link is driven alone, as the campaign drives it: one instance per run (clone, bind_run
+// with the run's mobility, reset with the run's link stream), the mobility advanced to kT before
+// the packets of period k, and at each period the packets of its sensors in sensor order. This
+// gives exactly the campaign's draws because the fate of a packet depends only on the link, its
+// random stream (or counter-based keys) and the send times, and the send times of periodic
+// sensors are fixed. Send-on-delta sensors (send times depend on the measurements), actuators
+// and links delivering independent copies are refused (exit 2).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "sim/scenario/scenario.h"
+
+namespace ncosim::sim {
+
+struct RecordLinkArgs {
+  std::string file;
+  std::vector<std::string> sets;
+  RunOverrides overrides;
+  std::string link;  // [[link]] name
+  std::string out;   // default: out/record_<file stem>
+  bool quiet = false;
+};
+
+// The trace of one case: packets of run r in rows r * per_run .. (r + 1) * per_run - 1, each
+// its delay in periods or models::kLost.
+struct RecordedTrace {
+  std::int64_t per_run = 0;  // packets one run sends on the link
+  std::vector<std::int64_t> delays;
+};
+
+// Records `link` (index into sc.links) over runs 0 .. runs - 1. Throws ScenarioError when the
+// link cannot be recorded (see above), naming the sensor, actuator or link.
+RecordedTrace record_link(const Scenario& sc, std::size_t link, std::int64_t runs);
+
+// The command: exit 0; ScenarioError (exit 2) for bad input, nothing written.
+int cmd_record_link(const RecordLinkArgs& args);
+
+}  // namespace ncosim::sim

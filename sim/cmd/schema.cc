@@ -1,0 +1,178 @@
+// sim/cmd/schema.cc — the scenario format as a JSON Schema (sim/cmd/schema.h).
+#include "sim/cmd/schema.h"
+
+#include <fmt/format.h>
+
+#include <cstdint>
+#include <fstream>
+#include <iostream>
+#include <stdexcept>
+#include <variant>
+
+#include "sim/scenario/scenario_keys.h"
+
+namespace ncosim::sim {
+
+namespace {
+
+using Json = nlohmann::ordered_json;
+
+// A number with the key's range (for arrays: every entry).
+Json number_schema(const Key& k, const char* type) {
+  Json s{{"type", type}};
+  // Integer bounds as integers (1, not 1.0).
+  auto bound = [&](double v) {
+    return k.type() == KeyType::kInteger ? Json(static_cast<std::int64_t>(v)) : Json(v);
+  };
+  if (k.lo()) s[k.lo_open() ? "exclusiveMinimum" : "minimum"] = bound(*k.lo());
+  if (k.hi()) s[k.hi_open() ? "exclusiveMaximum" : "maximum"] = bound(*k.hi());
+  return s;
+}
+
+Json type_schema(const Key& k) {
+  const Json number = number_schema(k, "number");
+  const Json array_of_numbers{{"type", "array"}, {"items", number}};
+  switch (k.type()) {
+    case KeyType::kNumber:
+      return number;
+    case KeyType::kInteger:
+      return number_schema(k, "integer");
+    case KeyType::kBoolean:
+      return Json{{"type", "boolean"}};
+    case KeyType::kString:
+      return Json{{"type", "string"}};
+    case KeyType::kChoice:
+      return Json{{"type", "string"}, {"enum", k.values()}};
+    case KeyType::kNumbers:
+    case KeyType::kVector:  // a bare number is an array of one
+      return Json{{"anyOf", Json::array({number, array_of_numbers})}};
+    case KeyType::kMatrix: {  // an array of rows, or a bare number (1x1)
+      Json rows{{"type", "array"}, {"minItems", 1}, {"items", array_of_numbers}};
+      rows["items"]["minItems"] = 1;
+      return Json{{"anyOf", Json::array({number, rows})}};
+    }
+    case KeyType::kRagged:
+      return Json{{"type", "array"}, {"items", array_of_numbers}};
+    case KeyType::kTable:
+      return Json{{"type", "object"}};
+    case KeyType::kTables:
+      return Json{{"type", "array"}, {"items", Json{{"type", "object"}}}};
+    case KeyType::kAny:
+      return Json::object();
+  }
+  return Json::object();
+}
+
+Json default_value(const Key::Value& v) {
+  struct Visit {
+    Json operator()(std::monostate) const { return nullptr; }
+    Json operator()(double x) const { return x; }
+    Json operator()(std::int64_t x) const { return x; }
+    Json operator()(bool x) const { return x; }
+    Json operator()(const std::string& x) const { return x; }
+    Json operator()(const std::vector<double>& x) const { return x; }
+  };
+  return std::visit(Visit{}, v);
+}
+
+// "help [unit] (default: D; allowed: R)".
+std::string description(const Key& k) {
+  std::string text = k.help_text();
+  if (!k.unit_text().empty()) text += fmt::format(" [{}]", k.unit_text());
+  std::string notes;
+  if (k.required())
+    notes = "required";
+  else if (!k.default_text().empty())
+    notes = "default: " + k.default_text();
+  if (!k.range_text().empty())
+    notes += (notes.empty() ? "" : "; ") + ("allowed: " + k.range_text());
+  if (k.type() == KeyType::kAny) notes += (notes.empty() ? "" : "; ") + k.type_text();
+  return notes.empty() ? text : fmt::format("{} ({})", text, notes);
+}
+
+Json key_schema(const Key& k) {
+  Json s = type_schema(k);
+  s["description"] = description(k);
+  const Json d = default_value(k.default_value());
+  if (!d.is_null()) s["default"] = d;
+  return s;
+}
+
+// The properties and required keys of `keys` added to object schema `s`.
+void add_keys(Json& s, const Keys& keys) {
+  for (const Key& k : keys.list()) {
+    s["properties"][k.name()] = key_schema(k);
+    if (k.required()) {
+      Json& req = s["required"];
+      if (std::find(req.begin(), req.end(), Json(k.name())) == req.end()) req.push_back(k.name());
+    }
+  }
+}
+
+Json section_schema(const Section& sec) {
+  Json s{{"type", "object"}, {"description", sec.help}, {"properties", Json::object()}};
+  s["required"] = Json::array();
+  if (sec.keys != nullptr) add_keys(s, *sec.keys);
+  if (!sec.kind_key.empty()) {
+    std::vector<std::string> names;
+    for (const auto& kind : sec.kinds) names.push_back(kind.name);
+    Json& kk = s["properties"][sec.kind_key];
+    kk["type"] = "string";
+    kk["enum"] = names;
+    Json all = Json::array();
+    for (const auto& kind : sec.kinds) {
+      Json cond{{"properties", {{sec.kind_key, {{"const", kind.name}}}}}};
+      if (kind.name != sec.default_kind) cond["required"] = Json::array({sec.kind_key});
+      Json then{{"description", kind.help}, {"properties", s["properties"]}};
+      then["required"] = s["required"];
+      const bool declared = kind.keys != nullptr && !kind.keys->empty();
+      if (declared) add_keys(then, *kind.keys);
+      if (then["required"].empty()) then.erase("required");
+      if (sec.closed && declared) then["additionalProperties"] = false;
+      all.push_back(Json{{"if", cond}, {"then", then}});
+    }
+    if (!all.empty()) s["allOf"] = all;
+  } else if (sec.closed && sec.keys != nullptr) {
+    s["additionalProperties"] = false;
+  }
+  if (s["required"].empty()) s.erase("required");
+  if (!sec.array) return s;
+  Json arr{{"type", "array"}, {"description", sec.help}, {"items", s}};
+  if (sec.required) arr["minItems"] = 1;
+  return arr;
+}
+
+}  // namespace
+
+nlohmann::ordered_json scenario_schema() {
+  Json root{{"$schema", "http://json-schema.org/draft-07/schema#"},
+            {"title", "ncosim scenario"},
+            {"description",
+             "A scenario of ncosim (scenarios/README.md), generated by `ncosim schema` from the "
+             "declared keys of every section and kind."},
+            {"type", "object"},
+            {"properties", Json::object()}};
+  Json required = Json::array();
+  root["properties"]["title"] = key_schema(top_level_keys().at("title"));
+  for (const Section& sec : scenario_sections()) {
+    root["properties"][sec.key] = section_schema(sec);
+    if (sec.required) required.push_back(sec.key);
+  }
+  root["required"] = required;
+  root["additionalProperties"] = false;
+  return root;
+}
+
+int cmd_schema(const std::string& out) {
+  const std::string text = scenario_schema().dump(2) + "\n";
+  if (out.empty()) {
+    std::cout << text;
+    return 0;
+  }
+  std::ofstream f(out, std::ios::binary);
+  f << text;
+  if (!f.good()) throw std::runtime_error(fmt::format("cannot write the schema to {}", out));
+  return 0;
+}
+
+}  // namespace ncosim::sim

@@ -1,4 +1,0 @@
-// sim/main.cc — the ncosim executable.
-#include "sim/cli.h"
-
-int main(int argc, char** argv) { return ncosim::sim::run_cli(argc, argv); }

@@ -1,0 +1,242 @@
+// sim/scenario/scenario_keys.cc — the scenario's own sections declared as data (sim/scenario/scenario_keys.h).
+#include "sim/scenario/scenario_keys.h"
+
+#include "sim/scenario/registries.h"
+
+namespace ncosim::sim {
+
+const Keys& top_level_keys() {
+  static const Keys keys{
+      Key::string("title")
+          .optional("the file name without extension")
+          .help("heading of summary.md, title in manifest.json"),
+      Key::table("run").optional("all defaults").help("the campaign"),
+      Key::table("sweep").optional("none").help("parameter sweep (cartesian product of cases)"),
+      Key::table("plant").help("the plant (required)"),
+      Key::tables("link").optional("none").help(
+          "links, referred to by name from [[sensor]] and [[actuator]]"),
+      Key::tables("sensor").help("sensors, in order (required, at least one)"),
+      Key::table("input").optional("u = 0").help("the plant input"),
+      Key::tables("estimator").help("estimators, in order, one output row each (required)"),
+      Key::tables("actuator")
+          .optional("ideal actuation")
+          .help("controller-to-actuator links, one per input channel in input order"),
+      Key::table("sumo").optional("none").help("vehicle mobility from SUMO"),
+      Key::table("paired")
+          .optional("defaults")
+          .help("the reference of the paired columns of summary.csv"),
+  };
+  return keys;
+}
+
+const Keys& run_keys() {
+  static const Keys keys{
+      Key::integer("periods")
+          .range(1, 1'000'000'000)
+          .says("an integer in 1..1000000000 (1e9)")
+          .or_default(10000)
+          .unit("periods")
+          .help("control periods per Monte Carlo run: k = 0 .. periods-1"),
+      Key::integer("warmup")
+          .optional("min(100, periods / 10)")
+          .unit("periods")
+          .help("the first warmup periods are left out of every metric; 0 .. periods-1"),
+      Key::integer("runs")
+          .range(1, 10'000'000)
+          .says("an integer in 1..10000000 (1e7)")
+          .or_default(10)
+          .help("Monte Carlo runs"),
+      Key::integer("seed")
+          .min(0)
+          .says("a non-negative integer")
+          .or_default(1)
+          .help("campaign seed; run r uses the streams of (seed, r)"),
+      Key::number("period")
+          .above(0.0)
+          .max(1e6)
+          .says("a period in seconds in (1e-9, 1e6]")
+          .or_default(1.0)
+          .unit("s")
+          .help("control period: the integer-ns clock step (periods x period <= 4e9 s)"),
+      Key::choice("recentre", {"auto", "always", "never"})
+          .or_default("auto")
+          .help("re-centring of open-loop-unstable plants"),
+      Key::boolean("error_curve")
+          .or_default(false)
+          .help("also write error_curve.csv: the run-averaged squared error per period"),
+  };
+  return keys;
+}
+
+const Keys& plant_common_keys() {
+  static const Keys keys{
+      Key::string("kind").optional("\"lti\"").help("the plant kind (below)"),
+      Key::table("disturbance")
+          .optional("none")
+          .help("deterministic disturbance added to w: offset (1 or nw entries) and [[sine]] "
+                "tables (amplitude, omega in rad/s, phase)"),
+  };
+  return keys;
+}
+
+const Keys& sensor_common_keys() {
+  static const Keys keys{
+      Key::string("name")
+          .optional("\"y1\", \"y2\", ... (1-based position)")
+          .help("unique among sensors; names the arrived: column of trajectory.csv"),
+      Key::any("C", "matrix ny x n or \"output\"")
+          .help("output matrix, n columns (\"output\": the plant's own output matrix)"),
+      Key::matrix("R").help("measurement-noise covariance, ny x ny"),
+      Key::string("link")
+          .optional("ideal link")
+          .help("the name of the [[link]] its packets cross (ideal: delay 0, never lost)"),
+      Key::integer("every")
+          .range(1, 1'000'000)
+          .says("an integer in 1..1000000 (1e6)")
+          .or_default(1)
+          .unit("periods")
+          .help("sample every `every` periods (multi-rate)"),
+      Key::integer("buffer").range(0, 62).or_default(0).help(
+          "each packet also carries the `buffer` previous samples of this sensor"),
+      Key::choice("resend_noise", {"same", "fresh"})
+          .or_default("same")
+          .help("a re-sent sample carries its own noise (same) or a new draw (fresh)"),
+      Key::choice("noise", {"gaussian", "uniform"})
+          .or_default("gaussian")
+          .help("uniform: v_i ~ U(-sqrt(3 R_ii), sqrt(3 R_ii)); R must be diagonal"),
+      Key::string("policy").optional("\"periodic\"").help("when a sample is sent (below)"),
+  };
+  return keys;
+}
+
+const Keys& link_common_keys() {
+  static const Keys keys{
+      Key::string("name").help("unique among links; [[sensor]] and [[actuator]] name it"),
+      Key::string("kind").help("the link kind (below)"),
+  };
+  return keys;
+}
+
+const Keys& actuator_keys() {
+  static const Keys keys{
+      Key::string("name").optional("\"u1\", \"u2\", ...").help("unique among actuators"),
+      Key::string("link")
+          .optional("ideal (always delivered)")
+          .help("the name of a [[link]]; each actuator uses its own instance of the link"),
+      Key::choice("on_loss", {"hold", "zero"})
+          .or_default("hold")
+          .help("what is applied when the command is not delivered"),
+      Key::number("u0").or_default(0.0).help("the value held before period 0 (hold)"),
+  };
+  return keys;
+}
+
+const Keys& input_common_keys() {
+  static const Keys keys{
+      Key::string("kind").optional("\"none\"").help("the input kind (below)"),
+      Key::integer("actuation_delay")
+          .range(0, 1000)
+          .says("an integer in 0..1000 (periods)")
+          .or_default(0)
+          .unit("periods")
+          .help("periods between computing an input and applying it"),
+  };
+  return keys;
+}
+
+const Keys& estimator_common_keys() {
+  static const Keys keys{
+      Key::string("kind").help("the estimator kind (below)"),
+      Key::string("name")
+          .optional("\"<kind> <i>\" (0-based position, e.g. \"jump 0\")")
+          .help("the row name in every output; unique among estimators"),
+      Key::choice("expected_status", expected_status_values())
+          .optional("\"ok\"")
+          .help("the status this row is expected to have (design_failed: any design_<status>); "
+                "run --fail-on-status fails only on rows whose status differs"),
+  };
+  return keys;
+}
+
+const Keys& sweep_keys() {
+  static const Keys keys{
+      Key::string("key").help(
+          "the key path of the value to vary (not into sweep itself; each key once)"),
+      Key::any("values", "array").help("the values, in order: non-empty, each valid for the key"),
+      Key::string("zip")
+          .optional("none (an axis of its own)")
+          .help("sweeps sharing a zip name move together (equal lengths) as one axis"),
+  };
+  return keys;
+}
+
+const Keys& paired_keys() {
+  static const Keys keys{
+      Key::string("reference")
+          .optional("the default reference of the kinds, else the first estimator")
+          .help("the name of the reference estimator of the paired columns"),
+      Key::table("reference_case")
+          .optional("the first case")
+          .help("{ \"KEY PATH\" = VALUE, ... }: the reference case among the swept values"),
+  };
+  return keys;
+}
+
+namespace {
+
+template <class R>
+std::vector<SectionKind> kinds_of(const R& registry) {
+  std::vector<SectionKind> out;
+  for (const auto& e : registry.entries()) out.push_back({e.name, e.help, &e.keys});
+  return out;
+}
+
+}  // namespace
+
+std::vector<Section> scenario_sections() {
+  std::vector<Section> s;
+  const Keys& top = top_level_keys();
+  auto add = [&](const char* key, bool array, const Keys* keys) -> Section& {
+    Section& x = s.emplace_back();
+    x.key = key;
+    x.array = array;
+    x.required = top.at(key).required();
+    x.help = top.at(key).help_text();
+    x.keys = keys;
+    return x;
+  };
+  add("run", false, &run_keys());
+  add("sweep", true, &sweep_keys());
+  Section& plant = add("plant", false, &plant_common_keys());
+  plant.kind_key = "kind";
+  plant.default_kind = "lti";
+  plant.kinds = kinds_of(plant_registry());
+  Section& link = add("link", true, &link_common_keys());
+  link.kind_key = "kind";
+  link.kinds = kinds_of(link_registry());
+  Section& sensor = add("sensor", true, &sensor_common_keys());
+  sensor.kind_key = "policy";
+  sensor.default_kind = "periodic";
+  sensor.kinds = kinds_of(send_policy_registry());
+  Section& input = add("input", false, &input_common_keys());
+  input.kind_key = "kind";
+  input.default_kind = "none";
+  input.kinds = kinds_of(input_registry());
+  Section& est = add("estimator", true, &estimator_common_keys());
+  est.kind_key = "kind";
+  est.kinds = kinds_of(estimator_registry());
+  add("actuator", true, &actuator_keys());
+  add("sumo", false, nullptr).closed = false;  // read by sumo/ (its keys are not declared here)
+  add("paired", false, &paired_keys());
+  return s;
+}
+
+std::vector<NamedKeys> section_keys() {
+  return {{"section.top", &top_level_keys()},      {"section.run", &run_keys()},
+          {"section.plant", &plant_common_keys()}, {"section.sensor", &sensor_common_keys()},
+          {"section.link", &link_common_keys()},   {"section.actuator", &actuator_keys()},
+          {"section.input", &input_common_keys()}, {"section.estimator", &estimator_common_keys()},
+          {"section.sweep", &sweep_keys()},        {"section.paired", &paired_keys()}};
+}
+
+}  // namespace ncosim::sim

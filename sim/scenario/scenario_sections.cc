@@ -1,0 +1,341 @@
+// sim/scenario/scenario_sections.cc — one reader per scenario section
+// (sim/scenario/scenario_sections.h).
+#include "sim/scenario/scenario_sections.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <set>
+#include <vector>
+
+#include "kernel/time.h"
+#include "lmi/limits.h"
+#include "lmi/lmi.h"
+#include "sim/scenario/registries.h"
+#include "sim/scenario/resource_limits.h"
+#include "sim/scenario/scenario_keys.h"
+
+namespace ncosim::sim {
+
+namespace {
+
+std::vector<std::string> link_names(const Scenario& sc) {
+  std::vector<std::string> names;
+  for (const auto& l : sc.links) names.push_back(l.name);
+  return names;
+}
+
+// Refuses `packets` on a link that carries fewer in one run (models::Link::packet_bound), at
+// key `key` of `t`; `why` says where the count comes from.
+void check_packet_bound(const models::Link& link, std::int64_t packets, const Table& t,
+                        std::string_view key, std::string_view why) {
+  const auto bound = link.packet_bound();
+  if (bound && bound->packets < packets) {
+    t.fail(key, fmt::format("expected a {} of at least {} packets ({}), got {}", bound->noun,
+                            packets, why, bound->packets));
+  }
+}
+
+}  // namespace
+
+RunSettings read_run(const Table& root) {
+  RunSettings r;
+  const auto t = root.opt_table("run");
+  if (!t) return r;
+  const KeyReader k(*t, run_keys());
+  r.periods = k.integer("periods");
+  r.warmup = k.opt_integer("warmup").value_or(std::min<std::int64_t>(r.warmup, r.periods / 10));
+  if (r.warmup < 0 || r.warmup >= r.periods) {
+    t->fail("warmup", fmt::format("expected an integer in 0..periods-1 ({}), got {}", r.periods - 1,
+                                  r.warmup));
+  }
+  r.runs = k.integer("runs");
+  r.seed = static_cast<std::uint64_t>(k.integer("seed"));
+  r.period = k.number("period");
+  if (seconds_to_time(r.period) <= 0) {
+    t->fail("period", fmt::format("expected a period in seconds in (1e-9, 1e6], got {}", r.period));
+  }
+  // The integer-ns clock must hold every event time (arrivals may lie beyond the horizon).
+  if (static_cast<double>(r.periods) * static_cast<double>(seconds_to_time(r.period)) > 4.0e18) {
+    t->fail("period",
+            fmt::format("expected periods x period <= 4e9 s (the nanosecond clock), got {} x {} s",
+                        r.periods, r.period));
+  }
+  r.recentre = k.string("recentre");
+  r.error_curve = k.boolean("error_curve");
+  t->finish();
+  return r;
+}
+
+std::string read_plant(const Table& root, const toml::table& doc, Scenario& sc,
+                       const models::PlantRegistry& kinds) {
+  if (!root.has("plant")) {
+    throw ScenarioError(format_error(
+        root.file(), 1, "plant", "expected a [plant] table (required: the plant model), got none"));
+  }
+  const Table plant = root.table("plant");
+  const auto& pk = kinds.lookup(plant, "kind", "lti");
+  sc.plant_kind = pk.name;
+  sc.model.plant = pk.factory(plant, sc.run.period);
+  sc.model.period = sc.run.period;
+  sc.disturbance = models::read_disturbance(plant, sc.model.plant.nw());
+  if (!sc.model.plant.vehicle_key.empty()) {
+    if (!sc.mobility)
+      plant.fail("kind", fmt::format("expected a [sumo] table for plant kind \"{}\"", pk.name));
+    sc.plant_vehicle = sc.mobility->vehicle(plant, sc.model.plant.vehicle_key);
+  }
+  std::string driver = state_driver(plant, *doc.get("plant")->as_table(), sc.model);
+  plant.finish();
+  return driver;
+}
+
+void read_links(const Table& root, const std::string& dir, Scenario& sc,
+                const models::LinkRegistry& kinds) {
+  models::LinkContext ctx{dir, sc.run.period, sc.mobility, {}};
+  ctx.check_trace_delay = [&sc](const std::string& trace, int line, std::int64_t delay,
+                                const std::string& named_by) {
+    check_trace_resources(trace, line, delay, sc.run.runs,
+                          named_by);  // sim/scenario/resource_limits.h
+  };
+  for (const Table& t : root.tables("link")) {
+    LinkEntry e;
+    e.name = KeyReader(t, link_common_keys()).string("name");
+    if (std::any_of(sc.links.begin(), sc.links.end(),
+                    [&](const LinkEntry& l) { return l.name == e.name; })) {
+      t.fail("name", fmt::format("expected a unique link name, got \"{}\" twice", e.name));
+    }
+    const auto& k = kinds.lookup(t, "kind", "");
+    e.kind = k.name;
+    e.link = k.factory(t, ctx);
+    t.finish();
+    sc.links.push_back(std::move(e));
+  }
+}
+
+void read_sensors(const Table& root, Scenario& sc) {
+  const auto sensor_tables = root.tables("sensor");
+  if (sensor_tables.empty())
+    root.fail("sensor", "expected at least one [[sensor]] table, got none");
+  const std::vector<std::string> links = link_names(sc);
+  std::set<std::string> sensor_names;
+  for (std::size_t i = 0; i < sensor_tables.size(); ++i) {
+    const Table& t = sensor_tables[i];
+    est::SensorModel sm;
+    sm.spec =
+        models::read_sensor(t, sc.model.plant, links, static_cast<int>(i), send_policy_registry());
+    if (!sensor_names.insert(sm.spec.name).second) {
+      t.fail("name", fmt::format("expected a unique sensor name, got \"{}\" twice", sm.spec.name));
+    }
+    if (sm.spec.link >= 0) sm.link = sc.links[static_cast<std::size_t>(sm.spec.link)].link.get();
+    if (sm.link != nullptr && sm.link->independent_copies() && sm.spec.buffer > 0) {
+      t.fail(
+          "buffer",
+          fmt::format("expected buffer = 0 on a link with independent copies (link \"{}\"), got {}",
+                      links[static_cast<std::size_t>(sm.spec.link)], sm.spec.buffer));
+    }
+    t.finish();
+    sc.model.sensors.push_back(std::move(sm));
+  }
+  // A bounded link (a trace) must hold every packet its sensors send in one run.
+  const auto link_tables = root.tables("link");
+  for (std::size_t l = 0; l < sc.links.size(); ++l) {
+    const auto bound = sc.links[l].link->packet_bound();
+    if (!bound) continue;
+    std::int64_t packets = 0;
+    for (const auto& s : sc.model.sensors) {
+      if (s.spec.link == static_cast<int>(l))
+        packets += (sc.run.periods + s.spec.every - 1) / s.spec.every;
+    }
+    check_packet_bound(*sc.links[l].link, packets, link_tables[l], bound->key,
+                       fmt::format("one run sends {}", packets));
+  }
+}
+
+void read_actuators(const Table& root, Scenario& sc) {
+  const auto act_tables = root.tables("actuator");
+  if (act_tables.empty()) return;
+  const Eigen::Index nu = sc.model.plant.nu();
+  if (static_cast<Eigen::Index>(act_tables.size()) != nu) {
+    act_tables.back().fail_here(fmt::format(
+        "expected one [[actuator]] per input channel ({}), got {}", nu, act_tables.size()));
+  }
+  if (nu > 16)
+    act_tables.back().fail_here(fmt::format("expected at most 16 actuators, got {}", nu));
+  if (!sc.model.plant.modes.empty()) {
+    act_tables.front().fail_here(
+        "expected no [[actuator]] with a jump_linear plant (one mode source per scenario)");
+  }
+  const std::vector<std::string> links = link_names(sc);
+  std::set<std::string> names;
+  for (std::size_t i = 0; i < act_tables.size(); ++i) {
+    const Table& t = act_tables[i];
+    est::ActuatorModel am;
+    am.spec = models::read_actuator(t, links, static_cast<int>(i));
+    if (!names.insert(am.spec.name).second) {
+      t.fail("name",
+             fmt::format("expected a unique actuator name, got \"{}\" twice", am.spec.name));
+    }
+    if (am.spec.link >= 0) {
+      am.link = sc.links[static_cast<std::size_t>(am.spec.link)].link.get();
+      check_packet_bound(*am.link, sc.run.periods, t, "link", "one per period");
+    }
+    t.finish();
+    sc.model.actuators.push_back(std::move(am));
+  }
+}
+
+std::optional<Table> read_input(const Table& root, Scenario& sc) {
+  std::optional<Table> input = root.opt_table("input");
+  if (!input) return input;
+  const auto& ik = input_registry().lookup(*input, "kind", "none");
+  sc.input = ik.factory(*input, sc.model.plant);
+  sc.input.actuation_delay =
+      static_cast<int>(KeyReader(*input, input_common_keys()).integer("actuation_delay"));
+  if (sc.input.controller) {
+    std::vector<models::SensorSpec> specs;
+    for (const auto& s : sc.model.sensors) specs.push_back(s.spec);
+    sc.input.controller->bind(*input, specs);
+  }
+  input->finish();
+  return input;
+}
+
+void read_estimators(const Table& root, const toml::table& doc, const std::string& state_driver,
+                     Scenario& sc) {
+  const auto est_tables = root.tables("estimator");
+  if (est_tables.empty())
+    root.fail("estimator", "expected at least one [[estimator]] table, got none");
+  std::set<std::string> est_names;
+  for (std::size_t i = 0; i < est_tables.size(); ++i) {
+    const Table& t = est_tables[i];
+    EstimatorEntry e;
+    const auto& k = estimator_registry().lookup(t, "kind", "");
+    e.kind = k.name;
+    const KeyReader common(t, estimator_common_keys());
+    e.name = common.opt_string("name").value_or(fmt::format("{} {}", e.kind, i));
+    if (!est_names.insert(e.name).second) {
+      t.fail("name", fmt::format("expected a unique estimator name, got \"{}\" twice", e.name));
+    }
+    // One of the row statuses of summary.csv (results/README.md `### status`).
+    e.expected_status = common.opt_string("expected_status").value_or("");
+    const toml::table& raw = *doc.get("estimator")->as_array()->get(i)->as_table();
+    check_estimator_resources(t, k.name,
+                              estimator_registry().cost(k.name, t, raw, sc.model, state_driver),
+                              state_driver);  // sim/scenario/resource_limits.h
+    try {
+      const lmi::ScopedSolveObserver note(
+          large_solve_note(t, k.name, state_driver));  // sim/scenario/resource_limits.h
+      e.design = k.factory(t, sc.model);
+    } catch (const lmi::ResourceLimitError& err) {
+      t.fail("kind",
+             fmt::format("the {} design: {}{}; its size is driven by {}", k.name, err.what(),
+                         err.address_space ? "" : " (--max-memory / --max-work raise the limits)",
+                         state_driver));
+    } catch (const lmi::Error& err) {
+      // The model's numbers make the LMIs meaningless (e.g. an overflow to inf): bad input.
+      t.fail("kind",
+             fmt::format(
+                 "the {} design cannot be posed for this model: {} (check the magnitudes of the "
+                 "plant, sensor and noise values)",
+                 k.name, err.what()));
+    }
+    t.finish();
+    sc.estimators.push_back(std::move(e));
+  }
+}
+
+void bind_feedback_source(const std::optional<Table>& input, Scenario& sc) {
+  if (sc.input.source.empty()) return;  // the input reads no estimate
+  for (std::size_t i = 0; i < sc.estimators.size(); ++i) {
+    if (sc.estimators[i].name == sc.input.source) sc.input.source_index = static_cast<int>(i);
+  }
+  if (sc.input.source_index >= 0) return;
+  std::vector<std::string> names{"plant"};
+  for (const auto& e : sc.estimators) names.push_back(e.name);
+  std::string list;
+  for (const auto& n : names) list += (list.empty() ? "" : ", ") + fmt::format("\"{}\"", n);
+  const std::string hint = did_you_mean(sc.input.source, names);
+  input->fail(sc.input.controller->source_key(),
+              fmt::format("expected \"plant\" or an estimator name ({}), got \"{}\"{}", list,
+                          sc.input.source,
+                          hint.empty() ? "" : fmt::format(" (did you mean \"{}\"?)", hint)));
+}
+
+void choose_recentre(const Table& root, Scenario& sc) {
+  // Re-centring: an open-loop unstable plant is simulated in coordinates that the known
+  // input keeps bounded; the estimation error is unchanged (scenarios/README.md).
+  const bool unstable = sc.model.plant.spectral_radius() >= 1.0;
+  const bool feedback = sc.input.controller->closes_loop();
+  // Send-on-delta sensors decide on the output itself: re-centring would change what they send.
+  bool send_on_delta = false;
+  for (const auto& sm : sc.model.sensors) {
+    send_on_delta = send_on_delta || !sm.spec.policy->sends_every_sample();
+  }
+  auto refuse = [&](const std::string& why) { root.table("run").fail("recentre", why); };
+  if (sc.plant_vehicle >= 0) {
+    // The true state comes from the mobility source: nothing to re-centre.
+    if (sc.run.recentre == "always")
+      refuse("expected \"auto\" or \"never\" with a SUMO vehicle as the plant");
+  } else if (sc.run.recentre == "always") {
+    sc.recentre = true;
+    if (send_on_delta) {
+      refuse(
+          "expected \"auto\" or \"never\" with send-on-delta sensors (they would decide on "
+          "re-centred "
+          "outputs), got \"always\"");
+    }
+  } else if (sc.run.recentre == "auto") {
+    sc.recentre = unstable && !feedback && !send_on_delta;
+  }
+  if (sc.recentre && feedback && sc.input.source_index >= 0) {
+    refuse(fmt::format(
+        "expected \"auto\" or \"never\" with feedback on an estimate (input.source = \"{}\"), got "
+        "\"always\" (the controller would see re-centred estimates)",
+        sc.input.source));
+  }
+  if (sc.recentre && sc.input.controller->sees_outputs()) {
+    refuse(
+        "expected \"auto\" or \"never\" with a controller input (it would see re-centred outputs), "
+        "got "
+        "\"always\"");
+  }
+}
+
+PairedSettings read_paired(const Table& root, const toml::table& doc, const Scenario& sc) {
+  PairedSettings p;
+  p.file = root.file();
+  const auto t = root.opt_table("paired");
+  if (!t) return p;
+  if (t->has("reference")) {
+    p.reference = t->string("reference");
+    p.reference_line = t->line_of("reference");
+    std::vector<std::string> names;
+    for (const auto& e : sc.estimators) names.push_back(e.name);
+    if (std::find(names.begin(), names.end(), p.reference) == names.end()) {
+      std::string list;
+      for (const auto& n : names) list += (list.empty() ? "" : ", ") + fmt::format("\"{}\"", n);
+      const std::string hint = did_you_mean(p.reference, names);
+      t->fail("reference",
+              fmt::format("expected an estimator name ({}), got \"{}\"{}", list, p.reference,
+                          hint.empty() ? "" : fmt::format(" (did you mean \"{}\"?)", hint)));
+    }
+  }
+  t->allow("reference_case");
+  if (t->has("reference_case")) {
+    const toml::node* n = doc.at_path("paired.reference_case").node();
+    p.reference_case_line = t->line_of("reference_case");
+    if (n == nullptr || !n->is_table()) {
+      t->fail("reference_case", fmt::format("expected a table of sweep key paths and values, e.g. "
+                                            "{{ \"link[0].preset\" = \"ns3_vanet\" }}, got {}",
+                                            n == nullptr ? std::string("nothing") : describe(*n)));
+    }
+    for (auto&& [k, v] : *n->as_table()) {
+      const auto s = v.value_exact<std::string>();
+      p.reference_case.emplace_back(std::string(k.str()), s ? *s : compact_toml(v));
+    }
+  }
+  t->finish();
+  return p;
+}
+
+}  // namespace ncosim::sim
