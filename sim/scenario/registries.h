@@ -6,7 +6,7 @@
 #include <string>
 
 #include "config/config.h"
-#include "config/mobility.h"
+#include "models/mobility.h"
 #include "config/run_settings.h"
 #include "estimators/estimator.h"
 #include "models/input.h"

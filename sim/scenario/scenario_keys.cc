@@ -1,7 +1,9 @@
-// sim/scenario/scenario_keys.cc — the scenario's own sections declared as data (sim/scenario/scenario_keys.h).
+// sim/scenario/scenario_keys.cc — the scenario's own sections declared as data
+// (sim/scenario/scenario_keys.h).
 #include "sim/scenario/scenario_keys.h"
 
 #include "sim/scenario/registries.h"
+#include "sim/scenario/scenario_types.h"
 
 namespace ncosim::sim {
 

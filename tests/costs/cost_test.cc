@@ -32,6 +32,7 @@
 #include <vector>
 
 #include "sim/scenario/registries.h"
+#include "sim/scenario/scenario.h"
 #include "sim/scenario/scenario_types.h"
 
 namespace ncosim::sim {
