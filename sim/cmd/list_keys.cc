@@ -9,12 +9,13 @@
 #include "config/keys.h"
 #include "models/fit.h"
 #include "sim/scenario/registries.h"
+#include "sim/scenario/scenario_keys.h"
 
 namespace ncosim::sim {
 
 namespace {
 
-struct NamedKeys {
+struct ListedKeys {
   std::string name;  // "link.bernoulli"
   std::string kind;  // "bernoulli"
   std::string help;
@@ -22,22 +23,31 @@ struct NamedKeys {
 };
 
 template <class R>
-void collect(const char* prefix, const R& registry, std::vector<NamedKeys>& out) {
+void collect(const char* prefix, const R& registry, std::vector<ListedKeys>& out) {
   for (const auto& e : registry.entries())
     out.push_back({fmt::format("{}.{}", prefix, e.name), e.name, e.help, &e.keys});
 }
 
-std::vector<NamedKeys> all_kinds() {
-  std::vector<NamedKeys> out;
+std::vector<ListedKeys> all_kinds() {
+  std::vector<ListedKeys> out;
   collect("plant", plant_registry(), out);
   collect("link", link_registry(), out);
   collect("input", input_registry(), out);
   collect("estimator", estimator_registry(), out);
   collect("send_policy", send_policy_registry(), out);
+  // The scenario's own sections ("section.run", ...): their keys beside a kind's.
+  for (const auto& k : section_keys()) {
+    const std::string key = k.name.substr(k.name.find('.') + 1);
+    std::string help = "the scenario's own keys";
+    for (const auto& s : scenario_sections()) {
+      if (s.key == key) help = s.help;
+    }
+    out.push_back({k.name, key, help, k.keys});
+  }
   return out;
 }
 
-void print(const NamedKeys& k, bool markdown) {
+void print(const ListedKeys& k, bool markdown) {
   if (markdown) {
     if (k.keys->empty()) {
       std::cout << "No keys of its own.\n";
@@ -53,8 +63,8 @@ void print(const NamedKeys& k, bool markdown) {
 }  // namespace
 
 int cmd_list_keys(const std::string& kind, bool markdown) {
-  const std::vector<NamedKeys> all = all_kinds();
-  std::vector<const NamedKeys*> chosen;
+  const std::vector<ListedKeys> all = all_kinds();
+  std::vector<const ListedKeys*> chosen;
   for (const auto& k : all) {
     if (kind.empty() || k.name == kind || k.kind == kind) chosen.push_back(&k);
   }

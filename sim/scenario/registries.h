@@ -6,11 +6,11 @@
 #include <string>
 
 #include "config/config.h"
-#include "models/mobility.h"
 #include "config/run_settings.h"
 #include "estimators/estimator.h"
 #include "models/input.h"
 #include "models/link_factory.h"
+#include "models/mobility.h"
 #include "models/plant.h"
 #include "models/send_policy.h"
 

@@ -13,8 +13,8 @@
 
 #include "sim/scenario/registries.h"
 #include "sim/scenario/resource_limits.h"
-#include "sim/scenario/scenario_sections.h"
 #include "sim/scenario/scenario_keys.h"
+#include "sim/scenario/scenario_sections.h"
 
 namespace ncosim::sim {
 

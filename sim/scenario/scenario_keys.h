@@ -1,9 +1,9 @@
-// sim/scenario/scenario_keys.h — the scenario format as data: the keys of the scenario's own sections
-// ([run], the common keys of [plant], [[sensor]], [[link]], [input], [[estimator]], ...) declared
-// like a kind's (config/keys.h), and every section with the registry whose kinds it selects. The
-// section readers (sim/scenario/scenario_sections.cc) read through these declarations where the keys are
-// theirs; `ncosim list --keys`, scenarios/README.md's generated tables and `ncosim schema`
-// (sim/cmd/schema.h) are made from them.
+// sim/scenario/scenario_keys.h — the scenario format as data: the keys of the scenario's own
+// sections ([run], the common keys of [plant], [[sensor]], [[link]], [input], [[estimator]], ...)
+// declared like a kind's (config/keys.h), and every section with the registry whose kinds it
+// selects. The section readers (sim/scenario/scenario_sections.cc) read through these declarations
+// where the keys are theirs; `ncosim list --keys`, scenarios/README.md's generated tables and
+// `ncosim schema` (sim/cmd/schema.h) are made from them.
 #pragma once
 
 #include <string>
