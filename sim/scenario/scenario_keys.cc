@@ -59,13 +59,17 @@ const Keys& run_keys() {
           .says("a period in seconds in (1e-9, 1e6]")
           .or_default(1.0)
           .unit("s")
-          .help("control period: the integer-ns clock step (periods x period <= 4e9 s)"),
+          .help("control period: the integer-ns clock step and the discretisation step of "
+                "lti_continuous; at least 1 ns once rounded to whole nanoseconds (periods x "
+                "period <= 4e9 s)"),
       Key::choice("recentre", {"auto", "always", "never"})
           .or_default("auto")
-          .help("re-centring of open-loop-unstable plants"),
+          .help("re-centring of open-loop-unstable plants (see Re-centring below)"),
       Key::boolean("error_curve")
           .or_default(false)
-          .help("also write error_curve.csv: the run-averaged squared error per period"),
+          .help("also write error_curve.csv: every estimator's run-averaged squared error per "
+                "period with its 95 % band (results/README.md); costs 16 bytes x periods x "
+                "estimators x (states + 1) of memory per thread"),
   };
   return keys;
 }
@@ -87,7 +91,9 @@ const Keys& sensor_common_keys() {
           .optional("\"y1\", \"y2\", ... (1-based position)")
           .help("unique among sensors; names the arrived: column of trajectory.csv"),
       Key::any("C", "matrix ny x n or \"output\"")
-          .help("output matrix, n columns (\"output\": the plant's own output matrix)"),
+          .help("output matrix, one row per output of this sensor (all rows travel in one packet), "
+                "n columns; \"output\": the plant's own output matrix (a plant kind with an "
+                "output, e.g. transfer_function)"),
       Key::matrix("R").help("measurement-noise covariance, ny x ny"),
       Key::string("link")
           .optional("ideal link")
@@ -99,14 +105,22 @@ const Keys& sensor_common_keys() {
           .unit("periods")
           .help("sample every `every` periods (multi-rate)"),
       Key::integer("buffer").range(0, 62).or_default(0).help(
-          "each packet also carries the `buffer` previous samples of this sensor"),
+          "each packet also carries the `buffer` previous samples of this sensor (fewer at the "
+          "start), newest first, with their time stamps; 0 on a delay link with independent = "
+          "true and with send_on_delta"),
       Key::choice("resend_noise", {"same", "fresh"})
           .or_default("same")
-          .help("a re-sent sample carries its own noise (same) or a new draw (fresh)"),
+          .help("same: a sample re-sent in later buffered packets carries its own noise every time "
+                "(physical); fresh: every re-send carries a new noise draw, y = C x[stamp] + v', "
+                "and counts as an independent copy (the jump observer's design model for "
+                "buffered packets, Dolz et al. example 3)"),
       Key::choice("noise", {"gaussian", "uniform"})
           .or_default("gaussian")
           .help("uniform: v_i ~ U(-sqrt(3 R_ii), sqrt(3 R_ii)); R must be diagonal"),
-      Key::string("policy").optional("\"periodic\"").help("when a sample is sent (below)"),
+      Key::string("policy")
+          .optional("\"periodic\"")
+          .help("when a sample is sent: \"periodic\", \"send_on_delta\" (its delta below) or "
+                "a registered policy (ncosim list)"),
   };
   return keys;
 }
