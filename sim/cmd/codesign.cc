@@ -13,6 +13,57 @@ namespace {
 
 std::vector<double> vec(const Eigen::VectorXd& v) { return {v.data(), v.data() + v.size()}; }
 
+// One estimator's co-design as `ncosim codesign` prints it (results/README.md, codesign).
+nlohmann::json codesign_json(const std::string& name, const est::SodJumpDesign& d,
+                             const est::sod::CodesignSpec& spec,
+                             const est::sod::SodDesignResult& z0, double mu,
+                             const est::sod::CodesignResult& r, std::size_t sensors) {
+  nlohmann::json j;
+  j["estimator"] = name;
+  j["design"] =
+      d.spec().approach == est::sod::Approach::kDeterministic ? "deterministic" : "stochastic";
+  j["gain"] = d.spec().jump ? "jump" : "constant";
+  if (d.spec().approach == est::sod::Approach::kStochastic) {
+    j["vertices"] = d.spec().vertices == est::sod::Vertices::kAll ? "all" : "lower";
+    j["assumption"] = spec.assumption == est::sod::Assumption::kUniform ? "uniform" : "gaussian";
+  } else {
+    j["sigma2_delta_factor"] = spec.sigma2_factor;
+  }
+  j["r"] = vec(spec.r);
+  j["z0"] = z0.bound;
+  j["mu"] = mu;
+  j["target"] = spec.target;
+  j["epsilon"] = spec.epsilon;
+  j["step"] = spec.relative_step ? "relative" : "absolute";
+  j["delta0"] = vec(spec.delta0);
+  j["status"] = r.status;
+  j["delta"] = vec(r.delta);
+  j["cost"] = r.cost;
+  j["bound"] = r.design.ok ? nlohmann::json(r.design.bound) : nlohmann::json(nullptr);
+  j["iterations"] = r.iterations;
+  j["lmi_problems"] = r.lmi_problems;
+  j["lmi_seconds"] = r.lmi_seconds;
+  j["seconds"] = r.seconds;
+  j["sdp_dimension"] = r.design.size.total_dimension;
+  j["sdp_variables"] = r.design.size.variables;
+  j["lmis_per_problem"] = r.design.lmis;
+  nlohmann::json path = nlohmann::json::array();
+  for (const auto& s : r.path)
+    path.push_back({{"iteration", s.iteration},
+                    {"delta", vec(s.delta)},
+                    {"cost", s.cost},
+                    {"bound", s.bound}});
+  j["path"] = path;
+  std::string sets;
+  Eigen::Index row = 0;
+  for (std::size_t s = 0; s < sensors; ++s, ++row) {
+    sets += fmt::format("{}--set sensor[{}].delta={:.6g}", s ? " " : "", s, r.delta(row));
+  }
+  // Only thresholds that meet the target are worth applying.
+  j["apply"] = r.status == "ok" ? nlohmann::json(sets) : nlohmann::json(nullptr);
+  return j;
+}
+
 }  // namespace
 
 nlohmann::json run_codesign(const Scenario& sc, const CodesignOptions& options) {
@@ -45,50 +96,7 @@ nlohmann::json run_codesign(const Scenario& sc, const CodesignOptions& options) 
                    spec->target);
     };
     const est::sod::CodesignResult r = est::sod::codesign(d->system(), *spec, progress);
-    nlohmann::json j;
-    j["estimator"] = e.name;
-    j["design"] =
-        d->spec().approach == est::sod::Approach::kDeterministic ? "deterministic" : "stochastic";
-    j["gain"] = d->spec().jump ? "jump" : "constant";
-    if (d->spec().approach == est::sod::Approach::kStochastic) {
-      j["vertices"] = d->spec().vertices == est::sod::Vertices::kAll ? "all" : "lower";
-      j["assumption"] = spec->assumption == est::sod::Assumption::kUniform ? "uniform" : "gaussian";
-    } else {
-      j["sigma2_delta_factor"] = spec->sigma2_factor;
-    }
-    j["r"] = vec(spec->r);
-    j["z0"] = z0.bound;
-    j["mu"] = mu;
-    j["target"] = spec->target;
-    j["epsilon"] = spec->epsilon;
-    j["step"] = spec->relative_step ? "relative" : "absolute";
-    j["delta0"] = vec(spec->delta0);
-    j["status"] = r.status;
-    j["delta"] = vec(r.delta);
-    j["cost"] = r.cost;
-    j["bound"] = r.design.ok ? nlohmann::json(r.design.bound) : nlohmann::json(nullptr);
-    j["iterations"] = r.iterations;
-    j["lmi_problems"] = r.lmi_problems;
-    j["lmi_seconds"] = r.lmi_seconds;
-    j["seconds"] = r.seconds;
-    j["sdp_dimension"] = r.design.size.total_dimension;
-    j["sdp_variables"] = r.design.size.variables;
-    j["lmis_per_problem"] = r.design.lmis;
-    nlohmann::json path = nlohmann::json::array();
-    for (const auto& s : r.path)
-      path.push_back({{"iteration", s.iteration},
-                      {"delta", vec(s.delta)},
-                      {"cost", s.cost},
-                      {"bound", s.bound}});
-    j["path"] = path;
-    std::string sets;
-    Eigen::Index row = 0;
-    for (std::size_t s = 0; s < sc.model.sensors.size(); ++s, ++row) {
-      sets += fmt::format("{}--set sensor[{}].delta={:.6g}", s ? " " : "", s, r.delta(row));
-    }
-    // Only thresholds that meet the target are worth applying.
-    j["apply"] = r.status == "ok" ? nlohmann::json(sets) : nlohmann::json(nullptr);
-    out.push_back(j);
+    out.push_back(codesign_json(e.name, *d, *spec, z0, mu, r, sc.model.sensors.size()));
   }
   if (!found) {
     throw ScenarioError(format_error(
