@@ -2,8 +2,10 @@
 #include "sim/cmd/schema.h"
 
 #include <fmt/format.h>
+#include <unistd.h>
 
 #include <cstdint>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <stdexcept>
@@ -169,9 +171,24 @@ int cmd_schema(const std::string& out) {
     std::cout << text;
     return 0;
   }
-  std::ofstream f(out, std::ios::binary);
-  f << text;
-  if (!f.good()) throw std::runtime_error(fmt::format("cannot write the schema to {}", out));
+  // Written beside and renamed in: an interrupted or failed write leaves no half-written file.
+  const std::string tmp = fmt::format("{}.tmp.{}", out, static_cast<long>(::getpid()));
+  {
+    std::ofstream f(tmp, std::ios::binary);
+    f << text;
+    f.flush();
+    if (!f.good()) {
+      std::error_code ec;
+      std::filesystem::remove(tmp, ec);
+      throw std::runtime_error(fmt::format("cannot write the schema to {}", out));
+    }
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, out, ec);
+  if (ec) {
+    std::filesystem::remove(tmp, ec);
+    throw std::runtime_error(fmt::format("cannot write the schema to {}", out));
+  }
   return 0;
 }
 
