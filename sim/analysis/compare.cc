@@ -58,10 +58,9 @@ void note_status_change(const RunFolder& bf, const RunFolder::Row& b, const RunF
                           sn->status, expected ? "expected" : "unexpected");
 }
 
-void test_row(const RunFolder& bf, const RunFolder::Row& b, const RunFolder& nf,
-              const RunFolder::Row& n, const CompareOptions& o, CompareRow& out) {
-  out.runs_base = b.run.size();
-  out.runs_new = n.run.size();
+// A row that diverged in one folder or both: its verdict and note; false when neither diverged.
+bool judge_divergence(const RunFolder::Row& b, const RunFolder& nf, const RunFolder::Row& n,
+                      CompareRow& out) {
   const auto div_b = std::count(b.diverged.begin(), b.diverged.end(), true);
   const auto div_n = std::count(n.diverged.begin(), n.diverged.end(), true);
   if (div_n > 0 && div_b == 0) {
@@ -71,38 +70,37 @@ void test_row(const RunFolder& bf, const RunFolder::Row& b, const RunFolder& nf,
     if (!expected) out.verdict = "worse";
     out.note = fmt::format("diverged in {} of {} NEW runs, none in BASE{}", div_n, n.run.size(),
                            expected ? " (expected_status = diverged)" : "");
-    return;
+    return true;
   }
   if (div_b > 0 && div_n == 0) {
     out.verdict = "better";
     out.note = fmt::format("diverged in {} of {} BASE runs, none in NEW", div_b, b.run.size());
-    return;
+    return true;
   }
   if (div_b > 0 && div_n > 0) {
     out.note = "diverged in both";
-    return;
+    return true;
   }
-  // (run, value) in run order (runs are unique in a row: read_run_folder checks).
-  auto values = [](const RunFolder::Row& r) {
-    std::vector<std::pair<std::int64_t, double>> v;
-    for (std::size_t i = 0; i < r.run.size(); ++i) {
-      if (r.value[i] && std::isfinite(*r.value[i])) v.emplace_back(r.run[i], *r.value[i]);
-    }
-    std::sort(v.begin(), v.end());
-    return v;
-  };
-  auto vb = values(b), vn = values(n);
-  if (vb.empty() && vn.empty()) {
-    out.note = fmt::format("no {} values", o.metric);
-    return;
+  return false;
+}
+
+using RunValues = std::vector<std::pair<std::int64_t, double>>;
+
+// The row's finite (run, value) pairs in run order (runs are unique in a row: read_run_folder
+// checks).
+RunValues finite_values(const RunFolder::Row& r) {
+  RunValues v;
+  for (std::size_t i = 0; i < r.run.size(); ++i) {
+    if (r.value[i] && std::isfinite(*r.value[i])) v.emplace_back(r.run[i], *r.value[i]);
   }
-  if (vb.empty() || vn.empty()) {
-    out.note = fmt::format("{} only in {}", o.metric, vb.empty() ? "NEW" : "BASE");
-    return;
-  }
-  // The statistics run on the values times 2^-e, the largest |value| scaled into [0.5, 1): sums,
-  // squares and variances of values up to the largest double cannot overflow, and a power of two
-  // changes no digit (the p-values and the relative change do not depend on the scale).
+  std::sort(v.begin(), v.end());
+  return v;
+}
+
+// Scales both rows' values by 2^-e, the largest |value| scaled into [0.5, 1), and returns e:
+// sums, squares and variances of values up to the largest double cannot overflow, and a power of
+// two changes no digit (the p-values and the relative change do not depend on the scale).
+int scale_values(RunValues& vb, RunValues& vn) {
   double largest = 0.0;
   for (const auto* m : {&vb, &vn}) {
     for (const auto& [run, v] : *m) largest = std::max(largest, std::abs(v));
@@ -112,9 +110,15 @@ void test_row(const RunFolder& bf, const RunFolder::Row& b, const RunFolder& nf,
   for (auto* m : {&vb, &vn}) {
     for (auto& [run, v] : *m) v = std::ldexp(v, -e);
   }
-  const auto unscaled = [e](double v) { return std::ldexp(v, e); };
-  std::vector<double> a, c;
-  const bool same_seed = case_seed(bf, b) == case_seed(nf, n);
+  return e;
+}
+
+// The difference of the scaled values: paired on the runs both have when the case's seeds agree
+// and at least two pair, else Welch's unpaired test. Sets out.test, out.pairs and the note; a and
+// c get the values tested. False when there are fewer than 2 runs to test.
+bool difference_of(const RunValues& vb, const RunValues& vn, bool same_seed,
+                   const CompareOptions& o, std::vector<double>& a, std::vector<double>& c,
+                   std::optional<Difference>& d, CompareRow& out) {
   if (same_seed) {
     auto it = vn.begin();
     for (const auto& [run, v] : vb) {
@@ -125,7 +129,6 @@ void test_row(const RunFolder& bf, const RunFolder::Row& b, const RunFolder& nf,
       c.push_back(it->second);
     }
   }
-  std::optional<Difference> d;
   const double level = 1.0 - o.alpha;
   if (a.size() >= 2) {
     d = paired_difference(a, c, level);
@@ -134,19 +137,76 @@ void test_row(const RunFolder& bf, const RunFolder::Row& b, const RunFolder& nf,
     if (a.size() < vb.size() || a.size() < vn.size()) {
       out.note = fmt::format("paired on the {} runs both have", a.size());
     }
-  } else {
-    a.clear();
-    c.clear();
-    for (const auto& [run, v] : vb) a.push_back(v);
-    for (const auto& [run, v] : vn) c.push_back(v);
-    if (a.size() < 2 || c.size() < 2) {
-      out.note = "fewer than 2 runs";
-      return;
-    }
-    d = welch_difference(a, c, level);
-    out.test = "welch";
-    out.note = same_seed ? "no common runs" : "different seeds: unpaired";
+    return true;
   }
+  a.clear();
+  c.clear();
+  for (const auto& [run, v] : vb) a.push_back(v);
+  for (const auto& [run, v] : vn) c.push_back(v);
+  if (a.size() < 2 || c.size() < 2) {
+    out.note = "fewer than 2 runs";
+    return false;
+  }
+  d = welch_difference(a, c, level);
+  out.test = "welch";
+  out.note = same_seed ? "no common runs" : "different seeds: unpaired";
+  return true;
+}
+
+// The difference back in the metric's unit (2^e times the scaled one); what exceeds a double
+// there (a difference or CI beyond 1.8e308, a relative change of new / base > 1.8e308) is left
+// empty and said in the note.
+void set_difference(const Difference& d, int e, CompareRow& out) {
+  const auto unscaled = [e](double v) { return std::ldexp(v, e); };
+  std::vector<std::string> beyond;
+  out.base_mean = unscaled(d.base_mean);
+  out.new_mean = unscaled(d.new_mean);
+  const double diff = unscaled(d.diff);
+  if (std::isfinite(diff)) out.diff = diff;
+  if (d.diff_half) {
+    const double low = unscaled(d.diff - *d.diff_half), high = unscaled(d.diff + *d.diff_half);
+    if (std::isfinite(low) && std::isfinite(high)) {
+      out.diff_low = low;
+      out.diff_high = high;
+    }
+  }
+  if (!out.diff || (d.diff_half && !out.diff_low)) beyond.emplace_back("difference");
+  if (d.ratio) {
+    if (std::isfinite(*d.ratio - 1.0)) out.relative = *d.ratio - 1.0;
+    if (out.relative && d.ratio_half && std::isfinite(*out.relative - *d.ratio_half) &&
+        std::isfinite(*out.relative + *d.ratio_half)) {
+      out.relative_low = *out.relative - *d.ratio_half;
+      out.relative_high = *out.relative + *d.ratio_half;
+    }
+    if (!out.relative || (d.ratio_half && !out.relative_low))
+      beyond.emplace_back("relative change");
+  }
+  if (!beyond.empty()) {
+    out.note += fmt::format("{}{} or its CI beyond the range of a double",
+                            out.note.empty() ? "" : "; ", fmt::join(beyond, " and "));
+  }
+}
+
+// Tests one matched row: divergence first, then the difference of the metric's means (paired or
+// Welch) with its one-sided p-values against the tolerance.
+void test_row(const RunFolder& bf, const RunFolder::Row& b, const RunFolder& nf,
+              const RunFolder::Row& n, const CompareOptions& o, CompareRow& out) {
+  out.runs_base = b.run.size();
+  out.runs_new = n.run.size();
+  if (judge_divergence(b, nf, n, out)) return;
+  auto vb = finite_values(b), vn = finite_values(n);
+  if (vb.empty() && vn.empty()) {
+    out.note = fmt::format("no {} values", o.metric);
+    return;
+  }
+  if (vb.empty() || vn.empty()) {
+    out.note = fmt::format("{} only in {}", o.metric, vb.empty() ? "NEW" : "BASE");
+    return;
+  }
+  const int e = scale_values(vb, vn);
+  std::vector<double> a, c;
+  std::optional<Difference> d;
+  if (!difference_of(vb, vn, case_seed(bf, b) == case_seed(nf, n), o, a, c, d, out)) return;
   if (!d) {
     out.test = "none";
     out.note = "no interval";
@@ -162,35 +222,7 @@ void test_row(const RunFolder& bf, const RunFolder::Row& b, const RunFolder& nf,
   }
   out.p_worse = t.p_worse;
   out.p_better = t.p_better;
-  // Back to the metric's unit; what exceeds a double there (a difference or CI beyond 1.8e308,
-  // a relative change of new / base > 1.8e308) is left empty and said in the note.
-  std::vector<std::string> beyond;
-  out.base_mean = unscaled(d->base_mean);
-  out.new_mean = unscaled(d->new_mean);
-  const double diff = unscaled(d->diff);
-  if (std::isfinite(diff)) out.diff = diff;
-  if (d->diff_half) {
-    const double low = unscaled(d->diff - *d->diff_half), high = unscaled(d->diff + *d->diff_half);
-    if (std::isfinite(low) && std::isfinite(high)) {
-      out.diff_low = low;
-      out.diff_high = high;
-    }
-  }
-  if (!out.diff || (d->diff_half && !out.diff_low)) beyond.emplace_back("difference");
-  if (d->ratio) {
-    if (std::isfinite(*d->ratio - 1.0)) out.relative = *d->ratio - 1.0;
-    if (out.relative && d->ratio_half && std::isfinite(*out.relative - *d->ratio_half) &&
-        std::isfinite(*out.relative + *d->ratio_half)) {
-      out.relative_low = *out.relative - *d->ratio_half;
-      out.relative_high = *out.relative + *d->ratio_half;
-    }
-    if (!out.relative || (d->ratio_half && !out.relative_low))
-      beyond.emplace_back("relative change");
-  }
-  if (!beyond.empty()) {
-    out.note += fmt::format("{}{} or its CI beyond the range of a double",
-                            out.note.empty() ? "" : "; ", fmt::join(beyond, " and "));
-  }
+  set_difference(*d, e, out);
 }
 
 // The refusal's tail: each differing manifest field on its own line, and why a folder of an
@@ -212,29 +244,40 @@ std::string what_differs(const RunFolder& base, const RunFolder& fresh,
   return out;
 }
 
-}  // namespace
+// A folder's identity without its rows (the per-run values are read here, not kept).
+RunFolder folder_identity(const RunFolder& f) {
+  RunFolder id;
+  id.dir = f.dir;
+  id.scenario = f.scenario;
+  id.title = f.title;
+  id.scenario_hash = f.scenario_hash;
+  id.seed = f.seed;
+  id.partial = f.partial;
+  id.sweep_keys = f.sweep_keys;
+  return id;
+}
 
-CompareResult compare_folders(const RunFolder& base, const RunFolder& fresh,
-                              const CompareOptions& options) {
-  CompareResult res;
-  res.options = options;
-  // The folders' identities; not their rows (the per-run values are read here, not kept).
-  auto identity = [](const RunFolder& f) {
-    RunFolder id;
-    id.dir = f.dir;
-    id.scenario = f.scenario;
-    id.title = f.title;
-    id.scenario_hash = f.scenario_hash;
-    id.seed = f.seed;
-    id.partial = f.partial;
-    id.sweep_keys = f.sweep_keys;
-    return id;
-  };
-  res.base = identity(base);
-  res.fresh = identity(fresh);
-  const std::string base_runs = (fs::path(base.dir) / "runs.csv").string();
-  const std::string new_runs = (fs::path(fresh.dir) / "runs.csv").string();
-  res.differences = manifest_differences(base, fresh);
+// The input files whose content differs between the folders, as "'file' (BASE vs NEW), ...".
+std::string input_differences(const RunFolder& base, const RunFolder& fresh) {
+  std::string what;
+  for (const auto& [file, h] : *base.inputs) {
+    const auto it = fresh.inputs->find(file);
+    if (it == fresh.inputs->end() || it->second != h) {
+      what += fmt::format("{}'{}' ({} vs {})", what.empty() ? "" : ", ", file, h,
+                          it == fresh.inputs->end() ? std::string("not read") : it->second);
+    }
+  }
+  for (const auto& [file, h] : *fresh.inputs) {
+    if (base.inputs->count(file) == 0)
+      what += fmt::format("{}'{}' (not read vs {})", what.empty() ? "" : ", ", file, h);
+  }
+  return what;
+}
+
+// Refuses folders of different scenarios or input contents (warns instead with
+// --allow-scenario-change), then warns of partial folders and refuses different sweep axes.
+void check_comparable(const RunFolder& base, const RunFolder& fresh, const CompareOptions& options,
+                      CompareResult& res) {
   const std::string base_man = (fs::path(base.dir) / "manifest.json").string();
   const std::string new_man = (fs::path(fresh.dir) / "manifest.json").string();
   if (!same_scenario_text(base, fresh)) {
@@ -251,19 +294,8 @@ CompareResult compare_folders(const RunFolder& base, const RunFolder& fresh,
   }
   if (base.inputs && fresh.inputs && *base.inputs != *fresh.inputs) {
     // The same scenario text can read input files whose content changed between the campaigns.
-    std::string what;
-    for (const auto& [file, h] : *base.inputs) {
-      const auto it = fresh.inputs->find(file);
-      if (it == fresh.inputs->end() || it->second != h) {
-        what += fmt::format("{}'{}' ({} vs {})", what.empty() ? "" : ", ", file, h,
-                            it == fresh.inputs->end() ? std::string("not read") : it->second);
-      }
-    }
-    for (const auto& [file, h] : *fresh.inputs) {
-      if (base.inputs->count(file) == 0)
-        what += fmt::format("{}'{}' (not read vs {})", what.empty() ? "" : ", ", file, h);
-    }
-    what = "the content of the input file(s) " + what + " differs";
+    const std::string what =
+        "the content of the input file(s) " + input_differences(base, fresh) + " differs";
     if (!options.allow_scenario_change) {
       throw CompareInputError(
           fmt::format("{}: {} from {}; pass --allow-scenario-change to compare them anyway{}",
@@ -274,10 +306,20 @@ CompareResult compare_folders(const RunFolder& base, const RunFolder& fresh,
   if (!base.partial.empty()) res.warnings.push_back(fmt::format("BASE holds {}", base.partial));
   if (!fresh.partial.empty()) res.warnings.push_back(fmt::format("NEW holds {}", fresh.partial));
   if (base.sweep_keys != fresh.sweep_keys) {
-    throw CompareInputError(fmt::format("{}: sweep axes [{}] differ from {}'s [{}]", new_runs,
-                                        fmt::join(fresh.sweep_keys, ", "), base_runs,
-                                        fmt::join(base.sweep_keys, ", ")));
+    throw CompareInputError(
+        fmt::format("{}: sweep axes [{}] differ from {}'s [{}]",
+                    (fs::path(fresh.dir) / "runs.csv").string(), fmt::join(fresh.sweep_keys, ", "),
+                    (fs::path(base.dir) / "runs.csv").string(), fmt::join(base.sweep_keys, ", ")));
   }
+}
+
+// One result row per (labels, estimator): BASE's rows in order, each tested against NEW's row of
+// the same key, then NEW's rows not in BASE. A row in one folder only is refused unless
+// --allow-scenario-change.
+void match_rows(const RunFolder& base, const RunFolder& fresh, const CompareOptions& options,
+                CompareResult& res) {
+  const std::string base_runs = (fs::path(base.dir) / "runs.csv").string();
+  const std::string new_runs = (fs::path(fresh.dir) / "runs.csv").string();
   std::map<std::pair<std::vector<std::string>, std::string>, std::size_t> in_new;
   for (std::size_t i = 0; i < fresh.rows.size(); ++i)
     in_new[{fresh.rows[i].labels, fresh.rows[i].estimator}] = i;
@@ -314,7 +356,11 @@ CompareResult compare_folders(const RunFolder& base, const RunFolder& fresh,
     row.note = "only in NEW";
     res.rows.push_back(std::move(row));
   }
-  // Holm over every tested row, for each direction.
+}
+
+// The tested rows' verdicts from their p-values, Holm-adjusted over every tested row for each
+// direction when asked; then the count of each verdict.
+void judge_rows(const CompareOptions& options, CompareResult& res) {
   std::vector<std::size_t> tested;
   std::vector<double> pw, pb;
   for (std::size_t i = 0; i < res.rows.size(); ++i) {
@@ -345,6 +391,20 @@ CompareResult compare_folders(const RunFolder& base, const RunFolder& fresh,
     else
       ++res.not_comparable;
   }
+}
+
+}  // namespace
+
+CompareResult compare_folders(const RunFolder& base, const RunFolder& fresh,
+                              const CompareOptions& options) {
+  CompareResult res;
+  res.options = options;
+  res.base = folder_identity(base);
+  res.fresh = folder_identity(fresh);
+  res.differences = manifest_differences(base, fresh);
+  check_comparable(base, fresh, options, res);
+  match_rows(base, fresh, options, res);
+  judge_rows(options, res);
   return res;
 }
 
