@@ -169,13 +169,11 @@ std::string row_text(const std::vector<std::string>& keys, const RunFolder::Row&
              : fmt::format("case {}, estimator \"{}\"", case_text(keys, r.labels), r.estimator);
 }
 
-RunFolder read_run_folder(const std::string& dir, const std::string& metric) {
-  RunFolder f;
-  f.dir = dir;
-  const fs::path d(dir);
-  if (!fs::is_directory(d))
-    throw CompareInputError(
-        fmt::format("{}: not a directory (expected an ncosim run output folder)", dir));
+namespace {
+
+// manifest.json of the folder into f: scenario, title, hash, seed, inputs, identity and whether
+// the campaign is partial.
+void read_manifest(const fs::path& d, RunFolder& f) {
   const fs::path man = d / "manifest.json";
   nlohmann::json m;
   try {
@@ -204,69 +202,101 @@ RunFolder read_run_folder(const std::string& dir, const std::string& metric) {
     f.partial = fmt::format("{} of {} runs (a partial campaign: stopped, or one shard)",
                             m.value("runs_done", 0), m.value("runs_expected", 0));
   }
-  const fs::path runs = d / "runs.csv";
-  const std::string file = runs.string();
-  if (!fs::exists(runs) && fs::exists(d / "runs.sqlite")) {
-    throw CompareInputError(fmt::format(
-        "{}: missing; the folder holds a run store: `ncosim export {}` writes it", file, dir));
+}
+
+// The next record of runs.csv (false at the end); a malformed file is a CompareInputError.
+bool next_record(CsvReader& reader, CsvRecord& r) {
+  try {
+    return reader.next(r);
+  } catch (const CompareInputError&) {
+    throw;
+  } catch (const ScenarioError& e) {
+    throw CompareInputError(e.what());
   }
-  // Streamed one record at a time, keeping only the columns compare needs: memory follows the
-  // runs of the metric, not the size of the file.
-  std::ifstream in(runs, std::ios::binary);
-  if (!in) throw CompareInputError(fmt::format("{}: cannot open the file", file));
-  CsvReader reader(in, file);
-  auto next = [&](CsvRecord& r) {
-    try {
-      return reader.next(r);
-    } catch (const CompareInputError&) {
-      throw;
-    } catch (const ScenarioError& e) {
-      throw CompareInputError(e.what());
-    }
-  };
-  CsvRecord r;
-  if (!next(r))
-    throw CompareInputError(
-        fmt::format("{}: empty file (expected the runs.csv of `ncosim run`)", file));
-  const std::vector<std::string> head = std::move(r.fields);
+}
+
+// The columns of runs.csv that compare reads.
+struct RunsColumns {
+  std::size_t run, estimator, diverged, metric;
+};
+
+// The columns in runs.csv's header `head`; refuses a header not of `ncosim run` and a metric that
+// is no per-run column (listing those there are).
+RunsColumns runs_columns(const std::vector<std::string>& head, const std::string& metric,
+                         const std::string& file) {
   auto col = [&](const std::string& name) -> std::size_t {
     const auto it = std::find(head.begin(), head.end(), name);
     return it == head.end() ? head.size() : static_cast<std::size_t>(it - head.begin());
   };
-  const std::size_t c_run = col("run"), c_est = col("estimator"), c_div = col("diverged"),
-                    c_metric = col(metric);
-  if (c_run == head.size() || c_est != c_run + 1 || c_div == head.size()) {
+  const RunsColumns c{col("run"), col("estimator"), col("diverged"), col(metric)};
+  if (c.run == head.size() || c.estimator != c.run + 1 || c.diverged == head.size()) {
     throw CompareInputError(
         fmt::format("{}:1: expected the header of `ncosim run`'s runs.csv ([sweep keys,] run, "
                     "estimator, ..., diverged, ...)",
                     file));
   }
-  if (c_metric == head.size() || metric == "run" || metric == "estimator" || metric == "status" ||
+  if (c.metric == head.size() || metric == "run" || metric == "estimator" || metric == "status" ||
       metric == "diverged") {
     std::string list;
-    for (std::size_t i = c_est + 1; i < head.size(); ++i) {
+    for (std::size_t i = c.estimator + 1; i < head.size(); ++i) {
       if (head[i] != "status" && head[i] != "diverged")
         list += (list.empty() ? "" : ", ") + head[i];
     }
     throw CompareInputError(fmt::format(
         "--metric: expected a per-run column of {} ({}), got \"{}\"", file, list, metric));
   }
-  std::vector<bool> keep(head.size(), false);
-  for (std::size_t i = 0; i <= c_est; ++i) keep[i] = true;  // sweep labels, run, estimator
-  keep[c_div] = keep[c_metric] = true;
-  reader.keep_only(std::move(keep));
-  f.sweep_keys.assign(head.begin(), head.begin() + static_cast<std::ptrdiff_t>(c_run));
+  return c;
+}
+
+// A run index of record r: an integer 0 .. 2^53 (exact in a double).
+std::int64_t run_index(const CsvRecord& r, std::size_t c_run, const std::string& file) {
+  std::optional<double> run;
+  try {
+    run = parse_number(r.fields[c_run]);
+  } catch (const std::invalid_argument&) {
+  }
+  if (!run || !(*run >= 0.0 && *run <= 9007199254740992.0) || *run != std::floor(*run)) {
+    throw CompareInputError(
+        fmt::format("{}:{}: run: expected a run index (an integer >= 0), got \"{}\"", file, r.line,
+                    r.fields[c_run]));
+  }
+  return static_cast<std::int64_t>(*run);
+}
+
+// The metric of record r: empty (no value in this run), else a finite number >= 0 (every per-run
+// column of runs.csv is); nan, inf, a negative value or one beyond a double's range is damaged
+// input.
+std::optional<double> metric_value(const CsvRecord& r, std::size_t c_metric,
+                                   const std::string& metric, const std::string& file) {
+  std::optional<double> value;
+  try {
+    value = parse_number(r.fields[c_metric]);
+  } catch (const std::invalid_argument&) {
+    throw CompareInputError(fmt::format("{}:{}: {}: expected a number, got \"{}\"", file, r.line,
+                                        metric, r.fields[c_metric]));
+  }
+  if (value && !(std::isfinite(*value) && *value >= 0.0)) {
+    throw CompareInputError(fmt::format("{}:{}: {}: expected a finite number >= 0, got \"{}\"",
+                                        file, r.line, metric, r.fields[c_metric]));
+  }
+  return value;
+}
+
+// The records of runs.csv after its header into f.rows, one row per (sweep labels, estimator) in
+// order of first appearance; `lines` gets, per row, the line of each run.
+void read_runs(CsvReader& reader, std::size_t width, const RunsColumns& c,
+               const std::string& metric, const std::string& file, RunFolder& f,
+               std::vector<std::vector<int>>& lines) {
   std::map<std::pair<std::vector<std::string>, std::string>, std::size_t> index;
-  std::vector<std::vector<int>>
-      lines;  // per row, the line of each run (duplicates are found at the end)
-  while (next(r)) {
-    if (r.fields.size() != head.size()) {
+  CsvRecord r;
+  while (next_record(reader, r)) {
+    if (r.fields.size() != width) {
       throw CompareInputError(fmt::format("{}:{}: expected {} fields (the header's), got {}", file,
-                                          r.line, head.size(), r.fields.size()));
+                                          r.line, width, r.fields.size()));
     }
     std::vector<std::string> labels(r.fields.begin(),
-                                    r.fields.begin() + static_cast<std::ptrdiff_t>(c_run));
-    auto key = std::make_pair(std::move(labels), r.fields[c_est]);
+                                    r.fields.begin() + static_cast<std::ptrdiff_t>(c.run));
+    auto key = std::make_pair(std::move(labels), r.fields[c.estimator]);
     auto it = index.find(key);
     if (it == index.end()) {
       it = index.emplace(key, f.rows.size()).first;
@@ -274,36 +304,18 @@ RunFolder read_run_folder(const std::string& dir, const std::string& metric) {
       lines.emplace_back();
     }
     RunFolder::Row& row = f.rows[it->second];
-    // A run index: an integer 0 .. 2^53 (exact in a double).
-    std::optional<double> run;
-    try {
-      run = parse_number(r.fields[c_run]);
-    } catch (const std::invalid_argument&) {
-    }
-    if (!run || !(*run >= 0.0 && *run <= 9007199254740992.0) || *run != std::floor(*run)) {
-      throw CompareInputError(
-          fmt::format("{}:{}: run: expected a run index (an integer >= 0), got \"{}\"", file,
-                      r.line, r.fields[c_run]));
-    }
-    // The metric: empty (no value in this run), else a finite number >= 0 (every per-run column
-    // of runs.csv is); nan, inf, a negative value or one beyond a double's range is damaged input.
-    std::optional<double> value;
-    try {
-      value = parse_number(r.fields[c_metric]);
-    } catch (const std::invalid_argument&) {
-      throw CompareInputError(fmt::format("{}:{}: {}: expected a number, got \"{}\"", file, r.line,
-                                          metric, r.fields[c_metric]));
-    }
-    if (value && !(std::isfinite(*value) && *value >= 0.0)) {
-      throw CompareInputError(fmt::format("{}:{}: {}: expected a finite number >= 0, got \"{}\"",
-                                          file, r.line, metric, r.fields[c_metric]));
-    }
-    row.run.push_back(static_cast<std::int64_t>(*run));
+    const std::int64_t run = run_index(r, c.run, file);
+    const std::optional<double> value = metric_value(r, c.metric, metric, file);
+    row.run.push_back(run);
     row.value.push_back(value);
-    row.diverged.push_back(r.fields[c_div] == "1");
+    row.diverged.push_back(r.fields[c.diverged] == "1");
     lines[it->second].push_back(r.line);
   }
-  // A run twice in one row: the earliest line that repeats a run.
+}
+
+// Refuses a run twice in one row, naming the earliest line that repeats a run.
+void check_unique_runs(const RunFolder& f, const std::vector<std::vector<int>>& lines,
+                       const std::string& file) {
   int dup_line = 0;
   std::size_t dup_row = 0;
   std::int64_t dup_run = 0;
@@ -328,6 +340,43 @@ RunFolder read_run_folder(const std::string& dir, const std::string& metric) {
     throw CompareInputError(fmt::format("{}:{}: run {} of {} appears twice", file, dup_line,
                                         dup_run, row_text(f.sweep_keys, f.rows[dup_row])));
   }
+}
+
+}  // namespace
+
+RunFolder read_run_folder(const std::string& dir, const std::string& metric) {
+  RunFolder f;
+  f.dir = dir;
+  const fs::path d(dir);
+  if (!fs::is_directory(d))
+    throw CompareInputError(
+        fmt::format("{}: not a directory (expected an ncosim run output folder)", dir));
+  read_manifest(d, f);
+  const fs::path runs = d / "runs.csv";
+  const std::string file = runs.string();
+  if (!fs::exists(runs) && fs::exists(d / "runs.sqlite")) {
+    throw CompareInputError(fmt::format(
+        "{}: missing; the folder holds a run store: `ncosim export {}` writes it", file, dir));
+  }
+  // Streamed one record at a time, keeping only the columns compare needs: memory follows the
+  // runs of the metric, not the size of the file.
+  std::ifstream in(runs, std::ios::binary);
+  if (!in) throw CompareInputError(fmt::format("{}: cannot open the file", file));
+  CsvReader reader(in, file);
+  CsvRecord r;
+  if (!next_record(reader, r))
+    throw CompareInputError(
+        fmt::format("{}: empty file (expected the runs.csv of `ncosim run`)", file));
+  const std::vector<std::string> head = std::move(r.fields);
+  const RunsColumns c = runs_columns(head, metric, file);
+  std::vector<bool> keep(head.size(), false);
+  for (std::size_t i = 0; i <= c.estimator; ++i) keep[i] = true;  // sweep labels, run, estimator
+  keep[c.diverged] = keep[c.metric] = true;
+  reader.keep_only(std::move(keep));
+  f.sweep_keys.assign(head.begin(), head.begin() + static_cast<std::ptrdiff_t>(c.run));
+  std::vector<std::vector<int>> lines;  // per row, the line of each run
+  read_runs(reader, head.size(), c, metric, file, f, lines);
+  check_unique_runs(f, lines, file);
   if (f.rows.empty())
     throw CompareInputError(
         fmt::format("{}: no runs (expected the runs.csv of `ncosim run`)", file));
