@@ -53,119 +53,154 @@ double mean_of(const std::vector<double>& v) {
   return s / static_cast<double>(v.size());
 }
 
+// One estimator's sums over the runs of a campaign.
+struct RunTotals {
+  std::vector<double> mse, mse_ext, mde;  // per run that did not diverge
+  std::vector<std::vector<double>> root;  // per state, each such run's RMSE
+  std::vector<double> state_sse;          // per state, over those runs
+  std::int64_t count = 0, used = 0, taken = 0, diverged = 0;
+  double flops = 0.0, flop_periods = 0.0;
+  std::string run_status = "ok";  // the first non-ok status of a run that did not diverge
+  ConsistencySums consistency;
+};
+
+// Estimator e's totals over the campaign's runs; its mode confusion counts are summed into row.
+RunTotals run_totals(const CampaignResult& result, std::size_t e, Eigen::Index n, SummaryRow& row) {
+  RunTotals t;
+  t.root.resize(static_cast<std::size_t>(n));
+  t.state_sse.assign(static_cast<std::size_t>(n), 0.0);
+  for (const auto& run : result.runs) {
+    const EstimatorRunMetrics& m = run[e];
+    add_consistency(t.consistency, m);
+    t.used += m.samples_used;
+    t.taken += m.samples_taken;
+    if (m.counters) {
+      t.flops += m.counters->flops;
+      t.flop_periods += static_cast<double>(m.counters->periods);
+    }
+    if (m.diverged) {
+      ++t.diverged;
+      continue;
+    }
+    if (m.status != "ok" && t.run_status == "ok") t.run_status = m.status;
+    t.mse.push_back(m.sse / static_cast<double>(m.count));
+    t.mse_ext.push_back(m.sse_ext / static_cast<double>(m.count));
+    for (std::size_t i = 0; i < t.state_sse.size(); ++i) {
+      t.state_sse[i] += m.sse_state[i];
+      t.root[i].push_back(std::sqrt(m.sse_state[i] / static_cast<double>(m.count)));
+    }
+    t.count += m.count;
+    if (m.mode_count > 0)
+      t.mde.push_back(100.0 * static_cast<double>(m.mode_errors) /
+                      static_cast<double>(m.mode_count));
+    if (!m.confusion.empty()) {
+      row.confusion.resize(m.confusion.size(), 0);
+      for (std::size_t c = 0; c < m.confusion.size(); ++c) row.confusion[c] += m.confusion[c];
+    }
+  }
+  return t;
+}
+
+// The error statistics of a row none of whose runs diverged: MSE, per-state RMSE and ERMSE, and
+// the mode detection error, each with its CI.
+void set_error_statistics(const RunTotals& t, bool extended, std::size_t runs, SummaryRow& row) {
+  row.mse = finite(mean_of(t.mse));
+  row.mse_ci95 = ci95_half_width(t.mse);
+  if (extended) {
+    row.mse_ext = finite(mean_of(t.mse_ext));
+    row.mse_ext_ci95 = ci95_half_width(t.mse_ext);
+  }
+  for (double s : t.state_sse)
+    row.rmse.push_back(finite(std::sqrt(s / static_cast<double>(t.count))));
+  for (const auto& r : t.root) {
+    row.ermse.push_back(finite(mean_of(r)));
+    row.ermse_ci95.push_back(ci95_half_width(r));
+  }
+  // Every run scores the same periods, so the mean of per-run MDEs is the pooled share.
+  if (!t.mde.empty() && t.mde.size() == runs) {
+    row.mde_percent = mean_of(t.mde);
+    row.mde_ci95 = ci95_half_width(t.mde);
+    row.mde_run_min = *std::min_element(t.mde.begin(), t.mde.end());
+    row.mde_run_max = *std::max_element(t.mde.begin(), t.mde.end());
+  }
+}
+
+// The sensors' transmissions per scored period, over every run of estimator e.
+void set_sent_per_period(const Scenario& sc, const CampaignResult& result, std::size_t e,
+                         SummaryRow& row) {
+  std::int64_t sent = 0;
+  for (const auto& run : result.runs) {
+    for (const auto v : run[e].sensor_sent) sent += v;
+  }
+  const double periods =
+      static_cast<double>(sc.run.periods - sc.run.warmup) * static_cast<double>(result.runs.size());
+  if (periods > 0) row.sent_per_period = static_cast<double>(sent) / periods;
+}
+
+// The per-run values kept for comparisons (none of a row with a diverged run) and the run ids.
+void set_per_run(const Scenario& sc, const CampaignResult& result, const RunTotals& t,
+                 SummaryRow& row) {
+  if (t.diverged == 0) {
+    row.per_run.mse = t.mse;
+    if (row.mse_ext) row.per_run.mse_ext = t.mse_ext;
+    if (row.mde_percent) row.per_run.mde = t.mde;
+  }
+  row.per_run.seed = sc.run.seed;
+  for (std::size_t r = 0; r < result.runs.size(); ++r) {
+    row.per_run.run.push_back(r < result.run_ids.size() ? result.run_ids[r] : r);
+  }
+}
+
+// The summary row of estimator e over the campaign's runs.
+SummaryRow summary_row(const Scenario& sc, const CampaignResult& result, std::size_t e,
+                       const std::vector<std::string>& sweep_labels) {
+  const Eigen::Index n = sc.model.plant.n();
+  const auto& entry = sc.estimators[e];
+  const auto& rep = entry.design->report();
+  SummaryRow row;
+  row.sweep_labels = sweep_labels;
+  row.estimator = entry.name;
+  row.kind = entry.kind;
+  row.runs = static_cast<std::int64_t>(result.runs.size());
+  const std::string design_status = rep.status == "ok" ? "ok" : "design_" + rep.status;
+  const RunTotals t = run_totals(result, e, n, row);
+  // Precedence: a failed design (it says why the rest went wrong), divergence, run status.
+  const std::string status = design_status != "ok" ? design_status
+                             : t.diverged > 0      ? "diverged"
+                                                   : t.run_status;
+  if (t.diverged == 0)
+    set_error_statistics(t, entry.design->extended_size() > 0, result.runs.size(), row);
+  row.rmse.resize(static_cast<std::size_t>(n));
+  row.ermse.resize(static_cast<std::size_t>(n));
+  row.ermse_ci95.resize(static_cast<std::size_t>(n));
+  if (!row.confusion.empty()) row.modes = sc.model.mode_count();
+  row.flops_per_period = entry.design->flops_per_period();
+  row.stored_gains = rep.stored_gains;
+  row.ns_per_period = finite(result.ns_per_period.at(e));
+  row.predicted_mse_ext = rep.predicted_mse_ext;
+  if (t.taken > 0) row.delivered_ratio = static_cast<double>(t.used) / static_cast<double>(t.taken);
+  row.status = status;
+  row.predicted_mse = rep.predicted_mse;
+  if (t.flop_periods > 0) row.flops_mean = t.flops / t.flop_periods;
+  set_sent_per_period(sc, result, e, row);
+  set_per_run(sc, result, t, row);
+  row.model_check = model_check_note(sc, e, row);
+  if (t.diverged == 0) {
+    row.nees = nees_stat(t.consistency, n);
+    row.nis = nis_stat(t.consistency);
+    row.consistency = consistency_note(row.nees, row.nis);
+  }
+  row.expected_status = entry.expected_status;
+  return row;
+}
+
 }  // namespace
 
 std::vector<SummaryRow> summarise(const Scenario& sc, const CampaignResult& result,
                                   const std::vector<std::string>& sweep_labels) {
   std::vector<SummaryRow> rows;
-  const Eigen::Index n = sc.model.plant.n();
-  for (std::size_t e = 0; e < sc.estimators.size(); ++e) {
-    const auto& entry = sc.estimators[e];
-    const auto& rep = entry.design->report();
-    SummaryRow row;
-    row.sweep_labels = sweep_labels;
-    row.estimator = entry.name;
-    row.kind = entry.kind;
-    row.runs = static_cast<std::int64_t>(result.runs.size());
-    std::vector<double> mse, mse_ext, mde;
-    std::vector<std::vector<double>> root(static_cast<std::size_t>(n));
-    std::vector<double> state_sse(static_cast<std::size_t>(n), 0.0);
-    std::int64_t count = 0, used = 0, taken = 0, diverged = 0;
-    double flops = 0.0, flop_periods = 0.0;
-    const std::string design_status = rep.status == "ok" ? "ok" : "design_" + rep.status;
-    std::string run_status = "ok";  // the first non-ok status of a run that did not diverge
-    ConsistencySums consistency;
-    for (const auto& run : result.runs) {
-      const EstimatorRunMetrics& m = run[e];
-      add_consistency(consistency, m);
-      used += m.samples_used;
-      taken += m.samples_taken;
-      if (m.counters) {
-        flops += m.counters->flops;
-        flop_periods += static_cast<double>(m.counters->periods);
-      }
-      if (m.diverged) {
-        ++diverged;
-        continue;
-      }
-      if (m.status != "ok" && run_status == "ok") run_status = m.status;
-      mse.push_back(m.sse / static_cast<double>(m.count));
-      mse_ext.push_back(m.sse_ext / static_cast<double>(m.count));
-      for (std::size_t i = 0; i < state_sse.size(); ++i) {
-        state_sse[i] += m.sse_state[i];
-        root[i].push_back(std::sqrt(m.sse_state[i] / static_cast<double>(m.count)));
-      }
-      count += m.count;
-      if (m.mode_count > 0)
-        mde.push_back(100.0 * static_cast<double>(m.mode_errors) /
-                      static_cast<double>(m.mode_count));
-      if (!m.confusion.empty()) {
-        row.confusion.resize(m.confusion.size(), 0);
-        for (std::size_t c = 0; c < m.confusion.size(); ++c) row.confusion[c] += m.confusion[c];
-      }
-    }
-    // Precedence: a failed design (it says why the rest went wrong), divergence, run status.
-    const std::string status = design_status != "ok" ? design_status
-                               : diverged > 0        ? "diverged"
-                                                     : run_status;
-    if (diverged == 0) {
-      row.mse = finite(mean_of(mse));
-      row.mse_ci95 = ci95_half_width(mse);
-      if (entry.design->extended_size() > 0) {
-        row.mse_ext = finite(mean_of(mse_ext));
-        row.mse_ext_ci95 = ci95_half_width(mse_ext);
-      }
-      for (double s : state_sse)
-        row.rmse.push_back(finite(std::sqrt(s / static_cast<double>(count))));
-      for (const auto& r : root) {
-        row.ermse.push_back(finite(mean_of(r)));
-        row.ermse_ci95.push_back(ci95_half_width(r));
-      }
-      // Every run scores the same periods, so the mean of per-run MDEs is the pooled share.
-      if (!mde.empty() && mde.size() == result.runs.size()) {
-        row.mde_percent = mean_of(mde);
-        row.mde_ci95 = ci95_half_width(mde);
-        row.mde_run_min = *std::min_element(mde.begin(), mde.end());
-        row.mde_run_max = *std::max_element(mde.begin(), mde.end());
-      }
-    }
-    row.rmse.resize(static_cast<std::size_t>(n));
-    row.ermse.resize(static_cast<std::size_t>(n));
-    row.ermse_ci95.resize(static_cast<std::size_t>(n));
-    if (!row.confusion.empty()) row.modes = sc.model.mode_count();
-    row.flops_per_period = entry.design->flops_per_period();
-    row.stored_gains = rep.stored_gains;
-    row.ns_per_period = finite(result.ns_per_period.at(e));
-    row.predicted_mse_ext = rep.predicted_mse_ext;
-    if (taken > 0) row.delivered_ratio = static_cast<double>(used) / static_cast<double>(taken);
-    row.status = status;
-    row.predicted_mse = rep.predicted_mse;
-    if (flop_periods > 0) row.flops_mean = flops / flop_periods;
-    std::int64_t sent = 0;
-    for (const auto& run : result.runs) {
-      for (const auto v : run[e].sensor_sent) sent += v;
-    }
-    const double periods = static_cast<double>(sc.run.periods - sc.run.warmup) *
-                           static_cast<double>(result.runs.size());
-    if (periods > 0) row.sent_per_period = static_cast<double>(sent) / periods;
-    if (diverged == 0) {
-      row.per_run.mse = mse;
-      if (row.mse_ext) row.per_run.mse_ext = mse_ext;
-      if (row.mde_percent) row.per_run.mde = mde;
-    }
-    row.per_run.seed = sc.run.seed;
-    for (std::size_t r = 0; r < result.runs.size(); ++r) {
-      row.per_run.run.push_back(r < result.run_ids.size() ? result.run_ids[r] : r);
-    }
-    row.model_check = model_check_note(sc, e, row);
-    if (diverged == 0) {
-      row.nees = nees_stat(consistency, n);
-      row.nis = nis_stat(consistency);
-      row.consistency = consistency_note(row.nees, row.nis);
-    }
-    row.expected_status = entry.expected_status;
-    rows.push_back(std::move(row));
-  }
+  for (std::size_t e = 0; e < sc.estimators.size(); ++e)
+    rows.push_back(summary_row(sc, result, e, sweep_labels));
   add_paired_within(rows, reference_estimator_index(sc));
   return rows;
 }
