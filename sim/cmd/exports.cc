@@ -100,109 +100,129 @@ ErrorCurve error_curve_for(const LoadedScenario& loaded, const RunStore& store, 
   return curve;
 }
 
-std::vector<std::pair<std::string, std::string>> derive_exports(const LoadedScenario& loaded,
-                                                                const RunStore& store,
-                                                                const ExportInfo& info,
-                                                                std::string* markdown) {
-  const auto meta = store.meta();
-  const Shard shard = shard_of(meta);
-  const TargetRule rule = target_of(meta, loaded);
-  std::vector<CampaignResult> results(loaded.cases.size());
+namespace {
+
+// What the exports of a store are made of: its campaign table, the runs they use, the rows.
+struct ExportState {
+  std::map<std::string, std::string> meta;
+  Shard shard;
+  TargetRule rule;
+  std::vector<CampaignResult> results;  // per case
+  LinkCoverage links;
+  TargetDecision decision;
   std::vector<SummaryRow> rows;
   std::uint64_t done = 0, expected = 0;
+  bool complete = false;
+};
+
+// The stored runs of every case with their link counters (links.csv needs them for every run the
+// exports use: sim/run/link_report.h); with --target-ci decided, cut to the stopping point (runs
+// beyond it, e.g. of shards, are not used).
+void load_runs(const LoadedScenario& loaded, const RunStore& store, ExportState& s) {
+  s.results.resize(loaded.cases.size());
   for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
-    CampaignResult& res = results[c];
+    CampaignResult& res = s.results[c];
     for (auto& [run, m] : store.load_case(c)) {
       res.run_ids.push_back(run);
       res.runs.push_back(std::move(m));
     }
   }
-  // Link counters: links.csv needs them for every run the exports use (sim/run/link_report.h).
-  const LinkCoverage links = load_link_runs(store, results);
-  TargetDecision decision;
-  if (rule.on() && shard.count <= 1) {
-    decision = decide_target(loaded, results, rule);
-    if (decision.decided) {  // runs beyond the stopping point (e.g. of shards) are not used
-      for (auto& res : results) {
-        res.runs.resize(decision.runs);
-        res.run_ids.resize(decision.runs);
-        if (!res.link_runs.empty()) res.link_runs.resize(decision.runs);
+  s.links = load_link_runs(store, s.results);
+  if (s.rule.on() && s.shard.count <= 1) {
+    s.decision = decide_target(loaded, s.results, s.rule);
+    if (s.decision.decided) {
+      for (auto& res : s.results) {
+        res.runs.resize(s.decision.runs);
+        res.run_ids.resize(s.decision.runs);
+        if (!res.link_runs.empty()) res.link_runs.resize(s.decision.runs);
       }
     }
   }
+}
+
+// The runs case `sc` is expected to hold: the decided count, --max-runs (this shard's part), or
+// the runs the shard owns.
+std::uint64_t expected_runs(const Scenario& sc, const ExportState& s) {
+  if (s.decision.decided) return s.decision.runs;
+  if (s.rule.on()) {
+    return s.shard.count <= 1 ? s.rule.max_runs
+                              : s.rule.max_runs / s.shard.count +
+                                    (s.shard.index < s.rule.max_runs % s.shard.count ? 1 : 0);
+  }
+  return owned_runs(sc, s.shard);
+}
+
+// The summary rows of every case (with the stopping rule's reason and unmet targets), paired
+// across cases; counts the runs done and expected.
+void summarise_cases(const LoadedScenario& loaded, const RunStore& store, ExportState& s) {
   for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
     const Scenario& sc = *loaded.cases[c].scenario;
-    CampaignResult& res = results[c];
+    CampaignResult& res = s.results[c];
     res.ns_per_period = store.timing(c, sc.estimators.size());
-    done += res.runs.size();
-    if (decision.decided) {
-      expected += decision.runs;
-    } else if (rule.on()) {
-      expected += shard.count <= 1 ? rule.max_runs
-                                   : rule.max_runs / shard.count +
-                                         (shard.index < rule.max_runs % shard.count ? 1 : 0);
-    } else {
-      expected += owned_runs(sc, shard);
-    }
+    s.done += res.runs.size();
+    s.expected += expected_runs(sc, s);
     auto case_rows = summarise(sc, res, loaded.cases[c].labels);
     for (std::size_t e = 0; e < case_rows.size(); ++e) {
-      if (!decision.decided) continue;
-      case_rows[e].stop = decision.reason;
-      if (decision.met[c][e] == 0 && case_rows[e].status == "ok")
+      if (!s.decision.decided) continue;
+      case_rows[e].stop = s.decision.reason;
+      if (s.decision.met[c][e] == 0 && case_rows[e].status == "ok")
         case_rows[e].status = "ci_target_not_met";
     }
-    rows.insert(rows.end(), case_rows.begin(), case_rows.end());
+    s.rows.insert(s.rows.end(), case_rows.begin(), case_rows.end());
   }
-  add_paired_across_cases(rows, loaded, reference_case_index(loaded));  // sim/analysis/paired.h
-  if (info.not_ok != nullptr) {
-    for (const auto& r : rows) {
-      if (status_as_expected(r.status, r.expected_status))
-        continue;  // [[estimator]] expected_status
-      std::string where;
-      for (std::size_t i = 0; i < r.sweep_labels.size(); ++i) {
-        where += fmt::format("{} = {}, ", loaded.sweeps[i].key, r.sweep_labels[i]);
-      }
-      info.not_ok->push_back(fmt::format("{}\"{}\": {}", where, r.estimator, status_text(r)));
+  add_paired_across_cases(s.rows, loaded, reference_case_index(loaded));  // sim/analysis/paired.h
+}
+
+// "case, \"estimator\": status" of each row whose status is not as its scenario expects.
+void report_not_ok(const LoadedScenario& loaded, const std::vector<SummaryRow>& rows,
+                   std::vector<std::string>& not_ok) {
+  for (const auto& r : rows) {
+    if (status_as_expected(r.status, r.expected_status)) continue;  // [[estimator]] expected_status
+    std::string where;
+    for (std::size_t i = 0; i < r.sweep_labels.size(); ++i) {
+      where += fmt::format("{} = {}, ", loaded.sweeps[i].key, r.sweep_labels[i]);
     }
+    not_ok.push_back(fmt::format("{}\"{}\": {}", where, r.estimator, status_text(r)));
   }
-  const Scenario& first = *loaded.cases.front().scenario;
-  const Eigen::Index n = first.model.plant.n();
-  std::vector<std::vector<std::string>> labels;
-  std::vector<const Scenario*> scs;
-  std::vector<const CampaignResult*> res;
-  for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
-    labels.push_back(loaded.cases[c].labels);
-    scs.push_back(loaded.cases[c].scenario.get());
-    res.push_back(&results[c]);
-  }
-  const bool complete = decision.decided || (!rule.on() && done == expected);
-  if (info.complete != nullptr) *info.complete = complete;
-  const std::string table_md = summary_markdown(first.title, loaded.sweeps, rows, n);
-  std::string extras = consistency_notes(loaded.sweeps, rows);  // the lines under the table
-  if (decision.decided) {
-    extras += decision.reason == "target_ci"
+}
+
+// The lines under the summary table: consistency notes, why --target-ci stopped, and what a
+// partial campaign or a shard holds.
+std::string summary_extras(const LoadedScenario& loaded, const ExportState& s,
+                           const ExportInfo& info) {
+  std::string extras = consistency_notes(loaded.sweeps, s.rows);
+  const TargetRule& rule = s.rule;
+  if (s.decision.decided) {
+    extras += s.decision.reason == "target_ci"
                   ? fmt::format(
                         "\nStopped at {} runs per case: every row's 95 % CI half-width of mse is "
                         "within {:g} % of "
                         "its mean (`--target-ci {:g}`, batches of {}).\n",
-                        decision.runs, 100.0 * rule.rel, rule.rel, rule.batch)
+                        s.decision.runs, 100.0 * rule.rel, rule.rel, rule.batch)
                   : fmt::format(
                         "\nStopped at `--max-runs {}`: the rows with status `ci_target_not_met` "
                         "did not reach "
                         "the 95 % CI half-width target of {:g} % of mse (`--target-ci {:g}`).\n",
-                        decision.runs, 100.0 * rule.rel, rule.rel);
+                        s.decision.runs, 100.0 * rule.rel, rule.rel);
   }
-  if (!complete || shard.count > 1) {
+  if (!s.complete || s.shard.count > 1) {
     extras += fmt::format(
-        "\n**Partial results**: {} of {} runs{}{}.\n", done, expected,
-        shard.count > 1 ? fmt::format(" of shard {}/{}", shard.index + 1, shard.count) : "",
+        "\n**Partial results**: {} of {} runs{}{}.\n", s.done, s.expected,
+        s.shard.count > 1 ? fmt::format(" of shard {}/{}", s.shard.index + 1, s.shard.count) : "",
         info.stopped.empty() ? "" : fmt::format(" (stopped by {})", info.stopped));
-    if (!complete)
+    if (!s.complete)
       extras += "`ncosim run FILE --out DIR --resume` (same options) runs the missing ones.\n";
-    if (shard.count > 1)
+    if (s.shard.count > 1)
       extras += "`ncosim merge OUT DIR...` combines the shards' stores into the whole campaign.\n";
   }
-  const std::string md = table_md + extras;
+  return extras;
+}
+
+// manifest.json of the exports: the campaign's, with the store's inputs, ranks, progress,
+// stopping rule and why links.csv is missing.
+nlohmann::json export_manifest(const LoadedScenario& loaded, const ExportState& s,
+                               const ExportInfo& info) {
+  const auto& meta = s.meta;
   double wall = 0.0;
   int threads = 1;
   try {
@@ -217,51 +237,97 @@ std::vector<std::pair<std::string, std::string>> derive_exports(const LoadedScen
         nlohmann::json::parse(it->second);  // every file the scenario read: path -> content hash
   }
   man["ranks"] = meta.count("ranks") != 0 ? std::stoi(meta.at("ranks")) : 1;
-  man["runs_done"] = done;
-  man["runs_expected"] = expected;
-  man["complete"] = complete;
+  man["runs_done"] = s.done;
+  man["runs_expected"] = s.expected;
+  man["complete"] = s.complete;
   man["stopped"] = info.stopped.empty() ? nlohmann::json(nullptr) : nlohmann::json(info.stopped);
-  man["shard"] = shard.count > 1 ? nlohmann::json(meta.at("shard")) : nlohmann::json(nullptr);
-  if (rule.on()) {
+  man["shard"] = s.shard.count > 1 ? nlohmann::json(meta.at("shard")) : nlohmann::json(nullptr);
+  const TargetDecision& decision = s.decision;
+  if (s.rule.on()) {
     man["target_ci"] = {
-        {"rel", rule.rel},
-        {"max_runs", rule.max_runs},
-        {"batch", rule.batch},
+        {"rel", s.rule.rel},
+        {"max_runs", s.rule.max_runs},
+        {"batch", s.rule.batch},
         {"runs", decision.decided ? nlohmann::json(decision.runs) : nlohmann::json(nullptr)},
         {"stop", decision.decided ? nlohmann::json(decision.reason) : nlohmann::json(nullptr)}};
   }
-  if (!links.complete) {
+  if (!s.links.complete) {
     man["links_csv"] = fmt::format(
         "not written: {} of the {} stored runs have no link counters (a store written "
         "before ncosim counted them)",
-        links.missing, links.missing + links.present);
+        s.links.missing, s.links.missing + s.links.present);
+  }
+  return man;
+}
+
+// The exported files in their order: summary.csv and .md, runs.csv, transmissions.csv,
+// design.json, manifest.json, and, where there is content, links.csv, trajectory.csv,
+// confusion.csv and error_curve.csv.
+std::vector<std::pair<std::string, std::string>> export_files(const LoadedScenario& loaded,
+                                                              const RunStore& store,
+                                                              const ExportState& s,
+                                                              const std::string& md,
+                                                              const nlohmann::json& man) {
+  const Scenario& first = *loaded.cases.front().scenario;
+  const Eigen::Index n = first.model.plant.n();
+  std::vector<std::vector<std::string>> labels;
+  std::vector<const Scenario*> scs;
+  std::vector<const CampaignResult*> res;
+  for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
+    labels.push_back(loaded.cases[c].labels);
+    scs.push_back(loaded.cases[c].scenario.get());
+    res.push_back(&s.results[c]);
   }
   std::vector<std::pair<std::string, std::string>> files{
-      {"summary.csv", summary_csv(loaded.sweeps, rows, n)},
+      {"summary.csv", summary_csv(loaded.sweeps, s.rows, n)},
       {"summary.md", md},
       {"runs.csv", runs_csv(loaded.sweeps, labels, scs, res)},
       {"transmissions.csv", transmissions_csv(loaded.sweeps, labels, scs, res)},
       {"design.json", design_json(loaded).dump(2) + "\n"},
       {"manifest.json", man.dump(2) + "\n"},
   };
-  if (links.complete) files.emplace_back("links.csv", links_csv(loaded.sweeps, labels, scs, res));
+  if (s.links.complete) files.emplace_back("links.csv", links_csv(loaded.sweeps, labels, scs, res));
   const auto art = store.artifacts();
   if (const auto it = art.find("trajectory.csv"); it != art.end())
     files.emplace_back("trajectory.csv", it->second);
-  const std::string confusion = confusion_csv(loaded.sweeps, rows);
+  const std::string confusion = confusion_csv(loaded.sweeps, s.rows);
   if (confusion.find('\n') + 1 < confusion.size()) files.emplace_back("confusion.csv", confusion);
   if (first.run.error_curve) {
     std::vector<ErrorCurve> curves;
     for (std::size_t c = 0; c < loaded.cases.size(); ++c)
-      curves.push_back(error_curve_for(loaded, store, c, results[c]));
+      curves.push_back(error_curve_for(loaded, store, c, s.results[c]));
     files.emplace_back("error_curve.csv", error_curve_csv(loaded.sweeps, labels, scs, curves));
   }
+  return files;
+}
+
+}  // namespace
+
+std::vector<std::pair<std::string, std::string>> derive_exports(const LoadedScenario& loaded,
+                                                                const RunStore& store,
+                                                                const ExportInfo& info,
+                                                                std::string* markdown) {
+  ExportState s;
+  s.meta = store.meta();
+  s.shard = shard_of(s.meta);
+  s.rule = target_of(s.meta, loaded);
+  load_runs(loaded, store, s);
+  summarise_cases(loaded, store, s);
+  if (info.not_ok != nullptr) report_not_ok(loaded, s.rows, *info.not_ok);
+  const Scenario& first = *loaded.cases.front().scenario;
+  const Eigen::Index n = first.model.plant.n();
+  s.complete = s.decision.decided || (!s.rule.on() && s.done == s.expected);
+  if (info.complete != nullptr) *info.complete = s.complete;
+  const std::string table_md = summary_markdown(first.title, loaded.sweeps, s.rows, n);
+  const std::string extras = summary_extras(loaded, s, info);
+  const std::string md = table_md + extras;
+  auto files = export_files(loaded, store, s, md, export_manifest(loaded, s, info));
   if (markdown != nullptr) {  // what `run` prints (sim/present/table_view.h), else summary.md
     // csv and json keep stdout to the data: the lines under the table go to stderr.
     if (info.table != nullptr && info.table->machine() && !extras.empty())
       std::cerr << extras.substr(1);
-    *markdown = info.table != nullptr ? stdout_table(*info.table, first.title, loaded.sweeps, rows,
-                                                     n, table_md, extras)
+    *markdown = info.table != nullptr ? stdout_table(*info.table, first.title, loaded.sweeps,
+                                                     s.rows, n, table_md, extras)
                                       : md;
   }
   return files;
