@@ -117,33 +117,41 @@ bool is_monotone(const std::map<double, std::optional<double>>& pts) {
   return true;
 }
 
-FindResult find_threshold(const std::string& file, const std::vector<std::string>& sets,
-                          const FindOptions& opt, std::ostream& log) {
+namespace {
+
+// Refuses a range, tolerance or scan that cannot be searched.
+void check_find_options(const FindOptions& opt) {
   if (!(opt.lo < opt.hi))
     throw ScenarioError(fmt::format("--lo: expected lo < hi, got {} and {}", opt.lo, opt.hi));
   if (!(opt.tol > 0.0))
     throw ScenarioError(fmt::format("--tol: expected a positive tolerance, got {}", opt.tol));
   if (opt.scan < 1)
     throw ScenarioError(fmt::format("--scan: expected at least 1 interval, got {}", opt.scan));
-  FindResult res;
-  // Case 0 at lo: the sweep axes, the estimator names, and a check that the key loads.
-  // A swept key is searched instead of swept: its axis is reduced to the searched value and
-  // left out of the output's sweep columns.
-  std::optional<std::size_t> swept;
-  std::vector<std::string> names;
-  {
-    const LoadedScenario probe = load_cases(file, sets, {}, 0);
-    for (std::size_t a = 0; a < probe.sweeps.size(); ++a) {
-      if (probe.sweeps[a].key == opt.key) swept = a;
-    }
-    std::vector<std::string> s = sets;
-    s.push_back(assignment(opt, swept, opt.lo));
-    const LoadedScenario first = load_cases(file, s, {}, 0);
-    for (const auto& e : first.cases.front().scenario->estimators) names.push_back(e.name);
-    res.sweeps = first.sweeps;
+}
+
+// Case 0 at lo: the sweep axes (into res), the estimator names, and a check that the key loads.
+// A swept key is searched instead of swept: `swept` gets its axis, which is reduced to the
+// searched value and left out of the output's sweep columns.
+std::vector<std::string> probe_scenario(const std::string& file,
+                                        const std::vector<std::string>& sets,
+                                        const FindOptions& opt, std::optional<std::size_t>& swept,
+                                        FindResult& res) {
+  const LoadedScenario probe = load_cases(file, sets, {}, 0);
+  for (std::size_t a = 0; a < probe.sweeps.size(); ++a) {
+    if (probe.sweeps[a].key == opt.key) swept = a;
   }
-  std::size_t total = 1;
-  for (const auto& a : res.sweeps) total *= a.labels.size();
+  std::vector<std::string> s = sets;
+  s.push_back(assignment(opt, swept, opt.lo));
+  const LoadedScenario first = load_cases(file, s, {}, 0);
+  std::vector<std::string> names;
+  for (const auto& e : first.cases.front().scenario->estimators) names.push_back(e.name);
+  res.sweeps = first.sweeps;
+  return names;
+}
+
+// The estimators searched: --estimator's (each refused unless one of `names`), else all.
+std::vector<std::string> chosen_estimators(const std::string& file, const FindOptions& opt,
+                                           const std::vector<std::string>& names) {
   std::vector<std::string> chosen = opt.estimators.empty() ? names : opt.estimators;
   for (const auto& n : chosen) {
     if (std::find(names.begin(), names.end(), n) == names.end()) {
@@ -153,93 +161,150 @@ FindResult find_threshold(const std::string& file, const std::vector<std::string
                       hint.empty() ? "" : fmt::format(" (did you mean \"{}\"?)", hint)));
     }
   }
-  for (std::size_t c = 0; c < total; ++c) {
-    std::vector<std::string> labels;
-    {
-      std::size_t rem = c;
-      labels.resize(res.sweeps.size());
-      for (std::size_t a = res.sweeps.size(); a-- > 0;) {
-        labels[a] = res.sweeps[a].labels[rem % res.sweeps[a].labels.size()];
-        rem /= res.sweeps[a].labels.size();
-      }
-    }
-    std::map<double, Sample> cache;  // key value -> every estimator's quantity
-    auto at = [&](double v) -> const Sample& {
-      auto it = cache.find(v);
-      if (it == cache.end()) it = cache.emplace(v, evaluate(file, sets, opt, swept, c, v)).first;
-      return it->second;
-    };
-    std::vector<std::string> shown;
-    for (std::size_t a = 0; a < labels.size(); ++a) {
-      if (!swept || a != *swept) shown.push_back(labels[a]);
-    }
-    std::string where;
-    for (std::size_t a = 0; a < labels.size(); ++a) {
-      if (swept && a == *swept) continue;
-      where += fmt::format("{}{} = {}", where.empty() ? " (" : ", ", res.sweeps[a].key, labels[a]);
-    }
-    if (!where.empty()) where += ")";
-    for (const auto& name : chosen) {
-      FindRow row;
-      row.sweep_labels = shown;
-      row.estimator = name;
-      std::map<double, std::optional<double>> pts;
-      auto q = [&](double v) {
-        const std::optional<double> r = at(v).at(name);
-        pts[v] = r;
-        ++row.evaluations;
-        return r;
-      };
-      std::vector<double> xs;
-      std::vector<bool> ok;
-      for (int i = 0; i <= opt.scan; ++i) {
-        const double v = i == opt.scan ? opt.hi : opt.lo + (opt.hi - opt.lo) * i / opt.scan;
-        xs.push_back(v);
-        ok.push_back(met(opt.target, q(v)));
-      }
-      std::size_t first = xs.size();
-      for (std::size_t i = 0; i + 1 < xs.size(); ++i) {
-        if (ok[i] != ok[i + 1]) {
-          ++row.crossings;
-          if (first == xs.size()) first = i;
-        }
-      }
-      if (row.crossings == 0) {
-        row.status = "not_bracketed";
-        log << fmt::format(
-            "ncosim find: warning: \"{}\"{}: {} {} over [{}, {}]: no threshold in the range\n",
-            name, where, opt.target.quantity,
-            ok.front() ? "meets the target everywhere" : "never meets the target", opt.lo, opt.hi);
-      } else {
-        double a = xs[first], b = xs[first + 1];
-        const bool ok_a = ok[first];
-        while (b - a > opt.tol) {
-          const double mid = 0.5 * (a + b);
-          if (mid <= a || mid >= b) break;
-          (met(opt.target, q(mid)) == ok_a ? a : b) = mid;
-        }
-        row.threshold = ok_a ? a : b;
-        row.other = ok_a ? b : a;
-        row.value = pts[*row.threshold];
-        row.status = row.crossings > 1 ? "several_crossings" : "ok";
-        if (row.crossings > 1) {
-          log << fmt::format(
-              "ncosim find: warning: \"{}\"{}: the target is crossed {} times over the scan; "
-              "the crossing nearest lo is reported\n",
-              name, where, row.crossings);
-        }
-      }
-      row.monotone = is_monotone(pts);
-      if (!row.monotone) {
-        if (row.status == "ok") row.status = "not_monotone";
-        log << fmt::format(
-            "ncosim find: warning: \"{}\"{}: {} is not monotone in {} over the evaluated "
-            "points; a bisection threshold may not be unique\n",
-            name, where, opt.target.quantity, opt.key);
-      }
-      res.rows.push_back(std::move(row));
+  return chosen;
+}
+
+// The sweep labels of case c (the last axis varies fastest).
+std::vector<std::string> case_labels(const std::vector<SweepAxis>& sweeps, std::size_t c) {
+  std::vector<std::string> labels(sweeps.size());
+  std::size_t rem = c;
+  for (std::size_t a = sweeps.size(); a-- > 0;) {
+    labels[a] = sweeps[a].labels[rem % sweeps[a].labels.size()];
+    rem /= sweeps[a].labels.size();
+  }
+  return labels;
+}
+
+// One case's quantities, each key value evaluated once for every estimator.
+class CaseSamples {
+ public:
+  CaseSamples(const std::string& file, const std::vector<std::string>& sets, const FindOptions& opt,
+              std::optional<std::size_t> swept, std::size_t c)
+      : file_(file), sets_(sets), opt_(opt), swept_(swept), c_(c) {}
+  const Sample& at(double v) {
+    auto it = cache_.find(v);
+    if (it == cache_.end())
+      it = cache_.emplace(v, evaluate(file_, sets_, opt_, swept_, c_, v)).first;
+    return it->second;
+  }
+
+ private:
+  const std::string& file_;
+  const std::vector<std::string>& sets_;
+  const FindOptions& opt_;
+  std::optional<std::size_t> swept_;
+  std::size_t c_;
+  std::map<double, Sample> cache_;  // key value -> every estimator's quantity
+};
+
+// One estimator's search: its quantity at a key value, each point kept (for the monotonicity
+// check) and counted in the row's evaluations.
+struct EstimatorSearch {
+  CaseSamples& samples;
+  const FindOptions& opt;
+  FindRow& row;
+  std::map<double, std::optional<double>> pts;
+  std::optional<double> q(double v) {
+    const std::optional<double> r = samples.at(v).at(row.estimator);
+    pts[v] = r;
+    ++row.evaluations;
+    return r;
+  }
+  bool ok(double v) { return met(opt.target, q(v)); }
+};
+
+// Scans [lo, hi] in opt.scan intervals, counts the crossings of the target into the row, and
+// bisects the crossing nearest lo down to opt.tol; the warnings go to log.
+void search_row(EstimatorSearch& s, const std::string& where, std::ostream& log) {
+  const FindOptions& opt = s.opt;
+  FindRow& row = s.row;
+  std::vector<double> xs;
+  std::vector<bool> ok;
+  for (int i = 0; i <= opt.scan; ++i) {
+    const double v = i == opt.scan ? opt.hi : opt.lo + (opt.hi - opt.lo) * i / opt.scan;
+    xs.push_back(v);
+    ok.push_back(s.ok(v));
+  }
+  std::size_t first = xs.size();
+  for (std::size_t i = 0; i + 1 < xs.size(); ++i) {
+    if (ok[i] != ok[i + 1]) {
+      ++row.crossings;
+      if (first == xs.size()) first = i;
     }
   }
+  if (row.crossings == 0) {
+    row.status = "not_bracketed";
+    log << fmt::format(
+        "ncosim find: warning: \"{}\"{}: {} {} over [{}, {}]: no threshold in the range\n",
+        row.estimator, where, opt.target.quantity,
+        ok.front() ? "meets the target everywhere" : "never meets the target", opt.lo, opt.hi);
+    return;
+  }
+  double a = xs[first], b = xs[first + 1];
+  const bool ok_a = ok[first];
+  while (b - a > opt.tol) {
+    const double mid = 0.5 * (a + b);
+    if (mid <= a || mid >= b) break;
+    (s.ok(mid) == ok_a ? a : b) = mid;
+  }
+  row.threshold = ok_a ? a : b;
+  row.other = ok_a ? b : a;
+  row.value = s.pts[*row.threshold];
+  row.status = row.crossings > 1 ? "several_crossings" : "ok";
+  if (row.crossings > 1) {
+    log << fmt::format(
+        "ncosim find: warning: \"{}\"{}: the target is crossed {} times over the scan; "
+        "the crossing nearest lo is reported\n",
+        row.estimator, where, row.crossings);
+  }
+}
+
+// The rows of case c: each chosen estimator's threshold, checked for monotonicity.
+void search_case(const std::string& file, const std::vector<std::string>& sets,
+                 const FindOptions& opt, std::optional<std::size_t> swept, std::size_t c,
+                 const std::vector<std::string>& chosen, std::ostream& log, FindResult& res) {
+  const std::vector<std::string> labels = case_labels(res.sweeps, c);
+  CaseSamples samples(file, sets, opt, swept, c);
+  std::vector<std::string> shown;
+  for (std::size_t a = 0; a < labels.size(); ++a) {
+    if (!swept || a != *swept) shown.push_back(labels[a]);
+  }
+  std::string where;
+  for (std::size_t a = 0; a < labels.size(); ++a) {
+    if (swept && a == *swept) continue;
+    where += fmt::format("{}{} = {}", where.empty() ? " (" : ", ", res.sweeps[a].key, labels[a]);
+  }
+  if (!where.empty()) where += ")";
+  for (const auto& name : chosen) {
+    FindRow row;
+    row.sweep_labels = shown;
+    row.estimator = name;
+    EstimatorSearch s{samples, opt, row, {}};
+    search_row(s, where, log);
+    row.monotone = is_monotone(s.pts);
+    if (!row.monotone) {
+      if (row.status == "ok") row.status = "not_monotone";
+      log << fmt::format(
+          "ncosim find: warning: \"{}\"{}: {} is not monotone in {} over the evaluated "
+          "points; a bisection threshold may not be unique\n",
+          name, where, opt.target.quantity, opt.key);
+    }
+    res.rows.push_back(std::move(row));
+  }
+}
+
+}  // namespace
+
+FindResult find_threshold(const std::string& file, const std::vector<std::string>& sets,
+                          const FindOptions& opt, std::ostream& log) {
+  check_find_options(opt);
+  FindResult res;
+  std::optional<std::size_t> swept;
+  const std::vector<std::string> names = probe_scenario(file, sets, opt, swept, res);
+  std::size_t total = 1;
+  for (const auto& a : res.sweeps) total *= a.labels.size();
+  const std::vector<std::string> chosen = chosen_estimators(file, opt, names);
+  for (std::size_t c = 0; c < total; ++c) search_case(file, sets, opt, swept, c, chosen, log, res);
   if (swept) res.sweeps.erase(res.sweeps.begin() + static_cast<std::ptrdiff_t>(*swept));
   return res;
 }
