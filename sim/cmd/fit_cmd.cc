@@ -53,12 +53,11 @@ std::string parameters_text(const std::vector<models::FitResult>& fits, std::siz
   return s;
 }
 
-}  // namespace
-
-int cmd_fit(const FitArgs& a) {
+// The fit's options from the command line: unknown families and criteria fail before the trace
+// is read.
+models::FitOptions fit_options(const FitArgs& a, const std::string& stem) {
   models::FitOptions o;
   if (!a.families.empty()) o.families = a.families;
-  // Unknown families fail before the trace is read.
   for (const auto& f : o.families) {
     if (models::family_states(f) == 0) {
       throw ScenarioError(fmt::format(
@@ -70,34 +69,41 @@ int cmd_fit(const FitArgs& a) {
     throw ScenarioError(fmt::format("--criterion: expected bic or aic, got '{}'", a.criterion));
   }
   o.starts = a.starts;
-  const std::string stem = std::filesystem::path(a.trace).stem().string();
   o.link_name = a.name.empty() ? stem : a.name;
+  return o;
+}
 
+// The trace's packet fates as the fit's symbols; a trace error, an empty trace or a delay beyond
+// the families' is a ScenarioError at its line (last_line: the trace's line count).
+std::vector<int> trace_symbols(const std::string& path, int last_line) {
   std::vector<std::optional<std::int64_t>> trace;
   int first_row_line = 1;
   try {
-    trace = models::load_trace(a.trace, &first_row_line);
+    trace = models::load_trace(path, &first_row_line);
   } catch (const models::TraceError& e) {
     throw ScenarioError(e.line > 0 ? format_error(e.file, e.line, "", e.what())
                                    : std::string(e.what()));
   }
-  const int last_line = count_lines(a.trace);
   if (trace.empty())
-    throw ScenarioError(format_error(a.trace, last_line, "", "the trace holds no packet"));
+    throw ScenarioError(format_error(path, last_line, "", "the trace holds no packet"));
   // The families' laws are dense in the delay: a longer delay is bad input at its line.
   for (std::size_t i = 0; i < trace.size(); ++i) {
     if (trace[i] && *trace[i] > models::kMaxFitDelay) {
       throw ScenarioError(
-          format_error(a.trace, first_row_line + static_cast<int>(i), "",
+          format_error(path, first_row_line + static_cast<int>(i), "",
                        fmt::format("delay: expected at most {} periods (the largest delay the fit "
                                    "families hold), got {}",
                                    models::kMaxFitDelay, *trace[i])));
     }
   }
-  const std::vector<int> sym = models::fate_symbols(trace);
+  return models::fate_symbols(trace);
+}
 
+// Each family fitted to the symbols; a family that cannot be fitted is skipped with a note when
+// the families were not chosen, else an error.
+std::vector<models::FitResult> fit_families(const FitArgs& a, const models::FitOptions& o,
+                                            const std::vector<int>& sym, int last_line) {
   std::vector<models::FitResult> fits;
-  const auto t0 = std::chrono::steady_clock::now();
   for (const auto& f : o.families) {
     try {
       fits.push_back(models::fit_family(f, sym, o));
@@ -114,10 +120,12 @@ int cmd_fit(const FitArgs& a) {
           format_error(a.trace, last_line, "", fmt::format("--family {}: {}", f, e.what())));
     }
   }
-  const double seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  const std::size_t best = models::best_fit(fits, a.criterion);
+  return fits;
+}
 
+// fit.csv: per family its fit statistics, parameters, burst lengths and autocorrelations.
+std::string fit_csv(const std::vector<models::FitResult>& fits, std::size_t packets,
+                    std::size_t best) {
   std::string csv = "family,section,item,estimate,ci95_low,ci95_high,observed\n";
   for (std::size_t i = 0; i < fits.size(); ++i) {
     const auto& r = fits[i];
@@ -127,7 +135,7 @@ int cmd_fit(const FitArgs& a) {
       csv += fmt::format("{},{},{},{},{},{},{}\n", r.family, section, csv_field(item), est, lo, hi,
                          obs);
     };
-    row("fit", "packets", std::to_string(sym.size()));
+    row("fit", "packets", std::to_string(packets));
     row("fit", "loglik", opt(r.loglik));
     row("fit", "parameters", std::to_string(r.parameters));
     row("fit", "aic", opt(r.aic));
@@ -147,9 +155,15 @@ int cmd_fit(const FitArgs& a) {
       row("acf", std::to_string(k + 1), opt(r.acf_model[k]), "", "", opt(r.acf_observed[k]));
     }
   }
+  return csv;
+}
+
+// link.toml: the selected family's [[link]], then every other family's, commented out.
+std::string link_toml(const FitArgs& a, const std::vector<models::FitResult>& fits,
+                      std::size_t packets, std::size_t best) {
   std::string toml =
       fmt::format("# ncosim fit {}: {} packets; selected by {} among the families below\n", a.trace,
-                  sym.size(), a.criterion);
+                  packets, a.criterion);
   toml += fits[best].link_toml;
   for (std::size_t i = 0; i < fits.size(); ++i) {
     if (i == best) continue;
@@ -165,14 +179,14 @@ int cmd_fit(const FitArgs& a) {
     }
     toml += commented;
   }
-  // out/fit_<stem>: git-ignored, like `run`'s default (never a committed reference folder).
-  const std::string out =
-      a.out.empty() ? (std::filesystem::path("out") / ("fit_" + stem)).string() : a.out;
-  prepare_output_dir(out);
-  const OutputFolderLock lock(out);  // sim/files/output_set.h: one writer per folder
-  write_files_atomically(out, {{"fit.csv", csv}, {"link.toml", toml}});
+  return toml;
+}
 
-  std::cout << fmt::format("{}: {} packets, loss {:.6g}\n", a.trace, sym.size(),
+// What `ncosim fit` prints: the trace's loss, a table of the families, the selected family's
+// parameters and its [[link]].
+void print_fits(const FitArgs& a, const std::vector<models::FitResult>& fits, std::size_t packets,
+                std::size_t best, double seconds, const std::string& out) {
+  std::cout << fmt::format("{}: {} packets, loss {:.6g}\n", a.trace, packets,
                            fits.front().model.stationary().dot(fits.front().model.emission.col(0)));
   std::cout << fmt::format("{:<16} {:>14} {:>4} {:>14} {:>14} {:>6} {:>9} {:>9}\n", "family",
                            "loglik", "k", "aic", "bic", "iter", "burst_tv", "acf_rmse");
@@ -186,6 +200,29 @@ int cmd_fit(const FitArgs& a) {
   std::cout << parameters_text(fits, best);
   std::cout << fmt::format("\n{}\nfitted in {:.2f} s; fit.csv and link.toml written to {}/\n",
                            fits[best].link_toml, seconds, out);
+}
+
+}  // namespace
+
+int cmd_fit(const FitArgs& a) {
+  const std::string stem = std::filesystem::path(a.trace).stem().string();
+  const models::FitOptions o = fit_options(a, stem);
+  const int last_line = count_lines(a.trace);
+  const std::vector<int> sym = trace_symbols(a.trace, last_line);
+  const auto t0 = std::chrono::steady_clock::now();
+  const std::vector<models::FitResult> fits = fit_families(a, o, sym, last_line);
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const std::size_t best = models::best_fit(fits, a.criterion);
+  const std::string csv = fit_csv(fits, sym.size(), best);
+  const std::string toml = link_toml(a, fits, sym.size(), best);
+  // out/fit_<stem>: git-ignored, like `run`'s default (never a committed reference folder).
+  const std::string out =
+      a.out.empty() ? (std::filesystem::path("out") / ("fit_" + stem)).string() : a.out;
+  prepare_output_dir(out);
+  const OutputFolderLock lock(out);  // sim/files/output_set.h: one writer per folder
+  write_files_atomically(out, {{"fit.csv", csv}, {"link.toml", toml}});
+  print_fits(a, fits, sym.size(), best, seconds, out);
   return 0;
 }
 
