@@ -104,128 +104,185 @@ int MpiSession::finish(int exit_code) {
 int MpiSession::rank() const { return impl_->world.rank(); }
 int MpiSession::size() const { return impl_->world.size(); }
 
-CampaignResult MpiSession::run(const Scenario& sc, std::size_t case_index,
-                               const CampaignOptions& options) {
-  auto& world = impl_->world;
-  CampaignResult result;
+namespace {
+
+// The runs of a case: options.only_runs, else 0 .. runs - 1.
+std::vector<std::uint64_t> runs_to_do(const Scenario& sc, const CampaignOptions& options) {
   std::vector<std::uint64_t> todo;
   if (options.only_runs) {
     todo = *options.only_runs;
   } else {
     for (std::int64_t r = 0; r < sc.run.runs; ++r) todo.push_back(static_cast<std::uint64_t>(r));
   }
-  const std::size_t n = todo.size();
-  const int threads = std::max(1, options.threads);
-  result.threads = threads;
-  const auto start = std::chrono::steady_clock::now();
-  std::atomic<std::size_t> next{0}, done{0};
-  std::mutex sink_mutex, error_mutex;
-  std::exception_ptr error;
-  std::atomic<bool> failed{false};
-  auto stop_requested = [&] {
-    return (options.stop != nullptr && options.stop->load() != 0) || failed.load();
-  };
-  auto deliver = [&](std::uint64_t run, RunMetrics&& m, RunLinks&& links) {
-    std::lock_guard<std::mutex> lock(sink_mutex);
-    options.on_run(run, std::move(m), std::move(links));
-    done.fetch_add(1);
-    if (options.progress != nullptr)
-      options.progress->add_done();  // rank 0 reports (sim/run/progress.h)
-  };
-  // [run] error_curve: one curve per local thread; the worker ranks' curves are collected after
-  // the case (kCurve), so the result covers exactly the runs delivered.
-  std::vector<ErrorCurve> curves(static_cast<std::size_t>(threads));
-  std::atomic<std::size_t> slots{0};
-  auto local = [&] {
+  return todo;
+}
+
+// Rank 0's side of one case: the runs are handed out to its local threads and to the worker
+// ranks alike, their results delivered to options.on_run under one lock; the first error stops
+// the rest and is kept to be rethrown.
+class CaseRunner {
+ public:
+  CaseRunner(const Scenario& sc, std::size_t case_index, const CampaignOptions& options,
+             boost::mpi::communicator& world, int threads)
+      : sc_(sc),
+        case_index_(case_index),
+        options_(options),
+        world_(world),
+        todo_(runs_to_do(sc, options)),
+        curves_(static_cast<std::size_t>(threads)) {}
+
+  std::size_t runs() const { return todo_.size(); }
+  std::uint64_t first_run() const { return todo_[0]; }
+  std::size_t done() const { return done_.load(); }
+  // The first error of any rank or thread, rethrown.
+  void rethrow() const {
+    if (error_) std::rethrow_exception(error_);
+  }
+
+  // One local thread: runs taken in turn until none is left, a stop or an error.
+  void local() {
     ErrorCurve* curve = nullptr;
-    if (sc.run.error_curve) {
-      curve = &curves[slots.fetch_add(1)];
-      *curve = error_curve_of(sc);
+    if (sc_.run.error_curve) {
+      curve = &curves_[slots_.fetch_add(1)];
+      *curve = error_curve_of(sc_);
     }
     while (!stop_requested()) {
-      const std::size_t i = next.fetch_add(1);
-      if (i >= n) return;
+      const std::size_t i = next_.fetch_add(1);
+      if (i >= todo_.size()) return;
       try {
         RunLinks links;
-        RunMetrics m = simulate_run(sc, todo[i], nullptr, nullptr,
-                                    options.link_counters ? &links : nullptr, curve);
-        deliver(todo[i], std::move(m), std::move(links));
+        RunMetrics m = simulate_run(sc_, todo_[i], nullptr, nullptr,
+                                    options_.link_counters ? &links : nullptr, curve);
+        deliver(todo_[i], std::move(m), std::move(links));
       } catch (...) {
-        std::lock_guard<std::mutex> lock(error_mutex);
-        if (!error) error = std::current_exception();
-        failed = true;
+        fail(std::current_exception());
         return;
       }
     }
-  };
-  std::vector<std::thread> pool;
-  for (int t = 0; t < threads; ++t) pool.emplace_back(local);
+  }
+
   // The service: this thread alone talks MPI. Two runs outstanding per worker rank, so a
   // worker never waits for its next run; polled, so that waiting costs no core.
-  int outstanding = 0;
-  auto give = [&](int w) {
-    if (stop_requested()) return;
-    const std::size_t i = next.fetch_add(1);
-    if (i >= n) return;
-    world.send(w, kWork,
-               std::vector<std::uint64_t>{case_index, todo[i], options.link_counters ? 1u : 0u});
-    ++outstanding;
-  };
-  for (int w = 1; w < world.size(); ++w) {
-    give(w);
-    give(w);
-  }
-  while (outstanding > 0) {
-    if (auto st = world.iprobe(boost::mpi::any_source, boost::mpi::any_tag)) {
-      std::string msg;
-      world.recv(st->source(), st->tag(), msg);
-      --outstanding;
-      if (st->tag() == kError) {
-        std::lock_guard<std::mutex> lock(error_mutex);
-        if (!error)
-          error = std::make_exception_ptr(
-              std::runtime_error(fmt::format("MPI rank {}: {}", st->source(), msg)));
-        failed = true;
-        continue;
+  void serve_workers() {
+    for (int w = 1; w < world_.size(); ++w) {
+      give(w);
+      give(w);
+    }
+    while (outstanding_ > 0) {
+      if (auto st = world_.iprobe(boost::mpi::any_source, boost::mpi::any_tag)) {
+        std::string msg;
+        world_.recv(st->source(), st->tag(), msg);
+        --outstanding_;
+        if (receive(st->source(), st->tag(), msg)) give(st->source());
+      } else {
+        std::this_thread::sleep_for(std::chrono::microseconds(200));
       }
-      try {
-        if (msg.size() < 24 || get_u64(msg, 16) > msg.size() - 24)
-          throw std::runtime_error("malformed result message");
-        const auto n_metrics = static_cast<std::size_t>(get_u64(msg, 16));
-        const std::string links = msg.substr(24 + n_metrics);
-        deliver(get_u64(msg, 8), deserialize_run(msg.substr(24, n_metrics)),
-                links.empty() ? RunLinks{} : deserialize_links(links));
-      } catch (const std::exception& e) {
-        std::lock_guard<std::mutex> lock(error_mutex);
-        if (!error)
-          error = std::make_exception_ptr(
-              std::runtime_error(fmt::format("MPI rank {}: {}", st->source(), e.what())));
-        failed = true;
-        continue;
-      }
-      give(st->source());
-    } else {
-      std::this_thread::sleep_for(std::chrono::microseconds(200));
     }
   }
-  for (auto& t : pool) t.join();
-  if (error) std::rethrow_exception(error);
-  if (sc.run.error_curve) {
-    for (ErrorCurve& c : curves) result.curve.merge(std::move(c));
-    for (int w = 1; w < world.size(); ++w) {
-      world.send(w, kCurve, static_cast<std::uint64_t>(case_index));
+
+  // [run] error_curve: the local threads' curves, then each worker rank's of this case (kCurve),
+  // so the result covers exactly the runs delivered.
+  void collect_curves(ErrorCurve& into) {
+    for (ErrorCurve& c : curves_) into.merge(std::move(c));
+    for (int w = 1; w < world_.size(); ++w) {
+      world_.send(w, kCurve, static_cast<std::uint64_t>(case_index_));
       std::string blob;
-      world.recv(w, kCurve, blob);
-      if (!blob.empty()) result.curve.merge(ErrorCurve::deserialize(blob));
+      world_.recv(w, kCurve, blob);
+      if (!blob.empty()) into.merge(ErrorCurve::deserialize(blob));
     }
   }
-  result.runs_done = done.load();
+
+ private:
+  bool stop_requested() const {
+    return (options_.stop != nullptr && options_.stop->load() != 0) || failed_.load();
+  }
+
+  void deliver(std::uint64_t run, RunMetrics&& m, RunLinks&& links) {
+    std::lock_guard<std::mutex> lock(sink_mutex_);
+    options_.on_run(run, std::move(m), std::move(links));
+    done_.fetch_add(1);
+    if (options_.progress != nullptr)
+      options_.progress->add_done();  // rank 0 reports (sim/run/progress.h)
+  }
+
+  // Keeps the first error and stops every thread and rank.
+  void fail(std::exception_ptr e) {
+    std::lock_guard<std::mutex> lock(error_mutex_);
+    if (!error_) error_ = std::move(e);
+    failed_ = true;
+  }
+
+  // Sends worker rank w the next run, unless stopped or none is left.
+  void give(int w) {
+    if (stop_requested()) return;
+    const std::size_t i = next_.fetch_add(1);
+    if (i >= todo_.size()) return;
+    world_.send(
+        w, kWork,
+        std::vector<std::uint64_t>{case_index_, todo_[i], options_.link_counters ? 1u : 0u});
+    ++outstanding_;
+  }
+
+  // A worker's message: its result delivered (true), or its error or a malformed result kept
+  // (false: the worker gets no more runs).
+  bool receive(int source, int tag, const std::string& msg) {
+    if (tag == kError) {
+      fail(
+          std::make_exception_ptr(std::runtime_error(fmt::format("MPI rank {}: {}", source, msg))));
+      return false;
+    }
+    try {
+      if (msg.size() < 24 || get_u64(msg, 16) > msg.size() - 24)
+        throw std::runtime_error("malformed result message");
+      const auto n_metrics = static_cast<std::size_t>(get_u64(msg, 16));
+      const std::string links = msg.substr(24 + n_metrics);
+      deliver(get_u64(msg, 8), deserialize_run(msg.substr(24, n_metrics)),
+              links.empty() ? RunLinks{} : deserialize_links(links));
+    } catch (const std::exception& e) {
+      fail(std::make_exception_ptr(
+          std::runtime_error(fmt::format("MPI rank {}: {}", source, e.what()))));
+      return false;
+    }
+    return true;
+  }
+
+  const Scenario& sc_;
+  std::size_t case_index_;
+  const CampaignOptions& options_;
+  boost::mpi::communicator& world_;
+  std::vector<std::uint64_t> todo_;
+  std::atomic<std::size_t> next_{0}, done_{0};
+  std::mutex sink_mutex_, error_mutex_;
+  std::exception_ptr error_;
+  std::atomic<bool> failed_{false};
+  std::vector<ErrorCurve> curves_;  // [run] error_curve: one per local thread
+  std::atomic<std::size_t> slots_{0};
+  int outstanding_ = 0;  // runs sent to worker ranks and not yet answered
+};
+
+}  // namespace
+
+CampaignResult MpiSession::run(const Scenario& sc, std::size_t case_index,
+                               const CampaignOptions& options) {
+  CampaignResult result;
+  const int threads = std::max(1, options.threads);
+  result.threads = threads;
+  const auto start = std::chrono::steady_clock::now();
+  CaseRunner runner(sc, case_index, options, impl_->world, threads);
+  const std::size_t n = runner.runs();
+  std::vector<std::thread> pool;
+  for (int t = 0; t < threads; ++t) pool.emplace_back([&runner] { runner.local(); });
+  runner.serve_workers();
+  for (auto& t : pool) t.join();
+  runner.rethrow();
+  if (sc.run.error_curve) runner.collect_curves(result.curve);
+  result.runs_done = runner.done();
   result.stopped = result.runs_done < n;
   result.wall_seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   result.ns_per_period.assign(sc.estimators.size(), std::nan(""));
   if (options.time_estimators && !result.stopped && n > 0)
-    simulate_run(sc, todo[0], nullptr, &result.ns_per_period);
+    simulate_run(sc, runner.first_run(), nullptr, &result.ns_per_period);
   return result;
 }
 
