@@ -12,6 +12,7 @@
 #include "error_of.h"
 #include "models/link.h"
 #include "sim/scenario/scenario.h"
+#include "sim/scenario/scenario_keys.h"
 
 namespace ncosim::sim {
 namespace {
