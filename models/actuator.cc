@@ -9,15 +9,29 @@
 
 namespace ncosim::models {
 
-ActuatorSpec read_actuator(const sim::Table& t, const std::vector<std::string>& links, int index) {
+const sim::Keys& actuator_keys() {
+  static const sim::Keys keys{
+      sim::Key::string("name").optional("\"u1\", \"u2\", ...").help("unique among actuators"),
+      sim::Key::string("link")
+          .optional("ideal (always delivered)")
+          .help("the name of a [[link]]; each actuator uses its own instance of the link"),
+      sim::Key::choice("on_loss", {"hold", "zero"})
+          .or_default("hold")
+          .help("what is applied when the command is not delivered"),
+      sim::Key::number("u0").or_default(0.0).help("the value held before period 0 (hold)"),
+  };
+  return keys;
+}
+
+ActuatorSpec read_actuator(const sim::Table& table, const std::vector<std::string>& links,
+                           int index) {
+  const sim::KeyReader t(table, actuator_keys());
   ActuatorSpec a;
-  a.name = t.string_or("name", fmt::format("u{}", index + 1));
+  a.name = t.opt_string("name").value_or(fmt::format("u{}", index + 1));
   a.link = read_link_ref(t, links);
-  a.on_loss = t.choice_or("on_loss", "hold", {"hold", "zero"}) == "hold"
-                  ? ActuatorSpec::OnLoss::kHold
-                  : ActuatorSpec::OnLoss::kZero;
-  a.u0 = t.number_or("u0", 0.0);
-  if (!std::isfinite(a.u0)) t.fail("u0", fmt::format("expected a finite number, got {}", a.u0));
+  a.on_loss =
+      t.string("on_loss") == "hold" ? ActuatorSpec::OnLoss::kHold : ActuatorSpec::OnLoss::kZero;
+  a.u0 = t.number("u0");  // finite: Table::number refuses inf and nan
   return a;
 }
 

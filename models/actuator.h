@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "config/config.h"
+#include "config/keys.h"
 #include "kernel/rng.h"
 #include "models/link.h"
 #include "models/link_stats.h"
@@ -27,7 +28,10 @@ struct ActuatorSpec {
   double u0 = 0.0;  // the value held before period 0 (hold)
 };
 
-// Reads one [[actuator]] table; `links` are the scenario's link names.
+// The keys of an [[actuator]] table (`ncosim list --keys section.actuator`).
+const sim::Keys& actuator_keys();
+
+// Reads one [[actuator]] table through actuator_keys(); `links` are the scenario's link names.
 ActuatorSpec read_actuator(const sim::Table& t, const std::vector<std::string>& links, int index);
 
 // Mode index of a delivery pattern, 0-based in the paper's Table 1 order: channel 0 is the

@@ -7,9 +7,50 @@
 
 namespace ncosim::models {
 
-int read_link_ref(const sim::Table& t, const std::vector<std::string>& links) {
-  if (!t.has("link")) return -1;
-  const std::string name = t.string("link");
+const sim::Keys& sensor_keys() {
+  static const sim::Keys keys{
+      sim::Key::string("name")
+          .optional("\"y1\", \"y2\", ... (1-based position)")
+          .help("unique among sensors; names the arrived: column of trajectory.csv"),
+      sim::Key::any("C", "matrix ny x n or \"output\"")
+          .help("output matrix, one row per output of this sensor (all rows travel in one packet), "
+                "n columns; \"output\": the plant's own output matrix (a plant kind with an "
+                "output, e.g. transfer_function)"),
+      sim::Key::matrix("R").help("measurement-noise covariance, ny x ny"),
+      sim::Key::string("link")
+          .optional("ideal link")
+          .help("the name of the [[link]] its packets cross (ideal: delay 0, never lost)"),
+      sim::Key::integer("every")
+          .range(1, 1'000'000)
+          .says("an integer in 1..1000000 (1e6)")
+          .or_default(1)
+          .unit("periods")
+          .help("sample every `every` periods (multi-rate)"),
+      sim::Key::integer("buffer").range(0, 62).or_default(0).help(
+          "each packet also carries the `buffer` previous samples of this sensor (fewer at the "
+          "start), newest first, with their time stamps; 0 on a delay link with independent = "
+          "true and with send_on_delta"),
+      sim::Key::choice("resend_noise", {"same", "fresh"})
+          .or_default("same")
+          .help("same: a sample re-sent in later buffered packets carries its own noise every time "
+                "(physical); fresh: every re-send carries a new noise draw, y = C x[stamp] + v', "
+                "and counts as an independent copy (the jump observer's design model for "
+                "buffered packets, Dolz et al. example 3)"),
+      sim::Key::choice("noise", {"gaussian", "uniform"})
+          .or_default("gaussian")
+          .help("uniform: v_i ~ U(-sqrt(3 R_ii), sqrt(3 R_ii)); R must be diagonal"),
+      sim::Key::string("policy")
+          .optional("\"periodic\"")
+          .help("when a sample is sent: \"periodic\", \"send_on_delta\" (its delta below) or "
+                "a registered policy (ncosim list)"),
+  };
+  return keys;
+}
+
+int read_link_ref(const sim::KeyReader& t, const std::vector<std::string>& links) {
+  const auto ref = t.opt_string("link");
+  if (!ref) return -1;
+  const std::string& name = *ref;
   auto it = std::find(links.begin(), links.end(), name);
   if (it == links.end()) {
     std::string list;
@@ -22,13 +63,14 @@ int read_link_ref(const sim::Table& t, const std::vector<std::string>& links) {
   return static_cast<int>(it - links.begin());
 }
 
-SensorSpec read_sensor(const sim::Table& t, const LinearPlant& plant,
+SensorSpec read_sensor(const sim::Table& table, const LinearPlant& plant,
                        const std::vector<std::string>& links, int index,
                        const SendPolicyRegistry& policies) {
+  const sim::KeyReader t(table, sensor_keys());
   SensorSpec s;
-  s.name = t.string_or("name", fmt::format("y{}", index + 1));
-  if (t.is_string("C")) {
-    const std::string which = t.choice_or("C", "output", {"output"});
+  s.name = t.opt_string("name").value_or(fmt::format("y{}", index + 1));
+  if (table.is_string("C")) {
+    const std::string which = table.choice_or("C", "output", {"output"});
     if (plant.C_out.size() == 0) {
       t.fail(
           "C",
@@ -45,27 +87,21 @@ SensorSpec read_sensor(const sim::Table& t, const LinearPlant& plant,
                             s.C.rows(), s.C.cols()));
   }
   s.R = t.matrix("R");
-  sim::require_shape(t, "R", s.R, s.C.rows(), s.C.rows());
-  sim::require_psd(t, "R", s.R);
+  sim::require_shape(table, "R", s.R, s.C.rows(), s.C.rows());
+  sim::require_psd(table, "R", s.R);
   s.link = read_link_ref(t, links);
-  const auto every = t.integer_or("every", 1);
-  if (every < 1 || every > 1'000'000)
-    t.fail("every", fmt::format("expected an integer in 1..1000000 (1e6), got {}", every));
-  s.every = static_cast<int>(every);
-  const auto buffer = t.integer_or("buffer", 0);
-  if (buffer < 0 || buffer > 62)
-    t.fail("buffer", fmt::format("expected an integer in 0..62, got {}", buffer));
-  s.buffer = static_cast<int>(buffer);
-  s.fresh_resend_noise = t.choice_or("resend_noise", "same", {"same", "fresh"}) == "fresh";
-  const std::string noise = t.choice_or("noise", "gaussian", {"gaussian", "uniform"});
-  if (noise == "uniform") {
+  s.every = static_cast<int>(t.integer("every"));
+  s.buffer = static_cast<int>(t.integer("buffer"));
+  s.fresh_resend_noise = t.string("resend_noise") == "fresh";
+  if (t.string("noise") == "uniform") {
     s.noise = SensorSpec::Noise::kUniform;
     const Eigen::MatrixXd off = s.R - Eigen::MatrixXd(s.R.diagonal().asDiagonal());
     if (off.cwiseAbs().maxCoeff() > 0.0) {
       t.fail("R", "expected a diagonal R with noise = \"uniform\" (independent bounded noises)");
     }
   }
-  s.policy = policies.lookup(t, "policy", "periodic").factory(t, s);
+  // `policy` selects a registry entry (its default and "did you mean" are the registry's).
+  s.policy = policies.lookup(table, "policy", "periodic").factory(table, s);
   return s;
 }
 

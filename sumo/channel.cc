@@ -204,85 +204,138 @@ Channel make_preset(const std::string& name) {
   throw std::invalid_argument(name);
 }
 
-Channel read_channel(const sim::Table& t) {
-  std::vector<std::string> names = preset_names();
-  const std::string preset = t.choice_or("preset", "veins_nakagami3", names);
-  Channel c = make_preset(preset);
-  c.tx_power_dbm = t.number_or("tx_power", c.tx_power_dbm);
-  c.threshold_dbm = t.number_or("threshold", c.threshold_dbm);
-  if (!std::isfinite(c.tx_power_dbm))
-    t.fail("tx_power", fmt::format("expected a finite power in dBm, got {}", c.tx_power_dbm));
-  if (!std::isfinite(c.threshold_dbm))
-    t.fail("threshold", fmt::format("expected a finite power in dBm, got {}", c.threshold_dbm));
-  if (t.has("fading")) {
-    const std::string f = t.choice_or("fading", "nakagami", {"none", "lognormal", "nakagami"});
-    c.fading = Fading{};
-    if (f == "lognormal") {
-      c.fading.kind = Fading::Kind::kLognormal;
-      c.fading.sigma_db = t.number("sigma");
-      if (!(c.fading.sigma_db >= 0.0 && c.fading.sigma_db <= 100.0)) {
-        t.fail("sigma", fmt::format("expected a standard deviation in dB in [0, 100], got {}",
-                                    c.fading.sigma_db));
-      }
-    } else if (f == "nakagami") {
-      c.fading.kind = Fading::Kind::kNakagami;
-      c.fading.m = t.numbers("m");
-    }
-  }
-  if (c.fading.kind == Fading::Kind::kNakagami && t.has("m")) {
-    if (!t.has("fading")) c.fading.m = t.numbers("m");
-    c.fading.m_bounds = t.has("m_bounds") ? t.numbers("m_bounds") : std::vector<double>{};
-  }
-  if (c.fading.kind == Fading::Kind::kNakagami) {
-    if (c.fading.m.empty()) t.fail("m", "expected at least one Nakagami shape");
-    for (double m : c.fading.m) {
+using sim::Key;
+
+const sim::Keys& channel_keys() {
+  static const sim::Keys keys{
+      Key::choice("preset", preset_names())
+          .or_default("veins_nakagami3")
+          .help("the channel preset (below); the keys below override its values"),
+      Key::number("tx_power")
+          .optional("preset")
+          .unit("dBm")
+          .help("transmit power (antenna gains included), finite"),
+      Key::number("threshold")
+          .optional("preset")
+          .unit("dBm")
+          .help("reception threshold (sensitivity), finite"),
+      Key::choice("fading", {"none", "lognormal", "nakagami"})
+          .optional("preset")
+          .help("fading on the received power; setting it drops the preset's fading"),
+      Key::number("sigma")
+          .range(0.0, 100.0)
+          .says("a standard deviation in dB in [0, 100]")
+          .optional("required with lognormal")
+          .unit("dB")
+          .help("shadowing standard deviation, 0 .. 100: p = 1/2 erfc((threshold - mean) / "
+                "(sigma sqrt(2)))"),
       // The received power is Gamma(m, mean/m) for any m > 0. The textbook Nakagami-m model has
       // m >= 0.5, but measured fits go below it (Artery's defaults for Cheng et al.: 0.45, 0.32).
-      if (!(m > 0.0 && m <= 1000.0))
-        t.fail("m", fmt::format("expected Nakagami shapes in (0, 1000], got {}", m));
-    }
-    if (c.fading.m_bounds.size() + 1 != c.fading.m.size()) {
-      t.fail("m_bounds",
-             fmt::format("expected {} bin edges for {} shapes, got {}", c.fading.m.size() - 1,
-                         c.fading.m.size(), c.fading.m_bounds.size()));
-    }
-    for (std::size_t i = 0; i < c.fading.m_bounds.size(); ++i) {
-      if (!(c.fading.m_bounds[i] > 0.0) ||
-          (i > 0 && c.fading.m_bounds[i] <= c.fading.m_bounds[i - 1])) {
-        t.fail("m_bounds", fmt::format("expected increasing positive distances (m), got {}",
-                                       fmt::join(c.fading.m_bounds, ", ")));
-      }
+      Key::numbers("m")
+          .above(0.0)
+          .max(1000.0)
+          .says("Nakagami shapes in (0, 1000]")
+          .optional("preset (required with fading = \"nakagami\")")
+          .help("Nakagami shape per distance bin, each in (0, 1000]: p = Q(m, m threshold / "
+                "mean), the regularised upper incomplete gamma"),
+      Key::numbers("m_bounds")
+          .optional("none")
+          .unit("m")
+          .help("bin edges, increasing, > 0, one fewer than m: m[i] applies for d < "
+                "m_bounds[i], the last beyond"),
+      Key::choice("mac", {"80211p", "cv2x_mode4"}).or_default("80211p").help("delay law"),
+      Key::number("rate")
+          .range(1.0, 54.0)
+          .says("a rate in Mbit/s in [1, 54]")
+          .or_default(6.0)
+          .unit("Mbit/s")
+          .help("802.11p data rate, 1 .. 54"),
+      Key::integer("size")
+          .range(1, 65535)
+          .says("a frame size in bytes in 1..65535")
+          .or_default(300)
+          .unit("bytes")
+          .help("802.11p frame (MPDU) size, 1 .. 65535"),
+      Key::integer("aifsn").range(1, 15).or_default(6).help("802.11p AIFSN (6: AC_BE), 1 .. 15"),
+      Key::integer("cw").range(0, 1023).or_default(15).help(
+          "802.11p contention window (backoff slots 0 .. cw), 0 .. 1023"),
+      Key::boolean("backoff").or_default(false).help("add a uniform backoff of 0 .. cw slots"),
+      Key::number("t1")
+          .range(0.0, 1.0)
+          .says("seconds in [0, 1]")
+          .or_default(0.001)
+          .unit("s")
+          .help("C-V2X mode 4: access delay uniform in [t1, t2] (the SB-SPS selection window); 0 "
+                "<= t1 < t2"),
+      Key::number("t2")
+          .max(10.0)
+          .says("seconds in (t1, 10]")
+          .or_default(0.1)
+          .unit("s")
+          .help("C-V2X mode 4: t1 < t2 <= 10"),
+  };
+  return keys;
+}
+
+namespace {
+
+// fading, sigma, m, m_bounds over the preset's fading.
+void read_fading(const sim::KeyReader& t, Fading& fading) {
+  if (const auto f = t.opt_string("fading")) {
+    fading = Fading{};
+    if (*f == "lognormal") {
+      fading.kind = Fading::Kind::kLognormal;
+      fading.sigma_db = t.number("sigma");
+    } else if (*f == "nakagami") {
+      fading.kind = Fading::Kind::kNakagami;
+      fading.m = t.numbers("m");
     }
   }
-  const std::string mac = t.choice_or("mac", "80211p", {"80211p", "cv2x_mode4"});
-  DelayLaw& d = c.delay;
-  if (mac == "80211p") {
+  if (fading.kind != Fading::Kind::kNakagami) return;
+  if (t.has("m")) {
+    if (!t.has("fading")) fading.m = t.numbers("m");
+    fading.m_bounds = t.has("m_bounds") ? t.numbers("m_bounds") : std::vector<double>{};
+  }
+  if (fading.m.empty()) t.fail("m", "expected at least one Nakagami shape");
+  if (fading.m_bounds.size() + 1 != fading.m.size()) {
+    t.fail("m_bounds", fmt::format("expected {} bin edges for {} shapes, got {}",
+                                   fading.m.size() - 1, fading.m.size(), fading.m_bounds.size()));
+  }
+  for (std::size_t i = 0; i < fading.m_bounds.size(); ++i) {
+    if (!(fading.m_bounds[i] > 0.0) || (i > 0 && fading.m_bounds[i] <= fading.m_bounds[i - 1])) {
+      t.fail("m_bounds", fmt::format("expected increasing positive distances (m), got {}",
+                                     fmt::join(fading.m_bounds, ", ")));
+    }
+  }
+}
+
+// mac and its law's keys (only those of the chosen law are read).
+void read_delay(const sim::KeyReader& t, DelayLaw& d) {
+  if (t.string("mac") == "80211p") {
     d.kind = DelayLaw::Kind::k80211p;
-    d.rate = t.number_or("rate", 6.0) * 1e6;
-    if (!(d.rate >= 1e6 && d.rate <= 54e6))
-      t.fail("rate", fmt::format("expected a rate in Mbit/s in [1, 54], got {}", d.rate * 1e-6));
-    const auto size = t.integer_or("size", d.size);
-    if (size < 1 || size > 65535)
-      t.fail("size", fmt::format("expected a frame size in bytes in 1..65535, got {}", size));
-    d.size = static_cast<int>(size);
-    const auto aifsn = t.integer_or("aifsn", d.aifsn);
-    if (aifsn < 1 || aifsn > 15)
-      t.fail("aifsn", fmt::format("expected an integer in 1..15, got {}", aifsn));
-    d.aifsn = static_cast<int>(aifsn);
-    const auto cw = t.integer_or("cw", d.cw);
-    if (cw < 0 || cw > 1023)
-      t.fail("cw", fmt::format("expected an integer in 0..1023, got {}", cw));
-    d.cw = static_cast<int>(cw);
-    d.backoff = t.boolean_or("backoff", false);
+    d.rate = t.number("rate") * 1e6;
+    d.size = static_cast<int>(t.integer("size"));
+    d.aifsn = static_cast<int>(t.integer("aifsn"));
+    d.cw = static_cast<int>(t.integer("cw"));
+    d.backoff = t.boolean("backoff");
   } else {
     d.kind = DelayLaw::Kind::kCv2xMode4;
-    d.t1 = t.number_or("t1", d.t1);
-    d.t2 = t.number_or("t2", d.t2);
-    if (!(d.t1 >= 0.0 && d.t1 <= 1.0))
-      t.fail("t1", fmt::format("expected seconds in [0, 1], got {}", d.t1));
-    if (!(d.t2 > d.t1 && d.t2 <= 10.0))
-      t.fail("t2", fmt::format("expected seconds in (t1, 10], got {}", d.t2));
+    d.t1 = t.number("t1");
+    d.t2 = t.number("t2");
+    if (!(d.t2 > d.t1)) t.fail("t2", fmt::format("expected seconds in (t1, 10], got {}", d.t2));
   }
+}
+
+}  // namespace
+
+Channel read_channel(const sim::Table& table) {
+  const sim::KeyReader t(table, channel_keys());
+  Channel c = make_preset(t.string("preset"));
+  // Table::number refuses inf and nan: a given power is finite.
+  c.tx_power_dbm = t.opt_number("tx_power").value_or(c.tx_power_dbm);
+  c.threshold_dbm = t.opt_number("threshold").value_or(c.threshold_dbm);
+  read_fading(t, c.fading);
+  read_delay(t, c.delay);
   return c;
 }
 

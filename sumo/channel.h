@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "config/config.h"
+#include "config/keys.h"
 
 namespace ncosim::sumo {
 
@@ -86,8 +87,12 @@ Channel make_preset(const std::string& name);  // throws std::invalid_argument w
 // Friis free-space loss at distance d for wavelength c / frequency (dB).
 double free_space_db(double d, double frequency);
 
-// A [[link]] table's channel: `preset` then per-key overrides (tx_power, threshold, fading,
-// sigma, m, m_bounds, mac, rate, size, aifsn, cw, backoff, t1, t2). ScenarioError when bad.
+// The channel's keys of a [[link]] table (the sumo_distance kind declares them after its own):
+// `preset` then per-key overrides (tx_power, threshold, fading, sigma, m, m_bounds, mac, rate,
+// size, aifsn, cw, backoff, t1, t2). The defaults of tx_power, threshold and the fading are the
+// preset's; those of the delay law equal DelayLaw's initialisers (tests/sumo checks it).
+const sim::Keys& channel_keys();
+// Reads them through channel_keys(). ScenarioError when bad.
 Channel read_channel(const sim::Table& t);
 
 // `ncosim channel PRESET`: p(d) and the delay law as text or CSV, and a gnuplot script.

@@ -121,62 +121,25 @@ class DistanceLink final : public models::Link,
 
 using sim::Key;
 
-// The keys of sumo_distance: the link's own, then the channel's (read by sumo/channel.cc's
-// read_channel; defaults are the preset's).
+// The keys of sumo_distance: the link's own, then the channel's (declared and read by
+// sumo/channel.cc; some defaults are the preset's).
 const sim::Keys& sumo_distance_keys() {
-  static const sim::Keys keys{
-      Key::string("sender").help("transmitting vehicle: a vehicle id driving in the horizon"),
-      Key::string("receiver")
-          .optional("one of receiver, receiver_position required")
-          .help("receiving vehicle: a vehicle id other than sender"),
-      Key::numbers("receiver_position")
-          .optional("")
-          .unit("m")
-          .help("a fixed receiver (roadside unit) at [x, y] in SUMO network coordinates, finite"),
-      Key::string("receiver_name")
-          .optional("rsu@X,Y")
-          .help("the fixed receiver's name in the draw key"),
-      Key::choice("preset", preset_names())
-          .or_default("veins_nakagami3")
-          .help("the channel preset (below); the keys below override its values"),
-      Key::number("tx_power")
-          .optional("preset")
-          .unit("dBm")
-          .help("transmit power (antenna gains included), finite"),
-      Key::number("threshold")
-          .optional("preset")
-          .unit("dBm")
-          .help("reception threshold (sensitivity), finite"),
-      Key::choice("fading", {"none", "lognormal", "nakagami"})
-          .optional("preset")
-          .help("fading on the received power; setting it drops the preset's fading"),
-      Key::number("sigma")
-          .optional("required with lognormal")
-          .unit("dB")
-          .help("shadowing standard deviation, 0 .. 100: p = 1/2 erfc((threshold - mean) / "
-                "(sigma sqrt(2)))"),
-      Key::numbers("m")
-          .optional("preset (required with fading = \"nakagami\")")
-          .help("Nakagami shape per distance bin, each in (0, 1000]: p = Q(m, m threshold / "
-                "mean), the regularised upper incomplete gamma"),
-      Key::numbers("m_bounds")
-          .optional("none")
-          .unit("m")
-          .help("bin edges, increasing, > 0, one fewer than m: m[i] applies for d < "
-                "m_bounds[i], the last beyond"),
-      Key::choice("mac", {"80211p", "cv2x_mode4"}).or_default("80211p").help("delay law"),
-      Key::number("rate").or_default(6.0).unit("Mbit/s").help("802.11p data rate, 1 .. 54"),
-      Key::integer("size").or_default(300).unit("bytes").help(
-          "802.11p frame (MPDU) size, 1 .. 65535"),
-      Key::integer("aifsn").or_default(6).help("802.11p AIFSN (6: AC_BE), 1 .. 15"),
-      Key::integer("cw").or_default(15).help(
-          "802.11p contention window (backoff slots 0 .. cw), 0 .. 1023"),
-      Key::boolean("backoff").or_default(false).help("add a uniform backoff of 0 .. cw slots"),
-      Key::number("t1").or_default(0.001).unit("s").help(
-          "C-V2X mode 4: access delay uniform in [t1, t2] (the SB-SPS selection window); 0 <= "
-          "t1 < t2"),
-      Key::number("t2").or_default(0.1).unit("s").help("C-V2X mode 4: t1 < t2 <= 10"),
-  };
+  static const sim::Keys keys =
+      sim::Keys{
+          Key::string("sender").help("transmitting vehicle: a vehicle id driving in the horizon"),
+          Key::string("receiver")
+              .optional("one of receiver, receiver_position required")
+              .help("receiving vehicle: a vehicle id other than sender"),
+          Key::numbers("receiver_position")
+              .optional("")
+              .unit("m")
+              .help(
+                  "a fixed receiver (roadside unit) at [x, y] in SUMO network coordinates, finite"),
+          Key::string("receiver_name")
+              .optional("rsu@X,Y")
+              .help("the fixed receiver's name in the draw key"),
+      } +
+      channel_keys();
   return keys;
 }
 

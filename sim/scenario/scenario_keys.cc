@@ -2,6 +2,12 @@
 // (sim/scenario/scenario_keys.h).
 #include "sim/scenario/scenario_keys.h"
 
+#include <fmt/format.h>
+
+#include <algorithm>
+
+#include "models/actuator.h"
+#include "models/sensor.h"
 #include "sim/scenario/registries.h"
 #include "sim/scenario/scenario_types.h"
 
@@ -31,6 +37,12 @@ const Keys& top_level_keys() {
   return keys;
 }
 
+namespace {
+constexpr std::int64_t kWarmupCap = 100;  // the default warm-up: min(100, periods / 10)
+}  // namespace
+
+std::int64_t default_warmup(std::int64_t periods) { return std::min(kWarmupCap, periods / 10); }
+
 const Keys& run_keys() {
   static const Keys keys{
       Key::integer("periods")
@@ -40,7 +52,7 @@ const Keys& run_keys() {
           .unit("periods")
           .help("control periods per Monte Carlo run: k = 0 .. periods-1"),
       Key::integer("warmup")
-          .optional("min(100, periods / 10)")
+          .optional(fmt::format("min({}, periods / 10)", kWarmupCap))
           .unit("periods")
           .help("the first warmup periods are left out of every metric; 0 .. periods-1"),
       Key::integer("runs")
@@ -85,45 +97,7 @@ const Keys& plant_common_keys() {
   return keys;
 }
 
-const Keys& sensor_common_keys() {
-  static const Keys keys{
-      Key::string("name")
-          .optional("\"y1\", \"y2\", ... (1-based position)")
-          .help("unique among sensors; names the arrived: column of trajectory.csv"),
-      Key::any("C", "matrix ny x n or \"output\"")
-          .help("output matrix, one row per output of this sensor (all rows travel in one packet), "
-                "n columns; \"output\": the plant's own output matrix (a plant kind with an "
-                "output, e.g. transfer_function)"),
-      Key::matrix("R").help("measurement-noise covariance, ny x ny"),
-      Key::string("link")
-          .optional("ideal link")
-          .help("the name of the [[link]] its packets cross (ideal: delay 0, never lost)"),
-      Key::integer("every")
-          .range(1, 1'000'000)
-          .says("an integer in 1..1000000 (1e6)")
-          .or_default(1)
-          .unit("periods")
-          .help("sample every `every` periods (multi-rate)"),
-      Key::integer("buffer").range(0, 62).or_default(0).help(
-          "each packet also carries the `buffer` previous samples of this sensor (fewer at the "
-          "start), newest first, with their time stamps; 0 on a delay link with independent = "
-          "true and with send_on_delta"),
-      Key::choice("resend_noise", {"same", "fresh"})
-          .or_default("same")
-          .help("same: a sample re-sent in later buffered packets carries its own noise every time "
-                "(physical); fresh: every re-send carries a new noise draw, y = C x[stamp] + v', "
-                "and counts as an independent copy (the jump observer's design model for "
-                "buffered packets, Dolz et al. example 3)"),
-      Key::choice("noise", {"gaussian", "uniform"})
-          .or_default("gaussian")
-          .help("uniform: v_i ~ U(-sqrt(3 R_ii), sqrt(3 R_ii)); R must be diagonal"),
-      Key::string("policy")
-          .optional("\"periodic\"")
-          .help("when a sample is sent: \"periodic\", \"send_on_delta\" (its delta below) or "
-                "a registered policy (ncosim list)"),
-  };
-  return keys;
-}
+const Keys& sensor_common_keys() { return models::sensor_keys(); }
 
 const Keys& link_common_keys() {
   static const Keys keys{
@@ -133,19 +107,7 @@ const Keys& link_common_keys() {
   return keys;
 }
 
-const Keys& actuator_keys() {
-  static const Keys keys{
-      Key::string("name").optional("\"u1\", \"u2\", ...").help("unique among actuators"),
-      Key::string("link")
-          .optional("ideal (always delivered)")
-          .help("the name of a [[link]]; each actuator uses its own instance of the link"),
-      Key::choice("on_loss", {"hold", "zero"})
-          .or_default("hold")
-          .help("what is applied when the command is not delivered"),
-      Key::number("u0").or_default(0.0).help("the value held before period 0 (hold)"),
-  };
-  return keys;
-}
+const Keys& actuator_keys() { return models::actuator_keys(); }
 
 const Keys& input_common_keys() {
   static const Keys keys{

@@ -6,6 +6,7 @@
 // `ncosim schema` (sim/cmd/schema.h) are made from them.
 #pragma once
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -13,8 +14,10 @@
 
 namespace ncosim::sim {
 
-const Keys& top_level_keys();         // title and the sections
-const Keys& run_keys();               // [run]
+const Keys& top_level_keys();  // title and the sections
+const Keys& run_keys();        // [run]
+// run.warmup when absent: min(100, periods / 10) (run_keys() prints the same rule).
+std::int64_t default_warmup(std::int64_t periods);
 const Keys& plant_common_keys();      // [plant] beside its kind's keys
 const Keys& sensor_common_keys();     // [[sensor]] beside its send policy's keys
 const Keys& link_common_keys();       // [[link]] beside its kind's keys

@@ -39,31 +39,34 @@ void check_packet_bound(const models::Link& link, std::int64_t packets, const Ta
 }  // namespace
 
 RunSettings read_run(const Table& root) {
+  // Without a [run] table every key takes its declared default (run_keys()): the same reads on an
+  // empty table, so that the defaults live in the declarations only.
+  static const toml::table kNoRun;
+  const auto given = root.opt_table("run");
+  const Table t = given ? *given : Table(kNoRun, "run", root.file());
+  const KeyReader k(t, run_keys());
   RunSettings r;
-  const auto t = root.opt_table("run");
-  if (!t) return r;
-  const KeyReader k(*t, run_keys());
   r.periods = k.integer("periods");
-  r.warmup = k.opt_integer("warmup").value_or(std::min<std::int64_t>(r.warmup, r.periods / 10));
+  r.warmup = k.opt_integer("warmup").value_or(default_warmup(r.periods));
   if (r.warmup < 0 || r.warmup >= r.periods) {
-    t->fail("warmup", fmt::format("expected an integer in 0..periods-1 ({}), got {}", r.periods - 1,
-                                  r.warmup));
+    t.fail("warmup", fmt::format("expected an integer in 0..periods-1 ({}), got {}", r.periods - 1,
+                                 r.warmup));
   }
   r.runs = k.integer("runs");
   r.seed = static_cast<std::uint64_t>(k.integer("seed"));
   r.period = k.number("period");
   if (seconds_to_time(r.period) <= 0) {
-    t->fail("period", fmt::format("expected a period in seconds in (1e-9, 1e6], got {}", r.period));
+    t.fail("period", fmt::format("expected a period in seconds in (1e-9, 1e6], got {}", r.period));
   }
   // The integer-ns clock must hold every event time (arrivals may lie beyond the horizon).
   if (static_cast<double>(r.periods) * static_cast<double>(seconds_to_time(r.period)) > 4.0e18) {
-    t->fail("period",
-            fmt::format("expected periods x period <= 4e9 s (the nanosecond clock), got {} x {} s",
-                        r.periods, r.period));
+    t.fail("period",
+           fmt::format("expected periods x period <= 4e9 s (the nanosecond clock), got {} x {} s",
+                       r.periods, r.period));
   }
   r.recentre = k.string("recentre");
   r.error_curve = k.boolean("error_curve");
-  t->finish();
+  t.finish();
   return r;
 }
 
@@ -306,8 +309,9 @@ PairedSettings read_paired(const Table& root, const toml::table& doc, const Scen
   p.file = root.file();
   const auto t = root.opt_table("paired");
   if (!t) return p;
-  if (t->has("reference")) {
-    p.reference = t->string("reference");
+  const KeyReader keys(*t, paired_keys());
+  if (const auto reference = keys.opt_string("reference")) {
+    p.reference = *reference;
     p.reference_line = t->line_of("reference");
     std::vector<std::string> names;
     for (const auto& e : sc.estimators) names.push_back(e.name);
@@ -320,8 +324,9 @@ PairedSettings read_paired(const Table& root, const toml::table& doc, const Scen
                           hint.empty() ? "" : fmt::format(" (did you mean \"{}\"?)", hint)));
     }
   }
+  // reference_case: a table of key paths and values of any type, read from the document itself.
   t->allow("reference_case");
-  if (t->has("reference_case")) {
+  if (keys.has("reference_case")) {
     const toml::node* n = doc.at_path("paired.reference_case").node();
     p.reference_case_line = t->line_of("reference_case");
     if (n == nullptr || !n->is_table()) {

@@ -12,6 +12,7 @@
 #include "error_of.h"
 #include "models/link.h"
 #include "sim/scenario/scenario.h"
+#include "sim/scenario/scenario_keys.h"
 
 namespace ncosim::sim {
 namespace {
@@ -57,6 +58,30 @@ TEST(ReadRun, DefaultsWithoutTheTable) {
   EXPECT_EQ(r.seed, 1u);
   EXPECT_EQ(r.period, 1.0);
   EXPECT_EQ(r.recentre, "auto");
+}
+
+TEST(ReadRun, TheInitialisersOfRunSettingsAreTheDeclaredDefaults) {
+  // read_run takes every default from run_keys(); RunSettings' own initialisers (for code that
+  // builds settings without a scenario) must say the same.
+  const toml::table doc = parse("title = \"x\"\n");
+  const RunSettings read = read_run(Table(doc, "", "s.toml"));
+  const RunSettings plain;
+  EXPECT_EQ(plain.periods, read.periods);
+  EXPECT_EQ(plain.warmup, read.warmup);
+  EXPECT_EQ(plain.runs, read.runs);
+  EXPECT_EQ(plain.seed, read.seed);
+  EXPECT_EQ(plain.period, read.period);
+  EXPECT_EQ(plain.recentre, read.recentre);
+  EXPECT_EQ(plain.error_curve, read.error_curve);
+  const Keys& k = run_keys();
+  EXPECT_EQ(plain.periods, std::get<std::int64_t>(k.at("periods").default_value()));
+  EXPECT_EQ(plain.warmup, default_warmup(plain.periods));
+  EXPECT_EQ(plain.runs, std::get<std::int64_t>(k.at("runs").default_value()));
+  EXPECT_EQ(static_cast<std::int64_t>(plain.seed),
+            std::get<std::int64_t>(k.at("seed").default_value()));
+  EXPECT_EQ(plain.period, std::get<double>(k.at("period").default_value()));
+  EXPECT_EQ(plain.recentre, std::get<std::string>(k.at("recentre").default_value()));
+  EXPECT_EQ(plain.error_curve, std::get<bool>(k.at("error_curve").default_value()));
 }
 
 TEST(ReadRun, WarmupDefaultsToATenthOfAShortHorizon) {

@@ -131,6 +131,26 @@ TEST(Channel, DelayLaws) {
               (0.02 - 1e-3 - 100.0 / kSpeedOfLight) / 0.099, 1e-9);
 }
 
+TEST(Channel, DeclaredDelayDefaultsAreDelayLawsInitialisers) {
+  // read_channel takes the delay law's defaults from channel_keys(); DelayLaw's own initialisers
+  // (used by the presets) must say the same.
+  const DelayLaw d;
+  const sim::Keys& k = channel_keys();
+  EXPECT_EQ(d.rate, std::get<double>(k.at("rate").default_value()) * 1e6);
+  EXPECT_EQ(d.size, std::get<std::int64_t>(k.at("size").default_value()));
+  EXPECT_EQ(d.aifsn, std::get<std::int64_t>(k.at("aifsn").default_value()));
+  EXPECT_EQ(d.cw, std::get<std::int64_t>(k.at("cw").default_value()));
+  EXPECT_EQ(d.backoff, std::get<bool>(k.at("backoff").default_value()));
+  EXPECT_EQ(d.t1, std::get<double>(k.at("t1").default_value()));
+  EXPECT_EQ(d.t2, std::get<double>(k.at("t2").default_value()));
+  for (const auto& name : preset_names()) {
+    const DelayLaw p = make_preset(name).delay;
+    EXPECT_EQ(p.rate, d.rate);
+    EXPECT_EQ(p.size, d.size);
+    EXPECT_EQ(p.t1, d.t1);
+  }
+}
+
 TEST(Channel, KeyedDrawsAreDeterministicAndDistinct) {
   const auto k = stream_key(1, 2, name_hash("a"), name_hash("b"));
   EXPECT_EQ(keyed_uniform(k, 5, 0), keyed_uniform(k, 5, 0));
