@@ -154,9 +154,10 @@ inline DesignCost critical_probability_cost(const Model& model, bool stable) {
 
 // The buffer N of `raw` (buffer, or max_delay + 1), as read_buffer reads it.
 inline double peek_buffer(const toml::table& raw) {
+  const sim::Keys& keys = buffer_keys();
   if (raw.get("max_delay") != nullptr)
-    return static_cast<double>(peek_integer(raw, "max_delay", 0, 0, 999) + 1);
-  return static_cast<double>(peek_integer(raw, "buffer", 1, 1, 1000));
+    return static_cast<double>(peek_integer(raw, keys.at("max_delay")) + 1);
+  return static_cast<double>(peek_integer(raw, keys.at("buffer")));
 }
 
 inline std::string moment_driver(const std::string& driver, double n) {

@@ -5,6 +5,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <variant>
 
 #include "estimators/kinds.h"
 
@@ -75,10 +77,21 @@ DesignCost generic_design_cost(const Model& model) {
   return {16.0 * 8.0 * n * n, 200.0 * 2.0 * n * n * n, ""};
 }
 
-std::int64_t peek_integer(const toml::table& raw, std::string_view key, std::int64_t fallback,
-                          std::int64_t lo, std::int64_t hi) {
-  std::int64_t v = fallback;
-  if (const toml::node* n = raw.get(key)) {
+std::int64_t peek_integer(const toml::table& raw, const sim::Key& key) {
+  // The declared range, as integers (an open bound excludes its value).
+  std::int64_t lo = std::numeric_limits<std::int64_t>::min() / 2;
+  std::int64_t hi = std::numeric_limits<std::int64_t>::max() / 2;
+  if (const auto b = key.lo()) {
+    lo = static_cast<std::int64_t>(std::ceil(*b));
+    if (key.lo_open() && static_cast<double>(lo) == *b) ++lo;
+  }
+  if (const auto b = key.hi()) {
+    hi = static_cast<std::int64_t>(std::floor(*b));
+    if (key.hi_open() && static_cast<double>(hi) == *b) --hi;
+  }
+  const auto* declared = std::get_if<std::int64_t>(&key.default_value());
+  std::int64_t v = declared != nullptr ? *declared : key.lo() ? lo : 0;
+  if (const toml::node* n = raw.get(key.name())) {
     if (auto i = n->value_exact<std::int64_t>()) {
       v = *i;
     } else if (auto d = n->value_exact<double>()) {
@@ -87,6 +100,12 @@ std::int64_t peek_integer(const toml::table& raw, std::string_view key, std::int
     }
   }
   return std::max(lo, std::min(v, hi));
+}
+
+std::string peek_string(const toml::table& raw, const sim::Key& key) {
+  if (const auto v = raw[key.name()].value_exact<std::string>()) return *v;
+  const auto* declared = std::get_if<std::string>(&key.default_value());
+  return declared != nullptr ? *declared : std::string();
 }
 
 DesignCost EstimatorRegistry::cost(std::string_view kind, const sim::Table& t,

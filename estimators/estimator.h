@@ -169,10 +169,13 @@ using CostEstimate = std::function<DesignCost(const sim::Table& t, const toml::t
 // products of them (16 * 8 n^2 bytes, 400 n^3 flops).
 DesignCost generic_design_cost(const Model& model);
 
-// An integer key of `raw` read without marking it known: `fallback` when absent or not an
-// integer (the reader reports that), clamped to [lo, hi].
-std::int64_t peek_integer(const toml::table& raw, std::string_view key, std::int64_t fallback,
-                          std::int64_t lo, std::int64_t hi);
+// The integer key `key` (the kind's declaration) of `raw`, read without marking it known: the
+// declared default when absent or not an integer (the reader reports that; the declared minimum,
+// else 0, for a key without one), clamped to the declared range.
+std::int64_t peek_integer(const toml::table& raw, const sim::Key& key);
+// The string or choice key `key` of `raw`, read likewise: the declared default ("" without one)
+// when absent or not a string.
+std::string peek_string(const toml::table& raw, const sim::Key& key);
 
 // The estimator registry: sim::Registry's name, help and factory, plus an optional cost estimate
 // per kind, declared with the kind in its own file: registry.add(name, help, factory, cost).

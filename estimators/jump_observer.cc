@@ -288,26 +288,43 @@ std::unique_ptr<EstimatorDesign> read_jump(const sim::Table& t, const Model& mod
   return std::make_unique<JumpObserverDesign>(model, std::move(p));
 }
 
-// A Riccati-like iteration on the plant state (the generic estimate) plus history x
-// 2^(fictitious sensors) terms, each with gains n x (fictitious outputs) and an update of the
-// n x n covariance, over ~50 iterations. Memory per term: about two nyf x nyf matrices besides the
-// gain and covariance (measured on Table 2's A3 with S4: 1.9, 3.1 and 4.3 kB per term at nyf =
-// 12, 14, 16, i.e. max_delay 5, 6, 7; 1.1 GB at history 4, max_delay 7, where this formula gives
-// 1.2 GB). The ccl design's LMIs are estimated by the LMI layer when they are built.
+// Three parts, all on the delay-extended state of nb = n (max_delay + 1) rows, where the design
+// works (estimators/design/jump_design.cc; nyf = ny (max_delay + 1) fictitious outputs):
+// - the generic estimate on the plant state;
+// - history x 2^(fictitious sensors) terms (the stored gains of S4, the patterns of the others),
+//   each with a gain nb x nyf (two copies) and an update of the nb x nb covariance over ~50
+//   iterations. Memory per term: the gains and a nyf x nyf matrix (measured on Table 2's A3 with
+//   S4: 1.9, 3.1 and 4.3 kB per term at nyf = 12, 14, 16, i.e. max_delay 5, 6, 7; 1.1 GB at history
+//   4, max_delay 7, where this formula gives 1.6 GB);
+// - the operators on vec(P), m x m with m = nb^2, that every design builds: the Stein operator
+//   (an m x m inverse, history_terms, twice) and, in evaluate_jump_gains, the operator of (18)
+//   with fixed gains (a product by the Stein operator), its spectral radius (a nonsymmetric
+//   eigenvalue solve) and an LU solve. The eigenvalue solve dominates: measured in one thread at
+//   33-49 m^3 flops at the rate of a 192 x 192 product for m = 144 .. 1296, but 96 at m = 256
+//   and 191 at m = 1024 (the Francis steps' row sweeps on a leading dimension of a power of two
+//   alias in the cache); 100 m^3 covers both within 3x, 110 m^3 with the rest, and about 8 m x m
+//   matrices are alive (measured 3.7 MB at nb = 16, 17-19 MB at nb = 24). This part was missing:
+//   n = 8, max_delay = 3 (nb = 32, 2 sensors, S3, history 2) took 27 s of design, 80 % of it in
+//   the eigenvalue solve of a 1024 x 1024 operator, against an estimate of 0.02 s.
+// The ccl design's LMIs are estimated by the LMI layer when they are built.
 DesignCost jump_cost(const sim::Table& t, const toml::table& raw, const Model& model,
                      const std::string& driver) {
   const double n = static_cast<double>(model.plant.n());
   const double ny = static_cast<double>(model.total_outputs());
   const double sensors = static_cast<double>(model.sensors.size());
-  const std::int64_t dbar = peek_integer(raw, "max_delay", 0, 0, 62);
-  const std::int64_t history = peek_integer(raw, "history", 1, 1, 1000);
+  const std::int64_t dbar = peek_integer(raw, jump_keys().at("max_delay"));
+  const std::int64_t history = peek_integer(raw, jump_keys().at("history"));
   DesignCost c = generic_design_cost(model);
   const double nf = sensors * static_cast<double>(dbar + 1);
   const double terms =
       static_cast<double>(history) * std::ldexp(1.0, static_cast<int>(std::min(nf, 60.0)));
+  const double nb = n * static_cast<double>(dbar + 1);
   const double nyf = ny * static_cast<double>(dbar + 1);
-  c.bytes += terms * 8.0 * (2.0 * nyf * nyf + 2.0 * n * nyf + 2.0 * n * n);
-  c.flops += 50.0 * terms * (2.0 * n * n * n + 2.0 * n * nyf * nyf + nyf * nyf * nyf);
+  c.bytes += terms * 8.0 * (nyf * nyf + 2.0 * nb * nyf);
+  c.flops += 50.0 * terms * (2.0 * nb * nb * nb + 2.0 * nb * nyf * nyf + nyf * nyf * nyf);
+  const double m = nb * nb;
+  c.bytes += 8.0 * 8.0 * m * m;
+  c.flops += 110.0 * m * m * m;
   c.driver = fmt::format("{} and {} ({} x 2^{} terms, {})", t.key_path("history"),
                          t.key_path("max_delay"), history, nf, driver);
   return c;

@@ -135,7 +135,7 @@ DesignCost kalman_extended_cost(const sim::Table& t, const toml::table& raw, con
                                 const std::string& driver) {
   const double n = static_cast<double>(model.plant.n());
   const double ny = static_cast<double>(model.total_outputs());
-  const std::int64_t dbar = peek_integer(raw, "max_delay", 0, 0, 62);
+  const std::int64_t dbar = peek_integer(raw, kalman_extended_keys().at("max_delay"));
   const double dim = n * static_cast<double>(dbar + 1) + ny * static_cast<double>(dbar);
   DesignCost c{16.0 * 8.0 * dim * dim, 4.0 * dim * dim * dim, ""};
   if (dbar > 0) c.driver = fmt::format("{} (with {})", t.key_path("max_delay"), driver);

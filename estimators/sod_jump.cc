@@ -368,16 +368,13 @@ DesignCost sod_jump_cost(const sim::Table& /*t*/, const toml::table& raw, const 
   const double ny = static_cast<double>(model.total_outputs());
   const double nw = static_cast<double>(model.plant.nw());
   const double ns = static_cast<double>(model.sensors.size());
-  auto peek = [&raw](const char* key, const char* fallback) {
-    const auto v = raw[key].value<std::string>();
-    return v ? *v : std::string(fallback);
-  };
-  const bool det = peek("design", "deterministic") != "stochastic";
-  const bool jump = peek("gain", "jump") != "constant";
+  auto peek = [&raw](const char* key) { return peek_string(raw, sod_jump_keys().at(key)); };
+  const bool det = peek("design") != "stochastic";
+  const bool jump = peek("gain") != "constant";
   const double p = std::ldexp(1.0, static_cast<int>(std::min(ns, 20.0)));
   const double k =
       (jump ? p : 1.0) * (n * n + n * ny) + (det ? p : 1.0) * n * (n + 1.0) / 2.0 + 1.0 + 2.0 * ny;
-  const double lmis = det ? p * p : (peek("vertices", "all") == "lower" ? 1.0 : p);
+  const double lmis = det ? p * p : (peek("vertices") == "lower" ? 1.0 : p);
   const double m = det ? 2.0 * n + nw + 2.0 * ny : p * n + n + nw + 2.0 * ny;
   const double flops = 50.0 * (k * k * m + k * k * k / 3.0 + 10.0 * lmis * m * m * m);
   const double bytes = 16.0 * k * k + 11.0 * lmis * 8.0 * m * m + 48.0 * lmis * m * m * 4.0;

@@ -189,6 +189,11 @@ std::vector<Point> grid() {
   }
   g.push_back({"jump", 8, 2, "grouping = \"S3\"\nhistory = 2\nmax_delay = 0"});
   g.push_back({"jump", 4, 2, "grouping = \"S4\"\nhistory = 2\nmax_delay = 1"});
+  // The delay-extended state nb = n (max_delay + 1) and its m = nb^2 operators (jump_cost): nb =
+  // 16 (m = 256, a power of two: the eigenvalue solve's slow case), 20 and 24.
+  g.push_back({"jump", 4, 2, "grouping = \"S3\"\nhistory = 2\nmax_delay = 3"});
+  g.push_back({"jump", 8, 2, "grouping = \"S3\"\nhistory = 2\nmax_delay = 2"});
+  g.push_back({"jump", 4, 1, "grouping = \"S4\"\nhistory = 3\nmax_delay = 4"});
   for (int n : {4, 8, 14}) {
     for (int N : {2, 400}) {
       g.push_back({"static_buffer", n, 1, fmt::format("buffer = {}", N)});
