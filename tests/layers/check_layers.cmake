@@ -24,6 +24,9 @@
 # is a violation, both between files and between modules (x.h and x.cc are one module: x.cc
 # including y.h while y.h or y.cc includes x.h is a loop of x and y). Modules are checked in
 # sim/; the files of the whole tree.
+# Namespaces: a file opens only its layer's namespace (ncosim::kernel, ncosim::config, ncosim::lmi,
+# ncosim::models, ncosim::est for estimators/, ncosim::sumo, ncosim::sim for every sub-layer of
+# sim/), or one nested in it.
 # Prints every violation and fails when any is found, or, with -DEXPECT=N, when the count is not N
 # (the test of this check on a tree with known faults).
 cmake_minimum_required(VERSION 3.25)
@@ -82,6 +85,20 @@ foreach(rel IN LISTS files)
     message("${rel}: is in sim/ outside its sub-layers (${subs})")
     continue()
   endif()
+  # Each layer declares its names in its own namespace (kernel/: ncosim::kernel, ...), so that a
+  # qualifier says which layer a name comes from.
+  string(REGEX REPLACE "^sim/.*" "sim" own_ns "${layer}")
+  if(layer STREQUAL "estimators")
+    set(own_ns est)
+  endif()
+  file(STRINGS "${SRC}/${rel}" ns_lines REGEX "^namespace ncosim(::[a-z_]+)*[ \t]*{")
+  foreach(line IN LISTS ns_lines)
+    string(REGEX MATCH "^namespace ncosim(::([a-z_]+))?" _ "${line}")
+    if(NOT CMAKE_MATCH_2 STREQUAL own_ns)
+      math(EXPR violations "${violations} + 1")
+      message("${rel}: declares \"${line}\", but ${layer}/ declares its names in ncosim::${own_ns}")
+    endif()
+  endforeach()
   file(STRINGS "${SRC}/${rel}" lines REGEX "^[ \t]*#[ \t]*include[ \t]*[<\"]")
   string(REGEX REPLACE "\\.[a-z]+$" "" module "${rel}")
   set(edges_${rel} "")
