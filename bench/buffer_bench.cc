@@ -29,7 +29,7 @@ Stream& stream() {
     Stream st;
     st.sc = std::move(sim::load_cases(kPendulum, {}).cases.front().scenario);
     st.per_period.resize(kPeriods);
-    sim::Rng rng = sim::make_stream(1, 0, 0);
+    kernel::Rng rng = kernel::make_stream(1, 0, 0);
     auto link = st.sc->model.sensors[0].link->clone();
     for (int k = 0; k < kPeriods; ++k) {
       const auto d = link->transmit(rng);
@@ -51,7 +51,7 @@ std::unique_ptr<est::EstimatorDesign> design(const std::string& kind, const std:
                                              int value) {
   const auto& model = stream().sc->model;
   toml::table t{{key, value}};
-  return sim::estimator_registry().find(kind)->factory(sim::Table(t, "estimator[0]", "bench"),
+  return sim::estimator_registry().find(kind)->factory(config::Table(t, "estimator[0]", "bench"),
                                                        model);
 }
 

@@ -29,7 +29,7 @@ Stream& stream() {
     st.sc = std::move(sim::load_cases(kTable2, {}).cases.front().scenario);
     const int periods = 4096;
     st.per_period.resize(periods);
-    sim::Rng rng = sim::make_stream(1, 0, 0);
+    kernel::Rng rng = kernel::make_stream(1, 0, 0);
     for (std::size_t i = 0; i < st.sc->model.sensors.size(); ++i) {
       auto link = st.sc->model.sensors[i].link->clone();
       for (int k = 0; k < periods; ++k) {

@@ -15,7 +15,7 @@ namespace {
 
 std::vector<int> ge_trace(int n) {
   auto link = models::make_gilbert_elliott(0.02, 0.15, 0.02, 0.6);
-  sim::Rng rng = sim::make_stream(1, 0, 0);
+  kernel::Rng rng = kernel::make_stream(1, 0, 0);
   link->reset(rng);
   std::vector<int> sym;
   sym.reserve(static_cast<std::size_t>(n));

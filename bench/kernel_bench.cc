@@ -17,12 +17,12 @@ namespace {
 
 // A power of two; 1024 entries (9 KiB) stay in L1 so the table adds no cache misses.
 constexpr std::size_t kTableSize = 1024;
-constexpr SimTime kMaxOffset = 1'000'000;  // 1 ms
+constexpr kernel::SimTime kMaxOffset = 1'000'000;  // 1 ms
 
 // Offsets and phases drawn once from a fixed seed; the handler walks the table.
 struct Table {
-  std::vector<SimTime> offset;
-  std::vector<Phase> phase;
+  std::vector<kernel::SimTime> offset;
+  std::vector<kernel::Phase> phase;
 };
 
 const Table& table() {
@@ -32,8 +32,8 @@ const Table& table() {
     r.offset.resize(kTableSize);
     r.phase.resize(kTableSize);
     for (std::size_t i = 0; i < kTableSize; ++i) {
-      r.offset[i] = static_cast<SimTime>(rng() % static_cast<std::uint64_t>(kMaxOffset));
-      r.phase[i] = static_cast<Phase>(rng() % kPhaseCount);
+      r.offset[i] = static_cast<kernel::SimTime>(rng() % static_cast<std::uint64_t>(kMaxOffset));
+      r.phase[i] = static_cast<kernel::Phase>(rng() % kernel::kPhaseCount);
     }
     return r;
   }();
@@ -41,23 +41,23 @@ const Table& table() {
 }
 
 // Reschedules itself once per dispatch; the table index is carried in the payload.
-class Rescheduler final : public EventHandler {
+class Rescheduler final : public kernel::EventHandler {
  public:
-  Rescheduler(EventQueue* queue, const Table* t) : queue_(queue), t_(t) {}
-  void handle(SimTime now, std::uint64_t arg) override {
+  Rescheduler(kernel::EventQueue* queue, const Table* t) : queue_(queue), t_(t) {}
+  void handle(kernel::SimTime now, std::uint64_t arg) override {
     const std::size_t i = static_cast<std::size_t>(arg) & (kTableSize - 1);
     queue_->schedule(now + t_->offset[i], t_->phase[i], this, arg + 1);
   }
 
  private:
-  EventQueue* queue_;
+  kernel::EventQueue* queue_;
   const Table* t_;
 };
 
 void BM_ScheduleDispatchSteadyState(benchmark::State& state) {
   const auto pending = static_cast<std::size_t>(state.range(0));
   const Table& t = table();
-  EventQueue queue;
+  kernel::EventQueue queue;
   queue.reserve(pending + 1);
   Rescheduler handler(&queue, &t);
   // Initial times spread over the same window as the offsets; each event starts at its
@@ -65,7 +65,7 @@ void BM_ScheduleDispatchSteadyState(benchmark::State& state) {
   std::mt19937_64 rng(7);
   for (std::size_t j = 0; j < pending; ++j) {
     const std::uint64_t start = rng();
-    queue.schedule(static_cast<SimTime>(start % static_cast<std::uint64_t>(kMaxOffset)),
+    queue.schedule(static_cast<kernel::SimTime>(start % static_cast<std::uint64_t>(kMaxOffset)),
                    t.phase[start & (kTableSize - 1)], &handler, start);
   }
   // Warm up past the initial (uniform) layout to the steady-state time distribution.
@@ -83,27 +83,29 @@ BENCHMARK(BM_ScheduleDispatchSteadyState)->Arg(100)->Arg(10'000)->Arg(1'000'000)
 // The pattern of a campaign run (sim/run/campaign.cc): N periodic components, component c in
 // phase c % 8 with period (1, 2, 5 or 10) ms, so every instant holds many events that only
 // the (phase, sequence) order separates.
-class Periodic final : public EventHandler {
+class Periodic final : public kernel::EventHandler {
  public:
-  explicit Periodic(EventQueue* queue) : queue_(queue) {}
-  void handle(SimTime now, std::uint64_t arg) override {
-    queue_->schedule(now + period(arg), static_cast<Phase>(arg % kPhaseCount), this, arg);
+  explicit Periodic(kernel::EventQueue* queue) : queue_(queue) {}
+  void handle(kernel::SimTime now, std::uint64_t arg) override {
+    queue_->schedule(now + period(arg), static_cast<kernel::Phase>(arg % kernel::kPhaseCount), this,
+                     arg);
   }
-  static SimTime period(std::uint64_t c) {
-    constexpr SimTime kPeriods[] = {1'000'000, 2'000'000, 5'000'000, 10'000'000};
+  static kernel::SimTime period(std::uint64_t c) {
+    constexpr kernel::SimTime kPeriods[] = {1'000'000, 2'000'000, 5'000'000, 10'000'000};
     return kPeriods[c % 4];
   }
 
  private:
-  EventQueue* queue_;
+  kernel::EventQueue* queue_;
 };
 
 void BM_ScheduleDispatchPeriodicInstants(benchmark::State& state) {
   const auto components = static_cast<std::uint64_t>(state.range(0));
-  EventQueue queue;
+  kernel::EventQueue queue;
   Periodic handler(&queue);
   for (std::uint64_t c = 0; c < components; ++c) {
-    queue.schedule(Periodic::period(c), static_cast<Phase>(c % kPhaseCount), &handler, c);
+    queue.schedule(Periodic::period(c), static_cast<kernel::Phase>(c % kernel::kPhaseCount),
+                   &handler, c);
   }
   for (auto _ : state) {
     queue.step();

@@ -7,7 +7,7 @@
 #include <cmath>
 #include <sstream>
 
-namespace ncosim::sim {
+namespace ncosim::config {
 
 std::string escape_text(std::string_view text, bool keep_newlines) {
   std::string out;
@@ -433,4 +433,4 @@ void require_subprobability(const Table& t, std::string_view key, const std::vec
   if (sum > 1.0 + 1e-9) t.fail(key, fmt::format("probabilities must sum to <= 1, got {:.6g}", sum));
 }
 
-}  // namespace ncosim::sim
+}  // namespace ncosim::config

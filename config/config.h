@@ -19,7 +19,7 @@
 #include <utility>
 #include <vector>
 
-namespace ncosim::sim {
+namespace ncosim::config {
 
 // Bad user input: the message is complete and ready to print.
 class ScenarioError : public std::runtime_error {
@@ -122,4 +122,4 @@ void require_probability(const Table& t, std::string_view key, double p);
 // Non-negative entries summing to at most 1 (+1e-9).
 void require_subprobability(const Table& t, std::string_view key, const std::vector<double>& pmf);
 
-}  // namespace ncosim::sim
+}  // namespace ncosim::config

@@ -10,7 +10,7 @@
 #include <cstdio>
 #include <filesystem>
 
-namespace ncosim::sim {
+namespace ncosim::config {
 
 namespace {
 
@@ -85,4 +85,4 @@ void note_input_file(const std::string& path) {
   (*t_recorder)[key.empty() ? path : key.generic_string()] = file_content_hash(path);
 }
 
-}  // namespace ncosim::sim
+}  // namespace ncosim::config

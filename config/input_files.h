@@ -11,7 +11,7 @@
 #include <map>
 #include <string>
 
-namespace ncosim::sim {
+namespace ncosim::config {
 
 // Path relative to the scenario's folder (whatever the working directory or the folder's own
 // location: shards run from elsewhere and `export` from the stored absolute path agree) ->
@@ -46,4 +46,4 @@ std::string content_hash(const std::string& bytes);
 // "unreadable" when it cannot be read (a folder, a FIFO, no permission).
 std::string file_content_hash(const std::string& path);
 
-}  // namespace ncosim::sim
+}  // namespace ncosim::config

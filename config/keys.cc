@@ -6,7 +6,7 @@
 #include <cmath>
 #include <stdexcept>
 
-namespace ncosim::sim {
+namespace ncosim::config {
 
 std::string_view key_type_name(KeyType type) {
   switch (type) {
@@ -413,4 +413,4 @@ std::string format_keys(const Keys& keys, bool markdown) {
   return out;
 }
 
-}  // namespace ncosim::sim
+}  // namespace ncosim::config

@@ -18,7 +18,7 @@
 
 #include "config/config.h"
 
-namespace ncosim::sim {
+namespace ncosim::config {
 
 enum class KeyType {
   kNumber,   // a finite number
@@ -198,4 +198,4 @@ class KeyReader {
 // key's fields follow it, named `table.field`.
 std::string format_keys(const Keys& keys, bool markdown);
 
-}  // namespace ncosim::sim
+}  // namespace ncosim::config

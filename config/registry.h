@@ -14,7 +14,7 @@
 #include "config/config.h"
 #include "config/keys.h"
 
-namespace ncosim::sim {
+namespace ncosim::config {
 
 template <class Product, class... Args>
 class Registry {
@@ -68,4 +68,4 @@ class Registry {
   std::vector<Entry> entries_;
 };
 
-}  // namespace ncosim::sim
+}  // namespace ncosim::config

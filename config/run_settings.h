@@ -10,7 +10,7 @@
 #include <cstdint>
 #include <string>
 
-namespace ncosim::sim {
+namespace ncosim::config {
 
 struct RunSettings {
   std::int64_t periods = 10000;
@@ -22,4 +22,4 @@ struct RunSettings {
   bool error_curve = false;       // the run-averaged error against time (error_curve.csv)
 };
 
-}  // namespace ncosim::sim
+}  // namespace ncosim::config

@@ -9,7 +9,7 @@
 
 #include "config/config.h"
 
-namespace ncosim::sim {
+namespace ncosim::config {
 
 namespace {
 
@@ -156,4 +156,4 @@ const toml::node* find_path(const toml::table& doc, const std::string& path) {
   return nullptr;
 }
 
-}  // namespace ncosim::sim
+}  // namespace ncosim::config

@@ -7,7 +7,7 @@
 
 #include <string>
 
-namespace ncosim::sim {
+namespace ncosim::config {
 
 // Applies `KEY=VALUE` (VALUE in TOML syntax) to `doc`. Throws ScenarioError.
 void apply_set(toml::table& doc, const std::string& assignment, const std::string& origin);
@@ -28,4 +28,4 @@ const toml::node* find_path(const toml::table& doc, const std::string& path);
 // option that set it (see kCommandLineOrigin). Throws ScenarioError naming `key`.
 toml::table parse_value(const std::string& key, const std::string& text, const std::string& origin);
 
-}  // namespace ncosim::sim
+}  // namespace ncosim::config

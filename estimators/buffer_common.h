@@ -21,10 +21,10 @@ namespace ncosim::est {
 // `buffer` = N >= 1: samples with delay 0 .. N-1 are used, older ones discarded. `max_delay`
 // = N - 1 is accepted instead (the key of the delay-extended estimators); not both. With
 // xhat0 and P0 these are the keys of both kinds.
-inline const sim::Keys& buffer_keys() {
-  using sim::Key;
-  static const sim::Keys keys =
-      sim::Keys{
+inline const config::Keys& buffer_keys() {
+  using config::Key;
+  static const config::Keys keys =
+      config::Keys{
           Key::integer("buffer").range(1, 1000).or_default(1).unit("periods").help(
               "N: samples with delay 0 .. N - 1 are used"),
           Key::integer("max_delay")
@@ -37,7 +37,7 @@ inline const sim::Keys& buffer_keys() {
   return keys;
 }
 
-inline int read_buffer(const sim::KeyReader& r) {
+inline int read_buffer(const config::KeyReader& r) {
   if (r.has("max_delay")) {
     if (r.has("buffer"))
       r.fail("max_delay", "expected either buffer or max_delay (= buffer - 1), got both");
@@ -154,7 +154,7 @@ inline DesignCost critical_probability_cost(const Model& model, bool stable) {
 
 // The buffer N of `raw` (buffer, or max_delay + 1), as read_buffer reads it.
 inline double peek_buffer(const toml::table& raw) {
-  const sim::Keys& keys = buffer_keys();
+  const config::Keys& keys = buffer_keys();
   if (raw.get("max_delay") != nullptr)
     return static_cast<double>(peek_integer(raw, keys.at("max_delay")) + 1);
   return static_cast<double>(peek_integer(raw, keys.at("buffer")));

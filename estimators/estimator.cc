@@ -33,9 +33,9 @@ int Model::mode_count() const {
   return 0;
 }
 
-const sim::Keys& initial_keys() {
-  using sim::Key;
-  static const sim::Keys keys{
+const config::Keys& initial_keys() {
+  using config::Key;
+  static const config::Keys keys{
       Key::vector("xhat0")
           .optional("the plant's x0")
           .help("initial estimate, n entries (copied into every block of a delay-extended "
@@ -46,8 +46,8 @@ const sim::Keys& initial_keys() {
   return keys;
 }
 
-InitialEstimate read_initial(const sim::Table& t, const Model& model) {
-  const sim::KeyReader r(t, initial_keys());
+InitialEstimate read_initial(const config::Table& t, const Model& model) {
+  const config::KeyReader r(t, initial_keys());
   const Eigen::Index n = model.plant.n();
   InitialEstimate init{model.plant.x0, Eigen::MatrixXd::Zero(n, n)};
   if (r.has("xhat0")) {
@@ -59,14 +59,14 @@ InitialEstimate read_initial(const sim::Table& t, const Model& model) {
   }
   if (r.has("P0")) {
     init.P0 = r.matrix("P0");
-    sim::require_shape(t, "P0", init.P0, n, n);
-    sim::require_psd(t, "P0", init.P0);
+    config::require_shape(t, "P0", init.P0, n, n);
+    config::require_psd(t, "P0", init.P0);
   }
   return init;
 }
 
-sim::Key max_delay_key() {
-  return sim::Key::integer("max_delay")
+config::Key max_delay_key() {
+  return config::Key::integer("max_delay")
       .range(0, 62)
       .unit("periods")
       .help("d-bar: samples with delay 0 .. max_delay are used, later ones discarded");
@@ -77,7 +77,7 @@ DesignCost generic_design_cost(const Model& model) {
   return {16.0 * 8.0 * n * n, 200.0 * 2.0 * n * n * n, ""};
 }
 
-std::int64_t peek_integer(const toml::table& raw, const sim::Key& key) {
+std::int64_t peek_integer(const toml::table& raw, const config::Key& key) {
   // The declared range, as integers (an open bound excludes its value).
   std::int64_t lo = std::numeric_limits<std::int64_t>::min() / 2;
   std::int64_t hi = std::numeric_limits<std::int64_t>::max() / 2;
@@ -102,13 +102,13 @@ std::int64_t peek_integer(const toml::table& raw, const sim::Key& key) {
   return std::max(lo, std::min(v, hi));
 }
 
-std::string peek_string(const toml::table& raw, const sim::Key& key) {
+std::string peek_string(const toml::table& raw, const config::Key& key) {
   if (const auto v = raw[key.name()].value_exact<std::string>()) return *v;
   const auto* declared = std::get_if<std::string>(&key.default_value());
   return declared != nullptr ? *declared : std::string();
 }
 
-DesignCost EstimatorRegistry::cost(std::string_view kind, const sim::Table& t,
+DesignCost EstimatorRegistry::cost(std::string_view kind, const config::Table& t,
                                    const toml::table& raw, const Model& model,
                                    const std::string& state_driver) const {
   for (const auto& [name, estimate] : costs_) {

@@ -161,7 +161,7 @@ struct DesignCost {
 // kind's reader validates them: use peek_integer); `t` names keys in messages (t.key_path);
 // `state_driver` is the plant's state driver. Must be cheap (no design work) and must not throw
 // for values the reader would reject.
-using CostEstimate = std::function<DesignCost(const sim::Table& t, const toml::table& raw,
+using CostEstimate = std::function<DesignCost(const config::Table& t, const toml::table& raw,
                                               const Model& model, const std::string& state_driver)>;
 
 // The estimate of a kind that declares none (an extension registered with add(name, help,
@@ -172,28 +172,29 @@ DesignCost generic_design_cost(const Model& model);
 // The integer key `key` (the kind's declaration) of `raw`, read without marking it known: the
 // declared default when absent or not an integer (the reader reports that; the declared minimum,
 // else 0, for a key without one), clamped to the declared range.
-std::int64_t peek_integer(const toml::table& raw, const sim::Key& key);
+std::int64_t peek_integer(const toml::table& raw, const config::Key& key);
 // The string or choice key `key` of `raw`, read likewise: the declared default ("" without one)
 // when absent or not a string.
-std::string peek_string(const toml::table& raw, const sim::Key& key);
+std::string peek_string(const toml::table& raw, const config::Key& key);
 
-// The estimator registry: sim::Registry's name, help and factory, plus an optional cost estimate
+// The estimator registry: config::Registry's name, help and factory, plus an optional cost estimate
 // per kind, declared with the kind in its own file: registry.add(name, help, factory, cost).
-class EstimatorRegistry : public sim::Registry<std::unique_ptr<EstimatorDesign>, const Model&> {
+class EstimatorRegistry : public config::Registry<std::unique_ptr<EstimatorDesign>, const Model&> {
  public:
-  using Base = sim::Registry<std::unique_ptr<EstimatorDesign>, const Model&>;
+  using Base = config::Registry<std::unique_ptr<EstimatorDesign>, const Model&>;
   using Base::add;
   void add(std::string name, std::string help, Factory factory, CostEstimate cost) {
     costs_.emplace_back(name, std::move(cost));
     Base::add(std::move(name), std::move(help), std::move(factory));
   }
   // A kind that declares its keys (config/keys.h) and estimates its design's cost.
-  void add(std::string name, std::string help, sim::Keys keys, Factory factory, CostEstimate cost) {
+  void add(std::string name, std::string help, config::Keys keys, Factory factory,
+           CostEstimate cost) {
     costs_.emplace_back(name, std::move(cost));
     Base::add(std::move(name), std::move(help), std::move(keys), std::move(factory));
   }
   // The estimate of kind `kind` (generic_design_cost when it declared none).
-  DesignCost cost(std::string_view kind, const sim::Table& t, const toml::table& raw,
+  DesignCost cost(std::string_view kind, const config::Table& t, const toml::table& raw,
                   const Model& model, const std::string& state_driver) const;
 
  private:
@@ -207,10 +208,10 @@ struct InitialEstimate {
   Eigen::VectorXd xhat0;
   Eigen::MatrixXd P0;
 };
-const sim::Keys& initial_keys();
-InitialEstimate read_initial(const sim::Table& t, const Model& model);
+const config::Keys& initial_keys();
+InitialEstimate read_initial(const config::Table& t, const Model& model);
 
 // `max_delay` (dbar), 0..62 periods, without a default (a kind adds or_default / optional).
-sim::Key max_delay_key();
+config::Key max_delay_key();
 
 }  // namespace ncosim::est

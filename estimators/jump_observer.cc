@@ -226,10 +226,10 @@ class JumpObserverDesign final : public EstimatorDesign, public JumpDesignAccess
   std::string row_status_ = "design_failed";
 };
 
-const sim::Keys& jump_keys() {
-  using sim::Key;
-  static const sim::Keys keys =
-      sim::Keys{
+const config::Keys& jump_keys() {
+  using config::Key;
+  static const config::Keys keys =
+      config::Keys{
           Key::choice("grouping", {"S1", "S2", "S3", "S4"})
               .or_default("S4")
               .help("gain sharing: S1 one gain per N; S2 per number of real sensors delivered; S3 "
@@ -254,8 +254,8 @@ const sim::Keys& jump_keys() {
   return keys;
 }
 
-std::unique_ptr<EstimatorDesign> read_jump(const sim::Table& t, const Model& model) {
-  const sim::KeyReader r(t, jump_keys());
+std::unique_ptr<EstimatorDesign> read_jump(const config::Table& t, const Model& model) {
+  const config::KeyReader r(t, jump_keys());
   JumpParams p;
   const std::string g = r.string("grouping");
   p.grouping = static_cast<Grouping>(g[1] - '1');
@@ -307,7 +307,7 @@ std::unique_ptr<EstimatorDesign> read_jump(const sim::Table& t, const Model& mod
 //   n = 8, max_delay = 3 (nb = 32, 2 sensors, S3, history 2) took 27 s of design, 80 % of it in
 //   the eigenvalue solve of a 1024 x 1024 operator, against an estimate of 0.02 s.
 // The ccl design's LMIs are estimated by the LMI layer when they are built.
-DesignCost jump_cost(const sim::Table& t, const toml::table& raw, const Model& model,
+DesignCost jump_cost(const config::Table& t, const toml::table& raw, const Model& model,
                      const std::string& driver) {
   const double n = static_cast<double>(model.plant.n());
   const double ny = static_cast<double>(model.total_outputs());

@@ -227,14 +227,14 @@ class KalmanBufferDesign final : public EstimatorDesign {
   double worst_ = 0.0;
 };
 
-std::unique_ptr<EstimatorDesign> read_kalman_buffer(const sim::Table& t, const Model& model) {
-  const int N = read_buffer(sim::KeyReader(t, buffer_keys()));
+std::unique_ptr<EstimatorDesign> read_kalman_buffer(const config::Table& t, const Model& model) {
+  const int N = read_buffer(config::KeyReader(t, buffer_keys()));
   return std::make_unique<KalmanBufferDesign>(model, N, read_initial(t, model));
 }
 
 // The design only computes design.json's critical probability (buffer_common.h) and keeps the
 // model: the generic estimate on the plant state plus that.
-DesignCost kalman_buffer_cost(const sim::Table& /*t*/, const toml::table& /*raw*/,
+DesignCost kalman_buffer_cost(const config::Table& /*t*/, const toml::table& /*raw*/,
                               const Model& model, const std::string& driver) {
   DesignCost c = critical_probability_cost(model, buffer_plant_stable(model));
   const DesignCost base = generic_design_cost(model);

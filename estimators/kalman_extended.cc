@@ -106,17 +106,17 @@ class KalmanExtendedDesign final : public EstimatorDesign {
   DesignReport report_;
 };
 
-const sim::Keys& kalman_extended_keys() {
-  static const sim::Keys keys =
-      sim::Keys{max_delay_key().or_default(0).help(
+const config::Keys& kalman_extended_keys() {
+  static const config::Keys keys =
+      config::Keys{max_delay_key().or_default(0).help(
           "d-bar; sensors x (max_delay + 1) <= 64 (the fictitious sensors of one period are a "
           "64-bit pattern)")} +
       initial_keys();
   return keys;
 }
 
-std::unique_ptr<EstimatorDesign> read_kalman_extended(const sim::Table& t, const Model& model) {
-  const sim::KeyReader r(t, kalman_extended_keys());
+std::unique_ptr<EstimatorDesign> read_kalman_extended(const config::Table& t, const Model& model) {
+  const config::KeyReader r(t, kalman_extended_keys());
   const int dbar = static_cast<int>(r.integer("max_delay"));
   const auto nf = static_cast<long>(model.sensors.size()) * (dbar + 1);
   if (nf > 64) {
@@ -131,7 +131,7 @@ std::unique_ptr<EstimatorDesign> read_kalman_extended(const sim::Table& t, const
 // The design builds the delay-extended model (n (dbar + 1) + ny dbar states) and no offline
 // Riccati iteration (the filter runs its recursion online): about 4 products of that size, and
 // 16 matrices of it (the model, and the covariance and workspace every run then keeps).
-DesignCost kalman_extended_cost(const sim::Table& t, const toml::table& raw, const Model& model,
+DesignCost kalman_extended_cost(const config::Table& t, const toml::table& raw, const Model& model,
                                 const std::string& driver) {
   const double n = static_cast<double>(model.plant.n());
   const double ny = static_cast<double>(model.total_outputs());

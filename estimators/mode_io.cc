@@ -264,19 +264,19 @@ class ModeIoDesign final : public EstimatorDesign {
   DesignReport report_;
 };
 
-const sim::Keys& mode_io_keys() {
-  static const sim::Keys keys =
-      mode_keys() + sim::Keys{sim::Key::choice("startup", {"state", "prior_mean", "skip"})
-                                  .or_default("state")
-                                  .help("while a lag of the ARMAX form precedes period 0: the "
-                                        "filter's state-space likelihoods (as Algorithm 2), the "
-                                        "prior mean for the unknown outputs and inputs, or no "
-                                        "likelihood (the chain's prediction)")};
+const config::Keys& mode_io_keys() {
+  static const config::Keys keys =
+      mode_keys() + config::Keys{config::Key::choice("startup", {"state", "prior_mean", "skip"})
+                                     .or_default("state")
+                                     .help("while a lag of the ARMAX form precedes period 0: the "
+                                           "filter's state-space likelihoods (as Algorithm 2), the "
+                                           "prior mean for the unknown outputs and inputs, or no "
+                                           "likelihood (the chain's prediction)")};
   return keys;
 }
 
-std::unique_ptr<EstimatorDesign> read_mode_io(const sim::Table& t, const Model& model) {
-  const sim::KeyReader r(t, mode_io_keys());
+std::unique_ptr<EstimatorDesign> read_mode_io(const config::Table& t, const Model& model) {
+  const config::KeyReader r(t, mode_io_keys());
   if (!model.plant.modes.empty()) {
     t.fail_here(
         "expected actuator modes ([[actuator]] tables); mode_io does not model a jump_linear "
@@ -295,7 +295,7 @@ std::unique_ptr<EstimatorDesign> read_mode_io(const sim::Table& t, const Model& 
 
 // The mode model of every mode and, per mode, the ARMAX form by Cayley-Hamilton (the
 // characteristic polynomial and n powers of A: about 2 n products of n x n matrices per mode).
-DesignCost mode_io_cost(const sim::Table& /*t*/, const toml::table& /*raw*/, const Model& model,
+DesignCost mode_io_cost(const config::Table& /*t*/, const toml::table& /*raw*/, const Model& model,
                         const std::string& /*driver*/) {
   const double n = static_cast<double>(model.plant.n());
   const double modes = std::max(1.0, static_cast<double>(model.mode_count()));

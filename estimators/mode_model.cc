@@ -108,9 +108,9 @@ ModeModel build(const Model& model) {
 
 }  // namespace
 
-const sim::Keys& mode_keys() {
-  using sim::Key;
-  static const sim::Keys keys{
+const config::Keys& mode_keys() {
+  using config::Key;
+  static const config::Keys keys{
       Key::vector("xhat0")
           .optional("the plant's x0, held inputs at the actuators' u0")
           .help("the initial estimate, the prior of period 0: n entries (held inputs from u0), n "
@@ -136,7 +136,7 @@ const sim::Keys& mode_keys() {
 namespace {
 
 // The scenario must have modes, at most 6 actuators and sensors sampled every period.
-void check_mode_scenario(const sim::Table& t, const Model& model) {
+void check_mode_scenario(const config::Table& t, const Model& model) {
   if (model.plant.modes.empty() && model.actuators.empty()) {
     t.fail_here(
         "expected a scenario with modes: [[actuator]] tables or a jump_linear plant, got neither");
@@ -154,12 +154,12 @@ void check_mode_scenario(const sim::Table& t, const Model& model) {
 }
 
 // `transition` (default: the model's chain), the stationary law and the mode prior mu0.
-void read_mode_chain(const sim::KeyReader& r, ModeSetup& setup) {
+void read_mode_chain(const config::KeyReader& r, ModeSetup& setup) {
   ModeModel& mm = setup.model;
   const auto s = static_cast<Eigen::Index>(mm.modes());
   if (r.has("transition")) {
     Eigen::MatrixXd T = r.matrix("transition");
-    sim::require_shape(r.table(), "transition", T, s, s);
+    config::require_shape(r.table(), "transition", T, s, s);
     for (Eigen::Index i = 0; i < s; ++i) {
       if (T.row(i).minCoeff() < 0.0 || std::abs(T.row(i).sum() - 1.0) > 1e-9) {
         r.fail("transition",
@@ -177,7 +177,7 @@ void read_mode_chain(const sim::KeyReader& r, ModeSetup& setup) {
 
 // Initial estimate: the plant part from xhat0 (default x0), the held inputs from the
 // actuators' u0 (known); or the whole augmented vector.
-void read_mode_initial(const sim::KeyReader& r, const Model& model, ModeSetup& setup) {
+void read_mode_initial(const config::KeyReader& r, const Model& model, ModeSetup& setup) {
   const ModeModel& mm = setup.model;
   const Eigen::Index n = mm.n, na = mm.na;
   setup.x0 = Eigen::VectorXd::Zero(na);
@@ -225,13 +225,13 @@ void read_mode_initial(const sim::KeyReader& r, const Model& model, ModeSetup& s
         setup.P0(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(b)) = P(pick[a], pick[b]);
       }
     }
-    sim::require_psd(r.table(), "P0", setup.P0);
+    config::require_psd(r.table(), "P0", setup.P0);
   }
 }
 
 }  // namespace
 
-ModeSetup read_mode_setup(const sim::KeyReader& r, const Model& model) {
+ModeSetup read_mode_setup(const config::KeyReader& r, const Model& model) {
   check_mode_scenario(r.table(), model);
   ModeSetup setup;
   setup.model = build(model);

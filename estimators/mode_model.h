@@ -51,8 +51,8 @@ struct ModeSetup {
 };
 // The keys of every mode estimator (imm, mode_ss; mode_io adds startup): xhat0, P0 (over the
 // augmented state), mode_prior, transition, use_y0.
-const sim::Keys& mode_keys();
-ModeSetup read_mode_setup(const sim::KeyReader& r, const Model& model);
+const config::Keys& mode_keys();
+ModeSetup read_mode_setup(const config::KeyReader& r, const Model& model);
 
 // Packets of the current period (delay 0) as a stacked measurement and a 0/1 row mask.
 class CurrentMeasurement {

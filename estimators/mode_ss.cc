@@ -101,13 +101,13 @@ class ModeSsDesign final : public EstimatorDesign {
   DesignReport report_;
 };
 
-std::unique_ptr<EstimatorDesign> read_mode_ss(const sim::Table& t, const Model& model) {
-  return std::make_unique<ModeSsDesign>(read_mode_setup(sim::KeyReader(t, mode_keys()), model));
+std::unique_ptr<EstimatorDesign> read_mode_ss(const config::Table& t, const Model& model) {
+  return std::make_unique<ModeSsDesign>(read_mode_setup(config::KeyReader(t, mode_keys()), model));
 }
 
 // The mode model of every mode (mode_model.h: A, B, W per mode and the transition matrix), a
 // few n x n products per mode, no iteration.
-DesignCost mode_ss_cost(const sim::Table& /*t*/, const toml::table& /*raw*/, const Model& model,
+DesignCost mode_ss_cost(const config::Table& /*t*/, const toml::table& /*raw*/, const Model& model,
                         const std::string& /*driver*/) {
   const double n = static_cast<double>(model.plant.n());
   const double modes = std::max(1.0, static_cast<double>(model.mode_count()));

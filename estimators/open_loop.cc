@@ -64,25 +64,25 @@ class OpenLoopDesign final : public EstimatorDesign {
   DesignReport report_;
 };
 
-const sim::Keys& open_loop_keys() {
-  static const sim::Keys keys =
-      sim::Keys{max_delay_key().optional("none").help(
+const config::Keys& open_loop_keys() {
+  static const config::Keys keys =
+      config::Keys{max_delay_key().optional("none").help(
           "when given, it also keeps the delay-extended estimate, so that mse_ext "
           "is reported")} +
       initial_keys();
   return keys;
 }
 
-std::unique_ptr<EstimatorDesign> read_open_loop(const sim::Table& t, const Model& model) {
-  const auto d = sim::KeyReader(t, open_loop_keys()).opt_integer("max_delay");
+std::unique_ptr<EstimatorDesign> read_open_loop(const config::Table& t, const Model& model) {
+  const auto d = config::KeyReader(t, open_loop_keys()).opt_integer("max_delay");
   const int dbar = d ? static_cast<int>(*d) : -1;
   InitialEstimate init = read_initial(t, model);
   return std::make_unique<OpenLoopDesign>(model, dbar, std::move(init.xhat0));
 }
 
 // No design: the initial estimate and the model kept (a few n x n matrices).
-DesignCost open_loop_cost(const sim::Table& /*t*/, const toml::table& /*raw*/, const Model& model,
-                          const std::string& /*driver*/) {
+DesignCost open_loop_cost(const config::Table& /*t*/, const toml::table& /*raw*/,
+                          const Model& model, const std::string& /*driver*/) {
   const double n = static_cast<double>(model.plant.n());
   return {4.0 * 8.0 * n * n, 2.0 * n * n, ""};
 }

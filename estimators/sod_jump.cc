@@ -139,9 +139,9 @@ class SodJumpDesignImpl final : public SodJumpDesign {
   DesignReport report_;
 };
 
-const sim::Keys& codesign_keys() {
-  using sim::Key;
-  static const sim::Keys keys{
+const config::Keys& codesign_keys() {
+  using config::Key;
+  static const config::Keys keys{
       Key::number("mu").min(1.0).says("mu >= 1").help(
           "the bound on the estimation cost relative to periodic sending (required)"),
       Key::number("epsilon")
@@ -158,10 +158,10 @@ const sim::Keys& codesign_keys() {
   return keys;
 }
 
-const sim::Keys& sod_jump_keys() {
-  using sim::Key;
-  static const sim::Keys keys =
-      sim::Keys{
+const config::Keys& sod_jump_keys() {
+  using config::Key;
+  static const config::Keys keys =
+      config::Keys{
           Key::choice("design", {"deterministic", "stochastic"})
               .or_default("deterministic")
               .help("LMI (11) for every pair of patterns, or LMI (20) at the vertices of the "
@@ -209,7 +209,7 @@ const sim::Keys& sod_jump_keys() {
   return keys;
 }
 
-VectorXd per_output(const sim::KeyReader& r, std::string_view key, Eigen::Index ny) {
+VectorXd per_output(const config::KeyReader& r, std::string_view key, Eigen::Index ny) {
   VectorXd v = r.vector(key);
   if (v.size() == 1 && ny > 1) v = VectorXd::Constant(ny, v(0));
   if (v.size() != ny || !v.allFinite() || v.minCoeff() < 0.0) {
@@ -221,7 +221,7 @@ VectorXd per_output(const sim::KeyReader& r, std::string_view key, Eigen::Index 
 
 // The plant and its outputs (A, Bw, C, the sensors' rows), Cz, w_rms and v_rms; `all_sod`: every
 // sensor sends on delta.
-sod::SodSystem read_sod_system(const sim::KeyReader& r, const Model& model, bool& all_sod) {
+sod::SodSystem read_sod_system(const config::KeyReader& r, const Model& model, bool& all_sod) {
   sod::SodSystem sys;
   MatrixXd R;
   stacked_outputs(model, sys.C, R);
@@ -240,7 +240,7 @@ sod::SodSystem read_sod_system(const sim::KeyReader& r, const Model& model, bool
     r.fail("kind", fmt::format("expected at most 6 sensors (2^ns gains and (2^ns)^2 LMIs), got {}",
                                model.sensors.size()));
   }
-  const sim::Table& t = r.table();
+  const config::Table& t = r.table();
   if (r.has("Cz") && t.is_string("Cz")) {
     t.choice_or("Cz", "output", {"output"});
     sys.Cz = sys.C;  // the signal of interest is the measured output (the paper's example 5.2)
@@ -256,7 +256,7 @@ sod::SodSystem read_sod_system(const sim::KeyReader& r, const Model& model, bool
 
 // The stochastic design's keys (vertices, assumption, r | w_inf + v_inf | sigma): beta' and
 // sigma2_delta into `spec`, the ranges into `cd`.
-void read_stochastic(const sim::KeyReader& r, const Model& model, const sod::SodSystem& sys,
+void read_stochastic(const config::KeyReader& r, const Model& model, const sod::SodSystem& sys,
                      const VectorXd& delta, sod::SodDesignSpec& spec, CodesignKeys& cd,
                      nlohmann::json& extra) {
   const Eigen::Index ny = sys.ny();
@@ -301,11 +301,11 @@ void read_stochastic(const sim::KeyReader& r, const Model& model, const sod::Sod
 }
 
 // [codesign]: the parameters of `ncosim codesign`.
-void read_codesign(const sim::KeyReader& r, const sod::SodDesignSpec& spec, Eigen::Index ny,
+void read_codesign(const config::KeyReader& r, const sod::SodDesignSpec& spec, Eigen::Index ny,
                    CodesignKeys& cd) {
   const auto table = r.opt_table("codesign");
   if (!table) return;
-  const sim::KeyReader c(*table, codesign_keys());
+  const config::KeyReader c(*table, codesign_keys());
   cd.mu = c.number("mu");
   cd.epsilon = c.number("epsilon");
   const char* step = spec.approach == sod::Approach::kDeterministic ? "relative" : "absolute";
@@ -314,8 +314,8 @@ void read_codesign(const sim::KeyReader& r, const sod::SodDesignSpec& spec, Eige
   table->finish();
 }
 
-std::unique_ptr<EstimatorDesign> read_sod_jump(const sim::Table& t, const Model& model) {
-  const sim::KeyReader r(t, sod_jump_keys());
+std::unique_ptr<EstimatorDesign> read_sod_jump(const config::Table& t, const Model& model) {
+  const config::KeyReader r(t, sod_jump_keys());
   bool all_sod = true;
   sod::SodSystem sys = read_sod_system(r, model, all_sod);
   const Eigen::Index ny = sys.ny();
@@ -362,7 +362,7 @@ std::unique_ptr<EstimatorDesign> read_sod_jump(const sim::Table& t, const Model&
 // (stochastic); the deterministic design has p^2 LMIs of 2n + nw + 2ny rows, the stochastic one
 // an LMI of p n + n + nw + 2 ny rows per vertex. The LMI layer checks its own estimate again when
 // the problem is built.
-DesignCost sod_jump_cost(const sim::Table& /*t*/, const toml::table& raw, const Model& model,
+DesignCost sod_jump_cost(const config::Table& /*t*/, const toml::table& raw, const Model& model,
                          const std::string& /*driver*/) {
   const double n = static_cast<double>(model.plant.n());
   const double ny = static_cast<double>(model.total_outputs());

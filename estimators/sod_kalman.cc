@@ -124,10 +124,10 @@ class SodKalmanDesign final : public EstimatorDesign {
   DesignReport report_;
 };
 
-const sim::Keys& sod_kalman_keys() {
-  using sim::Key;
-  static const sim::Keys keys =
-      sim::Keys{
+const config::Keys& sod_kalman_keys() {
+  using config::Key;
+  static const config::Keys keys =
+      config::Keys{
           Key::matrix("W")
               .optional("the plant's W")
               .help("the filter's process-noise covariance, nw x nw (PSD) or a number (x I)"),
@@ -147,8 +147,8 @@ const sim::Keys& sod_kalman_keys() {
   return keys;
 }
 
-std::unique_ptr<EstimatorDesign> read_sod_kalman(const sim::Table& t, const Model& model) {
-  const sim::KeyReader r(t, sod_kalman_keys());
+std::unique_ptr<EstimatorDesign> read_sod_kalman(const config::Table& t, const Model& model) {
+  const config::KeyReader r(t, sod_kalman_keys());
   SodKalmanParams p;
   p.A = model.plant.A;
   stacked_outputs(model, p.C, p.R);
@@ -157,8 +157,8 @@ std::unique_ptr<EstimatorDesign> read_sod_kalman(const sim::Table& t, const Mode
     W = r.matrix("W");
     if (W.size() == 1 && model.plant.nw() > 1)
       W = W(0, 0) * Eigen::MatrixXd::Identity(model.plant.nw(), model.plant.nw());
-    sim::require_shape(t, "W", W, model.plant.nw(), model.plant.nw());
-    sim::require_psd(t, "W", W);
+    config::require_shape(t, "W", W, model.plant.nw(), model.plant.nw());
+    config::require_psd(t, "W", W);
   }
   p.Q = model.plant.Bw * W * model.plant.Bw.transpose();
   const Eigen::Index ny = model.total_outputs();
@@ -188,8 +188,8 @@ std::unique_ptr<EstimatorDesign> read_sod_kalman(const sim::Table& t, const Mode
 
 // No offline iteration: the model, noise covariances and the virtual noise per sensor are kept
 // (the filter runs online); a few n x n products.
-DesignCost sod_kalman_cost(const sim::Table& /*t*/, const toml::table& /*raw*/, const Model& model,
-                           const std::string& /*driver*/) {
+DesignCost sod_kalman_cost(const config::Table& /*t*/, const toml::table& /*raw*/,
+                           const Model& model, const std::string& /*driver*/) {
   const double n = static_cast<double>(model.plant.n());
   const double ny = static_cast<double>(model.total_outputs());
   return {8.0 * 8.0 * (n * n + ny * ny), 10.0 * n * n * n, ""};

@@ -192,8 +192,8 @@ class StaticBufferDesign final : public EstimatorDesign {
   double flops_ = 0.0;
 };
 
-std::unique_ptr<EstimatorDesign> read_static_buffer(const sim::Table& t, const Model& model) {
-  const int N = read_buffer(sim::KeyReader(t, buffer_keys()));
+std::unique_ptr<EstimatorDesign> read_static_buffer(const config::Table& t, const Model& model) {
+  const int N = read_buffer(config::KeyReader(t, buffer_keys()));
   if (model.sensors.empty()) t.fail("kind", "static_buffer needs at least one [[sensor]]");
   for (const auto& s : model.sensors) {
     if (s.spec.every != 1) {
@@ -213,8 +213,8 @@ std::unique_ptr<EstimatorDesign> read_static_buffer(const sim::Table& t, const M
 // eigenvalue solve: 64 products' work in all (measured by tests/costs: 0.096 s of CPU for n = 4
 // and one sensor at 12 GFLOP/s, 69 products of 256 x 256). Five states and 1001 sensors: about
 // 7 minutes.
-DesignCost static_buffer_cost(const sim::Table& /*t*/, const toml::table& raw, const Model& model,
-                              const std::string& driver) {
+DesignCost static_buffer_cost(const config::Table& /*t*/, const toml::table& raw,
+                              const Model& model, const std::string& driver) {
   const double n = static_cast<double>(model.plant.n());
   const double ny = static_cast<double>(model.total_outputs());
   const double sensors = static_cast<double>(model.sensors.size());

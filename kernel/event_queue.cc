@@ -7,7 +7,7 @@
 
 #include "kernel/check.h"
 
-namespace ncosim::sim {
+namespace ncosim::kernel {
 
 namespace {
 constexpr int kPhaseShift = 56;
@@ -204,4 +204,4 @@ void EventQueue::clear() {
   seq_ = 0;
 }
 
-}  // namespace ncosim::sim
+}  // namespace ncosim::kernel

@@ -12,7 +12,7 @@
 
 #include "kernel/time.h"
 
-namespace ncosim::sim {
+namespace ncosim::kernel {
 
 // Phases at one instant, in dispatch order.
 enum class Phase : std::uint8_t {
@@ -120,4 +120,4 @@ class EventQueue {
   std::uint64_t seq_ = 0;
 };
 
-}  // namespace ncosim::sim
+}  // namespace ncosim::kernel

@@ -7,7 +7,7 @@
 #include <boost/random/mersenne_twister.hpp>
 #include <cstdint>
 
-namespace ncosim::sim {
+namespace ncosim::kernel {
 
 using Rng = boost::random::mt19937_64;
 
@@ -40,4 +40,4 @@ inline Rng make_stream(std::uint64_t seed, std::uint64_t run, std::uint64_t comp
   return Rng(s);
 }
 
-}  // namespace ncosim::sim
+}  // namespace ncosim::kernel

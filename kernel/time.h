@@ -5,7 +5,7 @@
 #include <cstdint>
 #include <stdexcept>
 
-namespace ncosim::sim {
+namespace ncosim::kernel {
 
 using SimTime = std::int64_t;  // nanoseconds since t = 0
 
@@ -23,4 +23,4 @@ inline SimTime seconds_to_time(double seconds) {
 
 inline double time_to_seconds(SimTime t) { return static_cast<double>(t) * 1e-9; }
 
-}  // namespace ncosim::sim
+}  // namespace ncosim::kernel

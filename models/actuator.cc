@@ -9,23 +9,23 @@
 
 namespace ncosim::models {
 
-const sim::Keys& actuator_keys() {
-  static const sim::Keys keys{
-      sim::Key::string("name").optional("\"u1\", \"u2\", ...").help("unique among actuators"),
-      sim::Key::string("link")
+const config::Keys& actuator_keys() {
+  static const config::Keys keys{
+      config::Key::string("name").optional("\"u1\", \"u2\", ...").help("unique among actuators"),
+      config::Key::string("link")
           .optional("ideal (always delivered)")
           .help("the name of a [[link]]; each actuator uses its own instance of the link"),
-      sim::Key::choice("on_loss", {"hold", "zero"})
+      config::Key::choice("on_loss", {"hold", "zero"})
           .or_default("hold")
           .help("what is applied when the command is not delivered"),
-      sim::Key::number("u0").or_default(0.0).help("the value held before period 0 (hold)"),
+      config::Key::number("u0").or_default(0.0).help("the value held before period 0 (hold)"),
   };
   return keys;
 }
 
-ActuatorSpec read_actuator(const sim::Table& table, const std::vector<std::string>& links,
+ActuatorSpec read_actuator(const config::Table& table, const std::vector<std::string>& links,
                            int index) {
-  const sim::KeyReader t(table, actuator_keys());
+  const config::KeyReader t(table, actuator_keys());
   ActuatorSpec a;
   a.name = t.opt_string("name").value_or(fmt::format("u{}", index + 1));
   a.link = read_link_ref(t, links);
@@ -42,7 +42,7 @@ ActuatorStage::ActuatorStage(const std::vector<ActuatorSpec>& specs,
   for (std::size_t i = 0; i < specs.size(); ++i) {
     Channel c;
     c.on_loss = specs[i].on_loss;
-    c.rng = sim::make_stream(seed, run, sim::stream_id(sim::StreamKind::kActuatorLink, i));
+    c.rng = kernel::make_stream(seed, run, kernel::stream_id(kernel::StreamKind::kActuatorLink, i));
     if (specs[i].link >= 0) {
       c.link = links[static_cast<std::size_t>(specs[i].link)]->clone();
       c.link->reset(c.rng);  // a Markov link starts from its stationary law

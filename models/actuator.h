@@ -29,10 +29,11 @@ struct ActuatorSpec {
 };
 
 // The keys of an [[actuator]] table (`ncosim list --keys section.actuator`).
-const sim::Keys& actuator_keys();
+const config::Keys& actuator_keys();
 
 // Reads one [[actuator]] table through actuator_keys(); `links` are the scenario's link names.
-ActuatorSpec read_actuator(const sim::Table& t, const std::vector<std::string>& links, int index);
+ActuatorSpec read_actuator(const config::Table& t, const std::vector<std::string>& links,
+                           int index);
 
 // Mode index of a delivery pattern, 0-based in the paper's Table 1 order: channel 0 is the
 // most significant bit and a bit is 1 for a loss, so 0 = every channel delivered and
@@ -57,7 +58,7 @@ class ActuatorStage {
  private:
   struct Channel {
     std::unique_ptr<Link> link;  // nullptr: ideal
-    sim::Rng rng;
+    kernel::Rng rng;
     ActuatorSpec::OnLoss on_loss;
   };
   std::vector<Channel> channels_;

@@ -20,7 +20,7 @@ namespace {
 
 enum class Signal { kTrue, kMeasured, kReceived, kEstimate };
 
-Signal read_signal(const sim::KeyReader& t, std::string_view key, bool allow_estimate,
+Signal read_signal(const config::KeyReader& t, std::string_view key, bool allow_estimate,
                    std::string* estimator) {
   const std::string v = t.string(key);
   if (v == "true") return Signal::kTrue;
@@ -76,7 +76,7 @@ class Relay final : public Controller {
 class RelayDesign final : public ControllerDesign {
  public:
   RelayDesign(RelayParams p, Eigen::Index nu) : p_(std::move(p)), nu_(nu) {}
-  void bind(const sim::Table& t, const std::vector<SensorSpec>& sensors) override {
+  void bind(const config::Table& t, const std::vector<SensorSpec>& sensors) override {
     std::vector<std::pair<std::size_t, Eigen::Index>> all;  // stacked outputs
     for (std::size_t s = 0; s < sensors.size(); ++s) {
       for (Eigen::Index i = 0; i < sensors[s].ny(); ++i) all.emplace_back(s, i);
@@ -152,7 +152,7 @@ class Pi final : public Controller {
 class PiDesign final : public ControllerDesign {
  public:
   explicit PiDesign(PiParams p) : p_(std::move(p)) {}
-  void bind(const sim::Table& t, const std::vector<SensorSpec>& sensors) override {
+  void bind(const config::Table& t, const std::vector<SensorSpec>& sensors) override {
     if (p_.sensor_name.empty()) {
       p_.sensor = 0;
     } else {
@@ -161,7 +161,7 @@ class PiDesign final : public ControllerDesign {
       if (it == sensors.end()) {
         std::vector<std::string> names;
         for (const auto& s : sensors) names.push_back(s.name);
-        const std::string hint = sim::did_you_mean(p_.sensor_name, names);
+        const std::string hint = config::did_you_mean(p_.sensor_name, names);
         t.fail("sensor",
                fmt::format("expected the name of a [[sensor]], got \"{}\"{}", p_.sensor_name,
                            hint.empty() ? "" : fmt::format(" (did you mean \"{}\"?)", hint)));
@@ -184,10 +184,10 @@ class PiDesign final : public ControllerDesign {
   PiParams p_;
 };
 
-using sim::Key;
+using config::Key;
 
-const sim::Keys& reference_keys() {
-  static const sim::Keys keys{
+const config::Keys& reference_keys() {
+  static const config::Keys keys{
       Key::choice("kind", {"constant", "square"})
           .or_default("constant")
           .help("a constant reference (value) or a square wave (low during the first half of "
@@ -211,10 +211,10 @@ const sim::Keys& reference_keys() {
   return keys;
 }
 
-Reference read_reference(const sim::KeyReader& t) {
+Reference read_reference(const config::KeyReader& t) {
   Reference r;
-  const sim::Table table = t.table("reference");
-  const sim::KeyReader ref(table, *t.keys().at("reference").fields());
+  const config::Table table = t.table("reference");
+  const config::KeyReader ref(table, *t.keys().at("reference").fields());
   const std::string kind = ref.string("kind");
   if (kind == "constant") {
     r.low = r.high = ref.number("value");
@@ -229,8 +229,8 @@ Reference read_reference(const sim::KeyReader& t) {
 
 }  // namespace
 
-const sim::Keys& relay_keys() {
-  static const sim::Keys keys{
+const config::Keys& relay_keys() {
+  static const config::Keys keys{
       Key::number("level").or_default(1.0).help("the relay's output magnitude"),
       Key::number("dead_zone")
           .or_default(0.0)
@@ -250,8 +250,8 @@ const sim::Keys& relay_keys() {
   return keys;
 }
 
-const sim::Keys& pi_keys() {
-  static const sim::Keys keys{
+const config::Keys& pi_keys() {
+  static const config::Keys keys{
       Key::number("kp").or_default(0.0).help("proportional gain"),
       Key::number("ki").or_default(0.0).unit("1/s").help("integral gain"),
       Key::number("b").or_default(1.0).help("reference weight of the proportional term"),
@@ -274,8 +274,8 @@ const sim::Keys& pi_keys() {
   return keys;
 }
 
-std::shared_ptr<ControllerDesign> read_relay(const sim::Table& table, Eigen::Index nu) {
-  const sim::KeyReader t(table, relay_keys());
+std::shared_ptr<ControllerDesign> read_relay(const config::Table& table, Eigen::Index nu) {
+  const config::KeyReader t(table, relay_keys());
   RelayParams p;
   p.level = t.number("level");
   p.dead_zone = t.number("dead_zone");
@@ -296,8 +296,8 @@ std::shared_ptr<ControllerDesign> read_relay(const sim::Table& table, Eigen::Ind
   return design;
 }
 
-std::shared_ptr<ControllerDesign> read_pi(const sim::Table& table, Eigen::Index nu) {
-  const sim::KeyReader t(table, pi_keys());
+std::shared_ptr<ControllerDesign> read_pi(const config::Table& table, Eigen::Index nu) {
+  const config::KeyReader t(table, pi_keys());
   PiParams p;
   p.kp = t.number("kp");
   p.ki = t.number("ki");

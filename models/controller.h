@@ -32,7 +32,7 @@ struct ControlContext {
   const std::vector<Eigen::VectorXd>* measured = nullptr;
   const std::vector<Eigen::VectorXd>* received = nullptr;
   const Eigen::VectorXd* estimate = nullptr;  // the source estimator's xhat[k|k] (nullptr: none)
-  sim::Rng* rng = nullptr;                    // the run's input stream (random inputs)
+  kernel::Rng* rng = nullptr;                 // the run's input stream (random inputs)
 };
 
 class Controller {
@@ -49,7 +49,7 @@ class ControllerDesign {
   virtual ~ControllerDesign() = default;
   // Resolves sensor references and checks sizes against the scenario's sensors; errors at
   // `t` (the [input] table). Called once by the scenario builder before any run.
-  virtual void bind(const sim::Table&, const std::vector<SensorSpec>&) {}
+  virtual void bind(const config::Table&, const std::vector<SensorSpec>&) {}
   // The estimator whose estimate the controller reads ("" for none) and the key that names it.
   virtual std::string estimate_source() const { return ""; }
   virtual const char* source_key() const { return "feedback"; }
@@ -63,10 +63,10 @@ class ControllerDesign {
 
 // Readers of the built-in controllers (registered by models/input.cc).
 // The declared keys of the relay and PI inputs (config/keys.h), read by read_relay / read_pi.
-const sim::Keys& relay_keys();
-const sim::Keys& pi_keys();
-std::shared_ptr<ControllerDesign> read_relay(const sim::Table& t, Eigen::Index nu);
-std::shared_ptr<ControllerDesign> read_pi(const sim::Table& t, Eigen::Index nu);
+const config::Keys& relay_keys();
+const config::Keys& pi_keys();
+std::shared_ptr<ControllerDesign> read_relay(const config::Table& t, Eigen::Index nu);
+std::shared_ptr<ControllerDesign> read_pi(const config::Table& t, Eigen::Index nu);
 
 // A periodic reference: square wave between `low` and `high` with period `period` seconds
 // (`low` for the first half), or a constant.

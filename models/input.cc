@@ -10,7 +10,7 @@ namespace ncosim::models {
 
 namespace {
 
-void require_input_channel(const sim::Table& t, const LinearPlant& plant) {
+void require_input_channel(const config::Table& t, const LinearPlant& plant) {
   if (plant.nu() == 0) {
     t.fail("kind", "expected a plant with an input matrix (Bu or Bc), got a plant without input");
   }
@@ -87,10 +87,10 @@ InputSpec with(std::shared_ptr<ControllerDesign> design) {
   return s;
 }
 
-using sim::Key;
+using config::Key;
 
-const sim::Keys& white_keys() {
-  static const sim::Keys keys{
+const config::Keys& white_keys() {
+  static const config::Keys keys{
       Key::vector("std").help(
           "standard deviation of each input channel (>= 0; one value for every channel, or one "
           "per channel)"),
@@ -98,8 +98,8 @@ const sim::Keys& white_keys() {
   return keys;
 }
 
-const sim::Keys& state_feedback_keys() {
-  static const sim::Keys keys{
+const config::Keys& state_feedback_keys() {
+  static const config::Keys keys{
       Key::matrix("K").help("the gain, nu x n: u = -K x"),
       Key::string("source").or_default("plant").help(
           "\"plant\" (the true state) or the name of the [[estimator]] whose estimate is fed "
@@ -108,11 +108,11 @@ const sim::Keys& state_feedback_keys() {
   return keys;
 }
 
-InputSpec read_none(const sim::Table&, const LinearPlant&) { return with(no_input()); }
+InputSpec read_none(const config::Table&, const LinearPlant&) { return with(no_input()); }
 
-InputSpec read_white(const sim::Table& table, const LinearPlant& plant) {
+InputSpec read_white(const config::Table& table, const LinearPlant& plant) {
   require_input_channel(table, plant);
-  const sim::KeyReader t(table, white_keys());
+  const config::KeyReader t(table, white_keys());
   Eigen::VectorXd std = t.vector("std");
   if (std.size() == 1 && plant.nu() > 1) std = Eigen::VectorXd::Constant(plant.nu(), std(0));
   if (std.size() != plant.nu()) {
@@ -127,18 +127,18 @@ InputSpec read_white(const sim::Table& table, const LinearPlant& plant) {
   return with(std::make_shared<WhiteInputDesign>(std::move(std)));
 }
 
-InputSpec read_state_feedback(const sim::Table& table, const LinearPlant& plant) {
+InputSpec read_state_feedback(const config::Table& table, const LinearPlant& plant) {
   require_input_channel(table, plant);
-  const sim::KeyReader t(table, state_feedback_keys());
+  const config::KeyReader t(table, state_feedback_keys());
   Eigen::MatrixXd K = t.matrix("K");
-  sim::require_shape(table, "K", K, plant.nu(), plant.n());
+  config::require_shape(table, "K", K, plant.nu(), plant.n());
   const std::string source = t.string("source");
   if (source.empty()) t.fail("source", "expected \"plant\" or an estimator name, got \"\"");
   return with(std::make_shared<StateFeedbackDesign>(std::move(K), source));
 }
 
-InputSpec read_controller(const sim::Table& t, const LinearPlant& plant,
-                          std::shared_ptr<ControllerDesign> (*reader)(const sim::Table&,
+InputSpec read_controller(const config::Table& t, const LinearPlant& plant,
+                          std::shared_ptr<ControllerDesign> (*reader)(const config::Table&,
                                                                       Eigen::Index)) {
   require_input_channel(t, plant);
   return with(reader(t, plant.nu()));
@@ -152,7 +152,7 @@ std::shared_ptr<ControllerDesign> no_input() {
 }
 
 void register_inputs(InputRegistry& registry) {
-  registry.add("none", "u = 0", sim::Keys{}, read_none);
+  registry.add("none", "u = 0", config::Keys{}, read_none);
   registry.add("white", "u ~ N(0, std^2) each period, independent channels: std", white_keys(),
                read_white);
   registry.add("state_feedback",
@@ -163,8 +163,9 @@ void register_inputs(InputRegistry& registry) {
       "relay",
       "relay with dead zone, output i drives input i: u_i = -level if y_i > dead_zone, +level if "
       "y_i < -dead_zone, else 0; sees = \"true\" | \"measured\" | \"received\"",
-      relay_keys(),
-      [](const sim::Table& t, const LinearPlant& p) { return read_controller(t, p, read_relay); });
+      relay_keys(), [](const config::Table& t, const LinearPlant& p) {
+        return read_controller(t, p, read_relay);
+      });
   registry.add(
       "pi",
       "discrete PI with reference weighting on one sensor output: u = kp (b r - y) + ki T sum(r - "
@@ -172,7 +173,7 @@ void register_inputs(InputRegistry& registry) {
       "kp, ki, b, reference = {kind = \"square\", low, high, period} or {value}, feedback = "
       "\"received\" | \"measured\" | \"true\" | an estimator name, sensor, output, u_min, u_max",
       pi_keys(),
-      [](const sim::Table& t, const LinearPlant& p) { return read_controller(t, p, read_pi); });
+      [](const config::Table& t, const LinearPlant& p) { return read_controller(t, p, read_pi); });
 }
 
 }  // namespace ncosim::models

@@ -27,7 +27,7 @@ struct InputSpec {
   int actuation_delay = 0;  // periods between computing u[k] and its first effect beyond x[k+1]
 };
 
-using InputRegistry = sim::Registry<InputSpec, const LinearPlant&>;
+using InputRegistry = config::Registry<InputSpec, const LinearPlant&>;
 void register_inputs(InputRegistry& registry);
 
 }  // namespace ncosim::models

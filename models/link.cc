@@ -27,7 +27,7 @@ DelayPmfLink::DelayPmfLink(std::vector<double> pmf, bool independent)
 
 std::unique_ptr<Link> DelayPmfLink::clone() const { return std::make_unique<DelayPmfLink>(*this); }
 
-std::int64_t DelayPmfLink::transmit(sim::Rng& rng) {
+std::int64_t DelayPmfLink::transmit(kernel::Rng& rng) {
   if (independent_) {
     // The packet's first delivered copy: draw every copy (the same draws as
     // transmit_copies) and keep the smallest delivered delay.
@@ -41,7 +41,7 @@ std::int64_t DelayPmfLink::transmit(sim::Rng& rng) {
   return d < cdf_.size() ? static_cast<std::int64_t>(d) : kLost;
 }
 
-void DelayPmfLink::transmit_copies(sim::Rng& rng, std::vector<std::int64_t>& delays) {
+void DelayPmfLink::transmit_copies(kernel::Rng& rng, std::vector<std::int64_t>& delays) {
   if (!independent_) {
     Link::transmit_copies(rng, delays);
     return;
@@ -80,7 +80,7 @@ std::unique_ptr<Link> BernoulliLink::clone() const {
   return std::make_unique<BernoulliLink>(*this);
 }
 
-std::int64_t BernoulliLink::transmit(sim::Rng& rng) {
+std::int64_t BernoulliLink::transmit(kernel::Rng& rng) {
   return uniform(rng) < loss_ ? kLost : delay_;
 }
 
@@ -105,7 +105,7 @@ std::unique_ptr<Link> NegativeBinomialLink::clone() const {
   return std::make_unique<NegativeBinomialLink>(*this);
 }
 
-std::int64_t NegativeBinomialLink::transmit(sim::Rng& rng) {
+std::int64_t NegativeBinomialLink::transmit(kernel::Rng& rng) {
   if (uniform(rng) < loss_) return kLost;
   if (p_ == 1.0) return 0;  // every trial succeeds (Boost's gamma needs a positive scale)
   // Gamma–Poisson mixture; the distribution object holds only (r, p), no allocation.
@@ -144,7 +144,7 @@ std::unique_ptr<Link> ArrivalCdfLink::clone() const {
   return std::make_unique<ArrivalCdfLink>(*this);
 }
 
-std::int64_t ArrivalCdfLink::transmit(sim::Rng& rng) {
+std::int64_t ArrivalCdfLink::transmit(kernel::Rng& rng) {
   // u < lambda_h  <=>  delay <= h, with lambda_h = tail for h >= cdf.size().
   const double u = uniform(rng);
   if (u >= tail_) return kLost;

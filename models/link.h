@@ -74,20 +74,20 @@ class Link {
   virtual std::unique_ptr<Link> clone() const = 0;
   // Called once before period 0 of every run: a Markov link draws its initial state
   // from its stationary law here; a trace link rewinds.
-  virtual void reset(sim::Rng& rng) { (void)rng; }
+  virtual void reset(kernel::Rng& rng) { (void)rng; }
   // Called with the send period k before every packet (periods never decrease within a run): a
   // time-driven link (Markov kinds with step = "period") moves its channel state to period k
   // here, one transition per period, so the state a packet meets depends on when it is sent.
-  virtual void advance(std::int64_t period, sim::Rng& rng) { (void)period, (void)rng; }
+  virtual void advance(std::int64_t period, kernel::Rng& rng) { (void)period, (void)rng; }
   // The fate of the next packet sent on this link: its delay in periods, or kLost.
-  virtual std::int64_t transmit(sim::Rng& rng) = 0;
+  virtual std::int64_t transmit(kernel::Rng& rng) = 0;
   // Delays of every copy of the next packet that is delivered (empty: lost). Physical
   // links deliver at most one copy; the `independent` delay link delivers a copy per
   // delay d independently (the design model of Dolz et al. 2014, Remark 2.3).
   // True when copies are independent measurements (the design model): each delivered copy
   // then carries its own measurement noise, and estimators treat it as a new sample.
   virtual bool independent_copies() const { return false; }
-  virtual void transmit_copies(sim::Rng& rng, std::vector<std::int64_t>& delays) {
+  virtual void transmit_copies(kernel::Rng& rng, std::vector<std::int64_t>& delays) {
     delays.clear();
     const std::int64_t d = transmit(rng);
     if (d != kLost) delays.push_back(d);
@@ -148,8 +148,8 @@ class DelayPmfLink final : public MemorylessLink {
  public:
   explicit DelayPmfLink(std::vector<double> pmf, bool independent = false);
   std::unique_ptr<Link> clone() const override;
-  std::int64_t transmit(sim::Rng& rng) override;
-  void transmit_copies(sim::Rng& rng, std::vector<std::int64_t>& delays) override;
+  std::int64_t transmit(kernel::Rng& rng) override;
+  void transmit_copies(kernel::Rng& rng, std::vector<std::int64_t>& delays) override;
   bool independent_copies() const override { return independent_; }
   std::vector<double> delay_pmf(int max_delay) const override;
   double loss_probability() const override;
@@ -165,7 +165,7 @@ class BernoulliLink final : public MemorylessLink {
  public:
   BernoulliLink(double loss, std::int64_t delay);
   std::unique_ptr<Link> clone() const override;
-  std::int64_t transmit(sim::Rng& rng) override;
+  std::int64_t transmit(kernel::Rng& rng) override;
   std::vector<double> delay_pmf(int max_delay) const override;
   double loss_probability() const override { return loss_; }
 
@@ -181,7 +181,7 @@ class NegativeBinomialLink final : public MemorylessLink {
  public:
   NegativeBinomialLink(int successes, double p, double loss);
   std::unique_ptr<Link> clone() const override;
-  std::int64_t transmit(sim::Rng& rng) override;
+  std::int64_t transmit(kernel::Rng& rng) override;
   std::vector<double> delay_pmf(int max_delay) const override;
   double loss_probability() const override { return loss_; }
 
@@ -197,7 +197,7 @@ class ArrivalCdfLink final : public MemorylessLink {
  public:
   ArrivalCdfLink(std::vector<double> cdf, double tail);
   std::unique_ptr<Link> clone() const override;
-  std::int64_t transmit(sim::Rng& rng) override;
+  std::int64_t transmit(kernel::Rng& rng) override;
   std::vector<double> delay_pmf(int max_delay) const override;
   double loss_probability() const override { return 1.0 - tail_; }
 
@@ -220,14 +220,14 @@ class MarkovLink final : public Link, public LinkReporting {
   MarkovLink(Eigen::MatrixXd transition, std::vector<double> loss,
              std::vector<std::vector<double>> delay_pmf = {}, std::vector<double> initial = {},
              Step step = Step::kPacket);
-  void advance(std::int64_t period, sim::Rng& rng) override;
+  void advance(std::int64_t period, kernel::Rng& rng) override;
   const LinkReporting* reporting() const override { return this; }
   // Bursty losses of which a design uses only the marginal law.
   LossModel loss_model() const override { return LossModel::kCorrelated; }
   StateStep state_step() const override { return step_; }
   std::unique_ptr<Link> clone() const override;
-  void reset(sim::Rng& rng) override;
-  std::int64_t transmit(sim::Rng& rng) override;
+  void reset(kernel::Rng& rng) override;
+  std::int64_t transmit(kernel::Rng& rng) override;
   std::vector<double> delay_pmf(int max_delay) const override;
   double loss_probability() const override;
   Eigen::Matrix2d on_time_chain() const override;
@@ -289,8 +289,8 @@ class TraceLink final : public Link, public LinkReporting, public RunBinding {
   // Recorded losses: a design uses only their marginal law.
   LossModel loss_model() const override { return LossModel::kCorrelated; }
   void bind_run(const MobilityRun* mobility, std::uint64_t seed, std::uint64_t run) override;
-  void reset(sim::Rng& rng) override;
-  std::int64_t transmit(sim::Rng& rng) override;
+  void reset(kernel::Rng& rng) override;
+  std::int64_t transmit(kernel::Rng& rng) override;
   std::vector<double> delay_pmf(int max_delay) const override;
   double loss_probability() const override;
   // The trace's own mean loss-run length when one sender replays it (gap given).

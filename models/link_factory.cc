@@ -13,7 +13,7 @@ namespace ncosim::models {
 
 namespace {
 
-using sim::Key;
+using config::Key;
 
 // `step` of the Markov-chain links.
 Key step_key() {
@@ -24,8 +24,8 @@ Key step_key() {
           "on the link");
 }
 
-const sim::Keys& delay_keys() {
-  static const sim::Keys keys{
+const config::Keys& delay_keys() {
+  static const config::Keys keys{
       Key::numbers("pmf")
           .optional("required unless delivery")
           .help("pmf[d] = P[delay = d periods], d = 0..len-1, lost with probability 1 - sum: "
@@ -49,8 +49,8 @@ const sim::Keys& delay_keys() {
   return keys;
 }
 
-const sim::Keys& bernoulli_keys() {
-  static const sim::Keys keys{
+const config::Keys& bernoulli_keys() {
+  static const config::Keys keys{
       Key::number("loss").probability().or_default(0.0).help("P[lost]"),
       Key::integer("delay")
           .range(0, 1'000'000)
@@ -61,8 +61,8 @@ const sim::Keys& bernoulli_keys() {
   return keys;
 }
 
-const sim::Keys& negative_binomial_keys() {
-  static const sim::Keys keys{
+const config::Keys& negative_binomial_keys() {
+  static const config::Keys keys{
       Key::integer("successes")
           .range(1, 10000)
           .help("r: the delay is the number of failures before the r-th success"),
@@ -76,8 +76,8 @@ const sim::Keys& negative_binomial_keys() {
   return keys;
 }
 
-const sim::Keys& arrival_cdf_keys() {
-  static const sim::Keys keys{
+const config::Keys& arrival_cdf_keys() {
+  static const config::Keys keys{
       Key::numbers("cdf").help(
           "lambda_h = P[delay <= h periods] for h = 0, 1, ...: non-empty, entries in [0, 1], "
           "non-decreasing"),
@@ -89,8 +89,8 @@ const sim::Keys& arrival_cdf_keys() {
   return keys;
 }
 
-const sim::Keys& gilbert_elliott_keys() {
-  static const sim::Keys keys{
+const config::Keys& gilbert_elliott_keys() {
+  static const config::Keys keys{
       Key::number("p_good_to_bad")
           .optional("required unless mean_loss")
           .probability()
@@ -114,8 +114,8 @@ const sim::Keys& gilbert_elliott_keys() {
   return keys;
 }
 
-const sim::Keys& markov_keys() {
-  static const sim::Keys keys{
+const config::Keys& markov_keys() {
+  static const config::Keys keys{
       Key::matrix("transition")
           .help("S x S transition matrix of the chain: square, entries >= 0, rows sum to 1 "
                 "(+-1e-9)"),
@@ -132,8 +132,8 @@ const sim::Keys& markov_keys() {
   return keys;
 }
 
-const sim::Keys& trace_keys() {
-  static const sim::Keys keys{
+const config::Keys& trace_keys() {
+  static const config::Keys keys{
       Key::string("file").help(
           "the CSV of seq,delay (empty delay = lost), relative to the scenario file's folder "
           "unless absolute: a readable regular file of at most 10^9 bytes, lines of at most 4096 "
@@ -148,17 +148,17 @@ const sim::Keys& trace_keys() {
   return keys;
 }
 
-std::vector<double> read_pmf(const sim::KeyReader& r, std::string_view key) {
+std::vector<double> read_pmf(const config::KeyReader& r, std::string_view key) {
   std::vector<double> pmf = r.numbers(key);
   if (pmf.empty()) r.fail(key, "expected at least one probability, got an empty array");
-  sim::require_subprobability(r.table(), key, pmf);
+  config::require_subprobability(r.table(), key, pmf);
   return pmf;
 }
 
 // `delivery` + `shape`: pmf[d] = delivery * shape[d] / sum(shape), so that one scalar (the
 // probability that a sample is delivered at all, or with `independent`, the scale of every
 // copy's probability) can be swept or searched by `ncosim find`.
-std::vector<double> read_delivery(const sim::KeyReader& t) {
+std::vector<double> read_delivery(const config::KeyReader& t) {
   if (t.has("pmf")) t.fail("delivery", "expected either pmf or delivery (with shape), got both");
   const double delivery = t.number("delivery");
   std::vector<double> shape = t.has("shape") ? t.numbers("shape") : std::vector<double>{1.0};
@@ -176,8 +176,8 @@ std::vector<double> read_delivery(const sim::KeyReader& t) {
   return shape;
 }
 
-std::unique_ptr<Link> read_delay(const sim::Table& table, const LinkContext&) {
-  const sim::KeyReader t(table, delay_keys());
+std::unique_ptr<Link> read_delay(const config::Table& table, const LinkContext&) {
+  const config::KeyReader t(table, delay_keys());
   const bool independent = t.boolean("independent");
   if (t.has("delivery")) return std::make_unique<DelayPmfLink>(read_delivery(t), independent);
   if (t.has("shape")) t.fail("shape", "expected shape only with delivery, got no delivery");
@@ -193,21 +193,21 @@ std::unique_ptr<Link> read_delay(const sim::Table& table, const LinkContext&) {
   return std::make_unique<DelayPmfLink>(std::move(pmf), true);
 }
 
-std::unique_ptr<Link> read_bernoulli(const sim::Table& t, const LinkContext&) {
-  const sim::KeyReader r(t, bernoulli_keys());
+std::unique_ptr<Link> read_bernoulli(const config::Table& t, const LinkContext&) {
+  const config::KeyReader r(t, bernoulli_keys());
   return std::make_unique<BernoulliLink>(r.number("loss"), r.integer("delay"));
 }
 
-std::unique_ptr<Link> read_negative_binomial(const sim::Table& table, const LinkContext&) {
-  const sim::KeyReader t(table, negative_binomial_keys());
+std::unique_ptr<Link> read_negative_binomial(const config::Table& table, const LinkContext&) {
+  const config::KeyReader t(table, negative_binomial_keys());
   const auto r = t.integer("successes");
   const double p = t.number("p");
   const double loss = t.number("loss");
   return std::make_unique<NegativeBinomialLink>(static_cast<int>(r), p, loss);
 }
 
-std::unique_ptr<Link> read_arrival_cdf(const sim::Table& table, const LinkContext&) {
-  const sim::KeyReader t(table, arrival_cdf_keys());
+std::unique_ptr<Link> read_arrival_cdf(const config::Table& table, const LinkContext&) {
+  const config::KeyReader t(table, arrival_cdf_keys());
   std::vector<double> cdf = t.numbers("cdf");
   if (cdf.empty()) t.fail("cdf", "expected at least one value, got an empty array");
   for (std::size_t h = 0; h < cdf.size(); ++h) {
@@ -228,12 +228,12 @@ std::unique_ptr<Link> read_arrival_cdf(const sim::Table& table, const LinkContex
 }
 
 // `step`: "period" (default: the chain moves once per control period) or "packet".
-MarkovLink::Step read_step(const sim::KeyReader& t) {
+MarkovLink::Step read_step(const config::KeyReader& t) {
   return t.string("step") == "packet" ? MarkovLink::Step::kPacket : MarkovLink::Step::kPeriod;
 }
 
-std::unique_ptr<Link> read_gilbert_elliott(const sim::Table& table, const LinkContext&) {
-  const sim::KeyReader t(table, gilbert_elliott_keys());
+std::unique_ptr<Link> read_gilbert_elliott(const config::Table& table, const LinkContext&) {
+  const config::KeyReader t(table, gilbert_elliott_keys());
   const MarkovLink::Step step = read_step(t);
   const double lg = t.number("loss_good");
   const double lb = t.number("loss_bad");
@@ -259,8 +259,8 @@ std::unique_ptr<Link> read_gilbert_elliott(const sim::Table& table, const LinkCo
   return make_gilbert_elliott(gb, bg, lg, lb, step);
 }
 
-std::unique_ptr<Link> read_markov(const sim::Table& table, const LinkContext&) {
-  const sim::KeyReader t(table, markov_keys());
+std::unique_ptr<Link> read_markov(const config::Table& table, const LinkContext&) {
+  const config::KeyReader t(table, markov_keys());
   const MarkovLink::Step step = read_step(t);
   const Eigen::MatrixXd T = t.matrix("transition");
   if (T.rows() != T.cols()) {
@@ -309,7 +309,7 @@ std::unique_ptr<Link> read_markov(const sim::Table& table, const LinkContext&) {
     if (static_cast<Eigen::Index>(initial.size()) != s) {
       t.fail("initial", fmt::format("expected {} probabilities, got {}", s, initial.size()));
     }
-    sim::require_subprobability(table, "initial", initial);
+    config::require_subprobability(table, "initial", initial);
     double sum = 0.0;
     for (double p : initial) sum += p;
     if (std::abs(sum - 1.0) > 1e-9)
@@ -319,8 +319,8 @@ std::unique_ptr<Link> read_markov(const sim::Table& table, const LinkContext&) {
                                       step);
 }
 
-std::unique_ptr<Link> read_trace(const sim::Table& table, const LinkContext& ctx) {
-  const sim::KeyReader t(table, trace_keys());
+std::unique_ptr<Link> read_trace(const config::Table& table, const LinkContext& ctx) {
+  const config::KeyReader t(table, trace_keys());
   const std::string file = t.string("file");
   std::filesystem::path path(file);
   if (path.is_relative() && !ctx.scenario_dir.empty())
@@ -328,7 +328,8 @@ std::unique_ptr<Link> read_trace(const sim::Table& table, const LinkContext& ctx
   try {
     int first_row_line = 1;
     auto delays = load_trace(path.string(), &first_row_line);
-    sim::note_input_file(path.string());  // the trace's content is part of the campaign's identity
+    config::note_input_file(
+        path.string());  // the trace's content is part of the campaign's identity
     if (delays.empty()) t.fail("file", fmt::format("trace '{}' holds no packet", path.string()));
     if (ctx.check_trace_delay) {
       // The runs count delivered packets per delay up to the largest one
@@ -361,7 +362,7 @@ std::unique_ptr<Link> read_trace(const sim::Table& table, const LinkContext& ctx
              fmt::format("expected a readable trace file, got '{}' ({})", path.string(), e.what()));
     // The error is in the trace: its file and line first, then the key that named it.
     // format_error escapes every byte that is not printable (file names included).
-    throw sim::ScenarioError(sim::format_error(
+    throw config::ScenarioError(config::format_error(
         e.file, e.line, "",
         fmt::format("{} (the trace named by {}:{}: key '{}')", e.what(), table.file(),
                     table.line_of("file"), table.key_path("file"))));

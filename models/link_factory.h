@@ -24,7 +24,7 @@ struct LinkContext {
       check_trace_delay;
 };
 
-using LinkRegistry = sim::Registry<std::unique_ptr<Link>, const LinkContext&>;
+using LinkRegistry = config::Registry<std::unique_ptr<Link>, const LinkContext&>;
 void register_links(LinkRegistry& registry);
 
 }  // namespace ncosim::models

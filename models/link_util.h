@@ -16,7 +16,7 @@ namespace ncosim::models::link_util {
 // Tolerance on "sums to 1" for laws given by the caller (rows of a transition matrix, ...).
 constexpr double kSumTolerance = 1e-9;
 
-inline double uniform(sim::Rng& rng) {
+inline double uniform(kernel::Rng& rng) {
   boost::random::uniform_01<double> u;
   return u(rng);
 }

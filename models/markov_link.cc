@@ -91,13 +91,13 @@ std::unique_ptr<Link> MarkovLink::clone() const {
   return copy;
 }
 
-void MarkovLink::reset(sim::Rng& rng) {
+void MarkovLink::reset(kernel::Rng& rng) {
   state_ = static_cast<int>(
       sample(initial_cdf_.data(), initial_cdf_.data() + initial_cdf_.size(), uniform(rng)));
   period_ = 0;
 }
 
-void MarkovLink::advance(std::int64_t period, sim::Rng& rng) {
+void MarkovLink::advance(std::int64_t period, kernel::Rng& rng) {
   if (step_ != Step::kPeriod) return;
   const std::size_t n = loss_.size();
   for (; period_ < period; ++period_) {
@@ -106,7 +106,7 @@ void MarkovLink::advance(std::int64_t period, sim::Rng& rng) {
   }
 }
 
-std::int64_t MarkovLink::transmit(sim::Rng& rng) {
+std::int64_t MarkovLink::transmit(kernel::Rng& rng) {
   const auto s = static_cast<std::size_t>(state_);
   std::int64_t delay = kLost;
   if (uniform(rng) >= loss_[s]) {

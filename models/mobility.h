@@ -26,7 +26,7 @@ struct VehicleState {
 class MobilityRun {
  public:
   virtual ~MobilityRun() = default;
-  virtual void advance(sim::SimTime t) = 0;
+  virtual void advance(kernel::SimTime t) = 0;
   virtual const VehicleState& vehicle(int index) const = 0;
 };
 
@@ -38,7 +38,7 @@ class MobilitySource {
   // True when runs must not run concurrently (one libsumo simulation per process).
   virtual bool single_threaded() const = 0;
   // Scenario reading: the index of the vehicle named by t[key] (recorded from then on).
-  virtual int vehicle(const sim::Table& t, std::string_view key) = 0;
+  virtual int vehicle(const config::Table& t, std::string_view key) = 0;
   // Records (or reuses) every realisation once all readers have named their vehicles.
   // Throws ScenarioError (bad input, SUMO errors).
   virtual void prepare() = 0;

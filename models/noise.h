@@ -10,7 +10,7 @@
 namespace ncosim::models {
 
 // out(i) ~ N(0, 1) independent, drawn in index order.
-inline void draw_standard_normal(sim::Rng& rng, Eigen::VectorXd& out) {
+inline void draw_standard_normal(kernel::Rng& rng, Eigen::VectorXd& out) {
   boost::random::normal_distribution<double> normal(0.0, 1.0);
   for (Eigen::Index i = 0; i < out.size(); ++i) out(i) = normal(rng);
 }

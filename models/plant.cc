@@ -54,11 +54,11 @@ void Disturbance::at(std::int64_t k, Eigen::VectorXd& out) const {
   for (const auto& s : sines) out += s.amplitude * std::sin(s.omega * kk + s.phase);
 }
 
-Disturbance read_disturbance(const sim::Table& plant_table, Eigen::Index nw) {
+Disturbance read_disturbance(const config::Table& plant_table, Eigen::Index nw) {
   Disturbance d;
   const auto t = plant_table.opt_table("disturbance");
   if (!t) return d;
-  auto read_channels = [&](const sim::Table& tt, std::string_view key) {
+  auto read_channels = [&](const config::Table& tt, std::string_view key) {
     Eigen::VectorXd v = tt.vector(key);
     if (v.size() == 1 && nw > 1) v = Eigen::VectorXd::Constant(nw, v(0));
     if (v.size() != nw) {
@@ -69,7 +69,7 @@ Disturbance read_disturbance(const sim::Table& plant_table, Eigen::Index nw) {
     return v;
   };
   d.offset = t->has("offset") ? read_channels(*t, "offset") : Eigen::VectorXd::Zero(nw);
-  for (const sim::Table& st : t->tables("sine")) {
+  for (const config::Table& st : t->tables("sine")) {
     Disturbance::Sine s;
     s.amplitude = read_channels(st, "amplitude");
     s.omega = st.number("omega");
@@ -162,12 +162,12 @@ LinearPlant discretise_transfer_function(const std::vector<double>& num,
 
 namespace {
 
-using sim::Key;
+using config::Key;
 
 Key x0_key() { return Key::vector("x0").optional("zeros").help("initial state (n entries)"); }
 
-const sim::Keys& lti_keys() {
-  static const sim::Keys keys{
+const config::Keys& lti_keys() {
+  static const config::Keys keys{
       Key::matrix("A").help("state matrix, n x n (square); n = its size"),
       Key::matrix("Bu").optional("no input (nu = 0)").help("input matrix, n x nu"),
       Key::matrix("Bw").optional("identity n x n").help("noise input matrix, n x nw"),
@@ -179,8 +179,8 @@ const sim::Keys& lti_keys() {
   return keys;
 }
 
-const sim::Keys& lti_continuous_keys() {
-  static const sim::Keys keys{
+const config::Keys& lti_continuous_keys() {
+  static const config::Keys keys{
       Key::matrix("Ac").unit("1/s").help("continuous state matrix, n x n (square)"),
       Key::matrix("Bc").optional("no input").help("continuous input matrix, n x nu"),
       Key::matrix("Gc").optional("identity n x n").help("noise input matrix, n x q"),
@@ -192,8 +192,8 @@ const sim::Keys& lti_continuous_keys() {
   return keys;
 }
 
-const sim::Keys& mode_keys() {
-  static const sim::Keys keys{
+const config::Keys& mode_keys() {
+  static const config::Keys keys{
       Key::matrix("A").optional("the base A").help("this mode's A, n x n"),
       Key::matrix("Bu").optional("the base Bu").help("this mode's Bu, n x nu"),
       Key::matrix("Bw").optional("the base Bw").help("this mode's Bw, n x nw"),
@@ -202,10 +202,10 @@ const sim::Keys& mode_keys() {
   return keys;
 }
 
-const sim::Keys& jump_linear_keys() {
-  static const sim::Keys keys =
+const config::Keys& jump_linear_keys() {
+  static const config::Keys keys =
       lti_keys() +
-      sim::Keys{
+      config::Keys{
           Key::tables("mode")
               .fields(mode_keys())
               .help("[[plant.mode]]: 2 .. 64 tables; mode j = the j-th table (0-based), each "
@@ -218,8 +218,8 @@ const sim::Keys& jump_linear_keys() {
   return keys;
 }
 
-const sim::Keys& transfer_function_keys() {
-  static const sim::Keys keys{
+const config::Keys& transfer_function_keys() {
+  static const config::Keys keys{
       Key::numbers("num").help(
           "numerator, descending powers of s: 1 .. deg(den) finite coefficients"),
       Key::numbers("den").help(
@@ -234,7 +234,7 @@ const sim::Keys& transfer_function_keys() {
   return keys;
 }
 
-Eigen::MatrixXd read_square(const sim::KeyReader& t, std::string_view key) {
+Eigen::MatrixXd read_square(const config::KeyReader& t, std::string_view key) {
   Eigen::MatrixXd A = t.matrix(key);
   if (A.rows() != A.cols()) {
     t.fail(key, fmt::format("expected a square matrix, got {}x{}", A.rows(), A.cols()));
@@ -242,7 +242,7 @@ Eigen::MatrixXd read_square(const sim::KeyReader& t, std::string_view key) {
   return A;
 }
 
-Eigen::VectorXd read_x0(const sim::KeyReader& t, Eigen::Index n) {
+Eigen::VectorXd read_x0(const config::KeyReader& t, Eigen::Index n) {
   if (!t.has("x0")) return Eigen::VectorXd::Zero(n);
   Eigen::VectorXd x0 = t.vector("x0");
   if (x0.size() != n)
@@ -250,78 +250,78 @@ Eigen::VectorXd read_x0(const sim::KeyReader& t, Eigen::Index n) {
   return x0;
 }
 
-LinearPlant read_lti_keys(const sim::KeyReader& t) {
-  const sim::Table& table = t.table();
+LinearPlant read_lti_keys(const config::KeyReader& t) {
+  const config::Table& table = t.table();
   LinearPlant p;
   p.A = read_square(t, "A");
   const Eigen::Index n = p.A.rows();
   p.Bu = t.has("Bu") ? t.matrix("Bu") : Eigen::MatrixXd::Zero(n, 0);
-  if (p.Bu.rows() != n) sim::require_shape(table, "Bu", p.Bu, n, p.Bu.cols());
+  if (p.Bu.rows() != n) config::require_shape(table, "Bu", p.Bu, n, p.Bu.cols());
   p.Bw = t.has("Bw") ? t.matrix("Bw") : Eigen::MatrixXd::Identity(n, n);
-  if (p.Bw.rows() != n) sim::require_shape(table, "Bw", p.Bw, n, p.Bw.cols());
+  if (p.Bw.rows() != n) config::require_shape(table, "Bw", p.Bw, n, p.Bw.cols());
   p.W = t.matrix("W");
-  sim::require_shape(table, "W", p.W, p.Bw.cols(), p.Bw.cols());
-  sim::require_psd(table, "W", p.W);
+  config::require_shape(table, "W", p.W, p.Bw.cols(), p.Bw.cols());
+  config::require_psd(table, "W", p.W);
   p.x0 = read_x0(t, n);
   return p;
 }
 
-LinearPlant read_lti(const sim::Table& t, double /*period*/) {
-  return read_lti_keys(sim::KeyReader(t, lti_keys()));
+LinearPlant read_lti(const config::Table& t, double /*period*/) {
+  return read_lti_keys(config::KeyReader(t, lti_keys()));
 }
 
-LinearPlant read_lti_continuous(const sim::Table& table, double period) {
-  const sim::KeyReader t(table, lti_continuous_keys());
+LinearPlant read_lti_continuous(const config::Table& table, double period) {
+  const config::KeyReader t(table, lti_continuous_keys());
   const Eigen::MatrixXd Ac = read_square(t, "Ac");
   const Eigen::Index n = Ac.rows();
   Eigen::MatrixXd Bc = t.has("Bc") ? t.matrix("Bc") : Eigen::MatrixXd::Zero(n, 0);
-  if (Bc.rows() != n) sim::require_shape(table, "Bc", Bc, n, Bc.cols());
+  if (Bc.rows() != n) config::require_shape(table, "Bc", Bc, n, Bc.cols());
   Eigen::MatrixXd Gc = t.has("Gc") ? t.matrix("Gc") : Eigen::MatrixXd::Identity(n, n);
-  if (Gc.rows() != n) sim::require_shape(table, "Gc", Gc, n, Gc.cols());
+  if (Gc.rows() != n) config::require_shape(table, "Gc", Gc, n, Gc.cols());
   Eigen::MatrixXd Wc = t.matrix("Wc");
-  sim::require_shape(table, "Wc", Wc, Gc.cols(), Gc.cols());
-  sim::require_psd(table, "Wc", Wc);
+  config::require_shape(table, "Wc", Wc, Gc.cols(), Gc.cols());
+  config::require_psd(table, "Wc", Wc);
   LinearPlant p = discretise(Ac, Bc, Gc, Wc, period);
   p.x0 = read_x0(t, n);
   return p;
 }
 
 // jump_linear: the lti keys are the base; each [[plant.mode]] overrides A, Bu, Bw, W.
-LinearPlant read_jump_linear(const sim::Table& table, double /*period*/) {
-  const sim::KeyReader t(table, jump_linear_keys());
+LinearPlant read_jump_linear(const config::Table& table, double /*period*/) {
+  const config::KeyReader t(table, jump_linear_keys());
   LinearPlant p = read_lti_keys(t);
   const Eigen::Index n = p.n();
   const auto tables = t.tables("mode");
   if (tables.size() < 2 || tables.size() > 64) {
     t.fail("mode", fmt::format("expected 2..64 [[plant.mode]] tables, got {}", tables.size()));
   }
-  for (const sim::Table& mt : tables) {
-    const sim::KeyReader mr(mt, mode_keys());
-    const sim::Table& m = mt;
+  for (const config::Table& mt : tables) {
+    const config::KeyReader mr(mt, mode_keys());
+    const config::Table& m = mt;
     PlantMode pm{p.A, p.Bu, p.Bw, p.W};
     if (mr.has("A")) {
       pm.A = mr.matrix("A");
-      sim::require_shape(m, "A", pm.A, n, n);
+      config::require_shape(m, "A", pm.A, n, n);
     }
     if (mr.has("Bu")) {
       pm.Bu = mr.matrix("Bu");
-      sim::require_shape(m, "Bu", pm.Bu, n, p.nu());
+      config::require_shape(m, "Bu", pm.Bu, n, p.nu());
     }
     if (mr.has("Bw")) {
       pm.Bw = mr.matrix("Bw");
-      sim::require_shape(m, "Bw", pm.Bw, n, p.nw());
+      config::require_shape(m, "Bw", pm.Bw, n, p.nw());
     }
     if (mr.has("W")) {
       pm.W = mr.matrix("W");
-      sim::require_shape(m, "W", pm.W, p.nw(), p.nw());
-      sim::require_psd(m, "W", pm.W);
+      config::require_shape(m, "W", pm.W, p.nw(), p.nw());
+      config::require_psd(m, "W", pm.W);
     }
     m.finish();
     p.modes.push_back(std::move(pm));
   }
   const auto s = static_cast<Eigen::Index>(p.modes.size());
   p.mode_transition = t.matrix("transition");
-  sim::require_shape(table, "transition", p.mode_transition, s, s);
+  config::require_shape(table, "transition", p.mode_transition, s, s);
   for (Eigen::Index i = 0; i < s; ++i) {
     const auto row = p.mode_transition.row(i);
     if (row.minCoeff() < 0.0 || std::abs(row.sum() - 1.0) > 1e-9) {
@@ -345,8 +345,8 @@ LinearPlant read_jump_linear(const sim::Table& table, double /*period*/) {
   return p;
 }
 
-LinearPlant read_transfer_function(const sim::Table& table, double period) {
-  const sim::KeyReader t(table, transfer_function_keys());
+LinearPlant read_transfer_function(const config::Table& table, double period) {
+  const config::KeyReader t(table, transfer_function_keys());
   const std::vector<double> num = t.numbers("num");
   const std::vector<double> den = t.numbers("den");
   if (den.size() < 2 || den[0] == 0.0) {

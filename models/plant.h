@@ -76,7 +76,7 @@ struct Disturbance {
   void at(std::int64_t k, Eigen::VectorXd& out) const;  // out += w_det[k]
 };
 // Reads the optional `disturbance` sub-table of [plant] (offset, [[sine]] amplitude, omega, phase).
-Disturbance read_disturbance(const sim::Table& plant_table, Eigen::Index nw);
+Disturbance read_disturbance(const config::Table& plant_table, Eigen::Index nw);
 
 // Continuous transfer function num(s)/den(s) e^{-dead_time s} (descending powers, strictly
 // proper), realised in controllable canonical form and discretised by zero-order hold at
@@ -93,7 +93,7 @@ Eigen::MatrixXd psd_sqrt(const Eigen::MatrixXd& M);
 // defined in link.cc beside the Markov links that also use it.
 Eigen::VectorXd stationary_law(const Eigen::MatrixXd& transition);
 
-using PlantRegistry = sim::Registry<LinearPlant, double /*period seconds*/>;
+using PlantRegistry = config::Registry<LinearPlant, double /*period seconds*/>;
 void register_plants(PlantRegistry& registry);
 
 }  // namespace ncosim::models

@@ -48,7 +48,8 @@ class LinearProcess : public PlantProcess {
       : plant_(plant),
         disturbance_(*run.disturbance),
         recentre_(run.recentre),
-        rng_(sim::make_stream(run.seed, run.run, sim::stream_id(sim::StreamKind::kPlant, 0))),
+        rng_(kernel::make_stream(run.seed, run.run,
+                                 kernel::stream_id(kernel::StreamKind::kPlant, 0))),
         w_sqrt_(psd_sqrt(plant.W)),
         w_(plant.nw()),
         scaled_(plant.nw()),
@@ -80,7 +81,7 @@ class LinearProcess : public PlantProcess {
   const LinearPlant& plant_;
   const Disturbance& disturbance_;
   bool recentre_;
-  sim::Rng rng_;
+  kernel::Rng rng_;
   Eigen::MatrixXd w_sqrt_;
   Eigen::VectorXd w_, scaled_, next_;
 };
@@ -90,7 +91,8 @@ class JumpLinearProcess final : public LinearProcess {
  public:
   JumpLinearProcess(const LinearPlant& plant, const PlantRun& run)
       : LinearProcess(plant, run),
-        mode_rng_(sim::make_stream(run.seed, run.run, sim::stream_id(sim::StreamKind::kPlant, 1))) {
+        mode_rng_(kernel::make_stream(run.seed, run.run,
+                                      kernel::stream_id(kernel::StreamKind::kPlant, 1))) {
     for (const auto& pm : plant.modes) mode_w_sqrt_.push_back(psd_sqrt(pm.W));
   }
 
@@ -122,7 +124,7 @@ class JumpLinearProcess final : public LinearProcess {
     product(next_, pm.Bw, w_, 1.0, true);
   }
 
-  sim::Rng mode_rng_;
+  kernel::Rng mode_rng_;
   std::vector<Eigen::MatrixXd> mode_w_sqrt_;
 };
 

@@ -56,26 +56,26 @@ class SendOnDeltaDesign final : public SendPolicyDesign {
   Eigen::VectorXd delta_;
 };
 
-using sim::Key;
+using config::Key;
 
-const sim::Keys& send_on_delta_keys() {
-  static const sim::Keys keys{
+const config::Keys& send_on_delta_keys() {
+  static const config::Keys keys{
       Key::vector("delta").help(
           "threshold per output (finite, >= 0; one value for every output, or one per output)"),
   };
   return keys;
 }
 
-std::shared_ptr<const SendPolicyDesign> read_periodic(const sim::Table& t, const SensorSpec&) {
+std::shared_ptr<const SendPolicyDesign> read_periodic(const config::Table& t, const SensorSpec&) {
   if (t.has("delta"))
     t.fail("delta",
            "expected no threshold with policy = \"periodic\" (set policy = \"send_on_delta\")");
   return periodic_policy();
 }
 
-std::shared_ptr<const SendPolicyDesign> read_send_on_delta(const sim::Table& table,
+std::shared_ptr<const SendPolicyDesign> read_send_on_delta(const config::Table& table,
                                                            const SensorSpec& s) {
-  const sim::KeyReader t(table, send_on_delta_keys());
+  const config::KeyReader t(table, send_on_delta_keys());
   Eigen::VectorXd delta = t.vector("delta");
   if (delta.size() == 1 && s.ny() > 1) delta = Eigen::VectorXd::Constant(s.ny(), delta(0));
   if (delta.size() != s.ny()) {
@@ -99,7 +99,7 @@ std::shared_ptr<const SendPolicyDesign> periodic_policy() {
 }
 
 void register_send_policies(SendPolicyRegistry& registry) {
-  registry.add("periodic", "every sample is sent (default)", sim::Keys{}, read_periodic);
+  registry.add("periodic", "every sample is sent (default)", config::Keys{}, read_periodic);
   registry.add("send_on_delta",
                "a sample is sent when |y_i - y_i(last sent)| >= delta_i for some output i (the "
                "first is always "

@@ -45,7 +45,7 @@ class SendPolicyDesign {
 // Factories read the policy's keys from the [[sensor]] table; the SensorSpec holds what was
 // read before the policy (C, R, every, buffer).
 using SendPolicyRegistry =
-    sim::Registry<std::shared_ptr<const SendPolicyDesign>, const SensorSpec&>;
+    config::Registry<std::shared_ptr<const SendPolicyDesign>, const SensorSpec&>;
 void register_send_policies(SendPolicyRegistry& registry);
 
 // The built-in periodic policy (the default of every sensor).

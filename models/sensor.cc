@@ -7,39 +7,39 @@
 
 namespace ncosim::models {
 
-const sim::Keys& sensor_keys() {
-  static const sim::Keys keys{
-      sim::Key::string("name")
+const config::Keys& sensor_keys() {
+  static const config::Keys keys{
+      config::Key::string("name")
           .optional("\"y1\", \"y2\", ... (1-based position)")
           .help("unique among sensors; names the arrived: column of trajectory.csv"),
-      sim::Key::any("C", "matrix ny x n or \"output\"")
+      config::Key::any("C", "matrix ny x n or \"output\"")
           .help("output matrix, one row per output of this sensor (all rows travel in one packet), "
                 "n columns; \"output\": the plant's own output matrix (a plant kind with an "
                 "output, e.g. transfer_function)"),
-      sim::Key::matrix("R").help("measurement-noise covariance, ny x ny"),
-      sim::Key::string("link")
+      config::Key::matrix("R").help("measurement-noise covariance, ny x ny"),
+      config::Key::string("link")
           .optional("ideal link")
           .help("the name of the [[link]] its packets cross (ideal: delay 0, never lost)"),
-      sim::Key::integer("every")
+      config::Key::integer("every")
           .range(1, 1'000'000)
           .says("an integer in 1..1000000 (1e6)")
           .or_default(1)
           .unit("periods")
           .help("sample every `every` periods (multi-rate)"),
-      sim::Key::integer("buffer").range(0, 62).or_default(0).help(
+      config::Key::integer("buffer").range(0, 62).or_default(0).help(
           "each packet also carries the `buffer` previous samples of this sensor (fewer at the "
           "start), newest first, with their time stamps; 0 on a delay link with independent = "
           "true and with send_on_delta"),
-      sim::Key::choice("resend_noise", {"same", "fresh"})
+      config::Key::choice("resend_noise", {"same", "fresh"})
           .or_default("same")
           .help("same: a sample re-sent in later buffered packets carries its own noise every time "
                 "(physical); fresh: every re-send carries a new noise draw, y = C x[stamp] + v', "
                 "and counts as an independent copy (the jump observer's design model for "
                 "buffered packets, Dolz et al. example 3)"),
-      sim::Key::choice("noise", {"gaussian", "uniform"})
+      config::Key::choice("noise", {"gaussian", "uniform"})
           .or_default("gaussian")
           .help("uniform: v_i ~ U(-sqrt(3 R_ii), sqrt(3 R_ii)); R must be diagonal"),
-      sim::Key::string("policy")
+      config::Key::string("policy")
           .optional("\"periodic\"")
           .help("when a sample is sent: \"periodic\", \"send_on_delta\" (its delta below) or "
                 "a registered policy (ncosim list)"),
@@ -47,7 +47,7 @@ const sim::Keys& sensor_keys() {
   return keys;
 }
 
-int read_link_ref(const sim::KeyReader& t, const std::vector<std::string>& links) {
+int read_link_ref(const config::KeyReader& t, const std::vector<std::string>& links) {
   const auto ref = t.opt_string("link");
   if (!ref) return -1;
   const std::string& name = *ref;
@@ -55,7 +55,7 @@ int read_link_ref(const sim::KeyReader& t, const std::vector<std::string>& links
   if (it == links.end()) {
     std::string list;
     for (const auto& l : links) list += (list.empty() ? "" : ", ") + fmt::format("\"{}\"", l);
-    const std::string hint = sim::did_you_mean(name, links);
+    const std::string hint = config::did_you_mean(name, links);
     t.fail("link", fmt::format("expected the name of a [[link]] ({}), got \"{}\"{}",
                                list.empty() ? "none defined" : list, name,
                                hint.empty() ? "" : fmt::format(" (did you mean \"{}\"?)", hint)));
@@ -63,10 +63,10 @@ int read_link_ref(const sim::KeyReader& t, const std::vector<std::string>& links
   return static_cast<int>(it - links.begin());
 }
 
-SensorSpec read_sensor(const sim::Table& table, const LinearPlant& plant,
+SensorSpec read_sensor(const config::Table& table, const LinearPlant& plant,
                        const std::vector<std::string>& links, int index,
                        const SendPolicyRegistry& policies) {
-  const sim::KeyReader t(table, sensor_keys());
+  const config::KeyReader t(table, sensor_keys());
   SensorSpec s;
   s.name = t.opt_string("name").value_or(fmt::format("y{}", index + 1));
   if (table.is_string("C")) {
@@ -87,8 +87,8 @@ SensorSpec read_sensor(const sim::Table& table, const LinearPlant& plant,
                             s.C.rows(), s.C.cols()));
   }
   s.R = t.matrix("R");
-  sim::require_shape(table, "R", s.R, s.C.rows(), s.C.rows());
-  sim::require_psd(table, "R", s.R);
+  config::require_shape(table, "R", s.R, s.C.rows(), s.C.rows());
+  config::require_psd(table, "R", s.R);
   s.link = read_link_ref(t, links);
   s.every = static_cast<int>(t.integer("every"));
   s.buffer = static_cast<int>(t.integer("buffer"));

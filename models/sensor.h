@@ -35,16 +35,16 @@ struct SensorSpec {
 };
 
 // The keys of a [[sensor]] table beside its send policy's (`ncosim list --keys section.sensor`).
-const sim::Keys& sensor_keys();
+const config::Keys& sensor_keys();
 
 // The optional `link` key of a sensor or actuator table: the index of the named [[link]] in
 // `links`, -1 when absent (ideal link); an unknown name fails with the list and a suggestion.
-int read_link_ref(const sim::KeyReader& t, const std::vector<std::string>& links);
+int read_link_ref(const config::KeyReader& t, const std::vector<std::string>& links);
 
 // Reads one [[sensor]] table through sensor_keys(); `links` are the scenario's link names (for
 // `link`).
 
-SensorSpec read_sensor(const sim::Table& t, const LinearPlant& plant,
+SensorSpec read_sensor(const config::Table& t, const LinearPlant& plant,
                        const std::vector<std::string>& links, int index,
                        const SendPolicyRegistry& policies);
 

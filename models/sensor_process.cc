@@ -12,7 +12,7 @@ namespace ncosim::models {
 namespace {
 
 // Unit-variance noise: standard normal, or uniform on [-sqrt 3, sqrt 3].
-void draw_noise(sim::Rng& rng, SensorSpec::Noise kind, Eigen::VectorXd& out) {
+void draw_noise(kernel::Rng& rng, SensorSpec::Noise kind, Eigen::VectorXd& out) {
   if (kind == SensorSpec::Noise::kGaussian) {
     draw_standard_normal(rng, out);
     return;
@@ -27,8 +27,9 @@ SensorProcess::SensorProcess(const SensorSpec& spec, int index, std::uint64_t se
                              std::uint64_t run)
     : spec_(spec),
       index_(index),
-      rng_(sim::make_stream(
-          seed, run, sim::stream_id(sim::StreamKind::kSensor, static_cast<std::uint64_t>(index)))),
+      rng_(kernel::make_stream(
+          seed, run,
+          kernel::stream_id(kernel::StreamKind::kSensor, static_cast<std::uint64_t>(index)))),
       r_sqrt_(psd_sqrt(spec.R)),
       noise_(spec.ny()),
       stamps_(static_cast<std::size_t>(spec.buffer) + 1, 0),

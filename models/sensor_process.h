@@ -36,7 +36,7 @@ class SensorProcess {
  private:
   const SensorSpec& spec_;
   int index_;
-  sim::Rng rng_;
+  kernel::Rng rng_;
   Eigen::MatrixXd r_sqrt_;
   Eigen::VectorXd noise_;
   std::vector<std::int64_t>

@@ -39,12 +39,12 @@ void TraceLink::bind_run(const MobilityRun* mobility, std::uint64_t seed, std::u
       segment_ > 0 ? static_cast<std::size_t>(run % (delays_.size() / segment_)) * segment_ : 0;
 }
 
-void TraceLink::reset(sim::Rng& rng) {
+void TraceLink::reset(kernel::Rng& rng) {
   (void)rng;
   next_ = start_;
 }
 
-std::int64_t TraceLink::transmit(sim::Rng& rng) {
+std::int64_t TraceLink::transmit(kernel::Rng& rng) {
   (void)rng;
   NCOSIM_CHECK(next_ < (segment_ > 0 ? start_ + segment_ : delays_.size()));
   const auto& d = delays_[next_++];
@@ -213,7 +213,7 @@ class TraceReader {
 }  // namespace
 
 TraceError::TraceError(std::string f, int l, const std::string& what)
-    : std::runtime_error(sim::escape_text(what)), file(std::move(f)), line(l) {}
+    : std::runtime_error(config::escape_text(what)), file(std::move(f)), line(l) {}
 
 std::vector<std::optional<std::int64_t>> load_trace(const std::string& path, int* first_row_line) {
   TraceReader in(path);

@@ -204,10 +204,10 @@ Channel make_preset(const std::string& name) {
   throw std::invalid_argument(name);
 }
 
-using sim::Key;
+using config::Key;
 
-const sim::Keys& channel_keys() {
-  static const sim::Keys keys{
+const config::Keys& channel_keys() {
+  static const config::Keys keys{
       Key::choice("preset", preset_names())
           .or_default("veins_nakagami3")
           .help("the channel preset (below); the keys below override its values"),
@@ -280,7 +280,7 @@ const sim::Keys& channel_keys() {
 namespace {
 
 // fading, sigma, m, m_bounds over the preset's fading.
-void read_fading(const sim::KeyReader& t, Fading& fading) {
+void read_fading(const config::KeyReader& t, Fading& fading) {
   if (const auto f = t.opt_string("fading")) {
     fading = Fading{};
     if (*f == "lognormal") {
@@ -310,7 +310,7 @@ void read_fading(const sim::KeyReader& t, Fading& fading) {
 }
 
 // mac and its law's keys (only those of the chosen law are read).
-void read_delay(const sim::KeyReader& t, DelayLaw& d) {
+void read_delay(const config::KeyReader& t, DelayLaw& d) {
   if (t.string("mac") == "80211p") {
     d.kind = DelayLaw::Kind::k80211p;
     d.rate = t.number("rate") * 1e6;
@@ -328,8 +328,8 @@ void read_delay(const sim::KeyReader& t, DelayLaw& d) {
 
 }  // namespace
 
-Channel read_channel(const sim::Table& table) {
-  const sim::KeyReader t(table, channel_keys());
+Channel read_channel(const config::Table& table) {
+  const config::KeyReader t(table, channel_keys());
   Channel c = make_preset(t.string("preset"));
   // Table::number refuses inf and nan: a given power is finite.
   c.tx_power_dbm = t.opt_number("tx_power").value_or(c.tx_power_dbm);
@@ -385,12 +385,12 @@ std::uint64_t name_hash(const std::string& name) {
 
 std::uint64_t stream_key(std::uint64_t seed, std::uint64_t run, std::uint64_t sender,
                          std::uint64_t receiver) {
-  using sim::splitmix64;
+  using kernel::splitmix64;
   return splitmix64(splitmix64(splitmix64(splitmix64(seed) ^ run) ^ sender) ^ receiver);
 }
 
 double keyed_uniform(std::uint64_t key, std::uint64_t seq, std::uint64_t draw) {
-  using sim::splitmix64;
+  using kernel::splitmix64;
   const std::uint64_t z = splitmix64(splitmix64(key ^ splitmix64(seq)) ^ draw);
   return static_cast<double>(z >> 11) * 0x1.0p-53;
 }

@@ -91,9 +91,9 @@ double free_space_db(double d, double frequency);
 // `preset` then per-key overrides (tx_power, threshold, fading, sigma, m, m_bounds, mac, rate,
 // size, aifsn, cw, backoff, t1, t2). The defaults of tx_power, threshold and the fading are the
 // preset's; those of the delay law equal DelayLaw's initialisers (tests/sumo checks it).
-const sim::Keys& channel_keys();
+const config::Keys& channel_keys();
 // Reads them through channel_keys(). ScenarioError when bad.
-Channel read_channel(const sim::Table& t);
+Channel read_channel(const config::Table& t);
 
 // `ncosim channel PRESET`: p(d) and the delay law as text or CSV, and a gnuplot script.
 std::string channel_table(const Channel& ch, double max_distance, double step, bool csv);

@@ -147,7 +147,7 @@ class WorkerRun final : public models::MobilityRun {
   WorkerRun(const WorkerRun&) = delete;
   WorkerRun& operator=(const WorkerRun&) = delete;
 
-  void advance(sim::SimTime t) override {
+  void advance(kernel::SimTime t) override {
     const std::int64_t target = t / step_ns_;
     if (target <= frame_) return;
     if (pid_ < 0)

@@ -92,7 +92,7 @@ class LiveRun final : public models::MobilityRun {
  public:
   LiveRun(const SumoInputs& in, std::uint64_t seed, const std::vector<std::string>& vehicles)
       : session_(in, seed, vehicles), step_ns_(in.step_ms * 1'000'000) {}
-  void advance(sim::SimTime t) override {
+  void advance(kernel::SimTime t) override {
     const std::int64_t target = t / step_ns_;
     while (frame_ < target) {
       session_.step();

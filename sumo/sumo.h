@@ -16,8 +16,8 @@ namespace ncosim::sumo {
 void register_links(models::LinkRegistry& registry);
 void register_plants(models::PlantRegistry& registry);
 // The [sumo] table read (files checked); recording happens in MobilitySource::prepare().
-std::shared_ptr<models::MobilitySource> make_mobility(const sim::Table& t,
-                                                      const sim::RunSettings& run,
+std::shared_ptr<models::MobilitySource> make_mobility(const config::Table& t,
+                                                      const config::RunSettings& run,
                                                       const std::string& dir);
 // A kind whose table names vehicles of the [sumo] mobility (models::MobilitySource::vehicle)
 // declares those keys when it registers, so that they are known before its table is read: the

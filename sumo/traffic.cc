@@ -51,7 +51,7 @@ std::vector<std::string> config_inputs(const fs::path& cfg) {
 class ReplayRun final : public models::MobilityRun {
  public:
   explicit ReplayRun(const Recording& r) : r_(r), step_ns_(r.step_ms * 1'000'000) {}
-  void advance(sim::SimTime t) override { frame_ = std::min(t / step_ns_, r_.frames - 1); }
+  void advance(kernel::SimTime t) override { frame_ = std::min(t / step_ns_, r_.frames - 1); }
   const models::VehicleState& vehicle(int index) const override { return r_.at(frame_, index); }
 
  private:
@@ -73,7 +73,7 @@ std::string default_cache_dir() {
   return (fs::temp_directory_path() / "ncosim-sumo-cache").string();
 }
 
-Mobility::Mobility(const sim::Table& t, const sim::RunSettings& run, const std::string& dir)
+Mobility::Mobility(const config::Table& t, const config::RunSettings& run, const std::string& dir)
     : file_(t.file()) {
   auto resolve = [&](const std::string& f) {
     fs::path p(f);
@@ -110,7 +110,8 @@ Mobility::Mobility(const sim::Table& t, const sim::RunSettings& run, const std::
       inputs_.files.push_back(add);
     }
   }
-  for (const auto& f : inputs_.files) sim::note_input_file(f);  // part of the campaign's identity
+  for (const auto& f : inputs_.files)
+    config::note_input_file(f);  // part of the campaign's identity
   line_ = t.line_of(config_key_);
   const double step = t.number_or("step", 0.1);
   const double ms = step * 1000.0;
@@ -131,12 +132,12 @@ Mobility::Mobility(const sim::Table& t, const sim::RunSettings& run, const std::
   first_seed_ = static_cast<std::uint64_t>(first);
   live_ = t.choice_or("mode", "replay", {"replay", "live"}) == "live";
   cache_dir_ = t.has("cache") ? resolve(t.string("cache")) : default_cache_dir();
-  horizon_ns_ = (run.periods - 1) * sim::seconds_to_time(run.period);
+  horizon_ns_ = (run.periods - 1) * kernel::seconds_to_time(run.period);
   frames_ = horizon_ns_ / (inputs_.step_ms * 1'000'000) + 1;
   t.finish();
 }
 
-int Mobility::vehicle(const sim::Table& t, std::string_view key) {
+int Mobility::vehicle(const config::Table& t, std::string_view key) {
   const std::string id = t.string(key);
   if (id.empty()) t.fail(key, "expected a SUMO vehicle id, got an empty string");
   if (id.find_first_of(" \t\n\r|\\'\";,<>&") != std::string::npos) {  // as SUMO's own id check
@@ -250,16 +251,16 @@ void declare_vehicle_keys(VehicleTable table, std::string kind, std::vector<std:
 void announce_vehicles(const toml::table& doc, const std::string& file, const std::string& dir) {
   const toml::table* sumo = doc["sumo"].as_table();
   if (sumo == nullptr) return;
-  sim::RunSettings run;
+  config::RunSettings run;
   if (const auto* r = doc["run"].as_table()) {
     run.periods = (*r)["periods"].value_or(run.periods);
     run.period = (*r)["period"].value_or(run.period);
   }
   std::string key;
   try {
-    const sim::Table t(*sumo, "sumo", file);
+    const config::Table t(*sumo, "sumo", file);
     key = Mobility(t, run, dir).traffic_key();
-  } catch (const sim::ScenarioError&) {
+  } catch (const config::ScenarioError&) {
     return;  // a bad [sumo] table: the case's own build reports it
   }
   std::vector<std::string> v;
@@ -325,8 +326,8 @@ void Mobility::prepare() {
 }
 
 void Mobility::fail(const std::string& why) const {
-  throw sim::ScenarioError(
-      sim::format_error(file_, line_, fmt::format("sumo.{}", config_key_), why));
+  throw config::ScenarioError(
+      config::format_error(file_, line_, fmt::format("sumo.{}", config_key_), why));
 }
 
 void Mobility::load(const RecordingJob& j) {
@@ -336,7 +337,7 @@ void Mobility::load(const RecordingJob& j) {
     if (!holds(all, vehicles_) || all.frames != frames_)
       fail(fmt::format("recording '{}' does not match; remove it", j.path));
     recordings_.push_back(project(all, vehicles_));
-  } catch (const sim::ScenarioError&) {
+  } catch (const config::ScenarioError&) {
     throw;
   } catch (const std::exception& e) {
     fs::remove(j.path, ec);  // a bad cache entry is re-recorded next time
@@ -351,12 +352,12 @@ void Mobility::load(const RecordingJob& j) {
       seen = r.at(f, static_cast<int>(v)).present;
     if (!seen) {
       const Origin& o = origins_[v];
-      throw sim::ScenarioError(sim::format_error(
+      throw config::ScenarioError(config::format_error(
           o.file, o.line, o.path,
           fmt::format("vehicle \"{}\" never drives in SUMO (seed {}) during the {:g} s horizon: "
                       "unknown id, or it "
                       "departs later",
-                      vehicles_[v], j.seed, sim::time_to_seconds(horizon_ns_))));
+                      vehicles_[v], j.seed, kernel::time_to_seconds(horizon_ns_))));
     }
   }
 }

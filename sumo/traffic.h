@@ -97,8 +97,8 @@ std::unique_ptr<models::MobilityRun> start_live(const SumoInputs& in, std::uint6
 
 class Mobility final : public models::MobilitySource {
  public:
-  Mobility(const sim::Table& t, const sim::RunSettings& run, const std::string& dir);
-  int vehicle(const sim::Table& t, std::string_view key) override;
+  Mobility(const config::Table& t, const config::RunSettings& run, const std::string& dir);
+  int vehicle(const config::Table& t, std::string_view key) override;
   void prepare() override;
   std::unique_ptr<models::MobilityRun> start(std::uint64_t run) const override;
   bool single_threaded() const override { return live_; }

@@ -54,7 +54,7 @@ class DistanceLink final : public models::Link,
     seq_ = 0;
   }
 
-  std::int64_t transmit(sim::Rng&) override {
+  std::int64_t transmit(kernel::Rng&) override {
     const std::uint64_t seq = seq_++;
     if (run_ == nullptr) return models::kLost;
     const double d =
@@ -98,7 +98,7 @@ class DistanceLink final : public models::Link,
 
   template <class F>
   void for_each_distance(F&& f) const {
-    const auto period_ns = sim::seconds_to_time(period_);
+    const auto period_ns = kernel::seconds_to_time(period_);
     for (const Recording& rec : mobility_->recordings()) {
       const std::int64_t step_ns = rec.step_ms * 1'000'000;
       const std::int64_t horizon = (rec.frames - 1) * step_ns;
@@ -119,13 +119,13 @@ class DistanceLink final : public models::Link,
   std::uint64_t key_ = 0, seq_ = 0;
 };
 
-using sim::Key;
+using config::Key;
 
 // The keys of sumo_distance: the link's own, then the channel's (declared and read by
 // sumo/channel.cc; some defaults are the preset's).
-const sim::Keys& sumo_distance_keys() {
-  static const sim::Keys keys =
-      sim::Keys{
+const config::Keys& sumo_distance_keys() {
+  static const config::Keys keys =
+      config::Keys{
           Key::string("sender").help("transmitting vehicle: a vehicle id driving in the horizon"),
           Key::string("receiver")
               .optional("one of receiver, receiver_position required")
@@ -143,8 +143,8 @@ const sim::Keys& sumo_distance_keys() {
   return keys;
 }
 
-const sim::Keys& sumo_vehicle_keys() {
-  static const sim::Keys keys{
+const config::Keys& sumo_vehicle_keys() {
+  static const config::Keys keys{
       Key::string("vehicle").help(
           "the SUMO vehicle: an id that drives during the horizon in every realisation (else "
           "exit 2 naming this key)"),
@@ -162,10 +162,10 @@ const sim::Keys& sumo_vehicle_keys() {
   return keys;
 }
 
-std::unique_ptr<models::Link> read_sumo_distance(const sim::Table& table,
+std::unique_ptr<models::Link> read_sumo_distance(const config::Table& table,
                                                  const models::LinkContext& ctx) {
-  const sim::Table& t = table;
-  const sim::KeyReader r(table, sumo_distance_keys());
+  const config::Table& t = table;
+  const config::KeyReader r(table, sumo_distance_keys());
   auto mobility = std::dynamic_pointer_cast<Mobility>(ctx.mobility);
   if (!mobility)
     t.fail("kind", "expected a [sumo] table (the vehicles' mobility) for a sumo_distance link");
@@ -198,8 +198,8 @@ std::unique_ptr<models::Link> read_sumo_distance(const sim::Table& table,
 
 // The declared kinematic design model of a SUMO vehicle's longitudinal motion. The true
 // state (position along the route, speed[, acceleration]) comes from SUMO.
-models::LinearPlant read_sumo_vehicle(const sim::Table& table, double period) {
-  const sim::KeyReader t(table, sumo_vehicle_keys());
+models::LinearPlant read_sumo_vehicle(const config::Table& table, double period) {
+  const config::KeyReader t(table, sumo_vehicle_keys());
   table.allow("vehicle");  // bound to the mobility by the scenario reader (vehicle_key)
   const std::string model = t.string("model");
   const double q = t.number("q");
@@ -243,8 +243,8 @@ void register_plants(models::PlantRegistry& registry) {
   declare_vehicle_keys(VehicleTable::kPlant, "sumo_vehicle", {"vehicle"});
 }
 
-std::shared_ptr<models::MobilitySource> make_mobility(const sim::Table& t,
-                                                      const sim::RunSettings& run,
+std::shared_ptr<models::MobilitySource> make_mobility(const config::Table& t,
+                                                      const config::RunSettings& run,
                                                       const std::string& dir) {
   return std::make_shared<Mobility>(t, run, dir);
 }

@@ -18,7 +18,7 @@ template <class F>
 std::string error_of(F&& f) {
   try {
     f();
-  } catch (const sim::ScenarioError& e) {
+  } catch (const config::ScenarioError& e) {
     return e.what();
   }
   return "";

@@ -71,10 +71,10 @@ class AlphaBetaDesign final : public EstimatorDesign {
 
 // The keys, declared as data (config/keys.h): the reader gets its values through them, and
 // `ncosim list --keys`, the docs and `ncosim schema` show them. Defaults and ranges live here only.
-const ncosim::sim::Keys& alpha_beta_keys() {
-  using ncosim::sim::Key;
-  static const ncosim::sim::Keys keys =
-      ncosim::sim::Keys{
+const ncosim::config::Keys& alpha_beta_keys() {
+  using ncosim::config::Key;
+  static const ncosim::config::Keys keys =
+      ncosim::config::Keys{
           Key::number("alpha").above(0.0).max(1.0).noun("a gain").or_default(0.5).help(
               "position gain"),
           Key::number("beta").above(0.0).below(2.0).noun("a gain").or_default(0.1).help(
@@ -84,13 +84,14 @@ const ncosim::sim::Keys& alpha_beta_keys() {
   return keys;
 }
 
-std::unique_ptr<EstimatorDesign> read_alpha_beta(const ncosim::sim::Table& t, const Model& model) {
+std::unique_ptr<EstimatorDesign> read_alpha_beta(const ncosim::config::Table& t,
+                                                 const Model& model) {
   if (model.plant.n() != 2 || model.sensors.size() != 1 || model.sensors[0].spec.ny() != 1) {
     t.fail_here(fmt::format(
         "expected a 2-state plant and one sensor with one output, got {} states and {} sensors",
         model.plant.n(), model.sensors.size()));
   }
-  const ncosim::sim::KeyReader r(t, alpha_beta_keys());
+  const ncosim::config::KeyReader r(t, alpha_beta_keys());
   const double alpha = r.number("alpha"), beta = r.number("beta");
   Gains g;
   g.A = model.plant.A;
@@ -102,8 +103,8 @@ std::unique_ptr<EstimatorDesign> read_alpha_beta(const ncosim::sim::Table& t, co
 
 // The design's cost before it starts (optional; without it ncosim assumes a Riccati iteration on
 // the plant state): it copies A, C and the gains, a few n x n matrices and no iteration.
-ncosim::est::DesignCost alpha_beta_cost(const ncosim::sim::Table& /*t*/, const toml::table& /*raw*/,
-                                        const ncosim::est::Model& model,
+ncosim::est::DesignCost alpha_beta_cost(const ncosim::config::Table& /*t*/,
+                                        const toml::table& /*raw*/, const ncosim::est::Model& model,
                                         const std::string& /*state_driver*/) {
   const double n = static_cast<double>(model.plant.n());
   return {4.0 * 8.0 * n * n, 4.0 * n * n, ""};

@@ -54,7 +54,7 @@ class DeadbandHeartbeatDesign final : public SendPolicyDesign {
 };
 
 std::shared_ptr<const SendPolicyDesign> read_deadband_heartbeat(
-    const ncosim::sim::Table& t, const ncosim::models::SensorSpec& s) {
+    const ncosim::config::Table& t, const ncosim::models::SensorSpec& s) {
   Eigen::VectorXd delta = t.vector("delta");
   if (delta.size() == 1) delta = Eigen::VectorXd::Constant(s.ny(), delta(0));
   if (delta.size() != s.ny() || !delta.allFinite() || delta.minCoeff() < 0.0) {

@@ -9,7 +9,7 @@
 
 namespace {
 
-ncosim::models::LinearPlant read_mass_spring_damper(const ncosim::sim::Table& t, double period) {
+ncosim::models::LinearPlant read_mass_spring_damper(const ncosim::config::Table& t, double period) {
   const double m = t.number("mass"), k = t.number_or("stiffness", 0.0),
                c = t.number_or("damping", 0.0);
   const double sigma = t.number("sigma");

@@ -18,10 +18,10 @@ class PeriodicOutage final : public ncosim::models::Link {
   std::unique_ptr<Link> clone() const override {
     return std::make_unique<PeriodicOutage>(cycle_, outage_, delay_);
   }
-  void reset(ncosim::sim::Rng& rng) override {
+  void reset(ncosim::kernel::Rng& rng) override {
     phase_ = boost::random::uniform_int_distribution<std::int64_t>(0, cycle_ - 1)(rng);
   }
-  std::int64_t transmit(ncosim::sim::Rng&) override {
+  std::int64_t transmit(ncosim::kernel::Rng&) override {
     const std::int64_t slot = phase_;
     phase_ = (phase_ + 1) % cycle_;
     return slot >= cycle_ - outage_ ? ncosim::models::kLost : delay_;
@@ -40,7 +40,7 @@ class PeriodicOutage final : public ncosim::models::Link {
   std::int64_t phase_ = 0;
 };
 
-std::unique_ptr<ncosim::models::Link> read_periodic_outage(const ncosim::sim::Table& t,
+std::unique_ptr<ncosim::models::Link> read_periodic_outage(const ncosim::config::Table& t,
                                                            const ncosim::models::LinkContext&) {
   const std::int64_t cycle = t.integer("cycle"), outage = t.integer("outage"),
                      delay = t.integer_or("delay", 0);

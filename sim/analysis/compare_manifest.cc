@@ -210,7 +210,7 @@ bool next_record(CsvReader& reader, CsvRecord& r) {
     return reader.next(r);
   } catch (const CompareInputError&) {
     throw;
-  } catch (const ScenarioError& e) {
+  } catch (const config::ScenarioError& e) {
     throw CompareInputError(e.what());
   }
 }
@@ -392,7 +392,7 @@ void read_row_statuses(RunFolder& f) {
     t = parse_csv(slurp(file), file.string());
   } catch (const CompareInputError&) {
     throw;
-  } catch (const ScenarioError& e) {
+  } catch (const config::ScenarioError& e) {
     throw CompareInputError(e.what());
   }
   const int c_est = t.column("estimator"), c_status = t.column("status"),

@@ -186,7 +186,8 @@ std::size_t reference_case_index(const LoadedScenario& loaded) {
   const PairedSettings& p = loaded.cases.front().scenario->paired;
   if (p.reference_case.empty()) return 0;
   auto fail = [&](const std::string& msg) {
-    throw ScenarioError(format_error(p.file, p.reference_case_line, "paired.reference_case", msg));
+    throw config::ScenarioError(
+        config::format_error(p.file, p.reference_case_line, "paired.reference_case", msg));
   };
   if (loaded.sweeps.empty())
     fail("expected [[sweep]] tables (a reference case names sweep values), got none");
@@ -201,7 +202,7 @@ std::size_t reference_case_index(const LoadedScenario& loaded) {
         keys.push_back(s.key);
         list += (list.empty() ? "" : ", ") + fmt::format("\"{}\"", s.key);
       }
-      const std::string hint = did_you_mean(key, keys);
+      const std::string hint = config::did_you_mean(key, keys);
       fail(fmt::format("expected a swept key path ({}), got \"{}\"{}", list, key,
                        hint.empty() ? "" : fmt::format(" (did you mean \"{}\"?)", hint)));
     }

@@ -13,9 +13,9 @@
 namespace ncosim::sim {
 
 // Bad input to compare (a ScenarioError: `ncosim` prints it and exits 2).
-class CompareInputError : public ScenarioError {
+class CompareInputError : public config::ScenarioError {
  public:
-  using ScenarioError::ScenarioError;
+  using config::ScenarioError::ScenarioError;
 };
 
 // One output folder as compare reads it.

@@ -45,19 +45,20 @@ namespace {
 // --target-ci, --max-runs and --replace checked before the scenario is read.
 void check_target_options(const RunCommand& cmd) {
   if (cmd.replace && cmd.resume) {
-    throw ScenarioError(
+    throw config::ScenarioError(
         "--replace: not with --resume (--resume continues the stored campaign, --replace discards "
         "it)");
   }
-  if (!cmd.target_ci && cmd.max_runs > 0) throw ScenarioError("--max-runs: only with --target-ci");
+  if (!cmd.target_ci && cmd.max_runs > 0)
+    throw config::ScenarioError("--max-runs: only with --target-ci");
   if (cmd.target_ci &&
       (!std::isfinite(*cmd.target_ci) || *cmd.target_ci <= 0.0 || *cmd.target_ci >= 1.0)) {
-    throw ScenarioError(
+    throw config::ScenarioError(
         fmt::format("--target-ci: expected a relative half-width in (0, 1), e.g. 0.01, got {}",
                     *cmd.target_ci));
   }
   if (cmd.target_ci && cmd.max_runs <= 0) {
-    throw ScenarioError(
+    throw config::ScenarioError(
         "--target-ci: --max-runs N is required (the most runs per case before giving up)");
   }
 }
@@ -70,12 +71,12 @@ TargetRule target_rule(const RunCommand& cmd, const LoadedScenario& loaded,
   const auto batch = loaded.cases.front().scenario->run.runs;
   for (const auto& c : loaded.cases) {
     if (c.scenario->run.runs != batch) {
-      throw ScenarioError(
+      throw config::ScenarioError(
           "--target-ci: every sweep case must have the same run.runs (the batch size)");
     }
   }
   if (cmd.max_runs < batch) {
-    throw ScenarioError(fmt::format(
+    throw config::ScenarioError(fmt::format(
         "--max-runs: expected at least run.runs = {} (one batch), got {}", batch, cmd.max_runs));
   }
   bool reachable = false;
@@ -84,7 +85,7 @@ TargetRule target_rule(const RunCommand& cmd, const LoadedScenario& loaded,
       reachable = reachable || e.design->report().status == "ok";
   }
   if (!reachable)
-    throw ScenarioError(
+    throw config::ScenarioError(
         "--target-ci: no estimator has a working design, so no row has an mse to reach the target");
   meta["target_ci"] = fmt::format("{:.17g}", *cmd.target_ci);
   meta["max_runs"] = std::to_string(cmd.max_runs);
@@ -153,7 +154,7 @@ bool check_replace(const RunCommand& cmd, const LoadedScenario& loaded,
   const std::string what = r->diff.empty() ? "an unfinished campaign"
                            : r->unfinished ? "a different, unfinished campaign"
                                            : "a different campaign";
-  throw ScenarioError(
+  throw config::ScenarioError(
       fmt::format("--out: '{}' holds {} finished run(s) of {} ({}){}; {}`--replace` starts afresh "
                   "and replaces them, or choose "
                   "another --out",
@@ -181,7 +182,7 @@ RunStore open_run_store(const RunCommand& cmd, const LoadedScenario& loaded,
     check_campaign_meta(stored, what);
     const std::string diff = identity_difference(stored, meta, true);
     if (!diff.empty()) {
-      throw ScenarioError(
+      throw config::ScenarioError(
           fmt::format("--resume: {} holds a different campaign: {} differ(s) (stored vs now); run "
                       "without --resume to start afresh, or choose another --out",
                       what, diff));
@@ -191,7 +192,7 @@ RunStore open_run_store(const RunCommand& cmd, const LoadedScenario& loaded,
   try {
     if (!fs::exists(partial, ec)) {
       if (!fs::exists(live, ec)) {
-        throw ScenarioError(
+        throw config::ScenarioError(
             fmt::format("--resume: no run store to resume in '{}' (expected {})", cmd.out, live));
       }
       // The finished set's store goes on in a copy beside the folder; the set stays as it is.
@@ -208,7 +209,7 @@ RunStore open_run_store(const RunCommand& cmd, const LoadedScenario& loaded,
     return store;
   } catch (const StoreError& e) {
     if (copied) remove_store_files(partial);
-    throw ScenarioError(fmt::format("--resume: {}", e.what()));
+    throw config::ScenarioError(fmt::format("--resume: {}", e.what()));
   } catch (...) {
     if (copied) remove_store_files(partial);
     throw;
@@ -333,7 +334,7 @@ int finish_session(const RunCommand& cmd, const std::string& md, const LoadedSce
 std::unique_ptr<MpiSession> start_mpi() {
   if (!mpi_launched()) return nullptr;
   if (!mpi_available()) {
-    throw ScenarioError(
+    throw config::ScenarioError(
         "started by mpirun with several ranks, but this ncosim was built without MPI "
         "(CMake option NCOSIM_MPI; Debian libboost-mpi-dev libopenmpi-dev)");
   }

@@ -262,7 +262,7 @@ void check_campaign_meta(const std::map<std::string, std::string>& meta, const s
   if (const auto it = meta.find("shard"); it != meta.end() && !it->second.empty()) {
     try {
       (void)parse_shard(it->second);
-    } catch (const ScenarioError&) {
+    } catch (const config::ScenarioError&) {
       throw m.bad("shard", "empty or I/N with 1 <= I <= N");
     }
   }
@@ -288,9 +288,9 @@ LoadedScenario reload(const std::map<std::string, std::string>& meta, const std:
   try {
     loaded = load_cases_text(meta.at("scenario_path"), meta.at("scenario_text"), sets,
                              overrides_of(meta));
-  } catch (const ScenarioError& e) {
+  } catch (const config::ScenarioError& e) {
     // The text is the store's, not the file's on disk (which may have changed since).
-    throw ScenarioError(
+    throw config::ScenarioError(
         fmt::format("run store '{}': the scenario text stored in it (of {}) does not load: {}",
                     path, meta.at("scenario_file"), e.what()));
   }
@@ -314,7 +314,7 @@ LoadedScenario reload(const std::map<std::string, std::string>& meta, const std:
     nlohmann::json now = nlohmann::json::object();
     for (const auto& [file, h] : loaded.inputs) now[file] = h;
     if (json_text(now) != it->second) {
-      throw ScenarioError(
+      throw config::ScenarioError(
           fmt::format("run store '{}': {} changed since the campaign ran; restore it to use this "
                       "store (the exports would describe other inputs than the runs had)",
                       path, input_files_difference(it->second, json_text(now))));
@@ -429,7 +429,7 @@ TargetDecision decide_target(const LoadedScenario& loaded,
 
 Shard parse_shard(const std::string& text) {
   const auto bad = [&] {
-    return ScenarioError(
+    return config::ScenarioError(
         fmt::format("--shard: expected I/N with 1 <= I <= N (e.g. 2/4), got '{}'", text));
   };
   const auto slash = text.find('/');

@@ -115,7 +115,7 @@ std::vector<std::pair<std::string, std::string>> export_c_files(const LoadedScen
     }
   }
   if (items.empty())
-    throw ScenarioError(
+    throw config::ScenarioError(
         fmt::format("{}: --export-c: no estimator of kind jump to export", loaded.file));
   for (const auto& name : skipped) {
     std::cerr << fmt::format(
@@ -203,8 +203,8 @@ int cmd_find(const CommonArgs& a, const FindOptions& opt, const std::string& tar
 int cmd_codesign(const CommonArgs& a, const CodesignOptions& opt, const std::string& command_line) {
   LoadedScenario loaded = load_cases(a.file, a.sets, a.overrides);
   if (loaded.cases.size() != 1) {
-    throw ScenarioError(
-        format_error(a.file, 0, "sweep", "expected a scenario without [[sweep]] for codesign"));
+    throw config::ScenarioError(config::format_error(
+        a.file, 0, "sweep", "expected a scenario without [[sweep]] for codesign"));
   }
   const std::string out = a.out.empty() ? default_out(a.file) : a.out;
   prepare_output_dir(out);
@@ -551,7 +551,7 @@ std::optional<int> unknown_command(const CLI::App& app, int argc, char** argv) {
   std::vector<std::string> commands;
   for (const CLI::App* sub : app.get_subcommands({})) commands.push_back(sub->get_name());
   if (std::find(commands.begin(), commands.end(), argv[1]) != commands.end()) return std::nullopt;
-  const std::string hint = did_you_mean(argv[1], commands);
+  const std::string hint = config::did_you_mean(argv[1], commands);
   std::cerr << fmt::format(
       "ncosim: expected a command (run, export, merge, design, find, codesign, compare, fit, "
       "record-link, check, plot, report or list), got "
@@ -607,7 +607,7 @@ int run_cli(int argc, char** argv) {
   const auto code = [&]() -> int {
     try {
       return cl.dispatch(command_line);
-    } catch (const ScenarioError& e) {
+    } catch (const config::ScenarioError& e) {
       std::cerr << "ncosim: " << e.what() << "\n";
       return 2;
     } catch (const lmi::ResourceLimitError& e) {

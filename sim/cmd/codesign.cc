@@ -76,7 +76,7 @@ nlohmann::json run_codesign(const Scenario& sc, const CodesignOptions& options) 
     found = true;
     const double mu = options.mu > 0.0 ? options.mu : d->mu();
     if (!(mu >= 1.0)) {
-      throw ScenarioError(format_error(
+      throw config::ScenarioError(config::format_error(
           sc.file, 0, e.name, fmt::format("expected mu >= 1 ([codesign] mu or --mu), got {}", mu)));
     }
     const est::sod::SodDesignResult z0 = est::sod::design_all_measurements(d->system());
@@ -84,8 +84,8 @@ nlohmann::json run_codesign(const Scenario& sc, const CodesignOptions& options) 
       throw std::runtime_error(fmt::format("{}: the z~0 LMI failed ({})", e.name, z0.status));
     const auto spec = d->codesign_spec(mu, z0.bound);
     if (!spec) {
-      throw ScenarioError(
-          format_error(sc.file, 0, e.name, "expected one output per sensor for the co-design"));
+      throw config::ScenarioError(config::format_error(
+          sc.file, 0, e.name, "expected one output per sensor for the co-design"));
     }
     auto progress = [&](const est::sod::CodesignStep& s) {
       if (!options.progress) return;
@@ -99,7 +99,7 @@ nlohmann::json run_codesign(const Scenario& sc, const CodesignOptions& options) 
     out.push_back(codesign_json(e.name, *d, *spec, z0, mu, r, sc.model.sensors.size()));
   }
   if (!found) {
-    throw ScenarioError(format_error(
+    throw config::ScenarioError(config::format_error(
         sc.file, 0, "estimator",
         options.estimator.empty()
             ? "expected at least one sod_jump estimator to co-design"

@@ -429,7 +429,7 @@ int cmd_export(const std::string& dir, const std::string& out, const std::string
     loaded = reload(meta, path);
     store.verify(loaded.cases.size(), run_limit(loaded, meta));
   } catch (const StoreError& e) {
-    throw ScenarioError(fmt::format("export: {}", e.what()));
+    throw config::ScenarioError(fmt::format("export: {}", e.what()));
   }
   bool same_folder = false;
   {
@@ -445,7 +445,7 @@ int cmd_export(const std::string& dir, const std::string& out, const std::string
   try {
     files = derive_exports(loaded, store, info, nullptr);
   } catch (const StoreError& e) {
-    throw ScenarioError(fmt::format("export: {}", e.what()));
+    throw config::ScenarioError(fmt::format("export: {}", e.what()));
   }
   if (same_folder) {
     // The set's own store is carried over as it is; figures derived from it stay valid.

@@ -50,11 +50,11 @@ std::optional<int> run_figure_commands(FigureCommands& fc) {
     std::stringstream ss(fc.formats);
     for (std::string f; std::getline(ss, f, ',');) {
       if (f != "png" && f != "svg")
-        throw ScenarioError(fmt::format("--format '{}': expected png, svg or png,svg", f));
+        throw config::ScenarioError(fmt::format("--format '{}': expected png, svg or png,svg", f));
       fc.plot_options.formats.push_back(f);
     }
     if (fc.plot_options.formats.empty())
-      throw ScenarioError("--format: expected png, svg or png,svg");
+      throw config::ScenarioError("--format: expected png, svg or png,svg");
     return plot_command(fc.dir, fc.plot_options);
   }
   if (fc.report != nullptr && fc.report->parsed()) {

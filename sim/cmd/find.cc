@@ -25,7 +25,7 @@ FindTarget parse_target(const std::string& text, const std::string& origin) {
     }
   }
   auto bad = [&](const std::string& why) {
-    throw ScenarioError(
+    throw config::ScenarioError(
         fmt::format("{}: expected QUANTITY<=VALUE (or >=, <, >), e.g. "
                     "'predicted_mse<=0.03', got '{}' ({})",
                     origin, text, why));
@@ -122,11 +122,14 @@ namespace {
 // Refuses a range, tolerance or scan that cannot be searched.
 void check_find_options(const FindOptions& opt) {
   if (!(opt.lo < opt.hi))
-    throw ScenarioError(fmt::format("--lo: expected lo < hi, got {} and {}", opt.lo, opt.hi));
+    throw config::ScenarioError(
+        fmt::format("--lo: expected lo < hi, got {} and {}", opt.lo, opt.hi));
   if (!(opt.tol > 0.0))
-    throw ScenarioError(fmt::format("--tol: expected a positive tolerance, got {}", opt.tol));
+    throw config::ScenarioError(
+        fmt::format("--tol: expected a positive tolerance, got {}", opt.tol));
   if (opt.scan < 1)
-    throw ScenarioError(fmt::format("--scan: expected at least 1 interval, got {}", opt.scan));
+    throw config::ScenarioError(
+        fmt::format("--scan: expected at least 1 interval, got {}", opt.scan));
 }
 
 // Case 0 at lo: the sweep axes (into res), the estimator names, and a check that the key loads.
@@ -155,8 +158,8 @@ std::vector<std::string> chosen_estimators(const std::string& file, const FindOp
   std::vector<std::string> chosen = opt.estimators.empty() ? names : opt.estimators;
   for (const auto& n : chosen) {
     if (std::find(names.begin(), names.end(), n) == names.end()) {
-      const std::string hint = did_you_mean(n, names);
-      throw ScenarioError(
+      const std::string hint = config::did_you_mean(n, names);
+      throw config::ScenarioError(
           fmt::format("--estimator: expected an estimator name of {}, got \"{}\"{}", file, n,
                       hint.empty() ? "" : fmt::format(" (did you mean \"{}\"?)", hint)));
     }

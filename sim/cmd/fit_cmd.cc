@@ -60,13 +60,14 @@ models::FitOptions fit_options(const FitArgs& a, const std::string& stem) {
   if (!a.families.empty()) o.families = a.families;
   for (const auto& f : o.families) {
     if (models::family_states(f) == 0) {
-      throw ScenarioError(fmt::format(
+      throw config::ScenarioError(fmt::format(
           "--family: expected bernoulli, delay, gilbert_elliott or markov2 .. markov8, got '{}'",
           f));
     }
   }
   if (a.criterion != "bic" && a.criterion != "aic") {
-    throw ScenarioError(fmt::format("--criterion: expected bic or aic, got '{}'", a.criterion));
+    throw config::ScenarioError(
+        fmt::format("--criterion: expected bic or aic, got '{}'", a.criterion));
   }
   o.starts = a.starts;
   o.link_name = a.name.empty() ? stem : a.name;
@@ -81,19 +82,20 @@ std::vector<int> trace_symbols(const std::string& path, int last_line) {
   try {
     trace = models::load_trace(path, &first_row_line);
   } catch (const models::TraceError& e) {
-    throw ScenarioError(e.line > 0 ? format_error(e.file, e.line, "", e.what())
-                                   : std::string(e.what()));
+    throw config::ScenarioError(e.line > 0 ? config::format_error(e.file, e.line, "", e.what())
+                                           : std::string(e.what()));
   }
   if (trace.empty())
-    throw ScenarioError(format_error(path, last_line, "", "the trace holds no packet"));
+    throw config::ScenarioError(
+        config::format_error(path, last_line, "", "the trace holds no packet"));
   // The families' laws are dense in the delay: a longer delay is bad input at its line.
   for (std::size_t i = 0; i < trace.size(); ++i) {
     if (trace[i] && *trace[i] > models::kMaxFitDelay) {
-      throw ScenarioError(
-          format_error(path, first_row_line + static_cast<int>(i), "",
-                       fmt::format("delay: expected at most {} periods (the largest delay the fit "
-                                   "families hold), got {}",
-                                   models::kMaxFitDelay, *trace[i])));
+      throw config::ScenarioError(config::format_error(
+          path, first_row_line + static_cast<int>(i), "",
+          fmt::format("delay: expected at most {} periods (the largest delay the fit "
+                      "families hold), got {}",
+                      models::kMaxFitDelay, *trace[i])));
     }
   }
   return models::fate_symbols(trace);
@@ -108,16 +110,16 @@ std::vector<models::FitResult> fit_families(const FitArgs& a, const models::FitO
     try {
       fits.push_back(models::fit_family(f, sym, o));
     } catch (const std::invalid_argument& e) {
-      throw ScenarioError(
-          format_error(a.trace, last_line, "",
-                       fmt::format("{} (choose smaller families with --family)", e.what())));
+      throw config::ScenarioError(config::format_error(
+          a.trace, last_line, "",
+          fmt::format("{} (choose smaller families with --family)", e.what())));
     } catch (const std::domain_error& e) {
       if (a.families.empty()) {
         std::cerr << fmt::format("ncosim fit: {} skipped: {}\n", f, e.what());
         continue;
       }
-      throw ScenarioError(
-          format_error(a.trace, last_line, "", fmt::format("--family {}: {}", f, e.what())));
+      throw config::ScenarioError(config::format_error(
+          a.trace, last_line, "", fmt::format("--family {}: {}", f, e.what())));
     }
   }
   return fits;

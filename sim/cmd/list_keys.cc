@@ -19,7 +19,7 @@ struct ListedKeys {
   std::string name;  // "link.bernoulli"
   std::string kind;  // "bernoulli"
   std::string help;
-  const Keys* keys;
+  const config::Keys* keys;
 };
 
 template <class R>
@@ -53,11 +53,11 @@ void print(const ListedKeys& k, bool markdown) {
       std::cout << "No keys of its own.\n";
       return;
     }
-    std::cout << format_keys(*k.keys, true);
+    std::cout << config::format_keys(*k.keys, true);
     return;
   }
   std::cout << fmt::format("{}: {}\n", k.name, k.help);
-  std::cout << (k.keys->empty() ? "  (no keys of its own)\n" : format_keys(*k.keys, false));
+  std::cout << (k.keys->empty() ? "  (no keys of its own)\n" : config::format_keys(*k.keys, false));
 }
 
 }  // namespace
@@ -71,11 +71,11 @@ int cmd_list_keys(const std::string& kind, bool markdown) {
   if (chosen.empty()) {
     std::vector<std::string> names;
     for (const auto& k : all) names.push_back(k.name);
-    const std::string hint = did_you_mean(kind, names);
+    const std::string hint = config::did_you_mean(kind, names);
     std::cerr << fmt::format(
         "ncosim: expected a kind (e.g. link.bernoulli; `ncosim list` lists "
         "them), got '{}'{}\n",
-        escape_text(kind), hint.empty() ? "" : fmt::format(" (did you mean '{}'?)", hint));
+        config::escape_text(kind), hint.empty() ? "" : fmt::format(" (did you mean '{}'?)", hint));
     return 2;
   }
   for (std::size_t i = 0; i < chosen.size(); ++i) {

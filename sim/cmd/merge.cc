@@ -56,7 +56,8 @@ ShardStores open_shards(const std::string& out, const std::vector<std::string>& 
   std::error_code ec;
   for (const auto& d : dirs) {
     if (fs::exists(out, ec) && fs::exists(d, ec) && fs::equivalent(out, d, ec)) {
-      throw ScenarioError(fmt::format("merge: the output folder '{}' is also an input", out));
+      throw config::ScenarioError(
+          fmt::format("merge: the output folder '{}' is also an input", out));
     }
   }
   ShardStores s;
@@ -66,11 +67,11 @@ ShardStores open_shards(const std::string& out, const std::vector<std::string>& 
       s.metas.push_back(s.stores.back().meta());
       check_campaign_meta(s.metas.back(), store_path(d));
     } catch (const StoreError& e) {
-      throw ScenarioError(fmt::format("merge: {}", e.what()));
+      throw config::ScenarioError(fmt::format("merge: {}", e.what()));
     }
     const std::string diff = identity_difference(s.metas.front(), s.metas.back(), false);
     if (!diff.empty()) {
-      throw ScenarioError(
+      throw config::ScenarioError(
           fmt::format("merge: {} and {} are shards of different campaigns: {} differ(s)",
                       store_path(dirs.front()), store_path(d), diff));
     }
@@ -87,7 +88,7 @@ std::map<std::pair<std::size_t, std::uint64_t>, std::size_t> run_owners(
       for (std::uint64_t r : shards.stores[s].done_runs(c)) {
         const auto [it, fresh] = owner.emplace(std::make_pair(c, r), s);
         if (!fresh) {
-          throw ScenarioError(
+          throw config::ScenarioError(
               fmt::format("merge: run {} of case {} is in both {} and {} (overlapping shards)", r,
                           c + 1, store_path(dirs[it->second]), store_path(dirs[s])));
         }
@@ -117,7 +118,7 @@ void check_complete(const std::map<std::pair<std::size_t, std::uint64_t>, std::s
   if (missing_count > 0) {
     std::string list;
     for (std::size_t i = 0; i < missing.size(); ++i) list += (i ? ", " : "") + missing[i];
-    throw ScenarioError(fmt::format(
+    throw config::ScenarioError(fmt::format(
         "merge: {} run(s) missing from the given stores (first: {}); merge every shard, "
         "each complete (`ncosim run ... --shard I/N --resume` finishes one)",
         missing_count, list));
@@ -180,7 +181,7 @@ void merge_case(ShardStores& shards, RunStore& merged, const Scenario& sc, std::
 
 int cmd_merge(const std::string& out, const std::vector<std::string>& dirs,
               const std::string& command_line) {
-  if (dirs.empty()) throw ScenarioError("merge: expected at least one shard folder");
+  if (dirs.empty()) throw config::ScenarioError("merge: expected at least one shard folder");
   ShardStores shards = open_shards(out, dirs);
   LoadedScenario loaded;
   try {
@@ -189,7 +190,7 @@ int cmd_merge(const std::string& out, const std::vector<std::string>& dirs,
       shards.stores[i].verify(loaded.cases.size(), run_limit(loaded, shards.metas[i]));
     }
   } catch (const StoreError& e) {
-    throw ScenarioError(fmt::format("merge: {}", e.what()));
+    throw config::ScenarioError(fmt::format("merge: {}", e.what()));
   }
   // Every (case, run) exactly once.
   const auto owner = run_owners(shards, dirs, loaded);

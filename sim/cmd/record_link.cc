@@ -26,14 +26,14 @@ std::vector<std::size_t> senders(const Scenario& sc, std::size_t l) {
   const auto& name = sc.links[l].name;
   for (const auto& a : sc.model.actuators) {
     if (a.spec.link == static_cast<int>(l)) {
-      throw ScenarioError(
+      throw config::ScenarioError(
           fmt::format("--link: link '{}' carries an actuator's commands: only links of periodic "
                       "sensors can be recorded",
                       name));
     }
   }
   if (sc.links[l].link->independent_copies()) {
-    throw ScenarioError(
+    throw config::ScenarioError(
         fmt::format("--link: link '{}' delivers independent copies (several delays per packet): a "
                     "trace holds one",
                     name));
@@ -43,7 +43,7 @@ std::vector<std::size_t> senders(const Scenario& sc, std::size_t l) {
     const auto& spec = sc.model.sensors[s].spec;
     if (spec.link != static_cast<int>(l)) continue;
     if (!spec.policy->sends_every_sample()) {
-      throw ScenarioError(
+      throw config::ScenarioError(
           fmt::format("--link: sensor {} on link '{}' sends by policy \"{}\" (its send times "
                       "depend on the simulation): only "
                       "sensors that send every sample can be recorded",
@@ -52,7 +52,7 @@ std::vector<std::size_t> senders(const Scenario& sc, std::size_t l) {
     out.push_back(s);
   }
   if (out.empty())
-    throw ScenarioError(fmt::format("--link: link '{}' carries no sensor's packets", name));
+    throw config::ScenarioError(fmt::format("--link: link '{}' carries no sensor's packets", name));
   return out;
 }
 
@@ -67,7 +67,7 @@ RecordedTrace record_link(const Scenario& sc, std::size_t l, std::int64_t runs) 
     out.per_run += (periods + every - 1) / every;
   }
   if (out.per_run * runs > kMaxPackets) {
-    throw ScenarioError(
+    throw config::ScenarioError(
         fmt::format("--runs/--periods: recording link '{}' gives {} runs x {} packets, more than "
                     "the {} packets a trace link "
                     "reads",
@@ -75,7 +75,7 @@ RecordedTrace record_link(const Scenario& sc, std::size_t l, std::int64_t runs) 
   }
   out.delays.reserve(static_cast<std::size_t>(out.per_run * runs));
   const std::uint64_t seed = sc.run.seed;
-  const SimTime period_ns = seconds_to_time(sc.run.period);
+  const kernel::SimTime period_ns = kernel::seconds_to_time(sc.run.period);
   std::vector<std::int64_t> copies;
   for (std::int64_t r = 0; r < runs; ++r) {
     const auto run = static_cast<std::uint64_t>(r);
@@ -83,7 +83,8 @@ RecordedTrace record_link(const Scenario& sc, std::size_t l, std::int64_t runs) 
     std::unique_ptr<models::MobilityRun> mobility;
     if (sc.mobility) mobility = sc.mobility->start(run);
     auto link = sc.links[l].link->clone();
-    Rng rng = make_stream(seed, run, stream_id(StreamKind::kLink, l));
+    kernel::Rng rng =
+        kernel::make_stream(seed, run, kernel::stream_id(kernel::StreamKind::kLink, l));
     models::bind_run(*link, mobility.get(), seed, run);
     link->reset(rng);
     for (std::int64_t k = 0; k < periods; ++k) {
@@ -109,8 +110,9 @@ int cmd_record_link(const RecordLinkArgs& a) {
     names += (i ? ", " : "") + first.links[i].name;
   }
   if (l == first.links.size()) {
-    throw ScenarioError(fmt::format("--link: expected the name of a [[link]] of {} ({}), got '{}'",
-                                    a.file, names.empty() ? "it has none" : names, a.link));
+    throw config::ScenarioError(
+        fmt::format("--link: expected the name of a [[link]] of {} ({}), got '{}'", a.file,
+                    names.empty() ? "it has none" : names, a.link));
   }
   const std::string out = a.out.empty()
                               ? (std::filesystem::path("out") /

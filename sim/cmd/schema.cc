@@ -20,52 +20,52 @@ namespace {
 using Json = nlohmann::ordered_json;
 
 // A number with the key's range (for arrays: every entry).
-Json number_schema(const Key& k, const char* type) {
+Json number_schema(const config::Key& k, const char* type) {
   Json s{{"type", type}};
   // Integer bounds as integers (1, not 1.0).
   auto bound = [&](double v) {
-    return k.type() == KeyType::kInteger ? Json(static_cast<std::int64_t>(v)) : Json(v);
+    return k.type() == config::KeyType::kInteger ? Json(static_cast<std::int64_t>(v)) : Json(v);
   };
   if (k.lo()) s[k.lo_open() ? "exclusiveMinimum" : "minimum"] = bound(*k.lo());
   if (k.hi()) s[k.hi_open() ? "exclusiveMaximum" : "maximum"] = bound(*k.hi());
   return s;
 }
 
-Json type_schema(const Key& k) {
+Json type_schema(const config::Key& k) {
   const Json number = number_schema(k, "number");
   const Json array_of_numbers{{"type", "array"}, {"items", number}};
   switch (k.type()) {
-    case KeyType::kNumber:
+    case config::KeyType::kNumber:
       return number;
-    case KeyType::kInteger:
+    case config::KeyType::kInteger:
       return number_schema(k, "integer");
-    case KeyType::kBoolean:
+    case config::KeyType::kBoolean:
       return Json{{"type", "boolean"}};
-    case KeyType::kString:
+    case config::KeyType::kString:
       return Json{{"type", "string"}};
-    case KeyType::kChoice:
+    case config::KeyType::kChoice:
       return Json{{"type", "string"}, {"enum", k.values()}};
-    case KeyType::kNumbers:
-    case KeyType::kVector:  // a bare number is an array of one
+    case config::KeyType::kNumbers:
+    case config::KeyType::kVector:  // a bare number is an array of one
       return Json{{"anyOf", Json::array({number, array_of_numbers})}};
-    case KeyType::kMatrix: {  // an array of rows, or a bare number (1x1)
+    case config::KeyType::kMatrix: {  // an array of rows, or a bare number (1x1)
       Json rows{{"type", "array"}, {"minItems", 1}, {"items", array_of_numbers}};
       rows["items"]["minItems"] = 1;
       return Json{{"anyOf", Json::array({number, rows})}};
     }
-    case KeyType::kRagged:
+    case config::KeyType::kRagged:
       return Json{{"type", "array"}, {"items", array_of_numbers}};
-    case KeyType::kTable:
+    case config::KeyType::kTable:
       return Json{{"type", "object"}};
-    case KeyType::kTables:
+    case config::KeyType::kTables:
       return Json{{"type", "array"}, {"items", Json{{"type", "object"}}}};
-    case KeyType::kAny:
+    case config::KeyType::kAny:
       return Json::object();
   }
   return Json::object();
 }
 
-Json default_value(const Key::Value& v) {
+Json default_value(const config::Key::Value& v) {
   struct Visit {
     Json operator()(std::monostate) const { return nullptr; }
     Json operator()(double x) const { return x; }
@@ -78,7 +78,7 @@ Json default_value(const Key::Value& v) {
 }
 
 // "help [unit] (default: D; allowed: R)".
-std::string description(const Key& k) {
+std::string description(const config::Key& k) {
   std::string text = k.help_text();
   if (!k.unit_text().empty()) text += fmt::format(" [{}]", k.unit_text());
   std::string notes;
@@ -88,11 +88,11 @@ std::string description(const Key& k) {
     notes = "default: " + k.default_text();
   if (!k.range_text().empty())
     notes += (notes.empty() ? "" : "; ") + ("allowed: " + k.range_text());
-  if (k.type() == KeyType::kAny) notes += (notes.empty() ? "" : "; ") + k.type_text();
+  if (k.type() == config::KeyType::kAny) notes += (notes.empty() ? "" : "; ") + k.type_text();
   return notes.empty() ? text : fmt::format("{} ({})", text, notes);
 }
 
-Json key_schema(const Key& k) {
+Json key_schema(const config::Key& k) {
   Json s = type_schema(k);
   s["description"] = description(k);
   const Json d = default_value(k.default_value());
@@ -101,8 +101,8 @@ Json key_schema(const Key& k) {
 }
 
 // The properties and required keys of `keys` added to object schema `s`.
-void add_keys(Json& s, const Keys& keys) {
-  for (const Key& k : keys.list()) {
+void add_keys(Json& s, const config::Keys& keys) {
+  for (const config::Key& k : keys.list()) {
     s["properties"][k.name()] = key_schema(k);
     if (k.required()) {
       Json& req = s["required"];

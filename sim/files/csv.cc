@@ -24,7 +24,8 @@ bool CsvReader::next(CsvRecord& rec) {
     const auto ci = in_.sbumpc();
     if (traits::eq_int_type(ci, traits::eof())) {
       if (quoted)
-        throw ScenarioError(format_error(what_, rec.line, "", "unterminated quoted field"));
+        throw config::ScenarioError(
+            config::format_error(what_, rec.line, "", "unterminated quoted field"));
       if (!any && field.empty()) return false;
       rec.fields.push_back(std::move(field));
       return true;
@@ -85,16 +86,18 @@ int CsvTable::column(const std::string& name) const {
 CsvTable parse_csv(const std::string& text, const std::string& what) {
   std::vector<CsvRecord> records = read_csv_records(text, what);
   if (records.empty())
-    throw ScenarioError(format_error(what, 0, "", "empty file (expected a header line)"));
+    throw config::ScenarioError(
+        config::format_error(what, 0, "", "empty file (expected a header line)"));
   CsvTable t;
   t.header = std::move(records.front().fields);
   for (std::size_t i = 1; i < records.size(); ++i) {
     auto& r = records[i];
     if (r.fields.size() == 1 && r.fields[0].empty()) continue;  // a line holding only ""
     if (r.fields.size() != t.header.size()) {
-      throw ScenarioError(format_error(what, r.line, "",
-                                       fmt::format("expected {} fields (as the header), got {}",
-                                                   t.header.size(), r.fields.size())));
+      throw config::ScenarioError(
+          config::format_error(what, r.line, "",
+                               fmt::format("expected {} fields (as the header), got {}",
+                                           t.header.size(), r.fields.size())));
     }
     t.rows.push_back(std::move(r.fields));
   }

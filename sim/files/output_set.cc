@@ -244,7 +244,8 @@ void report(int removed, const fs::path& folder) {
 }  // namespace
 
 std::string output_set_folder(const std::string& dir) {
-  if (dir.empty()) throw ScenarioError("--out: expected a folder name, got an empty string");
+  if (dir.empty())
+    throw config::ScenarioError("--out: expected a folder name, got an empty string");
   std::error_code ec;
   fs::path p = fs::absolute(fs::path(dir), ec);
   if (ec)
@@ -256,13 +257,14 @@ std::string output_set_folder(const std::string& dir) {
         fmt::format("cannot resolve the output folder '{}': {}", dir, ec.message()));
   if (p.filename().empty() || p.filename() == "." || p.filename() == "..") p = p.parent_path();
   if (p == p.root_path() || p.filename().empty()) {
-    throw ScenarioError(fmt::format("--out: expected a folder below the root, got '{}'", dir));
+    throw config::ScenarioError(
+        fmt::format("--out: expected a folder below the root, got '{}'", dir));
   }
   const fs::path cwd = fs::current_path(ec);
   if (!ec) {
     const auto rel = cwd.lexically_relative(p);
     if (!rel.empty() && *rel.begin() != "..") {
-      throw ScenarioError(
+      throw config::ScenarioError(
           fmt::format("--out: expected a folder that is not the current directory or one of its "
                       "parents, got '{}' (a result "
                       "set replaces its folder as a whole)",
@@ -304,7 +306,7 @@ OutputFolderLock::OutputFolderLock(const std::string& dir) {
     ::close(fd);
     held_locks().erase(key_);
     if (e == EWOULDBLOCK) {
-      throw ScenarioError(
+      throw config::ScenarioError(
           fmt::format("{}: the output folder is in use by another ncosim process (PID {}; lock "
                       "{}); wait for it to finish or "
                       "choose another --out",

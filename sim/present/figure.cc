@@ -79,7 +79,7 @@ namespace figure_text {
 std::string read_file(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);
   if (!in)
-    throw ScenarioError(
+    throw config::ScenarioError(
         fmt::format("{}: cannot read (is this an ncosim output folder?)", p.string()));
   std::ostringstream s;
   s << in.rdbuf();

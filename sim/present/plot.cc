@@ -46,7 +46,8 @@ Summary read_summary(const std::string& dir) {
   s.t = parse_csv(read_file(p), p.string());
   s.est_col = s.t.column("estimator");
   if (s.est_col < 0)
-    throw ScenarioError(format_error(p.string(), 1, "", "expected an `estimator` column"));
+    throw config::ScenarioError(
+        config::format_error(p.string(), 1, "", "expected an `estimator` column"));
   for (int i = 0; i < s.est_col; ++i) s.keys.push_back(s.t.header[static_cast<std::size_t>(i)]);
   for (const auto& r : s.t.rows) {
     const auto& e = r[static_cast<std::size_t>(s.est_col)];
@@ -88,15 +89,15 @@ Choice choose(const Summary& s, const PlotOptions& opt, const std::string& what)
     if (std::find(s.keys.begin(), s.keys.end(), k) == s.keys.end()) {
       std::string valid;
       for (const auto& v : s.keys) valid += (valid.empty() ? "" : ", ") + v;
-      throw ScenarioError(fmt::format("{} '{}': not a sweep key of {} (sweep keys: {})", option, k,
-                                      what,
-                                      valid.empty() ? "none, the campaign has one case" : valid));
+      throw config::ScenarioError(
+          fmt::format("{} '{}': not a sweep key of {} (sweep keys: {})", option, k, what,
+                      valid.empty() ? "none, the campaign has one case" : valid));
     }
   };
   if (!opt.x_key.empty()) check_key(opt.x_key, "--x");
   if (!opt.panel_key.empty()) check_key(opt.panel_key, "--panel");
   if (!opt.x_key.empty() && opt.x_key == opt.panel_key) {
-    throw ScenarioError(
+    throw config::ScenarioError(
         fmt::format("--panel '{}': expected a key other than the x key", opt.panel_key));
   }
   if (s.keys.empty()) return c;
@@ -147,7 +148,7 @@ bool want_log(const std::string& mode, const Range& r, const char* option) {
   if (mode == "on") return true;
   if (mode == "off") return false;
   if (mode != "auto")
-    throw ScenarioError(fmt::format("{} '{}': expected auto, on or off", option, mode));
+    throw config::ScenarioError(fmt::format("{} '{}': expected auto, on or off", option, mode));
   return !r.empty() && !r.any_nonpositive && r.hi / r.lo >= 100.0;
 }
 
@@ -188,7 +189,7 @@ MetricColumns metric_columns(const Summary& s, const std::string& metric, const 
       if (h != "status" && h.find("_ci95") == std::string::npos)
         valid += (valid.empty() ? "" : ", ") + h;
     }
-    throw ScenarioError(
+    throw config::ScenarioError(
         fmt::format("--metric '{}': not a column of {} (columns: {})", metric, what, valid));
   }
   mc.ci = s.t.column(metric + "_ci95");
@@ -534,7 +535,7 @@ FigureKind summary_figure_kind(const CsvTable& summary, const PlotOptions& opt) 
 }
 
 std::vector<Figure> build_figures(const std::string& dir, const PlotOptions& opt) {
-  if (!fs::is_directory(dir)) throw ScenarioError(fmt::format("{}: not a directory", dir));
+  if (!fs::is_directory(dir)) throw config::ScenarioError(fmt::format("{}: not a directory", dir));
   std::vector<Figure> out;
   const Summary s = read_summary(dir);
   out.push_back(summary_figure(dir, s, opt));
@@ -635,7 +636,7 @@ std::vector<std::string> render_figures(const std::string& dir, const std::vecto
   std::string fmts;
   for (const auto& f : formats) {
     if (f != "png" && f != "svg")
-      throw ScenarioError(fmt::format("--format '{}': expected png or svg", f));
+      throw config::ScenarioError(fmt::format("--format '{}': expected png or svg", f));
     fmts += (fmts.empty() ? "" : " ") + f;
   }
   std::vector<std::string> images;
@@ -649,7 +650,7 @@ std::vector<std::string> render_figures(const std::string& dir, const std::vecto
 int plot_command(const std::string& dir, const PlotOptions& opt) {
   for (const auto& f : opt.formats) {
     if (f != "png" && f != "svg")
-      throw ScenarioError(fmt::format("--format '{}': expected png or svg", f));
+      throw config::ScenarioError(fmt::format("--format '{}': expected png or svg", f));
   }
   const auto figures = build_figures(dir, opt);
   const auto images = render_figures(dir, figures, opt.formats);

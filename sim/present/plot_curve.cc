@@ -52,7 +52,7 @@ std::vector<Panel> read_panels(const CsvTable& t) {
   const int est = t.column("estimator"), period = t.column("period"), mse = t.column("mse"),
             ci = t.column("mse_ci95");
   if (est < 0 || period < 0 || mse < 0 || ci < 0) {
-    throw ScenarioError(
+    throw config::ScenarioError(
         "error_curve.csv: expected the columns estimator, period, mse and mse_ci95");
   }
   std::vector<Panel> panels;

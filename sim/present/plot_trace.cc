@@ -48,7 +48,7 @@ Trajectory read_trajectory(const std::string& dir) {
   tr.path = fs::path(dir) / "trajectory.csv";
   const fs::path& p = tr.path;
   if (!fs::exists(p)) {
-    throw ScenarioError(fmt::format(
+    throw config::ScenarioError(fmt::format(
         "--trace: {} does not exist (run the campaign with `ncosim run --trace`)", p.string()));
   }
   tr.t = parse_csv(read_file(p), p.string());
@@ -60,7 +60,8 @@ Trajectory read_trajectory(const std::string& dir) {
     tr.xphys.push_back(t.column(fmt::format("x{}_physical", i)));
   }
   if (tr.x.empty())
-    throw ScenarioError(format_error(p.string(), 1, "", "expected columns x1 .. xn"));
+    throw config::ScenarioError(
+        config::format_error(p.string(), 1, "", "expected columns x1 .. xn"));
   for (std::size_t c = 0; c < t.header.size(); ++c) {
     const std::string& h = t.header[c];
     if (h.rfind("arrived:", 0) == 0) {
@@ -94,8 +95,9 @@ std::vector<const std::vector<std::string>*> trace_window(const Trajectory& tr,
     }
   }
   if (window.empty()) {
-    throw ScenarioError(fmt::format("--from {}: no period of {} in the window of {} periods",
-                                    opt.trace_from, tr.path.string(), opt.trace_periods));
+    throw config::ScenarioError(
+        fmt::format("--from {}: no period of {} in the window of {} periods", opt.trace_from,
+                    tr.path.string(), opt.trace_periods));
   }
   return window;
 }

@@ -254,14 +254,15 @@ SummaryTable read_summary_table(const std::string& dir) {
   const fs::path sp = fs::path(dir) / "summary.csv";
   const auto stext = try_read(sp);
   if (!stext)
-    throw ScenarioError(
+    throw config::ScenarioError(
         fmt::format("{}: cannot read (is this an ncosim output folder?)", sp.string()));
   SummaryTable tb;
   tb.t = parse_csv(*stext, sp.string());
   tb.est = tb.t.column("estimator");
   tb.status = tb.t.column("status");
   if (tb.est < 0)
-    throw ScenarioError(format_error(sp.string(), 1, "", "expected an `estimator` column"));
+    throw config::ScenarioError(
+        config::format_error(sp.string(), 1, "", "expected an `estimator` column"));
   for (int i = 0; i < tb.est; ++i) tb.keys.push_back(i);
   return tb;
 }
@@ -632,7 +633,7 @@ std::string build_report(const std::string& dir, const std::vector<ReportFigure>
 int report_command(const std::string& dir, const ReportOptions& opt) {
   using clock = std::chrono::steady_clock;
   const auto t0 = clock::now();
-  if (!fs::is_directory(dir)) throw ScenarioError(fmt::format("{}: not a directory", dir));
+  if (!fs::is_directory(dir)) throw config::ScenarioError(fmt::format("{}: not a directory", dir));
   PlotOptions po = opt.plot;
   po.formats = {"svg"};
   std::vector<Figure> figs;

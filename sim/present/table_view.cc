@@ -38,7 +38,7 @@ std::vector<std::string> parse_column_list(const std::string& text) {
     const std::string name =
         trim(text.substr(start, comma == std::string::npos ? std::string::npos : comma - start));
     if (name.empty()) {
-      throw ScenarioError(
+      throw config::ScenarioError(
           fmt::format("--columns: expected a comma-separated list of summary.csv column names, got "
                       "\"{}\" (an empty name)",
                       text));
@@ -51,14 +51,15 @@ std::vector<std::string> parse_column_list(const std::string& text) {
 
 void check_table_request(const TableRequest& req, const std::vector<std::string>& valid_columns) {
   if (!req.format.empty() && req.format != "md" && req.format != "csv" && req.format != "json") {
-    throw ScenarioError(fmt::format("--format: expected md, csv or json, got \"{}\"", req.format));
+    throw config::ScenarioError(
+        fmt::format("--format: expected md, csv or json, got \"{}\"", req.format));
   }
   for (const auto& c : req.columns) {
     if (std::find(valid_columns.begin(), valid_columns.end(), c) != valid_columns.end()) continue;
     std::string list;
     for (const auto& v : valid_columns) list += (list.empty() ? "" : ", ") + v;
-    const std::string hint = did_you_mean(c, valid_columns);
-    throw ScenarioError(
+    const std::string hint = config::did_you_mean(c, valid_columns);
+    throw config::ScenarioError(
         fmt::format("--columns: no summary.csv column \"{}\"{} (this campaign's columns: {})", c,
                     hint.empty() ? "" : fmt::format(" (did you mean \"{}\"?)", hint), list));
   }

@@ -21,11 +21,11 @@ namespace ncosim::sim {
 namespace {
 
 // Adapts a member function to an EventHandler.
-template <class T, void (T::*Method)(SimTime, std::uint64_t)>
-class MemberHandler final : public EventHandler {
+template <class T, void (T::*Method)(kernel::SimTime, std::uint64_t)>
+class MemberHandler final : public kernel::EventHandler {
  public:
   explicit MemberHandler(T* self) : self_(self) {}
-  void handle(SimTime now, std::uint64_t arg) override { (self_->*Method)(now, arg); }
+  void handle(kernel::SimTime now, std::uint64_t arg) override { (self_->*Method)(now, arg); }
 
  private:
   T* self_;
@@ -85,7 +85,7 @@ class RunSimulation {
   RunSimulation(const Scenario& sc, std::uint64_t run, std::vector<TraceRow>* trace, ReplayLog* log,
                 std::vector<models::LinkCounters>* link_counters, ErrorCurve* curve)
       : sc_(sc),
-        period_ns_(seconds_to_time(sc.run.period)),
+        period_ns_(kernel::seconds_to_time(sc.run.period)),
         log_(log),
         link_out_(link_counters),
         mobility_(sc.mobility ? sc.mobility->start(run) : nullptr),
@@ -121,7 +121,7 @@ class RunSimulation {
     for (std::size_t l = 0; l < sc.links.size(); ++l) {
       LinkState ls;
       ls.link = sc.links[l].link->clone();
-      ls.rng = make_stream(seed, run, stream_id(StreamKind::kLink, l));
+      ls.rng = kernel::make_stream(seed, run, kernel::stream_id(kernel::StreamKind::kLink, l));
       models::bind_run(*ls.link, mobility_.get(), seed, run);
       ls.link->reset(ls.rng);
       links_.push_back(std::move(ls));
@@ -133,7 +133,7 @@ class RunSimulation {
     }
     for (const auto& e : sc.estimators) estimators_.push_back(e.design->instantiate());
     controller_ = sc.input.controller->instantiate();
-    input_rng_ = make_stream(seed, run, stream_id(StreamKind::kInput, 0));
+    input_rng_ = kernel::make_stream(seed, run, kernel::stream_id(kernel::StreamKind::kInput, 0));
     ctx_.period = sc.run.period;
     ctx_.x = &signals_.x;
     ctx_.true_output = &true_output_;
@@ -146,8 +146,8 @@ class RunSimulation {
   RunMetrics execute() {
     const std::int64_t periods = sc_.run.periods;
     queue_.reserve(64);
-    queue_.schedule(0, Phase::kPlant, &open_handler_, 0);
-    queue_.schedule(0, Phase::kEstimate, &close_handler_, 0);
+    queue_.schedule(0, kernel::Phase::kPlant, &open_handler_, 0);
+    queue_.schedule(0, kernel::Phase::kEstimate, &close_handler_, 0);
     queue_.run_until((periods - 1) * period_ns_);
     if (link_out_ != nullptr) {
       if (models::ActuatorStage* stage = actuation_.stage()) {
@@ -165,11 +165,12 @@ class RunSimulation {
  private:
   struct LinkState {
     std::unique_ptr<models::Link> link;
-    Rng rng;
+    kernel::Rng rng;
   };
 
-  std::int64_t period_of(SimTime t) const { return (t + period_ns_ - 1) / period_ns_; }
-  bool reschedule(SimTime now, std::int64_t step, Phase phase, EventHandler* h, std::uint64_t arg) {
+  std::int64_t period_of(kernel::SimTime t) const { return (t + period_ns_ - 1) / period_ns_; }
+  bool reschedule(kernel::SimTime now, std::int64_t step, kernel::Phase phase,
+                  kernel::EventHandler* h, std::uint64_t arg) {
     const std::int64_t next = now / period_ns_ + step;
     if (next >= sc_.run.periods) return false;
     queue_.schedule(next * period_ns_, phase, h, arg);
@@ -181,7 +182,7 @@ class RunSimulation {
   // schedules events in those phases, so running them in phase order inside one event keeps
   // the kernel's order (kernel/event_queue.h) while a period costs two dispatches, plus one
   // per packet arrival, instead of eight or more.
-  void on_open(SimTime now, std::uint64_t) {
+  void on_open(kernel::SimTime now, std::uint64_t) {
     const std::int64_t k = now / period_ns_;
     on_plant(now, k);
     // The sensors due now sample in the order their samples were scheduled, as separate
@@ -203,20 +204,20 @@ class RunSimulation {
       if (on_sample(k, s)) sending_.push_back(s);
     }
     for (const std::size_t s : sending_) on_send(k, s);
-    reschedule(now, 1, Phase::kPlant, &open_handler_, 0);
+    reschedule(now, 1, kernel::Phase::kPlant, &open_handler_, 0);
   }
 
-  void on_close(SimTime now, std::uint64_t) {
+  void on_close(kernel::SimTime now, std::uint64_t) {
     const std::int64_t k = now / period_ns_;
     on_estimate(k);
     on_control(k);
     actuation_.actuate(u_);
     recorder_.on_period(k, signals_.x, signals_.mode, u_, reference_);
-    reschedule(now, 1, Phase::kEstimate, &close_handler_, 0);
+    reschedule(now, 1, kernel::Phase::kEstimate, &close_handler_, 0);
   }
 
   // x[k] from x[k-1] and the input applied during period k - 1.
-  void on_plant(SimTime now, std::int64_t k) {
+  void on_plant(kernel::SimTime now, std::int64_t k) {
     if (mobility_) mobility_->advance(now);  // the kernel's clock drives the mobility (SUMO)
     if (plant_->step(k, actuation_.applied(), signals_)) recorder_.on_state(k, signals_.x);
     if (k > 0 && !nominal_drive_) {
@@ -269,10 +270,10 @@ class RunSimulation {
       pool_.emplace_back();
     }
     sensors_[s].pack(pool_[id], k, independent);
-    queue_.schedule(arrival * period_ns_, Phase::kArrival, &arrival_handler_, id);
+    queue_.schedule(arrival * period_ns_, kernel::Phase::kArrival, &arrival_handler_, id);
   }
 
-  void on_arrival(SimTime now, std::uint64_t id) {
+  void on_arrival(kernel::SimTime now, std::uint64_t id) {
     const std::int64_t k = period_of(now);
     const models::Packet& p = pool_[id];
     for (std::size_t e = 0; e < estimators_.size(); ++e)
@@ -316,7 +317,7 @@ class RunSimulation {
   }
 
   const Scenario& sc_;
-  SimTime period_ns_;
+  kernel::SimTime period_ns_;
   ReplayLog* log_;
   std::vector<models::LinkCounters>* link_out_;
   std::vector<LinkFlow> flows_;
@@ -341,7 +342,7 @@ class RunSimulation {
   std::vector<std::unique_ptr<est::Estimator>> estimators_;
   // The controller node: what it can know, and its output.
   std::unique_ptr<models::Controller> controller_;
-  Rng input_rng_;
+  kernel::Rng input_rng_;
   models::ControlContext ctx_;
   bool sees_outputs_ = false;
   std::vector<Eigen::VectorXd> true_output_, measured_, received_;
@@ -350,7 +351,7 @@ class RunSimulation {
   double reference_ = std::nan("");
   ActuationPath actuation_;
   RunRecorder recorder_;
-  EventQueue queue_;
+  kernel::EventQueue queue_;
   MemberHandler<RunSimulation, &RunSimulation::on_open> open_handler_;
   MemberHandler<RunSimulation, &RunSimulation::on_arrival> arrival_handler_;
   MemberHandler<RunSimulation, &RunSimulation::on_close> close_handler_;

@@ -107,7 +107,8 @@ void announce_mobility(const toml::table& case_doc, const std::string& file,
 #endif
 }
 
-std::shared_ptr<models::MobilitySource> make_mobility(const Table& t, const RunSettings& run,
+std::shared_ptr<models::MobilitySource> make_mobility(const config::Table& t,
+                                                      const config::RunSettings& run,
                                                       const std::string& dir) {
 #if NCOSIM_HAVE_SUMO
   return sumo::make_mobility(t, run, dir);

@@ -23,7 +23,8 @@ const est::EstimatorRegistry& estimator_registry();
 const models::SendPolicyRegistry& send_policy_registry();
 
 // The [sumo] table's reader: ScenarioError when this build has no SUMO (NCOSIM_SUMO=OFF).
-std::shared_ptr<models::MobilitySource> make_mobility(const Table& t, const RunSettings& run,
+std::shared_ptr<models::MobilitySource> make_mobility(const config::Table& t,
+                                                      const config::RunSettings& run,
                                                       const std::string& dir);
 // Called for every case document before the cases are built: lets the mobility source note what
 // each case will read (sumo/: the vehicles, so that one recording serves every case).

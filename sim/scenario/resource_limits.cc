@@ -51,7 +51,8 @@ std::string human_bytes(double bytes) {
   return fmt::format("{:.0f} MB", std::ceil(bytes / 1e6));
 }
 
-std::string state_driver(const Table& plant, const toml::table& raw, const est::Model& model) {
+std::string state_driver(const config::Table& plant, const toml::table& raw,
+                         const est::Model& model) {
   const auto n = model.plant.n();
   if (const toml::node* dt = raw.get("dead_time")) {
     const auto v = dt->value<double>();
@@ -66,8 +67,8 @@ std::string state_driver(const Table& plant, const toml::table& raw, const est::
   return fmt::format("{} ({} plant states)", plant.path().empty() ? "plant" : plant.path(), n);
 }
 
-void check_estimator_resources(const Table& t, const std::string& kind, const est::DesignCost& cost,
-                               const std::string& driver) {
+void check_estimator_resources(const config::Table& t, const std::string& kind,
+                               const est::DesignCost& cost, const std::string& driver) {
   const ResourceLimits& lim = resource_limits();
   const double bytes = cost.bytes, flops = cost.flops;
   const std::string& key = cost.driver.empty() ? driver : cost.driver;
@@ -91,7 +92,7 @@ void check_estimator_resources(const Table& t, const std::string& kind, const es
   }
 }
 
-std::function<void(const lmi::SolveEstimate&)> large_solve_note(const Table& t,
+std::function<void(const lmi::SolveEstimate&)> large_solve_note(const config::Table& t,
                                                                 const std::string& kind,
                                                                 const std::string& driver) {
   return [noted = false, path = t.key_path("kind"), kind,
@@ -118,7 +119,7 @@ void check_campaign_resources(const std::string& file, int line, std::int64_t ru
   const double bytes = static_cast<double>(runs) * static_cast<double>(cases) *
                        static_cast<double>(estimators) * per;
   if (lim.memory_bytes > 0.0 && bytes > lim.memory_bytes) {
-    throw ScenarioError(format_error(
+    throw config::ScenarioError(config::format_error(
         file, line, "run.runs",
         fmt::format("the campaign keeps per-run results of {} runs x {} case(s) x {} estimator(s): "
                     "an estimated {}, "
@@ -139,7 +140,7 @@ void check_error_curve_resources(const std::string& file, int line, std::int64_t
   const double blob = 16.0 * static_cast<double>(periods) * static_cast<double>(estimators) *
                       static_cast<double>(states + 1);
   if (blob > 9e8) {  // SQLite's largest blob is 1e9 bytes (SQLITE_MAX_LENGTH)
-    throw ScenarioError(format_error(
+    throw config::ScenarioError(config::format_error(
         file, line, "run.error_curve",
         fmt::format("the error curve of {} periods x {} estimator(s) x {} cells is {}, "
                     "above the run store's 900 MB for one case; fewer periods, or "
@@ -147,15 +148,15 @@ void check_error_curve_resources(const std::string& file, int line, std::int64_t
                     periods, estimators, states + 1, human_bytes(blob))));
   }
   if (lim.memory_bytes > 0.0 && bytes > lim.memory_bytes) {
-    throw ScenarioError(
-        format_error(file, line, "run.error_curve",
-                     fmt::format("the error curve keeps {} periods x {} estimator(s) x {} cells in "
-                                 "{:.0f} copies (one per thread, "
-                                 "their sum, the stored one): an estimated {}, above the memory "
-                                 "limit of {} (--max-memory); "
-                                 "fewer periods, or error_curve = false",
-                                 periods, estimators, states + 1, copies, human_bytes(bytes),
-                                 human_bytes(lim.memory_bytes))));
+    throw config::ScenarioError(config::format_error(
+        file, line, "run.error_curve",
+        fmt::format("the error curve keeps {} periods x {} estimator(s) x {} cells in "
+                    "{:.0f} copies (one per thread, "
+                    "their sum, the stored one): an estimated {}, above the memory "
+                    "limit of {} (--max-memory); "
+                    "fewer periods, or error_curve = false",
+                    periods, estimators, states + 1, copies, human_bytes(bytes),
+                    human_bytes(lim.memory_bytes))));
   }
 }
 
@@ -171,7 +172,7 @@ void check_trace_resources(const std::string& trace, int line, std::int64_t dela
                        (kBytesPerDelay + kBytesPerDelayAndRun *
                                              static_cast<double>(std::max<std::int64_t>(runs, 1)));
   if (lim.memory_bytes > 0.0 && bytes > lim.memory_bytes) {
-    throw ScenarioError(format_error(
+    throw config::ScenarioError(config::format_error(
         trace, line, "",
         fmt::format(
             "delay: {} periods: the runs count delivered packets per delay up to the largest, an "
@@ -187,12 +188,12 @@ void check_sweep_resources(const std::string& file, int line, std::size_t cases,
   const double bytes = static_cast<double>(cases) *
                        (kCaseBytes + kCaseBytesPerTextByte * static_cast<double>(text_bytes));
   if (lim.memory_bytes > 0.0 && bytes > lim.memory_bytes) {
-    throw ScenarioError(
-        format_error(file, line, "sweep",
-                     fmt::format("{} sweep cases need an estimated {} (each case is designed and "
-                                 "kept), above the memory limit "
-                                 "of {} (--max-memory)",
-                                 cases, human_bytes(bytes), human_bytes(lim.memory_bytes))));
+    throw config::ScenarioError(config::format_error(
+        file, line, "sweep",
+        fmt::format("{} sweep cases need an estimated {} (each case is designed and "
+                    "kept), above the memory limit "
+                    "of {} (--max-memory)",
+                    cases, human_bytes(bytes), human_bytes(lim.memory_bytes))));
   }
 }
 

@@ -28,18 +28,19 @@ std::string human_bytes(double bytes);
 // What sets the plant's state dimension, for messages: "plant.dead_time (1.01 s at run.period
 // 0.005 s gives 204 states)" or "plant.A (300 states)".
 // `raw` is the plant's TOML table (read without marking keys known).
-std::string state_driver(const Table& plant, const toml::table& raw, const est::Model& model);
+std::string state_driver(const config::Table& plant, const toml::table& raw,
+                         const est::Model& model);
 
 // Before the design of estimator table `t` of kind `kind`: its kind's estimate `cost`
 // (est::EstimatorRegistry::cost) against the limits. Throws ScenarioError naming what drives the
 // size (cost.driver, else `driver`, the plant's state driver); prints a note for a large design.
-void check_estimator_resources(const Table& t, const std::string& kind, const est::DesignCost& cost,
-                               const std::string& driver);
+void check_estimator_resources(const config::Table& t, const std::string& kind,
+                               const est::DesignCost& cost, const std::string& driver);
 
 // While estimator table `t` is designed: an observer of its LMI solves (lmi::ScopedSolveObserver)
 // that prints, once, the note of a design estimated above 256 MB or 10 GFLOP (the LMI designs'
 // estimate is only known when their problem is built).
-std::function<void(const lmi::SolveEstimate&)> large_solve_note(const Table& t,
+std::function<void(const lmi::SolveEstimate&)> large_solve_note(const config::Table& t,
                                                                 const std::string& kind,
                                                                 const std::string& driver);
 

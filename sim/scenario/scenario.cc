@@ -19,7 +19,7 @@
 namespace ncosim::sim {
 
 std::string fnv1a_hex(const std::string& text) {
-  return content_hash(text);
+  return config::content_hash(text);
 }  // config/input_files.h
 
 namespace {
@@ -47,13 +47,13 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
                                          const std::string& dir) {
   auto sc = std::make_unique<Scenario>();
   sc->file = file;
-  Table root(doc, "", file);
-  sc->title = KeyReader(root, top_level_keys())
+  config::Table root(doc, "", file);
+  sc->title = config::KeyReader(root, top_level_keys())
                   .opt_string("title")
                   .value_or(std::filesystem::path(file).stem().string());
   // Unknown top-level keys first (a misspelt [[sensor]] is reported as such, not as a missing
   // table): the declared ones (sim/scenario/scenario_keys.h) are known.
-  for (const Key& key : top_level_keys().list()) root.allow(key.name());
+  for (const config::Key& key : top_level_keys().list()) root.allow(key.name());
   root.finish();
   // The sections, each by its reader (sim/scenario/scenario_sections.h), in an order where every
   // reader finds what it refers to.
@@ -66,7 +66,7 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
   read_sensors(root, *sc);
   read_actuators(root, *sc);
   if (sc->mobility) sc->mobility->prepare();
-  const std::optional<Table> input = read_input(root, *sc);
+  const std::optional<config::Table> input = read_input(root, *sc);
   read_estimators(root, doc, state_size_driver, *sc);
   bind_feedback_source(input, *sc);
   choose_recentre(root, *sc);
@@ -95,13 +95,14 @@ toml::table parse_document(const std::string& text, const std::string& file,
   try {
     doc = toml::parse(text, std::string_view(file));
   } catch (const toml::parse_error& e) {
-    throw ScenarioError(format_error(file, static_cast<int>(e.source().begin.line), "",
-                                     fmt::format("TOML syntax error: {}", e.description())));
+    throw config::ScenarioError(
+        config::format_error(file, static_cast<int>(e.source().begin.line), "",
+                             fmt::format("TOML syntax error: {}", e.description())));
   }
-  for (const auto& s : sets) apply_set(doc, s, "--set");
+  for (const auto& s : sets) config::apply_set(doc, s, "--set");
   auto override_run = [&](const char* key, std::int64_t value, const char* option) {
-    toml::table parsed = parse_value(key, std::to_string(value), option);
-    set_path(doc, fmt::format("run.{}", key), std::move(*parsed.get("value")), option, 0);
+    toml::table parsed = config::parse_value(key, std::to_string(value), option);
+    config::set_path(doc, fmt::format("run.{}", key), std::move(*parsed.get("value")), option, 0);
   };
   if (overrides.runs > 0) override_run("runs", overrides.runs, "--runs");
   if (overrides.periods > 0) override_run("periods", overrides.periods, "--periods");
@@ -113,7 +114,7 @@ toml::table parse_document(const std::string& text, const std::string& file,
 // form ("0.3", not toml++'s "0.29999999999999999"), arrays as "[0.9, 0.05]".
 std::string sweep_label(const toml::node& v) {
   if (auto s = v.value_exact<std::string>()) return *s;
-  return compact_toml(v);
+  return config::compact_toml(v);
 }
 
 // The `values` array of [[sweep]] number `axis`.
@@ -130,19 +131,20 @@ LoadedScenario load_cases(const std::string& file, const std::vector<std::string
     std::error_code ec;
     const auto st = std::filesystem::status(file, ec);
     if (!ec && std::filesystem::exists(st) && !std::filesystem::is_regular_file(st)) {
-      throw ScenarioError(format_error(
+      throw config::ScenarioError(config::format_error(
           file, 0, "", "expected a regular scenario file (not a FIFO, device or folder)"));
     }
     const auto size = std::filesystem::file_size(file, ec);
     if (!ec && size > kMaxScenarioBytes) {
-      throw ScenarioError(
-          format_error(file, 0, "",
-                       fmt::format("the scenario file holds {} bytes; at most {} are read", size,
-                                   kMaxScenarioBytes)));
+      throw config::ScenarioError(
+          config::format_error(file, 0, "",
+                               fmt::format("the scenario file holds {} bytes; at most {} are read",
+                                           size, kMaxScenarioBytes)));
     }
   }
   std::ifstream in(file, std::ios::binary);
-  if (!in) throw ScenarioError(format_error(file, 0, "", "cannot open the scenario file"));
+  if (!in)
+    throw config::ScenarioError(config::format_error(file, 0, "", "cannot open the scenario file"));
   std::stringstream ss;
   ss << in.rdbuf();
   return load_cases_text(file, ss.str(), sets, overrides, only_case);
@@ -160,12 +162,12 @@ int read_sweeps(toml::table& doc, const std::string& file, LoadedScenario& out,
                 std::vector<std::size_t>& axis_sizes, std::vector<std::size_t>& axis_dim) {
   int last_sweep_line = 1;
   std::vector<std::string> dim_zip;  // per dimension: its zip name ("" = a plain axis)
-  Table root(doc, "", file);
+  config::Table root(doc, "", file);
   const auto sweep_tables = root.tables("sweep");
   for (std::size_t a = 0; a < sweep_tables.size(); ++a) {
-    const Table& t = sweep_tables[a];
+    const config::Table& t = sweep_tables[a];
     SweepAxis axis;
-    const KeyReader k(t, sweep_keys());
+    const config::KeyReader k(t, sweep_keys());
     axis.key = k.string("key");
     const int key_line = t.line_of("key");
     if (axis.key == "sweep" || axis.key.starts_with("sweep.") || axis.key.starts_with("sweep[")) {
@@ -180,7 +182,7 @@ int read_sweeps(toml::table& doc, const std::string& file, LoadedScenario& out,
     if (vals == nullptr || !vals->is_array() || vals->as_array()->empty()) {
       t.fail("values", fmt::format("expected a non-empty array of values, got {}",
                                    vals == nullptr ? std::string("nothing (the key is required)")
-                                                   : describe(*vals)));
+                                                   : config::describe(*vals)));
     }
     for (const toml::node& v : *vals->as_array()) axis.labels.push_back(sweep_label(v));
     t.finish();
@@ -190,7 +192,7 @@ int read_sweeps(toml::table& doc, const std::string& file, LoadedScenario& out,
     }
     // Validate the path now, on a scratch copy.
     toml::table scratch = doc;
-    set_path(scratch, axis.key, *vals->as_array()->get(0), file, key_line);
+    config::set_path(scratch, axis.key, *vals->as_array()->get(0), file, key_line);
     last_sweep_line = std::max(1, t.line_of("values"));
     const std::size_t size = vals->as_array()->size();
     std::size_t dim = axis_sizes.size();
@@ -247,7 +249,7 @@ std::optional<std::string> build_error(toml::table& doc, const std::string& file
                                        const std::string& dir) {
   try {
     (void)build_scenario(doc, file, dir);
-  } catch (const ScenarioError& e) {
+  } catch (const config::ScenarioError& e) {
     return std::string(e.what());
   } catch (const std::exception& e) {
     return std::string("other: ") + e.what();
@@ -272,7 +274,7 @@ std::vector<std::string> apply_case(toml::table& case_doc, std::size_t c,
     // Moved, not copied: an error at the swept value then points at its line in `values`.
     const std::size_t i = idx[axis_dim[a]];
     toml::node& value = *sweep_values(case_doc, a).get(i);
-    set_path(case_doc, out.sweeps[a].key, std::move(value), out.file, 0);
+    config::set_path(case_doc, out.sweeps[a].key, std::move(value), out.file, 0);
     labels.push_back(out.sweeps[a].labels[i]);
   }
   return labels;
@@ -293,7 +295,7 @@ std::optional<std::string> case_error(std::size_t c, const SweepShape& shape,
   toml::table doc = parse_document(out.text, out.file, *shape.sets, *shape.overrides);
   try {
     (void)apply_case(doc, c, shape.axis_sizes, shape.axis_dim, out);
-  } catch (const ScenarioError& e) {
+  } catch (const config::ScenarioError& e) {
     return std::string(e.what());
   }
   return build_error(doc, out.file, shape.dir);
@@ -307,7 +309,7 @@ void check_base_scenario(const toml::table& doc, const LoadedScenario& out,
   std::vector<std::size_t> missing;
   bool unchecked = false;
   for (std::size_t a = 0; a < out.sweeps.size(); ++a) {
-    const toml::node* base = find_path(doc, out.sweeps[a].key);
+    const toml::node* base = config::find_path(doc, out.sweeps[a].key);
     if (base == nullptr) {
       missing.push_back(a);
       continue;
@@ -320,13 +322,13 @@ void check_base_scenario(const toml::table& doc, const LoadedScenario& out,
   toml::table base_doc = parse_document(out.text, out.file, *shape.sets, *shape.overrides);
   for (const std::size_t a : missing) {
     toml::node& value = *sweep_values(base_doc, a).get(0);
-    set_path(base_doc, out.sweeps[a].key, std::move(value), out.file, 0);
+    config::set_path(base_doc, out.sweeps[a].key, std::move(value), out.file, 0);
   }
   try {
     (void)build_scenario(base_doc, out.file, shape.dir);
-  } catch (const ScenarioError& e) {
+  } catch (const config::ScenarioError& e) {
     if (!concerns_sweep(e.what(), out, [&] { return case_error(0, shape, out); })) throw;
-    throw ScenarioError(
+    throw config::ScenarioError(
         fmt::format("{} (in the base scenario: the values written outside [[sweep]] must be "
                     "valid too, even where a sweep replaces them)",
                     e.what()));
@@ -341,7 +343,7 @@ Case build_case(toml::table& case_doc, std::size_t c, const SweepShape& shape,
   cs.labels = apply_case(case_doc, c, shape.axis_sizes, shape.axis_dim, out);
   try {
     cs.scenario = build_scenario(case_doc, out.file, shape.dir);
-  } catch (const ScenarioError& e) {
+  } catch (const config::ScenarioError& e) {
     if (cs.labels.empty()) throw;
     const auto other = [&]() -> std::optional<std::string> {
       if (shape.total < 2) return std::string(e.what());  // no other case: the key decides
@@ -352,7 +354,7 @@ Case build_case(toml::table& case_doc, std::size_t c, const SweepShape& shape,
     for (std::size_t a = 0; a < cs.labels.size(); ++a) {
       where += fmt::format("{}{} = {}", a ? ", " : "", out.sweeps[a].key, cs.labels[a]);
     }
-    throw ScenarioError(fmt::format("{} (in the sweep case {})", e.what(), where));
+    throw config::ScenarioError(fmt::format("{} (in the sweep case {})", e.what(), where));
   }
   return cs;
 }
@@ -364,8 +366,8 @@ LoadedScenario load_cases_text(const std::string& file, const std::string& text,
                                std::optional<std::size_t> only_case) {
   LoadedScenario out;
   // What the readers open, hashed, keyed relative to the scenario's folder.
-  const InputFileRecorder record_inputs(out.inputs,
-                                        std::filesystem::path(file).parent_path().string());
+  const config::InputFileRecorder record_inputs(out.inputs,
+                                                std::filesystem::path(file).parent_path().string());
   out.file = file;
   out.text = text;
   out.overrides = sets;
@@ -386,10 +388,10 @@ LoadedScenario load_cases_text(const std::string& file, const std::string& text,
   for (const std::size_t n : axis_sizes) {
     total *= n;
     if (total > 100000) {
-      throw ScenarioError(
-          format_error(file, last_sweep_line, "sweep",
-                       "expected at most 100000 cases (the product of the [[sweep]] value counts), "
-                       "got more"));
+      throw config::ScenarioError(config::format_error(
+          file, last_sweep_line, "sweep",
+          "expected at most 100000 cases (the product of the [[sweep]] value counts), "
+          "got more"));
     }
   }
   check_sweep_resources(file, last_sweep_line, total,
@@ -398,9 +400,9 @@ LoadedScenario load_cases_text(const std::string& file, const std::string& text,
   const SweepShape shape{axis_sizes, axis_dim, total, &sets, &overrides, dir};
   if (!out.sweeps.empty() && !only_case) check_base_scenario(doc, out, shape);
   if (only_case && *only_case >= total) {
-    throw ScenarioError(
-        format_error(file, 0, "sweep",
-                     fmt::format("expected a case index below {}, got {}", total, *only_case)));
+    throw config::ScenarioError(config::format_error(
+        file, 0, "sweep",
+        fmt::format("expected a case index below {}, got {}", total, *only_case)));
   }
   // Mobility (SUMO): every case's document is shown to the mobility source first, so that one
   // recording per realisation can serve every case.
@@ -415,10 +417,10 @@ LoadedScenario load_cases_text(const std::string& file, const std::string& text,
       }
       try {
         for (std::size_t a = 0; a < axis_dim.size(); ++a) {
-          set_path(case_doc, out.sweeps[a].key, *sweep_values(case_doc, a).get(idx[axis_dim[a]]),
-                   file, 0);
+          config::set_path(case_doc, out.sweeps[a].key,
+                           *sweep_values(case_doc, a).get(idx[axis_dim[a]]), file, 0);
         }
-      } catch (const ScenarioError&) {
+      } catch (const config::ScenarioError&) {
         continue;  // reported when the case is built
       }
       announce_mobility(case_doc, file, dir);
@@ -431,10 +433,10 @@ LoadedScenario load_cases_text(const std::string& file, const std::string& text,
     out.cases.push_back(build_case(case_doc, c, shape, out));
     // error_curve.csv is one file for every case (and every case's curve is in the store).
     if (out.cases.back().scenario->run.error_curve != out.cases.front().scenario->run.error_curve) {
-      throw ScenarioError(
-          format_error(file, last_sweep_line, "run.error_curve",
-                       "expected the same value in every sweep case (error_curve.csv covers them "
-                       "all), got both true and false"));
+      throw config::ScenarioError(config::format_error(
+          file, last_sweep_line, "run.error_curve",
+          "expected the same value in every sweep case (error_curve.csv covers them "
+          "all), got both true and false"));
     }
   }
   return out;

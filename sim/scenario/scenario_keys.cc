@@ -13,24 +13,25 @@
 
 namespace ncosim::sim {
 
-const Keys& top_level_keys() {
-  static const Keys keys{
-      Key::string("title")
+const config::Keys& top_level_keys() {
+  static const config::Keys keys{
+      config::Key::string("title")
           .optional("the file name without extension")
           .help("heading of summary.md, title in manifest.json"),
-      Key::table("run").optional("all defaults").help("the campaign"),
-      Key::table("sweep").optional("none").help("parameter sweep (cartesian product of cases)"),
-      Key::table("plant").help("the plant (required)"),
-      Key::tables("link").optional("none").help(
+      config::Key::table("run").optional("all defaults").help("the campaign"),
+      config::Key::table("sweep").optional("none").help(
+          "parameter sweep (cartesian product of cases)"),
+      config::Key::table("plant").help("the plant (required)"),
+      config::Key::tables("link").optional("none").help(
           "links, referred to by name from [[sensor]] and [[actuator]]"),
-      Key::tables("sensor").help("sensors, in order (required, at least one)"),
-      Key::table("input").optional("u = 0").help("the plant input"),
-      Key::tables("estimator").help("estimators, in order, one output row each (required)"),
-      Key::tables("actuator")
+      config::Key::tables("sensor").help("sensors, in order (required, at least one)"),
+      config::Key::table("input").optional("u = 0").help("the plant input"),
+      config::Key::tables("estimator").help("estimators, in order, one output row each (required)"),
+      config::Key::tables("actuator")
           .optional("ideal actuation")
           .help("controller-to-actuator links, one per input channel in input order"),
-      Key::table("sumo").optional("none").help("vehicle mobility from SUMO"),
-      Key::table("paired")
+      config::Key::table("sumo").optional("none").help("vehicle mobility from SUMO"),
+      config::Key::table("paired")
           .optional("defaults")
           .help("the reference of the paired columns of summary.csv"),
   };
@@ -43,29 +44,29 @@ constexpr std::int64_t kWarmupCap = 100;  // the default warm-up: min(100, perio
 
 std::int64_t default_warmup(std::int64_t periods) { return std::min(kWarmupCap, periods / 10); }
 
-const Keys& run_keys() {
-  static const Keys keys{
-      Key::integer("periods")
+const config::Keys& run_keys() {
+  static const config::Keys keys{
+      config::Key::integer("periods")
           .range(1, 1'000'000'000)
           .says("an integer in 1..1000000000 (1e9)")
           .or_default(10000)
           .unit("periods")
           .help("control periods per Monte Carlo run: k = 0 .. periods-1"),
-      Key::integer("warmup")
+      config::Key::integer("warmup")
           .optional(fmt::format("min({}, periods / 10)", kWarmupCap))
           .unit("periods")
           .help("the first warmup periods are left out of every metric; 0 .. periods-1"),
-      Key::integer("runs")
+      config::Key::integer("runs")
           .range(1, 10'000'000)
           .says("an integer in 1..10000000 (1e7)")
           .or_default(10)
           .help("Monte Carlo runs"),
-      Key::integer("seed")
+      config::Key::integer("seed")
           .min(0)
           .says("a non-negative integer")
           .or_default(1)
           .help("campaign seed; run r uses the streams of (seed, r)"),
-      Key::number("period")
+      config::Key::number("period")
           .above(0.0)
           .max(1e6)
           .says("a period in seconds in (1e-9, 1e6]")
@@ -74,10 +75,10 @@ const Keys& run_keys() {
           .help("control period: the integer-ns clock step and the discretisation step of "
                 "lti_continuous; at least 1 ns once rounded to whole nanoseconds (periods x "
                 "period <= 4e9 s)"),
-      Key::choice("recentre", {"auto", "always", "never"})
+      config::Key::choice("recentre", {"auto", "always", "never"})
           .or_default("auto")
           .help("re-centring of open-loop-unstable plants (see Re-centring below)"),
-      Key::boolean("error_curve")
+      config::Key::boolean("error_curve")
           .or_default(false)
           .help("also write error_curve.csv: every estimator's run-averaged squared error per "
                 "period with its 95 % band (results/README.md); costs 16 bytes x periods x "
@@ -86,10 +87,10 @@ const Keys& run_keys() {
   return keys;
 }
 
-const Keys& plant_common_keys() {
-  static const Keys keys{
-      Key::string("kind").optional("\"lti\"").help("the plant kind (below)"),
-      Key::table("disturbance")
+const config::Keys& plant_common_keys() {
+  static const config::Keys keys{
+      config::Key::string("kind").optional("\"lti\"").help("the plant kind (below)"),
+      config::Key::table("disturbance")
           .optional("none")
           .help("deterministic disturbance added to w: offset (1 or nw entries) and [[sine]] "
                 "tables (amplitude, omega in rad/s, phase)"),
@@ -97,22 +98,22 @@ const Keys& plant_common_keys() {
   return keys;
 }
 
-const Keys& sensor_common_keys() { return models::sensor_keys(); }
+const config::Keys& sensor_common_keys() { return models::sensor_keys(); }
 
-const Keys& link_common_keys() {
-  static const Keys keys{
-      Key::string("name").help("unique among links; [[sensor]] and [[actuator]] name it"),
-      Key::string("kind").help("the link kind (below)"),
+const config::Keys& link_common_keys() {
+  static const config::Keys keys{
+      config::Key::string("name").help("unique among links; [[sensor]] and [[actuator]] name it"),
+      config::Key::string("kind").help("the link kind (below)"),
   };
   return keys;
 }
 
-const Keys& actuator_keys() { return models::actuator_keys(); }
+const config::Keys& actuator_keys() { return models::actuator_keys(); }
 
-const Keys& input_common_keys() {
-  static const Keys keys{
-      Key::string("kind").optional("\"none\"").help("the input kind (below)"),
-      Key::integer("actuation_delay")
+const config::Keys& input_common_keys() {
+  static const config::Keys keys{
+      config::Key::string("kind").optional("\"none\"").help("the input kind (below)"),
+      config::Key::integer("actuation_delay")
           .range(0, 1000)
           .says("an integer in 0..1000 (periods)")
           .or_default(0)
@@ -122,13 +123,13 @@ const Keys& input_common_keys() {
   return keys;
 }
 
-const Keys& estimator_common_keys() {
-  static const Keys keys{
-      Key::string("kind").help("the estimator kind (below)"),
-      Key::string("name")
+const config::Keys& estimator_common_keys() {
+  static const config::Keys keys{
+      config::Key::string("kind").help("the estimator kind (below)"),
+      config::Key::string("name")
           .optional("\"<kind> <i>\" (0-based position, e.g. \"jump 0\")")
           .help("the row name in every output; unique among estimators"),
-      Key::choice("expected_status", expected_status_values())
+      config::Key::choice("expected_status", expected_status_values())
           .optional("\"ok\"")
           .help("the status this row is expected to have (design_failed: any design_<status>); "
                 "run --fail-on-status fails only on rows whose status differs"),
@@ -136,24 +137,25 @@ const Keys& estimator_common_keys() {
   return keys;
 }
 
-const Keys& sweep_keys() {
-  static const Keys keys{
-      Key::string("key").help(
+const config::Keys& sweep_keys() {
+  static const config::Keys keys{
+      config::Key::string("key").help(
           "the key path of the value to vary (not into sweep itself; each key once)"),
-      Key::any("values", "array").help("the values, in order: non-empty, each valid for the key"),
-      Key::string("zip")
+      config::Key::any("values", "array")
+          .help("the values, in order: non-empty, each valid for the key"),
+      config::Key::string("zip")
           .optional("none (an axis of its own)")
           .help("sweeps sharing a zip name move together (equal lengths) as one axis"),
   };
   return keys;
 }
 
-const Keys& paired_keys() {
-  static const Keys keys{
-      Key::string("reference")
+const config::Keys& paired_keys() {
+  static const config::Keys keys{
+      config::Key::string("reference")
           .optional("the default reference of the kinds, else the first estimator")
           .help("the name of the reference estimator of the paired columns"),
-      Key::table("reference_case")
+      config::Key::table("reference_case")
           .optional("the first case")
           .help("{ \"KEY PATH\" = VALUE, ... }: the reference case among the swept values"),
   };
@@ -173,8 +175,8 @@ std::vector<SectionKind> kinds_of(const R& registry) {
 
 std::vector<Section> scenario_sections() {
   std::vector<Section> s;
-  const Keys& top = top_level_keys();
-  auto add = [&](const char* key, bool array, const Keys* keys) -> Section& {
+  const config::Keys& top = top_level_keys();
+  auto add = [&](const char* key, bool array, const config::Keys* keys) -> Section& {
     Section& x = s.emplace_back();
     x.key = key;
     x.array = array;

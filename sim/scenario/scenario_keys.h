@@ -14,35 +14,35 @@
 
 namespace ncosim::sim {
 
-const Keys& top_level_keys();  // title and the sections
-const Keys& run_keys();        // [run]
+const config::Keys& top_level_keys();  // title and the sections
+const config::Keys& run_keys();        // [run]
 // run.warmup when absent: min(100, periods / 10) (run_keys() prints the same rule).
 std::int64_t default_warmup(std::int64_t periods);
-const Keys& plant_common_keys();      // [plant] beside its kind's keys
-const Keys& sensor_common_keys();     // [[sensor]] beside its send policy's keys
-const Keys& link_common_keys();       // [[link]] beside its kind's keys
-const Keys& actuator_keys();          // [[actuator]]
-const Keys& input_common_keys();      // [input] beside its kind's keys
-const Keys& estimator_common_keys();  // [[estimator]] beside its kind's keys
-const Keys& sweep_keys();             // [[sweep]]
-const Keys& paired_keys();            // [paired]
+const config::Keys& plant_common_keys();      // [plant] beside its kind's keys
+const config::Keys& sensor_common_keys();     // [[sensor]] beside its send policy's keys
+const config::Keys& link_common_keys();       // [[link]] beside its kind's keys
+const config::Keys& actuator_keys();          // [[actuator]]
+const config::Keys& input_common_keys();      // [input] beside its kind's keys
+const config::Keys& estimator_common_keys();  // [[estimator]] beside its kind's keys
+const config::Keys& sweep_keys();             // [[sweep]]
+const config::Keys& paired_keys();            // [paired]
 
 // One kind of a section: a registry entry's name, help and keys.
 struct SectionKind {
   std::string name;
   std::string help;
-  const Keys* keys = nullptr;  // empty when the kind declares none
+  const config::Keys* keys = nullptr;  // empty when the kind declares none
 };
 
 // One top-level key of a scenario.
 struct Section {
-  std::string key;             // "run", "estimator"
-  bool array = false;          // [[key]]
-  bool required = false;       // the scenario must have it
-  std::string help;            // one line
-  const Keys* keys = nullptr;  // the section's own keys (nullptr: not declared here)
-  std::string kind_key;        // "kind", "policy": selects one of `kinds` ("" when none)
-  std::string default_kind;    // the kind when kind_key is absent ("" = required)
+  std::string key;                     // "run", "estimator"
+  bool array = false;                  // [[key]]
+  bool required = false;               // the scenario must have it
+  std::string help;                    // one line
+  const config::Keys* keys = nullptr;  // the section's own keys (nullptr: not declared here)
+  std::string kind_key;                // "kind", "policy": selects one of `kinds` ("" when none)
+  std::string default_kind;            // the kind when kind_key is absent ("" = required)
   std::vector<SectionKind> kinds;
   bool closed = true;  // the reader rejects keys that are not declared (Table::finish)
 };
@@ -54,7 +54,7 @@ std::vector<Section> scenario_sections();
 // generated docs know the sections' own keys, with their keys.
 struct NamedKeys {
   std::string name;
-  const Keys* keys;
+  const config::Keys* keys;
 };
 std::vector<NamedKeys> section_keys();
 

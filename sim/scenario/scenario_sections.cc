@@ -27,7 +27,7 @@ std::vector<std::string> link_names(const Scenario& sc) {
 
 // Refuses `packets` on a link that carries fewer in one run (models::Link::packet_bound), at
 // key `key` of `t`; `why` says where the count comes from.
-void check_packet_bound(const models::Link& link, std::int64_t packets, const Table& t,
+void check_packet_bound(const models::Link& link, std::int64_t packets, const config::Table& t,
                         std::string_view key, std::string_view why) {
   const auto bound = link.packet_bound();
   if (bound && bound->packets < packets) {
@@ -38,14 +38,14 @@ void check_packet_bound(const models::Link& link, std::int64_t packets, const Ta
 
 }  // namespace
 
-RunSettings read_run(const Table& root) {
+config::RunSettings read_run(const config::Table& root) {
   // Without a [run] table every key takes its declared default (run_keys()): the same reads on an
   // empty table, so that the defaults live in the declarations only.
   static const toml::table kNoRun;
   const auto given = root.opt_table("run");
-  const Table t = given ? *given : Table(kNoRun, "run", root.file());
-  const KeyReader k(t, run_keys());
-  RunSettings r;
+  const config::Table t = given ? *given : config::Table(kNoRun, "run", root.file());
+  const config::KeyReader k(t, run_keys());
+  config::RunSettings r;
   r.periods = k.integer("periods");
   r.warmup = k.opt_integer("warmup").value_or(default_warmup(r.periods));
   if (r.warmup < 0 || r.warmup >= r.periods) {
@@ -55,11 +55,12 @@ RunSettings read_run(const Table& root) {
   r.runs = k.integer("runs");
   r.seed = static_cast<std::uint64_t>(k.integer("seed"));
   r.period = k.number("period");
-  if (seconds_to_time(r.period) <= 0) {
+  if (kernel::seconds_to_time(r.period) <= 0) {
     t.fail("period", fmt::format("expected a period in seconds in (1e-9, 1e6], got {}", r.period));
   }
   // The integer-ns clock must hold every event time (arrivals may lie beyond the horizon).
-  if (static_cast<double>(r.periods) * static_cast<double>(seconds_to_time(r.period)) > 4.0e18) {
+  if (static_cast<double>(r.periods) * static_cast<double>(kernel::seconds_to_time(r.period)) >
+      4.0e18) {
     t.fail("period",
            fmt::format("expected periods x period <= 4e9 s (the nanosecond clock), got {} x {} s",
                        r.periods, r.period));
@@ -70,13 +71,13 @@ RunSettings read_run(const Table& root) {
   return r;
 }
 
-std::string read_plant(const Table& root, const toml::table& doc, Scenario& sc,
+std::string read_plant(const config::Table& root, const toml::table& doc, Scenario& sc,
                        const models::PlantRegistry& kinds) {
   if (!root.has("plant")) {
-    throw ScenarioError(format_error(
+    throw config::ScenarioError(config::format_error(
         root.file(), 1, "plant", "expected a [plant] table (required: the plant model), got none"));
   }
-  const Table plant = root.table("plant");
+  const config::Table plant = root.table("plant");
   const auto& pk = kinds.lookup(plant, "kind", "lti");
   sc.plant_kind = pk.name;
   sc.model.plant = pk.factory(plant, sc.run.period);
@@ -92,7 +93,7 @@ std::string read_plant(const Table& root, const toml::table& doc, Scenario& sc,
   return driver;
 }
 
-void read_links(const Table& root, const std::string& dir, Scenario& sc,
+void read_links(const config::Table& root, const std::string& dir, Scenario& sc,
                 const models::LinkRegistry& kinds) {
   models::LinkContext ctx{dir, sc.run.period, sc.mobility, {}};
   ctx.check_trace_delay = [&sc](const std::string& trace, int line, std::int64_t delay,
@@ -100,9 +101,9 @@ void read_links(const Table& root, const std::string& dir, Scenario& sc,
     check_trace_resources(trace, line, delay, sc.run.runs,
                           named_by);  // sim/scenario/resource_limits.h
   };
-  for (const Table& t : root.tables("link")) {
+  for (const config::Table& t : root.tables("link")) {
     LinkEntry e;
-    e.name = KeyReader(t, link_common_keys()).string("name");
+    e.name = config::KeyReader(t, link_common_keys()).string("name");
     if (std::any_of(sc.links.begin(), sc.links.end(),
                     [&](const LinkEntry& l) { return l.name == e.name; })) {
       t.fail("name", fmt::format("expected a unique link name, got \"{}\" twice", e.name));
@@ -115,14 +116,14 @@ void read_links(const Table& root, const std::string& dir, Scenario& sc,
   }
 }
 
-void read_sensors(const Table& root, Scenario& sc) {
+void read_sensors(const config::Table& root, Scenario& sc) {
   const auto sensor_tables = root.tables("sensor");
   if (sensor_tables.empty())
     root.fail("sensor", "expected at least one [[sensor]] table, got none");
   const std::vector<std::string> links = link_names(sc);
   std::set<std::string> sensor_names;
   for (std::size_t i = 0; i < sensor_tables.size(); ++i) {
-    const Table& t = sensor_tables[i];
+    const config::Table& t = sensor_tables[i];
     est::SensorModel sm;
     sm.spec =
         models::read_sensor(t, sc.model.plant, links, static_cast<int>(i), send_policy_registry());
@@ -154,7 +155,7 @@ void read_sensors(const Table& root, Scenario& sc) {
   }
 }
 
-void read_actuators(const Table& root, Scenario& sc) {
+void read_actuators(const config::Table& root, Scenario& sc) {
   const auto act_tables = root.tables("actuator");
   if (act_tables.empty()) return;
   const Eigen::Index nu = sc.model.plant.nu();
@@ -171,7 +172,7 @@ void read_actuators(const Table& root, Scenario& sc) {
   const std::vector<std::string> links = link_names(sc);
   std::set<std::string> names;
   for (std::size_t i = 0; i < act_tables.size(); ++i) {
-    const Table& t = act_tables[i];
+    const config::Table& t = act_tables[i];
     est::ActuatorModel am;
     am.spec = models::read_actuator(t, links, static_cast<int>(i));
     if (!names.insert(am.spec.name).second) {
@@ -187,13 +188,13 @@ void read_actuators(const Table& root, Scenario& sc) {
   }
 }
 
-std::optional<Table> read_input(const Table& root, Scenario& sc) {
-  std::optional<Table> input = root.opt_table("input");
+std::optional<config::Table> read_input(const config::Table& root, Scenario& sc) {
+  std::optional<config::Table> input = root.opt_table("input");
   if (!input) return input;
   const auto& ik = input_registry().lookup(*input, "kind", "none");
   sc.input = ik.factory(*input, sc.model.plant);
   sc.input.actuation_delay =
-      static_cast<int>(KeyReader(*input, input_common_keys()).integer("actuation_delay"));
+      static_cast<int>(config::KeyReader(*input, input_common_keys()).integer("actuation_delay"));
   if (sc.input.controller) {
     std::vector<models::SensorSpec> specs;
     for (const auto& s : sc.model.sensors) specs.push_back(s.spec);
@@ -203,18 +204,18 @@ std::optional<Table> read_input(const Table& root, Scenario& sc) {
   return input;
 }
 
-void read_estimators(const Table& root, const toml::table& doc, const std::string& state_driver,
-                     Scenario& sc) {
+void read_estimators(const config::Table& root, const toml::table& doc,
+                     const std::string& state_driver, Scenario& sc) {
   const auto est_tables = root.tables("estimator");
   if (est_tables.empty())
     root.fail("estimator", "expected at least one [[estimator]] table, got none");
   std::set<std::string> est_names;
   for (std::size_t i = 0; i < est_tables.size(); ++i) {
-    const Table& t = est_tables[i];
+    const config::Table& t = est_tables[i];
     EstimatorEntry e;
     const auto& k = estimator_registry().lookup(t, "kind", "");
     e.kind = k.name;
-    const KeyReader common(t, estimator_common_keys());
+    const config::KeyReader common(t, estimator_common_keys());
     e.name = common.opt_string("name").value_or(fmt::format("{} {}", e.kind, i));
     if (!est_names.insert(e.name).second) {
       t.fail("name", fmt::format("expected a unique estimator name, got \"{}\" twice", e.name));
@@ -247,7 +248,7 @@ void read_estimators(const Table& root, const toml::table& doc, const std::strin
   }
 }
 
-void bind_feedback_source(const std::optional<Table>& input, Scenario& sc) {
+void bind_feedback_source(const std::optional<config::Table>& input, Scenario& sc) {
   if (sc.input.source.empty()) return;  // the input reads no estimate
   for (std::size_t i = 0; i < sc.estimators.size(); ++i) {
     if (sc.estimators[i].name == sc.input.source) sc.input.source_index = static_cast<int>(i);
@@ -257,14 +258,14 @@ void bind_feedback_source(const std::optional<Table>& input, Scenario& sc) {
   for (const auto& e : sc.estimators) names.push_back(e.name);
   std::string list;
   for (const auto& n : names) list += (list.empty() ? "" : ", ") + fmt::format("\"{}\"", n);
-  const std::string hint = did_you_mean(sc.input.source, names);
+  const std::string hint = config::did_you_mean(sc.input.source, names);
   input->fail(sc.input.controller->source_key(),
               fmt::format("expected \"plant\" or an estimator name ({}), got \"{}\"{}", list,
                           sc.input.source,
                           hint.empty() ? "" : fmt::format(" (did you mean \"{}\"?)", hint)));
 }
 
-void choose_recentre(const Table& root, Scenario& sc) {
+void choose_recentre(const config::Table& root, Scenario& sc) {
   // Re-centring: an open-loop unstable plant is simulated in coordinates that the known
   // input keeps bounded; the estimation error is unchanged (scenarios/README.md).
   const bool unstable = sc.model.plant.spectral_radius() >= 1.0;
@@ -304,12 +305,12 @@ void choose_recentre(const Table& root, Scenario& sc) {
   }
 }
 
-PairedSettings read_paired(const Table& root, const toml::table& doc, const Scenario& sc) {
+PairedSettings read_paired(const config::Table& root, const toml::table& doc, const Scenario& sc) {
   PairedSettings p;
   p.file = root.file();
   const auto t = root.opt_table("paired");
   if (!t) return p;
-  const KeyReader keys(*t, paired_keys());
+  const config::KeyReader keys(*t, paired_keys());
   if (const auto reference = keys.opt_string("reference")) {
     p.reference = *reference;
     p.reference_line = t->line_of("reference");
@@ -318,7 +319,7 @@ PairedSettings read_paired(const Table& root, const toml::table& doc, const Scen
     if (std::find(names.begin(), names.end(), p.reference) == names.end()) {
       std::string list;
       for (const auto& n : names) list += (list.empty() ? "" : ", ") + fmt::format("\"{}\"", n);
-      const std::string hint = did_you_mean(p.reference, names);
+      const std::string hint = config::did_you_mean(p.reference, names);
       t->fail("reference",
               fmt::format("expected an estimator name ({}), got \"{}\"{}", list, p.reference,
                           hint.empty() ? "" : fmt::format(" (did you mean \"{}\"?)", hint)));
@@ -330,13 +331,14 @@ PairedSettings read_paired(const Table& root, const toml::table& doc, const Scen
     const toml::node* n = doc.at_path("paired.reference_case").node();
     p.reference_case_line = t->line_of("reference_case");
     if (n == nullptr || !n->is_table()) {
-      t->fail("reference_case", fmt::format("expected a table of sweep key paths and values, e.g. "
-                                            "{{ \"link[0].preset\" = \"ns3_vanet\" }}, got {}",
-                                            n == nullptr ? std::string("nothing") : describe(*n)));
+      t->fail("reference_case",
+              fmt::format("expected a table of sweep key paths and values, e.g. "
+                          "{{ \"link[0].preset\" = \"ns3_vanet\" }}, got {}",
+                          n == nullptr ? std::string("nothing") : config::describe(*n)));
     }
     for (auto&& [k, v] : *n->as_table()) {
       const auto s = v.value_exact<std::string>();
-      p.reference_case.emplace_back(std::string(k.str()), s ? *s : compact_toml(v));
+      p.reference_case.emplace_back(std::string(k.str()), s ? *s : config::compact_toml(v));
     }
   }
   t->finish();

@@ -18,45 +18,45 @@
 namespace ncosim::sim {
 
 // [run]: horizon, warm-up, runs, seed, period, re-centring (defaults without the table).
-RunSettings read_run(const Table& root);
+config::RunSettings read_run(const config::Table& root);
 
 // [plant] (required): the model of its kind, its disturbance, and the vehicle of the mobility
 // source when the plant's true state is one. Returns what drives the state size, for the
 // resource messages (sim/scenario/resource_limits.h). Needs sc.run and sc.mobility. `kinds`: the
 // plant kinds (every registered one; a test passes its own).
-std::string read_plant(const Table& root, const toml::table& doc, Scenario& sc,
+std::string read_plant(const config::Table& root, const toml::table& doc, Scenario& sc,
                        const models::PlantRegistry& kinds = plant_registry());
 
 // [[link]]: one link of its kind per table, unique names; relative paths from `dir`. Needs
 // sc.run and sc.mobility.
-void read_links(const Table& root, const std::string& dir, Scenario& sc,
+void read_links(const config::Table& root, const std::string& dir, Scenario& sc,
                 const models::LinkRegistry& kinds = link_registry());
 
 // [[sensor]] (at least one): each on its link (by name), unique names; then every bounded link
 // (a trace) must carry all the packets its sensors send in one run.
-void read_sensors(const Table& root, Scenario& sc);
+void read_sensors(const config::Table& root, Scenario& sc);
 
 // [[actuator]]: none, or one per input channel in input order, each on its link.
-void read_actuators(const Table& root, Scenario& sc);
+void read_actuators(const config::Table& root, Scenario& sc);
 
 // [input]: the input or controller of its kind (default none) and the actuation delay. Returns
 // the table (or nothing) for bind_feedback_source().
-std::optional<Table> read_input(const Table& root, Scenario& sc);
+std::optional<config::Table> read_input(const config::Table& root, Scenario& sc);
 
 // [[estimator]] (at least one): each designed for sc.model after its resource estimate, unique
 // names. `state_driver` is read_plant()'s result.
-void read_estimators(const Table& root, const toml::table& doc, const std::string& state_driver,
-                     Scenario& sc);
+void read_estimators(const config::Table& root, const toml::table& doc,
+                     const std::string& state_driver, Scenario& sc);
 
 // The estimator that a state-feedback input or a controller reads (input.source /
 // input.feedback), by name: sc.input.source_index.
-void bind_feedback_source(const std::optional<Table>& input, Scenario& sc);
+void bind_feedback_source(const std::optional<config::Table>& input, Scenario& sc);
 
 // run.recentre resolved against the plant, the input and the sensors: sc.recentre.
-void choose_recentre(const Table& root, Scenario& sc);
+void choose_recentre(const config::Table& root, Scenario& sc);
 
 // Reads [paired] (absent: defaults). Call after the estimators are read: an unknown
 // `reference` name is reported at its line with the valid names.
-PairedSettings read_paired(const Table& root, const toml::table& doc, const Scenario& sc);
+PairedSettings read_paired(const config::Table& root, const toml::table& doc, const Scenario& sc);
 
 }  // namespace ncosim::sim

@@ -56,7 +56,7 @@ struct PairedSettings {
 struct Scenario {
   std::string file;
   std::string title;
-  RunSettings run;
+  config::RunSettings run;
   std::string plant_kind;
   est::Model model;  // plant, sensors (with pointers into links)
   models::InputSpec input;
@@ -93,7 +93,7 @@ struct LoadedScenario {
   std::vector<Case> cases;
   // Every external file the scenario read (trace, SUMO inputs, ...), path relative to the
   // scenario's folder -> content hash (config/input_files.h): part of a campaign's identity.
-  InputFiles inputs;
+  config::InputFiles inputs;
 };
 
 // Command-line overrides applied to [run] after --set (0 / empty: keep the file's).

@@ -12,7 +12,7 @@
 #include "config/toml_path.h"
 #include "error_of.h"
 
-namespace ncosim::sim {
+namespace ncosim::config {
 namespace {
 
 using testing::error_of;
@@ -149,4 +149,4 @@ TEST(TomlPath, BadPathsAndValuesNameTheOrigin) {
 }
 
 }  // namespace
-}  // namespace ncosim::sim
+}  // namespace ncosim::config

@@ -11,7 +11,7 @@
 #include "config/registry.h"
 #include "error_of.h"
 
-namespace ncosim::sim {
+namespace ncosim::config {
 namespace {
 
 using testing::error_of;
@@ -139,4 +139,4 @@ TEST(Keys, RegistryEntriesCarryTheirKeys) {
 }
 
 }  // namespace
-}  // namespace ncosim::sim
+}  // namespace ncosim::config

@@ -84,7 +84,7 @@ using namespace conformance;  // NOLINT: the suite's fixtures
 // scenario's links: each sample carries the newest `buffer + 1` samples of its sensor.
 std::vector<std::vector<est::Packet>> packets(const Scenario& sc, int periods) {
   std::vector<std::vector<est::Packet>> out(static_cast<std::size_t>(periods));
-  Rng rng = make_stream(11, 0, 0);
+  kernel::Rng rng = kernel::make_stream(11, 0, 0);
   std::normal_distribution<double> normal;
   for (std::size_t i = 0; i < sc.model.sensors.size(); ++i) {
     const auto& spec = sc.model.sensors[i].spec;
@@ -113,7 +113,7 @@ std::vector<std::vector<est::Packet>> packets(const Scenario& sc, int periods) {
 void expect_no_allocation(const Scenario& sc, const std::string& what) {
   constexpr int kWarmup = 400, kPeriods = 2400;
   const auto arrivals = packets(sc, kPeriods);
-  Rng rng = make_stream(12, 0, 0);
+  kernel::Rng rng = kernel::make_stream(12, 0, 0);
   std::normal_distribution<double> normal;
   const Eigen::Index nu = sc.model.plant.nu(), n = sc.model.plant.n();
   std::vector<Eigen::VectorXd> us, drives;

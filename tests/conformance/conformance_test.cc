@@ -89,7 +89,7 @@ TEST(Conformance, EveryKindRejectsAnUnknownKeyWithADidYouMean) {
     try {
       testing::load_one(file);
       ADD_FAILURE() << k << " accepted an unknown key";
-    } catch (const ScenarioError& e) {
+    } catch (const config::ScenarioError& e) {
       EXPECT_NE(std::string(e.what()).find("did you mean '" + bad.second + "'"), std::string::npos)
           << e.what();
     }
@@ -99,7 +99,7 @@ TEST(Conformance, EveryKindRejectsAnUnknownKeyWithADidYouMean) {
     std::string text = scenario_text("lti", "none", l.name, {"open_loop"});
     text.replace(text.find("[[sensor]]"), 0, "bogus_key = 1\n\n");
     const auto file = write_scenario(dir, text);
-    EXPECT_THROW(testing::load_one(file), ScenarioError) << l.name;
+    EXPECT_THROW(testing::load_one(file), config::ScenarioError) << l.name;
   }
 }
 
@@ -129,7 +129,7 @@ TEST(Conformance, EveryLinkHonoursItsMarginalLaw) {
     const double loss = link.loss_probability();
     EXPECT_LE(sum, 1.0 - loss + 1e-12);
     auto a = link.clone(), b = link.clone();
-    Rng ra = make_stream(1, 0, 0), rb = make_stream(1, 0, 0);
+    kernel::Rng ra = kernel::make_stream(1, 0, 0), rb = kernel::make_stream(1, 0, 0);
     a->reset(ra);
     b->reset(rb);
     const int n = 20000;
@@ -163,7 +163,7 @@ TEST(Conformance, EveryLinkThatClaimsTheDesignModelLosesPacketsIndependently) {
     const models::Link& proto = *sc->links.front().link;
     SCOPED_TRACE(l.name);
     auto link = proto.clone();
-    Rng rng = make_stream(7, 0, 0);
+    kernel::Rng rng = kernel::make_stream(7, 0, 0);
     link->reset(rng);
     const int n = 20000;
     int pairs = 0;

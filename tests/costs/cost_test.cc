@@ -164,7 +164,7 @@ Measured measure(const Point& p, int salt) {
   const Scenario& sc = *loaded.cases.front().scenario;
   const toml::table doc = toml::parse(text);
   const toml::table& raw = *doc["estimator"].as_array()->get(0)->as_table();
-  const Table t(raw, "estimator[0]", "cost.toml");
+  const config::Table t(raw, "estimator[0]", "cost.toml");
   m.cost = estimator_registry().cost(p.kind, t, raw, sc.model, "plant.A");
   return m;
 }

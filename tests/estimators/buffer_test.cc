@@ -18,7 +18,7 @@ namespace ncosim::est {
 namespace {
 
 std::unique_ptr<EstimatorDesign> make(const std::string& kind, toml::table t, const Model& model) {
-  return sim::estimator_registry().find(kind)->factory(sim::Table(t, "estimator[0]", "test"),
+  return sim::estimator_registry().find(kind)->factory(config::Table(t, "estimator[0]", "test"),
                                                        model);
 }
 
@@ -357,8 +357,8 @@ TEST(StaticBuffer, DesignReportAndStatuses) {
   const auto a = make("static_buffer", toml::table{{"max_delay", 11}}, model);
   EXPECT_EQ(a->report().extra["buffer"].get<int>(), 12);
   EXPECT_THROW(make("static_buffer", toml::table{{"max_delay", 1}, {"buffer", 2}}, model),
-               sim::ScenarioError);
-  EXPECT_THROW(make("static_buffer", toml::table{{"buffer", 0}}, model), sim::ScenarioError);
+               config::ScenarioError);
+  EXPECT_THROW(make("static_buffer", toml::table{{"buffer", 0}}, model), config::ScenarioError);
 }
 
 // design.json of the committed pendulum scenario: the contract fields and the Schenato fields.

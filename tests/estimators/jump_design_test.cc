@@ -176,9 +176,9 @@ TEST(JumpDesign, FlopsAreThePaperFormulaForA3) {
   const auto& reg = sim::estimator_registry();
   toml::table jt{{"grouping", "S4"}, {"history", 4}, {"max_delay", 1}};
   toml::table kt{{"max_delay", 1}};
-  const auto jump = reg.find("jump")->factory(sim::Table(jt, "estimator[0]", "test"), d.model);
+  const auto jump = reg.find("jump")->factory(config::Table(jt, "estimator[0]", "test"), d.model);
   const auto kf =
-      reg.find("kalman_extended")->factory(sim::Table(kt, "estimator[1]", "test"), d.model);
+      reg.find("kalman_extended")->factory(config::Table(kt, "estimator[1]", "test"), d.model);
   EXPECT_EQ(jump->flops_per_period().value(), 64.0);
   EXPECT_EQ(kf->flops_per_period().value(), 976.0);
   EXPECT_EQ(jump->report().stored_gains.value(), 60);

@@ -11,7 +11,7 @@ namespace ncosim::est {
 namespace {
 
 std::unique_ptr<EstimatorDesign> make(const std::string& kind, toml::table t, const Model& model) {
-  return sim::estimator_registry().find(kind)->factory(sim::Table(t, "estimator[0]", "test"),
+  return sim::estimator_registry().find(kind)->factory(config::Table(t, "estimator[0]", "test"),
                                                        model);
 }
 

@@ -48,7 +48,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   }
   try {
     (void)ncosim::sim::load_cases(path, {});
-  } catch (const ncosim::sim::ScenarioError& e) {
+  } catch (const ncosim::config::ScenarioError& e) {
     if (!starts_with_file_line(e.what(), path)) {
       std::fprintf(stderr, "exit-2 message without FILE:LINE: %s\n", e.what());
       std::abort();

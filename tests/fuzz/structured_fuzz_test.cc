@@ -375,7 +375,7 @@ TEST(StructuredFuzz, ShippedScenarioMutantsLoadOrFailWithFileLine) {
       auto l = ncosim::sim::load_cases(file, {});
       cases = l.cases.size();
       loaded = true;
-    } catch (const ncosim::sim::ScenarioError& e) {
+    } catch (const ncosim::config::ScenarioError& e) {
       ++st.refused;
       if (!std::regex_search(e.what(), file_line)) {
         ++st.failures;

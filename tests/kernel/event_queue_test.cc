@@ -18,7 +18,7 @@
 
 #include "kernel/time.h"
 
-namespace ncosim::sim {
+namespace ncosim::kernel {
 namespace {
 
 // One dispatch as seen by a handler.
@@ -470,4 +470,4 @@ TEST(EventQueueDeathTest, SchedulingInThePastAborts) {
 }
 
 }  // namespace
-}  // namespace ncosim::sim
+}  // namespace ncosim::kernel

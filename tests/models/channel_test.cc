@@ -69,7 +69,7 @@ TEST(Fit, UnknownFamiliesAndTooFewPacketsAreRejected) {
 // loss and mean loss-run length (link.cc), with delta-method 95 % intervals that hold the truth
 // (P = 0.02 / 0.27 = 0.074, burst 1 / 0.25 = 4 for a classic Gilbert chain; 20000 packets).
 TEST(Fit, GilbertElliottReportsMeanLossAndMeanBurstWithIntervals) {
-  sim::Rng rng = sim::make_stream(5, 0, 0);
+  kernel::Rng rng = kernel::make_stream(5, 0, 0);
   auto truth = make_gilbert_elliott(0.02, 0.25, 0.0, 1.0);
   truth->reset(rng);
   std::vector<int> sym;
@@ -105,7 +105,7 @@ TEST(Fit, FateSymbolsRefuseADelayBeyondWhatTheFamiliesHold) {
 }
 
 TEST(Fit, GilbertElliottFitsAShortBurstyTraceAndPrintsAReadableTable) {
-  sim::Rng rng = sim::make_stream(5, 0, 0);
+  kernel::Rng rng = kernel::make_stream(5, 0, 0);
   auto link = make_gilbert_elliott(0.02, 0.25, 0.0, 1.0);
   link->reset(rng);
   std::vector<int> sym;
@@ -199,7 +199,7 @@ TEST(MarkovLinkStep, PerPeriodEqualsPerPacketForOneSenderEveryPeriod) {
                           MarkovLink::Step::kPeriod);
   auto a = packet.clone();
   auto b = period.clone();
-  sim::Rng ra = sim::make_stream(9, 1, 2), rb = sim::make_stream(9, 1, 2);
+  kernel::Rng ra = kernel::make_stream(9, 1, 2), rb = kernel::make_stream(9, 1, 2);
   a->reset(ra);
   b->reset(rb);
   for (std::int64_t k = 0; k < 5000; ++k) {
@@ -215,7 +215,7 @@ TEST(MarkovLinkStep, PerPeriodChainMovesWhileTheSenderIsSilent) {
   // second period always meets the state it started in; per packet it alternates per packet.
   const auto per_period = make_gilbert_elliott(1.0, 1.0, 0.0, 1.0, MarkovLink::Step::kPeriod);
   const auto per_packet = make_gilbert_elliott(1.0, 1.0, 0.0, 1.0, MarkovLink::Step::kPacket);
-  sim::Rng r1 = sim::make_stream(1, 0, 0), r2 = sim::make_stream(1, 0, 0);
+  kernel::Rng r1 = kernel::make_stream(1, 0, 0), r2 = kernel::make_stream(1, 0, 0);
   per_period->reset(r1);
   per_packet->reset(r2);
   const int s0 = per_period->state(), t0 = per_packet->state();

@@ -30,12 +30,12 @@
 namespace ncosim::models {
 namespace {
 
-using sim::Rng;
+using kernel::Rng;
 
 constexpr double kZ999 = 3.29;  // two-sided 99.9% quantile of the standard normal
 
 Rng stream(std::uint64_t seed) {
-  return sim::make_stream(seed, 0, sim::stream_id(sim::StreamKind::kLink, 0));
+  return kernel::make_stream(seed, 0, kernel::stream_id(kernel::StreamKind::kLink, 0));
 }
 
 // k successes out of n inside the 99.9% interval around n p. The figures go into the
@@ -468,12 +468,12 @@ TEST(MarkovLink, ResetDrawsTheInitialStateFromTheStationaryLawAcrossSeeds) {
   std::vector<std::int64_t> initial(3, 0);
   std::int64_t bad = 0;
   for (std::int64_t seed = 0; seed < kSeeds; ++seed) {
-    Rng a = sim::make_stream(static_cast<std::uint64_t>(seed), 0,
-                             sim::stream_id(sim::StreamKind::kLink, 0));
+    Rng a = kernel::make_stream(static_cast<std::uint64_t>(seed), 0,
+                                kernel::stream_id(kernel::StreamKind::kLink, 0));
     chain.reset(a);
     ++initial[static_cast<std::size_t>(chain.state())];
-    Rng b = sim::make_stream(static_cast<std::uint64_t>(seed), 0,
-                             sim::stream_id(sim::StreamKind::kLink, 1));
+    Rng b = kernel::make_stream(static_cast<std::uint64_t>(seed), 0,
+                                kernel::stream_id(kernel::StreamKind::kLink, 1));
     ge->reset(b);
     bad += ge->state();
   }

@@ -22,7 +22,7 @@ SendPolicyRegistry policies() {
 // Reads `text` as one [[sensor]] table of a 2-state plant.
 SensorSpec read(const std::string& text) {
   const toml::table doc = toml::parse(text);
-  const sim::Table t(doc, "sensor[0]", "s.toml");
+  const config::Table t(doc, "sensor[0]", "s.toml");
   LinearPlant plant;
   plant.A = Eigen::MatrixXd::Identity(2, 2);
   SensorSpec s = read_sensor(t, plant, {}, 0, policies());
@@ -33,7 +33,7 @@ SensorSpec read(const std::string& text) {
 std::string error_of(const std::string& text) {
   try {
     read(text);
-  } catch (const sim::ScenarioError& e) {
+  } catch (const config::ScenarioError& e) {
     return e.what();
   }
   return "";

@@ -18,7 +18,7 @@ using ncosim::models::TraceLink;
 TEST(TraceLinkSegment, RunRReplaysItsOwnSegmentCyclically) {
   // 7 rows, segment 2: segments {0, 1}, {2, 3}, {4, 5}; row 6 is never replayed.
   TraceLink link({0, std::nullopt, 1, 2, std::nullopt, 3, 4}, 2);
-  ncosim::sim::Rng rng(5);
+  ncosim::kernel::Rng rng(5);
   const std::vector<std::vector<std::int64_t>> by_run = {
       {0, kLost}, {1, 2}, {kLost, 3}, {0, kLost}, {1, 2}};
   for (std::uint64_t r = 0; r < by_run.size(); ++r) {

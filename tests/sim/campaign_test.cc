@@ -128,7 +128,7 @@ TEST(ScenarioValidation, NonFiniteScalarsAndClockOverflowAreRejected) {
     try {
       testing::load_one(f, {set});
       ADD_FAILURE() << set << " was accepted";
-    } catch (const ScenarioError& e) {
+    } catch (const config::ScenarioError& e) {
       const std::string what = e.what();
       EXPECT_TRUE(what.find("finite") != std::string::npos ||
                   what.find("clock") != std::string::npos)

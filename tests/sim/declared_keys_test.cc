@@ -14,19 +14,19 @@
 namespace ncosim::sim {
 namespace {
 
-void check_keys(const std::string& kind, const Keys& keys) {
+void check_keys(const std::string& kind, const config::Keys& keys) {
   std::set<std::string> names;
-  for (const Key& k : keys.list()) {
+  for (const config::Key& k : keys.list()) {
     EXPECT_TRUE(names.insert(k.name()).second) << kind << ": key " << k.name() << " twice";
     EXPECT_FALSE(k.help_text().empty()) << kind << ": key " << k.name() << " has no help";
-    const Key::Value& d = k.default_value();
+    const config::Key::Value& d = k.default_value();
     if (const auto* v = std::get_if<double>(&d)) {
       EXPECT_TRUE(k.in_range(*v)) << kind << "." << k.name();
     }
     if (const auto* v = std::get_if<std::int64_t>(&d)) {
       EXPECT_TRUE(k.in_range(static_cast<double>(*v))) << kind << "." << k.name();
     }
-    if (const auto* v = std::get_if<std::string>(&d); v && k.type() == KeyType::kChoice) {
+    if (const auto* v = std::get_if<std::string>(&d); v && k.type() == config::KeyType::kChoice) {
       EXPECT_NE(std::find(k.values().begin(), k.values().end(), *v), k.values().end())
           << kind << "." << k.name();
     }

@@ -154,7 +154,7 @@ TEST(Actuator, WrongCountOrJumpPlantIsABadInputError) {
   try {
     from_text(text);
     ADD_FAILURE() << "one actuator for two inputs accepted";
-  } catch (const ScenarioError& e) {
+  } catch (const config::ScenarioError& e) {
     EXPECT_NE(std::string(e.what()).find("one [[actuator]] per input channel (2), got 1"),
               std::string::npos)
         << e.what();
@@ -174,15 +174,16 @@ A = [[0.2]]
 C = [[1.0]]
 R = [[0.01]]
 )";
-  EXPECT_THROW(from_text(jump + "[[estimator]]\nkind = \"mode_io\"\n"), ScenarioError);
-  EXPECT_THROW(from_text(jump + "[[actuator]]\n[[estimator]]\nkind = \"imm\"\n"), ScenarioError);
+  EXPECT_THROW(from_text(jump + "[[estimator]]\nkind = \"mode_io\"\n"), config::ScenarioError);
+  EXPECT_THROW(from_text(jump + "[[actuator]]\n[[estimator]]\nkind = \"imm\"\n"),
+               config::ScenarioError);
   // A mode estimator without modes says what it needs.
   try {
     from_text(
         "[plant]\nA = [[0.5]]\nW = [[1]]\n[[sensor]]\nC = [[1]]\nR = [[1]]\n[[estimator]]\nkind = "
         "\"imm\"\n");
     ADD_FAILURE() << "imm without modes accepted";
-  } catch (const ScenarioError& e) {
+  } catch (const config::ScenarioError& e) {
     EXPECT_NE(std::string(e.what()).find("expected a scenario with modes"), std::string::npos)
         << e.what();
   }

@@ -124,9 +124,9 @@ TEST(OutputSet, OldPerFileTemporariesAreDroppedAndCounted) {
 }
 
 TEST(OutputSet, RefusesTheCurrentFolderAndEmptyNames) {
-  EXPECT_THROW(output_set_folder(""), ScenarioError);
-  EXPECT_THROW(output_set_folder("."), ScenarioError);
-  EXPECT_THROW(output_set_folder("/"), ScenarioError);
+  EXPECT_THROW(output_set_folder(""), config::ScenarioError);
+  EXPECT_THROW(output_set_folder("."), config::ScenarioError);
+  EXPECT_THROW(output_set_folder("/"), config::ScenarioError);
 }
 
 TEST(OutputSet, LockExcludesASecondProcessAndNamesItsPid) {
@@ -149,11 +149,11 @@ TEST(OutputSet, LockExcludesASecondProcessAndNamesItsPid) {
   try {
     OutputFolderLock second(dir.string());
     ADD_FAILURE() << "a second process took the lock";
-  } catch (const ScenarioError& e) {
+  } catch (const config::ScenarioError& e) {
     EXPECT_NE(std::string(e.what()).find("PID " + std::to_string(pid)), std::string::npos)
         << e.what();
   }
-  EXPECT_THROW(write_output_set(dir.string(), make_set('A', 3), kStale), ScenarioError);
+  EXPECT_THROW(write_output_set(dir.string(), make_set('A', 3), kStale), config::ScenarioError);
   ASSERT_EQ(::write(release[1], &c, 1), 1);
   int status = 0;
   ::waitpid(pid, &status, 0);

@@ -154,7 +154,7 @@ TEST(Paired, BadKeysNameTheKeyAndTheValidValues) {
     try {
       const auto loaded = load_cases(f, sets);
       reference_case_index(loaded);
-    } catch (const ScenarioError& e) {
+    } catch (const config::ScenarioError& e) {
       return std::string(e.what());
     }
     return std::string("no error");

@@ -50,10 +50,10 @@ TEST(ParseCsv, MalformedInputNamesFileAndLine) {
   try {
     ncosim::sim::parse_csv("a,b\n1,2\n3\n", "t.csv");
     FAIL() << "no error";
-  } catch (const ncosim::sim::ScenarioError& e) {
+  } catch (const ncosim::config::ScenarioError& e) {
     EXPECT_NE(std::string(e.what()).find("t.csv:3"), std::string::npos) << e.what();
   }
-  EXPECT_THROW(ncosim::sim::parse_csv("a\n\"open\n", "t.csv"), ncosim::sim::ScenarioError);
+  EXPECT_THROW(ncosim::sim::parse_csv("a\n\"open\n", "t.csv"), ncosim::config::ScenarioError);
 }
 
 // One case -> per estimator; one key -> against the key; two keys -> panels (or, with the second
@@ -72,13 +72,14 @@ TEST(PlotKind, FollowsTheCampaignShape) {
   o.panel_key = "k";
   EXPECT_EQ(ncosim::sim::summary_figure_kind(two, o), FigureKind::kPanels);
   o.panel_key = "m";
-  EXPECT_THROW(ncosim::sim::summary_figure_kind(two, o), ncosim::sim::ScenarioError);  // x = panel
+  EXPECT_THROW(ncosim::sim::summary_figure_kind(two, o),
+               ncosim::config::ScenarioError);  // x = panel
   o.x_key = "nope";
   o.panel_key.clear();
-  EXPECT_THROW(ncosim::sim::summary_figure_kind(two, o), ncosim::sim::ScenarioError);
+  EXPECT_THROW(ncosim::sim::summary_figure_kind(two, o), ncosim::config::ScenarioError);
   o.x_key = "k";
   EXPECT_THROW(ncosim::sim::summary_figure_kind(one, o),
-               ncosim::sim::ScenarioError);  // no sweep key
+               ncosim::config::ScenarioError);  // no sweep key
 }
 
 // The data rows of a .dat file (comments and blank lines dropped), split on blanks.
@@ -146,7 +147,7 @@ TEST(PlotData, PanelsHoldEveryCaseInBlocks) {
   EXPECT_EQ(r2[1], (std::vector<std::string>{"1", "5.5", "0.1", "?"}));
   EXPECT_NE(f2[0].gp.find("('a, b' 0, 'c' 1)"), std::string::npos) << f2[0].gp;
   o.metric = "no_such_column";
-  EXPECT_THROW(ncosim::sim::build_figures(d.string(), o), ncosim::sim::ScenarioError);
+  EXPECT_THROW(ncosim::sim::build_figures(d.string(), o), ncosim::config::ScenarioError);
   fs::remove_all(d);
 }
 

@@ -33,7 +33,7 @@ W  = [[0.2632, -0.0027], [-0.0027, 0.2466]]
 // The sections read in build_scenario()'s order up to (and including) the sensors.
 struct Reader {
   toml::table doc;
-  Table root;
+  config::Table root;
   Scenario sc;
   explicit Reader(const std::string& text) : doc(parse(text)), root(doc, "", "s.toml") {
     sc.file = "s.toml";
@@ -51,7 +51,7 @@ struct Reader {
 
 TEST(ReadRun, DefaultsWithoutTheTable) {
   const toml::table doc = parse("title = \"x\"\n");
-  const RunSettings r = read_run(Table(doc, "", "s.toml"));
+  const config::RunSettings r = read_run(config::Table(doc, "", "s.toml"));
   EXPECT_EQ(r.periods, 10000);
   EXPECT_EQ(r.warmup, 100);
   EXPECT_EQ(r.runs, 10);
@@ -64,8 +64,8 @@ TEST(ReadRun, TheInitialisersOfRunSettingsAreTheDeclaredDefaults) {
   // read_run takes every default from run_keys(); RunSettings' own initialisers (for code that
   // builds settings without a scenario) must say the same.
   const toml::table doc = parse("title = \"x\"\n");
-  const RunSettings read = read_run(Table(doc, "", "s.toml"));
-  const RunSettings plain;
+  const config::RunSettings read = read_run(config::Table(doc, "", "s.toml"));
+  const config::RunSettings plain;
   EXPECT_EQ(plain.periods, read.periods);
   EXPECT_EQ(plain.warmup, read.warmup);
   EXPECT_EQ(plain.runs, read.runs);
@@ -73,7 +73,7 @@ TEST(ReadRun, TheInitialisersOfRunSettingsAreTheDeclaredDefaults) {
   EXPECT_EQ(plain.period, read.period);
   EXPECT_EQ(plain.recentre, read.recentre);
   EXPECT_EQ(plain.error_curve, read.error_curve);
-  const Keys& k = run_keys();
+  const config::Keys& k = run_keys();
   EXPECT_EQ(plain.periods, std::get<std::int64_t>(k.at("periods").default_value()));
   EXPECT_EQ(plain.warmup, default_warmup(plain.periods));
   EXPECT_EQ(plain.runs, std::get<std::int64_t>(k.at("runs").default_value()));
@@ -87,18 +87,18 @@ TEST(ReadRun, TheInitialisersOfRunSettingsAreTheDeclaredDefaults) {
 TEST(ReadRun, WarmupDefaultsToATenthOfAShortHorizon) {
   // periods = 50: the default warm-up min(100, 50 / 10) = 5.
   const toml::table doc = parse("[run]\nperiods = 50\n");
-  EXPECT_EQ(read_run(Table(doc, "", "s.toml")).warmup, 5);
+  EXPECT_EQ(read_run(config::Table(doc, "", "s.toml")).warmup, 5);
 }
 
 TEST(ReadRun, RangeErrorsAndUnknownKeysNameFileLineAndKey) {
   const toml::table runs = parse("[run]\nperiods = 10\nruns = 0\n");
-  EXPECT_EQ(error_of([&] { (void)read_run(Table(runs, "", "s.toml")); }),
+  EXPECT_EQ(error_of([&] { (void)read_run(config::Table(runs, "", "s.toml")); }),
             "s.toml:3: key 'run.runs': expected an integer in 1..10000000 (1e7), got 0");
   const toml::table warmup = parse("[run]\nperiods = 10\nwarmup = 10\n");
-  EXPECT_EQ(error_of([&] { (void)read_run(Table(warmup, "", "s.toml")); }),
+  EXPECT_EQ(error_of([&] { (void)read_run(config::Table(warmup, "", "s.toml")); }),
             "s.toml:3: key 'run.warmup': expected an integer in 0..periods-1 (9), got 10");
   const toml::table typo = parse("[run]\nperiod = 0.5\nsed = 3\n");
-  EXPECT_EQ(error_of([&] { (void)read_run(Table(typo, "", "s.toml")); }),
+  EXPECT_EQ(error_of([&] { (void)read_run(config::Table(typo, "", "s.toml")); }),
             "s.toml:3: key 'run.sed': unknown key (did you mean 'seed'?)");
 }
 
@@ -120,7 +120,7 @@ class FakeMobility final : public models::MobilitySource {
  public:
   std::unique_ptr<models::MobilityRun> start(std::uint64_t) const override { return nullptr; }
   bool single_threaded() const override { return false; }
-  int vehicle(const Table& t, std::string_view key) override {
+  int vehicle(const config::Table& t, std::string_view key) override {
     names.push_back(t.string(key));
     return 2 + static_cast<int>(names.size());
   }
@@ -132,7 +132,7 @@ class FakeMobility final : public models::MobilitySource {
 // vehicle_key) and the reader binds it to the mobility source, whatever the kind is called.
 models::PlantRegistry vehicle_plants() {
   models::PlantRegistry r;
-  r.add("tracked", "a vehicle's motion", [](const Table& t, double) {
+  r.add("tracked", "a vehicle's motion", [](const config::Table& t, double) {
     models::LinearPlant p;
     p.A = Eigen::MatrixXd::Identity(1, 1);
     p.Bu = Eigen::MatrixXd::Zero(1, 0);
@@ -165,7 +165,7 @@ class BoundedLink final : public models::Link {
  public:
   explicit BoundedLink(std::int64_t capacity) : capacity_(capacity) {}
   std::unique_ptr<Link> clone() const override { return std::make_unique<BoundedLink>(*this); }
-  std::int64_t transmit(Rng&) override { return 0; }
+  std::int64_t transmit(kernel::Rng&) override { return 0; }
   std::vector<double> delay_pmf(int max_delay) const override {
     std::vector<double> p(static_cast<std::size_t>(max_delay) + 1, 0.0);
     p[0] = 1.0;
@@ -182,9 +182,11 @@ class BoundedLink final : public models::Link {
 
 models::LinkRegistry bounded_links() {
   models::LinkRegistry r;
-  r.add("bounded", "at most `capacity` packets", [](const Table& t, const models::LinkContext&) {
-    return std::unique_ptr<models::Link>(std::make_unique<BoundedLink>(t.integer("capacity")));
-  });
+  r.add(
+      "bounded", "at most `capacity` packets",
+      [](const config::Table& t, const models::LinkContext&) {
+        return std::unique_ptr<models::Link>(std::make_unique<BoundedLink>(t.integer("capacity")));
+      });
   return r;
 }
 

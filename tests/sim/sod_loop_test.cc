@@ -72,15 +72,15 @@ TEST(SendOnDelta, ZeroThresholdSendsEverySample) {
 }
 
 TEST(SendOnDelta, ReaderRejectsBadThresholds) {
-  EXPECT_THROW(from_text(kRamp, {"sensor[0].delta=-1.0"}), ScenarioError);
-  EXPECT_THROW(from_text(kRamp, {"sensor[0].delta=[1.0, 2.0]"}), ScenarioError);
+  EXPECT_THROW(from_text(kRamp, {"sensor[0].delta=-1.0"}), config::ScenarioError);
+  EXPECT_THROW(from_text(kRamp, {"sensor[0].delta=[1.0, 2.0]"}), config::ScenarioError);
   EXPECT_THROW(from_text(kRamp, {"sensor[0].policy=\"periodic\""}),
-               ScenarioError);  // delta without SOD
-  EXPECT_THROW(from_text(kRamp, {"sensor[0].buffer=1"}), ScenarioError);
+               config::ScenarioError);  // delta without SOD
+  EXPECT_THROW(from_text(kRamp, {"sensor[0].buffer=1"}), config::ScenarioError);
   try {
     from_text(kRamp, {"sensor[0].policy=\"send_on_delt\""});
     FAIL();
-  } catch (const ScenarioError& e) {
+  } catch (const config::ScenarioError& e) {
     EXPECT_NE(std::string(e.what()).find("send_on_delta"), std::string::npos) << e.what();
   }
 }
@@ -96,8 +96,9 @@ TEST(Disturbance, SinesAddToTheOffset) {
     EXPECT_NEAR(trace[k].x[0], x, 1e-12) << k;
     x += 0.3 + 0.2 * std::sin(0.5 * static_cast<double>(k) + 0.1);
   }
-  EXPECT_THROW(from_text(kRamp, {"plant.disturbance.offset=[0.3, 0.3]"}), ScenarioError);
-  EXPECT_THROW(from_text(kRamp, {"plant.disturbance.sine=[{amplitude = 0.2}]"}), ScenarioError);
+  EXPECT_THROW(from_text(kRamp, {"plant.disturbance.offset=[0.3, 0.3]"}), config::ScenarioError);
+  EXPECT_THROW(from_text(kRamp, {"plant.disturbance.sine=[{amplitude = 0.2}]"}),
+               config::ScenarioError);
 }
 
 // Scalar x[k+1] = x[k] + u[k - d], x0 = 1, u = -0.5 x (state feedback on the plant).
@@ -133,7 +134,7 @@ TEST(LoopTiming, ActuationDelayShiftsTheInput) {
     EXPECT_NEAR(t0[k].x[0], d0[k], 1e-15) << k;
     EXPECT_NEAR(t1[k].x[0], d1[k], 1e-15) << k;
   }
-  EXPECT_THROW(from_text(kLoop, {"input.actuation_delay=-1"}), ScenarioError);
+  EXPECT_THROW(from_text(kLoop, {"input.actuation_delay=-1"}), config::ScenarioError);
 }
 
 TEST(Relay, DeadZoneAndLevel) {
@@ -152,7 +153,7 @@ TEST(Relay, DeadZoneAndLevel) {
   // The relay needs one output per input.
   EXPECT_THROW(from_text(kLoop, {"input={kind = \"relay\"}",
                                  "sensor=[{C = 1.0, R = 0.0}, {C = 1.0, R = 0.0}]"}),
-               ScenarioError);
+               config::ScenarioError);
 }
 
 TEST(Pi, ReferenceWeightingAndIntegral) {
@@ -175,10 +176,10 @@ TEST(Pi, ReferenceWeightingAndIntegral) {
   }
   EXPECT_THROW(
       from_text(kLoop, {"input={kind = \"pi\", feedback = \"nobody\", reference = {value = 1.0}}"}),
-      ScenarioError);
+      config::ScenarioError);
   EXPECT_THROW(
       from_text(kLoop, {"input={kind = \"pi\", sensor = \"y9\", reference = {value = 1.0}}"}),
-      ScenarioError);
+      config::ScenarioError);
 }
 
 TEST(Pi, InferentialFeedbackOnAnExactEstimateEqualsTrueFeedback) {
@@ -207,7 +208,7 @@ TEST(SendOnDelta, RecentringIsRejectedAndNotAutomatic) {
   // A = 1 without feedback would be re-centred under "auto", but not with a send-on-delta
   // sensor (it would decide on re-centred outputs); "always" is an error.
   EXPECT_FALSE(from_text(kRamp, {"run.recentre=\"auto\""})->recentre);
-  EXPECT_THROW(from_text(kRamp, {"run.recentre=\"always\""}), ScenarioError);
+  EXPECT_THROW(from_text(kRamp, {"run.recentre=\"always\""}), config::ScenarioError);
 }
 
 TEST(Pi, SaturationHoldsTheIntegral) {
@@ -273,12 +274,12 @@ TEST(SodKalman, VirtualNoiseHelpsOnHeldMeasurements) {
     EXPECT_LT(run[0].sensor_sent[0], run[0].sensor_taken[0]);
   }
   EXPECT_LT(suh, 0.95 * naive);
-  EXPECT_THROW(from_text(kTwoSensors, {"estimator[1].delta=[0.1]"}), ScenarioError);
+  EXPECT_THROW(from_text(kTwoSensors, {"estimator[1].delta=[0.1]"}), config::ScenarioError);
   // A range error says what it got, as written (issue 28).
   try {
     (void)from_text(kTwoSensors, {"estimator[1].delta=[0.1, -0.5]"});
     ADD_FAILURE() << "a negative threshold was accepted";
-  } catch (const ScenarioError& e) {
+  } catch (const config::ScenarioError& e) {
     EXPECT_NE(std::string(e.what()).find("thresholds >= 0 (one per output), got [0.1, -0.5]"),
               std::string::npos)
         << e.what();

@@ -249,7 +249,7 @@ TEST(Shard, SyntaxAndOwnership) {
   EXPECT_TRUE(s.owns(4));
   EXPECT_FALSE(s.owns(0));
   for (const char* bad : {"", "3", "0/3", "4/3", "1/0", "a/b", "1/3x", " 1/3", "-1/3", "1//3"}) {
-    EXPECT_THROW(parse_shard(bad), ScenarioError) << bad;
+    EXPECT_THROW(parse_shard(bad), config::ScenarioError) << bad;
   }
 }
 

@@ -148,14 +148,14 @@ TEST(TableView, WrapTextBreaksAtSpacesWithAHangingIndent) {
 TEST(TableView, ColumnListAndFormatAreChecked) {
   EXPECT_EQ(parse_column_list("mse, status ,estimator"),
             (std::vector<std::string>{"mse", "status", "estimator"}));
-  EXPECT_THROW(parse_column_list("mse,,status"), ScenarioError);
-  EXPECT_THROW(parse_column_list(""), ScenarioError);
+  EXPECT_THROW(parse_column_list("mse,,status"), config::ScenarioError);
+  EXPECT_THROW(parse_column_list(""), config::ScenarioError);
   const std::vector<std::string> valid{"estimator", "mse", "status", "expected_status"};
   EXPECT_NO_THROW(check_table_request({{"mse", "status"}, "json"}, valid));
   try {
     check_table_request({{"msee"}, ""}, valid);
     ADD_FAILURE() << "no error";
-  } catch (const ScenarioError& e) {
+  } catch (const config::ScenarioError& e) {
     const std::string m = e.what();
     EXPECT_NE(m.find("--columns: no summary.csv column \"msee\" (did you mean \"mse\"?)"),
               std::string::npos)
@@ -165,7 +165,7 @@ TEST(TableView, ColumnListAndFormatAreChecked) {
   try {
     check_table_request({{}, "xml"}, valid);
     ADD_FAILURE() << "no error";
-  } catch (const ScenarioError& e) {
+  } catch (const config::ScenarioError& e) {
     EXPECT_NE(std::string(e.what()).find("--format: expected md, csv or json, got \"xml\""),
               std::string::npos);
   }

@@ -25,7 +25,7 @@ constexpr int kSeeds = 20;
 constexpr int kMinCovered = 18;
 
 std::vector<int> synthesize(Link& link, std::uint64_t seed, int n) {
-  sim::Rng rng = sim::make_stream(seed, 0, sim::stream_id(sim::StreamKind::kLink, 3));
+  kernel::Rng rng = kernel::make_stream(seed, 0, kernel::stream_id(kernel::StreamKind::kLink, 3));
   link.reset(rng);
   std::vector<int> sym;
   sym.reserve(static_cast<std::size_t>(n));

@@ -135,7 +135,7 @@ TEST(Channel, DeclaredDelayDefaultsAreDelayLawsInitialisers) {
   // read_channel takes the delay law's defaults from channel_keys(); DelayLaw's own initialisers
   // (used by the presets) must say the same.
   const DelayLaw d;
-  const sim::Keys& k = channel_keys();
+  const config::Keys& k = channel_keys();
   EXPECT_EQ(d.rate, std::get<double>(k.at("rate").default_value()) * 1e6);
   EXPECT_EQ(d.size, std::get<std::int64_t>(k.at("size").default_value()));
   EXPECT_EQ(d.aifsn, std::get<std::int64_t>(k.at("aifsn").default_value()));
@@ -319,7 +319,7 @@ TEST(SumoRecording, FcdRecordingEqualsLiveLibsumoBitForBit) {
   auto live = start_live(in, 3, vehicles);
   int compared = 0, tiny = 0;
   for (std::int64_t f = 0; f < r.frames; ++f) {
-    live->advance(f * (sim::kSecond / 10));
+    live->advance(f * (kernel::kSecond / 10));
     for (int v = 0; v < 3; ++v) {
       const auto& a = r.at(f, v);
       const auto& b = live->vehicle(v);
@@ -408,7 +408,7 @@ TEST(SumoRecording, ATeleportingVehicleIsAbsentInTheRecordingAndLiveAlike) {
   int absent_after_departure = 0, back_after_absence = 0;
   bool departed = false;
   for (std::int64_t f = 0; f < r.frames; ++f) {
-    live->advance(f * (sim::kSecond / 10));
+    live->advance(f * (kernel::kSecond / 10));
     const auto& a = r.at(f, 0);
     const auto& b = live->vehicle(0);
     ASSERT_EQ(a.present, b.present) << "frame " << f;
@@ -519,13 +519,13 @@ TEST(SumoLive, WorkerDeathIsAClearErrorAndNoZombieRemains) {
   set_worker_executable(NCOSIM_BINARY);
   const std::vector<std::string> vehicles{"leader"};
   auto live = start_live(road_inputs(), 1, vehicles);
-  live->advance(10 * sim::kSecond);
+  live->advance(10 * kernel::kSecond);
   EXPECT_TRUE(live->vehicle(0).present);
   const auto kids = children();
   ASSERT_EQ(kids.size(), 1u);
   ::kill(kids[0], SIGKILL);
   try {
-    live->advance(20 * sim::kSecond);
+    live->advance(20 * kernel::kSecond);
     ADD_FAILURE() << "no error after the worker died";
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("SUMO live worker (seed 1)"), std::string::npos)
@@ -649,11 +649,11 @@ TEST(SumoDistanceLink, DeliveryPerDistanceBinMatchesPd) {
   const Channel ch = make_preset("ns3_vanet");
   const int bins = 12;
   std::vector<double> n(bins), delivered(bins), expected(bins), var(bins);
-  const auto period = sim::seconds_to_time(sc->run.period);
+  const auto period = kernel::seconds_to_time(sc->run.period);
   for (std::uint64_t run = 0; run < 40; ++run) {
     auto m = sc->mobility->start(run);
     auto link = sc->links.front().link->clone();
-    sim::Rng rng = sim::make_stream(1, run, 0);
+    kernel::Rng rng = kernel::make_stream(1, run, 0);
     models::bind_run(*link, m.get(), sc->run.seed, run);
     link->reset(rng);
     for (std::int64_t k = 0; k < sc->run.periods; ++k) {
@@ -706,7 +706,7 @@ TEST(SumoVehiclePlant, TrueStateIsTheVehiclesMotionAndDesignIsConstantVelocity) 
   EXPECT_NEAR(p.W(1, 1), 0.1, 1e-15);
   EXPECT_FALSE(sc->recentre);
   auto m = sc->mobility->start(0);
-  m->advance(30 * sim::kSecond);
+  m->advance(30 * kernel::kSecond);
   const auto& v = m->vehicle(0);
   EXPECT_TRUE(v.present);
   EXPECT_GT(v.pos, 500.0);  // ~30 m/s for 30 s
