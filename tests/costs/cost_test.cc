@@ -206,6 +206,15 @@ std::vector<Point> grid() {
     g.push_back({"static_buffer", n, 1, "buffer = 5", true});
     g.push_back({"kalman_buffer", n, 1, "buffer = 5", true});
   }
+  // NCOSIM_COST_LARGE=1: the points that take tens of seconds each (a study outside the suite;
+  // bench/README.md records its figures).
+  if (std::getenv("NCOSIM_COST_LARGE") != nullptr) {
+    for (int n : {5, 6, 8}) {
+      g.push_back({"static_buffer", n, 1, "buffer = 5", true});
+      g.push_back({"kalman_buffer", n, 1, "buffer = 5", true});
+    }
+    g.push_back({"jump", 8, 2, "grouping = \"S3\"\nhistory = 2\nmax_delay = 3"});
+  }
   for (int n : {2, 8, 20}) {
     for (const char* k : {"imm", "mode_ss", "mode_io"}) {
       const std::string keys = std::string(k) == "mode_io"
