@@ -254,6 +254,19 @@ const config::Keys& jump_keys() {
   return keys;
 }
 
+// The sizes read_jump refuses, each with its own message: fictitious sensors (sensors x
+// (max_delay + 1)) up to 20, history x 2^(fictitious sensors) terms up to 2^18, and S4 (which
+// stores every pattern's gains) up to 16 fictitious sensors.
+constexpr int kMaxFictitiousSensors = 20;
+constexpr double kMaxTerms = 262144.0;
+constexpr int kMaxS4FictitiousSensors = 16;
+
+bool jump_size_supported(double nf, double history, bool s4) {
+  return nf <= kMaxFictitiousSensors &&
+         history * std::ldexp(1.0, static_cast<int>(nf)) <= kMaxTerms &&
+         !(s4 && nf > kMaxS4FictitiousSensors);
+}
+
 std::unique_ptr<EstimatorDesign> read_jump(const config::Table& t, const Model& model) {
   const config::KeyReader r(t, jump_keys());
   JumpParams p;
@@ -268,19 +281,19 @@ std::unique_ptr<EstimatorDesign> read_jump(const config::Table& t, const Model& 
   p.verbose = lmi_log != nullptr && std::string(lmi_log) == "1";
   p.init = read_initial(t, model);
   const int nf = static_cast<int>(model.sensors.size()) * (p.dbar + 1);
-  if (nf > 20) {
+  if (nf > kMaxFictitiousSensors) {
     t.fail("max_delay", fmt::format("the design enumerates 2^{} availability patterns "
                                     "({} sensors x {} delays); at most 2^20 are supported",
                                     nf, model.sensors.size(), p.dbar + 1));
   }
   // The design sums over every (N, pattern) term at each iteration: bound the work.
-  if (static_cast<double>(p.Nbar) * std::ldexp(1.0, nf) > 262144.0) {
+  if (static_cast<double>(p.Nbar) * std::ldexp(1.0, nf) > kMaxTerms) {
     t.fail("history",
            fmt::format("the design has history x 2^(fictitious sensors) = {} x 2^{} terms; "
                        "at most 2^18 are supported (reduce history, max_delay or sensors)",
                        p.Nbar, nf));
   }
-  if (p.grouping == Grouping::kS4 && nf > 16) {
+  if (p.grouping == Grouping::kS4 && nf > kMaxS4FictitiousSensors) {
     t.fail("grouping", fmt::format("S4 stores (2^{} - 1) gains per N; use S1..S3 or fewer "
                                    "delays (at most 16 fictitious sensors for S4)",
                                    nf));
@@ -316,6 +329,12 @@ DesignCost jump_cost(const config::Table& t, const toml::table& raw, const Model
   const std::int64_t history = peek_integer(raw, jump_keys().at("history"));
   DesignCost c = generic_design_cost(model);
   const double nf = sensors * static_cast<double>(dbar + 1);
+  // A size the reader refuses: no design will run, and the reader's message (which key, what is
+  // supported) is the one to see, not a limit on an estimate of a design that cannot be made.
+  if (!jump_size_supported(nf, static_cast<double>(history),
+                           peek_string(raw, jump_keys().at("grouping")) == "S4")) {
+    return c;
+  }
   const double terms =
       static_cast<double>(history) * std::ldexp(1.0, static_cast<int>(std::min(nf, 60.0)));
   const double nb = n * static_cast<double>(dbar + 1);

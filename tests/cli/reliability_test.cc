@@ -162,6 +162,20 @@ TEST_F(Reliability, JumpDesignMemoryEstimateCountsThePatternTerms) {
   EXPECT_LT(seconds, 10.0);
 }
 
+// A jump size the reader refuses (more than 2^20 availability patterns) is reported by the reader,
+// naming what is supported; the cost estimate (48.7 GB here) used to come first and gave a memory
+// limit message for a design that cannot be made at any limit.
+TEST_F(Reliability, AJumpSizeTheReaderRefusesGetsTheReadersMessage) {
+  const std::string file = (kSource / "scenarios" / "dolz2014_fig1a.toml").string();
+  const Outcome o = ncosim({"check", file, "--set", "estimator[0].max_delay=10"});
+  EXPECT_EQ(o.code, 2) << o.output;
+  EXPECT_NE(o.output.find("key 'estimator[0].max_delay': the design enumerates 2^22 availability "
+                          "patterns (2 sensors x 11 delays); at most 2^20 are supported"),
+            std::string::npos)
+      << o.output;
+  EXPECT_EQ(o.output.find("memory limit"), std::string::npos) << o.output;
+}
+
 TEST_F(Reliability, LargeDesignsNameTheKeyTheEstimateAndTheLimit) {
   const int n = 300;
   std::string a = "[", bw = "[", c = "[[";
