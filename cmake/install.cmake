@@ -1,7 +1,8 @@
 # cmake/install.cmake — `cmake --install` exports the libraries, their headers, the ncosim
 # executable and a CMake package: find_package(ncosim) gives ncosim::core (the whole simulator:
 # scenario reader, campaign, outputs, CLI and every built-in kind) and the layers below it
-# (ncosim::kernel, ncosim::config, ncosim::models, ncosim::lmi, ncosim::estimators, ncosim::sumo
+# (ncosim::kernel, ncosim::config, ncosim::models, ncosim::lmi, ncosim::estimators, ncosim::network,
+# ncosim::sumo
 # when built with SUMO, and sim/'s sub-layers ncosim::sim_files, ncosim::sim_scenario,
 # ncosim::sim_run, ncosim::sim_store, ncosim::sim_analysis and ncosim::sim_present). docs/extending.md shows a program built on it.
 include(GNUInstallDirs)
@@ -9,7 +10,7 @@ include(CMakePackageConfigHelpers)
 
 set(NCOSIM_INSTALL_CMAKEDIR ${CMAKE_INSTALL_LIBDIR}/cmake/ncosim)
 set(NCOSIM_EXPORTED ncosim_kernel ncosim_config ncosim_models ncosim_lmi ncosim_estimators
-    ncosim_sim_files ncosim_sim_scenario ncosim_sim_run ncosim_sim_store ncosim_sim_analysis
+    ncosim_network ncosim_sim_files ncosim_sim_scenario ncosim_sim_run ncosim_sim_store ncosim_sim_analysis
     ncosim_sim_present ncosim_core)
 if(NCOSIM_SUMO)
   list(APPEND NCOSIM_EXPORTED ncosim_sumo)
@@ -30,7 +31,7 @@ if(NCOSIM_SUMO)
   # The live-SUMO module is opened by path (NCOSIM_SUMO_MODULE_PATH, the build tree's copy).
   install(TARGETS ncosim_sumo_session LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}/ncosim)
 endif()
-foreach(dir kernel config sim models estimators lmi sumo)
+foreach(dir kernel config sim models estimators lmi network sumo)
   install(DIRECTORY ${PROJECT_SOURCE_DIR}/${dir}/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/ncosim/${dir}
           FILES_MATCHING PATTERN "*.h")
 endforeach()

@@ -27,6 +27,7 @@ enum class StreamKind : std::uint64_t {
   kInput = 4,
   kActuatorLink = 5,
   kEstimator = 6,
+  kNetwork = 7,  // ns-3's generator of a run's networks (network/)
 };
 
 constexpr std::uint64_t stream_id(StreamKind kind, std::uint64_t index) {

@@ -64,9 +64,16 @@ class RunBinding {
   virtual void bind_run(const MobilityRun* mobility, std::uint64_t seed, std::uint64_t run) = 0;
 };
 
+// A link that is a node of a packet-level network ([[network]], network/): the run hands its
+// packets to that network's simulation, which decides their fate, instead of asking transmit().
+struct NetworkAttachment {
+  int network = 0;          // index of the [[network]] in the scenario
+  std::uint32_t bytes = 0;  // payload bytes of each packet
+};
+
 // What every link answers: the fate of each packet (what the kernel needs) and its law (what an
-// offline design assumes). The optional interfaces above are reached through reporting() and
-// run_binding() (nullptr: the link has none).
+// offline design assumes). The optional interfaces above are reached through reporting(),
+// run_binding() and network_attachment() (nullptr: the link has none).
 class Link {
  public:
   virtual ~Link() = default;
@@ -97,6 +104,10 @@ class Link {
   virtual std::vector<double> delay_pmf(int max_delay) const = 0;
   // Long-run probability that a packet is lost (never delivered).
   virtual double loss_probability() const = 0;
+  // False when the law is not known before the run (a node of a [[network]] without a declared
+  // design law): delay_pmf() and loss_probability() then throw config::ScenarioError naming the
+  // key to give, and the reports leave the link's nominal values empty.
+  virtual bool law_known() const { return true; }
   // The on-time process a[k] = 1 when packet k arrives with delay 0 (what an actuator needs)
   // as a two-state chain over (0 = delivered on time, 1 = not): M(i, j) = P(a[k] = j |
   // a[k-1] = i) under the stationary law. Exact for independent packets and for a Markov link
@@ -116,6 +127,7 @@ class Link {
   // The optional interfaces this link implements (nullptr: none).
   virtual const LinkReporting* reporting() const { return nullptr; }
   virtual RunBinding* run_binding() { return nullptr; }
+  virtual const NetworkAttachment* network_attachment() const { return nullptr; }
 };
 
 // The reporting answers of any link: its LinkReporting's, or for a link without one, kCorrelated,

@@ -46,6 +46,7 @@ BurstSummary summarise_bursts(const std::vector<std::int64_t>& bursts) {
 
 LinkNominal nominal_of(const Link& link, int max_delay, std::optional<int> gap) {
   LinkNominal n;
+  if (!link.law_known()) return n;
   const double loss = link.loss_probability();
   if (loss >= 0.0 && loss <= 1.0) n.delivered_ratio = 1.0 - loss;
   n.delay_pmf = link.delay_pmf(std::max(0, max_delay));

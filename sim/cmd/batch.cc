@@ -29,6 +29,7 @@
 #include "sim/analysis/paired.h"
 #include "sim/cmd/manifest.h"
 #include "sim/cmd/mpi_campaign.h"
+#include "sim/cmd/process_campaign.h"
 #include "sim/cmd/store_sink.h"
 #include "sim/files/output_set.h"
 #include "sim/present/table_view.h"
@@ -411,7 +412,9 @@ void run_case_batch(RunSession& session, StoreSink& sink, std::size_t c, std::ui
   opt.on_run = [&sink, c](std::uint64_t run, RunMetrics&& m, RunLinks&& links) {
     sink.push(c, run, std::move(m), std::move(links));
   };
-  CampaignResult res = session.mpi ? session.mpi->run(sc, c, opt) : run_campaign(sc, opt);
+  CampaignResult res = session.mpi                  ? session.mpi->run(sc, c, opt)
+                       : needs_worker_processes(sc) ? run_in_processes(sc, opt)
+                                                    : run_campaign(sc, opt);
   sink.flush();
   // After its runs are committed: a kill in between leaves runs that the stored curve lacks,
   // which the export simulates again (error_curve_for).

@@ -35,6 +35,7 @@ std::vector<ListedKeys> all_kinds() {
   collect("input", input_registry(), out);
   collect("estimator", estimator_registry(), out);
   collect("send_policy", send_policy_registry(), out);
+  collect("network", network_registry(), out);
   // The scenario's own sections ("section.run", ...): their keys beside a kind's.
   for (const auto& k : section_keys()) {
     const std::string key = k.name.substr(k.name.find('.') + 1);

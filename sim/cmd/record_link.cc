@@ -32,6 +32,12 @@ std::vector<std::size_t> senders(const Scenario& sc, std::size_t l) {
                       name));
     }
   }
+  if (sc.links[l].link->network_attachment() != nullptr) {
+    throw config::ScenarioError(
+        fmt::format("--link: link '{}' is a node of a [[network]], whose packets' fates come from "
+                    "the whole network's simulation: recording it is not supported yet",
+                    name));
+  }
   if (sc.links[l].link->independent_copies()) {
     throw config::ScenarioError(
         fmt::format("--link: link '{}' delivers independent copies (several delays per packet): a "

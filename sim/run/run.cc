@@ -13,6 +13,7 @@
 #include "models/actuator.h"
 #include "models/plant_process.h"
 #include "models/sensor_process.h"
+#include "network/network.h"
 #include "sim/run/link_report.h"
 #include "sim/run/run_recorder.h"
 
@@ -126,6 +127,7 @@ class RunSimulation {
       ls.link->reset(ls.rng);
       links_.push_back(std::move(ls));
     }
+    start_networks(seed, run);
     if (link_out_ != nullptr) {
       flows_ = link_flows(sc);
       flow_of_ = flow_index(sc, flows_);
@@ -166,7 +168,47 @@ class RunSimulation {
   struct LinkState {
     std::unique_ptr<models::Link> link;
     kernel::Rng rng;
+    int sender = -1;  // its sender in the network session (a link of kind network), else -1
   };
+
+  // The run's networks (network/network.h): every link that is a node of one is a sender.
+  void start_networks(std::uint64_t seed, std::uint64_t run) {
+    if (sc_.networks.empty()) return;
+    std::vector<network::Sender> senders;
+    for (auto& ls : links_) {
+      if (const models::NetworkAttachment* a = ls.link->network_attachment()) {
+        ls.sender = static_cast<int>(senders.size());
+        senders.push_back(network::Sender{a->network, a->bytes});
+      }
+    }
+    std::vector<std::shared_ptr<const network::NetworkDesign>> designs;
+    for (const auto& n : sc_.networks) designs.push_back(n.design);
+    network_ = network::Session::start(designs, senders, seed, run);
+  }
+
+  // Lockstep with ns-3 at the start of period k, after its sends: every packet the networks
+  // delivered in ((k - 1) T, k T] arrives at k T (this period's arrival phase); a dropped one is
+  // counted lost.
+  void advance_networks(kernel::SimTime now) {
+    fates_.clear();
+    network_->advance_to(now, fates_);
+    for (const network::Fate& f : fates_) {
+      const auto id = static_cast<std::size_t>(f.id);
+      const models::Packet& p = pool_[id];
+      const std::int64_t arrival = period_of(f.time);
+      const bool delivered = f.drop == network::Drop::kNone;
+      if (link_out_ != nullptr) {
+        link_counters_[static_cast<std::size_t>(
+                           flow_of_.sensor[static_cast<std::size_t>(p.sensor)])]
+            .record(delivered ? arrival - p.stamps[0] : models::kLost, -1);
+      }
+      if (delivered && arrival < sc_.run.periods) {
+        queue_.schedule(arrival * period_ns_, kernel::Phase::kArrival, &arrival_handler_, id);
+      } else {
+        free_.push_back(id);
+      }
+    }
+  }
 
   std::int64_t period_of(kernel::SimTime t) const { return (t + period_ns_ - 1) / period_ns_; }
   bool reschedule(kernel::SimTime now, std::int64_t step, kernel::Phase phase,
@@ -204,6 +246,7 @@ class RunSimulation {
       if (on_sample(k, s)) sending_.push_back(s);
     }
     for (const std::size_t s : sending_) on_send(k, s);
+    if (network_) advance_networks(now);
     reschedule(now, 1, kernel::Phase::kPlant, &open_handler_, 0);
   }
 
@@ -245,6 +288,10 @@ class RunSimulation {
       return;
     }
     LinkState& ls = links_[static_cast<std::size_t>(sensor.spec().link)];
+    if (ls.sender >= 0) {  // a node of a network: the network decides (advance_networks)
+      network_->send(ls.sender, take_packet(s, k, false), k * period_ns_);
+      return;
+    }
     ls.link->advance(k, ls.rng);
     const int state = models::state_of(*ls.link);
     ls.link->transmit_copies(ls.rng, delays_);
@@ -261,6 +308,12 @@ class RunSimulation {
   void deliver_copy(std::uint64_t s, std::int64_t k, std::int64_t delay, bool independent) {
     if (delay >= sc_.run.periods - k) return;  // beyond the horizon (k + delay may not fit)
     const std::int64_t arrival = k + delay;
+    queue_.schedule(arrival * period_ns_, kernel::Phase::kArrival, &arrival_handler_,
+                    take_packet(s, k, independent));
+  }
+
+  // A packet of the pool holding sensor s's sample of period k: its id.
+  std::size_t take_packet(std::uint64_t s, std::int64_t k, bool independent) {
     std::size_t id;
     if (!free_.empty()) {
       id = free_.back();
@@ -270,7 +323,7 @@ class RunSimulation {
       pool_.emplace_back();
     }
     sensors_[s].pack(pool_[id], k, independent);
-    queue_.schedule(arrival * period_ns_, kernel::Phase::kArrival, &arrival_handler_, id);
+    return id;
   }
 
   void on_arrival(kernel::SimTime now, std::uint64_t id) {
@@ -331,6 +384,8 @@ class RunSimulation {
   bool nominal_drive_ = true;
   std::vector<models::SensorProcess> sensors_;
   std::vector<LinkState> links_;
+  std::unique_ptr<network::Session> network_;  // the run's networks (null without [[network]])
+  std::vector<network::Fate> fates_;
   std::vector<std::int64_t> delays_;
   std::vector<std::size_t>
       sample_order_;  // the sensors in the order their next samples were scheduled

@@ -50,6 +50,7 @@ struct AllRegistries {
   models::InputRegistry inputs;
   est::EstimatorRegistry estimators;
   models::SendPolicyRegistry send_policies;
+  network::NetworkRegistry networks;
 };
 
 const AllRegistries& all_registries() {
@@ -60,6 +61,8 @@ const AllRegistries& all_registries() {
     models::register_inputs(a.inputs);
     est::register_estimators(a.estimators);
     models::register_send_policies(a.send_policies);
+    network::register_networks(a.networks);
+    network::register_network_links(a.links);
 #if NCOSIM_HAVE_SUMO
     sumo::register_plants(a.plants);
     sumo::register_links(a.links);
@@ -73,6 +76,7 @@ const AllRegistries& all_registries() {
     check_unique(a.inputs, "input");
     check_unique(a.estimators, "estimator");
     check_unique(a.send_policies, "send policy");
+    check_unique(a.networks, "network");
     return a;
   }();
   return r;
@@ -94,6 +98,7 @@ const models::LinkRegistry& link_registry() { return all_registries().links; }
 const models::InputRegistry& input_registry() { return all_registries().inputs; }
 const est::EstimatorRegistry& estimator_registry() { return all_registries().estimators; }
 const models::SendPolicyRegistry& send_policy_registry() { return all_registries().send_policies; }
+const network::NetworkRegistry& network_registry() { return all_registries().networks; }
 
 bool have_sumo() { return NCOSIM_HAVE_SUMO != 0; }
 

@@ -13,6 +13,7 @@
 #include "models/mobility.h"
 #include "models/plant.h"
 #include "models/send_policy.h"
+#include "network/network.h"
 
 namespace ncosim::sim {
 
@@ -21,6 +22,7 @@ const models::LinkRegistry& link_registry();
 const models::InputRegistry& input_registry();
 const est::EstimatorRegistry& estimator_registry();
 const models::SendPolicyRegistry& send_policy_registry();
+const network::NetworkRegistry& network_registry();
 
 // The [sumo] table's reader: ScenarioError when this build has no SUMO (NCOSIM_SUMO=OFF).
 std::shared_ptr<models::MobilitySource> make_mobility(const config::Table& t,

@@ -62,8 +62,10 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
   // realisations are recorded (or reused) once every reader has run, before the designs.
   if (const auto sumo = root.opt_table("sumo")) sc->mobility = make_mobility(*sumo, sc->run, dir);
   const std::string state_size_driver = read_plant(root, doc, *sc);
+  read_networks(root, *sc);
   read_links(root, dir, *sc);
   read_sensors(root, *sc);
+  check_networks(root, *sc);
   read_actuators(root, *sc);
   if (sc->mobility) sc->mobility->prepare();
   const std::optional<config::Table> input = read_input(root, *sc);

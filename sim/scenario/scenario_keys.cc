@@ -31,6 +31,8 @@ const config::Keys& top_level_keys() {
           .optional("ideal actuation")
           .help("controller-to-actuator links, one per input channel in input order"),
       config::Key::table("sumo").optional("none").help("vehicle mobility from SUMO"),
+      config::Key::tables("network").optional("none").help(
+          "packet-level networks (ns-3); a [[link]] of kind network is a node of one"),
       config::Key::table("paired")
           .optional("defaults")
           .help("the reference of the paired columns of summary.csv"),
@@ -104,6 +106,15 @@ const config::Keys& link_common_keys() {
   static const config::Keys keys{
       config::Key::string("name").help("unique among links; [[sensor]] and [[actuator]] name it"),
       config::Key::string("kind").help("the link kind (below)"),
+  };
+  return keys;
+}
+
+const config::Keys& network_common_keys() {
+  static const config::Keys keys{
+      config::Key::string("name").help(
+          "unique among networks; a [[link]] of kind network names it"),
+      config::Key::string("kind").help("the network kind (below)"),
   };
   return keys;
 }
@@ -207,16 +218,21 @@ std::vector<Section> scenario_sections() {
   est.kinds = kinds_of(estimator_registry());
   add("actuator", true, &actuator_keys());
   add("sumo", false, nullptr).closed = false;  // read by sumo/ (its keys are not declared here)
+  Section& network = add("network", true, &network_common_keys());
+  network.kind_key = "kind";
+  network.kinds = kinds_of(network_registry());
   add("paired", false, &paired_keys());
   return s;
 }
 
 std::vector<NamedKeys> section_keys() {
-  return {{"section.top", &top_level_keys()},      {"section.run", &run_keys()},
-          {"section.plant", &plant_common_keys()}, {"section.sensor", &sensor_common_keys()},
-          {"section.link", &link_common_keys()},   {"section.actuator", &actuator_keys()},
-          {"section.input", &input_common_keys()}, {"section.estimator", &estimator_common_keys()},
-          {"section.sweep", &sweep_keys()},        {"section.paired", &paired_keys()}};
+  return {
+      {"section.top", &top_level_keys()},         {"section.run", &run_keys()},
+      {"section.plant", &plant_common_keys()},    {"section.sensor", &sensor_common_keys()},
+      {"section.link", &link_common_keys()},      {"section.actuator", &actuator_keys()},
+      {"section.input", &input_common_keys()},    {"section.estimator", &estimator_common_keys()},
+      {"section.sweep", &sweep_keys()},           {"section.paired", &paired_keys()},
+      {"section.network", &network_common_keys()}};
 }
 
 }  // namespace ncosim::sim

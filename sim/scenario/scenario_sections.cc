@@ -93,9 +93,43 @@ std::string read_plant(const config::Table& root, const toml::table& doc, Scenar
   return driver;
 }
 
+void read_networks(const config::Table& root, Scenario& sc) {
+  for (const config::Table& t : root.tables("network")) {
+    NetworkEntry e;
+    e.name = config::KeyReader(t, network_common_keys()).string("name");
+    if (std::any_of(sc.networks.begin(), sc.networks.end(),
+                    [&](const NetworkEntry& n) { return n.name == e.name; })) {
+      t.fail("name", fmt::format("expected a unique network name, got \"{}\" twice", e.name));
+    }
+    const auto& k = network_registry().lookup(t, "kind", "");
+    e.kind = k.name;
+    e.design = k.factory(t);
+    t.finish();
+    sc.networks.push_back(std::move(e));
+  }
+}
+
+void check_networks(const config::Table& root, const Scenario& sc) {
+  const auto tables = root.tables("network");
+  for (std::size_t n = 0; n < sc.networks.size(); ++n) {
+    const bool used =
+        std::any_of(sc.model.sensors.begin(), sc.model.sensors.end(), [&](const auto& s) {
+          const models::NetworkAttachment* a =
+              s.link != nullptr ? s.link->network_attachment() : nullptr;
+          return a != nullptr && a->network == static_cast<int>(n);
+        });
+    if (!used) {
+      tables[n].fail("name", fmt::format("expected a network that a sensor's link is a node of, "
+                                         "got \"{}\", which no [[sensor]] sends over",
+                                         sc.networks[n].name));
+    }
+  }
+}
+
 void read_links(const config::Table& root, const std::string& dir, Scenario& sc,
                 const models::LinkRegistry& kinds) {
-  models::LinkContext ctx{dir, sc.run.period, sc.mobility, {}};
+  models::LinkContext ctx{dir, sc.run.period, sc.mobility, {}, {}};
+  for (const auto& n : sc.networks) ctx.networks.push_back(n.name);
   ctx.check_trace_delay = [&sc](const std::string& trace, int line, std::int64_t delay,
                                 const std::string& named_by) {
     check_trace_resources(trace, line, delay, sc.run.runs,
@@ -181,6 +215,10 @@ void read_actuators(const config::Table& root, Scenario& sc) {
     }
     if (am.spec.link >= 0) {
       am.link = sc.links[static_cast<std::size_t>(am.spec.link)].link.get();
+      if (am.link->network_attachment() != nullptr)
+        t.fail("link",
+               "expected a link that is not a node of a [[network]]: actuator links over "
+               "a network are not supported yet");
       check_packet_bound(*am.link, sc.run.periods, t, "link", "one per period");
     }
     t.finish();

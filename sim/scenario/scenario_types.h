@@ -19,6 +19,7 @@
 #include "models/link.h"
 #include "models/mobility.h"
 #include "models/plant.h"
+#include "network/network.h"
 
 namespace ncosim::sim {
 
@@ -26,6 +27,13 @@ struct LinkEntry {
   std::string name;
   std::string kind;
   std::unique_ptr<models::Link> link;
+};
+
+// A [[network]] once read (network/network.h): what builds it in every run.
+struct NetworkEntry {
+  std::string name;
+  std::string kind;
+  std::shared_ptr<const network::NetworkDesign> design;
 };
 
 struct EstimatorEntry {
@@ -62,6 +70,7 @@ struct Scenario {
   models::InputSpec input;
   models::Disturbance disturbance;  // deterministic part of w ([plant.disturbance])
   std::vector<LinkEntry> links;
+  std::vector<NetworkEntry> networks;  // [[network]], in order (the links name them)
   std::vector<EstimatorEntry> estimators;
   bool recentre = false;  // simulate in re-centred coordinates (see scenarios/README.md)
   // [sumo]: the mobility source (null without it) and the vehicle whose longitudinal motion is

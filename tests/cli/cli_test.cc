@@ -237,7 +237,7 @@ TEST_F(Cli, UnknownLinkKindListsTheValidKinds) {
   expect_edit_rejected(
       "kind = \"delay\"", "kind = \"dealy\"", "link[0].kind",
       {"expected one of \"delay\", \"bernoulli\", \"negative_binomial\", "
-       "\"arrival_cdf\", \"gilbert_elliott\", \"markov\", \"trace\"" SUMO_LINK_KINDS
+       "\"arrival_cdf\", \"gilbert_elliott\", \"markov\", \"trace\", \"network\"" SUMO_LINK_KINDS
        ", got \"dealy\"",
        "(did you mean \"delay\"?)"});
 }

@@ -169,7 +169,7 @@ TEST(Allocation, TheCounterSeesOperatorNewAndEigen) {
 
 TEST(Allocation, NoEstimatorAllocatesPerPeriodAfterWarmUp) {
   for (const auto& link : link_registry().entries()) {
-    if (needs_sumo(link.name)) continue;
+    if (exercised_elsewhere(link.name)) continue;
     TempDir dir;
     const auto file =
         write_scenario(dir, scenario_text("lti", "white", link.name, all_estimators()));

@@ -48,7 +48,7 @@ TEST(Conformance, EveryEstimatorRunsFiniteDeterministicAndBeatsNothingWithoutDat
   // (open loop uses no data; on a stable plant every estimator that uses data must do at
   // least as well up to Monte Carlo noise, here bounded loosely since the runs are short).
   for (const auto& link : link_registry().entries()) {
-    if (needs_sumo(link.name)) continue;
+    if (exercised_elsewhere(link.name)) continue;
     TempDir dir;
     const auto file =
         write_scenario(dir, scenario_text("lti", "white", link.name, all_estimators()));
@@ -95,7 +95,7 @@ TEST(Conformance, EveryKindRejectsAnUnknownKeyWithADidYouMean) {
     }
   }
   for (const auto& l : link_registry().entries()) {
-    if (needs_sumo(l.name)) continue;
+    if (exercised_elsewhere(l.name)) continue;
     std::string text = scenario_text("lti", "none", l.name, {"open_loop"});
     text.replace(text.find("[[sensor]]"), 0, "bogus_key = 1\n\n");
     const auto file = write_scenario(dir, text);
@@ -115,7 +115,7 @@ TEST(Conformance, EveryLinkHonoursItsMarginalLaw) {
   // transmit is kLost or a delay >= 0, clones replay identically from the same stream, and
   // the empirical loss rate over 20000 packets is within 4.5 binomial sigmas of loss_probability().
   for (const auto& l : link_registry().entries()) {
-    if (needs_sumo(l.name)) continue;
+    if (exercised_elsewhere(l.name)) continue;
     auto sc = link_scenario(l.name);
     const models::Link& link = *sc->links.front().link;
     SCOPED_TRACE(l.name);
@@ -158,7 +158,7 @@ TEST(Conformance, EveryLinkThatClaimsTheDesignModelLosesPacketsIndependently) {
   // one kind must fail it and not claim.
   int dependent_seen = 0;
   for (const auto& l : link_registry().entries()) {
-    if (needs_sumo(l.name)) continue;
+    if (exercised_elsewhere(l.name)) continue;
     auto sc = link_scenario(l.name);
     const models::Link& proto = *sc->links.front().link;
     SCOPED_TRACE(l.name);

@@ -51,6 +51,7 @@ inline const std::map<std::string, std::string> kLinks{
     {"markov", "transition = [[0.9, 0.1], [0.5, 0.5]]\nloss = [0.0, 1.0]"},
     {"trace", "file = \"TRACE\""},
     {"sumo_distance", "sender = \"leader\"\nreceiver = \"follower\""},
+    {"network", "network = \"bus\"\ndesign_pmf = [0.0, 0.7, 0.2]"},
 };
 
 inline const std::map<std::string, std::string> kPlants{
@@ -72,6 +73,11 @@ inline const std::map<std::string, std::string> kPlants{
 // Kinds that need a [sumo] table (SUMO vehicles): exercised by tests/sumo on a generated road,
 // skipped by the generic loops below.
 inline bool needs_sumo(const std::string& kind) { return kind.starts_with("sumo_"); }
+// Kinds the generic loops skip because their own suite exercises them: the SUMO kinds, and the
+// `network` link, a node of a [[network]] simulated by ns-3 (tests/network).
+inline bool exercised_elsewhere(const std::string& kind) {
+  return needs_sumo(kind) || kind == "network";
+}
 
 inline const std::map<std::string, std::string> kInputs{
     {"none", ""},

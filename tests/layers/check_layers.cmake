@@ -6,6 +6,7 @@
 #   models         kernel, config
 #   estimators     kernel, config, models, lmi
 #   sumo           kernel, config, models
+#   network        kernel, config, models (and ns-3)
 # and the application, sim/, in sub-layers on all of those, each on the ones above it here:
 #   sim/files      CSV text and atomic result sets
 #   sim/scenario   scenario reading (the scenario types, sections, registries, resource limits)
@@ -25,21 +26,22 @@
 # including y.h while y.h or y.cc includes x.h is a loop of x and y). Modules are checked in
 # sim/; the files of the whole tree.
 # Namespaces: a file opens only its layer's namespace (ncosim::kernel, ncosim::config, ncosim::lmi,
-# ncosim::models, ncosim::est for estimators/, ncosim::sumo, ncosim::sim for every sub-layer of
+# ncosim::models, ncosim::est for estimators/, ncosim::sumo, ncosim::network, ncosim::sim for every sub-layer of
 # sim/), or one nested in it.
 # Prints every violation and fails when any is found, or, with -DEXPECT=N, when the count is not N
 # (the test of this check on a tree with known faults).
 cmake_minimum_required(VERSION 3.25)
 
 set(sim_layers sim/files sim/scenario sim/run sim/store sim/analysis sim/present sim/cmd)
-set(layers kernel config lmi models estimators sumo ${sim_layers})
+set(layers kernel config lmi models estimators sumo network ${sim_layers})
 set(allowed_kernel kernel)
 set(allowed_config kernel config)
 set(allowed_lmi lmi)
 set(allowed_models kernel config models)
 set(allowed_estimators kernel config models lmi estimators)
 set(allowed_sumo kernel config models sumo)
-set(below kernel config lmi models estimators sumo)
+set(allowed_network kernel config models network)
+set(below kernel config lmi models estimators sumo network)
 foreach(layer IN LISTS sim_layers)
   list(APPEND below ${layer})
   set(allowed_${layer} ${below})
@@ -74,7 +76,7 @@ set(nodes "")  # every file (path below SRC) and, in sim/, every module (path wi
 file(GLOB_RECURSE files LIST_DIRECTORIES false RELATIVE "${SRC}" "${SRC}/kernel/*.h" "${SRC}/kernel/*.cc"
      "${SRC}/config/*.h" "${SRC}/config/*.cc" "${SRC}/lmi/*.h" "${SRC}/lmi/*.cc" "${SRC}/models/*.h"
      "${SRC}/models/*.cc" "${SRC}/estimators/*.h" "${SRC}/estimators/*.cc" "${SRC}/sumo/*.h"
-     "${SRC}/sumo/*.cc" "${SRC}/sim/*.h" "${SRC}/sim/*.cc")
+     "${SRC}/sumo/*.cc" "${SRC}/network/*.h" "${SRC}/network/*.cc" "${SRC}/sim/*.h" "${SRC}/sim/*.cc")
 list(SORT files)
 foreach(rel IN LISTS files)
   math(EXPR checked "${checked} + 1")

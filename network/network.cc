@@ -1,0 +1,18 @@
+// network/network.cc — the network registry's built-ins and the `network` link kind: a [[link]]
+// that is a node of a [[network]] (network/network.h).
+#include "network/network.h"
+
+#include <fmt/format.h>
+
+namespace ncosim::network {
+
+void register_csma(NetworkRegistry& registry);  // network/csma.cc
+
+void register_networks(NetworkRegistry& registry) { register_csma(registry); }
+
+std::string without_ns3_message() {
+  return "this ncosim was built without ns-3, which packet-level networks need (on Debian 12: "
+         "apt-get install libns3-dev libgsl-dev, then configure and build again)";
+}
+
+}  // namespace ncosim::network

@@ -1,0 +1,173 @@
+// network/session_ns3.cc — a run's networks in ns-3 (builds with ns-3): the world the kinds
+// build into, the tag that names each packet, and the lockstep that keeps ns-3 behind ncosim's
+// clock (network/network.h).
+#include <ns3/mac48-address.h>
+#include <ns3/rng-seed-manager.h>
+#include <ns3/simulator.h>
+#include <ns3/tag.h>
+
+#include <mutex>
+#include <utility>
+
+#include "kernel/check.h"
+#include "kernel/rng.h"
+#include "network/world.h"
+
+namespace ncosim::network {
+
+namespace {
+
+// The sender and id of a packet, carried as an ns-3 packet tag (not in the payload, whose bytes
+// the stack counts as they are).
+class PacketTag final : public ns3::Tag {
+ public:
+  PacketTag() = default;
+  PacketTag(std::uint32_t sender, std::uint64_t id) : sender_(sender), id_(id) {}
+  static ns3::TypeId GetTypeId() {
+    static ns3::TypeId tid =
+        ns3::TypeId("ncosim::network::PacketTag").SetParent<ns3::Tag>().AddConstructor<PacketTag>();
+    return tid;
+  }
+  ns3::TypeId GetInstanceTypeId() const override { return GetTypeId(); }
+  std::uint32_t GetSerializedSize() const override { return 12; }
+  void Serialize(ns3::TagBuffer b) const override {
+    b.WriteU32(sender_);
+    b.WriteU64(id_);
+  }
+  void Deserialize(ns3::TagBuffer b) override {
+    sender_ = b.ReadU32();
+    id_ = b.ReadU64();
+  }
+  void Print(std::ostream& os) const override { os << "sender=" << sender_ << " id=" << id_; }
+  std::uint32_t sender() const { return sender_; }
+  std::uint64_t id() const { return id_; }
+
+ private:
+  std::uint32_t sender_ = 0;
+  std::uint64_t id_ = 0;
+};
+
+void drop_trace(World* world, Drop cause, ns3::Ptr<const ns3::Packet> p) {
+  world->dropped(cause, p);
+}
+
+}  // namespace
+
+World::World(std::vector<Sender> senders) : senders_(std::move(senders)), ports_(senders_.size()) {}
+
+void World::attach_sink(const ns3::Ptr<ns3::NetDevice>& device) {
+  device->SetReceiveCallback(ns3::MakeCallback(&World::received, this));
+}
+
+void World::attach_sender(int sender, const ns3::Ptr<ns3::NetDevice>& device,
+                          const ns3::Address& sink) {
+  ports_[static_cast<std::size_t>(sender)] = Port{device, sink};
+}
+
+void World::send_now(int s, std::uint64_t id) {
+  const Port& port = ports_[static_cast<std::size_t>(s)];
+  const std::uint32_t bytes = sender(s).bytes;
+  if (payload_.size() < bytes) payload_.resize(bytes, 0);
+  auto p = ns3::Create<ns3::Packet>(payload_.data(), bytes);
+  p->AddPacketTag(PacketTag(static_cast<std::uint32_t>(s), id));
+  // A device that refuses the packet (its queue full) has already fired its drop trace.
+  port.device->Send(p, port.sink, kProtocol);
+}
+
+void World::connect_drop(const ns3::Ptr<ns3::NetDevice>& device, const char* trace, Drop cause) {
+  const bool connected =
+      device->TraceConnectWithoutContext(trace, ns3::MakeBoundCallback(&drop_trace, this, cause));
+  NCOSIM_CHECK(connected);
+}
+
+void World::dropped(Drop cause, const ns3::Ptr<const ns3::Packet>& p) { note(p, cause); }
+
+bool World::received(ns3::Ptr<ns3::NetDevice>, ns3::Ptr<const ns3::Packet> p, std::uint16_t,
+                     const ns3::Address&) {
+  note(p, Drop::kNone);
+  return true;
+}
+
+void World::note(const ns3::Ptr<const ns3::Packet>& p, Drop drop) {
+  PacketTag tag;
+  if (!p->PeekPacketTag(tag)) return;  // not one of ours
+  NCOSIM_CHECK(fates_ != nullptr);
+  fates_->push_back(
+      Fate{static_cast<int>(tag.sender()), tag.id(), ns3::Simulator::Now().GetNanoSeconds(), drop});
+}
+
+namespace {
+
+// ns-3 has one simulator per process: one session at a time.
+std::mutex& simulator_mutex() {
+  static std::mutex m;
+  return m;
+}
+
+class Ns3Session final : public Session {
+ public:
+  Ns3Session(const std::vector<std::shared_ptr<const NetworkDesign>>& designs,
+             const std::vector<Sender>& senders, std::uint64_t seed, std::uint64_t run)
+      : lock_(simulator_mutex()), world_(senders) {
+    // ns-3's generator (MRG32k3a): its seed from the campaign seed, its run (sub-stream) the
+    // run index, so that a run's network is the same whatever process, thread or shard runs it.
+    auto rng = kernel::make_stream(seed, 0, kernel::stream_id(kernel::StreamKind::kNetwork, 0));
+    ns3::RngSeedManager::SetSeed(1U + static_cast<std::uint32_t>(rng() % 4294967086ULL));
+    ns3::RngSeedManager::SetRun(run);
+    ns3::Mac48Address::ResetAllocationIndex();  // the same addresses in every run
+    for (std::size_t n = 0; n < designs.size(); ++n) {
+      std::vector<int> attached;
+      for (std::size_t s = 0; s < senders.size(); ++s) {
+        if (senders[s].network == static_cast<int>(n)) attached.push_back(static_cast<int>(s));
+      }
+      designs[n]->build(world_, attached);
+    }
+  }
+  ~Ns3Session() override { ns3::Simulator::Destroy(); }
+
+  void send(int sender, std::uint64_t id, kernel::SimTime t) override {
+    const std::int64_t now = ns3::Simulator::Now().GetNanoSeconds();
+    NCOSIM_CHECK(t >= now);
+    ns3::Simulator::Schedule(ns3::NanoSeconds(t - now), &World::send_now, &world_, sender, id);
+  }
+
+  // Every event at times <= t: an event at t checks, once every event already at t has run,
+  // whether any ran since its previous check (those may have scheduled more at t); when none
+  // did, no event at t is left and ns-3 stops at t.
+  void advance_to(kernel::SimTime t, std::vector<Fate>& fates) override {
+    const std::int64_t now = ns3::Simulator::Now().GetNanoSeconds();
+    NCOSIM_CHECK(t >= now);
+    world_.collect_into(&fates);
+    last_check_ = ~std::uint64_t{0};
+    ns3::Simulator::Schedule(ns3::NanoSeconds(t - now), &Ns3Session::check, this);
+    ns3::Simulator::Run();
+    world_.collect_into(nullptr);
+  }
+
+ private:
+  void check() {
+    const std::uint64_t count = ns3::Simulator::GetEventCount();
+    if (count == last_check_ + 1) {
+      ns3::Simulator::Stop();
+      return;
+    }
+    last_check_ = count;
+    ns3::Simulator::ScheduleNow(&Ns3Session::check, this);
+  }
+
+  std::unique_lock<std::mutex> lock_;
+  World world_;
+  std::uint64_t last_check_ = 0;
+};
+
+}  // namespace
+
+std::unique_ptr<Session> Session::start(
+    const std::vector<std::shared_ptr<const NetworkDesign>>& designs,
+    const std::vector<Sender>& senders, std::uint64_t seed, std::uint64_t run) {
+  return std::make_unique<Ns3Session>(designs, senders, seed, run);
+}
+
+bool have_ns3() { return true; }
+
+}  // namespace ncosim::network

@@ -1,0 +1,24 @@
+// sim/cmd/process_campaign.h — a campaign over worker processes, for scenarios whose runs cannot
+// share a process: ns-3 (the [[network]] tables, network/) has one simulator per process, so the
+// runs of such a scenario would otherwise take turns on one core. The ncosim process forks one
+// single-threaded worker per --threads before anything simulates; it hands out one run at a time
+// over a pipe (a dynamic queue, so unequal runs balance) and receives each run's serialized
+// metrics, link counters and, at the end, the worker's error curve. Results are bit-identical to
+// one process (a run depends on (seed, run index) alone, and the store orders every export).
+#pragma once
+
+#include "sim/run/campaign.h"
+
+namespace ncosim::sim {
+
+// Whether the scenario's runs need worker processes to use more than one core (it has networks).
+bool needs_worker_processes(const Scenario& sc);
+
+// The runs of `options.only_runs` over min(options.threads or every core, runs) worker processes;
+// each result goes to options.on_run in the calling process. The trace of run 0 and the
+// estimators' timing (when asked) come from one more simulation of the first run here, after the
+// distribution. A worker that dies (a crash inside ns-3) or fails ends the campaign with a message
+// naming the run.
+CampaignResult run_in_processes(const Scenario& sc, const CampaignOptions& options);
+
+}  // namespace ncosim::sim

@@ -1,0 +1,294 @@
+// tests/network/network_test.cc — packet-level networks (network/): the wired case against delays
+// computed by hand, the lockstep of ns-3 with the kernel's clock at its edges, reproducibility,
+// and bad input. Built only with ns-3 (NCOSIM_NS3).
+#include "network/network.h"
+
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+#include <toml++/toml.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "config/config.h"
+#include "sim/scenario/registries.h"
+#include "test_util.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+using ncosim::network::Drop;
+using ncosim::network::Fate;
+using ncosim::network::NetworkDesign;
+using ncosim::network::Sender;
+using ncosim::network::Session;
+
+const fs::path kSource = NCOSIM_SOURCE_DIR;
+
+// A [[network]] table read by its kind's reader, as the scenario reader does.
+std::shared_ptr<const NetworkDesign> design(const std::string& table) {
+  static std::vector<toml::table> docs;  // the designs keep no reference, but keep them alive
+  docs.push_back(toml::parse(table));
+  const ncosim::config::Table t(docs.back(), "network[0]", "test.toml");
+  return ncosim::sim::network_registry().lookup(t, "kind", "").factory(t);
+}
+
+// 1 Mb/s: a bit is 1000 ns, so every transmission time is a whole number of ns.
+const char* kBus = "kind = \"csma\"\nrate = 1e6\ndelay = 5e-6\n";
+constexpr std::int64_t kMs = 1'000'000;
+// A packet of `payload` bytes on the bus: its 14-byte Ethernet header and 4-byte trailer included.
+constexpr std::int64_t tx_ns(std::int64_t payload) { return (payload + 18) * 8 * 1000; }
+constexpr std::int64_t kProp = 5000;
+
+std::vector<Fate> advance(Session& s, std::int64_t t) {
+  std::vector<Fate> f;
+  s.advance_to(t, f);
+  return f;
+}
+
+TEST(Wired, ALonePacketTakesItsTransmissionPlusPropagationTime) {
+  auto s = Session::start({design(kBus)}, {Sender{0, 64}, Sender{0, 200}}, 1, 0);
+  s->send(0, 11, 0);
+  auto f = advance(*s, 10 * kMs);
+  ASSERT_EQ(f.size(), 1U);
+  EXPECT_EQ(f[0].sender, 0);
+  EXPECT_EQ(f[0].id, 11U);
+  EXPECT_EQ(f[0].drop, Drop::kNone);
+  EXPECT_EQ(f[0].time, tx_ns(64) + kProp);  // 656 us + 5 us
+  s->send(1, 12, 20 * kMs);
+  f = advance(*s, 30 * kMs);
+  ASSERT_EQ(f.size(), 1U);
+  EXPECT_EQ(f[0].sender, 1);
+  EXPECT_EQ(f[0].time, 20 * kMs + tx_ns(200) + kProp);  // 1744 us + 5 us
+}
+
+// Three packets handed to one node at once leave it back to back, the Ethernet interframe gap of
+// 96 bit times (96 us at 1 Mb/s, longer than the propagation delay, so the bus is idle again)
+// apart: the i-th (0-based) is received after i (transmission + gap) + transmission + propagation.
+TEST(Wired, ABurstFromOneNodeQueuesBackToBack) {
+  auto s = Session::start({design(kBus)}, {Sender{0, 64}}, 1, 0);
+  for (std::uint64_t id = 0; id < 3; ++id) s->send(0, id, 3 * kMs);
+  const auto f = advance(*s, 10 * kMs);
+  ASSERT_EQ(f.size(), 3U);
+  constexpr std::int64_t kGap = 96 * 1000;
+  for (std::size_t i = 0; i < 3; ++i) {
+    EXPECT_EQ(f[i].id, i);
+    EXPECT_EQ(f[i].time,
+              3 * kMs + static_cast<std::int64_t>(i) * (tx_ns(64) + kGap) + tx_ns(64) + kProp)
+        << i;
+  }
+}
+
+// A queue of 2 packets: of 4 handed over at once, one is on the wire, two wait, the fourth is
+// dropped at once (cause queue).
+TEST(Wired, AFullQueueDropsThePacket) {
+  auto s = Session::start({design(std::string(kBus) + "queue = 2\n")}, {Sender{0, 64}}, 1, 0);
+  for (std::uint64_t id = 0; id < 4; ++id) s->send(0, id, 0);
+  const auto f = advance(*s, 10 * kMs);
+  ASSERT_EQ(f.size(), 4U);
+  EXPECT_EQ(f[0].id, 3U);
+  EXPECT_EQ(f[0].drop, Drop::kQueue);
+  EXPECT_EQ(f[0].time, 0);
+  for (std::size_t i = 1; i < 4; ++i) EXPECT_EQ(f[i].drop, Drop::kNone) << i;
+}
+
+// advance_to(t) processes every event at times <= t, including those scheduled at exactly t by
+// events processed during the same call, and none after t. A send at the instant of a reception:
+// both happen in that instant (the bus is idle again exactly then, so the new packet goes at once).
+TEST(Lockstep, EveryEventUpToTheInstantAndNoneAfter) {
+  constexpr std::int64_t kR = tx_ns(64) + kProp;  // 661 us
+  auto s = Session::start({design(kBus)}, {Sender{0, 64}, Sender{0, 64}}, 1, 0);
+  s->send(0, 1, 0);
+  EXPECT_TRUE(advance(*s, kR - 1).empty());
+  s->send(1, 2, kR);
+  auto f = advance(*s, kR);
+  ASSERT_EQ(f.size(), 1U);
+  EXPECT_EQ(f[0].id, 1U);
+  EXPECT_EQ(f[0].time, kR);
+  EXPECT_TRUE(advance(*s, 2 * kR - 1).empty());
+  f = advance(*s, 2 * kR);
+  ASSERT_EQ(f.size(), 1U);
+  EXPECT_EQ(f[0].id, 2U);
+  EXPECT_EQ(f[0].sender, 1);
+  EXPECT_EQ(f[0].time, 2 * kR);
+}
+
+// Contention: four nodes sending at the same instant back off at random. ns-3's generator is
+// seeded from (campaign seed, run): the same pair gives the same times, another run others.
+std::vector<std::int64_t> contention_times(std::uint64_t seed, std::uint64_t run) {
+  std::vector<Sender> senders(4, Sender{0, 100});
+  auto s = Session::start({design(kBus)}, senders, seed, run);
+  std::vector<std::int64_t> times;
+  for (int k = 0; k < 20; ++k) {
+    for (int n = 0; n < 4; ++n) s->send(n, static_cast<std::uint64_t>(k * 4 + n), k * 5 * kMs);
+    for (const Fate& f : advance(*s, k * 5 * kMs)) times.push_back(f.time);
+  }
+  for (const Fate& f : advance(*s, 200 * kMs)) times.push_back(f.time);
+  return times;
+}
+
+TEST(Lockstep, TheSameSeedAndRunGiveTheSameNetwork) {
+  const auto a = contention_times(7, 0);
+  EXPECT_EQ(a.size(), 80U);
+  EXPECT_EQ(a, contention_times(7, 0));
+  EXPECT_NE(a, contention_times(7, 1));
+  EXPECT_NE(a, contention_times(8, 0));
+}
+
+// ---- through the executable ----
+
+using Outcome = ncosim::testing::CommandOutcome;
+Outcome ncosim(const std::vector<std::string>& args) { return ncosim::testing::run_ncosim(args); }
+
+class NetworkCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           fmt::format("ncosim_network_{}_{}", ::getpid(),
+                       ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  static std::string slurp(const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+  }
+  // Column `column` of links.csv's rows, in order.
+  static std::vector<std::string> links_column(const fs::path& out, const std::string& column) {
+    std::istringstream in(slurp(out / "links.csv"));
+    std::string line;
+    std::getline(in, line);
+    std::vector<std::string> header, values;
+    std::istringstream h(line);
+    for (std::string c; std::getline(h, c, ',');) header.push_back(c);
+    const auto at = std::find(header.begin(), header.end(), column) - header.begin();
+    while (std::getline(in, line)) {
+      std::istringstream r(line);
+      std::vector<std::string> cells;
+      for (std::string c; std::getline(r, c, ',');) cells.push_back(c);
+      values.push_back(static_cast<std::size_t>(at) < cells.size() ? cells[at] : "");
+    }
+    return values;
+  }
+  fs::path dir_;
+};
+
+// The 1-based line of the first occurrence of `what` in `text`.
+int line_of(const std::string& text, const std::string& what) {
+  const auto at = text.find(what);
+  return 1 + static_cast<int>(std::count(text.begin(), text.begin() + static_cast<long>(at), '\n'));
+}
+
+const std::string kBoundary = (kSource / "tests/network/data/csma_boundary.toml").string();
+const std::string kContention = (kSource / "tests/network/data/csma_contention.toml").string();
+
+// Each packet of csma_boundary.toml is received exactly one period after it is sent: it is used
+// at that boundary's update (delay 1). 1 ns less propagation: still delay 1; 1 us more: delay 2.
+TEST_F(NetworkCli, AReceptionAtAPeriodBoundaryIsUsedAtThatBoundary) {
+  for (const auto& [delay, pmf] : std::vector<std::pair<std::string, std::string>>{
+           {"5e-6", "0;1"}, {"4.999e-6", "0;1"}, {"6e-6", "0;0;1"}}) {
+    const fs::path out = dir_ / ("d" + delay);
+    const Outcome o = ncosim(
+        {"run", kBoundary, "--out", out.string(), "--quiet", "--set", "network[0].delay=" + delay});
+    ASSERT_EQ(o.code, 0) << o.output;
+    EXPECT_EQ(links_column(out, "delay_pmf"), std::vector<std::string>{pmf}) << delay;
+    EXPECT_EQ(links_column(out, "delivered_ratio"), std::vector<std::string>{"1"}) << delay;
+  }
+}
+
+// Contention, queueing and drops, and the run is a pure function of (scenario, seed, run): one
+// thread, two threads, and two shards merged give the same bytes.
+TEST_F(NetworkCli, ARunIsTheSameWhateverTheThreadsAndShards) {
+  auto run = [&](const std::string& name, std::vector<std::string> extra) {
+    std::vector<std::string> args{"run",     kContention,  "--out", (dir_ / name).string(),
+                                  "--quiet", "--no-timing"};
+    args.insert(args.end(), extra.begin(), extra.end());
+    const Outcome o = ncosim(args);
+    EXPECT_EQ(o.code, 0) << o.output;
+  };
+  run("t1", {"--threads", "1"});
+  run("t2", {"--threads", "2"});
+  run("s1", {"--shard", "1/2"});
+  run("s2", {"--shard", "2/2"});
+  const Outcome m =
+      ncosim({"merge", (dir_ / "m").string(), (dir_ / "s1").string(), (dir_ / "s2").string()});
+  ASSERT_EQ(m.code, 0) << m.output;
+  const std::string runs = slurp(dir_ / "t1" / "runs.csv");
+  EXPECT_FALSE(runs.empty());
+  EXPECT_EQ(runs, slurp(dir_ / "t2" / "runs.csv"));
+  EXPECT_EQ(runs, slurp(dir_ / "m" / "runs.csv"));
+  EXPECT_EQ(slurp(dir_ / "t1" / "links.csv"), slurp(dir_ / "t2" / "links.csv"));
+  EXPECT_EQ(slurp(dir_ / "t1" / "links.csv"), slurp(dir_ / "m" / "links.csv"));
+  // Two sensors per node and a queue of 4 on a 1 Mb/s bus: every packet gets through, with
+  // delays of one period or more (nothing arrives in the period it is sent).
+  for (const auto& pmf : links_column(dir_ / "t1", "delay_pmf")) EXPECT_EQ(pmf.rfind("0;", 0), 0U);
+}
+
+TEST_F(NetworkCli, BadInputNamesTheKeyAndItsLine) {
+  struct Case {
+    std::string from, to;  // the edit
+    std::string at;        // the text on the line the message names
+    std::string message;
+  };
+  const std::vector<Case> cases{
+      {"network = \"bus\"", "network = \"lan\"", "network = \"lan\"",
+       "key 'link[0].network': expected the name of a [[network]] (\"bus\"), got \"lan\""},
+      {"kind = \"csma\"", "kind = \"token_ring\"", "kind = \"token_ring\"",
+       "key 'network[0].kind': expected one of \"csma\", got \"token_ring\""},
+      {"rate = 1e6", "rate = \"fast\"", "rate = \"fast\"",
+       "key 'network[0].rate': expected a number"},
+      {"bytes = 64", "bytes = 0", "bytes = 0",
+       "key 'link[0].bytes': expected an integer in 1..1500"},
+      {"link = \"node1\"", "", "name = \"bus\"",
+       "key 'network[0].name': expected a network that a sensor's link is a node of, got \"bus\", "
+       "which no [[sensor]] sends over"},
+  };
+  const std::string text = slurp(kBoundary);
+  for (const auto& c : cases) {
+    std::string bad = text;
+    ASSERT_NE(bad.find(c.from), std::string::npos) << c.from;
+    bad.replace(bad.find(c.from), c.from.size(), c.to);
+    const fs::path file = dir_ / "bad.toml";
+    std::ofstream(file) << bad;
+    const Outcome o = ncosim({"check", file.string()});
+    EXPECT_EQ(o.code, 2) << o.output;
+    const std::string where = fmt::format("bad.toml:{}: ", line_of(bad, c.at));
+    EXPECT_NE(o.output.find(where + c.message), std::string::npos) << where << c.message << "\n"
+                                                                   << o.output;
+  }
+}
+
+// A design that needs the law of a link whose network decides it during the run, without
+// design_pmf: refused before the run, naming the key to give. A design that needs no law runs, and
+// links.csv leaves the nominal values empty.
+TEST_F(NetworkCli, ADesignWithoutTheNetworksLawIsRefusedNamingDesignPmf) {
+  std::string text = slurp(kBoundary);
+  const std::string law = "design_pmf = [0.0, 1.0]\n";
+  text.replace(text.find(law), law.size(), "");
+  std::ofstream(dir_ / "open_loop.toml") << text;
+  const Outcome ok = ncosim(
+      {"run", (dir_ / "open_loop.toml").string(), "--out", (dir_ / "out").string(), "--quiet"});
+  EXPECT_EQ(ok.code, 0) << ok.output;
+  EXPECT_EQ(links_column(dir_ / "out", "nominal_delay_pmf"), std::vector<std::string>{""});
+  const std::string kf = "kind = \"kalman_extended\"\n";
+  text.replace(text.find(kf), kf.size(), "kind = \"jump\"\ngrouping = \"S1\"\nhistory = 2\n");
+  std::ofstream(dir_ / "jump.toml") << text;
+  const Outcome o = ncosim({"check", (dir_ / "jump.toml").string()});
+  EXPECT_EQ(o.code, 2) << o.output;
+  EXPECT_NE(o.output.find(fmt::format("jump.toml:{}: key 'link[0].design_pmf': a design needs "
+                                      "this link's delay law",
+                                      line_of(text, "[[link]]"))),
+            std::string::npos)
+      << o.output;
+}
+
+}  // namespace
