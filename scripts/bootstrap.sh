@@ -13,7 +13,7 @@ packages=(g++ make cmake libeigen3-dev libboost-dev libboost-random-dev libboost
           libgtest-dev libgmock-dev libbenchmark-dev
           libsdp-dev liblapack-dev libblas-dev libopenblas0-serial gnuplot-nox sumo sumo-tools
           libsqlite3-dev libboost-mpi-dev libopenmpi-dev openmpi-bin
-          chromium libxml2-utils clang-format python3-jsonschema)
+          chromium libxml2-utils clang-format python3-jsonschema libns3-dev libgsl-dev)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
