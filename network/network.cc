@@ -8,7 +8,12 @@ namespace ncosim::network {
 
 void register_csma(NetworkRegistry& registry);  // network/csma.cc
 
-void register_networks(NetworkRegistry& registry) { register_csma(registry); }
+void register_lr_wpan(NetworkRegistry& registry);  // network/lr_wpan.cc
+
+void register_networks(NetworkRegistry& registry) {
+  register_csma(registry);
+  register_lr_wpan(registry);
+}
 
 std::string without_ns3_message() {
   return "this ncosim was built without ns-3, which packet-level networks need (on Debian 12: "

@@ -26,7 +26,8 @@ namespace ncosim::network {
 class World;  // one run's ns-3 simulation (network/world.h; only in builds with ns-3)
 
 // What happened to one packet: delivered to the sink at `time`, or dropped by the stack.
-enum class Drop : std::uint8_t { kNone, kQueue, kChannelAccess, kCollision, kOutOfRange };
+// kNoAck: the MAC gave up after its retransmissions (collisions, fading or range).
+enum class Drop : std::uint8_t { kNone, kQueue, kChannelAccess, kNoAck };
 struct Fate {
   int sender = 0;            // the sender's index in the session (Session::start)
   std::uint64_t id = 0;      // the id given to Session::send
@@ -41,6 +42,10 @@ class NetworkDesign {
   // Adds this network to the run's world: the sink, then one node per sender (`senders` are the
   // world's sender indices attached to this network, in scenario order).
   virtual void build(World& world, const std::vector<int>& senders) const = 0;
+  // Whether its nodes have positions (a [[link]] `position` on a network without is refused).
+  virtual bool has_positions() const { return false; }
+  // The largest payload of one packet (bytes), at most 1500.
+  virtual std::uint32_t max_payload() const { return 1500; }
 };
 
 using NetworkRegistry = config::Registry<std::shared_ptr<const NetworkDesign>>;
@@ -55,8 +60,9 @@ std::string without_ns3_message();
 
 // A sender: the [[link]] of kind `network` it is, the network it is attached to and its payload.
 struct Sender {
-  int network = 0;          // index into the session's networks
-  std::uint32_t bytes = 0;  // payload bytes of each packet
+  int network = 0;                   // index into the session's networks
+  std::uint32_t bytes = 0;           // payload bytes of each packet
+  double x = 0.0, y = 0.0, z = 0.0;  // position (m), for the kinds that have positions
 };
 
 // One run's networks in ns-3. ns-3 has one simulator per process: a session holds it (other

@@ -47,6 +47,11 @@ const config::Keys& network_link_keys() {
       Key::string("network").help("the [[network]] this link is a node of (its name)"),
       Key::integer("bytes").range(1, 1500).or_default(32).unit("bytes").help(
           "payload of each packet (the stack adds its own headers)"),
+      Key::numbers("position")
+          .optional("[0, 0, 0]")
+          .unit("m")
+          .help("[x, y, z] of this node, for the network kinds with positions (the sink's is the "
+                "network's sink_position)"),
       Key::numbers("design_pmf")
           .optional("none: a design that needs the law is refused")
           .noun("a probability", "probabilities")
@@ -85,8 +90,16 @@ std::unique_ptr<models::Link> read_network_link(const config::Table& t,
       "a design needs this link's delay law, which its network decides during the run: give "
       "design_pmf = [P(delay 0), P(delay 1), ...] (`ncosim record-link` on the network, then "
       "`ncosim fit`), or use estimators that need no law");
-  const models::NetworkAttachment a{static_cast<int>(it - ctx.networks.begin()),
-                                    static_cast<std::uint32_t>(r.integer("bytes"))};
+  models::NetworkAttachment a{static_cast<int>(it - ctx.networks.begin()),
+                              static_cast<std::uint32_t>(r.integer("bytes"))};
+  if (r.has("position")) {
+    const std::vector<double> p = r.numbers("position");
+    if (p.size() != 3)
+      t.fail("position", fmt::format("expected [x, y, z] (m), got {} numbers", p.size()));
+    a.x = p[0];
+    a.y = p[1];
+    a.z = p[2];
+  }
   return std::make_unique<NetworkLink>(a, std::move(pmf), no_law);
 }
 

@@ -17,34 +17,26 @@ namespace ncosim::network {
 
 namespace {
 
-// The sender and id of a packet, carried as an ns-3 packet tag (not in the payload, whose bytes
-// the stack counts as they are).
+// A packet's sequence number in the run (World::send_now), carried as an ns-3 packet tag (not in
+// the payload, whose bytes the stack counts as they are).
 class PacketTag final : public ns3::Tag {
  public:
   PacketTag() = default;
-  PacketTag(std::uint32_t sender, std::uint64_t id) : sender_(sender), id_(id) {}
+  explicit PacketTag(std::uint64_t seq) : seq_(seq) {}
   static ns3::TypeId GetTypeId() {
     static ns3::TypeId tid =
         ns3::TypeId("ncosim::network::PacketTag").SetParent<ns3::Tag>().AddConstructor<PacketTag>();
     return tid;
   }
   ns3::TypeId GetInstanceTypeId() const override { return GetTypeId(); }
-  std::uint32_t GetSerializedSize() const override { return 12; }
-  void Serialize(ns3::TagBuffer b) const override {
-    b.WriteU32(sender_);
-    b.WriteU64(id_);
-  }
-  void Deserialize(ns3::TagBuffer b) override {
-    sender_ = b.ReadU32();
-    id_ = b.ReadU64();
-  }
-  void Print(std::ostream& os) const override { os << "sender=" << sender_ << " id=" << id_; }
-  std::uint32_t sender() const { return sender_; }
-  std::uint64_t id() const { return id_; }
+  std::uint32_t GetSerializedSize() const override { return 8; }
+  void Serialize(ns3::TagBuffer b) const override { b.WriteU64(seq_); }
+  void Deserialize(ns3::TagBuffer b) override { seq_ = b.ReadU64(); }
+  void Print(std::ostream& os) const override { os << "seq=" << seq_; }
+  std::uint64_t seq() const { return seq_; }
 
  private:
-  std::uint32_t sender_ = 0;
-  std::uint64_t id_ = 0;
+  std::uint64_t seq_ = 0;
 };
 
 void drop_trace(World* world, Drop cause, ns3::Ptr<const ns3::Packet> p) {
@@ -60,16 +52,22 @@ void World::attach_sink(const ns3::Ptr<ns3::NetDevice>& device) {
 }
 
 void World::attach_sender(int sender, const ns3::Ptr<ns3::NetDevice>& device,
-                          const ns3::Address& sink) {
-  ports_[static_cast<std::size_t>(sender)] = Port{device, sink};
+                          const ns3::Address& sink, bool confirms) {
+  Port& port = ports_[static_cast<std::size_t>(sender)];
+  port.device = device;
+  port.sink = sink;
+  port.confirms = confirms;
 }
 
 void World::send_now(int s, std::uint64_t id) {
-  const Port& port = ports_[static_cast<std::size_t>(s)];
+  Port& port = ports_[static_cast<std::size_t>(s)];
   const std::uint32_t bytes = sender(s).bytes;
   if (payload_.size() < bytes) payload_.resize(bytes, 0);
   auto p = ns3::Create<ns3::Packet>(payload_.data(), bytes);
-  p->AddPacketTag(PacketTag(static_cast<std::uint32_t>(s), id));
+  const std::uint64_t seq = next_seq_++;
+  in_flight_.emplace(seq, InFlight{s, id});
+  if (port.confirms) port.unconfirmed.push_back(seq);
+  p->AddPacketTag(PacketTag(seq));
   // A device that refuses the packet (its queue full) has already fired its drop trace.
   port.device->Send(p, port.sink, kProtocol);
 }
@@ -82,6 +80,14 @@ void World::connect_drop(const ns3::Ptr<ns3::NetDevice>& device, const char* tra
 
 void World::dropped(Drop cause, const ns3::Ptr<const ns3::Packet>& p) { note(p, cause); }
 
+void World::confirmed(int sender, Drop drop) {
+  Port& port = ports_[static_cast<std::size_t>(sender)];
+  NCOSIM_CHECK(!port.unconfirmed.empty());
+  const std::uint64_t seq = port.unconfirmed.front();
+  port.unconfirmed.pop_front();
+  if (drop != Drop::kNone) fate(seq, drop);
+}
+
 bool World::received(ns3::Ptr<ns3::NetDevice>, ns3::Ptr<const ns3::Packet> p, std::uint16_t,
                      const ns3::Address&) {
   note(p, Drop::kNone);
@@ -90,10 +96,16 @@ bool World::received(ns3::Ptr<ns3::NetDevice>, ns3::Ptr<const ns3::Packet> p, st
 
 void World::note(const ns3::Ptr<const ns3::Packet>& p, Drop drop) {
   PacketTag tag;
-  if (!p->PeekPacketTag(tag)) return;  // not one of ours
+  if (p->PeekPacketTag(tag)) fate(tag.seq(), drop);
+}
+
+void World::fate(std::uint64_t seq, Drop drop) {
+  const auto it = in_flight_.find(seq);
+  if (it == in_flight_.end()) return;  // its fate is known already
   NCOSIM_CHECK(fates_ != nullptr);
   fates_->push_back(
-      Fate{static_cast<int>(tag.sender()), tag.id(), ns3::Simulator::Now().GetNanoSeconds(), drop});
+      Fate{it->second.sender, it->second.id, ns3::Simulator::Now().GetNanoSeconds(), drop});
+  in_flight_.erase(it);
 }
 
 namespace {

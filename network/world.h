@@ -9,6 +9,9 @@
 #include <ns3/ptr.h>
 
 #include <cstdint>
+#include <deque>
+#include <memory>
+#include <unordered_map>
 #include <vector>
 
 #include "network/network.h"
@@ -19,13 +22,19 @@ class World {
  public:
   explicit World(std::vector<Sender> senders);
   // The network being built: the sink's device (packets addressed to it are deliveries) and each
-  // sender's device (it sends to `sink`, the sink device's address).
+  // sender's device (it sends to `sink`, the sink device's address). `confirms`: the kind reports
+  // the end of each of the sender's packets through confirmed(), in the order they were sent (a
+  // MAC that handles one frame at a time, e.g. IEEE 802.15.4).
   void attach_sink(const ns3::Ptr<ns3::NetDevice>& device);
-  void attach_sender(int sender, const ns3::Ptr<ns3::NetDevice>& device, const ns3::Address& sink);
+  void attach_sender(int sender, const ns3::Ptr<ns3::NetDevice>& device, const ns3::Address& sink,
+                     bool confirms = false);
   // Connects the drop trace source `trace` of a sender's device: a packet it fires for is lost
   // for `cause`.
   void connect_drop(const ns3::Ptr<ns3::NetDevice>& device, const char* trace, Drop cause);
   void dropped(Drop cause, const ns3::Ptr<const ns3::Packet>& p);
+  // The sender's MAC is done with its oldest packet: sent (kNone: its delivery is the sink's
+  // reception) or dropped for `drop`.
+  void confirmed(int sender, Drop drop);
   const Sender& sender(int s) const { return senders_[static_cast<std::size_t>(s)]; }
   // The first of `count` ns-3 random-stream numbers for a network being built. Every kind assigns
   // fixed streams to what draws random numbers (its helper's AssignStreams): ns-3's automatic
@@ -37,6 +46,10 @@ class World {
     return first;
   }
 
+  // Keeps `object` alive until the run's simulation ends (a helper that disposes of its channel
+  // when destroyed, e.g. ns-3's LrWpanHelper).
+  void keep(std::shared_ptr<void> object) { kept_.push_back(std::move(object)); }
+
   // Sender `s` sends packet `id` now (called by an ns-3 event at the send time).
   void send_now(int s, std::uint64_t id);
   // Where fates are appended while ns-3 runs (Session::advance_to).
@@ -46,16 +59,29 @@ class World {
   bool received(ns3::Ptr<ns3::NetDevice> device, ns3::Ptr<const ns3::Packet> p,
                 std::uint16_t protocol, const ns3::Address& from);
   void note(const ns3::Ptr<const ns3::Packet>& p, Drop drop);
+  void fate(std::uint64_t seq, Drop drop);
 
   struct Port {
     ns3::Ptr<ns3::NetDevice> device;
     ns3::Address sink;
+    bool confirms = false;
+    std::deque<std::uint64_t> unconfirmed;  // sequence numbers, oldest first
+  };
+  struct InFlight {
+    int sender;
+    std::uint64_t id;
   };
   std::vector<Sender> senders_;
   std::vector<Port> ports_;
+  // Every packet sent and not yet delivered or dropped, by its sequence number (its tag): a
+  // packet's fate is reported once, so neither a duplicate reception (a retransmission after a
+  // lost acknowledgement) nor a drop after a delivery is.
+  std::unordered_map<std::uint64_t, InFlight> in_flight_;
+  std::uint64_t next_seq_ = 0;
   std::vector<std::uint8_t> payload_;  // zero bytes: a packet's content is its tag
   std::vector<Fate>* fates_ = nullptr;
   std::int64_t next_stream_ = 0;
+  std::vector<std::shared_ptr<void>> kept_;
 };
 
 // The EtherType-like protocol number of ncosim's packets (IEEE 802 local experimental 1).

@@ -178,7 +178,7 @@ class RunSimulation {
     for (auto& ls : links_) {
       if (const models::NetworkAttachment* a = ls.link->network_attachment()) {
         ls.sender = static_cast<int>(senders.size());
-        senders.push_back(network::Sender{a->network, a->bytes});
+        senders.push_back(network::Sender{a->network, a->bytes, a->x, a->y, a->z});
       }
     }
     std::vector<std::shared_ptr<const network::NetworkDesign>> designs;

@@ -111,6 +111,23 @@ void read_networks(const config::Table& root, Scenario& sc) {
 
 void check_networks(const config::Table& root, const Scenario& sc) {
   const auto tables = root.tables("network");
+  const auto link_tables = root.tables("link");
+  for (std::size_t l = 0; l < sc.links.size(); ++l) {
+    const models::NetworkAttachment* a = sc.links[l].link->network_attachment();
+    if (a == nullptr) continue;
+    const NetworkEntry& n = sc.networks[static_cast<std::size_t>(a->network)];
+    if (a->bytes > n.design->max_payload()) {
+      link_tables[l].fail("bytes", fmt::format("expected at most {} bytes, the largest payload of "
+                                               "network \"{}\" (kind {}), got {}",
+                                               n.design->max_payload(), n.name, n.kind, a->bytes));
+    }
+    if (!link_tables[l].has("position")) continue;
+    if (!n.design->has_positions()) {
+      link_tables[l].fail(
+          "position",
+          fmt::format("expected no position: network \"{}\" (kind {}) has none", n.name, n.kind));
+    }
+  }
   for (std::size_t n = 0; n < sc.networks.size(); ++n) {
     const bool used =
         std::any_of(sc.model.sensors.begin(), sc.model.sensors.end(), [&](const auto& s) {

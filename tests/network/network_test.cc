@@ -141,6 +141,59 @@ TEST(Lockstep, TheSameSeedAndRunGiveTheSameNetwork) {
   EXPECT_NE(a, contention_times(8, 0));
 }
 
+// ---- IEEE 802.15.4 ----
+
+const char* kWpan = "kind = \"lr_wpan\"\n";
+
+// One node 10 m from the sink, sending at 10 ms: its frame is acknowledged and delivered after the
+// CSMA/CA back-off, its clear channel assessment, turnaround and airtime: at least (payload 32 + 11
+// bytes of MAC and 6 of PHY header) x 32 us = 1.568 ms later, and well within 10 ms.
+TEST(Wpan, ANodeInRangeDeliversItsFrame) {
+  auto s = Session::start({design(kWpan)}, {Sender{0, 32, 10.0, 0.0, 0.0}}, 1, 0);
+  s->send(0, 5, 10 * kMs);
+  const auto f = advance(*s, 100 * kMs);
+  ASSERT_EQ(f.size(), 1U);
+  EXPECT_EQ(f[0].drop, Drop::kNone);
+  EXPECT_GE(f[0].time, 10 * kMs + (32 + 11 + 6) * 32'000);
+  EXPECT_LT(f[0].time, 20 * kMs);
+}
+
+// 300 m at 0 dBm: about -121 dBm at the sink; the frame is never acknowledged and the MAC drops it
+// after its retransmissions.
+TEST(Wpan, ANodeOutOfRangeLosesItsFrameAfterItsRetries) {
+  auto s = Session::start({design(kWpan)}, {Sender{0, 32, 300.0, 0.0, 0.0}}, 1, 0);
+  s->send(0, 5, 0);
+  const auto f = advance(*s, 100 * kMs);
+  ASSERT_EQ(f.size(), 1U);
+  EXPECT_EQ(f[0].drop, Drop::kNoAck);
+}
+
+// Ten nodes that send at the same instant contend: every packet gets exactly one fate (delivered
+// or dropped), whatever the retransmissions, and a run is reproducible.
+std::vector<Fate> wpan_burst(std::uint64_t run) {
+  std::vector<Sender> senders;
+  for (int n = 0; n < 10; ++n) senders.push_back(Sender{0, 40, 5.0 + n, 3.0, 0.0});
+  auto s = Session::start({design(kWpan)}, senders, 3, run);
+  std::vector<Fate> all;
+  for (int k = 0; k < 5; ++k) {
+    for (int n = 0; n < 10; ++n) s->send(n, static_cast<std::uint64_t>(10 * k + n), k * 50 * kMs);
+    s->advance_to(k * 50 * kMs, all);
+  }
+  s->advance_to(1000 * kMs, all);
+  return all;
+}
+
+TEST(Wpan, ContendingNodesGetOneFatePerPacket) {
+  std::vector<Fate> f = wpan_burst(0);
+  ASSERT_EQ(f.size(), 50U);
+  std::vector<int> seen(50, 0);
+  for (const Fate& x : f) ++seen[static_cast<std::size_t>(x.id)];
+  for (int c : seen) EXPECT_EQ(c, 1);
+  const auto again = wpan_burst(0);
+  ASSERT_EQ(again.size(), f.size());
+  for (std::size_t i = 0; i < f.size(); ++i) EXPECT_EQ(again[i].time, f[i].time) << i;
+}
+
 // ---- through the executable ----
 
 using Outcome = ncosim::testing::CommandOutcome;
@@ -238,16 +291,23 @@ TEST_F(NetworkCli, BadInputNamesTheKeyAndItsLine) {
     std::string from, to;  // the edit
     std::string at;        // the text on the line the message names
     std::string message;
+    std::string from2 = "", to2 = "";  // a second edit, when not empty
   };
   const std::vector<Case> cases{
       {"network = \"bus\"", "network = \"lan\"", "network = \"lan\"",
        "key 'link[0].network': expected the name of a [[network]] (\"bus\"), got \"lan\""},
       {"kind = \"csma\"", "kind = \"token_ring\"", "kind = \"token_ring\"",
-       "key 'network[0].kind': expected one of \"csma\", got \"token_ring\""},
+       "key 'network[0].kind': expected one of \"csma\", \"lr_wpan\", got \"token_ring\""},
       {"rate = 1e6", "rate = \"fast\"", "rate = \"fast\"",
        "key 'network[0].rate': expected a number"},
       {"bytes = 64", "bytes = 0", "bytes = 0",
        "key 'link[0].bytes': expected an integer in 1..1500"},
+      {"bytes = 64", "bytes = 64\nposition = [1.0, 0.0, 0.0]", "position = [1.0",
+       "key 'link[0].position': expected no position: network \"bus\" (kind csma) has none"},
+      {"kind = \"csma\"\nrate = 1e6\ndelay = 5e-6", "kind = \"lr_wpan\"", "bytes = 117",
+       "key 'link[0].bytes': expected at most 116 bytes, the largest payload of network \"bus\" "
+       "(kind lr_wpan), got 117",
+       "bytes = 64", "bytes = 117"},
       {"link = \"node1\"", "", "name = \"bus\"",
        "key 'network[0].name': expected a network that a sensor's link is a node of, got \"bus\", "
        "which no [[sensor]] sends over"},
@@ -257,6 +317,7 @@ TEST_F(NetworkCli, BadInputNamesTheKeyAndItsLine) {
     std::string bad = text;
     ASSERT_NE(bad.find(c.from), std::string::npos) << c.from;
     bad.replace(bad.find(c.from), c.from.size(), c.to);
+    if (!c.from2.empty()) bad.replace(bad.find(c.from2), c.from2.size(), c.to2);
     const fs::path file = dir_ / "bad.toml";
     std::ofstream(file) << bad;
     const Outcome o = ncosim({"check", file.string()});
