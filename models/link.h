@@ -69,6 +69,7 @@ class RunBinding {
 struct NetworkAttachment {
   int network = 0;          // index of the [[network]] in the scenario
   std::uint32_t bytes = 0;  // payload bytes of each packet
+  double x = 0.0, y = 0.0, z = 0.0;  // the node's position (m; wireless networks)
 };
 
 // What every link answers: the fate of each packet (what the kernel needs) and its law (what an
