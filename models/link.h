@@ -67,8 +67,8 @@ class RunBinding {
 // A link that is a node of a packet-level network ([[network]], network/): the run hands its
 // packets to that network's simulation, which decides their fate, instead of asking transmit().
 struct NetworkAttachment {
-  int network = 0;          // index of the [[network]] in the scenario
-  std::uint32_t bytes = 0;  // payload bytes of each packet
+  int network = 0;                   // index of the [[network]] in the scenario
+  std::uint32_t bytes = 0;           // payload bytes of each packet
   double x = 0.0, y = 0.0, z = 0.0;  // the node's position (m; wireless networks)
 };
 
