@@ -49,6 +49,14 @@ std::string design_model_departure(const Scenario& sc, std::size_t e) {
     }
     if (spec.link < 0) continue;  // ideal: q[0] = 1
     const auto& l = sc.links[static_cast<std::size_t>(spec.link)];
+    if (const models::NetworkAttachment* a = l.link->network_attachment()) {
+      const auto& net = sc.networks[static_cast<std::size_t>(a->network)];
+      why.push_back(fmt::format(
+          "network '{}' ({}): losses and delays come from its simulation, correlated across its "
+          "senders; the design uses only each link's design_pmf",
+          net.name, net.kind));
+      continue;
+    }
     using LossModel = models::LinkReporting::LossModel;  // each kind says how (models/link.h)
     const LossModel loss_model = models::loss_model_of(*l.link);
     if (loss_model == LossModel::kPosition) {
