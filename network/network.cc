@@ -4,6 +4,8 @@
 
 #include <fmt/format.h>
 
+#include "kernel/rng.h"
+
 namespace ncosim::network {
 
 void register_csma(NetworkRegistry& registry);  // network/csma.cc
@@ -13,6 +15,11 @@ void register_lr_wpan(NetworkRegistry& registry);  // network/lr_wpan.cc
 void register_networks(NetworkRegistry& registry) {
   register_csma(registry);
   register_lr_wpan(registry);
+}
+
+std::uint32_t ns3_seed(std::uint64_t seed) {
+  auto rng = kernel::make_stream(seed, 0, kernel::stream_id(kernel::StreamKind::kNetwork, 0));
+  return 1U + static_cast<std::uint32_t>(rng() % 4294967086ULL);  // MRG32k3a: below m1
 }
 
 std::string without_ns3_message() {

@@ -53,6 +53,10 @@ void register_networks(NetworkRegistry& registry);
 // The `network` link kind (network/network_link.h): a [[link]] that is a node of a [[network]].
 void register_network_links(models::LinkRegistry& registry);
 
+// The seed of ns-3's generator for campaign seed `seed` (a run is its sub-stream): in 1..2^32 -
+// 210.
+std::uint32_t ns3_seed(std::uint64_t seed);
+
 // True when this build has ns-3 (NCOSIM_HAVE_NS3): else the network kinds' readers refuse.
 bool have_ns3();
 // The message of a build without ns-3 ("this ncosim was built without ns-3 ...").

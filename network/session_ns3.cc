@@ -10,7 +10,6 @@
 #include <utility>
 
 #include "kernel/check.h"
-#include "kernel/rng.h"
 #include "network/world.h"
 
 namespace ncosim::network {
@@ -123,8 +122,7 @@ class Ns3Session final : public Session {
       : lock_(simulator_mutex()), world_(senders) {
     // ns-3's generator (MRG32k3a): its seed from the campaign seed, its run (sub-stream) the
     // run index, so that a run's network is the same whatever process, thread or shard runs it.
-    auto rng = kernel::make_stream(seed, 0, kernel::stream_id(kernel::StreamKind::kNetwork, 0));
-    ns3::RngSeedManager::SetSeed(1U + static_cast<std::uint32_t>(rng() % 4294967086ULL));
+    ns3::RngSeedManager::SetSeed(ns3_seed(seed));
     ns3::RngSeedManager::SetRun(run);
     ns3::Mac48Address::ResetAllocationIndex();  // the same addresses in every run
     for (std::size_t n = 0; n < designs.size(); ++n) {

@@ -20,6 +20,15 @@ std::string link_name(const Scenario& sc, int link) {
   return fmt::format("link '{}' ({})", l.name, l.kind);
 }
 
+// A link that is a node of a [[network]]: its losses and delays come from the network's simulation.
+std::string network_departure(const Scenario& sc, const models::NetworkAttachment& a) {
+  const auto& net = sc.networks[static_cast<std::size_t>(a.network)];
+  return fmt::format(
+      "network '{}' ({}): losses and delays come from its simulation, correlated across its "
+      "senders; the design uses only each link's design_pmf",
+      net.name, net.kind);
+}
+
 }  // namespace
 
 std::string design_model_departure(const Scenario& sc, std::size_t e) {
@@ -49,12 +58,8 @@ std::string design_model_departure(const Scenario& sc, std::size_t e) {
     }
     if (spec.link < 0) continue;  // ideal: q[0] = 1
     const auto& l = sc.links[static_cast<std::size_t>(spec.link)];
-    if (const models::NetworkAttachment* a = l.link->network_attachment()) {
-      const auto& net = sc.networks[static_cast<std::size_t>(a->network)];
-      why.push_back(fmt::format(
-          "network '{}' ({}): losses and delays come from its simulation, correlated across its "
-          "senders; the design uses only each link's design_pmf",
-          net.name, net.kind));
+    if (l.link->network_attachment() != nullptr) {
+      why.push_back(network_departure(sc, *l.link->network_attachment()));
       continue;
     }
     using LossModel = models::LinkReporting::LossModel;  // each kind says how (models/link.h)

@@ -286,6 +286,19 @@ TEST_F(NetworkCli, ARunIsTheSameWhateverTheThreadsAndShards) {
   for (const auto& pmf : links_column(dir_ / "t1", "delay_pmf")) EXPECT_EQ(pmf.rfind("0;", 0), 0U);
 }
 
+// The shipped 802.15.4 star runs, and the jump observer's row says that its design model is not
+// what the network does (summary.csv model_check), naming the network.
+TEST_F(NetworkCli, TheWsnStarRunsAndItsDesignNoteNamesTheNetwork) {
+  const fs::path out = dir_ / "wsn";
+  const Outcome o = ncosim({"run", (kSource / "scenarios/wsn_star.toml").string(), "--out",
+                            out.string(), "--runs", "2", "--periods", "300", "--quiet"});
+  ASSERT_EQ(o.code, 0) << o.output;
+  EXPECT_NE(slurp(out / "summary.csv")
+                .find("network 'wsn' (lr_wpan): losses and delays come from its simulation"),
+            std::string::npos);
+  EXPECT_EQ(links_column(out, "link"), (std::vector<std::string>{"n1", "n2", "n3", "n4"}));
+}
+
 TEST_F(NetworkCli, BadInputNamesTheKeyAndItsLine) {
   struct Case {
     std::string from, to;  // the edit
