@@ -4,6 +4,7 @@
 #include <fmt/format.h>
 #include <poll.h>
 #include <signal.h>
+#include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -39,9 +40,11 @@ std::uint64_t get_u64(const char* p) {
   return v;
 }
 
+// Sockets (not pipes), so that a write to a worker that has died fails (MSG_NOSIGNAL) instead of
+// killing this process with SIGPIPE.
 bool write_all(int fd, const char* p, std::size_t n) {
   while (n > 0) {
-    const ssize_t w = ::write(fd, p, n);
+    const ssize_t w = ::send(fd, p, n, MSG_NOSIGNAL);
     if (w < 0 && errno == EINTR) continue;
     if (w <= 0) return false;
     p += w;
@@ -69,36 +72,74 @@ bool send_message(int fd, char type, std::uint64_t run, const std::string& body)
   return write_all(fd, m.data(), m.size());
 }
 
-// A worker: runs from `in` until it closes, results to `out`, then its error curve. Never returns.
-[[noreturn]] void serve(const Scenario& sc, const CampaignOptions& options, int in, int out) {
-  ErrorCurve curve = sc.run.error_curve ? error_curve_of(sc) : ErrorCurve();
-  char buf[8];
+std::string exit_text(int status) {
+  return WIFSIGNALED(status) ? fmt::format("signal {}", WTERMSIG(status))
+                             : fmt::format("exit status {}", WEXITSTATUS(status));
+}
+
+// Runs `body` in a child process forked from this one and waits for it; returns its wait status.
+// Every run gets a process of its own, forked from a worker that never simulates: ns-3 keeps state
+// across the simulations of one process (e.g. its automatic random-stream numbers), so a run
+// simulated after others in the same process could differ from the same run simulated first.
+template <class Body>
+int in_child(Body&& body) {
+  const pid_t pid = ::fork();
+  if (pid < 0) return -1;
+  if (pid == 0) {
+    body();
+    ::_exit(0);
+  }
+  int status = 0;
+  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  return status;
+}
+
+// One run in a process of its own: its result, then (with [run] error_curve) its errors, on `out`.
+void simulate_one(const Scenario& sc, const CampaignOptions& options, std::uint64_t run, int out) {
   try {
-    while (read_all(in, buf, 8)) {
-      const std::uint64_t run = get_u64(buf);
-      RunLinks links;
-      RunMetrics m =
-          execute_run(sc, run, nullptr, nullptr, options.link_counters ? &links : nullptr,
-                      sc.run.error_curve ? &curve : nullptr);
-      if (sc.run.error_curve) curve.add_run(run);
-      std::string body;
-      const std::string metrics = serialize_run(m);
-      put_u64(body, metrics.size());
-      body += metrics;
-      if (options.link_counters) body += serialize_links(links);
-      if (!send_message(out, kResult, run, body)) ::_exit(1);
+    ErrorCurve curve = sc.run.error_curve ? error_curve_of(sc) : ErrorCurve();
+    RunLinks links;
+    RunMetrics m = execute_run(sc, run, nullptr, nullptr, options.link_counters ? &links : nullptr,
+                               sc.run.error_curve ? &curve : nullptr);
+    std::string body;
+    const std::string metrics = serialize_run(m);
+    put_u64(body, metrics.size());
+    body += metrics;
+    if (options.link_counters) body += serialize_links(links);
+    if (!send_message(out, kResult, run, body)) ::_exit(1);
+    if (sc.run.error_curve) {
+      curve.add_run(run);
+      send_message(out, kCurve, run, curve.serialize());
     }
-    if (sc.run.error_curve) send_message(out, kCurve, 0, curve.serialize());
   } catch (const std::exception& e) {
-    send_message(out, kError, 0, e.what());
+    send_message(out, kError, run, e.what());
+  }
+}
+
+// A worker: runs from `fd` until the parent shuts its side for writing, each in a process of its
+// own (in_child). Never returns.
+[[noreturn]] void serve(const Scenario& sc, const CampaignOptions& options, int fd) {
+  char buf[8];
+  while (read_all(fd, buf, 8)) {
+    const std::uint64_t run = get_u64(buf);
+    const int status = in_child([&] { simulate_one(sc, options, run, fd); });
+    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+      send_message(fd, kError, run,
+                   fmt::format("its process ended without a result ({}); the network simulation "
+                               "(ns-3) may have failed an assertion: run it alone with --threads 1 "
+                               "to see ns-3's message",
+                               exit_text(status)));
+      ::_exit(0);
+    }
   }
   ::_exit(0);
 }
 
 struct Worker {
   pid_t pid = -1;
-  int to = -1;    // runs to the worker (closed: no more)
-  int from = -1;  // its messages
+  int fd = -1;         // this process's end of the worker's socket (-1: the worker has ended)
+  bool giving = true;  // runs may still be sent (false: shut for writing)
   bool busy = false;
   std::uint64_t run = 0;  // the run it is simulating, when busy
   std::string pending;    // bytes of a message not yet complete
@@ -111,9 +152,10 @@ class Distribution {
 
   void start(int count) {
     for (int w = 0; w < count; ++w) {
-      int to[2], from[2];
-      if (::pipe(to) != 0 || ::pipe(from) != 0)
-        throw std::runtime_error(fmt::format("cannot create a pipe: {}", std::strerror(errno)));
+      int sv[2];
+      if (::socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, sv) != 0)
+        throw std::runtime_error(
+            fmt::format("cannot create a socket pair: {}", std::strerror(errno)));
       const pid_t pid = ::fork();
       if (pid < 0)
         throw std::runtime_error(
@@ -122,20 +164,14 @@ class Distribution {
       if (pid == 0) {
         ::signal(SIGINT, SIG_IGN);  // the parent decides when to stop (options.stop)
         ::signal(SIGTERM, SIG_IGN);
-        ::close(to[1]);
-        ::close(from[0]);
-        for (const Worker& o : workers_) {
-          ::close(o.to);
-          ::close(o.from);
-        }
-        serve(sc_, options_, to[0], from[1]);
+        ::close(sv[0]);
+        for (const Worker& o : workers_) ::close(o.fd);
+        serve(sc_, options_, sv[1]);
       }
-      ::close(to[0]);
-      ::close(from[1]);
+      ::close(sv[1]);
       Worker worker;
       worker.pid = pid;
-      worker.to = to[1];
-      worker.from = from[0];
+      worker.fd = sv[0];
       workers_.push_back(std::move(worker));
     }
     for (Worker& w : workers_) give(w);
@@ -147,13 +183,13 @@ class Distribution {
     while (true) {
       fds.clear();
       for (const Worker& w : workers_) {
-        if (w.from >= 0) fds.push_back(pollfd{w.from, POLLIN, 0});
+        if (w.fd >= 0) fds.push_back(pollfd{w.fd, POLLIN, 0});
       }
       if (fds.empty()) break;
       if (::poll(fds.data(), fds.size(), 200) < 0 && errno != EINTR)
         throw std::runtime_error(fmt::format("poll: {}", std::strerror(errno)));
       for (Worker& w : workers_) {
-        if (w.from < 0) continue;
+        if (w.fd < 0) continue;
         if (stopping()) finish_giving(w);
         read_from(w, curve);
       }
@@ -179,18 +215,18 @@ class Distribution {
     w.busy = true;
     char buf[8];
     for (int i = 0; i < 8; ++i) buf[i] = static_cast<char>((w.run >> (8 * i)) & 0xFF);
-    if (!write_all(w.to, buf, 8)) finish_giving(w);
+    if (!write_all(w.fd, buf, 8)) finish_giving(w);  // it died: read_from reports it
   }
   void finish_giving(Worker& w) {
-    if (w.to >= 0 && !w.busy) {
-      ::close(w.to);
-      w.to = -1;
+    if (w.giving && !w.busy && w.fd >= 0) {
+      ::shutdown(w.fd, SHUT_WR);
+      w.giving = false;
     }
   }
 
   void read_from(Worker& w, ErrorCurve& curve) {
     char buf[65536];
-    const ssize_t r = ::read(w.from, buf, sizeof buf);
+    const ssize_t r = ::read(w.fd, buf, sizeof buf);
     if (r < 0 && (errno == EINTR || errno == EAGAIN)) return;
     if (r > 0) {
       w.pending.append(buf, static_cast<std::size_t>(r));
@@ -203,23 +239,18 @@ class Distribution {
       return;
     }
     // End of file: the worker has ended (after its curve), or died.
-    ::close(w.from);
-    w.from = -1;
+    ::close(w.fd);
+    w.fd = -1;
     if (w.busy && error_.empty()) {
       const int status = reap(w);
-      error_ = fmt::format(
-          "run {}: its worker process ended without a result ({}); the network simulation "
-          "(ns-3) may have failed an assertion: run it alone with --threads 1 to see ns-3's "
-          "message",
-          w.run,
-          WIFSIGNALED(status) ? fmt::format("signal {}", WTERMSIG(status))
-                              : fmt::format("exit status {}", WEXITSTATUS(status)));
+      error_ = fmt::format("run {}: its worker process ended without a result ({})", w.run,
+                           exit_text(status));
     }
   }
 
   void handle(Worker& w, char type, std::uint64_t run, const std::string& body, ErrorCurve& curve) {
     if (type == kError) {
-      if (error_.empty()) error_ = fmt::format("run {}: {}", w.run, body);
+      if (error_.empty()) error_ = fmt::format("run {}: {}", run, body);
       w.busy = false;
       return;
     }
@@ -239,9 +270,9 @@ class Distribution {
 
   int reap(Worker& w) {
     int status = 0;
-    if (w.to >= 0) {
-      ::close(w.to);
-      w.to = -1;
+    if (w.fd >= 0) {
+      ::close(w.fd);
+      w.fd = -1;
     }
     if (w.pid > 0) {
       while (::waitpid(w.pid, &status, 0) < 0 && errno == EINTR) {
@@ -258,6 +289,106 @@ class Distribution {
   std::vector<Worker> workers_;
   std::string error_;
 };
+
+// Doubles and integers of a trace row and of ns_per_period, as bytes (this machine's layout: the
+// bytes never leave the machine).
+template <class T>
+void put_values(std::string& out, const std::vector<T>& v) {
+  put_u64(out, v.size());
+  out.append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
+}
+template <class T>
+std::vector<T> get_values(const std::string& in, std::size_t& at) {
+  const std::uint64_t n = get_u64(in.data() + at);
+  at += 8;
+  if (n > (in.size() - at) / sizeof(T)) throw std::runtime_error("malformed replay message");
+  std::vector<T> v(n);
+  std::memcpy(v.data(), in.data() + at, n * sizeof(T));
+  at += n * sizeof(T);
+  return v;
+}
+
+std::string encode(const std::vector<double>& ns, const std::vector<TraceRow>& rows) {
+  std::string out;
+  put_values(out, ns);
+  put_u64(out, rows.size());
+  for (const TraceRow& r : rows) {
+    put_values(out, std::vector<std::int64_t>{r.period, r.mode});
+    put_values(out, r.x);
+    put_u64(out, r.xhat.size());
+    for (const auto& e : r.xhat) put_values(out, e);
+    put_values(out, r.arrivals);
+    put_values(out, r.mode_hat);
+    put_values(out, r.u);
+    put_values(out, r.y);
+    put_values(out, std::vector<double>{r.reference});
+  }
+  return out;
+}
+
+void decode(const std::string& in, std::vector<double>& ns, std::vector<TraceRow>& rows) {
+  std::size_t at = 0;
+  ns = get_values<double>(in, at);
+  const std::uint64_t n = get_u64(in.data() + at);
+  at += 8;
+  for (std::uint64_t i = 0; i < n; ++i) {
+    TraceRow r;
+    const auto head = get_values<std::int64_t>(in, at);
+    r.period = head.at(0);
+    r.mode = static_cast<int>(head.at(1));
+    r.x = get_values<double>(in, at);
+    const std::uint64_t e = get_u64(in.data() + at);
+    at += 8;
+    for (std::uint64_t j = 0; j < e; ++j) r.xhat.push_back(get_values<double>(in, at));
+    r.arrivals = get_values<int>(in, at);
+    r.mode_hat = get_values<int>(in, at);
+    r.u = get_values<double>(in, at);
+    r.y = get_values<double>(in, at);
+    r.reference = get_values<double>(in, at).at(0);
+    rows.push_back(std::move(r));
+  }
+}
+
+// The trace of run `run` and the estimators' timing, simulated in a process of its own (so that
+// this process never simulates a network: the workers it forks later start from its state).
+void replay_in_child(const Scenario& sc, std::uint64_t run, bool trace, bool timed,
+                     CampaignResult& result) {
+  int sv[2];
+  if (::socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, sv) != 0)
+    throw std::runtime_error(fmt::format("cannot create a socket pair: {}", std::strerror(errno)));
+  const pid_t pid = ::fork();
+  if (pid < 0) throw std::runtime_error(fmt::format("cannot fork: {}", std::strerror(errno)));
+  if (pid == 0) {
+    ::close(sv[0]);
+    std::vector<double> ns(sc.estimators.size(), std::nan(""));
+    std::vector<TraceRow> rows;
+    simulate_run(sc, run, trace ? &rows : nullptr, timed ? &ns : nullptr);
+    const std::string bytes = encode(ns, rows);
+    ::_exit(write_all(sv[1], bytes.data(), bytes.size()) ? 0 : 1);
+  }
+  ::close(sv[1]);
+  std::string bytes;
+  char buf[65536];
+  for (ssize_t r; (r = ::read(sv[0], buf, sizeof buf)) != 0;) {
+    if (r < 0 && errno == EINTR) continue;
+    if (r < 0) break;
+    bytes.append(buf, static_cast<std::size_t>(r));
+  }
+  ::close(sv[0]);
+  int status = 0;
+  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0)
+    throw std::runtime_error(
+        fmt::format("run {}: the replay for the trace and the timing ended "
+                    "without a result ({})",
+                    run, exit_text(status)));
+  std::vector<double> ns;
+  std::vector<TraceRow> rows;
+  decode(bytes, ns, rows);
+  if (timed) result.ns_per_period = std::move(ns);
+  if (trace) result.trace = std::move(rows);
+}
 
 }  // namespace
 
@@ -284,10 +415,8 @@ CampaignResult run_in_processes(const Scenario& sc, const CampaignOptions& optio
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   result.ns_per_period.assign(sc.estimators.size(), std::nan(""));
   const bool trace = options.trace && first == 0;
-  if ((trace || options.time_estimators) && !result.stopped && d.runs() > 0) {
-    simulate_run(sc, first, trace ? &result.trace : nullptr,
-                 options.time_estimators ? &result.ns_per_period : nullptr);
-  }
+  if ((trace || options.time_estimators) && !result.stopped && d.runs() > 0)
+    replay_in_child(sc, first, trace, options.time_estimators, result);
   return result;
 }
 

@@ -5,6 +5,8 @@
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
 #include <toml++/toml.h>
 #include <unistd.h>
 
@@ -16,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "cli/spawn_ncosim.h"
 #include "config/config.h"
 #include "sim/scenario/registries.h"
 #include "test_util.h"
@@ -286,17 +289,63 @@ TEST_F(NetworkCli, ARunIsTheSameWhateverTheThreadsAndShards) {
   for (const auto& pmf : links_column(dir_ / "t1", "delay_pmf")) EXPECT_EQ(pmf.rfind("0;", 0), 0U);
 }
 
-// The shipped 802.15.4 star runs, and the jump observer's row says that its design model is not
-// what the network does (summary.csv model_check), naming the network.
+// The shipped 802.15.4 star runs (with run 0's trace), and the jump observer's row says that its
+// design model is not what the network does (summary.csv model_check), naming the network.
 TEST_F(NetworkCli, TheWsnStarRunsAndItsDesignNoteNamesTheNetwork) {
   const fs::path out = dir_ / "wsn";
   const Outcome o = ncosim({"run", (kSource / "scenarios/wsn_star.toml").string(), "--out",
-                            out.string(), "--runs", "2", "--periods", "300", "--quiet"});
+                            out.string(), "--runs", "2", "--periods", "300", "--quiet", "--trace"});
   ASSERT_EQ(o.code, 0) << o.output;
+  // Run 0's trace, simulated in a process of its own after the campaign: 300 periods + header.
+  const std::string trace = slurp(out / "trajectory.csv");
+  EXPECT_EQ(std::count(trace.begin(), trace.end(), '\n'), 301);
   EXPECT_NE(slurp(out / "summary.csv")
                 .find("network 'wsn' (lr_wpan): losses and delays come from its simulation"),
             std::string::npos);
   EXPECT_EQ(links_column(out, "link"), (std::vector<std::string>{"n1", "n2", "n3", "n4"}));
+}
+
+// A worker process that dies in the middle of a run (as ns-3 aborts on a failed assertion) ends
+// the campaign with exit 1 and a message naming the run, never silently; the runs finished before
+// are kept in the run store, and --resume completes the campaign.
+TEST_F(NetworkCli, AWorkerThatDiesIsReportedAndResumeCompletes) {
+  const fs::path out = dir_ / "wsn";
+  const std::string log = (dir_ / "log.txt").string();
+  const std::vector<std::string> args{"run",        (kSource / "scenarios/wsn_star.toml").string(),
+                                      "--out",      out.string(),
+                                      "--runs",     "30",
+                                      "--periods",  "1000",
+                                      "--threads",  "2",
+                                      "--no-timing"};
+  const pid_t pid = ncosim::testing::spawn_ncosim(args, log);
+  ASSERT_GT(pid, 0);
+  pid_t child = -1;
+  for (int i = 0; i < 200 && child < 0; ++i) {  // its first worker process
+    ::usleep(20'000);
+    std::ifstream in(fmt::format("/proc/{}/task/{}/children", pid, pid));
+    in >> child;
+    if (!in) child = -1;
+  }
+  ASSERT_GT(child, 0);
+  ::usleep(300'000);  // some runs done
+  ::kill(child, SIGKILL);
+  int status = 0;
+  ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 1);
+  const std::string text = slurp(log);
+  EXPECT_NE(text.find("its worker process ended without a result (signal 9)"), std::string::npos)
+      << text;
+  std::vector<std::string> resume = args;
+  resume.push_back("--resume");
+  resume.push_back("--quiet");
+  const Outcome o = ncosim(resume);
+  ASSERT_EQ(o.code, 0) << o.output;
+  const Outcome whole = ncosim({"run", (kSource / "scenarios/wsn_star.toml").string(), "--out",
+                                (dir_ / "whole").string(), "--runs", "30", "--periods", "1000",
+                                "--no-timing", "--quiet"});
+  ASSERT_EQ(whole.code, 0) << whole.output;
+  EXPECT_EQ(slurp(out / "runs.csv"), slurp(dir_ / "whole" / "runs.csv"));
 }
 
 TEST_F(NetworkCli, BadInputNamesTheKeyAndItsLine) {
