@@ -34,9 +34,9 @@ namespace {
 
 using config::Key;
 
-// The largest payload of one frame: aMaxPHYPacketSize (127) less the MAC header with short
-// addresses and PAN id compression (9 bytes) and the frame check sequence (2).
-constexpr std::uint32_t kMaxPayload = 116;
+// The largest payload of one frame: ns-3's LrWpanNetDevice MTU (114 bytes: aMaxPHYPacketSize, 127,
+// less the largest MAC header and the frame check sequence); its Send refuses a larger packet.
+constexpr std::uint32_t kMaxPayload = 114;
 
 const config::Keys& lr_wpan_keys() {
   static const config::Keys keys{

@@ -67,8 +67,13 @@ void World::send_now(int s, std::uint64_t id) {
   in_flight_.emplace(seq, InFlight{s, id});
   if (port.confirms) port.unconfirmed.push_back(seq);
   p->AddPacketTag(PacketTag(seq));
-  // A device that refuses the packet (its queue full) has already fired its drop trace.
-  port.device->Send(p, port.sink, kProtocol);
+  // A device that refuses the packet (e.g. a full queue) may have fired a drop trace already (then
+  // this fate is not reported again); a refusal without a trace is a drop at the queue too.
+  if (!port.device->Send(p, port.sink, kProtocol)) {
+    if (port.confirms && !port.unconfirmed.empty() && port.unconfirmed.back() == seq)
+      port.unconfirmed.pop_back();
+    fate(seq, Drop::kQueue);
+  }
 }
 
 void World::connect_drop(const ns3::Ptr<ns3::NetDevice>& device, const char* trace, Drop cause) {

@@ -482,7 +482,12 @@ void store_timing_and_trace(RunSession& session, StoreSink& sink) {
   }
   if (session.cmd.trace && session.trace.empty() &&
       g_stop.load() == 0) {  // run 0 was done by an earlier session
-    simulate_run(*loaded.cases.front().scenario, 0, &session.trace);
+    const Scenario& first = *loaded.cases.front().scenario;
+    if (needs_worker_processes(first)) {
+      session.trace = trace_in_child(first, 0);
+    } else {
+      simulate_run(first, 0, &session.trace);
+    }
   }
   if (session.cmd.trace && !session.trace.empty()) {
     const std::string csv = trajectory_csv(*loaded.cases.front().scenario, session.trace);

@@ -86,7 +86,11 @@ int in_child(Body&& body) {
   const pid_t pid = ::fork();
   if (pid < 0) return -1;
   if (pid == 0) {
-    body();
+    try {
+      body();
+    } catch (...) {  // never unwind into the parent's code, which this process is a copy of
+      ::_exit(2);
+    }
     ::_exit(0);
   }
   int status = 0;
@@ -124,11 +128,15 @@ void simulate_one(const Scenario& sc, const CampaignOptions& options, std::uint6
   while (read_all(fd, buf, 8)) {
     const std::uint64_t run = get_u64(buf);
     const int status = in_child([&] { simulate_one(sc, options, run, fd); });
+    if (status == -1) {
+      send_message(fd, kError, run, fmt::format("cannot fork: {}", std::strerror(errno)));
+      ::_exit(0);
+    }
     if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
       send_message(fd, kError, run,
-                   fmt::format("its process ended without a result ({}); the network simulation "
-                               "(ns-3) may have failed an assertion: run it alone with --threads 1 "
-                               "to see ns-3's message",
+                   fmt::format("its process ended abnormally ({}); the network simulation "
+                               "(ns-3) may have failed an assertion (its message, if any, is "
+                               "above)",
                                exit_text(status)));
       ::_exit(0);
     }
@@ -149,6 +157,16 @@ class Distribution {
  public:
   Distribution(const Scenario& sc, const CampaignOptions& options, std::vector<std::uint64_t> todo)
       : sc_(sc), options_(options), todo_(std::move(todo)) {}
+  Distribution(const Distribution&) = delete;
+  Distribution& operator=(const Distribution&) = delete;
+  // After a failure part-way (a fork, a malformed message): the workers left are stopped and
+  // reaped, never left blocked on their sockets.
+  ~Distribution() {
+    for (Worker& w : workers_) {
+      if (w.pid > 0) ::kill(w.pid, SIGKILL);
+      reap(w);
+    }
+  }
 
   void start(int count) {
     for (int w = 0; w < count; ++w) {
@@ -188,10 +206,13 @@ class Distribution {
       if (fds.empty()) break;
       if (::poll(fds.data(), fds.size(), 200) < 0 && errno != EINTR)
         throw std::runtime_error(fmt::format("poll: {}", std::strerror(errno)));
+      std::size_t i = 0;
       for (Worker& w : workers_) {
         if (w.fd < 0) continue;
+        const short revents = fds[i++].revents;
         if (stopping()) finish_giving(w);
-        read_from(w, curve);
+        // Only a worker with something to read: a read on another would wait for its run.
+        if ((revents & (POLLIN | POLLHUP | POLLERR)) != 0) read_from(w, curve);
       }
     }
     for (Worker& w : workers_) reap(w);
@@ -360,11 +381,15 @@ void replay_in_child(const Scenario& sc, std::uint64_t run, bool trace, bool tim
   if (pid < 0) throw std::runtime_error(fmt::format("cannot fork: {}", std::strerror(errno)));
   if (pid == 0) {
     ::close(sv[0]);
-    std::vector<double> ns(sc.estimators.size(), std::nan(""));
-    std::vector<TraceRow> rows;
-    simulate_run(sc, run, trace ? &rows : nullptr, timed ? &ns : nullptr);
-    const std::string bytes = encode(ns, rows);
-    ::_exit(write_all(sv[1], bytes.data(), bytes.size()) ? 0 : 1);
+    try {
+      std::vector<double> ns(sc.estimators.size(), std::nan(""));
+      std::vector<TraceRow> rows;
+      simulate_run(sc, run, trace ? &rows : nullptr, timed ? &ns : nullptr);
+      const std::string bytes = encode(ns, rows);
+      ::_exit(write_all(sv[1], bytes.data(), bytes.size()) ? 0 : 1);
+    } catch (...) {  // never unwind into the parent's code, which this process is a copy of
+      ::_exit(2);
+    }
   }
   ::close(sv[1]);
   std::string bytes;
@@ -391,6 +416,12 @@ void replay_in_child(const Scenario& sc, std::uint64_t run, bool trace, bool tim
 }
 
 }  // namespace
+
+std::vector<TraceRow> trace_in_child(const Scenario& sc, std::uint64_t run) {
+  CampaignResult r;
+  replay_in_child(sc, run, true, false, r);
+  return std::move(r.trace);
+}
 
 CampaignResult run_in_processes(const Scenario& sc, const CampaignOptions& options) {
   std::vector<std::uint64_t> todo;

@@ -21,4 +21,8 @@ bool needs_worker_processes(const Scenario& sc);
 // naming the run.
 CampaignResult run_in_processes(const Scenario& sc, const CampaignOptions& options);
 
+// Run `run`'s trace, simulated in a process of its own (so that this process never simulates a
+// network, and the workers it forks later start from the same state).
+std::vector<TraceRow> trace_in_child(const Scenario& sc, std::uint64_t run);
+
 }  // namespace ncosim::sim

@@ -161,6 +161,22 @@ TEST(Wpan, ANodeInRangeDeliversItsFrame) {
   EXPECT_LT(f[0].time, 20 * kMs);
 }
 
+// The largest payload the device takes (114 bytes) is delivered. A larger one (which the scenario
+// reader refuses) is refused by the device at once, and that is a drop, not a silent loss.
+TEST(Wpan, TheLargestPayloadIsDeliveredALargerOneDropped) {
+  auto s = Session::start({design(kWpan)},
+                          {Sender{0, 114, 10.0, 0.0, 0.0}, Sender{0, 115, 0.0, 10.0, 0.0}}, 1, 0);
+  s->send(1, 6, 5 * kMs);
+  s->send(0, 5, 10 * kMs);
+  const auto f = advance(*s, 100 * kMs);
+  ASSERT_EQ(f.size(), 2U);
+  EXPECT_EQ(f[0].id, 6U);
+  EXPECT_EQ(f[0].drop, Drop::kQueue);
+  EXPECT_EQ(f[0].time, 5 * kMs);
+  EXPECT_EQ(f[1].id, 5U);
+  EXPECT_EQ(f[1].drop, Drop::kNone);
+}
+
 // 300 m at 0 dBm: about -121 dBm at the sink; the frame is never acknowledged and the MAC drops it
 // after its retransmissions.
 TEST(Wpan, ANodeOutOfRangeLosesItsFrameAfterItsRetries) {
@@ -368,10 +384,10 @@ TEST_F(NetworkCli, BadInputNamesTheKeyAndItsLine) {
        "key 'link[0].bytes': expected an integer in 1..1500"},
       {"bytes = 64", "bytes = 64\nposition = [1.0, 0.0, 0.0]", "position = [1.0",
        "key 'link[0].position': expected no position: network \"bus\" (kind csma) has none"},
-      {"kind = \"csma\"\nrate = 1e6\ndelay = 5e-6", "kind = \"lr_wpan\"", "bytes = 117",
-       "key 'link[0].bytes': expected at most 116 bytes, the largest payload of network \"bus\" "
-       "(kind lr_wpan), got 117",
-       "bytes = 64", "bytes = 117"},
+      {"kind = \"csma\"\nrate = 1e6\ndelay = 5e-6", "kind = \"lr_wpan\"", "bytes = 115",
+       "key 'link[0].bytes': expected at most 114 bytes, the largest payload of network \"bus\" "
+       "(kind lr_wpan), got 115",
+       "bytes = 64", "bytes = 115"},
       {"link = \"node1\"", "", "name = \"bus\"",
        "key 'network[0].name': expected a network that a sensor's link is a node of, got \"bus\", "
        "which no [[sensor]] sends over"},
