@@ -124,7 +124,8 @@ void LrWpanDesign::build(World& world, const std::vector<int>& senders) const {
   }
   constexpr std::int64_t kStreamsPerDevice = 8;
   const std::int64_t count = kStreamsPerDevice * static_cast<std::int64_t>(devices.GetN());
-  NCOSIM_CHECK(helper.AssignStreams(devices, world.streams(count)) <= count);
+  const std::int64_t used = helper.AssignStreams(devices, world.streams(count));
+  NCOSIM_CHECK(used <= count);
   world.attach_sink(devices.Get(0));
   for (std::size_t i = 0; i < senders.size(); ++i) {
     auto device =
