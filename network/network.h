@@ -28,11 +28,21 @@ class World;  // one run's ns-3 simulation (network/world.h; only in builds with
 // What happened to one packet: delivered to the sink at `time`, or dropped by the stack.
 // kNoAck: the MAC gave up after its retransmissions (collisions, fading or range).
 enum class Drop : std::uint8_t { kNone, kQueue, kChannelAccess, kNoAck };
+inline constexpr std::size_t kDropCauses = 4;  // the values of Drop
 struct Fate {
   int sender = 0;            // the sender's index in the session (Session::start)
   std::uint64_t id = 0;      // the id given to Session::send
   kernel::SimTime time = 0;  // when the stack delivered or dropped it (ns)
   Drop drop = Drop::kNone;
+};
+
+// What one sender's stack did in a run (Session::counters): each kind counts what its MAC exposes.
+struct MacCounters {
+  std::uint64_t attempts = 0;               // frames put on the air, retransmissions included
+  std::uint64_t retries = 0;                // of which retransmissions
+  std::uint64_t dropped[kDropCauses] = {};  // packets lost, by cause (index: Drop; kNone unused)
+  std::int64_t busy_ns = -1;                // time the sender sensed the channel busy (-1: the
+                                            // kind does not expose it)
 };
 
 // One [[network]] table, read: what builds its ns-3 part in every run.
@@ -84,6 +94,8 @@ class Session {
   // Runs ns-3 through every event at times <= t, appending what happened to packets to `fates`
   // in the order ns-3 processed it.
   virtual void advance_to(kernel::SimTime t, std::vector<Fate>& fates) = 0;
+  // What sender `sender`'s stack did so far in this run.
+  virtual MacCounters counters(int sender) const = 0;
 };
 
 }  // namespace ncosim::network

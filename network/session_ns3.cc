@@ -107,6 +107,8 @@ void World::fate(std::uint64_t seq, Drop drop) {
   const auto it = in_flight_.find(seq);
   if (it == in_flight_.end()) return;  // its fate is known already
   NCOSIM_CHECK(fates_ != nullptr);
+  if (drop != Drop::kNone)
+    ++ports_[static_cast<std::size_t>(it->second.sender)].counters.dropped[static_cast<int>(drop)];
   fates_->push_back(
       Fate{it->second.sender, it->second.id, ns3::Simulator::Now().GetNanoSeconds(), drop});
   in_flight_.erase(it);
@@ -158,6 +160,8 @@ class Ns3Session final : public Session {
     ns3::Simulator::Run();
     world_.collect_into(nullptr);
   }
+
+  MacCounters counters(int sender) const override { return world_.counters(sender); }
 
  private:
   void check() {

@@ -35,6 +35,18 @@ class World {
   // The sender's MAC is done with its oldest packet: sent (kNone: its delivery is the sink's
   // reception) or dropped for `drop`.
   void confirmed(int sender, Drop drop);
+  // The kinds count what their MAC does: sender `s` put a frame on the air (`retry`: a
+  // retransmission), or its PHY sensed the channel busy for `ns` more nanoseconds.
+  void attempt(int s, bool retry) {
+    MacCounters& c = ports_[static_cast<std::size_t>(s)].counters;
+    ++c.attempts;
+    if (retry) ++c.retries;
+  }
+  void busy(int s, std::int64_t ns) {
+    MacCounters& c = ports_[static_cast<std::size_t>(s)].counters;
+    c.busy_ns = (c.busy_ns < 0 ? 0 : c.busy_ns) + ns;
+  }
+  const MacCounters& counters(int s) const { return ports_[static_cast<std::size_t>(s)].counters; }
   const Sender& sender(int s) const { return senders_[static_cast<std::size_t>(s)]; }
   // The first of `count` ns-3 random-stream numbers for a network being built. Every kind assigns
   // fixed streams to what draws random numbers (its helper's AssignStreams): ns-3's automatic
@@ -66,6 +78,7 @@ class World {
     ns3::Address sink;
     bool confirms = false;
     std::deque<std::uint64_t> unconfirmed;  // sequence numbers, oldest first
+    MacCounters counters;
   };
   struct InFlight {
     int sender;
