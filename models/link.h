@@ -70,6 +70,7 @@ struct NetworkAttachment {
   int network = 0;                   // index of the [[network]] in the scenario
   std::uint32_t bytes = 0;           // payload bytes of each packet
   double x = 0.0, y = 0.0, z = 0.0;  // the node's position (m; wireless networks)
+  int vehicle = -1;  // the [sumo] vehicle the node rides (its index in the mobility), or -1
 };
 
 // What every link answers: the fate of each packet (what the kernel needs) and its law (what an

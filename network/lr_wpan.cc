@@ -114,9 +114,11 @@ void LrWpanDesign::build(World& world, const std::vector<int>& senders) const {
     auto position = ns3::CreateObject<ns3::ConstantPositionMobilityModel>();
     if (i == 0) {
       position->SetPosition(ns3::Vector(sink[0], sink[1], sink[2]));
+      world.mobile_sink(position);
     } else {
       const Sender& s = world.sender(senders[i - 1]);
       position->SetPosition(ns3::Vector(s.x, s.y, s.z));
+      world.mobile_sender(senders[i - 1], position);
     }
     device->GetPhy()->SetMobility(position);
     device->GetPhy()->SetTxPowerSpectralDensity(psd.CreateTxPowerSpectralDensity(tx_power, 11));

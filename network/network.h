@@ -79,6 +79,11 @@ struct Sender {
   double x = 0.0, y = 0.0, z = 0.0;  // position (m), for the kinds that have positions
 };
 
+// Where a node that is not in the network (a SUMO vehicle before its departure or after its
+// arrival) is put: so far above every other node that it receives nothing and is received by
+// no one, whatever the path loss.
+inline constexpr double kAway = 1e9;  // m (z)
+
 // One run's networks in ns-3. ns-3 has one simulator per process: a session holds it (other
 // threads of the process that start a session wait for it to end).
 class Session {
@@ -94,6 +99,11 @@ class Session {
   // Runs ns-3 through every event at times <= t, appending what happened to packets to `fates`
   // in the order ns-3 processed it.
   virtual void advance_to(kernel::SimTime t, std::vector<Fate>& fates) = 0;
+  // Sender `sender`'s node (or the sink of network `network`) is at (x, y, z) from time t on
+  // (t >= every earlier advance_to), for a node that rides a SUMO vehicle. Earlier sends and
+  // moves at the same t take effect first.
+  virtual void move_sender(int sender, double x, double y, double z, kernel::SimTime t) = 0;
+  virtual void move_sink(int network, double x, double y, double z, kernel::SimTime t) = 0;
   // What sender `sender`'s stack did so far in this run.
   virtual MacCounters counters(int sender) const = 0;
 };

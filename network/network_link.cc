@@ -52,6 +52,11 @@ const config::Keys& network_link_keys() {
           .unit("m")
           .help("[x, y, z] of this node, for the network kinds with positions (the sink's is the "
                 "network's sink_position)"),
+      Key::string("vehicle")
+          .optional("none: the fixed `position`")
+          .help("a [sumo] vehicle this node rides: its position is the vehicle's (x, y, z = 1.5 m) "
+                "at every period; while the vehicle is not in the traffic its packets are lost "
+                "(not sent) and the node is out of everyone's range (not with `position`)"),
       Key::numbers("design_pmf")
           .optional("none: a design that needs the law is refused")
           .noun("a probability", "probabilities")
@@ -92,6 +97,14 @@ std::unique_ptr<models::Link> read_network_link(const config::Table& t,
       "`ncosim fit`), or use estimators that need no law");
   models::NetworkAttachment a{static_cast<int>(it - ctx.networks.begin()),
                               static_cast<std::uint32_t>(r.integer("bytes"))};
+  if (r.has("vehicle")) {
+    if (r.has("position")) t.fail("vehicle", "expected `vehicle` or `position`, not both");
+    if (!ctx.mobility)
+      t.fail("vehicle",
+             "expected a [sumo] table (the vehicles' mobility) for a node that rides a "
+             "vehicle");
+    a.vehicle = ctx.mobility->vehicle(t, "vehicle");
+  }
   if (r.has("position")) {
     const std::vector<double> p = r.numbers("position");
     if (p.size() != 3)
@@ -108,7 +121,7 @@ std::unique_ptr<models::Link> read_network_link(const config::Table& t,
 void register_network_links(models::LinkRegistry& registry) {
   registry.add("network",
                "a node of a [[network]] (ns-3): its packets contend with the network's other "
-               "senders: network, bytes, design_pmf",
+               "senders: network, bytes, position or vehicle, design_pmf",
                network_link_keys(), read_network_link);
 }
 

@@ -137,6 +137,7 @@ class Ns3Session final : public Session {
       for (std::size_t s = 0; s < senders.size(); ++s) {
         if (senders[s].network == static_cast<int>(n)) attached.push_back(static_cast<int>(s));
       }
+      world_.building(static_cast<int>(n));
       designs[n]->build(world_, attached);
     }
   }
@@ -161,9 +162,26 @@ class Ns3Session final : public Session {
     world_.collect_into(nullptr);
   }
 
+  void move_sender(int sender, double x, double y, double z, kernel::SimTime t) override {
+    move(world_.sender_mobility(sender), x, y, z, t);
+  }
+  void move_sink(int network, double x, double y, double z, kernel::SimTime t) override {
+    move(world_.sink_mobility(network), x, y, z, t);
+  }
+
   MacCounters counters(int sender) const override { return world_.counters(sender); }
 
  private:
+  static void place(ns3::Ptr<ns3::MobilityModel> m, ns3::Vector p) { m->SetPosition(p); }
+  void move(const ns3::Ptr<ns3::MobilityModel>& m, double x, double y, double z,
+            kernel::SimTime t) {
+    NCOSIM_CHECK(m != nullptr);  // the reader refuses a vehicle on a kind without positions
+    const std::int64_t now = ns3::Simulator::Now().GetNanoSeconds();
+    NCOSIM_CHECK(t >= now);
+    ns3::Simulator::Schedule(ns3::NanoSeconds(t - now), &Ns3Session::place, m,
+                             ns3::Vector(x, y, z));
+  }
+
   void check() {
     const std::uint64_t count = ns3::Simulator::GetEventCount();
     if (count == last_check_ + 1) {

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <ns3/address.h>
+#include <ns3/mobility-model.h>
 #include <ns3/net-device.h>
 #include <ns3/packet.h>
 #include <ns3/ptr.h>
@@ -47,6 +48,24 @@ class World {
     c.busy_ns = (c.busy_ns < 0 ? 0 : c.busy_ns) + ns;
   }
   const MacCounters& counters(int s) const { return ports_[static_cast<std::size_t>(s)].counters; }
+  // The mobility model of sender `s`'s node, and of the sink of the network being built: the
+  // session moves them (Session::move_sender, move_sink) for nodes that ride SUMO vehicles.
+  void mobile_sender(int s, const ns3::Ptr<ns3::MobilityModel>& m) {
+    ports_[static_cast<std::size_t>(s)].mobility = m;
+  }
+  void mobile_sink(const ns3::Ptr<ns3::MobilityModel>& m) {
+    if (sinks_.size() <= static_cast<std::size_t>(building_)) sinks_.resize(building_ + 1);
+    sinks_[static_cast<std::size_t>(building_)] = m;
+  }
+  void building(int network) { building_ = network; }
+  ns3::Ptr<ns3::MobilityModel> sender_mobility(int s) const {
+    return ports_[static_cast<std::size_t>(s)].mobility;
+  }
+  ns3::Ptr<ns3::MobilityModel> sink_mobility(int network) const {
+    return static_cast<std::size_t>(network) < sinks_.size()
+               ? sinks_[static_cast<std::size_t>(network)]
+               : ns3::Ptr<ns3::MobilityModel>();
+  }
   const Sender& sender(int s) const { return senders_[static_cast<std::size_t>(s)]; }
   // The first of `count` ns-3 random-stream numbers for a network being built. Every kind assigns
   // fixed streams to what draws random numbers (its helper's AssignStreams): ns-3's automatic
@@ -79,6 +98,7 @@ class World {
     bool confirms = false;
     std::deque<std::uint64_t> unconfirmed;  // sequence numbers, oldest first
     MacCounters counters;
+    ns3::Ptr<ns3::MobilityModel> mobility;  // set by kinds with positions
   };
   struct InFlight {
     int sender;
@@ -94,6 +114,8 @@ class World {
   std::vector<std::uint8_t> payload_;  // zero bytes: a packet's content is its tag
   std::vector<Fate>* fates_ = nullptr;
   std::int64_t next_stream_ = 0;
+  int building_ = 0;                                 // the network being built
+  std::vector<ns3::Ptr<ns3::MobilityModel>> sinks_;  // per network (kinds with positions)
   std::vector<std::shared_ptr<void>> kept_;
 };
 

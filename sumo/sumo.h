@@ -22,7 +22,8 @@ std::shared_ptr<models::MobilitySource> make_mobility(const config::Table& t,
 // A kind whose table names vehicles of the [sumo] mobility (models::MobilitySource::vehicle)
 // declares those keys when it registers, so that they are known before its table is read: the
 // [plant] kind or a [[link]] kind `kind`, naming vehicles under the table keys `keys`.
-enum class VehicleTable { kPlant, kLink };
+// kNetwork: a [[network]] table of any kind (`kind` "").
+enum class VehicleTable { kPlant, kLink, kNetwork };
 void declare_vehicle_keys(VehicleTable table, std::string kind, std::vector<std::string> keys);
 
 // Before the cases of a scenario are built: the vehicles that case document `doc` will read (the

@@ -236,7 +236,7 @@ void add_declared_vehicles(VehicleTable table, const toml::table& t, std::vector
   if (!kind) return;
   const std::lock_guard<std::mutex> lock(declared_mutex());
   for (const auto& d : declared_keys()) {
-    if (d.table != table || d.kind != *kind) continue;
+    if (d.table != table || (d.kind != *kind && !d.kind.empty())) continue;
     for (const auto& key : d.keys) add_unique(to, t[key].value_or(std::string()));
   }
 }
@@ -266,9 +266,12 @@ void announce_vehicles(const toml::table& doc, const std::string& file, const st
   std::vector<std::string> v;
   if (const auto* plant = doc["plant"].as_table())
     add_declared_vehicles(VehicleTable::kPlant, *plant, v);
-  if (const auto* array = doc["link"].as_array()) {
-    for (const auto& l : *array) {
-      if (const auto* lt = l.as_table()) add_declared_vehicles(VehicleTable::kLink, *lt, v);
+  for (const auto& [section, table] :
+       {std::pair{"link", VehicleTable::kLink}, std::pair{"network", VehicleTable::kNetwork}}) {
+    if (const auto* array = doc[section].as_array()) {
+      for (const auto& l : *array) {
+        if (const auto* lt = l.as_table()) add_declared_vehicles(table, *lt, v);
+      }
     }
   }
   const std::lock_guard<std::mutex> lock(announced_mutex());

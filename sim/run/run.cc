@@ -168,7 +168,8 @@ class RunSimulation {
   struct LinkState {
     std::unique_ptr<models::Link> link;
     kernel::Rng rng;
-    int sender = -1;  // its sender in the network session (a link of kind network), else -1
+    int sender = -1;   // its sender in the network session (a link of kind network), else -1
+    int vehicle = -1;  // the SUMO vehicle its network node rides, else -1
   };
 
   // The run's networks (network/network.h): every link that is a node of one is a sender.
@@ -178,6 +179,7 @@ class RunSimulation {
     for (auto& ls : links_) {
       if (const models::NetworkAttachment* a = ls.link->network_attachment()) {
         ls.sender = static_cast<int>(senders.size());
+        ls.vehicle = a->vehicle;
         senders.push_back(network::Sender{a->network, a->bytes, a->x, a->y, a->z});
       }
     }
@@ -207,6 +209,28 @@ class RunSimulation {
       } else {
         free_.push_back(id);
       }
+    }
+  }
+
+  // The network nodes that ride SUMO vehicles are where their vehicles are at this period's
+  // start, from then on (before its sends); a vehicle not in the traffic puts its node out of
+  // everyone's range (network::kAway).
+  void move_network_nodes(kernel::SimTime now) {
+    constexpr double kAntenna = 1.5;  // m above the road
+    const auto place = [&](int vehicle, auto&& move) {
+      const models::VehicleState& v = mobility_->vehicle(vehicle);
+      move(v.x, v.y, v.present ? kAntenna : network::kAway);
+    };
+    for (const LinkState& ls : links_) {
+      if (ls.vehicle < 0) continue;
+      place(ls.vehicle,
+            [&](double x, double y, double z) { network_->move_sender(ls.sender, x, y, z, now); });
+    }
+    for (std::size_t n = 0; n < sc_.networks.size(); ++n) {
+      if (sc_.networks[n].sink_vehicle < 0) continue;
+      place(sc_.networks[n].sink_vehicle, [&](double x, double y, double z) {
+        network_->move_sink(static_cast<int>(n), x, y, z, now);
+      });
     }
   }
 
@@ -245,6 +269,7 @@ class RunSimulation {
       next_sample_[s] = k + sensors_[s].spec().every;
       if (on_sample(k, s)) sending_.push_back(s);
     }
+    if (network_) move_network_nodes(now);
     for (const std::size_t s : sending_) on_send(k, s);
     if (network_) advance_networks(now);
     reschedule(now, 1, kernel::Phase::kPlant, &open_handler_, 0);
@@ -289,6 +314,12 @@ class RunSimulation {
     }
     LinkState& ls = links_[static_cast<std::size_t>(sensor.spec().link)];
     if (ls.sender >= 0) {  // a node of a network: the network decides (advance_networks)
+      if (ls.vehicle >= 0 && !mobility_->vehicle(ls.vehicle).present) {
+        // A vehicle not in the traffic sends nothing: the packet is lost.
+        if (link_out_ != nullptr)
+          link_counters_[static_cast<std::size_t>(flow_of_.sensor[s])].record(models::kLost, -1);
+        return;
+      }
       network_->send(ls.sender, take_packet(s, k, false), k * period_ns_);
       return;
     }

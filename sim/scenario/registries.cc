@@ -66,6 +66,9 @@ const AllRegistries& all_registries() {
 #if NCOSIM_HAVE_SUMO
     sumo::register_plants(a.plants);
     sumo::register_links(a.links);
+    // The network layer's keys that name vehicles (it does not know SUMO).
+    sumo::declare_vehicle_keys(sumo::VehicleTable::kLink, "network", {"vehicle"});
+    sumo::declare_vehicle_keys(sumo::VehicleTable::kNetwork, "", {"sink_vehicle"});
 #endif
     std::lock_guard<std::mutex> lock(extension_mutex());
     Registries view{a.plants, a.links, a.inputs, a.estimators, a.send_policies};

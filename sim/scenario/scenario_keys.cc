@@ -115,6 +115,11 @@ const config::Keys& network_common_keys() {
       config::Key::string("name").help(
           "unique among networks; a [[link]] of kind network names it"),
       config::Key::string("kind").help("the network kind (below)"),
+      config::Key::string("sink_vehicle")
+          .optional("none: the kind's fixed sink_position")
+          .help("a [sumo] vehicle the sink (the estimators' node) rides, for kinds with "
+                "positions: its position is the vehicle's (x, y, z = 1.5 m) at every period, out "
+                "of everyone's range while the vehicle is not in the traffic"),
   };
   return keys;
 }

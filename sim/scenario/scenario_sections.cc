@@ -96,7 +96,8 @@ std::string read_plant(const config::Table& root, const toml::table& doc, Scenar
 void read_networks(const config::Table& root, Scenario& sc) {
   for (const config::Table& t : root.tables("network")) {
     NetworkEntry e;
-    e.name = config::KeyReader(t, network_common_keys()).string("name");
+    const config::KeyReader common(t, network_common_keys());
+    e.name = common.string("name");
     if (std::any_of(sc.networks.begin(), sc.networks.end(),
                     [&](const NetworkEntry& n) { return n.name == e.name; })) {
       t.fail("name", fmt::format("expected a unique network name, got \"{}\" twice", e.name));
@@ -104,6 +105,19 @@ void read_networks(const config::Table& root, Scenario& sc) {
     const auto& k = network_registry().lookup(t, "kind", "");
     e.kind = k.name;
     e.design = k.factory(t);
+    if (common.has("sink_vehicle")) {
+      if (!e.design->has_positions()) {
+        t.fail("sink_vehicle",
+               fmt::format("expected no sink_vehicle: network kind {} has no positions", e.kind));
+      }
+      if (!sc.mobility)
+        t.fail("sink_vehicle",
+               "expected a [sumo] table (the vehicles' mobility) for a sink that "
+               "rides a vehicle");
+      if (t.has("sink_position"))
+        t.fail("sink_vehicle", "expected `sink_vehicle` or `sink_position`, not both");
+      e.sink_vehicle = sc.mobility->vehicle(t, "sink_vehicle");
+    }
     t.finish();
     sc.networks.push_back(std::move(e));
   }
@@ -121,11 +135,12 @@ void check_networks(const config::Table& root, const Scenario& sc) {
                                                "network \"{}\" (kind {}), got {}",
                                                n.design->max_payload(), n.name, n.kind, a->bytes));
     }
-    if (!link_tables[l].has("position")) continue;
-    if (!n.design->has_positions()) {
-      link_tables[l].fail(
-          "position",
-          fmt::format("expected no position: network \"{}\" (kind {}) has none", n.name, n.kind));
+    for (const std::string key : {"position", "vehicle"}) {
+      if (link_tables[l].has(key) && !n.design->has_positions()) {
+        link_tables[l].fail(
+            key, fmt::format("expected no {}: network \"{}\" (kind {}) has {}", key, n.name, n.kind,
+                             key == "position" ? "none" : "no positions"));
+      }
     }
   }
   for (std::size_t n = 0; n < sc.networks.size(); ++n) {

@@ -34,6 +34,7 @@ struct NetworkEntry {
   std::string name;
   std::string kind;
   std::shared_ptr<const network::NetworkDesign> design;
+  int sink_vehicle = -1;  // the [sumo] vehicle the sink rides (index in the mobility), or -1
 };
 
 struct EstimatorEntry {
