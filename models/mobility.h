@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <memory>
 #include <string_view>
+#include <vector>
 
 #include "config/config.h"
 #include "kernel/time.h"
@@ -39,6 +40,10 @@ class MobilitySource {
   virtual bool single_threaded() const = 0;
   // Scenario reading: the index of the vehicle named by t[key] (recorded from then on).
   virtual int vehicle(const config::Table& t, std::string_view key) = 0;
+  // Scenario reading: the indices of every vehicle of the traffic, named as a group by t[key]
+  // (e.g. every vehicle beacons); a vehicle of the group that never drives during the horizon is
+  // no error. Throws ScenarioError at t[key] when the traffic's vehicles are not known by id.
+  virtual std::vector<int> every_vehicle(const config::Table& t, std::string_view key) = 0;
   // Records (or reuses) every realisation once all readers have named their vehicles.
   // Throws ScenarioError (bad input, SUMO errors).
   virtual void prepare() = 0;

@@ -152,6 +152,59 @@ int Mobility::vehicle(const config::Table& t, std::string_view key) {
   return static_cast<int>(vehicles_.size()) - 1;
 }
 
+// Every vehicle the traffic's input files define by id: the `id` of each <vehicle> and <trip>
+// element, in file order. A <flow> makes its vehicles' ids during the simulation: they cannot be
+// named before it (`flow` is set to the first file holding one).
+namespace {
+std::vector<std::string> defined_vehicles(const std::vector<std::string>& files,
+                                          std::string& flow) {
+  static const std::regex element(R"re(<\s*(vehicle|trip|flow)\b([^>]*)>)re");
+  static const std::regex id(R"re(\bid\s*=\s*"([^"]*)")re");
+  std::vector<std::string> out;
+  for (const auto& f : files) {
+    const std::string text = read_file(f);
+    for (auto it = std::sregex_iterator(text.begin(), text.end(), element);
+         it != std::sregex_iterator(); ++it) {
+      if ((*it)[1] == "flow") {
+        if (flow.empty()) flow = f;
+        continue;
+      }
+      const std::string attributes = (*it)[2].str();
+      std::smatch m;
+      if (std::regex_search(attributes, m, id) &&
+          std::find(out.begin(), out.end(), m[1].str()) == out.end())
+        out.push_back(m[1].str());
+    }
+  }
+  return out;
+}
+}  // namespace
+
+std::vector<int> Mobility::every_vehicle(const config::Table& t, std::string_view key) {
+  std::string flow;
+  const std::vector<std::string> ids = defined_vehicles(inputs_.files, flow);
+  if (!flow.empty()) {
+    t.fail(key,
+           fmt::format("expected a traffic whose vehicles are defined one by one (<vehicle> or "
+                       "<trip>): '{}' has <flow> elements, whose vehicles are named during "
+                       "the simulation (expand them with SUMO's duarouter)",
+                       flow));
+  }
+  if (ids.empty()) t.fail(key, "expected a traffic with vehicles: its input files define none");
+  std::vector<int> out;
+  for (const auto& id : ids) {
+    const auto it = std::find(vehicles_.begin(), vehicles_.end(), id);
+    if (it != vehicles_.end()) {
+      out.push_back(static_cast<int>(it - vehicles_.begin()));
+      continue;
+    }
+    vehicles_.push_back(id);
+    origins_.push_back(Origin{t.file(), t.key_path(key), t.line_of(key), true});
+    out.push_back(static_cast<int>(vehicles_.size()) - 1);
+  }
+  return out;
+}
+
 std::string Mobility::traffic_key() const {
   // v3: keyed by the traffic only; a recording holds every vehicle announced for it.
   std::string text = "ncosim-sumo-recording-v3\n";
@@ -353,7 +406,7 @@ void Mobility::load(const RecordingJob& j) {
     bool seen = false;
     for (std::int64_t f = 0; f < r.frames && !seen; ++f)
       seen = r.at(f, static_cast<int>(v)).present;
-    if (!seen) {
+    if (!seen && !origins_[v].may_be_absent) {
       const Origin& o = origins_[v];
       throw config::ScenarioError(config::format_error(
           o.file, o.line, o.path,

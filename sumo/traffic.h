@@ -99,6 +99,7 @@ class Mobility final : public models::MobilitySource {
  public:
   Mobility(const config::Table& t, const config::RunSettings& run, const std::string& dir);
   int vehicle(const config::Table& t, std::string_view key) override;
+  std::vector<int> every_vehicle(const config::Table& t, std::string_view key) override;
   void prepare() override;
   std::unique_ptr<models::MobilityRun> start(std::uint64_t run) const override;
   bool single_threaded() const override { return live_; }
@@ -132,6 +133,7 @@ class Mobility final : public models::MobilitySource {
   struct Origin {
     std::string file, path;
     int line;
+    bool may_be_absent = false;  // named in a group (every_vehicle): may never drive
   };
   std::vector<Origin> origins_;  // where each vehicle was first named
   std::vector<Recording> recordings_;

@@ -124,6 +124,7 @@ class FakeMobility final : public models::MobilitySource {
     names.push_back(t.string(key));
     return 2 + static_cast<int>(names.size());
   }
+  std::vector<int> every_vehicle(const config::Table&, std::string_view) override { return {}; }
   void prepare() override {}
   std::vector<std::string> names;
 };
