@@ -121,11 +121,21 @@ void check_networks(const config::Table& root, const Scenario& sc) {
                                                "network \"{}\" (kind {}), got {}",
                                                n.design->max_payload(), n.name, n.kind, a->bytes));
     }
-    if (!link_tables[l].has("position")) continue;
-    if (!n.design->has_positions()) {
+    if (link_tables[l].has("position") && !n.design->has_positions()) {
       link_tables[l].fail(
           "position",
           fmt::format("expected no position: network \"{}\" (kind {}) has none", n.name, n.kind));
+    }
+    // A sender the sink cannot hear loses every packet: a mistake, not a network to study.
+    const double at[3] = {a->x, a->y, a->z};
+    const auto r = n.design->reach(at);
+    if (r && !(r->received_dbm >= r->threshold_dbm)) {
+      link_tables[l].fail(
+          "position",
+          fmt::format("expected a node within range of network \"{}\"'s sink (kind {}): at {:.4g} "
+                      "m the sink receives {:.2f} dBm from it, below the {:.2f} dBm it needs ({})",
+                      n.name, n.kind, r->distance_m, r->received_dbm, r->threshold_dbm,
+                      r->threshold_why));
     }
   }
   for (std::size_t n = 0; n < sc.networks.size(); ++n) {
