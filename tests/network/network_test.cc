@@ -344,6 +344,28 @@ TEST_F(NetworkCli, ARunIsTheSameWhateverTheThreadsAndShards) {
   // Two sensors per node and a queue of 4 on a 1 Mb/s bus: every packet gets through, with
   // delays of one period or more (nothing arrives in the period it is sent).
   for (const auto& pmf : links_column(dir_ / "t1", "delay_pmf")) EXPECT_EQ(pmf.rfind("0;", 0), 0U);
+  // The stack's columns are in those bytes. A node is its link, so the rows of a link's two
+  // sensors show the same node's counters: it put every packet it did not drop on the wire once
+  // (ns-3's CSMA has no retransmissions), at least those delivered; the bus exposes no busy time.
+  const fs::path t1 = dir_ / "t1";
+  const auto link = links_column(t1, "link");
+  const auto attempts = links_column(t1, "mac_attempts");
+  const auto delivered = links_column(t1, "packets_delivered");
+  std::map<std::string, long long> node_attempts, node_delivered;
+  for (std::size_t i = 0; i < link.size(); ++i) {
+    if (node_attempts.count(link[i]) != 0U) {
+      EXPECT_EQ(node_attempts[link[i]], std::stoll(attempts[i])) << i;
+    }
+    node_attempts[link[i]] = std::stoll(attempts[i]);
+    node_delivered[link[i]] += std::stoll(delivered[i]);
+    EXPECT_EQ(links_column(t1, "mac_retries")[i], "0") << i;
+    EXPECT_EQ(links_column(t1, "busy_ratio")[i], "") << i;
+  }
+  ASSERT_EQ(node_attempts.size(), 2U);
+  for (const auto& [name, n] : node_attempts) {
+    EXPECT_GE(n, node_delivered[name]) << name;
+    EXPECT_GT(node_delivered[name], 0) << name;
+  }
 }
 
 // The shipped 802.15.4 star runs (with run 0's trace), and the jump observer's row says that its
@@ -463,6 +485,9 @@ TEST_F(NetworkCli, AWorkerThatDiesIsReportedAndResumeCompletes) {
                                 "--no-timing", "--quiet"});
   ASSERT_EQ(whole.code, 0) << whole.output;
   EXPECT_EQ(slurp(out / "runs.csv"), slurp(dir_ / "whole" / "runs.csv"));
+  // The 802.15.4 nodes' stack counters too, over two worker processes and a resume.
+  EXPECT_EQ(slurp(out / "links.csv"), slurp(dir_ / "whole" / "links.csv"));
+  EXPECT_NE(links_column(out, "busy_ratio").at(0), "");
 }
 
 TEST_F(NetworkCli, BadInputNamesTheKeyAndItsLine) {
