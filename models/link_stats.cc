@@ -14,12 +14,24 @@ void add_into(std::vector<std::int64_t>& to, const std::vector<std::int64_t>& fr
 
 }  // namespace
 
+void StackCounters::add(const StackCounters& o) {
+  attempts += o.attempts;
+  retries += o.retries;
+  add_into(drops, o.drops);
+  if (o.busy_ns >= 0) busy_ns = std::max<std::int64_t>(busy_ns, 0) + o.busy_ns;
+  simulated_ns += o.simulated_ns;
+}
+
 void LinkCounters::add(const LinkCounters& o) {
   sent += o.sent;
   delivered += o.delivered;
   add_into(copies, o.copies);
   add_into(bursts, o.bursts);
   add_into(states, o.states);
+  if (o.stack) {
+    if (!stack) stack.emplace();
+    stack->add(*o.stack);
+  }
 }
 
 BurstSummary summarise_bursts(const std::vector<std::int64_t>& bursts) {

@@ -12,6 +12,18 @@
 
 namespace ncosim::models {
 
+// What the protocol stack of a network node did (links of kind `network` only; network/network.h
+// MacCounters, summed over runs): frames put on the air and of them retransmissions, packets
+// dropped by cause (index: network::Drop), the time the node found the channel busy (-1: its
+// network's kind does not expose it) and the simulated time of the network (ns).
+struct StackCounters {
+  std::int64_t attempts = 0, retries = 0;
+  std::vector<std::int64_t> drops;
+  std::int64_t busy_ns = -1;
+  std::int64_t simulated_ns = 0;
+  void add(const StackCounters& o);
+};
+
 struct LinkCounters {
   std::int64_t sent = 0;       // packets handed to the link
   std::int64_t delivered = 0;  // packets with at least one delivered copy
@@ -23,7 +35,8 @@ struct LinkCounters {
   std::vector<std::int64_t> bursts;
   // states[s]: packets sent while the link's channel was in state s (Markov kinds only).
   std::vector<std::int64_t> states;
-  std::int64_t open_burst = 0;  // losses in a row so far (not yet in `bursts`)
+  std::int64_t open_burst = 0;         // losses in a row so far (not yet in `bursts`)
+  std::optional<StackCounters> stack;  // a network node's stack (nullopt: not a network link)
 
   // One packet: the delays of its delivered copies (empty: lost) and the channel state it met
   // (-1: the link has no state).

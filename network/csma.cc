@@ -50,6 +50,14 @@ const config::Keys& csma_keys() {
   return keys;
 }
 
+#if NCOSIM_HAVE_NS3
+// ns-3's CSMA puts a frame on the wire once: a busy bus defers it (back-off) before PhyTxBegin, and
+// the model has no collisions, so no frame is sent twice.
+void attempted(World* world, int sender, ns3::Ptr<const ns3::Packet> p) {
+  world->attempt_packet(sender, p);
+}
+#endif
+
 class CsmaDesign final : public NetworkDesign {
  public:
   CsmaDesign(std::uint64_t rate, std::int64_t delay_ns, std::uint32_t queue)
@@ -81,6 +89,9 @@ void CsmaDesign::build(World& world, const std::vector<int>& senders) const {
     world.attach_sender(senders[i], device, devices.Get(0)->GetAddress());
     world.connect_drop(device, "MacTxDrop", Drop::kQueue);
     world.connect_drop(device, "PhyTxDrop", Drop::kChannelAccess);
+    const bool connected = device->TraceConnectWithoutContext(
+        "PhyTxBegin", ns3::MakeBoundCallback(&attempted, &world, senders[i]));
+    NCOSIM_CHECK(connected);
   }
 }
 #else

@@ -1,12 +1,14 @@
 // network/lr_wpan.cc — the `lr_wpan` network: IEEE 802.15.4 (2.4 GHz O-QPSK, 250 kb/s), ns-3's
 // lr-wpan model, the wireless sensor network case. Every sender is a device of one PAN with the
-// sink as its destination; frames go by unslotted CSMA/CA and are acknowledged, with up to three
-// retransmissions (the standard's macMaxFrameRetries); the channel is one spectrum channel with a
-// log-distance path loss from the nodes' fixed positions, and a frame is received with the
-// probability of ns-3's 802.15.4 error model at its signal-to-interference-and-noise ratio, so
-// frames of different nodes that overlap in time collide.
+// sink as its destination; frames go by unslotted CSMA/CA and are acknowledged, with up to
+// max_frame_retries retransmissions (the standard's macMaxFrameRetries, 3); the channel is one
+// spectrum channel with a log-distance path loss from the nodes' fixed positions, and a frame is
+// received with the probability of ns-3's 802.15.4 error model at its
+// signal-to-interference-and-noise ratio, so frames of different nodes that overlap in time
+// collide.
 #include <fmt/format.h>
 
+#include <cmath>
 #include <memory>
 
 #include "kernel/check.h"
@@ -23,6 +25,7 @@
 #include <ns3/node-container.h>
 #include <ns3/propagation-delay-model.h>
 #include <ns3/propagation-loss-model.h>
+#include <ns3/simulator.h>
 #include <ns3/single-model-spectrum-channel.h>
 
 #include "network/world.h"
@@ -61,17 +64,51 @@ const config::Keys& lr_wpan_keys() {
           .or_default(46.6777)
           .unit("dB")
           .help("path loss at 1 m (the default: free space at 2.4 GHz)"),
+      Key::integer("max_frame_retries")
+          .range(0, 7)
+          .or_default(3)
+          .unit("frames")
+          .help("retransmissions of an unacknowledged frame before the MAC drops it "
+                "(macMaxFrameRetries)"),
   };
   return keys;
 }
+
+// The least power (dBm) at which ns-3.37's 802.15.4 receiver starts to receive a frame: LrWpanPhy
+// drops a frame whose signal-to-interference-and-noise ratio is below -5 dB when it starts, and the
+// noise alone is the thermal noise k T (T = 290 K, noise factor 1) over the five 1 MHz bands of
+// the channel (LrWpanSpectrumValueHelper::CreateNoisePowerSpectralDensity): -106.99 dBm. Its
+// `rxSensitivity` (-106.58 dBm) only sets the clear channel assessment and energy detection
+// thresholds; at that power a frame of 50 bytes is still received with probability 0.97.
+double noise_dbm() { return 10.0 * std::log10(1.3803e-23 * 290.0 * 5e6) + 30.0; }
+constexpr double kMinSinrDb = -5.0;
 
 class LrWpanDesign final : public NetworkDesign {
  public:
   double tx_power = 0.0, exponent = 3.0, reference_loss = 46.6777;
   double sink[3] = {0.0, 0.0, 0.0};
+  int max_frame_retries = 3;
   void build(World& world, const std::vector<int>& senders) const override;
   bool has_positions() const override { return true; }
   std::uint32_t max_payload() const override { return kMaxPayload; }
+  // ns-3's LogDistancePropagationLossModel (reference distance 1 m, no loss beyond the reference
+  // loss closer than that) applied to tx_power.
+  double received_dbm(double distance_m) const {
+    return tx_power - reference_loss -
+           (distance_m > 1.0 ? 10.0 * exponent * std::log10(distance_m) : 0.0);
+  }
+  double threshold_dbm() const { return noise_dbm() + kMinSinrDb; }
+  std::optional<Reach> reach(const double (&p)[3]) const override {
+    Reach r;
+    r.distance_m = std::hypot(p[0] - sink[0], p[1] - sink[1], p[2] - sink[2]);
+    r.received_dbm = received_dbm(r.distance_m);
+    r.threshold_dbm = threshold_dbm();
+    r.threshold_why = fmt::format(
+        "ns-3's 802.15.4 receiver drops a frame below {} dB of signal to noise, and its noise "
+        "floor is {:.2f} dBm",
+        kMinSinrDb, noise_dbm());
+    return r;
+  }
 };
 
 #if NCOSIM_HAVE_NS3
@@ -88,8 +125,38 @@ Drop drop_of(ns3::LrWpanMcpsDataConfirmStatus status) {
   }
 }
 
-void confirmed(World* world, int sender, ns3::McpsDataConfirmParams params) {
-  world->confirmed(sender, drop_of(params.m_status));
+// A frame the MAC gave up on: from a sender out of the sink's range (LrWpanDesign::reach, at the
+// nodes' positions now: they may ride SUMO vehicles), no retransmission could have helped.
+void confirmed(World* world, const LrWpanDesign* design, int sender,
+               ns3::Ptr<ns3::MobilityModel> sink, ns3::McpsDataConfirmParams params) {
+  Drop drop = drop_of(params.m_status);
+  if (drop == Drop::kNoAck) {
+    const double d = world->sender_mobility(sender)->GetDistanceFrom(sink);
+    if (design->received_dbm(d) < design->threshold_dbm()) drop = Drop::kOutOfRange;
+  }
+  world->confirmed(sender, drop);
+}
+
+void attempted(World* world, int sender, ns3::Ptr<const ns3::Packet> p) {
+  world->attempt_packet(sender, p);
+}
+
+// The time a sender's transceiver is busy: transmitting, or receiving a frame it synchronised to
+// (another node's, or an acknowledgement), i.e. the channel as this node finds it occupied.
+struct BusyClock {
+  World* world = nullptr;
+  int sender = 0;
+  std::int64_t since = -1;  // ns; -1: not busy
+};
+
+void trx_state(BusyClock* c, ns3::LrWpanPhyEnumeration, ns3::LrWpanPhyEnumeration now) {
+  const bool busy = now == ns3::IEEE_802_15_4_PHY_BUSY_RX || now == ns3::IEEE_802_15_4_PHY_BUSY_TX;
+  const std::int64_t t = ns3::Simulator::Now().GetNanoSeconds();
+  if (busy && c->since < 0) c->since = t;
+  if (!busy && c->since >= 0) {
+    c->world->busy(c->sender, t - c->since);
+    c->since = -1;
+  }
 }
 
 void LrWpanDesign::build(World& world, const std::vector<int>& senders) const {
@@ -109,12 +176,14 @@ void LrWpanDesign::build(World& world, const std::vector<int>& senders) const {
   const ns3::NetDeviceContainer devices = helper.Install(nodes);
   helper.AssociateToPan(devices, 1);
   ns3::LrWpanSpectrumValueHelper psd;
+  ns3::Ptr<ns3::MobilityModel> sink_at;
   for (std::uint32_t i = 0; i < devices.GetN(); ++i) {
     auto device = ns3::DynamicCast<ns3::LrWpanNetDevice>(devices.Get(i));
     auto position = ns3::CreateObject<ns3::ConstantPositionMobilityModel>();
     if (i == 0) {
       position->SetPosition(ns3::Vector(sink[0], sink[1], sink[2]));
       world.mobile_sink(position);
+      sink_at = position;
     } else {
       const Sender& s = world.sender(senders[i - 1]);
       position->SetPosition(ns3::Vector(s.x, s.y, s.z));
@@ -123,6 +192,7 @@ void LrWpanDesign::build(World& world, const std::vector<int>& senders) const {
     device->GetPhy()->SetMobility(position);
     device->GetPhy()->SetTxPowerSpectralDensity(psd.CreateTxPowerSpectralDensity(tx_power, 11));
     device->SetAttribute("UseAcks", ns3::BooleanValue(true));
+    device->GetMac()->SetMacMaxFrameRetries(static_cast<std::uint8_t>(max_frame_retries));
   }
   constexpr std::int64_t kStreamsPerDevice = 8;
   const std::int64_t count = kStreamsPerDevice * static_cast<std::int64_t>(devices.GetN());
@@ -134,7 +204,15 @@ void LrWpanDesign::build(World& world, const std::vector<int>& senders) const {
         ns3::DynamicCast<ns3::LrWpanNetDevice>(devices.Get(static_cast<std::uint32_t>(i + 1)));
     world.attach_sender(senders[i], device, devices.Get(0)->GetAddress(), true);
     device->GetMac()->SetMcpsDataConfirmCallback(
-        ns3::MakeBoundCallback(&confirmed, &world, senders[i]));
+        ns3::MakeBoundCallback(&confirmed, &world, this, senders[i], sink_at));
+    const bool tx = device->GetMac()->TraceConnectWithoutContext(
+        "MacTx", ns3::MakeBoundCallback(&attempted, &world, senders[i]));
+    auto clock = std::make_shared<BusyClock>(BusyClock{&world, senders[i], -1});
+    world.keep(clock);
+    world.busy(senders[i], 0);  // exposed, even if never busy
+    const bool state = device->GetPhy()->TraceConnectWithoutContext(
+        "TrxStateValue", ns3::MakeBoundCallback(&trx_state, clock.get()));
+    NCOSIM_CHECK(tx && state);
   }
 }
 #else
@@ -147,6 +225,7 @@ std::shared_ptr<const NetworkDesign> read_lr_wpan(const config::Table& t) {
   d->tx_power = r.number("tx_power");
   d->exponent = r.number("path_loss_exponent");
   d->reference_loss = r.number("reference_loss");
+  d->max_frame_retries = static_cast<int>(r.integer("max_frame_retries"));
   if (r.has("sink_position")) {
     const std::vector<double> p = r.numbers("sink_position");
     if (p.size() != 3)
@@ -163,7 +242,7 @@ void register_lr_wpan(NetworkRegistry& registry) {
   registry.add("lr_wpan",
                "IEEE 802.15.4 (ns-3 lr-wpan: 250 kb/s, unslotted CSMA/CA, acknowledged frames, "
                "log-distance path loss): tx_power, sink_position, path_loss_exponent, "
-               "reference_loss",
+               "reference_loss, max_frame_retries",
                lr_wpan_keys(), read_lr_wpan);
 }
 

@@ -14,6 +14,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -26,9 +27,11 @@ namespace ncosim::network {
 class World;  // one run's ns-3 simulation (network/world.h; only in builds with ns-3)
 
 // What happened to one packet: delivered to the sink at `time`, or dropped by the stack.
-// kNoAck: the MAC gave up after its retransmissions (collisions, fading or range).
-enum class Drop : std::uint8_t { kNone, kQueue, kChannelAccess, kNoAck };
-inline constexpr std::size_t kDropCauses = 4;  // the values of Drop
+// kNoAck: the MAC gave up after its retransmissions although the sink could hear the sender
+// (collisions or noise); kOutOfRange: the same, from a sender whose signal reaches the sink below
+// what its receiver can receive (NetworkDesign::reach), so that no retransmission could help.
+enum class Drop : std::uint8_t { kNone, kQueue, kChannelAccess, kNoAck, kOutOfRange };
+inline constexpr std::size_t kDropCauses = 5;  // the values of Drop
 struct Fate {
   int sender = 0;            // the sender's index in the session (Session::start)
   std::uint64_t id = 0;      // the id given to Session::send
@@ -56,6 +59,19 @@ class NetworkDesign {
   virtual bool has_positions() const { return false; }
   // The largest payload of one packet (bytes), at most 1500.
   virtual std::uint32_t max_payload() const { return 1500; }
+  // For a kind with positions: how a sender at `position` (m) reaches the sink when alone on the
+  // channel; nullopt for a kind without positions. The scenario reader refuses a sender out of
+  // range (sim/scenario/scenario_sections.cc check_networks).
+  struct Reach {
+    double distance_m = 0.0;     // from the sink
+    double received_dbm = 0.0;   // the power the sink receives from it
+    double threshold_dbm = 0.0;  // the least power at which the sink's receiver can receive
+    std::string threshold_why;   // where the threshold comes from, for the message
+  };
+  virtual std::optional<Reach> reach(const double (&position)[3]) const {
+    (void)position;
+    return std::nullopt;
+  }
 };
 
 using NetworkRegistry = config::Registry<std::shared_ptr<const NetworkDesign>>;

@@ -82,6 +82,14 @@ void World::connect_drop(const ns3::Ptr<ns3::NetDevice>& device, const char* tra
   NCOSIM_CHECK(connected);
 }
 
+void World::attempt_packet(int s, const ns3::Ptr<const ns3::Packet>& p) {
+  PacketTag tag;
+  if (!p->PeekPacketTag(tag)) return;  // not one of ncosim's packets
+  Port& port = ports_[static_cast<std::size_t>(s)];
+  attempt(s, tag.seq() == port.last_attempt);
+  port.last_attempt = tag.seq();
+}
+
 void World::dropped(Drop cause, const ns3::Ptr<const ns3::Packet>& p) { note(p, cause); }
 
 void World::confirmed(int sender, Drop drop) {

@@ -43,6 +43,9 @@ class World {
     ++c.attempts;
     if (retry) ++c.retries;
   }
+  // The same for a frame `p` the sender's MAC puts on the air: a retransmission when it carries the
+  // same packet as the sender's previous attempt.
+  void attempt_packet(int s, const ns3::Ptr<const ns3::Packet>& p);
   void busy(int s, std::int64_t ns) {
     MacCounters& c = ports_[static_cast<std::size_t>(s)].counters;
     c.busy_ns = (c.busy_ns < 0 ? 0 : c.busy_ns) + ns;
@@ -98,7 +101,8 @@ class World {
     bool confirms = false;
     std::deque<std::uint64_t> unconfirmed;  // sequence numbers, oldest first
     MacCounters counters;
-    ns3::Ptr<ns3::MobilityModel> mobility;  // set by kinds with positions
+    ns3::Ptr<ns3::MobilityModel> mobility;           // set by kinds with positions
+    std::uint64_t last_attempt = ~std::uint64_t{0};  // the packet of its last attempt
   };
   struct InFlight {
     int sender;

@@ -12,6 +12,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <stdexcept>
 #include <string>
 #include <thread>
@@ -374,6 +375,24 @@ void decode(const std::string& in, std::vector<double>& ns, std::vector<TraceRow
 // this process never simulates a network: the workers it forks later start from its state).
 void replay_in_child(const Scenario& sc, std::uint64_t run, bool trace, bool timed,
                      CampaignResult& result) {
+  const std::string bytes = bytes_from_child(
+      [&] {
+        std::vector<double> ns(sc.estimators.size(), std::nan(""));
+        std::vector<TraceRow> rows;
+        simulate_run(sc, run, trace ? &rows : nullptr, timed ? &ns : nullptr);
+        return encode(ns, rows);
+      },
+      fmt::format("run {}: the replay for the trace and the timing", run));
+  std::vector<double> ns;
+  std::vector<TraceRow> rows;
+  decode(bytes, ns, rows);
+  if (timed) result.ns_per_period = std::move(ns);
+  if (trace) result.trace = std::move(rows);
+}
+
+}  // namespace
+
+std::string bytes_from_child(const std::function<std::string()>& work, const std::string& what) {
   int sv[2];
   if (::socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, sv) != 0)
     throw std::runtime_error(fmt::format("cannot create a socket pair: {}", std::strerror(errno)));
@@ -382,10 +401,7 @@ void replay_in_child(const Scenario& sc, std::uint64_t run, bool trace, bool tim
   if (pid == 0) {
     ::close(sv[0]);
     try {
-      std::vector<double> ns(sc.estimators.size(), std::nan(""));
-      std::vector<TraceRow> rows;
-      simulate_run(sc, run, trace ? &rows : nullptr, timed ? &ns : nullptr);
-      const std::string bytes = encode(ns, rows);
+      const std::string bytes = work();
       ::_exit(write_all(sv[1], bytes.data(), bytes.size()) ? 0 : 1);
     } catch (...) {  // never unwind into the parent's code, which this process is a copy of
       ::_exit(2);
@@ -405,17 +421,9 @@ void replay_in_child(const Scenario& sc, std::uint64_t run, bool trace, bool tim
   }
   if (!WIFEXITED(status) || WEXITSTATUS(status) != 0)
     throw std::runtime_error(
-        fmt::format("run {}: the replay for the trace and the timing ended "
-                    "without a result ({})",
-                    run, exit_text(status)));
-  std::vector<double> ns;
-  std::vector<TraceRow> rows;
-  decode(bytes, ns, rows);
-  if (timed) result.ns_per_period = std::move(ns);
-  if (trace) result.trace = std::move(rows);
+        fmt::format("{} ended without a result ({})", what, exit_text(status)));
+  return bytes;
 }
-
-}  // namespace
 
 std::vector<TraceRow> trace_in_child(const Scenario& sc, std::uint64_t run) {
   CampaignResult r;

@@ -7,6 +7,9 @@
 // one process (a run depends on (seed, run index) alone, and the store orders every export).
 #pragma once
 
+#include <functional>
+#include <string>
+
 #include "sim/run/campaign.h"
 
 namespace ncosim::sim {
@@ -24,5 +27,10 @@ CampaignResult run_in_processes(const Scenario& sc, const CampaignOptions& optio
 // Run `run`'s trace, simulated in a process of its own (so that this process never simulates a
 // network, and the workers it forks later start from the same state).
 std::vector<TraceRow> trace_in_child(const Scenario& sc, std::uint64_t run);
+
+// Runs `work` in a forked process of its own (ns-3 keeps state across the simulations of one
+// process) and returns the bytes it returned. Throws, naming `what`, when the process ends
+// without them (a crash inside ns-3, or `work` threw).
+std::string bytes_from_child(const std::function<std::string()>& work, const std::string& what);
 
 }  // namespace ncosim::sim

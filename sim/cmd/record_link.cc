@@ -5,6 +5,7 @@
 
 #include <filesystem>
 #include <iostream>
+#include <stdexcept>
 #include <string>
 
 #include "config/config.h"
@@ -12,7 +13,9 @@
 #include "kernel/time.h"
 #include "models/link.h"
 #include "sim/analysis/output.h"
+#include "sim/cmd/process_campaign.h"
 #include "sim/files/output_set.h"
+#include "sim/run/run.h"
 
 namespace ncosim::sim {
 
@@ -31,12 +34,6 @@ std::vector<std::size_t> senders(const Scenario& sc, std::size_t l) {
                       "sensors can be recorded",
                       name));
     }
-  }
-  if (sc.links[l].link->network_attachment() != nullptr) {
-    throw config::ScenarioError(
-        fmt::format("--link: link '{}' is a node of a [[network]], whose packets' fates come from "
-                    "the whole network's simulation: recording it is not supported yet",
-                    name));
   }
   if (sc.links[l].link->independent_copies()) {
     throw config::ScenarioError(
@@ -62,6 +59,36 @@ std::vector<std::size_t> senders(const Scenario& sc, std::size_t l) {
   return out;
 }
 
+// A network link's packets: their fates come from the whole run (every sender of the network
+// contends), each run simulated in a process of its own (ns-3 keeps state across the simulations
+// of a process), as the campaign does (sim/cmd/process_campaign.h).
+void record_network_runs(const Scenario& sc, std::size_t l, std::int64_t runs, RecordedTrace& out) {
+  for (std::int64_t r = 0; r < runs; ++r) {
+    const auto run = static_cast<std::uint64_t>(r);
+    const std::string bytes = bytes_from_child(
+        [&] {
+          std::string b;
+          for (const RecordedPacket& p : record_network_link(sc, run, l)) {
+            const auto d = static_cast<std::uint64_t>(p.delay);
+            for (int i = 0; i < 8; ++i) b.push_back(static_cast<char>((d >> (8 * i)) & 0xFF));
+          }
+          return b;
+        },
+        fmt::format("record-link: run {} of link '{}'", run, sc.links[l].name));
+    if (bytes.size() != static_cast<std::size_t>(out.per_run) * 8) {
+      throw std::runtime_error(
+          fmt::format("record-link: run {} of link '{}' sent {} packets, expected {}", run,
+                      sc.links[l].name, bytes.size() / 8, out.per_run));
+    }
+    for (std::size_t i = 0; i < bytes.size(); i += 8) {
+      std::uint64_t d = 0;
+      for (int b = 0; b < 8; ++b)
+        d |= static_cast<std::uint64_t>(static_cast<unsigned char>(bytes[i + b])) << (8 * b);
+      out.delays.push_back(static_cast<std::int64_t>(d));
+    }
+  }
+}
+
 }  // namespace
 
 RecordedTrace record_link(const Scenario& sc, std::size_t l, std::int64_t runs) {
@@ -80,6 +107,10 @@ RecordedTrace record_link(const Scenario& sc, std::size_t l, std::int64_t runs) 
                     sc.links[l].name, runs, out.per_run, kMaxPackets));
   }
   out.delays.reserve(static_cast<std::size_t>(out.per_run * runs));
+  if (sc.links[l].link->network_attachment() != nullptr) {
+    record_network_runs(sc, l, runs, out);
+    return out;
+  }
   const std::uint64_t seed = sc.run.seed;
   const kernel::SimTime period_ns = kernel::seconds_to_time(sc.run.period);
   std::vector<std::int64_t> copies;

@@ -9,6 +9,11 @@
 // random stream (or counter-based keys) and the send times, and the send times of periodic
 // sensors are fixed. Send-on-delta sensors (send times depend on the measurements), actuators
 // and links delivering independent copies are refused (exit 2).
+//
+// A link of kind `network` (a node of a [[network]]) is not alone: its packets' fates come from
+// the whole network, where every sender of the scenario contends. Each run is then the campaign's
+// run (sim/run/run.h record_network_link), simulated in a process of its own, and ns-3 runs on
+// after the last period until every packet has its fate; the delays are those links.csv counts.
 #pragma once
 
 #include <cstdint>

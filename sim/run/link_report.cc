@@ -5,6 +5,7 @@
 
 #include <algorithm>
 
+#include "network/network.h"
 #include "sim/files/csv.h"
 
 namespace ncosim::sim {
@@ -75,6 +76,21 @@ std::string ratios(const std::vector<std::int64_t>& counts, std::int64_t total, 
 
 std::string opt_int(const std::optional<std::int64_t>& v) { return v ? std::to_string(*v) : ""; }
 
+// The network node's stack columns (mac_attempts .. busy_ratio), empty cells for another link. The
+// drop causes are network::Drop's values after kNone: queue, channel access, no ack, out of range.
+std::string stack_cells(const std::optional<models::StackCounters>& k) {
+  constexpr std::size_t kCauses = 4;
+  static_assert(network::kDropCauses == kCauses + 1, "a new network::Drop needs its column here");
+  if (!k) return std::string(2 + kCauses, ',');
+  std::string out = fmt::format("{},{}", k->attempts, k->retries);
+  for (std::size_t c = 1; c <= kCauses; ++c)
+    out += fmt::format(",{}", c < k->drops.size() ? k->drops[c] : 0);
+  std::optional<double> busy;
+  if (k->busy_ns >= 0 && k->simulated_ns > 0)
+    busy = static_cast<double>(k->busy_ns) / static_cast<double>(k->simulated_ns);
+  return out + "," + fmt_number(busy);
+}
+
 }  // namespace
 
 std::string links_csv(const std::vector<SweepAxis>& sweeps,
@@ -88,7 +104,8 @@ std::string links_csv(const std::vector<SweepAxis>& sweeps,
       "ratio,delay_max,"
       "delay_pmf,nominal_delay_pmf,bursts,burst_mean,nominal_burst_mean,burst_p95,burst_max,state_"
       "occupancy,"
-      "nominal_state_occupancy,step\n";
+      "nominal_state_occupancy,step,mac_attempts,mac_retries,drops_queue,drops_channel_access,"
+      "drops_no_ack,drops_out_of_range,busy_ratio\n";
   for (std::size_t c = 0; c < scenarios.size(); ++c) {
     const Scenario& sc = *scenarios[c];
     const CampaignResult& res = *results[c];
@@ -106,7 +123,7 @@ std::string links_csv(const std::vector<SweepAxis>& sweeps,
       const std::size_t states = std::max(sum.states.size(), nominal.states.size());
       for (const auto& l : labels[c]) out += csv_field(l) + ",";
       out += fmt::format(
-          "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
+          "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
           csv_field(sc.links[flow.link].name), csv_field(sc.links[flow.link].kind),
           csv_field(flow.sender_name), res.link_runs.size(), sum.sent, sum.delivered,
           fmt_number(sum.sent > 0 ? std::optional<double>(static_cast<double>(sum.delivered) /
@@ -115,7 +132,8 @@ std::string links_csv(const std::vector<SweepAxis>& sweeps,
           fmt_number(nominal.delivered_ratio), sum.copies.empty() ? "" : std::to_string(max_delay),
           ratios(sum.copies, sum.sent, sum.copies.size()), join(nominal.delay_pmf), b.count,
           fmt_number(b.mean), fmt_number(nominal.burst_mean), opt_int(b.p95), opt_int(b.max),
-          ratios(sum.states, sum.sent, states), join(nominal.states), flow.step);
+          ratios(sum.states, sum.sent, states), join(nominal.states), flow.step,
+          stack_cells(sum.stack));
     }
   }
   return out;

@@ -158,10 +158,27 @@ class RunSimulation {
           if (f >= 0) link_counters_[static_cast<std::size_t>(f)] = std::move(stage->counters()[a]);
         }
       }
+      stack_counters();
       for (auto& c : link_counters_) c.close();
       *link_out_ = std::move(link_counters_);
     }
     return recorder_.finish();
+  }
+
+  // Records the fate of every packet sensor `sensors` send over network link `link` instead of
+  // counting (record_network_link).
+  void record(std::size_t link, std::vector<RecordedPacket>* out) {
+    record_link_ = static_cast<int>(link);
+    record_out_ = out;
+  }
+
+  // After the run's last period, ns-3 goes on (nothing else does) until every recorded packet has
+  // its fate, for at most kDrainNs of simulated time.
+  void drain() {
+    constexpr kernel::SimTime kDrainNs = 60'000'000'000;
+    const kernel::SimTime end = network_now_ + kDrainNs;
+    for (kernel::SimTime t = network_now_ + period_ns_; pending_ > 0 && t <= end; t += period_ns_)
+      advance_networks(t);
   }
 
  private:
@@ -188,12 +205,30 @@ class RunSimulation {
     network_ = network::Session::start(designs, senders, seed, run);
   }
 
+  // What each network node's stack did in the run (network::Session::counters), on the rows of
+  // its link's sensors.
+  void stack_counters() {
+    for (std::size_t s = 0; s < sensors_.size(); ++s) {
+      const int l = sensors_[s].spec().link;
+      if (l < 0 || links_[static_cast<std::size_t>(l)].sender < 0) continue;
+      const network::MacCounters c = network_->counters(links_[static_cast<std::size_t>(l)].sender);
+      models::StackCounters k;
+      k.attempts = static_cast<std::int64_t>(c.attempts);
+      k.retries = static_cast<std::int64_t>(c.retries);
+      for (const std::uint64_t d : c.dropped) k.drops.push_back(static_cast<std::int64_t>(d));
+      k.busy_ns = c.busy_ns;
+      k.simulated_ns = network_now_;
+      link_counters_[static_cast<std::size_t>(flow_of_.sensor[s])].stack = std::move(k);
+    }
+  }
+
   // Lockstep with ns-3 at the start of period k, after its sends: every packet the networks
   // delivered in ((k - 1) T, k T] arrives at k T (this period's arrival phase); a dropped one is
   // counted lost.
   void advance_networks(kernel::SimTime now) {
     fates_.clear();
     network_->advance_to(now, fates_);
+    network_now_ = now;
     for (const network::Fate& f : fates_) {
       const auto id = static_cast<std::size_t>(f.id);
       const models::Packet& p = pool_[id];
@@ -203,6 +238,12 @@ class RunSimulation {
         link_counters_[static_cast<std::size_t>(
                            flow_of_.sensor[static_cast<std::size_t>(p.sensor)])]
             .record(delivered ? arrival - p.stamps[0] : models::kLost, -1);
+      }
+      if (record_out_ != nullptr && id < record_slot_.size() && record_slot_[id] >= 0) {
+        (*record_out_)[static_cast<std::size_t>(record_slot_[id])].delay =
+            delivered ? arrival - p.stamps[0] : models::kLost;
+        record_slot_[id] = -1;
+        --pending_;
       }
       if (delivered && arrival < sc_.run.periods) {
         queue_.schedule(arrival * period_ns_, kernel::Phase::kArrival, &arrival_handler_, id);
@@ -314,13 +355,22 @@ class RunSimulation {
     }
     LinkState& ls = links_[static_cast<std::size_t>(sensor.spec().link)];
     if (ls.sender >= 0) {  // a node of a network: the network decides (advance_networks)
+      const bool recorded = record_out_ != nullptr && sensor.spec().link == record_link_;
       if (ls.vehicle >= 0 && !mobility_->vehicle(ls.vehicle).present) {
         // A vehicle not in the traffic sends nothing: the packet is lost.
         if (link_out_ != nullptr)
           link_counters_[static_cast<std::size_t>(flow_of_.sensor[s])].record(models::kLost, -1);
+        if (recorded) record_out_->push_back(RecordedPacket{k, s, models::kLost});
         return;
       }
-      network_->send(ls.sender, take_packet(s, k, false), k * period_ns_);
+      const std::size_t id = take_packet(s, k, false);
+      if (recorded) {
+        if (record_slot_.size() < pool_.size()) record_slot_.resize(pool_.size(), -1);
+        record_slot_[id] = static_cast<std::int64_t>(record_out_->size());
+        record_out_->push_back(RecordedPacket{k, s, models::kLost});
+        ++pending_;
+      }
+      network_->send(ls.sender, id, k * period_ns_);
       return;
     }
     ls.link->advance(k, ls.rng);
@@ -417,6 +467,11 @@ class RunSimulation {
   std::vector<LinkState> links_;
   std::unique_ptr<network::Session> network_;  // the run's networks (null without [[network]])
   std::vector<network::Fate> fates_;
+  kernel::SimTime network_now_ = 0;  // where ns-3 is (its last advance_to)
+  int record_link_ = -1;             // the network link being recorded (record_network_link)
+  std::vector<RecordedPacket>* record_out_ = nullptr;
+  std::vector<std::int64_t> record_slot_;  // per pool packet: its row in record_out_, or -1
+  std::int64_t pending_ = 0;               // recorded packets without a fate yet
   std::vector<std::int64_t> delays_;
   std::vector<std::size_t>
       sample_order_;  // the sensors in the order their next samples were scheduled
@@ -450,6 +505,19 @@ RunMetrics execute_run(const Scenario& sc, std::uint64_t run, std::vector<TraceR
                        ErrorCurve* curve) {
   RunSimulation sim(sc, run, trace, log, links, curve);
   return sim.execute();
+}
+
+std::vector<RecordedPacket> record_network_link(const Scenario& sc, std::uint64_t run,
+                                                std::size_t link) {
+  std::vector<RecordedPacket> out;
+  RunSimulation sim(sc, run, nullptr, nullptr, nullptr, nullptr);
+  sim.record(link, &out);
+  sim.execute();
+  sim.drain();
+  std::stable_sort(out.begin(), out.end(), [](const RecordedPacket& a, const RecordedPacket& b) {
+    return a.period != b.period ? a.period < b.period : a.sensor < b.sensor;
+  });
+  return out;
 }
 
 std::vector<double> time_estimators(const Scenario& sc, const ReplayLog& log,

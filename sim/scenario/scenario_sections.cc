@@ -142,6 +142,19 @@ void check_networks(const config::Table& root, const Scenario& sc) {
                              key == "position" ? "none" : "no positions"));
       }
     }
+    // A sender the sink cannot hear loses every packet: a mistake, not a network to study (nodes
+    // that ride SUMO vehicles move in and out of range: no check).
+    if (a->vehicle >= 0 || n.sink_vehicle >= 0) continue;
+    const double at[3] = {a->x, a->y, a->z};
+    const auto r = n.design->reach(at);
+    if (r && !(r->received_dbm >= r->threshold_dbm)) {
+      link_tables[l].fail(
+          "position",
+          fmt::format("expected a node within range of network \"{}\"'s sink (kind {}): at {:.4g} "
+                      "m the sink receives {:.2f} dBm from it, below the {:.2f} dBm it needs ({})",
+                      n.name, n.kind, r->distance_m, r->received_dbm, r->threshold_dbm,
+                      r->threshold_why));
+    }
   }
   for (std::size_t n = 0; n < sc.networks.size(); ++n) {
     const bool used =

@@ -21,7 +21,9 @@ static_assert(sizeof(EstimatorRunMetrics) == 304 || sizeof(void*) != 8,
 namespace {
 
 constexpr std::uint32_t kRunBlobFormat = 2;  // version of the run blob (2: NEES and NIS sums)
-constexpr std::uint32_t kLinksFormat = 1;    // version of the link counters blob
+// Version of the link counters blob (2: a network node's stack counters; format 1 blobs, without
+// them, are still read).
+constexpr std::uint32_t kLinksFormat = 2;
 
 class Writer {
  public:
@@ -197,6 +199,14 @@ std::string serialize_links(const RunLinks& links) {
     w.i64s(c.bursts);
     w.i64s(c.states);
     w.i64(c.open_burst);
+    w.u8(c.stack ? 1 : 0);
+    if (c.stack) {
+      w.i64(c.stack->attempts);
+      w.i64(c.stack->retries);
+      w.i64s(c.stack->drops);
+      w.i64(c.stack->busy_ns);
+      w.i64(c.stack->simulated_ns);
+    }
   }
   return w.take();
 }
@@ -204,9 +214,10 @@ std::string serialize_links(const RunLinks& links) {
 RunLinks deserialize_links(const std::string& blob) {
   Reader r(blob);
   const std::int64_t format = r.i64();
-  if (format != kLinksFormat) {
-    throw StoreError(fmt::format("run store: link counters format {} (this ncosim reads format {})",
-                                 format, kLinksFormat));
+  if (format != 1 && format != kLinksFormat) {
+    throw StoreError(
+        fmt::format("run store: link counters format {} (this ncosim reads formats 1 to {})",
+                    format, kLinksFormat));
   }
   RunLinks links(r.size());
   for (models::LinkCounters& c : links) {
@@ -216,6 +227,14 @@ RunLinks deserialize_links(const std::string& blob) {
     c.bursts = r.i64s();
     c.states = r.i64s();
     c.open_burst = r.i64();
+    if (format >= 2 && r.u8() != 0) {
+      models::StackCounters& k = c.stack.emplace();
+      k.attempts = r.i64();
+      k.retries = r.i64();
+      k.drops = r.i64s();
+      k.busy_ns = r.i64();
+      k.simulated_ns = r.i64();
+    }
   }
   if (!r.at_end()) throw StoreError("run store: corrupt link counters (trailing bytes)");
   return links;

@@ -52,8 +52,11 @@ TEST_F(ChannelCli, RunWritesLinksCsvWithARowPerLinkAndSender) {
             "delivered_ratio,delay_max,"
             "delay_pmf,nominal_delay_pmf,bursts,burst_mean,nominal_burst_mean,burst_p95,burst_max,"
             "state_occupancy,"
-            "nominal_state_occupancy,step");
+            "nominal_state_occupancy,step,mac_attempts,mac_retries,drops_queue,drops_channel_"
+            "access,drops_no_ack,drops_out_of_range,busy_ratio");
   EXPECT_EQ(l[1].rfind("net1,delay,y1,4,8000,", 0), 0u) << l[1];
+  // Not network links: the stack's columns are empty.
+  EXPECT_EQ(l[1].substr(l[1].size() - 7), ",,,,,,,") << l[1];
   EXPECT_EQ(l[2].rfind("net2,bernoulli,y2,4,8000,", 0), 0u) << l[2];
 }
 

@@ -177,14 +177,55 @@ TEST(Wpan, TheLargestPayloadIsDeliveredALargerOneDropped) {
   EXPECT_EQ(f[1].drop, Drop::kNone);
 }
 
-// 300 m at 0 dBm: about -121 dBm at the sink; the frame is never acknowledged and the MAC drops it
-// after its retransmissions.
+// 300 m at 0 dBm: about -121 dBm at the sink, below the -112 dBm its receiver needs (the scenario
+// reader refuses such a node; a session takes it); the frame is never acknowledged and the MAC
+// drops it after its 3 retransmissions, a drop out of range. Its counters say so: 4 attempts, 3 of
+// them retransmissions, one drop for that cause, and the time it was transmitting (4 frames of
+// (32 + 11 + 6) bytes x 32 us; it hears nobody).
 TEST(Wpan, ANodeOutOfRangeLosesItsFrameAfterItsRetries) {
   auto s = Session::start({design(kWpan)}, {Sender{0, 32, 300.0, 0.0, 0.0}}, 1, 0);
   s->send(0, 5, 0);
   const auto f = advance(*s, 100 * kMs);
   ASSERT_EQ(f.size(), 1U);
-  EXPECT_EQ(f[0].drop, Drop::kNoAck);
+  EXPECT_EQ(f[0].drop, Drop::kOutOfRange);
+  const ncosim::network::MacCounters c = s->counters(0);
+  EXPECT_EQ(c.attempts, 4U);
+  EXPECT_EQ(c.retries, 3U);
+  EXPECT_EQ(c.dropped[static_cast<int>(Drop::kOutOfRange)], 1U);
+  EXPECT_EQ(c.dropped[static_cast<int>(Drop::kNoAck)], 0U);
+  EXPECT_EQ(c.busy_ns, 4 * (32 + 11 + 6) * 32'000);
+}
+
+// Inside the sink's range but at its edge (112 m: ns-3's error model receives a 49-byte frame with
+// probability 0.55, tests/network/wpan_psr_test.cc), frames are lost after their retries and those
+// drops are collisions or noise (kNoAck), not out of range; a node 20 m away loses none, and its
+// only attempts are its frames.
+TEST(Wpan, ANodeAtTheEdgeOfRangeLosesFramesToNoise) {
+  auto s = Session::start({design(kWpan + std::string("max_frame_retries = 1\n"))},
+                          {Sender{0, 32, 112.0, 0.0, 0.0}, Sender{0, 32, 0.0, 20.0, 0.0}}, 1, 0);
+  for (std::uint64_t k = 0; k < 200; ++k) {
+    s->send(0, 2 * k, static_cast<std::int64_t>(k) * 50 * kMs);
+    s->send(1, 2 * k + 1, static_cast<std::int64_t>(k) * 50 * kMs + 25 * kMs);
+  }
+  const auto f = advance(*s, 200 * 50 * kMs + 1000 * kMs);
+  ASSERT_EQ(f.size(), 400U);
+  int lost = 0;
+  for (const Fate& x : f) {
+    if (x.sender == 1) {
+      EXPECT_EQ(x.drop, Drop::kNone);
+    } else if (x.drop != Drop::kNone) {
+      EXPECT_EQ(x.drop, Drop::kNoAck);
+      ++lost;
+    }
+  }
+  EXPECT_GT(lost, 0);
+  const ncosim::network::MacCounters edge = s->counters(0), near = s->counters(1);
+  EXPECT_EQ(edge.dropped[static_cast<int>(Drop::kNoAck)], static_cast<std::uint64_t>(lost));
+  EXPECT_GT(edge.retries, static_cast<std::uint64_t>(lost));  // every loss was retried once
+  EXPECT_EQ(edge.attempts - edge.retries, 200U);
+  EXPECT_EQ(near.attempts, 200U);
+  EXPECT_EQ(near.retries, 0U);
+  EXPECT_GT(near.busy_ns, 200 * (32 + 11 + 6) * 32'000);  // its frames, and what it heard
 }
 
 // Ten nodes that send at the same instant contend: every packet gets exactly one fate (delivered
@@ -303,6 +344,28 @@ TEST_F(NetworkCli, ARunIsTheSameWhateverTheThreadsAndShards) {
   // Two sensors per node and a queue of 4 on a 1 Mb/s bus: every packet gets through, with
   // delays of one period or more (nothing arrives in the period it is sent).
   for (const auto& pmf : links_column(dir_ / "t1", "delay_pmf")) EXPECT_EQ(pmf.rfind("0;", 0), 0U);
+  // The stack's columns are in those bytes. A node is its link, so the rows of a link's two
+  // sensors show the same node's counters: it put every packet it did not drop on the wire once
+  // (ns-3's CSMA has no retransmissions), at least those delivered; the bus exposes no busy time.
+  const fs::path t1 = dir_ / "t1";
+  const auto link = links_column(t1, "link");
+  const auto attempts = links_column(t1, "mac_attempts");
+  const auto delivered = links_column(t1, "packets_delivered");
+  std::map<std::string, long long> node_attempts, node_delivered;
+  for (std::size_t i = 0; i < link.size(); ++i) {
+    if (node_attempts.count(link[i]) != 0U) {
+      EXPECT_EQ(node_attempts[link[i]], std::stoll(attempts[i])) << i;
+    }
+    node_attempts[link[i]] = std::stoll(attempts[i]);
+    node_delivered[link[i]] += std::stoll(delivered[i]);
+    EXPECT_EQ(links_column(t1, "mac_retries")[i], "0") << i;
+    EXPECT_EQ(links_column(t1, "busy_ratio")[i], "") << i;
+  }
+  ASSERT_EQ(node_attempts.size(), 2U);
+  for (const auto& [name, n] : node_attempts) {
+    EXPECT_GE(n, node_delivered[name]) << name;
+    EXPECT_GT(node_delivered[name], 0) << name;
+  }
 }
 
 // The shipped 802.15.4 star runs (with run 0's trace), and the jump observer's row says that its
@@ -319,6 +382,64 @@ TEST_F(NetworkCli, TheWsnStarRunsAndItsDesignNoteNamesTheNetwork) {
                 .find("network 'wsn' (lr_wpan): losses and delays come from its simulation"),
             std::string::npos);
   EXPECT_EQ(links_column(out, "link"), (std::vector<std::string>{"n1", "n2", "n3", "n4"}));
+  // What each node's stack did: one attempt per packet at least, retries among them, and the
+  // share of the time its transceiver was busy (its frames, and what it heard of the others').
+  const auto sent = links_column(out, "packets_sent");
+  const auto attempts = links_column(out, "mac_attempts");
+  const auto retries = links_column(out, "mac_retries");
+  const auto busy = links_column(out, "busy_ratio");
+  ASSERT_EQ(attempts.size(), 4U);
+  for (std::size_t i = 0; i < 4; ++i) {
+    EXPECT_GE(std::stoll(attempts[i]), std::stoll(sent[i])) << i;
+    EXPECT_LT(std::stoll(retries[i]), std::stoll(attempts[i])) << i;
+    EXPECT_GT(std::stod(busy[i]), 0.0) << i;
+    EXPECT_LT(std::stod(busy[i]), 0.5) << i;
+  }
+  for (const auto& c : links_column(out, "drops_out_of_range")) EXPECT_EQ(c, "0");
+}
+
+// record-link on a network link: each run simulated with the whole network (every other node
+// contending), its trace fits, and its losses are those links.csv counts for the same runs: the
+// packets in links.csv are those whose fate was known when the run ended, the trace has the few
+// still in the network then too (ns-3 runs on until they have one).
+TEST_F(NetworkCli, RecordLinkOnANetworkLinkFitsAndMatchesLinksCsv) {
+  const std::string scenario = (kSource / "scenarios/wsn_star.toml").string();
+  const std::vector<std::string> common{"--runs", "3",     "--periods",
+                                        "400",    "--set", "network[0].tx_power=-20"};
+  std::vector<std::string> run{"run",     scenario,     "--out", (dir_ / "run").string(),
+                               "--quiet", "--no-timing"};
+  run.insert(run.end(), common.begin(), common.end());
+  const Outcome r = ncosim(run);
+  ASSERT_EQ(r.code, 0) << r.output;
+  std::vector<std::string> rec{"record-link",           scenario, "--link", "n1", "--out",
+                               (dir_ / "rec").string(), "--quiet"};
+  rec.insert(rec.end(), common.begin(), common.end());
+  const Outcome o = ncosim(rec);
+  ASSERT_EQ(o.code, 0) << o.output;
+  std::istringstream trace(slurp(dir_ / "rec" / "n1.csv"));
+  std::string line;
+  std::getline(trace, line);
+  long long rows = 0, delivered = 0;
+  while (std::getline(trace, line)) {
+    ++rows;
+    delivered += line.back() != ',' ? 1 : 0;
+  }
+  EXPECT_EQ(rows, 3 * 400);  // 3 runs x 400 periods, n1's one sensor
+  const long long sent = std::stoll(links_column(dir_ / "run", "packets_sent")[0]);
+  const long long got = std::stoll(links_column(dir_ / "run", "packets_delivered")[0]);
+  EXPECT_LE(sent, rows);
+  EXPECT_GE(sent, rows - 3 * 10);  // at most a few periods' packets unsettled per run
+  EXPECT_GE(delivered, got);
+  EXPECT_LE(delivered - got, rows - sent);
+  EXPECT_LT(got, sent);  // -20 dBm: 20 m is near the edge of range, some packets are lost
+  std::cout << fmt::format(
+      "record-link n1: {} packets, {} delivered; links.csv: {} sent, {} "
+      "delivered\n",
+      rows, delivered, sent, got);
+  const Outcome fit =
+      ncosim({"fit", (dir_ / "rec" / "n1.csv").string(), "--out", (dir_ / "fit").string()});
+  ASSERT_EQ(fit.code, 0) << fit.output;
+  EXPECT_TRUE(fs::exists(dir_ / "fit" / "link.toml"));
 }
 
 // A worker process that dies in the middle of a run (as ns-3 aborts on a failed assertion) ends
@@ -364,6 +485,9 @@ TEST_F(NetworkCli, AWorkerThatDiesIsReportedAndResumeCompletes) {
                                 "--no-timing", "--quiet"});
   ASSERT_EQ(whole.code, 0) << whole.output;
   EXPECT_EQ(slurp(out / "runs.csv"), slurp(dir_ / "whole" / "runs.csv"));
+  // The 802.15.4 nodes' stack counters too, over two worker processes and a resume.
+  EXPECT_EQ(slurp(out / "links.csv"), slurp(dir_ / "whole" / "links.csv"));
+  EXPECT_NE(links_column(out, "busy_ratio").at(0), "");
 }
 
 TEST_F(NetworkCli, BadInputNamesTheKeyAndItsLine) {
@@ -388,6 +512,13 @@ TEST_F(NetworkCli, BadInputNamesTheKeyAndItsLine) {
        "key 'link[0].bytes': expected at most 114 bytes, the largest payload of network \"bus\" "
        "(kind lr_wpan), got 115",
        "bytes = 64", "bytes = 115"},
+      {"kind = \"csma\"\nrate = 1e6\ndelay = 5e-6", "kind = \"lr_wpan\"", "position = [300.0",
+       "key 'link[0].position': expected a node within range of network \"bus\"'s sink (kind "
+       "lr_wpan): at 300 m the sink receives -120.99 dBm from it, below the -111.99 dBm it needs "
+       "(ns-3's 802.15.4 receiver drops a frame below -5 dB of signal to noise, and its noise "
+       "floor "
+       "is -106.99 dBm)",
+       "bytes = 64", "bytes = 64\nposition = [300.0, 0.0, 0.0]"},
       {"link = \"node1\"", "", "name = \"bus\"",
        "key 'network[0].name': expected a network that a sensor's link is a node of, got \"bus\", "
        "which no [[sensor]] sends over"},

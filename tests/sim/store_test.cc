@@ -148,6 +148,38 @@ TEST(RunStore, LinkCountersSerializationIsExactAndMalformedBlobsAreRejected) {
   EXPECT_THROW(deserialize_links(""), StoreError);
 }
 
+// A network node's stack counters (format 2) survive exactly, and a format 1 blob (a store written
+// before them) is still read, without them.
+TEST(RunStore, LinkStackCountersRoundTripAndFormatOneBlobsStillRead) {
+  RunLinks links = sample_links();
+  models::StackCounters& k = links[0].stack.emplace();
+  k.attempts = 130;
+  k.retries = 30;
+  k.drops = {0, 2, 3, 4, 0};
+  k.busy_ns = 123'456'789;
+  k.simulated_ns = 9'000'000'000;
+  const RunLinks back = deserialize_links(serialize_links(links));
+  ASSERT_TRUE(back[0].stack.has_value());
+  EXPECT_EQ(back[0].stack->attempts, 130);
+  EXPECT_EQ(back[0].stack->retries, 30);
+  EXPECT_EQ(back[0].stack->drops, k.drops);
+  EXPECT_EQ(back[0].stack->busy_ns, 123'456'789);
+  EXPECT_EQ(back[0].stack->simulated_ns, 9'000'000'000);
+  EXPECT_FALSE(back[1].stack.has_value());
+  // Format 1, little-endian 64-bit words: one flow, 7 sent, 5 delivered, copies {5}, bursts {2},
+  // no states, no open run.
+  std::string v1;
+  for (const std::int64_t w : {1, 1, 7, 5, 1, 5, 1, 2, 0, 0}) {
+    for (int i = 0; i < 8; ++i) v1.push_back(static_cast<char>((w >> (8 * i)) & 0xFF));
+  }
+  const RunLinks old = deserialize_links(v1);
+  ASSERT_EQ(old.size(), 1u);
+  EXPECT_EQ(old[0].sent, 7);
+  EXPECT_EQ(old[0].delivered, 5);
+  EXPECT_EQ(old[0].bursts, std::vector<std::int64_t>{2});
+  EXPECT_FALSE(old[0].stack.has_value());
+}
+
 TEST(RunStore, LinkCountersAreStoredPerRunAndAStoreWithoutThemStillReads) {
   TempDir dir("links");
   const std::string path = store_path(dir.path.string());
