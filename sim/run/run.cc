@@ -171,7 +171,8 @@ class RunSimulation {
     int sender = -1;  // its sender in the network session (a link of kind network), else -1
   };
 
-  // The run's networks (network/network.h): every link that is a node of one is a sender.
+  // The run's networks (network/network.h): every link that is a node of one is a sender, then
+  // the [[background]] nodes, whose traffic stays inside the session (counted, never a fate).
   void start_networks(std::uint64_t seed, std::uint64_t run) {
     if (sc_.networks.empty()) return;
     std::vector<network::Sender> senders;
@@ -181,6 +182,7 @@ class RunSimulation {
         senders.push_back(network::Sender{a->network, a->bytes, a->x, a->y, a->z});
       }
     }
+    senders.insert(senders.end(), sc_.background.begin(), sc_.background.end());
     std::vector<std::shared_ptr<const network::NetworkDesign>> designs;
     for (const auto& n : sc_.networks) designs.push_back(n.design);
     network_ = network::Session::start(designs, senders, seed, run);
