@@ -23,6 +23,12 @@
 #include <ns3/rng-seed-manager.h>
 #include <ns3/simulator.h>
 #include <ns3/single-model-spectrum-channel.h>
+#include <ns3/string.h>
+#include <ns3/uinteger.h>
+#include <ns3/wifi-helper.h>
+#include <ns3/wifi-mac-helper.h>
+#include <ns3/yans-wifi-channel.h>
+#include <ns3/yans-wifi-helper.h>
 #include <toml++/toml.h>
 
 #include <algorithm>
@@ -40,6 +46,7 @@ namespace ncosim {
 namespace {
 
 using Clock = std::chrono::steady_clock;
+enum class Kind { kCsma, kLrWpan, kWifi };
 constexpr std::int64_t kPeriodNs = 20'000'000;  // 20 ms
 constexpr int kPeriods = 500;
 constexpr std::uint32_t kBytes = 24;
@@ -66,8 +73,43 @@ void send(ns3::Ptr<ns3::NetDevice> d, ns3::Address to) {
   d->Send(ns3::Create<ns3::Packet>(kBytes), to, 0x88B5);
 }
 
+// The wifi kind's defaults (network/wifi.cc): 802.11a at 6 Mb/s, 16 dBm, log-distance loss of
+// exponent 3 from free space at 1 m at 5.18 GHz, ad hoc stations.
+ns3::NetDeviceContainer bare_wifi(const ns3::NodeContainer& nodes, int k) {
+  for (std::uint32_t i = 0; i < nodes.GetN(); ++i) {
+    auto m = ns3::CreateObject<ns3::ConstantPositionMobilityModel>();
+    if (i > 0)
+      m->SetPosition(ns3::Vector(coordinate(static_cast<int>(i) - 1, k, false),
+                                 coordinate(static_cast<int>(i) - 1, k, true), 0.0));
+    nodes.Get(i)->AggregateObject(m);
+  }
+  auto loss = ns3::CreateObject<ns3::LogDistancePropagationLossModel>();
+  loss->SetAttribute("Exponent", ns3::DoubleValue(3.0));
+  loss->SetAttribute("ReferenceLoss",
+                     ns3::DoubleValue(20.0 * std::log10(4.0 * M_PI * 5.18e9 / 299'792'458.0)));
+  auto channel = ns3::CreateObject<ns3::YansWifiChannel>();
+  channel->SetPropagationLossModel(loss);
+  channel->SetPropagationDelayModel(ns3::CreateObject<ns3::ConstantSpeedPropagationDelayModel>());
+  ns3::WifiHelper wifi;
+  wifi.SetStandard(ns3::WIFI_STANDARD_80211a);
+  wifi.SetRemoteStationManager("ns3::ConstantRateWifiManager", "DataMode",
+                               ns3::StringValue("OfdmRate6Mbps"), "ControlMode",
+                               ns3::StringValue("OfdmRate6Mbps"));
+  ns3::YansWifiPhyHelper phy;
+  phy.SetChannel(channel);
+  phy.Set("TxPowerStart", ns3::DoubleValue(16.0));
+  phy.Set("TxPowerEnd", ns3::DoubleValue(16.0));
+  ns3::WifiMacHelper mac;
+  mac.SetType("ns3::AdhocWifiMac", "BE_MaxAmpduSize", ns3::UintegerValue(0), "BE_MaxAmsduSize",
+              ns3::UintegerValue(0));
+  const ns3::NetDeviceContainer devices = wifi.Install(phy, mac, nodes);
+  wifi.AssignStreams(devices, 0);
+  return devices;
+}
+
 // (a) bare ns-3: the same network as the kind's build(), all sends scheduled, one run.
-double bare(bool wpan, int k) {
+double bare(Kind kind, int k) {
+  const bool wpan = kind == Kind::kLrWpan;
   ns3::RngSeedManager::SetSeed(network::ns3_seed(7));  // as the session's
   ns3::RngSeedManager::SetRun(0);
   const auto start = Clock::now();
@@ -93,6 +135,8 @@ double bare(bool wpan, int k) {
       devices.Get(i)->SetAttribute("UseAcks", ns3::BooleanValue(true));
     }
     helper->AssignStreams(devices, 0);
+  } else if (kind == Kind::kWifi) {
+    devices = bare_wifi(nodes, k);
   } else {
     ns3::CsmaHelper csma;
     csma.SetChannelAttribute("DataRate", ns3::DataRateValue(ns3::DataRate(1'000'000)));
@@ -112,10 +156,12 @@ double bare(bool wpan, int k) {
 }
 
 // (b) ncosim's session on the same network, in lockstep with the period boundaries.
-double session(bool wpan, int k, std::int64_t& delivered_out) {
+double session(Kind kind, int k, std::int64_t& delivered_out) {
   static std::vector<toml::table> docs;
-  docs.push_back(
-      toml::parse(wpan ? "kind = \"lr_wpan\"\n" : "kind = \"csma\"\nrate = 1e6\ndelay = 1e-6\n"));
+  docs.push_back(toml::parse(kind == Kind::kLrWpan ? "kind = \"lr_wpan\"\n"
+                             : kind == Kind::kWifi
+                                 ? "kind = \"wifi\"\n"
+                                 : "kind = \"csma\"\nrate = 1e6\ndelay = 1e-6\n"));
   const config::Table t(docs.back(), "network[0]", "bench.toml");
   const auto design = sim::network_registry().lookup(t, "kind", "").factory(t);
   std::vector<network::Sender> senders;
@@ -138,14 +184,14 @@ double session(bool wpan, int k, std::int64_t& delivered_out) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
-void run(benchmark::State& state, bool wpan) {
+void run(benchmark::State& state, Kind kind) {
   const int k = static_cast<int>(state.range(0));
   std::vector<double> b, c, ratio;
   std::int64_t delivered = 0;
   for (auto _ : state) {
-    const double tb = bare(wpan, k);
+    const double tb = bare(kind, k);
     delivered = 0;
-    const double tc = session(wpan, k, delivered);
+    const double tc = session(kind, k, delivered);
     b.push_back(tb);
     c.push_back(tc);
     // Per delivered packet: with contention, the session's sends enter ns-3's queue after the
@@ -163,8 +209,9 @@ void run(benchmark::State& state, bool wpan) {
   state.counters["delivered"] = static_cast<double>(delivered);
 }
 
-void BM_NetworkLrWpanStar(benchmark::State& state) { run(state, true); }
-void BM_NetworkCsmaBus(benchmark::State& state) { run(state, false); }
+void BM_NetworkLrWpanStar(benchmark::State& state) { run(state, Kind::kLrWpan); }
+void BM_NetworkCsmaBus(benchmark::State& state) { run(state, Kind::kCsma); }
+void BM_NetworkWifiAdhoc(benchmark::State& state) { run(state, Kind::kWifi); }
 BENCHMARK(BM_NetworkLrWpanStar)
     ->Arg(1)
     ->Arg(4)
@@ -172,6 +219,12 @@ BENCHMARK(BM_NetworkLrWpanStar)
     ->Iterations(9)
     ->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_NetworkCsmaBus)->Arg(1)->Arg(4)->Arg(8)->Iterations(9)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_NetworkWifiAdhoc)
+    ->Arg(1)
+    ->Arg(4)
+    ->Arg(8)
+    ->Iterations(9)
+    ->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace ncosim

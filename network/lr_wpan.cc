@@ -63,7 +63,9 @@ const config::Keys& lr_wpan_keys() {
           .says("a loss in 0..200 dB")
           .or_default(46.6777)
           .unit("dB")
-          .help("path loss at 1 m (the default: free space at 2.4 GHz)"),
+          .help("path loss at 1 m (the default is ns-3's LogDistancePropagationLossModel default, "
+                "free "
+                "space at 5.15 GHz; free space at 2.4 GHz would be 40.05 dB)"),
       Key::integer("max_frame_retries")
           .range(0, 7)
           .or_default(3)

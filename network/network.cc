@@ -12,9 +12,12 @@ void register_csma(NetworkRegistry& registry);  // network/csma.cc
 
 void register_lr_wpan(NetworkRegistry& registry);  // network/lr_wpan.cc
 
+void register_wifi(NetworkRegistry& registry);  // network/wifi.cc
+
 void register_networks(NetworkRegistry& registry) {
   register_csma(registry);
   register_lr_wpan(registry);
+  register_wifi(registry);
 }
 
 std::uint32_t ns3_seed(std::uint64_t seed) {

@@ -41,6 +41,7 @@ struct Fate {
 
 // What one sender's stack did in a run (Session::counters): each kind counts what its MAC exposes.
 struct MacCounters {
+  std::uint64_t delivered = 0;              // packets the sink received
   std::uint64_t attempts = 0;               // frames put on the air, retransmissions included
   std::uint64_t retries = 0;                // of which retransmissions
   std::uint64_t dropped[kDropCauses] = {};  // packets lost, by cause (index: Drop; kNone unused)
@@ -88,11 +89,22 @@ bool have_ns3();
 // The message of a build without ns-3 ("this ncosim was built without ns-3 ...").
 std::string without_ns3_message();
 
-// A sender: the [[link]] of kind `network` it is, the network it is attached to and its payload.
+// Where a sender's packets come from. kSensor: the run hands them over (Session::send) and gets
+// their fates. A background node ([[background]]) makes its own traffic inside the session, whose
+// packets contend with the sensors' but whose fates are only counted (Session::counters):
+// kPoisson, a Poisson process of `rate` packets/s; kSaturated, a packet always waiting (a new one
+// is handed to the device as soon as one of its packets is delivered or dropped).
+enum class Traffic : std::uint8_t { kSensor, kPoisson, kSaturated };
+
+// A sender: a [[link]] of kind `network` or a background node, the network it is attached to and
+// its payload.
 struct Sender {
   int network = 0;                   // index into the session's networks
   std::uint32_t bytes = 0;           // payload bytes of each packet
   double x = 0.0, y = 0.0, z = 0.0;  // position (m), for the kinds that have positions
+  Traffic traffic = Traffic::kSensor;
+  int vehicle = -1;   // a background node riding a [sumo] vehicle: its index in the mobility
+  double rate = 0.0;  // kPoisson: mean packets per second
 };
 
 // Where a node that is not in the network (a SUMO vehicle before its departure or after its
@@ -110,7 +122,7 @@ class Session {
       const std::vector<std::shared_ptr<const NetworkDesign>>& designs,
       const std::vector<Sender>& senders, std::uint64_t seed, std::uint64_t run);
   virtual ~Session() = default;
-  // Sender `sender` hands packet `id` to its network at time t (t >= every earlier advance_to).
+  // Sensor `sender` hands packet `id` to its network at time t (t >= every earlier advance_to).
   virtual void send(int sender, std::uint64_t id, kernel::SimTime t) = 0;
   // Runs ns-3 through every event at times <= t, appending what happened to packets to `fates`
   // in the order ns-3 processed it.

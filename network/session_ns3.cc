@@ -1,11 +1,13 @@
 // network/session_ns3.cc — a run's networks in ns-3 (builds with ns-3): the world the kinds
 // build into, the tag that names each packet, and the lockstep that keeps ns-3 behind ncosim's
 // clock (network/network.h).
+#include <ns3/double.h>
 #include <ns3/mac48-address.h>
 #include <ns3/rng-seed-manager.h>
 #include <ns3/simulator.h>
 #include <ns3/tag.h>
 
+#include <cmath>
 #include <mutex>
 #include <utility>
 
@@ -72,7 +74,7 @@ void World::send_now(int s, std::uint64_t id) {
   if (!port.device->Send(p, port.sink, kProtocol)) {
     if (port.confirms && !port.unconfirmed.empty() && port.unconfirmed.back() == seq)
       port.unconfirmed.pop_back();
-    fate(seq, Drop::kQueue);
+    fate(seq, Drop::kQueue, false);  // not replaced at once: a refusal could repeat forever
   }
 }
 
@@ -111,15 +113,56 @@ void World::note(const ns3::Ptr<const ns3::Packet>& p, Drop drop) {
   if (p->PeekPacketTag(tag)) fate(tag.seq(), drop);
 }
 
-void World::fate(std::uint64_t seq, Drop drop) {
+void World::fate(std::uint64_t seq, Drop drop, bool refill) {
   const auto it = in_flight_.find(seq);
   if (it == in_flight_.end()) return;  // its fate is known already
-  NCOSIM_CHECK(fates_ != nullptr);
-  if (drop != Drop::kNone)
-    ++ports_[static_cast<std::size_t>(it->second.sender)].counters.dropped[static_cast<int>(drop)];
-  fates_->push_back(
-      Fate{it->second.sender, it->second.id, ns3::Simulator::Now().GetNanoSeconds(), drop});
+  const int s = it->second.sender;
+  MacCounters& c = ports_[static_cast<std::size_t>(s)].counters;
+  if (drop == Drop::kNone)
+    ++c.delivered;
+  else
+    ++c.dropped[static_cast<int>(drop)];
+  const Traffic traffic = sender(s).traffic;
+  if (traffic == Traffic::kSensor) {
+    NCOSIM_CHECK(fates_ != nullptr);
+    fates_->push_back(Fate{s, it->second.id, ns3::Simulator::Now().GetNanoSeconds(), drop});
+  }
   in_flight_.erase(it);
+  // A saturated node replaces every packet the stack is done with, as an event of its own (not
+  // inside the MAC's callback that reported the fate).
+  if (traffic == Traffic::kSaturated && refill)
+    ns3::Simulator::ScheduleNow(&World::background_send, this, s);
+}
+
+// A saturated node keeps this many packets handed over and not yet delivered or dropped: one in
+// the MAC's hands and one waiting, so that it has a packet to send the moment it is done with one.
+constexpr int kSaturatedBacklog = 2;
+
+void World::start_traffic() {
+  for (std::size_t i = 0; i < senders_.size(); ++i) {
+    const int s = static_cast<int>(i);
+    const Sender& x = senders_[i];
+    if (x.traffic == Traffic::kSaturated) {
+      for (int k = 0; k < kSaturatedBacklog; ++k)
+        ns3::Simulator::ScheduleNow(&World::background_send, this, s);
+    } else if (x.traffic == Traffic::kPoisson) {
+      auto gap = ns3::CreateObject<ns3::ExponentialRandomVariable>();
+      gap->SetAttribute("Mean", ns3::DoubleValue(1.0 / x.rate));
+      gap->SetStream(streams(1));
+      ports_[i].gap = gap;
+      ns3::Simulator::Schedule(ns3::NanoSeconds(std::llround(gap->GetValue() * 1e9)),
+                               &World::poisson_arrival, this, s);
+    }
+  }
+}
+
+void World::background_send(int s) { send_now(s, next_background_id_++); }
+
+void World::poisson_arrival(int s) {
+  background_send(s);
+  const double gap = ports_[static_cast<std::size_t>(s)].gap->GetValue();
+  ns3::Simulator::Schedule(ns3::NanoSeconds(std::llround(gap * 1e9)), &World::poisson_arrival, this,
+                           s);
 }
 
 namespace {
@@ -148,6 +191,7 @@ class Ns3Session final : public Session {
       world_.building(static_cast<int>(n));
       designs[n]->build(world_, attached);
     }
+    world_.start_traffic();
   }
   ~Ns3Session() override { ns3::Simulator::Destroy(); }
 

@@ -8,6 +8,7 @@
 #include <ns3/net-device.h>
 #include <ns3/packet.h>
 #include <ns3/ptr.h>
+#include <ns3/random-variable-stream.h>
 
 #include <cstdint>
 #include <deque>
@@ -86,6 +87,9 @@ class World {
 
   // Sender `s` sends packet `id` now (called by an ns-3 event at the send time).
   void send_now(int s, std::uint64_t id);
+  // Starts the background nodes' own traffic (Traffic::kPoisson, kSaturated), once every network
+  // is built: their random streams follow the kinds'.
+  void start_traffic();
   // Where fates are appended while ns-3 runs (Session::advance_to).
   void collect_into(std::vector<Fate>* fates) { fates_ = fates; }
 
@@ -93,7 +97,11 @@ class World {
   bool received(ns3::Ptr<ns3::NetDevice> device, ns3::Ptr<const ns3::Packet> p,
                 std::uint16_t protocol, const ns3::Address& from);
   void note(const ns3::Ptr<const ns3::Packet>& p, Drop drop);
-  void fate(std::uint64_t seq, Drop drop);
+  // Reports packet `seq`'s fate once (a sensor's into the fates, a background node's counted).
+  // `refill`: a saturated node replaces the packet (not when the device refused it at once).
+  void fate(std::uint64_t seq, Drop drop, bool refill = true);
+  void background_send(int s);  // a background node's next packet
+  void poisson_arrival(int s);  // ... and, for a Poisson node, the next arrival
 
   struct Port {
     ns3::Ptr<ns3::NetDevice> device;
@@ -103,6 +111,7 @@ class World {
     MacCounters counters;
     ns3::Ptr<ns3::MobilityModel> mobility;           // set by kinds with positions
     std::uint64_t last_attempt = ~std::uint64_t{0};  // the packet of its last attempt
+    ns3::Ptr<ns3::ExponentialRandomVariable> gap;    // a Poisson node's inter-arrival time (s)
   };
   struct InFlight {
     int sender;
@@ -120,6 +129,7 @@ class World {
   std::int64_t next_stream_ = 0;
   int building_ = 0;                                 // the network being built
   std::vector<ns3::Ptr<ns3::MobilityModel>> sinks_;  // per network (kinds with positions)
+  std::uint64_t next_background_id_ = 0;
   std::vector<std::shared_ptr<void>> kept_;
 };
 

@@ -189,7 +189,8 @@ class RunSimulation {
     int vehicle = -1;  // the SUMO vehicle its network node rides, else -1
   };
 
-  // The run's networks (network/network.h): every link that is a node of one is a sender.
+  // The run's networks (network/network.h): every link that is a node of one is a sender, then
+  // the [[background]] nodes, whose traffic stays inside the session (counted, never a fate).
   void start_networks(std::uint64_t seed, std::uint64_t run) {
     if (sc_.networks.empty()) return;
     std::vector<network::Sender> senders;
@@ -200,6 +201,8 @@ class RunSimulation {
         senders.push_back(network::Sender{a->network, a->bytes, a->x, a->y, a->z});
       }
     }
+    first_background_ = static_cast<int>(senders.size());
+    senders.insert(senders.end(), sc_.background.begin(), sc_.background.end());
     std::vector<std::shared_ptr<const network::NetworkDesign>> designs;
     for (const auto& n : sc_.networks) designs.push_back(n.design);
     network_ = network::Session::start(designs, senders, seed, run);
@@ -266,6 +269,12 @@ class RunSimulation {
       if (ls.vehicle < 0) continue;
       place(ls.vehicle,
             [&](double x, double y, double z) { network_->move_sender(ls.sender, x, y, z, now); });
+    }
+    for (std::size_t b = 0; b < sc_.background.size(); ++b) {
+      if (sc_.background[b].vehicle < 0) continue;
+      place(sc_.background[b].vehicle, [&](double x, double y, double z) {
+        network_->move_sender(first_background_ + static_cast<int>(b), x, y, z, now);
+      });
     }
     for (std::size_t n = 0; n < sc_.networks.size(); ++n) {
       if (sc_.networks[n].sink_vehicle < 0) continue;
@@ -467,6 +476,7 @@ class RunSimulation {
   std::vector<LinkState> links_;
   std::unique_ptr<network::Session> network_;  // the run's networks (null without [[network]])
   std::vector<network::Fate> fates_;
+  int first_background_ = 0;         // the session's index of the first [[background]] node
   kernel::SimTime network_now_ = 0;  // where ns-3 is (its last advance_to)
   int record_link_ = -1;             // the network link being recorded (record_network_link)
   std::vector<RecordedPacket>* record_out_ = nullptr;

@@ -33,6 +33,10 @@ const config::Keys& top_level_keys() {
       config::Key::table("sumo").optional("none").help("vehicle mobility from SUMO"),
       config::Key::tables("network").optional("none").help(
           "packet-level networks (ns-3); a [[link]] of kind network is a node of one"),
+      config::Key::tables("background")
+          .optional("none")
+          .help("background traffic nodes of a [[network]]: their packets contend with the "
+                "sensors' and are counted, never given to an estimator"),
       config::Key::table("paired")
           .optional("defaults")
           .help("the reference of the paired columns of summary.csv"),
@@ -120,6 +124,37 @@ const config::Keys& network_common_keys() {
           .help("a [sumo] vehicle the sink (the estimators' node) rides, for kinds with "
                 "positions: its position is the vehicle's (x, y, z = 1.5 m) at every period, out "
                 "of everyone's range while the vehicle is not in the traffic"),
+  };
+  return keys;
+}
+
+const config::Keys& background_keys() {
+  static const config::Keys keys{
+      config::Key::string("network").help("the [[network]] the nodes are nodes of (its name)"),
+      config::Key::integer("nodes")
+          .range(1, 10000)
+          .optional("1, or the number of positions")
+          .help("how many nodes of this traffic"),
+      config::Key::any("rate", "number or \"saturated\"")
+          .unit("packets/s")
+          .help("each node's own traffic: a Poisson process of this many packets per second (> 0), "
+                "or \"saturated\": a packet always waiting (a new one the moment the stack is "
+                "done with one)"),
+      config::Key::integer("bytes").range(1, 1500).or_default(32).unit("bytes").help(
+          "payload of each packet (at most the network's largest payload)"),
+      config::Key::numbers("position")
+          .optional("[0, 0, 0]")
+          .unit("m")
+          .help("[x, y, z] of every node, for the network kinds with positions"),
+      config::Key::matrix("positions")
+          .optional("none: every node at `position`")
+          .unit("m")
+          .help("[[x, y, z], ...]: one row per node (instead of position)"),
+      config::Key::string("vehicles")
+          .optional("none: fixed positions")
+          .help("\"all\": one node riding each vehicle of the [sumo] traffic (every vehicle its "
+                "route files define by id), moved at every period's start; a vehicle not in the "
+                "traffic is out of everyone's range (instead of nodes, position, positions)"),
   };
   return keys;
 }
@@ -226,18 +261,24 @@ std::vector<Section> scenario_sections() {
   Section& network = add("network", true, &network_common_keys());
   network.kind_key = "kind";
   network.kinds = kinds_of(network_registry());
+  add("background", true, &background_keys());
   add("paired", false, &paired_keys());
   return s;
 }
 
 std::vector<NamedKeys> section_keys() {
-  return {
-      {"section.top", &top_level_keys()},         {"section.run", &run_keys()},
-      {"section.plant", &plant_common_keys()},    {"section.sensor", &sensor_common_keys()},
-      {"section.link", &link_common_keys()},      {"section.actuator", &actuator_keys()},
-      {"section.input", &input_common_keys()},    {"section.estimator", &estimator_common_keys()},
-      {"section.sweep", &sweep_keys()},           {"section.paired", &paired_keys()},
-      {"section.network", &network_common_keys()}};
+  return {{"section.top", &top_level_keys()},
+          {"section.run", &run_keys()},
+          {"section.plant", &plant_common_keys()},
+          {"section.sensor", &sensor_common_keys()},
+          {"section.link", &link_common_keys()},
+          {"section.actuator", &actuator_keys()},
+          {"section.input", &input_common_keys()},
+          {"section.estimator", &estimator_common_keys()},
+          {"section.sweep", &sweep_keys()},
+          {"section.paired", &paired_keys()},
+          {"section.network", &network_common_keys()},
+          {"section.background", &background_keys()}};
 }
 
 }  // namespace ncosim::sim

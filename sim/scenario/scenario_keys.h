@@ -22,6 +22,7 @@ const config::Keys& plant_common_keys();      // [plant] beside its kind's keys
 const config::Keys& sensor_common_keys();     // [[sensor]] beside its send policy's keys
 const config::Keys& link_common_keys();       // [[link]] beside its kind's keys
 const config::Keys& network_common_keys();    // [[network]] beside its kind's keys
+const config::Keys& background_keys();        // [[background]]
 const config::Keys& actuator_keys();          // [[actuator]]
 const config::Keys& input_common_keys();      // [input] beside its kind's keys
 const config::Keys& estimator_common_keys();  // [[estimator]] beside its kind's keys

@@ -123,6 +123,133 @@ void read_networks(const config::Table& root, Scenario& sc) {
   }
 }
 
+namespace {
+
+// The index of the [[network]] named by key `key` of `t` (an error listing the names otherwise).
+int network_named(const config::Table& t, std::string_view key, const std::string& name,
+                  const Scenario& sc) {
+  for (std::size_t n = 0; n < sc.networks.size(); ++n) {
+    if (sc.networks[n].name == name) return static_cast<int>(n);
+  }
+  std::string names;
+  for (const auto& n : sc.networks)
+    names += (names.empty() ? "" : ", ") + fmt::format("\"{}\"", n.name);
+  t.fail(key, fmt::format("expected the name of a [[network]] ({}), got \"{}\"",
+                          names.empty() ? "the scenario has none" : names, name));
+}
+
+// A background table's traffic: rate (packets/s, a Poisson process) or "saturated".
+void read_traffic(const config::Table& t, network::Sender& s) {
+  if (!t.has("rate")) t.fail("rate", "expected a rate in packets/s or \"saturated\", got nothing");
+  if (t.is_string("rate")) {
+    const std::string v = t.string("rate");
+    if (v != "saturated")
+      t.fail("rate", fmt::format("expected a rate in packets/s or \"saturated\", got \"{}\"", v));
+    s.traffic = network::Traffic::kSaturated;
+    return;
+  }
+  s.traffic = network::Traffic::kPoisson;
+  s.rate = t.number("rate");
+  if (!(s.rate > 0.0 && s.rate <= 1e7))
+    t.fail("rate",
+           fmt::format("expected a rate in (0, 1e7] packets/s or \"saturated\", got {}", s.rate));
+}
+
+// A background table with `vehicles = "all"`: a node on every vehicle of the [sumo] traffic.
+void read_vehicle_nodes(const config::Table& t, const config::KeyReader& r, const NetworkEntry& n,
+                        network::Sender s, Scenario& sc) {
+  if (r.string("vehicles") != "all")
+    t.fail("vehicles", fmt::format("expected \"all\", got \"{}\"", r.string("vehicles")));
+  for (const char* key : {"nodes", "position", "positions"}) {
+    if (t.has(key)) t.fail(key, fmt::format("expected no {} with vehicles", key));
+  }
+  if (!n.design->has_positions()) {
+    t.fail("vehicles",
+           fmt::format("expected no vehicles: network \"{}\" (kind {}) has no positions", n.name,
+                       n.kind));
+  }
+  if (!sc.mobility)
+    t.fail("vehicles",
+           "expected a [sumo] table (the vehicles' mobility) for nodes that ride "
+           "vehicles");
+  for (const int v : sc.mobility->every_vehicle(t, "vehicles")) {
+    s.vehicle = v;
+    s.z = network::kAway;  // until its vehicle is placed, at the run's first period
+    sc.background.push_back(s);
+  }
+  t.finish();
+}
+
+}  // namespace
+
+void read_background(const config::Table& root, Scenario& sc) {
+  for (const config::Table& t : root.tables("background")) {
+    const config::KeyReader r(t, background_keys());
+    network::Sender s;
+    s.network = network_named(t, "network", r.string("network"), sc);
+    const NetworkEntry& n = sc.networks[static_cast<std::size_t>(s.network)];
+    read_traffic(t, s);
+    s.bytes = static_cast<std::uint32_t>(r.integer("bytes"));
+    if (s.bytes > n.design->max_payload()) {
+      t.fail("bytes", fmt::format("expected at most {} bytes, the largest payload of network "
+                                  "\"{}\" (kind {}), got {}",
+                                  n.design->max_payload(), n.name, n.kind, s.bytes));
+    }
+    for (const char* key : {"position", "positions"}) {
+      if (t.has(key) && !n.design->has_positions())
+        t.fail(key, fmt::format("expected no position: network \"{}\" (kind {}) has none", n.name,
+                                n.kind));
+    }
+    if (t.has("position") && t.has("positions"))
+      t.fail("positions", "expected either position or positions, got both");
+    if (r.has("vehicles")) {
+      read_vehicle_nodes(t, r, n, s, sc);
+      continue;
+    }
+    Eigen::MatrixXd at = Eigen::MatrixXd::Zero(1, 3);
+    if (t.has("position")) {
+      const std::vector<double> p = r.numbers("position");
+      if (p.size() != 3)
+        t.fail("position", fmt::format("expected [x, y, z] (m), got {} numbers", p.size()));
+      for (int i = 0; i < 3; ++i) at(0, i) = p[static_cast<std::size_t>(i)];
+    }
+    if (t.has("positions")) {
+      at = r.matrix("positions");
+      if (at.cols() != 3)
+        t.fail("positions",
+               fmt::format("expected rows [x, y, z] (m), got rows of {} numbers", at.cols()));
+    }
+    const std::int64_t nodes = r.opt_integer("nodes").value_or(t.has("positions") ? at.rows() : 1);
+    if (t.has("positions") && nodes != at.rows())
+      t.fail("nodes",
+             fmt::format("expected as many nodes as positions ({}), got {}", at.rows(), nodes));
+    for (std::int64_t i = 0; i < nodes; ++i) {
+      const Eigen::Index row = t.has("positions") ? static_cast<Eigen::Index>(i) : 0;
+      s.x = at(row, 0);
+      s.y = at(row, 1);
+      s.z = at(row, 2);
+      sc.background.push_back(s);
+    }
+    t.finish();
+  }
+}
+
+void drop_doubled_riders(Scenario& sc) {
+  std::vector<std::pair<int, int>> riders;  // (network, vehicle) of the links' nodes and sinks
+  for (const auto& l : sc.links) {
+    if (const models::NetworkAttachment* a = l.link->network_attachment(); a && a->vehicle >= 0)
+      riders.emplace_back(a->network, a->vehicle);
+  }
+  for (std::size_t n = 0; n < sc.networks.size(); ++n) {
+    if (sc.networks[n].sink_vehicle >= 0)
+      riders.emplace_back(static_cast<int>(n), sc.networks[n].sink_vehicle);
+  }
+  std::erase_if(sc.background, [&](const network::Sender& s) {
+    return s.vehicle >= 0 &&
+           std::find(riders.begin(), riders.end(), std::pair{s.network, s.vehicle}) != riders.end();
+  });
+}
+
 void check_networks(const config::Table& root, const Scenario& sc) {
   const auto tables = root.tables("network");
   const auto link_tables = root.tables("link");

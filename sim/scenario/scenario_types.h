@@ -72,6 +72,9 @@ struct Scenario {
   models::Disturbance disturbance;  // deterministic part of w ([plant.disturbance])
   std::vector<LinkEntry> links;
   std::vector<NetworkEntry> networks;  // [[network]], in order (the links name them)
+  // [[background]]: every background node, table by table (network::Traffic kPoisson or
+  // kSaturated), after the links' senders in each run's network session.
+  std::vector<network::Sender> background;
   std::vector<EstimatorEntry> estimators;
   bool recentre = false;  // simulate in re-centred coordinates (see scenarios/README.md)
   // [sumo]: the mobility source (null without it) and the vehicle whose longitudinal motion is

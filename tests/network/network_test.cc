@@ -442,6 +442,35 @@ TEST_F(NetworkCli, RecordLinkOnANetworkLinkFitsAndMatchesLinksCsv) {
   EXPECT_TRUE(fs::exists(dir_ / "fit" / "link.toml"));
 }
 
+// Background nodes on an 802.11a network: their traffic delays the sensors' packets
+// (the sensors' links only in links.csv), and the run is the same with one thread or two.
+TEST_F(NetworkCli, BackgroundTrafficContendsWithTheSensors) {
+  const std::string file = (kSource / "tests/network/data/wifi_background.toml").string();
+  auto run = [&](const std::string& scenario, const std::string& name, const std::string& threads) {
+    const Outcome o =
+        ncosim({"run", scenario, "--out", (dir_ / name).string(), "--quiet", "--no-timing",
+                "--runs", "2", "--periods", "100", "--threads", threads});
+    EXPECT_EQ(o.code, 0) << o.output;
+  };
+  run(file, "t1", "1");
+  run(file, "t2", "2");
+  EXPECT_EQ(slurp(dir_ / "t1" / "runs.csv"), slurp(dir_ / "t2" / "runs.csv"));
+  EXPECT_EQ(slurp(dir_ / "t1" / "links.csv"), slurp(dir_ / "t2" / "links.csv"));
+  EXPECT_EQ(links_column(dir_ / "t1", "link"), (std::vector<std::string>{"n1", "n2"}));
+  std::string quiet = slurp(file);
+  quiet.erase(quiet.find("[[background]]"),
+              quiet.find("[[sensor]]") - quiet.find("[[background]]"));
+  std::ofstream(dir_ / "quiet.toml") << quiet;
+  run((dir_ / "quiet.toml").string(), "q", "1");
+  // Alone, each packet is delivered within its period (used at the next update: delay 1); among
+  // the background's 1500-byte frames at 6 Mb/s, many wait several periods.
+  for (std::size_t l = 0; l < 2; ++l) {
+    EXPECT_EQ(links_column(dir_ / "q", "delivered_ratio")[l], "1") << l;
+    EXPECT_EQ(links_column(dir_ / "q", "delay_max")[l], "1") << l;
+    EXPECT_GT(std::stoi(links_column(dir_ / "t1", "delay_max")[l]), 5) << l;
+  }
+}
+
 // A worker process that dies in the middle of a run (as ns-3 aborts on a failed assertion) ends
 // the campaign with exit 1 and a message naming the run, never silently; the runs finished before
 // are kept in the run store, and --resume completes the campaign.
@@ -501,7 +530,8 @@ TEST_F(NetworkCli, BadInputNamesTheKeyAndItsLine) {
       {"network = \"bus\"", "network = \"lan\"", "network = \"lan\"",
        "key 'link[0].network': expected the name of a [[network]] (\"bus\"), got \"lan\""},
       {"kind = \"csma\"", "kind = \"token_ring\"", "kind = \"token_ring\"",
-       "key 'network[0].kind': expected one of \"csma\", \"lr_wpan\", got \"token_ring\""},
+       "key 'network[0].kind': expected one of \"csma\", \"lr_wpan\", \"wifi\", got "
+       "\"token_ring\""},
       {"rate = 1e6", "rate = \"fast\"", "rate = \"fast\"",
        "key 'network[0].rate': expected a number"},
       {"bytes = 64", "bytes = 0", "bytes = 0",
@@ -519,6 +549,23 @@ TEST_F(NetworkCli, BadInputNamesTheKeyAndItsLine) {
        "floor "
        "is -106.99 dBm)",
        "bytes = 64", "bytes = 64\nposition = [300.0, 0.0, 0.0]"},
+      {"[[sensor]]", "[[background]]\nnetwork = \"bus\"\nrate = \"fast\"\n\n[[sensor]]",
+       "rate = \"fast\"",
+       "key 'background[0].rate': expected a rate in packets/s or \"saturated\", got \"fast\""},
+      {"[[sensor]]", "[[background]]\nnetwork = \"bus\"\nrate = -1.0\n\n[[sensor]]", "rate = -1.0",
+       "key 'background[0].rate': expected a rate in (0, 1e7] packets/s or \"saturated\", got -1"},
+      {"[[sensor]]", "[[background]]\nnetwork = \"lan\"\nrate = 5.0\n\n[[sensor]]",
+       "network = \"lan\"",
+       "key 'background[0].network': expected the name of a [[network]] (\"bus\"), got \"lan\""},
+      {"[[sensor]]",
+       "[[background]]\nnetwork = \"bus\"\nrate = 5.0\nposition = [1.0, 0.0, 0.0]\n\n[[sensor]]",
+       "position = [1.0",
+       "key 'background[0].position': expected no position: network \"bus\" (kind csma) has none"},
+      {"kind = \"csma\"\nrate = 1e6\ndelay = 5e-6",
+       "kind = \"wifi\"\ndata_mode = \"OfdmRate7Mbps\"", "data_mode = ",
+       "key 'network[0].data_mode': expected a data mode of 802.11a (OfdmRate6Mbps, "},
+      {"kind = \"csma\"\nrate = 1e6\ndelay = 5e-6", "kind = \"wifi\"\nstandard = \"802.11ac\"",
+       "standard = ", "key 'network[0].standard': expected one of"},
       {"link = \"node1\"", "", "name = \"bus\"",
        "key 'network[0].name': expected a network that a sensor's link is a node of, got \"bus\", "
        "which no [[sensor]] sends over"},
