@@ -319,13 +319,18 @@ int finish_session(const RunCommand& cmd, const std::string& md, const LoadedSce
                       signal_name(sig), t.simulated, path));
     return 128 + sig;
   }
-  if (cmd.fail_on_status && !not_ok.empty()) {
+  // A run whose process died (a crash inside ns-3) is not a result of the estimators: its rows
+  // (status network_failure) fail the command as --fail-on-status would, asked or not.
+  const bool crashed = std::any_of(not_ok.begin(), not_ok.end(), [](const std::string& r) {
+    return r.find(": network_failure") != std::string::npos;
+  });
+  if ((cmd.fail_on_status || crashed) && !not_ok.empty()) {
     std::string list;
     for (const auto& r : not_ok) list += "  " + r + "\n";
     std::cerr << fmt::format(
-        "ncosim: --fail-on-status: {} row(s) with an unexpected status (results written to "
-        "{}/):\n{}",
-        not_ok.size(), cmd.out, list);
+        "ncosim: {}: {} row(s) with an unexpected status (results written to {}/):\n{}",
+        cmd.fail_on_status ? "--fail-on-status" : "a run's process died", not_ok.size(), cmd.out,
+        list);
     return kExitFlagged;
   }
   return 0;

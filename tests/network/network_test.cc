@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -364,6 +365,51 @@ TEST_F(NetworkCli, AWorkerThatDiesIsReportedAndResumeCompletes) {
                                 "--no-timing", "--quiet"});
   ASSERT_EQ(whole.code, 0) << whole.output;
   EXPECT_EQ(slurp(out / "runs.csv"), slurp(dir_ / "whole" / "runs.csv"));
+}
+
+// A run whose ns-3 fails an NS_FATAL_ERROR (here the test hook NCOSIM_TEST_CRASH_RUN of
+// network/session_ns3.cc, which makes run 1's ns-3 fail inside Simulator::Run) does not stop the
+// campaign: the message names the run and carries ns-3's text, the run's rows in runs.csv have
+// status network_failure, the rows of summary.csv too (no mse, as for a diverged run), the other
+// runs are those of a campaign without the crash, and the exit status is 3 (results written).
+TEST_F(NetworkCli, ARunWhoseNs3AbortsGetsAStatusAndTheOthersGoOn) {
+  auto run = [&](const std::string& name) {
+    return ncosim({"run", (kSource / "scenarios/wsn_star.toml").string(), "--out",
+                   (dir_ / name).string(), "--runs", "3", "--periods", "300", "--threads", "2",
+                   "--no-timing", "--quiet"});
+  };
+  ::setenv("NCOSIM_TEST_CRASH_RUN", "1", 1);
+  const Outcome crashed = run("crashed");
+  ::unsetenv("NCOSIM_TEST_CRASH_RUN");
+  const Outcome whole = run("whole");
+  ASSERT_EQ(whole.code, 0) << whole.output;
+  EXPECT_EQ(crashed.code, 3) << crashed.output;
+  const std::string said =
+      "ncosim: run 1: network_failure: its process ended abnormally (signal 6): "
+      "msg=\"NCOSIM_TEST_CRASH_RUN: run 1 fails\"";
+  const auto at = crashed.output.find(said);
+  EXPECT_NE(at, std::string::npos) << crashed.output;
+  EXPECT_EQ(crashed.output.find(said, at + 1), std::string::npos) << "said once";
+  EXPECT_NE(crashed.output.find("\"Kalman\": network_failure"), std::string::npos);
+  // runs.csv: run 1's rows are failures; every other row is the crash-free campaign's.
+  std::istringstream a(slurp(dir_ / "crashed" / "runs.csv"));
+  std::istringstream b(slurp(dir_ / "whole" / "runs.csv"));
+  std::string la, lb;
+  int failed = 0, same = 0;
+  while (std::getline(a, la) && std::getline(b, lb)) {
+    if (la.rfind("1,", 0) == 0) {
+      EXPECT_NE(la.find(",1,network_failure,"), std::string::npos) << la;
+      ++failed;
+    } else {
+      EXPECT_EQ(la, lb);
+      ++same;
+    }
+  }
+  EXPECT_EQ(failed, 2);    // two estimators
+  EXPECT_EQ(same, 1 + 4);  // the header, runs 0 and 2
+  const std::string summary = slurp(dir_ / "crashed" / "summary.csv");
+  EXPECT_NE(summary.find("Kalman,kalman_extended,3,,,"), std::string::npos) << summary;
+  EXPECT_NE(summary.find(",network_failure,"), std::string::npos) << summary;
 }
 
 TEST_F(NetworkCli, BadInputNamesTheKeyAndItsLine) {
