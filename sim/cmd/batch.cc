@@ -417,12 +417,6 @@ void run_case_batch(RunSession& session, StoreSink& sink, std::size_t c, std::ui
   opt.on_run = [&sink, c](std::uint64_t run, RunMetrics&& m, RunLinks&& links) {
     sink.push(c, run, std::move(m), std::move(links));
   };
-  if (session.mpi && needs_worker_processes(sc)) {
-    throw std::runtime_error(
-        "a scenario with a [[network]] runs its runs on worker processes of one machine "
-        "(ns-3 has one simulator per process), not yet over MPI ranks: run it without mpirun, "
-        "or split it over machines with --shard I/N and `ncosim merge`");
-  }
   CampaignResult res = session.mpi                  ? session.mpi->run(sc, c, opt)
                        : needs_worker_processes(sc) ? run_in_processes(sc, opt)
                                                     : run_campaign(sc, opt);

@@ -516,6 +516,9 @@ ChildRun run_in_child(const Scenario& sc, std::uint64_t run, bool link_counters)
     ::close(err[0]);
     ::dup2(err[1], STDERR_FILENO);
     ::close(err[1]);
+    // The default actions on a crash: an MPI library's handlers (inherited from a rank) would
+    // print their own report after ns-3's message, and they belong to the rank, not to this child.
+    for (int sig : {SIGABRT, SIGSEGV, SIGBUS, SIGFPE, SIGILL}) ::signal(sig, SIG_DFL);
     child_run(sc, run, link_counters, sv[1]);
   }
   ::close(sv[1]);
@@ -568,6 +571,12 @@ std::vector<TraceRow> trace_in_child(const Scenario& sc, std::uint64_t run) {
   CampaignResult r;
   replay_in_child(sc, run, true, false, r);
   return std::move(r.trace);
+}
+
+std::vector<double> timing_in_child(const Scenario& sc, std::uint64_t run) {
+  CampaignResult r;
+  replay_in_child(sc, run, false, true, r);
+  return std::move(r.ns_per_period);
 }
 
 CampaignResult run_in_processes(const Scenario& sc, const CampaignOptions& options) {

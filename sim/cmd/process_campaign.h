@@ -48,5 +48,8 @@ void report_run_failure(std::uint64_t run, const std::string& failure);
 // Run `run`'s trace, simulated in a process of its own (so that this process never simulates a
 // network, and the workers it forks later start from the same state).
 std::vector<TraceRow> trace_in_child(const Scenario& sc, std::uint64_t run);
+// The estimators' timing (simulate_run's ns_per_period) on run `run`, simulated in a process of
+// its own likewise.
+std::vector<double> timing_in_child(const Scenario& sc, std::uint64_t run);
 
 }  // namespace ncosim::sim
