@@ -7,6 +7,7 @@
 // frames of different nodes that overlap in time collide.
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <memory>
 
 #include "kernel/check.h"
@@ -93,8 +94,11 @@ void confirmed(World* world, int sender, ns3::McpsDataConfirmParams params) {
 }
 
 void LrWpanDesign::build(World& world, const std::vector<int>& senders) const {
+  const auto downlinks = static_cast<std::size_t>(std::count_if(
+      senders.begin(), senders.end(), [&](int s) { return world.sender(s).downlink; }));
   ns3::NodeContainer nodes;
-  nodes.Create(static_cast<std::uint32_t>(senders.size() + 1));  // the sink first
+  // The sink first, then the senders' nodes, then the controller's transmitters (network.h).
+  nodes.Create(static_cast<std::uint32_t>(1 + senders.size() + downlinks));
   auto channel = ns3::CreateObject<ns3::SingleModelSpectrumChannel>();
   auto loss = ns3::CreateObject<ns3::LogDistancePropagationLossModel>();
   loss->SetAttribute("Exponent", ns3::DoubleValue(exponent));
@@ -112,7 +116,7 @@ void LrWpanDesign::build(World& world, const std::vector<int>& senders) const {
   for (std::uint32_t i = 0; i < devices.GetN(); ++i) {
     auto device = ns3::DynamicCast<ns3::LrWpanNetDevice>(devices.Get(i));
     auto position = ns3::CreateObject<ns3::ConstantPositionMobilityModel>();
-    if (i == 0) {
+    if (i == 0 || i > senders.size()) {  // the sink, or a controller's transmitter beside it
       position->SetPosition(ns3::Vector(sink[0], sink[1], sink[2]));
     } else {
       const Sender& s = world.sender(senders[i - 1]);
@@ -127,10 +131,17 @@ void LrWpanDesign::build(World& world, const std::vector<int>& senders) const {
   const std::int64_t used = helper.AssignStreams(devices, world.streams(count));
   NCOSIM_CHECK(used <= count);
   world.attach_sink(devices.Get(0));
+  auto transmitter = static_cast<std::uint32_t>(1 + senders.size());
   for (std::size_t i = 0; i < senders.size(); ++i) {
     auto device =
         ns3::DynamicCast<ns3::LrWpanNetDevice>(devices.Get(static_cast<std::uint32_t>(i + 1)));
-    world.attach_sender(senders[i], device, devices.Get(0)->GetAddress(), true);
+    auto to = devices.Get(0);
+    if (world.sender(senders[i]).downlink) {  // the actuator's node receives
+      world.attach_sink(device);
+      to = device;
+      device = ns3::DynamicCast<ns3::LrWpanNetDevice>(devices.Get(transmitter++));
+    }
+    world.attach_sender(senders[i], device, to->GetAddress(), true);
     device->GetMac()->SetMcpsDataConfirmCallback(
         ns3::MakeBoundCallback(&confirmed, &world, senders[i]));
   }

@@ -50,7 +50,8 @@ class NetworkDesign {
  public:
   virtual ~NetworkDesign() = default;
   // Adds this network to the run's world: the sink, then one node per sender (`senders` are the
-  // world's sender indices attached to this network, in scenario order).
+  // world's sender indices attached to this network, in scenario order), then the transmitters of
+  // the downlink senders (Sender::downlink) at the sink's position, in the same order.
   virtual void build(World& world, const std::vector<int>& senders) const = 0;
   // Whether its nodes have positions (a [[link]] `position` on a network without is refused).
   virtual bool has_positions() const { return false; }
@@ -73,10 +74,16 @@ bool have_ns3();
 std::string without_ns3_message();
 
 // A sender: the [[link]] of kind `network` it is, the network it is attached to and its payload.
+// A `downlink` sender is an actuator's link: its packets go the other way, from the controller
+// (the sink's side) to the node at its position (the actuator). Every kind builds it as two nodes
+// after the sensors' ones: a transmitter of its own at the sink's position (the controller's
+// radio; it does not share the sink's device, so the sink still receives while it sends) and the
+// actuator's node, which receives.
 struct Sender {
   int network = 0;                   // index into the session's networks
   std::uint32_t bytes = 0;           // payload bytes of each packet
   double x = 0.0, y = 0.0, z = 0.0;  // position (m), for the kinds that have positions
+  bool downlink = false;             // an actuator's link (controller -> actuator)
 };
 
 // One run's networks in ns-3. ns-3 has one simulator per process: a session holds it (other
