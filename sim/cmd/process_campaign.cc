@@ -9,6 +9,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cmath>
@@ -295,6 +296,9 @@ class Distribution {
   }
 
   std::size_t done() const { return done_; }
+  bool failed(std::uint64_t run) const {
+    return std::find(failed_.begin(), failed_.end(), run) != failed_.end();
+  }
   std::size_t runs() const { return todo_.size(); }
 
  private:
@@ -355,6 +359,7 @@ class Distribution {
       return;
     }
     if (type == kFailure) {
+      failed_.push_back(run);
       report_run_failure(run, body);
       options_.on_run(run, failed_run_metrics(sc_), RunLinks{});
     } else {
@@ -389,6 +394,7 @@ class Distribution {
   std::size_t next_ = 0, done_ = 0;
   std::vector<Worker> workers_;
   std::string error_;
+  std::vector<std::uint64_t> failed_;  // the runs whose process died
 };
 
 // Doubles and integers of a trace row and of ns_per_period, as bytes (this machine's layout: the
@@ -482,6 +488,15 @@ void replay_in_child(const Scenario& sc, std::uint64_t run, bool trace, bool tim
   ::close(sv[0]);
   int status = 0;
   while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  // A replay that died is the run's own crash again (its rows say network_failure): the results
+  // go without the trace and the timing, said once here, rather than not at all.
+  if (WIFSIGNALED(status)) {
+    std::cerr << fmt::format(
+        "ncosim: run {}: the replay for the trace and the timing ended abnormally ({}); no "
+        "trajectory.csv, no ns_per_period\n",
+        run, exit_text(status));
+    return;
   }
   if (!WIFEXITED(status) || WEXITSTATUS(status) != 0)
     throw std::runtime_error(
@@ -602,7 +617,8 @@ CampaignResult run_in_processes(const Scenario& sc, const CampaignOptions& optio
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   result.ns_per_period.assign(sc.estimators.size(), std::nan(""));
   const bool trace = options.trace && first == 0;
-  if ((trace || options.time_estimators) && !result.stopped && d.runs() > 0)
+  // A run whose process died would die again in the replay: no trace or timing of it.
+  if ((trace || options.time_estimators) && !result.stopped && d.runs() > 0 && !d.failed(first))
     replay_in_child(sc, first, trace, options.time_estimators, result);
   return result;
 }
