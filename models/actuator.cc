@@ -46,6 +46,7 @@ ActuatorStage::ActuatorStage(const std::vector<ActuatorSpec>& specs,
     if (specs[i].link >= 0) {
       c.link = links[static_cast<std::size_t>(specs[i].link)]->clone();
       c.link->reset(c.rng);  // a Markov link starts from its stationary law
+      c.networked = c.link->network_attachment() != nullptr;
     }
     applied_(static_cast<Eigen::Index>(i)) = specs[i].u0;
     channels_.push_back(std::move(c));
@@ -59,6 +60,10 @@ int ActuatorStage::actuate(const Eigen::VectorXd& sent) {
   for (int i = 0; i < r; ++i) {
     Channel& c = channels_[static_cast<std::size_t>(i)];
     bool delivered = true;
+    if (c.networked) {
+      c.pending = sent(i);
+      continue;
+    }
     if (c.link != nullptr) {
       c.link->advance(period_, c.rng);
       const int state = state_of(*c.link);
@@ -75,6 +80,16 @@ int ActuatorStage::actuate(const Eigen::VectorXd& sent) {
   }
   ++period_;
   return mode;
+}
+
+int ActuatorStage::resolve(int i, bool delivered) {
+  const Channel& c = channels_[static_cast<std::size_t>(i)];
+  if (delivered) {
+    applied_(i) = c.pending;
+    return 0;
+  }
+  if (c.on_loss == ActuatorSpec::OnLoss::kZero) applied_(i) = 0.0;
+  return 1 << (static_cast<int>(channels_.size()) - 1 - i);
 }
 
 }  // namespace ncosim::models

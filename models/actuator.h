@@ -50,7 +50,16 @@ class ActuatorStage {
   ActuatorStage(const std::vector<ActuatorSpec>& specs, const std::vector<const Link*>& links,
                 std::uint64_t seed, std::uint64_t run);
   // Sends `sent` (one entry per channel) and updates applied(); returns the mode of the period.
+  // A networked channel is left pending: its bit of the mode and its applied value come from
+  // resolve().
   int actuate(const Eigen::VectorXd& sent);
+  // Whether channel i's link is a node of a [[network]] (network/network.h): the run sends its
+  // command through the network and, before the next plant step, says whether it arrived within
+  // its period (resolve).
+  bool networked(int i) const { return channels_[static_cast<std::size_t>(i)].networked; }
+  // Channel i's command of the last actuate() arrived within its period (`delivered`) or not
+  // (lost or late): applied() is updated; returns the channel's bit of that period's mode.
+  int resolve(int i, bool delivered);
   const Eigen::VectorXd& applied() const { return applied_; }
   // Per channel: what its link did to the commands so far (ideal channels count nothing).
   std::vector<LinkCounters>& counters() { return counters_; }
@@ -60,6 +69,8 @@ class ActuatorStage {
     std::unique_ptr<Link> link;  // nullptr: ideal
     kernel::Rng rng;
     ActuatorSpec::OnLoss on_loss;
+    bool networked = false;  // the run decides its deliveries (resolve)
+    double pending = 0.0;    // networked: the command of the last actuate()
   };
   std::vector<Channel> channels_;
   std::vector<LinkCounters> counters_;

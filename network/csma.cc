@@ -5,6 +5,7 @@
 // propagation delay.
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 
@@ -63,6 +64,7 @@ class CsmaDesign final : public NetworkDesign {
   CsmaDesign(std::uint64_t rate, std::int64_t delay_ns, std::uint32_t queue)
       : rate_(rate), delay_ns_(delay_ns), queue_(queue) {}
   void build(World& world, const std::vector<int>& senders) const override;
+  bool carries_actuators() const override { return true; }
 
  private:
   std::uint64_t rate_;
@@ -72,8 +74,11 @@ class CsmaDesign final : public NetworkDesign {
 
 #if NCOSIM_HAVE_NS3
 void CsmaDesign::build(World& world, const std::vector<int>& senders) const {
+  const auto downlinks = static_cast<std::size_t>(std::count_if(
+      senders.begin(), senders.end(), [&](int s) { return world.sender(s).downlink; }));
   ns3::NodeContainer nodes;
-  nodes.Create(static_cast<std::uint32_t>(senders.size() + 1));  // the sink first
+  // The sink first, then the senders' nodes, then the controller's transmitters (network.h).
+  nodes.Create(static_cast<std::uint32_t>(1 + senders.size() + downlinks));
   ns3::CsmaHelper csma;
   csma.SetChannelAttribute("DataRate", ns3::DataRateValue(ns3::DataRate(rate_)));
   csma.SetChannelAttribute("Delay", ns3::TimeValue(ns3::NanoSeconds(delay_ns_)));
@@ -84,9 +89,16 @@ void CsmaDesign::build(World& world, const std::vector<int>& senders) const {
   const std::int64_t used = csma.AssignStreams(devices, first);
   NCOSIM_CHECK(used <= static_cast<std::int64_t>(devices.GetN()));
   world.attach_sink(devices.Get(0));
+  auto transmitter = static_cast<std::uint32_t>(1 + senders.size());
   for (std::size_t i = 0; i < senders.size(); ++i) {
-    const auto device = devices.Get(static_cast<std::uint32_t>(i + 1));
-    world.attach_sender(senders[i], device, devices.Get(0)->GetAddress());
+    auto device = devices.Get(static_cast<std::uint32_t>(i + 1));
+    auto to = devices.Get(0);
+    if (world.sender(senders[i]).downlink) {  // the actuator's node receives
+      world.attach_sink(device);
+      to = device;
+      device = devices.Get(transmitter++);
+    }
+    world.attach_sender(senders[i], device, to->GetAddress());
     world.connect_drop(device, "MacTxDrop", Drop::kQueue);
     world.connect_drop(device, "PhyTxDrop", Drop::kChannelAccess);
     const bool connected = device->TraceConnectWithoutContext(

@@ -8,6 +8,7 @@
 // collide.
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 
@@ -92,6 +93,7 @@ class LrWpanDesign final : public NetworkDesign {
   int max_frame_retries = 3;
   void build(World& world, const std::vector<int>& senders) const override;
   bool has_positions() const override { return true; }
+  bool carries_actuators() const override { return true; }
   std::uint32_t max_payload() const override { return kMaxPayload; }
   // ns-3's LogDistancePropagationLossModel (reference distance 1 m, no loss beyond the reference
   // loss closer than that) applied to tx_power.
@@ -162,8 +164,11 @@ void trx_state(BusyClock* c, ns3::LrWpanPhyEnumeration, ns3::LrWpanPhyEnumeratio
 }
 
 void LrWpanDesign::build(World& world, const std::vector<int>& senders) const {
+  const auto downlinks = static_cast<std::size_t>(std::count_if(
+      senders.begin(), senders.end(), [&](int s) { return world.sender(s).downlink; }));
   ns3::NodeContainer nodes;
-  nodes.Create(static_cast<std::uint32_t>(senders.size() + 1));  // the sink first
+  // The sink first, then the senders' nodes, then the controller's transmitters (network.h).
+  nodes.Create(static_cast<std::uint32_t>(1 + senders.size() + downlinks));
   auto channel = ns3::CreateObject<ns3::SingleModelSpectrumChannel>();
   auto loss = ns3::CreateObject<ns3::LogDistancePropagationLossModel>();
   loss->SetAttribute("Exponent", ns3::DoubleValue(exponent));
@@ -182,10 +187,12 @@ void LrWpanDesign::build(World& world, const std::vector<int>& senders) const {
   for (std::uint32_t i = 0; i < devices.GetN(); ++i) {
     auto device = ns3::DynamicCast<ns3::LrWpanNetDevice>(devices.Get(i));
     auto position = ns3::CreateObject<ns3::ConstantPositionMobilityModel>();
-    if (i == 0) {
+    if (i == 0 || i > senders.size()) {  // the sink, or a controller's transmitter beside it
       position->SetPosition(ns3::Vector(sink[0], sink[1], sink[2]));
-      world.mobile_sink(position);
-      sink_at = position;
+      if (i == 0) {
+        world.mobile_sink(position);
+        sink_at = position;
+      }
     } else {
       const Sender& s = world.sender(senders[i - 1]);
       position->SetPosition(ns3::Vector(s.x, s.y, s.z));
@@ -201,10 +208,17 @@ void LrWpanDesign::build(World& world, const std::vector<int>& senders) const {
   const std::int64_t used = helper.AssignStreams(devices, world.streams(count));
   NCOSIM_CHECK(used <= count);
   world.attach_sink(devices.Get(0));
+  auto transmitter = static_cast<std::uint32_t>(1 + senders.size());
   for (std::size_t i = 0; i < senders.size(); ++i) {
     auto device =
         ns3::DynamicCast<ns3::LrWpanNetDevice>(devices.Get(static_cast<std::uint32_t>(i + 1)));
-    world.attach_sender(senders[i], device, devices.Get(0)->GetAddress(), true);
+    auto to = devices.Get(0);
+    if (world.sender(senders[i]).downlink) {  // the actuator's node receives
+      world.attach_sink(device);
+      to = device;
+      device = ns3::DynamicCast<ns3::LrWpanNetDevice>(devices.Get(transmitter++));
+    }
+    world.attach_sender(senders[i], device, to->GetAddress(), true);
     device->GetMac()->SetMcpsDataConfirmCallback(
         ns3::MakeBoundCallback(&confirmed, &world, this, senders[i], sink_at));
     const bool tx = device->GetMac()->TraceConnectWithoutContext(

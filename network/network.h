@@ -54,10 +54,13 @@ class NetworkDesign {
  public:
   virtual ~NetworkDesign() = default;
   // Adds this network to the run's world: the sink, then one node per sender (`senders` are the
-  // world's sender indices attached to this network, in scenario order).
+  // world's sender indices attached to this network, in scenario order), then the transmitters of
+  // the downlink senders (Sender::downlink) at the sink's position, in the same order.
   virtual void build(World& world, const std::vector<int>& senders) const = 0;
   // Whether its nodes have positions (a [[link]] `position` on a network without is refused).
   virtual bool has_positions() const { return false; }
+  // Whether it builds actuator links (Sender::downlink): csma and lr_wpan do.
+  virtual bool carries_actuators() const { return false; }
   // The largest payload of one packet (bytes), at most 1500.
   virtual std::uint32_t max_payload() const { return 1500; }
   // For a kind with positions: how a sender at `position` (m) reaches the sink when alone on the
@@ -98,13 +101,19 @@ enum class Traffic : std::uint8_t { kSensor, kPoisson, kSaturated };
 
 // A sender: a [[link]] of kind `network` or a background node, the network it is attached to and
 // its payload.
+// A `downlink` sender is an actuator's link: its packets go the other way, from the controller
+// (the sink's side) to the node at its position (the actuator). Every kind builds it as two nodes
+// after the sensors' ones: a transmitter of its own at the sink's position (the controller's
+// radio; it does not share the sink's device, so the sink still receives while it sends) and the
+// actuator's node, which receives.
 struct Sender {
   int network = 0;                   // index into the session's networks
   std::uint32_t bytes = 0;           // payload bytes of each packet
   double x = 0.0, y = 0.0, z = 0.0;  // position (m), for the kinds that have positions
   Traffic traffic = Traffic::kSensor;
-  int vehicle = -1;   // a background node riding a [sumo] vehicle: its index in the mobility
-  double rate = 0.0;  // kPoisson: mean packets per second
+  int vehicle = -1;       // a background node riding a [sumo] vehicle: its index in the mobility
+  double rate = 0.0;      // kPoisson: mean packets per second
+  bool downlink = false;  // an actuator's link (controller -> actuator)
 };
 
 // Where a node that is not in the network (a SUMO vehicle before its departure or after its

@@ -2,13 +2,16 @@
 // build into, the tag that names each packet, and the lockstep that keeps ns-3 behind ncosim's
 // clock (network/network.h).
 #include <ns3/double.h>
+#include <ns3/fatal-error.h>
 #include <ns3/mac48-address.h>
 #include <ns3/rng-seed-manager.h>
 #include <ns3/simulator.h>
 #include <ns3/tag.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <mutex>
+#include <string>
 #include <utility>
 
 #include "kernel/check.h"
@@ -192,6 +195,7 @@ class Ns3Session final : public Session {
       designs[n]->build(world_, attached);
     }
     world_.start_traffic();
+    schedule_test_crash(run);
   }
   ~Ns3Session() override { ns3::Simulator::Destroy(); }
 
@@ -232,6 +236,17 @@ class Ns3Session final : public Session {
     NCOSIM_CHECK(t >= now);
     ns3::Simulator::Schedule(ns3::NanoSeconds(t - now), &Ns3Session::place, m,
                              ns3::Vector(x, y, z));
+  }
+
+  // A test hook, for tests only: with NCOSIM_TEST_CRASH_RUN=<run index> in the environment, that
+  // run's ns-3 fails an NS_FATAL_ERROR inside Simulator::Run (its first event), so that the tests
+  // of a crashing run (tests/network/network_test.cc) go through ns-3's own fatal-error path.
+  static void schedule_test_crash(std::uint64_t run) {
+    const char* v = std::getenv("NCOSIM_TEST_CRASH_RUN");
+    if (v == nullptr || std::to_string(run) != v) return;
+    ns3::Simulator::ScheduleNow(
+        +[](std::uint64_t r) { NS_FATAL_ERROR("NCOSIM_TEST_CRASH_RUN: run " << r << " fails"); },
+        run);
   }
 
   void check() {

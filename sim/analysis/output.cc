@@ -59,6 +59,7 @@ struct RunTotals {
   std::vector<std::vector<double>> root;  // per state, each such run's RMSE
   std::vector<double> state_sse;          // per state, over those runs
   std::int64_t count = 0, used = 0, taken = 0, diverged = 0;
+  std::int64_t failed = 0;  // runs whose process died (status network_failure; also diverged)
   double flops = 0.0, flop_periods = 0.0;
   std::string run_status = "ok";  // the first non-ok status of a run that did not diverge
   ConsistencySums consistency;
@@ -80,6 +81,7 @@ RunTotals run_totals(const CampaignResult& result, std::size_t e, Eigen::Index n
     }
     if (m.diverged) {
       ++t.diverged;
+      if (m.status == "network_failure") ++t.failed;
       continue;
     }
     if (m.status != "ok" && t.run_status == "ok") t.run_status = m.status;
@@ -128,12 +130,14 @@ void set_error_statistics(const RunTotals& t, bool extended, std::size_t runs, S
 // The sensors' transmissions per scored period, over every run of estimator e.
 void set_sent_per_period(const Scenario& sc, const CampaignResult& result, std::size_t e,
                          SummaryRow& row) {
-  std::int64_t sent = 0;
+  std::int64_t sent = 0, runs = 0;
   for (const auto& run : result.runs) {
+    if (run[e].status == "network_failure") continue;  // its process died: nothing was counted
+    ++runs;
     for (const auto v : run[e].sensor_sent) sent += v;
   }
   const double periods =
-      static_cast<double>(sc.run.periods - sc.run.warmup) * static_cast<double>(result.runs.size());
+      static_cast<double>(sc.run.periods - sc.run.warmup) * static_cast<double>(runs);
   if (periods > 0) row.sent_per_period = static_cast<double>(sent) / periods;
 }
 
@@ -164,8 +168,10 @@ SummaryRow summary_row(const Scenario& sc, const CampaignResult& result, std::si
   row.runs = static_cast<std::int64_t>(result.runs.size());
   const std::string design_status = rep.status == "ok" ? "ok" : "design_" + rep.status;
   const RunTotals t = run_totals(result, e, n, row);
-  // Precedence: a failed design (it says why the rest went wrong), divergence, run status.
+  // Precedence: a failed design (it says why the rest went wrong), a run whose process died (its
+  // record counts as diverged, but the estimator did not diverge), divergence, run status.
   const std::string status = design_status != "ok" ? design_status
+                             : t.failed > 0        ? "network_failure"
                              : t.diverged > 0      ? "diverged"
                                                    : t.run_status;
   if (t.diverged == 0)

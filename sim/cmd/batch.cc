@@ -319,13 +319,18 @@ int finish_session(const RunCommand& cmd, const std::string& md, const LoadedSce
                       signal_name(sig), t.simulated, path));
     return 128 + sig;
   }
-  if (cmd.fail_on_status && !not_ok.empty()) {
+  // A run whose process died (a crash inside ns-3) is not a result of the estimators: its rows
+  // (status network_failure) fail the command as --fail-on-status would, asked or not.
+  const bool crashed = std::any_of(not_ok.begin(), not_ok.end(), [](const std::string& r) {
+    return r.find(": network_failure") != std::string::npos;
+  });
+  if ((cmd.fail_on_status || crashed) && !not_ok.empty()) {
     std::string list;
     for (const auto& r : not_ok) list += "  " + r + "\n";
     std::cerr << fmt::format(
-        "ncosim: --fail-on-status: {} row(s) with an unexpected status (results written to "
-        "{}/):\n{}",
-        not_ok.size(), cmd.out, list);
+        "ncosim: {}: {} row(s) with an unexpected status (results written to {}/):\n{}",
+        cmd.fail_on_status ? "--fail-on-status" : "a run's process died", not_ok.size(), cmd.out,
+        list);
     return kExitFlagged;
   }
   return 0;
@@ -412,12 +417,6 @@ void run_case_batch(RunSession& session, StoreSink& sink, std::size_t c, std::ui
   opt.on_run = [&sink, c](std::uint64_t run, RunMetrics&& m, RunLinks&& links) {
     sink.push(c, run, std::move(m), std::move(links));
   };
-  if (session.mpi && needs_worker_processes(sc)) {
-    throw std::runtime_error(
-        "a scenario with a [[network]] runs its runs on worker processes of one machine "
-        "(ns-3 has one simulator per process), not yet over MPI ranks: run it without mpirun, "
-        "or split it over machines with --shard I/N and `ncosim merge`");
-  }
   CampaignResult res = session.mpi                  ? session.mpi->run(sc, c, opt)
                        : needs_worker_processes(sc) ? run_in_processes(sc, opt)
                                                     : run_campaign(sc, opt);

@@ -2,7 +2,9 @@
 // (Boost.MPI) through a dynamic work queue (one run per request, so unequal nodes balance). Rank 0
 // owns the run store and the exports and simulates too; ranks 1..K-1 simulate the runs rank 0 hands
 // out and send back each run's serialized metrics. Results are bit-identical to one process (every
-// run depends on (seed, run index) alone). Built when NCOSIM_MPI is ON (Boost.MPI + an MPI
+// run depends on (seed, run index) alone). A scenario with networks (ns-3: one simulator per
+// process) has each run simulated in a child process of the rank (run_in_child), which never calls
+// MPI. Built when NCOSIM_MPI is ON (Boost.MPI + an MPI
 // library found); otherwise a run under mpirun with more than one rank is refused.
 #pragma once
 

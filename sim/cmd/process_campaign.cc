@@ -1,6 +1,7 @@
 // sim/cmd/process_campaign.cc — a campaign over worker processes (see process_campaign.h).
 #include "sim/cmd/process_campaign.h"
 
+#include <fcntl.h>
 #include <fmt/format.h>
 #include <poll.h>
 #include <signal.h>
@@ -8,11 +9,14 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstring>
 #include <functional>
+#include <iostream>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <thread>
@@ -27,9 +31,17 @@ namespace ncosim::sim {
 bool needs_worker_processes(const Scenario& sc) { return !sc.networks.empty(); }
 
 namespace {
+// A child process that died of a signal (bytes_from_child): e.g. ns-3 crashed in it.
+struct ChildSignalled : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+}  // namespace
+
+namespace {
 
 // Worker -> parent messages: a type byte, the run, the length, then the bytes.
-enum : char { kResult = 'R', kError = 'E', kCurve = 'C' };
+// kFailure: the run's process died (its body says why); the worker goes on.
+enum : char { kResult = 'R', kError = 'E', kCurve = 'C', kFailure = 'F' };
 
 void put_u64(std::string& s, std::uint64_t v) {
   for (int i = 0; i < 8; ++i) s.push_back(static_cast<char>((v >> (8 * i)) & 0xFF));
@@ -65,6 +77,19 @@ bool read_all(int fd, char* p, std::size_t n) {
   return true;
 }
 
+// `text` on a pipe or a terminal (not a socket: write_all's send would fail).
+void write_all_fd(int fd, const std::string& text) {
+  const char* p = text.data();
+  std::size_t n = text.size();
+  while (n > 0) {
+    const ssize_t w = ::write(fd, p, n);
+    if (w < 0 && errno == EINTR) continue;
+    if (w <= 0) return;
+    p += w;
+    n -= static_cast<std::size_t>(w);
+  }
+}
+
 bool send_message(int fd, char type, std::uint64_t run, const std::string& body) {
   std::string m(1, type);
   put_u64(m, run);
@@ -78,69 +103,127 @@ std::string exit_text(int status) {
                              : fmt::format("exit status {}", WEXITSTATUS(status));
 }
 
-// Runs `body` in a child process forked from this one and waits for it; returns its wait status.
-// Every run gets a process of its own, forked from a worker that never simulates: ns-3 keeps state
-// across the simulations of one process (e.g. its automatic random-stream numbers), so a run
-// simulated after others in the same process could differ from the same run simulated first.
-template <class Body>
-int in_child(Body&& body) {
-  const pid_t pid = ::fork();
-  if (pid < 0) return -1;
-  if (pid == 0) {
-    try {
-      body();
-    } catch (...) {  // never unwind into the parent's code, which this process is a copy of
-      ::_exit(2);
-    }
-    ::_exit(0);
-  }
-  int status = 0;
-  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
-  }
-  return status;
+// The text a process wrote on stderr, kept up to this many bytes (the tail, when more).
+constexpr std::size_t kStderrKept = 1 << 20;
+
+void put_string(std::string& out, const std::string& s) {
+  put_u64(out, s.size());
+  out += s;
+}
+// The next length-prefixed string of `in` at `at`; false when `in` is too short.
+bool get_string(const std::string& in, std::size_t& at, std::string& s) {
+  if (in.size() - at < 8) return false;
+  const std::uint64_t n = get_u64(in.data() + at);
+  at += 8;
+  if (n > in.size() - at) return false;
+  s = in.substr(at, n);
+  at += n;
+  return true;
 }
 
-// One run in a process of its own: its result, then (with [run] error_curve) its errors, on `out`.
-void simulate_one(const Scenario& sc, const CampaignOptions& options, std::uint64_t run, int out) {
+// The child's side of run_in_child: the run, then on `out` its result ('R': the serialized
+// metrics, link counters and error curve, each length-prefixed) or its error ('E' and the text).
+[[noreturn]] void child_run(const Scenario& sc, std::uint64_t run, bool link_counters, int out) {
+  std::string msg;
   try {
     ErrorCurve curve = sc.run.error_curve ? error_curve_of(sc) : ErrorCurve();
     RunLinks links;
-    RunMetrics m = execute_run(sc, run, nullptr, nullptr, options.link_counters ? &links : nullptr,
-                               sc.run.error_curve ? &curve : nullptr);
-    std::string body;
-    const std::string metrics = serialize_run(m);
-    put_u64(body, metrics.size());
-    body += metrics;
-    if (options.link_counters) body += serialize_links(links);
-    if (!send_message(out, kResult, run, body)) ::_exit(1);
-    if (sc.run.error_curve) {
-      curve.add_run(run);
-      send_message(out, kCurve, run, curve.serialize());
-    }
+    const RunMetrics m = execute_run(sc, run, nullptr, nullptr, link_counters ? &links : nullptr,
+                                     sc.run.error_curve ? &curve : nullptr);
+    if (sc.run.error_curve) curve.add_run(run);
+    msg = "R";
+    put_string(msg, serialize_run(m));
+    put_string(msg, link_counters ? serialize_links(links) : std::string());
+    put_string(msg, sc.run.error_curve ? curve.serialize() : std::string());
   } catch (const std::exception& e) {
-    send_message(out, kError, run, e.what());
+    msg = std::string("E") + e.what();
+  } catch (...) {  // never unwind into the parent's code, which this process is a copy of
+    ::_exit(2);
+  }
+  ::_exit(write_all(out, msg.data(), msg.size()) ? 0 : 1);
+}
+
+// Reads `result` and `err` until both are at end of file (the child has ended): the result's
+// bytes, and the tail of what it wrote on stderr. Both at once, so that a child that writes much
+// on stderr never blocks on a full pipe.
+void drain(int result, int err, std::string& bytes, std::string& text) {
+  pollfd fds[2] = {{result, POLLIN, 0}, {err, POLLIN, 0}};
+  std::string* into[2] = {&bytes, &text};
+  char buf[65536];
+  while (fds[0].fd >= 0 || fds[1].fd >= 0) {
+    if (::poll(fds, 2, -1) < 0) {
+      if (errno == EINTR) continue;
+      return;
+    }
+    for (int i = 0; i < 2; ++i) {
+      if (fds[i].fd < 0 || fds[i].revents == 0) continue;
+      const ssize_t r = ::read(fds[i].fd, buf, sizeof buf);
+      if (r < 0 && errno == EINTR) continue;
+      if (r <= 0) {
+        fds[i].fd = -1;  // poll ignores a negative descriptor
+        continue;
+      }
+      into[i]->append(buf, static_cast<std::size_t>(r));
+      if (i == 1 && text.size() > 2 * kStderrKept) text.erase(0, text.size() - kStderrKept);
+    }
   }
 }
 
+// The last line of `text` that says something: libstdc++'s own line on std::terminate (which
+// ns-3's NS_FATAL_ERROR calls after its message) is skipped.
+std::string last_line(const std::string& text) {
+  std::istringstream in(text);
+  std::string line, last;
+  while (std::getline(in, line)) {
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    if (line.rfind("terminate called", 0) == 0) continue;
+    last = line;
+  }
+  return last;
+}
+
+// `bytes`, a child's result message, into `out` (its error, or a failure when malformed).
+void decode_child(const std::string& bytes, ChildRun& out) {
+  if (!bytes.empty() && bytes[0] == 'E') {
+    out.error = bytes.substr(1);
+    return;
+  }
+  std::size_t at = 1;
+  std::string metrics, links, curve;
+  if (bytes.empty() || bytes[0] != 'R' || !get_string(bytes, at, metrics) ||
+      !get_string(bytes, at, links) || !get_string(bytes, at, curve)) {
+    out.failure = "its process ended without a complete result";
+    return;
+  }
+  out.metrics = deserialize_run(metrics);
+  if (!links.empty()) out.links = deserialize_links(links);
+  if (!curve.empty()) out.curve = ErrorCurve::deserialize(curve);
+}
+
+// One run in a process of its own (run_in_child), for a worker: its result (and curve) or its
+// failure to the parent on `fd`; false when the campaign cannot go on (an error was sent).
+bool serve_one(const Scenario& sc, const CampaignOptions& options, std::uint64_t run, int fd) {
+  ChildRun c = run_in_child(sc, run, options.link_counters);
+  if (!c.error.empty()) {
+    send_message(fd, kError, run, c.error);
+    return false;
+  }
+  if (!c.failure.empty()) return send_message(fd, kFailure, run, c.failure);
+  std::string body;
+  const std::string metrics = serialize_run(c.metrics);
+  put_u64(body, metrics.size());
+  body += metrics;
+  if (options.link_counters) body += serialize_links(c.links);
+  if (!send_message(fd, kResult, run, body)) return false;
+  return !sc.run.error_curve || send_message(fd, kCurve, run, c.curve.serialize());
+}
+
 // A worker: runs from `fd` until the parent shuts its side for writing, each in a process of its
-// own (in_child). Never returns.
+// own (run_in_child). Never returns.
 [[noreturn]] void serve(const Scenario& sc, const CampaignOptions& options, int fd) {
   char buf[8];
   while (read_all(fd, buf, 8)) {
-    const std::uint64_t run = get_u64(buf);
-    const int status = in_child([&] { simulate_one(sc, options, run, fd); });
-    if (status == -1) {
-      send_message(fd, kError, run, fmt::format("cannot fork: {}", std::strerror(errno)));
-      ::_exit(0);
-    }
-    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
-      send_message(fd, kError, run,
-                   fmt::format("its process ended abnormally ({}); the network simulation "
-                               "(ns-3) may have failed an assertion (its message, if any, is "
-                               "above)",
-                               exit_text(status)));
-      ::_exit(0);
-    }
+    if (!serve_one(sc, options, get_u64(buf), fd)) ::_exit(0);
   }
   ::_exit(0);
 }
@@ -221,6 +304,9 @@ class Distribution {
   }
 
   std::size_t done() const { return done_; }
+  bool failed(std::uint64_t run) const {
+    return std::find(failed_.begin(), failed_.end(), run) != failed_.end();
+  }
   std::size_t runs() const { return todo_.size(); }
 
  private:
@@ -280,10 +366,16 @@ class Distribution {
       curve.merge(ErrorCurve::deserialize(body));
       return;
     }
-    const std::uint64_t n = get_u64(body.data());
-    const std::string links = body.substr(8 + n);
-    options_.on_run(run, deserialize_run(body.substr(8, n)),
-                    links.empty() ? RunLinks{} : deserialize_links(links));
+    if (type == kFailure) {
+      failed_.push_back(run);
+      report_run_failure(run, body);
+      options_.on_run(run, failed_run_metrics(sc_), RunLinks{});
+    } else {
+      const std::uint64_t n = get_u64(body.data());
+      const std::string links = body.substr(8 + n);
+      options_.on_run(run, deserialize_run(body.substr(8, n)),
+                      links.empty() ? RunLinks{} : deserialize_links(links));
+    }
     ++done_;
     if (options_.progress != nullptr) options_.progress->add_done();
     w.busy = false;
@@ -310,6 +402,7 @@ class Distribution {
   std::size_t next_ = 0, done_ = 0;
   std::vector<Worker> workers_;
   std::string error_;
+  std::vector<std::uint64_t> failed_;  // the runs whose process died
 };
 
 // Doubles and integers of a trace row and of ns_per_period, as bytes (this machine's layout: the
@@ -375,14 +468,22 @@ void decode(const std::string& in, std::vector<double>& ns, std::vector<TraceRow
 // this process never simulates a network: the workers it forks later start from its state).
 void replay_in_child(const Scenario& sc, std::uint64_t run, bool trace, bool timed,
                      CampaignResult& result) {
-  const std::string bytes = bytes_from_child(
-      [&] {
-        std::vector<double> ns(sc.estimators.size(), std::nan(""));
-        std::vector<TraceRow> rows;
-        simulate_run(sc, run, trace ? &rows : nullptr, timed ? &ns : nullptr);
-        return encode(ns, rows);
-      },
-      fmt::format("run {}: the replay for the trace and the timing", run));
+  std::string bytes;
+  try {
+    bytes = bytes_from_child(
+        [&] {
+          std::vector<double> ns(sc.estimators.size(), std::nan(""));
+          std::vector<TraceRow> rows;
+          simulate_run(sc, run, trace ? &rows : nullptr, timed ? &ns : nullptr);
+          return encode(ns, rows);
+        },
+        fmt::format("run {}: the replay for the trace and the timing", run));
+  } catch (const ChildSignalled& e) {
+    // A replay that died is the run's own crash again (its rows say network_failure): the
+    // results go without the trace and the timing, said once here, rather than not at all.
+    std::cerr << fmt::format("ncosim: {}; no trajectory.csv, no ns_per_period\n", e.what());
+    return;
+  }
   std::vector<double> ns;
   std::vector<TraceRow> rows;
   decode(bytes, ns, rows);
@@ -419,16 +520,94 @@ std::string bytes_from_child(const std::function<std::string()>& work, const std
   int status = 0;
   while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
   }
+  if (WIFSIGNALED(status))
+    throw ChildSignalled(fmt::format("{} ended abnormally ({})", what, exit_text(status)));
   if (!WIFEXITED(status) || WEXITSTATUS(status) != 0)
     throw std::runtime_error(
         fmt::format("{} ended without a result ({})", what, exit_text(status)));
   return bytes;
 }
 
+ChildRun run_in_child(const Scenario& sc, std::uint64_t run, bool link_counters) {
+  ChildRun out;
+  int sv[2], err[2];
+  if (::socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, sv) != 0) {
+    out.error = fmt::format("cannot create a socket pair: {}", std::strerror(errno));
+    return out;
+  }
+  if (::pipe2(err, O_CLOEXEC) != 0) {
+    out.error = fmt::format("cannot create a pipe: {}", std::strerror(errno));
+    ::close(sv[0]);
+    ::close(sv[1]);
+    return out;
+  }
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    ::close(sv[0]);
+    ::close(err[0]);
+    ::dup2(err[1], STDERR_FILENO);
+    ::close(err[1]);
+    // The default actions on a crash: an MPI library's handlers (inherited from a rank) would
+    // print their own report after ns-3's message, and they belong to the rank, not to this child.
+    for (int sig : {SIGABRT, SIGSEGV, SIGBUS, SIGFPE, SIGILL}) ::signal(sig, SIG_DFL);
+    child_run(sc, run, link_counters, sv[1]);
+  }
+  ::close(sv[1]);
+  ::close(err[1]);
+  std::string bytes, text;
+  if (pid > 0) drain(sv[0], err[0], bytes, text);
+  ::close(sv[0]);
+  ::close(err[0]);
+  if (pid < 0) {
+    out.error = fmt::format("cannot fork: {}", std::strerror(errno));
+    return out;
+  }
+  int status = 0;
+  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  if (WIFEXITED(status) && WEXITSTATUS(status) == 0) {
+    // Warnings of a run that ended normally are passed on, as if it had run here.
+    if (!text.empty()) write_all_fd(STDERR_FILENO, text);
+    decode_child(bytes, out);
+    return out;
+  }
+  const std::string line = last_line(text);
+  out.failure = fmt::format("its process ended abnormally ({}){}", exit_text(status),
+                            line.empty() ? "" : ": " + line);
+  return out;
+}
+
+RunMetrics failed_run_metrics(const Scenario& sc) {
+  RunMetrics m(sc.estimators.size());
+  for (EstimatorRunMetrics& e : m) {
+    e.diverged = true;
+    e.status = kNetworkFailure;
+    // Every per-state and per-sensor vector sized, with nothing counted: the exports index them.
+    e.sse_state.assign(static_cast<std::size_t>(sc.model.plant.n()), 0.0);
+    e.sensor_taken.assign(sc.model.sensors.size(), 0);
+    e.sensor_sent.assign(sc.model.sensors.size(), 0);
+    for (const auto& s : sc.model.sensors)
+      e.sensor_virtual_sse.emplace_back(static_cast<std::size_t>(s.spec.ny()), 0.0);
+  }
+  return m;
+}
+
+void report_run_failure(std::uint64_t run, const std::string& failure) {
+  std::cerr << fmt::format("ncosim: run {}: {}: {}; the campaign goes on without its results\n",
+                           run, kNetworkFailure, failure)
+            << std::flush;
+}
+
 std::vector<TraceRow> trace_in_child(const Scenario& sc, std::uint64_t run) {
   CampaignResult r;
   replay_in_child(sc, run, true, false, r);
   return std::move(r.trace);
+}
+
+std::vector<double> timing_in_child(const Scenario& sc, std::uint64_t run) {
+  CampaignResult r;
+  replay_in_child(sc, run, false, true, r);
+  return std::move(r.ns_per_period);
 }
 
 CampaignResult run_in_processes(const Scenario& sc, const CampaignOptions& options) {
@@ -454,7 +633,8 @@ CampaignResult run_in_processes(const Scenario& sc, const CampaignOptions& optio
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   result.ns_per_period.assign(sc.estimators.size(), std::nan(""));
   const bool trace = options.trace && first == 0;
-  if ((trace || options.time_estimators) && !result.stopped && d.runs() > 0)
+  // A run whose process died would die again in the replay: no trace or timing of it.
+  if ((trace || options.time_estimators) && !result.stopped && d.runs() > 0 && !d.failed(first))
     replay_in_child(sc, first, trace, options.time_estimators, result);
   return result;
 }

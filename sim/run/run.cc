@@ -73,12 +73,57 @@ class ActuationPath {
   int mode() const { return mode_; }  // the delivery pattern of the last actuation
   models::ActuatorStage* stage() { return stage_.get(); }
 
+  // Actuator links over a network (models::ActuatorStage::networked): channel a's command of
+  // period k is a packet of network sender senders[a] (-1: not networked), sent at the close of
+  // period k (after the control law); it is applied if ns-3 delivers it to the actuator's node
+  // before (k + 1) T, the next plant step (phase order: the plant steps first at (k + 1) T, so a
+  // command received exactly then is late, as a sample received then is used after that step).
+  void attach_network(std::vector<int> senders) {
+    sender_ = std::move(senders);
+    command_.assign(sender_.size(), -1);
+    arrived_.assign(sender_.size(), 0);
+  }
+  bool networked() const { return !sender_.empty(); }
+  void send_commands(network::Session& net, std::int64_t k, kernel::SimTime now) {
+    for (std::size_t a = 0; a < sender_.size(); ++a) {
+      if (sender_[a] < 0) continue;
+      net.send(sender_[a], static_cast<std::uint64_t>(k), now);  // the id: its period
+      command_[a] = k;
+      arrived_[a] = 0;
+    }
+  }
+  // Whether `f` is a command's fate (else a sensor's): counted (when `count`) with its delay in
+  // periods after its sending period, kept when it is in time for its period.
+  bool on_fate(const network::Fate& f, std::int64_t period_ns, bool count) {
+    const auto at = std::find(sender_.begin(), sender_.end(), f.sender);
+    if (at == sender_.end()) return false;
+    const auto a = static_cast<std::size_t>(at - sender_.begin());
+    const auto k = static_cast<std::int64_t>(f.id);
+    const bool delivered = f.drop == network::Drop::kNone;
+    const std::int64_t delay = (f.time - k * period_ns) / period_ns;
+    if (count) stage_->counters()[a].record(delivered ? delay : models::kLost, -1);
+    if (delivered && delay == 0 && command_[a] == k) arrived_[a] = 1;
+    return true;
+  }
+  // Before the plant step of period k: the commands of period k - 1 applied or not.
+  void resolve(std::int64_t k) {
+    for (std::size_t a = 0; a < sender_.size(); ++a) {
+      if (sender_[a] < 0 || command_[a] != k - 1) continue;
+      mode_ |= stage_->resolve(static_cast<int>(a), arrived_[a] != 0);
+      command_[a] = -1;
+    }
+    applied_ = stage_->applied();
+  }
+
  private:
   std::vector<Eigen::VectorXd> queue_;  // ring of the last actuation_delay inputs
   std::size_t head_ = 0;
   Eigen::VectorXd delayed_, applied_, sent_;
   std::unique_ptr<models::ActuatorStage> stage_;  // nullptr: ideal actuation
   int mode_ = 0;
+  std::vector<int> sender_;            // per channel: its network sender, -1 (empty: none)
+  std::vector<std::int64_t> command_;  // per channel: the period of its command in flight, or -1
+  std::vector<char> arrived_;          // per channel: that command arrived in time
 };
 
 class RunSimulation {
@@ -201,6 +246,16 @@ class RunSimulation {
         senders.push_back(network::Sender{a->network, a->bytes, a->x, a->y, a->z});
       }
     }
+    // An actuator's network link (its own: the reader refuses one shared) sends downlink.
+    std::vector<int> actuator_senders;
+    for (const auto& am : sc_.model.actuators) {
+      const int l = am.spec.link;
+      const int sender = l >= 0 ? links_[static_cast<std::size_t>(l)].sender : -1;
+      if (sender >= 0) senders[static_cast<std::size_t>(sender)].downlink = true;
+      actuator_senders.push_back(sender);
+    }
+    if (std::any_of(actuator_senders.begin(), actuator_senders.end(), [](int x) { return x >= 0; }))
+      actuation_.attach_network(std::move(actuator_senders));
     first_background_ = static_cast<int>(senders.size());
     senders.insert(senders.end(), sc_.background.begin(), sc_.background.end());
     std::vector<std::shared_ptr<const network::NetworkDesign>> designs;
@@ -233,6 +288,8 @@ class RunSimulation {
     network_->advance_to(now, fates_);
     network_now_ = now;
     for (const network::Fate& f : fates_) {
+      if (actuation_.networked() && actuation_.on_fate(f, period_ns_, link_out_ != nullptr))
+        continue;
       const auto id = static_cast<std::size_t>(f.id);
       const models::Packet& p = pool_[id];
       const std::int64_t arrival = period_of(f.time);
@@ -300,6 +357,10 @@ class RunSimulation {
   // per packet arrival, instead of eight or more.
   void on_open(kernel::SimTime now, std::uint64_t) {
     const std::int64_t k = now / period_ns_;
+    if (actuation_.networked() && k > 0) {  // the commands that arrived before this plant step
+      advance_networks(now - 1);
+      actuation_.resolve(k);
+    }
     on_plant(now, k);
     // The sensors due now sample in the order their samples were scheduled, as separate
     // events would: a sampled sensor moves to the end of sample_order_ (its next sample is
@@ -330,6 +391,7 @@ class RunSimulation {
     on_estimate(k);
     on_control(k);
     actuation_.actuate(u_);
+    if (actuation_.networked()) actuation_.send_commands(*network_, k, now);
     recorder_.on_period(k, signals_.x, signals_.mode, u_, reference_);
     reschedule(now, 1, kernel::Phase::kEstimate, &close_handler_, 0);
   }

@@ -67,8 +67,8 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
   read_links(root, dir, *sc);
   read_sensors(root, *sc);
   drop_doubled_riders(*sc);
-  check_networks(root, *sc);
   read_actuators(root, *sc);
+  check_networks(root, *sc);
   if (sc->mobility) sc->mobility->prepare();
   const std::optional<config::Table> input = read_input(root, *sc);
   read_estimators(root, doc, state_size_driver, *sc);

@@ -284,15 +284,18 @@ void check_networks(const config::Table& root, const Scenario& sc) {
     }
   }
   for (std::size_t n = 0; n < sc.networks.size(); ++n) {
-    const bool used =
-        std::any_of(sc.model.sensors.begin(), sc.model.sensors.end(), [&](const auto& s) {
-          const models::NetworkAttachment* a =
-              s.link != nullptr ? s.link->network_attachment() : nullptr;
-          return a != nullptr && a->network == static_cast<int>(n);
-        });
+    auto on_n = [&](const models::Link* l) {
+      const models::NetworkAttachment* a = l != nullptr ? l->network_attachment() : nullptr;
+      return a != nullptr && a->network == static_cast<int>(n);
+    };
+    const bool used = std::any_of(sc.model.sensors.begin(), sc.model.sensors.end(),
+                                  [&](const auto& s) { return on_n(s.link); }) ||
+                      std::any_of(sc.model.actuators.begin(), sc.model.actuators.end(),
+                                  [&](const auto& a) { return on_n(a.link); });
     if (!used) {
-      tables[n].fail("name", fmt::format("expected a network that a sensor's link is a node of, "
-                                         "got \"{}\", which no [[sensor]] sends over",
+      tables[n].fail("name", fmt::format("expected a network that a sensor's or an actuator's "
+                                         "link is a node of, got \"{}\", which no [[sensor]] "
+                                         "or [[actuator]] sends over",
                                          sc.networks[n].name));
     }
   }
@@ -387,10 +390,24 @@ void read_actuators(const config::Table& root, Scenario& sc) {
     }
     if (am.spec.link >= 0) {
       am.link = sc.links[static_cast<std::size_t>(am.spec.link)].link.get();
-      if (am.link->network_attachment() != nullptr)
+      // A network link is one node (sim/run/run.cc, ActuationPath): an actuator's is its own.
+      const bool shared = std::any_of(sc.model.sensors.begin(), sc.model.sensors.end(),
+                                      [&](const auto& s) { return s.spec.link == am.spec.link; }) ||
+                          std::any_of(sc.model.actuators.begin(), sc.model.actuators.end(),
+                                      [&](const auto& a) { return a.spec.link == am.spec.link; });
+      if (am.link->network_attachment() != nullptr && shared)
         t.fail("link",
-               "expected a link that is not a node of a [[network]]: actuator links over "
-               "a network are not supported yet");
+               fmt::format("expected a link no [[sensor]] or other [[actuator]] uses: link \"{}\" "
+                           "is a node of a [[network]], one node per sender",
+                           links[static_cast<std::size_t>(am.spec.link)]));
+      if (const models::NetworkAttachment* a = am.link->network_attachment()) {
+        const NetworkEntry& n = sc.networks[static_cast<std::size_t>(a->network)];
+        if (!n.design->carries_actuators() || a->vehicle >= 0 || n.sink_vehicle >= 0)
+          t.fail("link", fmt::format("expected a link whose network carries actuator commands: "
+                                     "network \"{}\" (kind {}{}) does not",
+                                     n.name, n.kind,
+                                     n.design->carries_actuators() ? ", a node on a vehicle" : ""));
+      }
       check_packet_bound(*am.link, sc.run.periods, t, "link", "one per period");
     }
     t.finish();

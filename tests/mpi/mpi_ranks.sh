@@ -2,7 +2,8 @@
 # tests/mpi/mpi_ranks.sh NCOSIM SOURCE_DIR RANKS — `mpirun -n RANKS ncosim run` gives exports
 # bit-identical to one process with --threads 1 (links.csv included; error_curve.csv on the sweep): on the flagship (fewer periods), on a sweep
 # scenario, and with --target-ci (same stopping point and numbers; stopped by --max-runs on the
-# flagship, whose S1 row is heavy-tailed, and by the target on the small test scenario). Label `mpi` in ctest.
+# flagship, whose S1 row is heavy-tailed, and by the target on the small test scenario), and a
+# network scenario when ncosim has ns-3. Label `mpi` in ctest.
 set -euo pipefail
 ncosim=$1 src=$2 k=$3
 tmp=$(mktemp -d)
@@ -45,5 +46,25 @@ target=(--runs 10 --periods 1000 --target-ci 0.02 --max-runs 400)
 same "$tmp/bref" "$tmp/bmpi" "target-ci reached"
 grep -q '"stop": "target_ci"' "$tmp/bmpi/manifest.json" || { echo "FAIL: target not reached"; fail=1; }
 
+# A network scenario (builds with ns-3): every run in a process of its own on whichever rank, the
+# same bytes as --threads 1 (run 0's trace and the error curve included); a run whose ns-3 aborts
+# (the test hook NCOSIM_TEST_CRASH_RUN, network/session_ns3.cc) gets its status on any rank.
+wsn=$src/scenarios/wsn_star.toml
+label="no network"
+if "$ncosim" check "$wsn" >/dev/null 2>&1; then
+  net=(--runs 5 --periods 300 --trace --set run.error_curve=true)
+  "$ncosim" run "$wsn" "${net[@]}" "${common[@]}" --threads 1 --out "$tmp/nref" >/dev/null
+  "${mpi[@]}" "$ncosim" run "$wsn" "${net[@]}" "${common[@]}" --out "$tmp/nmpi" >/dev/null
+  same "$tmp/nref" "$tmp/nmpi" "network"
+  cmp -s "$tmp/nref/trajectory.csv" "$tmp/nmpi/trajectory.csv" || { echo "FAIL (network): trajectory.csv differs"; fail=1; }
+  rc=0
+  NCOSIM_TEST_CRASH_RUN=3 "${mpi[@]}" -x NCOSIM_TEST_CRASH_RUN "$ncosim" run "$wsn" --runs 5 --periods 300 \
+    "${common[@]}" --out "$tmp/ncrash" >/dev/null 2>"$tmp/ncrash.err" || rc=$?
+  [[ $rc == 3 ]] || { echo "FAIL (network crash): exit $rc"; cat "$tmp/ncrash.err"; fail=1; }
+  [[ $(grep -c '^3,.*,network_failure,' "$tmp/ncrash/runs.csv") == 2 ]] || { echo "FAIL (network crash): runs.csv"; fail=1; }
+  grep -q 'ncosim: run 3: network_failure: .*msg="NCOSIM_TEST_CRASH_RUN: run 3 fails"' "$tmp/ncrash.err" || { echo "FAIL (network crash): message"; fail=1; }
+  label="network"
+fi
+
 if ((fail)); then exit 1; fi
-echo "ok: $k rank(s) bit-identical to one process (flagship, sweep, --target-ci)"
+echo "ok: $k rank(s) bit-identical to one process (flagship, sweep, --target-ci, $label)"

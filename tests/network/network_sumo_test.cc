@@ -145,6 +145,25 @@ TEST_F(NetworkSumo, TheSinkRidesItsVehicle) {
   EXPECT_GT(delivered2, delivered);  // the follower follows: the distance grows more slowly
 }
 
+// [[background]] vehicles = "all": a node on every vehicle of the traffic but those already a
+// link's node or the sink (the leader and the follower here), so a third vehicle beside them,
+// saturating the channel, costs the leader's samples; without it nothing changes.
+TEST_F(NetworkSumo, EveryVehicleBeaconsButTheLinksAndTheSinksOwn) {
+  const std::string base = scenario(150, "sink_vehicle = \"follower\"", "vehicle = \"leader\"");
+  const std::string every =
+      "\n[[background]]\nnetwork = \"wsn\"\nvehicles = \"all\"\nrate = \"saturated\"\n";
+  const auto alone = sent_and_delivered(base);
+  EXPECT_EQ(sent_and_delivered(base + every), alone);  // only the leader and the follower
+  ASSERT_TRUE(ncosim::testing::write_sumo_road(
+      dir_, 3000,
+      vehicles(5) +
+          R"(  <vehicle id="other" type="fast" route="r" depart="5" departPos="110" departSpeed="max"/>
+)"));
+  const auto crowded = sent_and_delivered(base + every);
+  EXPECT_EQ(crowded.first, alone.first);
+  EXPECT_LT(crowded.second, alone.second);
+}
+
 TEST_F(NetworkSumo, BadInputNamesTheKey) {
   const struct {
     std::string sink, sender, message;

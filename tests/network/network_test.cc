@@ -11,11 +11,13 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <map>
 #include <sstream>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "cli/spawn_ncosim.h"
@@ -519,6 +521,129 @@ TEST_F(NetworkCli, AWorkerThatDiesIsReportedAndResumeCompletes) {
   EXPECT_NE(links_column(out, "busy_ratio").at(0), "");
 }
 
+// A run whose ns-3 fails an NS_FATAL_ERROR (here the test hook NCOSIM_TEST_CRASH_RUN of
+// network/session_ns3.cc, which makes run 1's ns-3 fail inside Simulator::Run) does not stop the
+// campaign: the message names the run and carries ns-3's text, the run's rows in runs.csv have
+// status network_failure, the rows of summary.csv too (no mse, as for a diverged run), the other
+// runs are those of a campaign without the crash, and the exit status is 3 (results written).
+TEST_F(NetworkCli, ARunWhoseNs3AbortsGetsAStatusAndTheOthersGoOn) {
+  auto run = [&](const std::string& name) {
+    return ncosim({"run", (kSource / "scenarios/wsn_star.toml").string(), "--out",
+                   (dir_ / name).string(), "--runs", "3", "--periods", "300", "--threads", "2",
+                   "--no-timing", "--quiet"});
+  };
+  ::setenv("NCOSIM_TEST_CRASH_RUN", "1", 1);
+  const Outcome crashed = run("crashed");
+  ::unsetenv("NCOSIM_TEST_CRASH_RUN");
+  const Outcome whole = run("whole");
+  ASSERT_EQ(whole.code, 0) << whole.output;
+  EXPECT_EQ(crashed.code, 3) << crashed.output;
+  const std::string said =
+      "ncosim: run 1: network_failure: its process ended abnormally (signal 6): "
+      "msg=\"NCOSIM_TEST_CRASH_RUN: run 1 fails\"";
+  const auto at = crashed.output.find(said);
+  EXPECT_NE(at, std::string::npos) << crashed.output;
+  EXPECT_EQ(crashed.output.find(said, at + 1), std::string::npos) << "said once";
+  EXPECT_NE(crashed.output.find("\"Kalman\": network_failure"), std::string::npos);
+  // runs.csv: run 1's rows are failures; every other row is the crash-free campaign's.
+  std::istringstream a(slurp(dir_ / "crashed" / "runs.csv"));
+  std::istringstream b(slurp(dir_ / "whole" / "runs.csv"));
+  std::string la, lb;
+  int failed = 0, same = 0;
+  while (std::getline(a, la) && std::getline(b, lb)) {
+    if (la.rfind("1,", 0) == 0) {
+      EXPECT_NE(la.find(",1,network_failure,"), std::string::npos) << la;
+      ++failed;
+    } else {
+      EXPECT_EQ(la, lb);
+      ++same;
+    }
+  }
+  EXPECT_EQ(failed, 2);    // two estimators
+  EXPECT_EQ(same, 1 + 4);  // the header, runs 0 and 2
+  const std::string summary = slurp(dir_ / "crashed" / "summary.csv");
+  EXPECT_NE(summary.find("Kalman,kalman_extended,3,,,"), std::string::npos) << summary;
+  EXPECT_NE(summary.find(",network_failure,"), std::string::npos) << summary;
+}
+
+// Actuator links over a network: the commands of csma_actuator.toml arrive 756 us after they
+// are sent (computed by hand there). With a period of 757 us each arrives before the next plant
+// step: runs.csv is that of a link that delivers every command, and links.csv gives every
+// command delay 0. With a period of 756 us each arrives exactly at the next plant step, late:
+// runs.csv is that of a link that loses every command, and links.csv gives every command delay 1.
+TEST_F(NetworkCli, AnActuatorsCommandsCrossTheBusInTheTimeComputedByHand) {
+  const std::string kActuator = (kSource / "tests/network/data/csma_actuator.toml").string();
+  const std::string text = slurp(kActuator);
+  const std::string net_link =
+      "kind = \"network\"\nnetwork = \"bus\"\nbytes = 64\ndesign_pmf = [1.0]\n";
+  auto variant = [&](const std::string& name, const std::string& link) {
+    std::string t = text;
+    t.replace(t.find(net_link), net_link.size(), link);
+    // The bus then carries nothing: the network has no sender left.
+    t.replace(t.find("[[network]]"), t.find("[[link]]") - t.find("[[network]]"), "");
+    const fs::path f = dir_ / (name + ".toml");
+    std::ofstream(f) << t;
+    return f.string();
+  };
+  const std::string ideal = variant("ideal", "kind = \"bernoulli\"\nloss = 0.0\n");
+  const std::string lost = variant("lost", "kind = \"bernoulli\"\nloss = 1.0\n");
+  auto run = [&](const std::string& file, const std::string& name, const std::string& period) {
+    const Outcome o = ncosim({"run", file, "--out", (dir_ / name).string(), "--quiet",
+                              "--no-timing", "--set", "run.period=" + period});
+    EXPECT_EQ(o.code, 0) << o.output;
+    return slurp(dir_ / name / "runs.csv");
+  };
+  for (const auto& [period, pmf, same_as] :
+       std::vector<std::tuple<std::string, std::string, std::string>>{{"0.000757", "1", ideal},
+                                                                      {"0.000756", "0;1", lost}}) {
+    const std::string net = run(kActuator, "net" + period, period);
+    EXPECT_FALSE(net.empty());
+    EXPECT_EQ(net, run(same_as, "ref" + period, period)) << period;
+    EXPECT_EQ(links_column(dir_ / ("net" + period), "delay_pmf"), std::vector<std::string>{pmf})
+        << period;
+  }
+}
+
+// An actuator link over the 802.15.4 star: its commands contend with the four sensors' packets
+// (the controller's transmitter beside the sink), and the run is the same on 1 and 2 threads.
+TEST_F(NetworkCli, AnActuatorLinkOverTheWsnStarRuns) {
+  std::string text = slurp(kSource / "scenarios/wsn_star.toml");
+  text.replace(text.find("[plant]\n"), 8, "[plant]\nBu = [[0.0], [1.0]]\n");
+  text +=
+      "\n[[link]]\nname = \"act\"\nkind = \"network\"\nnetwork = \"wsn\"\nbytes = 16\n"
+      "position = [8.0, -6.0, 0.0]\ndesign_pmf = [0.98, 0.02]\n"
+      "\n[[actuator]]\nlink = \"act\"\n\n[input]\nkind = \"white\"\nstd = [0.5]\n";
+  const fs::path file = dir_ / "wsn_act.toml";
+  std::ofstream(file) << text;
+  auto run = [&](const std::string& name, const std::string& threads) {
+    const Outcome o = ncosim({"run", file.string(), "--out", (dir_ / name).string(), "--runs", "2",
+                              "--periods", "300", "--quiet", "--no-timing", "--threads", threads});
+    EXPECT_EQ(o.code, 0) << o.output;
+  };
+  run("t1", "1");
+  run("t2", "2");
+  EXPECT_EQ(slurp(dir_ / "t1" / "runs.csv"), slurp(dir_ / "t2" / "runs.csv"));
+  EXPECT_EQ(slurp(dir_ / "t1" / "links.csv"), slurp(dir_ / "t2" / "links.csv"));
+  const auto links = links_column(dir_ / "t1", "link");
+  ASSERT_EQ(links.size(), 5U);
+  EXPECT_EQ(links.back(), "act");
+  const double ratio = std::stod(links_column(dir_ / "t1", "delivered_ratio").back());
+  EXPECT_GT(ratio, 0.5);
+  EXPECT_LE(ratio, 1.0);
+  // A network link is one node: an actuator's cannot be a sensor's too.
+  const std::string own = "[[actuator]]\nlink = \"act\"";
+  text.replace(text.find(own), own.size(), "[[actuator]]\nlink = \"n1\"");
+  std::ofstream(dir_ / "shared.toml") << text;
+  const Outcome bad = ncosim({"check", (dir_ / "shared.toml").string()});
+  EXPECT_EQ(bad.code, 2) << bad.output;
+  EXPECT_NE(bad.output.find(fmt::format(
+                "shared.toml:{}: key 'actuator[0].link': expected a link no [[sensor]] or other "
+                "[[actuator]] uses: link \"n1\" is a node of a [[network]]",
+                line_of(text, "link = \"n1\"\n\n[input]"))),
+            std::string::npos)
+      << bad.output;
+}
+
 TEST_F(NetworkCli, BadInputNamesTheKeyAndItsLine) {
   struct Case {
     std::string from, to;  // the edit
@@ -567,8 +692,8 @@ TEST_F(NetworkCli, BadInputNamesTheKeyAndItsLine) {
       {"kind = \"csma\"\nrate = 1e6\ndelay = 5e-6", "kind = \"wifi\"\nstandard = \"802.11ac\"",
        "standard = ", "key 'network[0].standard': expected one of"},
       {"link = \"node1\"", "", "name = \"bus\"",
-       "key 'network[0].name': expected a network that a sensor's link is a node of, got \"bus\", "
-       "which no [[sensor]] sends over"},
+       "key 'network[0].name': expected a network that a sensor's or an actuator's link is a node "
+       "of, got \"bus\", which no [[sensor]] or [[actuator]] sends over"},
   };
   const std::string text = slurp(kBoundary);
   for (const auto& c : cases) {
