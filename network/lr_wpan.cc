@@ -243,9 +243,7 @@ std::shared_ptr<const NetworkDesign> read_lr_wpan(const config::Table& t) {
   d->reference_loss = r.number("reference_loss");
   d->max_frame_retries = static_cast<int>(r.integer("max_frame_retries"));
   if (r.has("sink_position")) {
-    const std::vector<double> p = r.numbers("sink_position");
-    if (p.size() != 3)
-      t.fail("sink_position", fmt::format("expected [x, y, z] (m), got {} numbers", p.size()));
+    const std::array<double, 3> p = read_xyz(t, r, "sink_position");
     for (int i = 0; i < 3; ++i) d->sink[i] = p[static_cast<std::size_t>(i)];
   }
   if (!have_ns3()) t.fail("kind", without_ns3_message());

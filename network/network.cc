@@ -25,6 +25,13 @@ std::uint32_t ns3_seed(std::uint64_t seed) {
   return 1U + static_cast<std::uint32_t>(rng() % 4294967086ULL);  // MRG32k3a: below m1
 }
 
+std::array<double, 3> read_xyz(const config::Table& t, const config::KeyReader& r,
+                               std::string_view key) {
+  const std::vector<double> p = r.numbers(key);
+  if (p.size() != 3) t.fail(key, fmt::format("expected [x, y, z] (m), got {} numbers", p.size()));
+  return {p[0], p[1], p[2]};
+}
+
 std::string without_ns3_message() {
   return "this ncosim was built without ns-3, which packet-level networks need (on Debian 12: "
          "apt-get install libns3-dev libgsl-dev, then configure and build again)";

@@ -12,10 +12,12 @@
 // and documents every network kind but refuses a scenario that uses one, naming what to install.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "config/registry.h"
@@ -86,6 +88,11 @@ void register_network_links(models::LinkRegistry& registry);
 // The seed of ns-3's generator for campaign seed `seed` (a run is its sub-stream): in 1..2^32 -
 // 210.
 std::uint32_t ns3_seed(std::uint64_t seed);
+
+// The [x, y, z] (m) of the numbers key `key` of `t` (read through `r`): exit 2 unless it holds
+// exactly three numbers.
+std::array<double, 3> read_xyz(const config::Table& t, const config::KeyReader& r,
+                               std::string_view key);
 
 // True when this build has ns-3 (NCOSIM_HAVE_NS3): else the network kinds' readers refuse.
 bool have_ns3();

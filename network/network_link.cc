@@ -106,9 +106,7 @@ std::unique_ptr<models::Link> read_network_link(const config::Table& t,
     a.vehicle = ctx.mobility->vehicle(t, "vehicle");
   }
   if (r.has("position")) {
-    const std::vector<double> p = r.numbers("position");
-    if (p.size() != 3)
-      t.fail("position", fmt::format("expected [x, y, z] (m), got {} numbers", p.size()));
+    const std::array<double, 3> p = read_xyz(t, r, "position");
     a.x = p[0];
     a.y = p[1];
     a.z = p[2];

@@ -152,6 +152,7 @@ class WifiDesign final : public NetworkDesign {
   double sink[3] = {0.0, 0.0, 0.0};
   void build(World& world, const std::vector<int>& senders) const override;
   bool has_positions() const override { return true; }
+  bool carries_actuators() const override { return true; }
   std::uint32_t max_payload() const override { return kMaxPayload; }
 };
 
@@ -223,13 +224,16 @@ ns3::NetDeviceContainer install(const WifiDesign& d, const ns3::NodeContainer& n
 }
 
 void WifiDesign::build(World& world, const std::vector<int>& senders) const {
+  const auto downlinks = static_cast<std::size_t>(std::count_if(
+      senders.begin(), senders.end(), [&](int s) { return world.sender(s).downlink; }));
   ns3::NodeContainer nodes;
-  nodes.Create(static_cast<std::uint32_t>(senders.size() + 1));  // the sink first
+  // The sink first, then the senders' nodes, then the controller's transmitters (network.h).
+  nodes.Create(static_cast<std::uint32_t>(1 + senders.size() + downlinks));
   for (std::uint32_t i = 0; i < nodes.GetN(); ++i) {
     auto position = ns3::CreateObject<ns3::ConstantPositionMobilityModel>();
-    if (i == 0) {
+    if (i == 0 || i > senders.size()) {  // the sink, or a controller's transmitter beside it
       position->SetPosition(ns3::Vector(sink[0], sink[1], sink[2]));
-      world.mobile_sink(position);
+      if (i == 0) world.mobile_sink(position);
     } else {
       const Sender& s = world.sender(senders[i - 1]);
       position->SetPosition(ns3::Vector(s.x, s.y, s.z));
@@ -244,10 +248,17 @@ void WifiDesign::build(World& world, const std::vector<int>& senders) const {
   const std::int64_t used = streams_of.AssignStreams(devices, world.streams(count));
   NCOSIM_CHECK(used <= count);
   world.attach_sink(devices.Get(0));
+  auto transmitter = static_cast<std::uint32_t>(1 + senders.size());
   for (std::size_t i = 0; i < senders.size(); ++i) {
     auto device =
         ns3::DynamicCast<ns3::WifiNetDevice>(devices.Get(static_cast<std::uint32_t>(i + 1)));
-    world.attach_sender(senders[i], device, devices.Get(0)->GetAddress());
+    ns3::Ptr<ns3::NetDevice> to = devices.Get(0);
+    if (world.sender(senders[i]).downlink) {  // the actuator's node receives
+      world.attach_sink(device);
+      to = device;
+      device = ns3::DynamicCast<ns3::WifiNetDevice>(devices.Get(transmitter++));
+    }
+    world.attach_sender(senders[i], device, to->GetAddress());
     const bool connected =
         device->GetMac()->TraceConnectWithoutContext(
             "DroppedMpdu", ns3::MakeBoundCallback(&dropped_mpdu, &world)) &&
@@ -282,9 +293,7 @@ std::shared_ptr<const NetworkDesign> read_wifi(const config::Table& t) {
   d->reference_loss =
       r.opt_number("reference_loss").value_or(free_space_at_1m(d->standard->carrier_hz));
   if (r.has("sink_position")) {
-    const std::vector<double> p = r.numbers("sink_position");
-    if (p.size() != 3)
-      t.fail("sink_position", fmt::format("expected [x, y, z] (m), got {} numbers", p.size()));
+    const std::array<double, 3> p = read_xyz(t, r, "sink_position");
     for (int i = 0; i < 3; ++i) d->sink[i] = p[static_cast<std::size_t>(i)];
   }
   if (!have_ns3()) t.fail("kind", without_ns3_message());

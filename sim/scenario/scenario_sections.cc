@@ -208,9 +208,7 @@ void read_background(const config::Table& root, Scenario& sc) {
     }
     Eigen::MatrixXd at = Eigen::MatrixXd::Zero(1, 3);
     if (t.has("position")) {
-      const std::vector<double> p = r.numbers("position");
-      if (p.size() != 3)
-        t.fail("position", fmt::format("expected [x, y, z] (m), got {} numbers", p.size()));
+      const std::array<double, 3> p = network::read_xyz(t, r, "position");
       for (int i = 0; i < 3; ++i) at(0, i) = p[static_cast<std::size_t>(i)];
     }
     if (t.has("positions")) {

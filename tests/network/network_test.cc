@@ -630,6 +630,15 @@ TEST_F(NetworkCli, AnActuatorLinkOverTheWsnStarRuns) {
   const double ratio = std::stod(links_column(dir_ / "t1", "delivered_ratio").back());
   EXPECT_GT(ratio, 0.5);
   EXPECT_LE(ratio, 1.0);
+  // The same over 802.11a: the commands arrive (a wifi network carries actuator links too).
+  std::string wifi = text;
+  wifi.replace(wifi.find("kind = \"lr_wpan\""), 16, "kind = \"wifi\"");
+  std::ofstream(dir_ / "wifi_act.toml") << wifi;
+  const Outcome w =
+      ncosim({"run", (dir_ / "wifi_act.toml").string(), "--out", (dir_ / "w").string(), "--runs",
+              "2", "--periods", "300", "--quiet", "--no-timing"});
+  EXPECT_EQ(w.code, 0) << w.output;
+  EXPECT_GT(std::stod(links_column(dir_ / "w", "delivered_ratio").back()), 0.5);
   // A network link is one node: an actuator's cannot be a sensor's too.
   const std::string own = "[[actuator]]\nlink = \"act\"";
   text.replace(text.find(own), own.size(), "[[actuator]]\nlink = \"n1\"");
@@ -654,6 +663,9 @@ TEST_F(NetworkCli, BadInputNamesTheKeyAndItsLine) {
   const std::vector<Case> cases{
       {"network = \"bus\"", "network = \"lan\"", "network = \"lan\"",
        "key 'link[0].network': expected the name of a [[network]] (\"bus\"), got \"lan\""},
+      // A sender on two networks cannot be written: a link names one.
+      {"network = \"bus\"", "network = [\"bus\", \"bus\"]", "network = [",
+       "key 'link[0].network': expected a string, got an array [\"bus\", \"bus\"]"},
       {"kind = \"csma\"", "kind = \"token_ring\"", "kind = \"token_ring\"",
        "key 'network[0].kind': expected one of \"csma\", \"lr_wpan\", \"wifi\", got "
        "\"token_ring\""},
