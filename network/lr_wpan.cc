@@ -89,7 +89,7 @@ constexpr double kMinSinrDb = -5.0;
 class LrWpanDesign final : public NetworkDesign {
  public:
   double tx_power = 0.0, exponent = 3.0, reference_loss = 46.6777;
-  double sink[3] = {0.0, 0.0, 0.0};
+  std::array<double, 3> sink{};
   int max_frame_retries = 3;
   void build(World& world, const std::vector<int>& senders) const override;
   bool has_positions() const override { return true; }
@@ -242,10 +242,7 @@ std::shared_ptr<const NetworkDesign> read_lr_wpan(const config::Table& t) {
   d->exponent = r.number("path_loss_exponent");
   d->reference_loss = r.number("reference_loss");
   d->max_frame_retries = static_cast<int>(r.integer("max_frame_retries"));
-  if (r.has("sink_position")) {
-    const std::array<double, 3> p = read_xyz(t, r, "sink_position");
-    for (int i = 0; i < 3; ++i) d->sink[i] = p[static_cast<std::size_t>(i)];
-  }
+  if (r.has("sink_position")) d->sink = read_xyz(t, r, "sink_position");
   if (!have_ns3()) t.fail("kind", without_ns3_message());
   return d;
 }

@@ -149,7 +149,7 @@ class WifiDesign final : public NetworkDesign {
   std::string data_mode;
   double tx_power = 16.0, exponent = 3.0, reference_loss = 46.7;
   std::uint32_t retry_limit = 7;
-  double sink[3] = {0.0, 0.0, 0.0};
+  std::array<double, 3> sink{};
   void build(World& world, const std::vector<int>& senders) const override;
   bool has_positions() const override { return true; }
   bool carries_actuators() const override { return true; }
@@ -292,10 +292,7 @@ std::shared_ptr<const NetworkDesign> read_wifi(const config::Table& t) {
   d->exponent = r.number("path_loss_exponent");
   d->reference_loss =
       r.opt_number("reference_loss").value_or(free_space_at_1m(d->standard->carrier_hz));
-  if (r.has("sink_position")) {
-    const std::array<double, 3> p = read_xyz(t, r, "sink_position");
-    for (int i = 0; i < 3; ++i) d->sink[i] = p[static_cast<std::size_t>(i)];
-  }
+  if (r.has("sink_position")) d->sink = read_xyz(t, r, "sink_position");
   if (!have_ns3()) t.fail("kind", without_ns3_message());
   return d;
 }
