@@ -52,8 +52,11 @@ std::string escape_text(std::string_view text, bool keep_newlines) {
 std::string format_error(const std::string& file, int line, const std::string& path,
                          const std::string& message) {
   std::string out;
+  // "<dict>" (a scenario given as a Python dict): its TOML text is generated, so a line in it
+  // means nothing to the reader; the key path says where.
   if (!file.empty())
-    out += line > 0 ? fmt::format("{}:{}: ", escape_text(file), line) : escape_text(file) + ": ";
+    out += line > 0 && file != kDictOrigin ? fmt::format("{}:{}: ", escape_text(file), line)
+                                           : escape_text(file) + ": ";
   if (!path.empty()) out += fmt::format("key '{}': ", escape_text(path));
   out += message;
   return escape_text(out, true);  // any byte of a key, value or file name survives

@@ -38,6 +38,8 @@ std::string format_error(const std::string& file, int line, const std::string& p
 // Source paths that start with this prefix name a command-line option ("--set", "--runs"),
 // not a file: errors at such values omit the line.
 inline constexpr std::string_view kCommandLineOrigin = "--";
+// The source name of a scenario given as a Python dict (python/): errors omit the line.
+inline constexpr std::string_view kDictOrigin = "<dict>";
 
 // Closest candidate by edit distance, or "" when none is close enough.
 std::string did_you_mean(std::string_view word, const std::vector<std::string>& candidates);
@@ -95,6 +97,9 @@ class Table {
 
   // Marks a key as known without reading it (a key read by another component).
   void allow(std::string_view key) const;
+  // The TOML table itself, for a reader that takes every key as it comes (a Python estimator's
+  // parameters, python/); it must allow() what it takes.
+  const toml::table& raw() const { return *table_; }
 
  private:
   const toml::node* get(std::string_view key) const;

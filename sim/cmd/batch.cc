@@ -558,9 +558,13 @@ int cmd_run_campaign(const RunCommand& cmd) {
   session.stored = register_cases(store, loaded, cmd.resume);
 
   // One progress line for the whole campaign: redrawn on a terminal, a line every 5 s in a log.
-  CampaignProgress progress(cmd.quiet     ? CampaignProgress::Mode::off
-                            : ::isatty(2) ? CampaignProgress::Mode::terminal
-                                          : CampaignProgress::Mode::log);
+  const auto progress_ptr =
+      cmd.progress_observer
+          ? std::make_unique<CampaignProgress>(cmd.progress_observer)
+          : std::make_unique<CampaignProgress>(cmd.quiet     ? CampaignProgress::Mode::off
+                                               : ::isatty(2) ? CampaignProgress::Mode::terminal
+                                                             : CampaignProgress::Mode::log);
+  CampaignProgress& progress = *progress_ptr;
   set_progress_total(session, progress);
   session.progress = &progress;
   progress.start();

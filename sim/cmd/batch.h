@@ -12,6 +12,7 @@
 #include "sim/cmd/campaign_meta.h"
 #include "sim/cmd/exports.h"
 #include "sim/cmd/merge.h"
+#include "sim/run/progress.h"
 #include "sim/scenario/scenario.h"
 
 namespace ncosim::sim {
@@ -35,6 +36,8 @@ struct RunCommand {
       columns;         // --columns: the summary.csv columns on stdout (sim/present/table_view.h)
   std::string format;  // --format md|csv|json ("" = the table fitted to 120 columns)
   bool fail_on_status = false;  // exit kExitFlagged when a row's status is not its expected one
+  // Set by an embedding program (sim/cmd/cli.h CliHooks): the progress goes to it, not to stderr.
+  CampaignProgress::Observer progress_observer;
 };
 
 // Exit status of a command that completed but whose result is flagged (`run --fail-on-status`

@@ -293,6 +293,7 @@ struct CommandLine {
   double max_work_gflop = resource_limits().work_flops / 1e9;
   std::vector<CLI::Option*> out_options;
   RunCommand run_cmd;
+  CliHooks hooks;
   std::string columns_text;  // --columns a,b,c
   std::string export_dir, export_out;
   std::string merge_out;
@@ -512,6 +513,7 @@ struct CommandLine {
       run_cmd.trace = trace;
       run_cmd.quiet = quiet;
       run_cmd.command_line = command_line;
+      run_cmd.progress_observer = hooks.progress;
       if (run->count("--columns") != 0)
         run_cmd.columns = parse_column_list(columns_text);  // sim/present/table_view.h
       return cmd_run(a, run_cmd);
@@ -562,7 +564,9 @@ std::optional<int> unknown_command(const CLI::App& app, int argc, char** argv) {
 
 }  // namespace
 
-int run_cli(int argc, char** argv) {
+int run_cli(int argc, char** argv) { return run_cli(argc, argv, CliHooks{}); }
+
+int run_cli(int argc, char** argv, const CliHooks& hooks) {
 #if NCOSIM_HAVE_SUMO
   // Hidden: one live SUMO run stepped in this process (started by a [sumo] mode = "live" run).
   if (argc > 1 && std::string_view(argv[1]) == "sumo-live") {
@@ -571,10 +575,14 @@ int run_cli(int argc, char** argv) {
   {
     std::error_code ec;
     const auto self = std::filesystem::read_symlink("/proc/self/exe", ec);
-    if (!ec) sumo::set_worker_executable(self.string());
+    if (!hooks.worker_executable.empty())
+      sumo::set_worker_executable(hooks.worker_executable);
+    else if (!ec)
+      sumo::set_worker_executable(self.string());
   }
 #endif
   CommandLine cl;
+  cl.hooks = hooks;
   CLI::App& app = cl.app;
   app.set_version_flag("--version",
                        fmt::format("ncosim {} ({})", NCOSIM_VERSION, NCOSIM_GIT_COMMIT));

@@ -5,10 +5,21 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "sim/run/progress.h"
 #include "sim/scenario/scenario.h"
 
 namespace ncosim::sim {
 
 int run_cli(int argc, char** argv);
+
+// What a program that embeds the command line (the Python module, python/) changes in it.
+struct CliHooks {
+  // `run`: the campaign's progress goes to this observer instead of the line on stderr.
+  CampaignProgress::Observer progress;
+  // The ncosim executable that the SUMO live workers start (`ncosim sumo-live`); empty: this
+  // process's own executable, which an embedding interpreter is not.
+  std::string worker_executable;
+};
+int run_cli(int argc, char** argv, const CliHooks& hooks);
 
 }  // namespace ncosim::sim

@@ -15,18 +15,26 @@ namespace ncosim::sim {
 
 namespace {
 
-struct ListedKeys {
-  std::string name;  // "link.bernoulli"
-  std::string kind;  // "bernoulli"
-  std::string help;
-  const config::Keys* keys;
-};
-
 template <class R>
 void collect(const char* prefix, const R& registry, std::vector<ListedKeys>& out) {
   for (const auto& e : registry.entries())
     out.push_back({fmt::format("{}.{}", prefix, e.name), e.name, e.help, &e.keys});
 }
+
+void print(const ListedKeys& k, bool markdown) {
+  if (markdown) {
+    if (k.keys->empty()) {
+      std::cout << "No keys of its own.\n";
+      return;
+    }
+    std::cout << config::format_keys(*k.keys, true);
+    return;
+  }
+  std::cout << fmt::format("{}: {}\n", k.name, k.help);
+  std::cout << (k.keys->empty() ? "  (no keys of its own)\n" : config::format_keys(*k.keys, false));
+}
+
+}  // namespace
 
 std::vector<ListedKeys> all_kinds() {
   std::vector<ListedKeys> out;
@@ -47,21 +55,6 @@ std::vector<ListedKeys> all_kinds() {
   }
   return out;
 }
-
-void print(const ListedKeys& k, bool markdown) {
-  if (markdown) {
-    if (k.keys->empty()) {
-      std::cout << "No keys of its own.\n";
-      return;
-    }
-    std::cout << config::format_keys(*k.keys, true);
-    return;
-  }
-  std::cout << fmt::format("{}: {}\n", k.name, k.help);
-  std::cout << (k.keys->empty() ? "  (no keys of its own)\n" : config::format_keys(*k.keys, false));
-}
-
-}  // namespace
 
 int cmd_list_keys(const std::string& kind, bool markdown) {
   const std::vector<ListedKeys> all = all_kinds();

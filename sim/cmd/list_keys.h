@@ -5,8 +5,21 @@
 #pragma once
 
 #include <string>
+#include <vector>
+
+#include "config/keys.h"
 
 namespace ncosim::sim {
+
+// One registered kind, or one of the scenario's own sections ("section.run").
+struct ListedKeys {
+  std::string name;  // "link.bernoulli"
+  std::string kind;  // "bernoulli"
+  std::string help;
+  const config::Keys* keys;
+};
+// Every registered kind of every registry, then the scenario's sections.
+std::vector<ListedKeys> all_kinds();
 
 // KIND: "link.bernoulli" (registry prefix: plant, link, input, estimator, send_policy) or a bare
 // kind name (every registry's kind of that name); "" lists every kind. Exit status 2 with a

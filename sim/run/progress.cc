@@ -45,7 +45,24 @@ CampaignProgress::CampaignProgress(Mode mode, Clock clock, Writer writer)
   next_log_ = start_ + kLogFirstSeconds;
 }
 
+CampaignProgress::CampaignProgress(Observer observer)
+    : CampaignProgress(Mode::observer, {}, [](const std::string&) {}) {
+  observer_ = std::move(observer);
+}
+
 CampaignProgress::~CampaignProgress() { finish(); }
+
+CampaignProgress::Snapshot CampaignProgress::snapshot() const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  Snapshot s;
+  s.stored = stored_;
+  s.done = stored_ + done_.load();
+  s.total = total_;
+  s.upper_bound = upper_bound_;
+  s.case_index = case_;
+  s.cases = cases_;
+  return s;
+}
 
 void CampaignProgress::set_total(std::uint64_t total, std::uint64_t stored, bool upper_bound) {
   std::lock_guard<std::mutex> lock(state_mutex_);
@@ -89,6 +106,7 @@ std::string CampaignProgress::line(double now) const {
 std::string CampaignProgress::poll(double now) {
   switch (mode_) {
     case Mode::off:
+    case Mode::observer:
       return "";
     case Mode::terminal: {
       const std::string text = line(now);
@@ -115,6 +133,12 @@ void CampaignProgress::loop() {
   const auto interval = std::chrono::duration<double>(kTerminalSeconds);
   std::unique_lock<std::mutex> lock(mutex_);
   while (!cv_.wait_for(lock, interval, [&] { return finished_; })) {
+    if (observer_) {
+      lock.unlock();  // the observer may take its time (a Python callback waits for the GIL)
+      observer_(snapshot());
+      lock.lock();
+      continue;
+    }
     const std::string text = poll(clock_());
     if (!text.empty()) writer_(text);
   }
@@ -129,6 +153,11 @@ void CampaignProgress::finish() {
   cv_.notify_all();
   thread_.join();
   if (mode_ == Mode::terminal) writer_(poll(clock_()) + "\n");
+  if (observer_) {
+    Snapshot last = snapshot();
+    last.final = true;
+    observer_(last);
+  }
 }
 
 }  // namespace ncosim::sim

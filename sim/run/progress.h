@@ -24,9 +24,20 @@ std::string format_duration(double seconds);
 
 class CampaignProgress {
  public:
-  enum class Mode { off, terminal, log };
+  // observer: no text; the observer gets a Snapshot at every poll and at finish() (an embedding
+  // program draws its own progress: the Python module's tqdm bar, python/).
+  enum class Mode { off, terminal, log, observer };
   using Clock = std::function<double()>;                   // seconds, monotonic
   using Writer = std::function<void(const std::string&)>;  // writes the text as is
+  struct Snapshot {
+    std::uint64_t done = 0;   // runs done, stored ones included
+    std::uint64_t total = 0;  // of the campaign (an upper bound with --target-ci)
+    std::uint64_t stored = 0;
+    bool upper_bound = false;
+    std::size_t case_index = 0, cases = 1;
+    bool final = false;  // the last call, from finish()
+  };
+  using Observer = std::function<void(const Snapshot&)>;
 
   // A terminal line is redrawn every kTerminalSeconds; a log gets its first line kLogFirstSeconds
   // after the start (so that a short campaign shows one too) and then one every kLogSeconds.
@@ -36,6 +47,8 @@ class CampaignProgress {
 
   // Defaults: std::chrono::steady_clock and stderr (flushed).
   explicit CampaignProgress(Mode mode, Clock clock = {}, Writer writer = {});
+  // Mode::observer, with its observer (called from the progress thread, then from finish()).
+  explicit CampaignProgress(Observer observer);
   ~CampaignProgress();  // finish()
   CampaignProgress(const CampaignProgress&) = delete;
   CampaignProgress& operator=(const CampaignProgress&) = delete;
@@ -47,6 +60,7 @@ class CampaignProgress {
   void set_case(std::size_t index, std::size_t cases, const std::string& batch = "");
   void add_done(std::uint64_t runs = 1);  // thread-safe
 
+  Snapshot snapshot() const;
   // The one line (no "\r", no newline) at time `now` of the clock.
   std::string line(double now) const;
   // What to write at `now`: the redrawn line (terminal), a new line when one is due (log), or "".
@@ -63,6 +77,7 @@ class CampaignProgress {
   const Mode mode_;
   Clock clock_;
   Writer writer_;
+  Observer observer_;
   double start_ = 0.0;
   double next_log_ = 0.0;
   std::size_t drawn_ = 0;  // length of the line on the terminal (to blank a longer one)

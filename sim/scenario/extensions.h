@@ -29,4 +29,10 @@ using Extension = std::function<void(Registries&)>;
 // std::logic_error.
 void add_extension(Extension extension);
 
+// `extension` runs now, on the registries as they are (built first if they were not): kinds added
+// while a program runs (the Python module's estimators, python/). A name already registered throws
+// std::logic_error and changes nothing. Never call it while another thread reads a scenario or
+// holds a registry entry.
+void add_extension_now(const Extension& extension);
+
 }  // namespace ncosim::sim

@@ -53,8 +53,8 @@ struct AllRegistries {
   network::NetworkRegistry networks;
 };
 
-const AllRegistries& all_registries() {
-  static const AllRegistries r = [] {
+AllRegistries& mutable_registries() {
+  static AllRegistries r = [] {
     AllRegistries a;
     models::register_plants(a.plants);
     models::register_links(a.links);
@@ -85,7 +85,24 @@ const AllRegistries& all_registries() {
   return r;
 }
 
+const AllRegistries& all_registries() { return mutable_registries(); }
+
 }  // namespace
+
+void add_extension_now(const Extension& extension) {
+  AllRegistries& a = mutable_registries();
+  std::lock_guard<std::mutex> lock(extension_mutex());
+  // Into copies first: a name registered twice leaves the registries as they were.
+  AllRegistries next = a;
+  Registries view{next.plants, next.links, next.inputs, next.estimators, next.send_policies};
+  extension(view);
+  check_unique(next.plants, "plant");
+  check_unique(next.links, "link");
+  check_unique(next.inputs, "input");
+  check_unique(next.estimators, "estimator");
+  check_unique(next.send_policies, "send policy");
+  a = std::move(next);
+}
 
 void add_extension(Extension extension) {
   std::lock_guard<std::mutex> lock(extension_mutex());

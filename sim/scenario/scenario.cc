@@ -8,8 +8,10 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <map>
 #include <optional>
 #include <sstream>
+#include <stdexcept>
 
 #include "sim/scenario/registries.h"
 #include "sim/scenario/resource_limits.h"
@@ -128,8 +130,26 @@ toml::array& sweep_values(toml::table& doc, std::size_t axis) {
 
 }  // namespace
 
+namespace {
+
+std::map<std::string, std::string>& in_memory_texts() {
+  static std::map<std::string, std::string> texts;
+  return texts;
+}
+
+}  // namespace
+
+ScenarioText::ScenarioText(std::string name, std::string text) : name_(std::move(name)) {
+  if (!in_memory_texts().emplace(name_, std::move(text)).second)
+    throw std::logic_error("ncosim::sim::ScenarioText: \"" + name_ + "\" is already held");
+}
+
+ScenarioText::~ScenarioText() { in_memory_texts().erase(name_); }
+
 LoadedScenario load_cases(const std::string& file, const std::vector<std::string>& sets,
                           const RunOverrides& overrides, std::optional<std::size_t> only_case) {
+  if (const auto it = in_memory_texts().find(file); it != in_memory_texts().end())
+    return load_cases_text(file, it->second, sets, overrides, only_case);
   {
     // A regular file of bounded size: a FIFO or device would block or never end.
     std::error_code ec;

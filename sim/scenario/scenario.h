@@ -28,6 +28,22 @@ LoadedScenario load_cases_text(const std::string& file, const std::string& text,
                                const RunOverrides& overrides = {},
                                std::optional<std::size_t> only_case = std::nullopt);
 
+// While one is alive, load_cases(name, ...) reads `text` in place of the file `name` (every
+// command: run, check, design, record-link...): how a program that embeds the command line runs
+// a scenario it holds in memory (the Python module's dict or TOML string, python/). Relative
+// paths in the text resolve from `name`'s folder (the working folder for "<dict>"). One at a
+// time per name; not for use while another thread reads scenarios.
+class ScenarioText {
+ public:
+  ScenarioText(std::string name, std::string text);
+  ~ScenarioText();
+  ScenarioText(const ScenarioText&) = delete;
+  ScenarioText& operator=(const ScenarioText&) = delete;
+
+ private:
+  std::string name_;
+};
+
 // Parses and validates one scenario table (no sweep expansion).
 std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::string& file,
                                          const std::string& dir);

@@ -1,0 +1,23 @@
+// python/py_estimator.h — estimators written in Python (a subclass of ncosim.Estimator) as a kind
+// of the estimator registry: each run instantiates the class and calls its hooks from the run's
+// worker thread, holding the GIL only for the call (the C++ estimators of the same and of other
+// runs go on meanwhile).
+#pragma once
+
+#include <pybind11/pybind11.h>
+
+#include <string>
+
+namespace ncosim::python {
+
+// Registers the Python class `cls` as estimator kind `name`, or replaces the class of a name it
+// registered before (a notebook cell run again). A built-in name raises ValueError.
+void register_estimator(const std::string& name, const std::string& help, pybind11::object cls);
+
+// The names registered so far, in order.
+pybind11::list registered_estimators();
+
+// Binds ncosim's Packet (what on_packet receives) into module `m`.
+void bind_packet(pybind11::module_& m);
+
+}  // namespace ncosim::python
