@@ -13,7 +13,9 @@ packages=(g++ make cmake libeigen3-dev libboost-dev libboost-random-dev libboost
           libgtest-dev libgmock-dev libbenchmark-dev
           libsdp-dev liblapack-dev libblas-dev libopenblas0-serial gnuplot-nox sumo sumo-tools
           libsqlite3-dev libboost-mpi-dev libopenmpi-dev openmpi-bin
-          chromium libxml2-utils clang-format python3-jsonschema libns3-dev libgsl-dev)
+          chromium libxml2-utils clang-format python3-jsonschema libns3-dev libgsl-dev
+          pybind11-dev python3-dev python3-numpy python3-pandas python3-pytest python3-nbclient
+          python3-ipykernel python3-matplotlib python3-tqdm)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
@@ -30,6 +32,8 @@ if ((${#missing[@]})); then
 fi
 
 jobs=$(nproc)
+# The Python package (python/) is built for Debian's python3, whatever else is on PATH.
+python=(-DPython_EXECUTABLE=/usr/bin/python3)
 build() {  # build DIR [cmake options...]: configure and build quietly, show the log on failure
   local dir=$1; shift
   mkdir -p "$dir"
@@ -40,18 +44,19 @@ build() {  # build DIR [cmake options...]: configure and build quietly, show the
 
 if [[ $mode == run ]]; then
   echo "ncosim: building (Release)..."
-  build build -DCMAKE_BUILD_TYPE=Release -DNCOSIM_BUILD_TESTS=OFF -DNCOSIM_BUILD_BENCH=OFF
+  build build -DCMAKE_BUILD_TYPE=Release -DNCOSIM_BUILD_TESTS=OFF -DNCOSIM_BUILD_BENCH=OFF "${python[@]}"
   # Into build/ so that the committed reference results/dolz2014_table2/ stays as committed;
   # --replace: a re-run after an update replaces the previous demo campaign.
   exec build/sim/ncosim run scenarios/dolz2014_table2.toml --out build/results/dolz2014_table2 --replace
 fi
 
 echo "ncosim: building (Release)..."
-build build -DCMAKE_BUILD_TYPE=Release -DNCOSIM_BUILD_TESTS=ON -DNCOSIM_BUILD_BENCH=ON -DNCOSIM_WERROR=ON
+build build -DCMAKE_BUILD_TYPE=Release -DNCOSIM_BUILD_TESTS=ON -DNCOSIM_BUILD_BENCH=ON -DNCOSIM_WERROR=ON "${python[@]}"
 echo "ncosim: test suite (Release)"
 ctest --test-dir build --output-on-failure -j "$jobs"
 echo "ncosim: building the unit tests with -fsanitize=address,undefined..."
-build build-asan -DCMAKE_BUILD_TYPE=Debug -DNCOSIM_SANITIZE=ON -DNCOSIM_BUILD_BENCH=OFF -DNCOSIM_WERROR=ON
+build build-asan -DCMAKE_BUILD_TYPE=Debug -DNCOSIM_SANITIZE=ON -DNCOSIM_BUILD_BENCH=OFF -DNCOSIM_WERROR=ON \
+  -DNCOSIM_PYTHON=OFF
 echo "ncosim: unit tests under AddressSanitizer + UndefinedBehaviorSanitizer"
 ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
   ctest --test-dir build-asan -L unit --output-on-failure -j "$jobs"

@@ -281,7 +281,9 @@ def compare(base, new, *, metric=None, tolerance=None, alpha=None, correction=No
         if code not in (0, 1):
             _raise_for(code, err, "compare")
         table = _read_csv(os.path.join(tmp, "cmp", "compare.csv"))
-    return Comparison(table, _text(out), code == 1, _message(err))
+        with open(os.path.join(tmp, "cmp", "compare.md"), encoding="utf-8") as f:
+            markdown = f.read()
+    return Comparison(table, markdown, code == 1, _message(err))
 
 
 class Fit:
@@ -303,7 +305,9 @@ def fit(trace, *, family=None, criterion=None, starts=None, name=None, out=None)
     with tempfile.TemporaryDirectory(prefix="ncosim-fit-") as tmp:
         if hasattr(trace, "to_csv"):
             path = os.path.join(tmp, f"{name or 'trace'}.csv")
-            trace.to_csv(path, index=False)
+            frame = trace[["seq", "delay"]].copy()
+            frame["delay"] = frame["delay"].astype("Int64")  # integers, empty when lost
+            frame.to_csv(path, index=False)
             trace = path
         folder = os.fspath(out) if out is not None else os.path.join(tmp, "fit")
         args = ["fit", os.fspath(trace), "--out", folder]

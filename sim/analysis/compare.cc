@@ -12,6 +12,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -537,7 +538,7 @@ int run_compare_command(const CompareCommand& c) {
   const std::string md = compare_markdown(r);
   if (!c.out.empty())
     write_files_atomically(c.out, {{"compare.csv", compare_csv(r)}, {"compare.md", md}});
-  std::fputs(md.c_str(), stdout);
+  std::cout << md << std::flush;  // std::cout: what an embedding program captures (python/)
   return r.exit_code();
 }
 

@@ -476,7 +476,7 @@ std::string runs_csv(const std::vector<SweepAxis>& sweeps,
             "{},{},{},{},{},{},{},{},{},{},{},{}", run_id, csv_field(sc.estimators[e].name),
             ok ? fmt_number(m.sse / static_cast<double>(m.count)) : "",
             ok && has_ext ? fmt_number(m.sse_ext / static_cast<double>(m.count)) : "", m.count,
-            m.samples_used, m.samples_taken, m.diverged ? 1 : 0, m.status,
+            m.samples_used, m.samples_taken, m.diverged ? 1 : 0, csv_field(m.status),
             cnt && cnt->periods > 0
                 ? fmt::format("{:.0f}", cnt->flops / static_cast<double>(cnt->periods))
                 : "",
