@@ -146,3 +146,25 @@ def test_the_model_an_estimator_sees(motor):
     assert seen["params"] == {"anything": [1, 2], "t": {"x": "y"}}
     delays = {(s, d) for s, d, _ in seen["packets"]}
     assert {(0, 0), (0, 3), (1, 1)} <= delays and all(d <= 3 for _, d in delays)
+
+
+def test_a_python_estimator_in_forked_network_runs():
+    """A [[network]] scenario simulates each run in a process forked from a worker thread: the
+    Python estimator runs there, with the progress bar's thread taking the GIL in the parent."""
+    import tomllib
+    from conftest import ROOT
+    k = ncosim.kinds("network")
+    if "lr_wpan" not in set(k.kind):
+        pytest.skip("this build has no ns-3 networks")
+    path = ROOT / "scenarios" / "wsn_star.toml"
+    with open(path, "rb") as f:
+        sc = tomllib.load(f)
+    kalman = next(e for e in sc["estimator"] if e["kind"] == "kalman_extended")
+    sc["estimator"].append({"name": "numpy", "kind": "numpy_kf", "max_delay": kalman["max_delay"]})
+    sc["run"].update(runs=6, periods=300)
+    import os
+    os.chdir(path.parent)  # its relative paths
+    c = ncosim.run(sc, threads=2, progress=True)
+    mse = c.runs.pivot(index="run", columns="estimator", values="mse")
+    assert len(mse) == 6 and (c.runs.status == "ok").all()
+    np.testing.assert_allclose(mse["numpy"], mse[kalman["name"]], rtol=1e-9, atol=0)
