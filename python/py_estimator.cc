@@ -210,6 +210,7 @@ class PyEstimator final : public est::Estimator {
       fail("on_packet", k,
            fmt::format("expected None or the number of samples used: {}", e.what()));
     }
+    ThreadGil::get().release();  // failed: no more calls from this run
     return 0;
   }
 
@@ -224,6 +225,7 @@ class PyEstimator final : public est::Estimator {
     } catch (const py::cast_error& e) {
       fail("state", k, fmt::format("expected a vector of {} numbers: {}", x_.size(), e.what()));
     }
+    if (status_ != "ok") ThreadGil::get().release();  // failed: no more calls from this run
   }
 
   StateView state() const override { return StateView(x_.data(), x_.size()); }

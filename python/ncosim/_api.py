@@ -8,6 +8,7 @@ import json
 import os
 import shutil
 import tempfile
+import threading
 import warnings
 import weakref
 from pathlib import Path
@@ -93,7 +94,11 @@ class _Progress:
         self.on = on
         if on:
             try:
-                from tqdm.auto import tqdm
+                try:  # a notebook widget where ipywidgets is installed, a text bar otherwise
+                    import ipywidgets  # noqa: F401
+                    from tqdm.auto import tqdm
+                except ImportError:
+                    from tqdm import tqdm
                 self.tqdm = tqdm
             except ImportError:
                 self.on = False
@@ -113,10 +118,15 @@ class _Progress:
             self.bar.close()
 
 
+# One command at a time per process: the command line captures std::cout and holds in-memory
+# scenarios by name; a second thread's call waits for the first.
+_COMMAND_LOCK = threading.Lock()
+
+
 def _cli(args, texts=None, progress=None):
     """(exit status, stdout, stderr) of `ncosim ARGS...` run in this process."""
-    code, out, err = _ncosim._cli([str(a) for a in args], texts or {}, progress, _EXECUTABLE)
-    return code, out, err
+    with _COMMAND_LOCK:
+        return _ncosim._cli([str(a) for a in args], texts or {}, progress, _EXECUTABLE)
 
 
 def _raise_for(code, err, what):
