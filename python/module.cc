@@ -48,6 +48,7 @@ py::tuple cli(const std::vector<std::string>& args, const std::map<std::string, 
   // GIL held again); the copies inside run_cli share it.
   ncosim::sim::CliHooks hooks;
   hooks.worker_executable = worker_executable;
+  hooks.second_signal_aborts = false;  // a notebook's second interrupt must not end the kernel
   if (!progress.is_none()) {
     auto callback = std::make_shared<py::object>(progress);
     hooks.progress = [callback](const ncosim::sim::CampaignProgress::Snapshot& s) {
@@ -72,6 +73,7 @@ py::tuple cli(const std::vector<std::string>& args, const std::map<std::string, 
       held.push_back(std::make_unique<ncosim::sim::ScenarioText>(name, text));
     const Capture cout_capture(std::cout), cerr_capture(std::cerr);
     code = ncosim::sim::run_cli(static_cast<int>(argv.size()), argv.data(), hooks);
+    ncosim::python::release_thread_gil();  // before the GIL is taken back below
     std::cout.flush();
     out = cout_capture.text();
     err = cerr_capture.text();

@@ -174,14 +174,13 @@ class PyEstimator final : public est::Estimator {
   // Holds the GIL when called.
   PyEstimator(py::object obj, Eigen::Index n, bool has_covariance, bool has_mode)
       : x_(Eigen::VectorXd::Zero(n)) {
-    ++ThreadGil::get().live;
-    if (!obj) return;
     obj_ = std::move(obj);
     on_packet_ = obj_.attr("on_packet");
     on_period_ = obj_.attr("on_period");
     state_ = obj_.attr("state");
     if (has_covariance) covariance_ = obj_.attr("covariance");
     if (has_mode) mode_ = obj_.attr("mode");
+    ++ThreadGil::get().live;  // last: a constructor that throws has no destructor to undo it
   }
   // A run whose instance could not be made: its status says why.
   explicit PyEstimator(Eigen::Index n, std::string status) : x_(Eigen::VectorXd::Zero(n)) {
@@ -203,7 +202,11 @@ class PyEstimator final : public est::Estimator {
     const Gil gil;
     try {
       const py::object used = on_packet_(py::cast(p), k);
-      return used.is_none() ? p.count : used.cast<int>();
+      if (used.is_none()) return p.count;
+      const int n = used.cast<int>();
+      if (n >= 0 && n <= p.count) return n;
+      fail("on_packet", k,
+           fmt::format("expected None or the number of samples used, 0..{}, got {}", p.count, n));
     } catch (py::error_already_set& e) {
       fail("on_packet", k, describe(e));
     } catch (const py::cast_error& e) {
@@ -335,6 +338,8 @@ std::unique_ptr<est::EstimatorDesign> make_design(const std::string& name, const
 }
 
 }  // namespace
+
+void release_thread_gil() { ThreadGil::get().release(); }
 
 void register_estimator(const std::string& name, const std::string& help, py::object cls) {
   py::dict registered = classes();

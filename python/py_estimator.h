@@ -1,7 +1,7 @@
 // python/py_estimator.h — estimators written in Python (a subclass of ncosim.Estimator) as a kind
 // of the estimator registry: each run instantiates the class and calls its hooks from the run's
-// worker thread, holding the GIL only for the call (the C++ estimators of the same and of other
-// runs go on meanwhile).
+// worker thread, which takes the GIL for them and keeps it across calls for about 5 ms
+// (py_estimator.cc, ThreadGil); runs without a Python estimator never take it.
 #pragma once
 
 #include <pybind11/pybind11.h>
@@ -16,6 +16,10 @@ void register_estimator(const std::string& name, const std::string& help, pybind
 
 // The names registered so far, in order.
 pybind11::list registered_estimators();
+
+// Gives up the GIL if this thread still keeps it for its Python estimators' calls (it keeps it
+// across calls for a few milliseconds: py_estimator.cc, ThreadGil).
+void release_thread_gil();
 
 // Binds ncosim's Packet (what on_packet receives) into module `m`.
 void bind_packet(pybind11::module_& m);

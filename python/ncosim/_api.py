@@ -37,27 +37,41 @@ class ScenarioError(ValueError):
 
 def _scenario_source(scenario):
     """(name the command line gets, {name: text} for sources held in memory)."""
+    name, texts = _source(scenario)
+    for n, text in texts.items():
+        try:
+            text.encode("utf-8")
+        except UnicodeEncodeError as e:
+            raise ScenarioError(f"{n}: the scenario is not valid Unicode at character {e.start} "
+                                f"({e.reason}: {text[e.start:e.end]!r})") from None
+    return name, texts
+
+
+def _source(scenario):
     if isinstance(scenario, dict):
         return "<dict>", {"<dict>": _toml.dumps(scenario)}
     if isinstance(scenario, os.PathLike):
         return os.fspath(scenario), {}
     if isinstance(scenario, str):
-        # A TOML text has a line break or an assignment; a path has neither, or exists.
-        if os.path.exists(scenario) or ("\n" not in scenario and "=" not in scenario):
+        # A path exists, or is one line ending in .toml or without an assignment; anything else
+        # is a TOML text.
+        one_line = "\n" not in scenario
+        if os.path.exists(scenario) or (one_line and (scenario.strip().endswith(".toml")
+                                                      or "=" not in scenario)):
             return scenario, {}
         return "<string>", {"<string>": scenario}
     raise TypeError(f"scenario: expected a path, a TOML string or a dict, got {type(scenario).__name__}")
 
 
-def _names_python_estimator(scenario, texts):
-    """Whether the scenario names an estimator kind registered from Python."""
+def _names_python_estimator(scenario, texts, set_):
+    """Whether the scenario (with its overrides and sweeps) may name an estimator kind registered
+    from Python: any string equal to such a name (a false alarm only costs threads)."""
     from . import _estimator
     names = set(_estimator.registered())
     if not names:
         return False
-    if isinstance(scenario, dict):
-        return any(isinstance(e, dict) and e.get("kind") in names
-                   for e in scenario.get("estimator", []) or [])
+    if any(v in names for v in (set_ or {}).values() if isinstance(v, str)):
+        return True
     text = next(iter(texts.values()), None)
     if text is None:
         try:
@@ -66,7 +80,7 @@ def _names_python_estimator(scenario, texts):
         except OSError:
             return False
     import re
-    return any(re.search(r'kind\s*=\s*["\']' + re.escape(n) + r'["\']', text) for n in names)
+    return any(re.search(r'["\']' + re.escape(n) + r'["\']', text) for n in names)
 
 
 def _sets(set_):
@@ -201,7 +215,7 @@ def run(scenario, *, runs=None, periods=None, seed=None, threads=None, set=None,
     finished are kept in the run store of ``out`` and ``resume=True`` goes on from there.
     """
     name, texts = _scenario_source(scenario)
-    if threads is None and _names_python_estimator(scenario, texts):
+    if threads is None and _names_python_estimator(scenario, texts, set):
         threads = 1  # the GIL serialises Python: one thread is fastest (docs/python.md, "Threads")
     temporary = None
     if out is None:

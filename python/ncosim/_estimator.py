@@ -60,7 +60,16 @@ def register(name, cls=None, *, help=""):
     def add(c):
         if not (isinstance(c, type) and issubclass(c, Estimator)):
             raise TypeError(f"register: expected a subclass of ncosim.Estimator, got {c!r}")
-        _ncosim._register_estimator(name, help or (c.__doc__ or "").strip().split("\n")[0], c)
+        from ._api import _COMMAND_LOCK
+        # Never while a command runs (it reads the registries; a hook registering would wait for
+        # its own campaign): register before run().
+        if not _COMMAND_LOCK.acquire(blocking=False):
+            raise RuntimeError(f"register({name!r}): a command is running in this process; "
+                               "register estimators before calling run()")
+        try:
+            _ncosim._register_estimator(name, help or (c.__doc__ or "").strip().split("\n")[0], c)
+        finally:
+            _COMMAND_LOCK.release()
         return c
     return add if cls is None else add(cls)
 

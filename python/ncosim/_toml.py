@@ -20,7 +20,7 @@ def _plain(v):
 def key(k):
     if not isinstance(k, str):
         raise TypeError(f"a scenario key must be a string, got {k!r}")
-    return k if _BARE.match(k) else json.dumps(k, ensure_ascii=False)
+    return k if _BARE.fullmatch(k) else _string(k)
 
 
 def _string(s):

@@ -87,6 +87,10 @@ def test_bad_input_raises_with_its_location_and_writes_nothing(motor, tmp_path):
         ncosim.check(dict(motor, runn={"runs": 3}))
     with pytest.raises(TypeError):
         ncosim.run(42)
+    with pytest.raises(ncosim.ScenarioError, match="cannot open the scenario file"):
+        ncosim.check("no_such=file.toml")  # a path, though it holds an "="
+    with pytest.raises(ncosim.ScenarioError, match="not valid Unicode"):
+        ncosim.check(dict(motor, title="\ud800"))
     assert not Path("nothing").exists()
 
 
@@ -142,10 +146,22 @@ def test_fit_recovers_a_loss_rate():
     assert abs(p - lost.mean()) < 1e-3
 
 
-def test_progress_bar_does_not_change_results(motor, capsys):
+def test_progress_follows_the_runs_and_does_not_change_results(motor, monkeypatch):
     pytest.importorskip("tqdm")
-    a = ncosim.run(motor, progress=True, timing=False)
-    b = ncosim.run(motor, progress=False, timing=False)
+    calls = []
+    original = ncosim._api._Progress.__call__
+
+    def record(self, done, total, final):
+        calls.append((done, total, final))
+        original(self, done, total, final)
+
+    monkeypatch.setattr(ncosim._api._Progress, "__call__", record)
+    motor["run"].update(runs=40, periods=40000)  # about a second: the bar is redrawn meanwhile
+    a = ncosim.run(motor, progress=True, timing=False, threads=1)
+    assert calls[-1] == (40, 40, True)
+    assert any(not final and 0 < done < 40 for done, _, final in calls), calls
+    assert [d for d, _, _ in calls] == sorted(d for d, _, _ in calls)
+    b = ncosim.run(motor, progress=False, timing=False, threads=1)
     same_files(a.out, b.out)
 
 
@@ -160,3 +176,5 @@ def test_toml_writer_round_trips():
     assert back["weird key"] == 1.5 and back["inf"] == float("inf") and back["t"] == {"x": True}
     with pytest.raises(TypeError, match="None"):
         _toml.dumps({"a": None})
+    tricky = {"a\n": 1, "a\x7fb": 2, "": 3, "x.y": {"": [{"q": -0.0}]}, "t": {}, "e": [{}]}
+    assert tomllib.loads(_toml.dumps(tricky)) == tricky

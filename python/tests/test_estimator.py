@@ -79,6 +79,45 @@ def test_an_estimator_that_raises_gets_a_status_and_the_campaign_goes_on(motor):
     assert s.loc["r", "status"].startswith("python_error: ZeroDivisionError")
 
 
+class BrokenHook(Raising):
+    """its on_packet cannot even be looked up"""
+
+    @property
+    def on_packet(self):
+        raise AttributeError("no on_packet today")
+
+
+class CountsTooMany(Raising):
+    def on_packet(self, packet, k):
+        return packet.count + 1
+
+    def on_period(self, k, u, drive):
+        pass
+
+
+class RegistersInAHook(Raising):
+    def on_period(self, k, u, drive):
+        ncosim.register("too_late", Raising)
+
+
+def test_broken_hooks_end_the_run_not_the_campaign(motor):
+    """A hook that cannot be looked up (the instance is refused: its run ends there, nothing
+    waits for the GIL), a sample count out of range, a registration from inside a campaign."""
+    ncosim.register("broken_hook", BrokenHook)
+    ncosim.register("counts_too_many", CountsTooMany)
+    ncosim.register("registers_in_a_hook", RegistersInAHook)
+    sc = with_estimators(motor, {"name": "b", "kind": "broken_hook"},
+                         {"name": "c", "kind": "counts_too_many"},
+                         {"name": "r", "kind": "registers_in_a_hook"})
+    for threads in (1, 2):
+        runs = ncosim.run(sc, threads=threads, progress=False).runs.set_index(["estimator", "run"])
+        assert (runs.loc["KF", "status"] == "ok").all()
+        assert runs.loc["b", "status"].str.contains("no on_packet today").all()
+        assert runs.loc["c", "status"].str.contains(r"samples used, 0\.\.1, got 2").all()
+        assert runs.loc["r", "status"].str.contains("a command is running").all()
+    assert "too_late" not in ncosim.registered()
+
+
 def test_bad_parameters_are_bad_input_with_their_location(motor):
     ncosim.register("bad_params", BadParams)
     assert ncosim.check(with_estimators(motor, {"name": "b", "kind": "bad_params", "gain": 2.0}))

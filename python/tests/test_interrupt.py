@@ -33,8 +33,10 @@ def test_ctrl_c_keeps_what_finished_and_resume_completes(tmp_path):
         time.sleep(0.02)
     time.sleep(1.0)  # some runs finish and are committed (the whole campaign takes ~10 s)
     p.send_signal(signal.SIGINT)
+    time.sleep(0.05)
+    p.send_signal(signal.SIGINT)  # a second Ctrl-C must not end the interpreter (a kernel)
     out, err = p.communicate(timeout=120)
-    assert "INTERRUPTED" in out, (out, err)
+    assert p.returncode == 0 and "INTERRUPTED" in out, (p.returncode, out, err)
     assert "--resume" in out  # the command line's message, as KeyboardInterrupt's text
     c = ncosim.run(sc, out=tmp_path / "long", resume=True, threads=2, progress=False, timing=False)
     runs = c.runs[c.runs.estimator == "KF"]

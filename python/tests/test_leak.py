@@ -40,7 +40,7 @@ def test_no_leak_over_1000_campaigns():
 
     def campaigns(n):
         for _ in range(n):
-            c = ncosim.run(sc, progress=False, timing=False)
+            c = ncosim.run(sc, progress=False)  # timing on: its instances too
             assert len(c.runs) == 4
             del c
         gc.collect()

@@ -568,7 +568,7 @@ int cmd_run_campaign(const RunCommand& cmd) {
   set_progress_total(session, progress);
   session.progress = &progress;
   progress.start();
-  StopSignals signals;
+  const StopSignals signals(cmd.second_signal_aborts);
   simulate_session(session, store);
   progress.finish();
   // Test hook: a signal that comes after the last run (a moment the signal tests cannot aim at).

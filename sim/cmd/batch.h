@@ -38,6 +38,7 @@ struct RunCommand {
   bool fail_on_status = false;  // exit kExitFlagged when a row's status is not its expected one
   // Set by an embedding program (sim/cmd/cli.h CliHooks): the progress goes to it, not to stderr.
   CampaignProgress::Observer progress_observer;
+  bool second_signal_aborts = true;  // false when embedded: a signal only stops the campaign
 };
 
 // Exit status of a command that completed but whose result is flagged (`run --fail-on-status`

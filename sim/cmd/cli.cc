@@ -514,6 +514,7 @@ struct CommandLine {
       run_cmd.quiet = quiet;
       run_cmd.command_line = command_line;
       run_cmd.progress_observer = hooks.progress;
+      run_cmd.second_signal_aborts = hooks.second_signal_aborts;
       if (run->count("--columns") != 0)
         run_cmd.columns = parse_column_list(columns_text);  // sim/present/table_view.h
       return cmd_run(a, run_cmd);

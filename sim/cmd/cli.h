@@ -19,6 +19,9 @@ struct CliHooks {
   // The ncosim executable that the SUMO live workers start (`ncosim sumo-live`); empty: this
   // process's own executable, which an embedding interpreter is not.
   std::string worker_executable;
+  // `run`: a second SIGINT/SIGTERM ends the process at once (the command line), or, false, only
+  // stops the campaign as the first did (an interpreter whose end would lose the user's session).
+  bool second_signal_aborts = true;
 };
 int run_cli(int argc, char** argv, const CliHooks& hooks);
 

@@ -21,14 +21,24 @@ extern "C" void on_stop_signal(int sig) {
   (void)ignored;
 }
 
+// Embedded (an interpreter's process, python/): a second signal must not end the interpreter.
+extern "C" void on_stop_signal_embedded(int sig) {
+  const bool first = g_stop.exchange(sig) == 0;
+  static const char msg[] =
+      "\nncosim: stopping: no new run starts; the runs in progress finish and are committed\n";
+  if (!first) return;
+  const ssize_t ignored = ::write(2, msg, sizeof msg - 1);
+  (void)ignored;
+}
+
 }  // namespace
 
-StopSignals::StopSignals() {
+StopSignals::StopSignals(bool second_aborts) {
   g_stop.store(0);
   struct sigaction sa {};
-  sa.sa_handler = on_stop_signal;
+  sa.sa_handler = second_aborts ? on_stop_signal : on_stop_signal_embedded;
   sigemptyset(&sa.sa_mask);
-  sa.sa_flags = SA_RESETHAND;
+  sa.sa_flags = second_aborts ? SA_RESETHAND : 0;
   sigaction(SIGINT, &sa, &old_int_);
   sigaction(SIGTERM, &sa, &old_term_);
 }

@@ -24,10 +24,12 @@ namespace ncosim::sim {
 extern std::atomic<int> g_stop;
 
 // SIGINT/SIGTERM handlers for the duration of a campaign; the first signal restores the
-// default action (SA_RESETHAND), so a second one ends the process at once.
+// default action (SA_RESETHAND), so a second one ends the process at once. With
+// `second_aborts` false (an embedding interpreter, whose end would lose the user's session) every
+// signal only stops the campaign.
 class StopSignals {
  public:
-  StopSignals();
+  explicit StopSignals(bool second_aborts = true);
   ~StopSignals();
   StopSignals(const StopSignals&) = delete;
   StopSignals& operator=(const StopSignals&) = delete;
