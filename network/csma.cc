@@ -5,7 +5,6 @@
 // propagation delay.
 #include <fmt/format.h>
 
-#include <algorithm>
 #include <cmath>
 #include <memory>
 
@@ -74,11 +73,7 @@ class CsmaDesign final : public NetworkDesign {
 
 #if NCOSIM_HAVE_NS3
 void CsmaDesign::build(World& world, const std::vector<int>& senders) const {
-  const auto downlinks = static_cast<std::size_t>(std::count_if(
-      senders.begin(), senders.end(), [&](int s) { return world.sender(s).downlink; }));
-  ns3::NodeContainer nodes;
-  // The sink first, then the senders' nodes, then the controller's transmitters (network.h).
-  nodes.Create(static_cast<std::uint32_t>(1 + senders.size() + downlinks));
+  ns3::NodeContainer nodes = world.create_nodes(senders);
   ns3::CsmaHelper csma;
   csma.SetChannelAttribute("DataRate", ns3::DataRateValue(ns3::DataRate(rate_)));
   csma.SetChannelAttribute("Delay", ns3::TimeValue(ns3::NanoSeconds(delay_ns_)));
@@ -88,23 +83,14 @@ void CsmaDesign::build(World& world, const std::vector<int>& senders) const {
   const std::int64_t first = world.streams(static_cast<std::int64_t>(devices.GetN()));
   const std::int64_t used = csma.AssignStreams(devices, first);
   NCOSIM_CHECK(used <= static_cast<std::int64_t>(devices.GetN()));
-  world.attach_sink(devices.Get(0));
-  auto transmitter = static_cast<std::uint32_t>(1 + senders.size());
-  for (std::size_t i = 0; i < senders.size(); ++i) {
-    auto device = devices.Get(static_cast<std::uint32_t>(i + 1));
-    auto to = devices.Get(0);
-    if (world.sender(senders[i]).downlink) {  // the actuator's node receives
-      world.attach_sink(device);
-      to = device;
-      device = devices.Get(transmitter++);
-    }
-    world.attach_sender(senders[i], device, to->GetAddress());
-    world.connect_drop(device, "MacTxDrop", Drop::kQueue);
-    world.connect_drop(device, "PhyTxDrop", Drop::kChannelAccess);
-    const bool connected = device->TraceConnectWithoutContext(
-        "PhyTxBegin", ns3::MakeBoundCallback(&attempted, &world, senders[i]));
-    NCOSIM_CHECK(connected);
-  }
+  world.attach_all(devices, senders, false,
+                   [&world](int s, const ns3::Ptr<ns3::NetDevice>& device) {
+                     world.connect_drop(device, "MacTxDrop", Drop::kQueue);
+                     world.connect_drop(device, "PhyTxDrop", Drop::kChannelAccess);
+                     const bool connected = device->TraceConnectWithoutContext(
+                         "PhyTxBegin", ns3::MakeBoundCallback(&attempted, &world, s));
+                     NCOSIM_CHECK(connected);
+                   });
 }
 #else
 void CsmaDesign::build(World&, const std::vector<int>&) const { NCOSIM_CHECK(false); }

@@ -8,7 +8,6 @@
 // collide.
 #include <fmt/format.h>
 
-#include <algorithm>
 #include <cmath>
 #include <memory>
 
@@ -17,7 +16,6 @@
 
 #if NCOSIM_HAVE_NS3
 #include <ns3/boolean.h>
-#include <ns3/constant-position-mobility-model.h>
 #include <ns3/double.h>
 #include <ns3/lr-wpan-helper.h>
 #include <ns3/lr-wpan-mac.h>
@@ -50,15 +48,8 @@ const config::Keys& lr_wpan_keys() {
           .or_default(0.0)
           .unit("dBm")
           .help("transmit power of every node"),
-      Key::numbers("sink_position")
-          .optional("[0, 0, 0]")
-          .unit("m")
-          .help("[x, y, z] of the sink, the estimators' node"),
-      Key::number("path_loss_exponent")
-          .range(1.0, 8.0)
-          .says("an exponent in 1..8")
-          .or_default(3.0)
-          .help("log-distance path loss: L(d) = reference_loss + 10 exponent log10(d / 1 m)"),
+      sink_position_key(),
+      path_loss_exponent_key(),
       Key::number("reference_loss")
           .range(0.0, 200.0)
           .says("a loss in 0..200 dB")
@@ -164,11 +155,7 @@ void trx_state(BusyClock* c, ns3::LrWpanPhyEnumeration, ns3::LrWpanPhyEnumeratio
 }
 
 void LrWpanDesign::build(World& world, const std::vector<int>& senders) const {
-  const auto downlinks = static_cast<std::size_t>(std::count_if(
-      senders.begin(), senders.end(), [&](int s) { return world.sender(s).downlink; }));
-  ns3::NodeContainer nodes;
-  // The sink first, then the senders' nodes, then the controller's transmitters (network.h).
-  nodes.Create(static_cast<std::uint32_t>(1 + senders.size() + downlinks));
+  ns3::NodeContainer nodes = world.create_nodes(senders);
   auto channel = ns3::CreateObject<ns3::SingleModelSpectrumChannel>();
   auto loss = ns3::CreateObject<ns3::LogDistancePropagationLossModel>();
   loss->SetAttribute("Exponent", ns3::DoubleValue(exponent));
@@ -186,18 +173,8 @@ void LrWpanDesign::build(World& world, const std::vector<int>& senders) const {
   ns3::Ptr<ns3::MobilityModel> sink_at;
   for (std::uint32_t i = 0; i < devices.GetN(); ++i) {
     auto device = ns3::DynamicCast<ns3::LrWpanNetDevice>(devices.Get(i));
-    auto position = ns3::CreateObject<ns3::ConstantPositionMobilityModel>();
-    if (i == 0 || i > senders.size()) {  // the sink, or a controller's transmitter beside it
-      position->SetPosition(ns3::Vector(sink[0], sink[1], sink[2]));
-      if (i == 0) {
-        world.mobile_sink(position);
-        sink_at = position;
-      }
-    } else {
-      const Sender& s = world.sender(senders[i - 1]);
-      position->SetPosition(ns3::Vector(s.x, s.y, s.z));
-      world.mobile_sender(senders[i - 1], position);
-    }
+    const ns3::Ptr<ns3::MobilityModel> position = world.place(i, senders, sink);
+    if (i == 0) sink_at = position;
     device->GetPhy()->SetMobility(position);
     device->GetPhy()->SetTxPowerSpectralDensity(psd.CreateTxPowerSpectralDensity(tx_power, 11));
     device->SetAttribute("UseAcks", ns3::BooleanValue(true));
@@ -207,29 +184,19 @@ void LrWpanDesign::build(World& world, const std::vector<int>& senders) const {
   const std::int64_t count = kStreamsPerDevice * static_cast<std::int64_t>(devices.GetN());
   const std::int64_t used = helper.AssignStreams(devices, world.streams(count));
   NCOSIM_CHECK(used <= count);
-  world.attach_sink(devices.Get(0));
-  auto transmitter = static_cast<std::uint32_t>(1 + senders.size());
-  for (std::size_t i = 0; i < senders.size(); ++i) {
-    auto device =
-        ns3::DynamicCast<ns3::LrWpanNetDevice>(devices.Get(static_cast<std::uint32_t>(i + 1)));
-    auto to = devices.Get(0);
-    if (world.sender(senders[i]).downlink) {  // the actuator's node receives
-      world.attach_sink(device);
-      to = device;
-      device = ns3::DynamicCast<ns3::LrWpanNetDevice>(devices.Get(transmitter++));
-    }
-    world.attach_sender(senders[i], device, to->GetAddress(), true);
+  world.attach_all(devices, senders, true, [&](int s, const ns3::Ptr<ns3::NetDevice>& d) {
+    auto device = ns3::DynamicCast<ns3::LrWpanNetDevice>(d);
     device->GetMac()->SetMcpsDataConfirmCallback(
-        ns3::MakeBoundCallback(&confirmed, &world, this, senders[i], sink_at));
+        ns3::MakeBoundCallback(&confirmed, &world, this, s, sink_at));
     const bool tx = device->GetMac()->TraceConnectWithoutContext(
-        "MacTx", ns3::MakeBoundCallback(&attempted, &world, senders[i]));
-    auto clock = std::make_shared<BusyClock>(BusyClock{&world, senders[i], -1});
+        "MacTx", ns3::MakeBoundCallback(&attempted, &world, s));
+    auto clock = std::make_shared<BusyClock>(BusyClock{&world, s, -1});
     world.keep(clock);
-    world.busy(senders[i], 0);  // exposed, even if never busy
+    world.busy(s, 0);  // exposed, even if never busy
     const bool state = device->GetPhy()->TraceConnectWithoutContext(
         "TrxStateValue", ns3::MakeBoundCallback(&trx_state, clock.get()));
     NCOSIM_CHECK(tx && state);
-  }
+  });
 }
 #else
 void LrWpanDesign::build(World&, const std::vector<int>&) const { NCOSIM_CHECK(false); }

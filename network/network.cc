@@ -32,6 +32,21 @@ std::array<double, 3> read_xyz(const config::Table& t, const config::KeyReader& 
   return {p[0], p[1], p[2]};
 }
 
+config::Key sink_position_key() {
+  return config::Key::numbers("sink_position")
+      .optional("[0, 0, 0]")
+      .unit("m")
+      .help("[x, y, z] of the sink, the estimators' node");
+}
+
+config::Key path_loss_exponent_key() {
+  return config::Key::number("path_loss_exponent")
+      .range(1.0, 8.0)
+      .says("an exponent in 1..8")
+      .or_default(3.0)
+      .help("log-distance path loss: L(d) = reference_loss + 10 exponent log10(d / 1 m)");
+}
+
 std::string without_ns3_message() {
   return "this ncosim was built without ns-3, which packet-level networks need (on Debian 12: "
          "apt-get install libns3-dev libgsl-dev, then configure and build again)";

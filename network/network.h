@@ -94,6 +94,12 @@ std::uint32_t ns3_seed(std::uint64_t seed);
 std::array<double, 3> read_xyz(const config::Table& t, const config::KeyReader& r,
                                std::string_view key);
 
+// The keys every radio kind (lr_wpan, wifi) declares alike: `sink_position` ([x, y, z] m, default
+// the origin) and `path_loss_exponent` (log-distance, default 3). Each kind declares its own
+// `reference_loss` (its carrier's free space at 1 m).
+config::Key sink_position_key();
+config::Key path_loss_exponent_key();
+
 // True when this build has ns-3 (NCOSIM_HAVE_NS3): else the network kinds' readers refuse.
 bool have_ns3();
 // The message of a build without ns-3 ("this ncosim was built without ns-3 ...").

@@ -1,6 +1,7 @@
 // network/session_ns3.cc — a run's networks in ns-3 (builds with ns-3): the world the kinds
 // build into, the tag that names each packet, and the lockstep that keeps ns-3 behind ncosim's
 // clock (network/network.h).
+#include <ns3/constant-position-mobility-model.h>
 #include <ns3/double.h>
 #include <ns3/fatal-error.h>
 #include <ns3/mac48-address.h>
@@ -8,6 +9,7 @@
 #include <ns3/simulator.h>
 #include <ns3/tag.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <mutex>
@@ -61,6 +63,46 @@ void World::attach_sender(int sender, const ns3::Ptr<ns3::NetDevice>& device,
   port.device = device;
   port.sink = sink;
   port.confirms = confirms;
+}
+
+ns3::NodeContainer World::create_nodes(const std::vector<int>& senders) const {
+  const auto downlinks =
+      std::count_if(senders.begin(), senders.end(), [&](int s) { return sender(s).downlink; });
+  ns3::NodeContainer nodes;
+  nodes.Create(
+      static_cast<std::uint32_t>(1 + senders.size() + static_cast<std::size_t>(downlinks)));
+  return nodes;
+}
+
+ns3::Ptr<ns3::MobilityModel> World::place(std::uint32_t node, const std::vector<int>& senders,
+                                          const std::array<double, 3>& sink) {
+  auto position = ns3::CreateObject<ns3::ConstantPositionMobilityModel>();
+  if (node == 0 || node > senders.size()) {  // the sink, or a controller's transmitter beside it
+    position->SetPosition(ns3::Vector(sink[0], sink[1], sink[2]));
+    if (node == 0) mobile_sink(position);
+  } else {
+    const int s = senders[node - 1];
+    position->SetPosition(ns3::Vector(sender(s).x, sender(s).y, sender(s).z));
+    mobile_sender(s, position);
+  }
+  return position;
+}
+
+void World::attach_all(const ns3::NetDeviceContainer& devices, const std::vector<int>& senders,
+                       bool confirms, const Connect& connect) {
+  attach_sink(devices.Get(0));
+  auto transmitter = static_cast<std::uint32_t>(1 + senders.size());
+  for (std::size_t i = 0; i < senders.size(); ++i) {
+    ns3::Ptr<ns3::NetDevice> device = devices.Get(static_cast<std::uint32_t>(i + 1));
+    ns3::Ptr<ns3::NetDevice> to = devices.Get(0);
+    if (sender(senders[i]).downlink) {  // the actuator's node receives
+      attach_sink(device);
+      to = device;
+      device = devices.Get(transmitter++);
+    }
+    attach_sender(senders[i], device, to->GetAddress(), confirms);
+    connect(senders[i], device);
+  }
 }
 
 void World::send_now(int s, std::uint64_t id) {

@@ -24,7 +24,6 @@
 #include "network/network.h"
 
 #if NCOSIM_HAVE_NS3
-#include <ns3/constant-position-mobility-model.h>
 #include <ns3/double.h>
 #include <ns3/node-container.h>
 #include <ns3/propagation-delay-model.h>
@@ -119,15 +118,8 @@ const config::Keys& wifi_keys() {
           .unit("transmissions")
           .help("transmissions of a frame before the MAC drops it (cause no_ack): ns-3's MaxSsrc "
                 "and MaxSlrc, the standard's dot11ShortRetryLimit"),
-      Key::numbers("sink_position")
-          .optional("[0, 0, 0]")
-          .unit("m")
-          .help("[x, y, z] of the sink, the estimators' node"),
-      Key::number("path_loss_exponent")
-          .range(1.0, 8.0)
-          .says("an exponent in 1..8")
-          .or_default(3.0)
-          .help("log-distance path loss: L(d) = reference_loss + 10 exponent log10(d / 1 m)"),
+      sink_position_key(),
+      path_loss_exponent_key(),
       Key::number("reference_loss")
           .range(0.0, 200.0)
           .says("a loss in 0..200 dB")
@@ -224,50 +216,25 @@ ns3::NetDeviceContainer install(const WifiDesign& d, const ns3::NodeContainer& n
 }
 
 void WifiDesign::build(World& world, const std::vector<int>& senders) const {
-  const auto downlinks = static_cast<std::size_t>(std::count_if(
-      senders.begin(), senders.end(), [&](int s) { return world.sender(s).downlink; }));
-  ns3::NodeContainer nodes;
-  // The sink first, then the senders' nodes, then the controller's transmitters (network.h).
-  nodes.Create(static_cast<std::uint32_t>(1 + senders.size() + downlinks));
-  for (std::uint32_t i = 0; i < nodes.GetN(); ++i) {
-    auto position = ns3::CreateObject<ns3::ConstantPositionMobilityModel>();
-    if (i == 0 || i > senders.size()) {  // the sink, or a controller's transmitter beside it
-      position->SetPosition(ns3::Vector(sink[0], sink[1], sink[2]));
-      if (i == 0) world.mobile_sink(position);
-    } else {
-      const Sender& s = world.sender(senders[i - 1]);
-      position->SetPosition(ns3::Vector(s.x, s.y, s.z));
-      world.mobile_sender(senders[i - 1], position);
-    }
-    nodes.Get(i)->AggregateObject(position);
-  }
+  ns3::NodeContainer nodes = world.create_nodes(senders);
+  for (std::uint32_t i = 0; i < nodes.GetN(); ++i)
+    nodes.Get(i)->AggregateObject(world.place(i, senders, sink));
   ns3::WifiHelper streams_of;  // AssignStreams reads only the devices
   const ns3::NetDeviceContainer devices = install(*this, nodes);
   constexpr std::int64_t kStreamsPerDevice = 16;
   const std::int64_t count = kStreamsPerDevice * static_cast<std::int64_t>(devices.GetN());
   const std::int64_t used = streams_of.AssignStreams(devices, world.streams(count));
   NCOSIM_CHECK(used <= count);
-  world.attach_sink(devices.Get(0));
-  auto transmitter = static_cast<std::uint32_t>(1 + senders.size());
-  for (std::size_t i = 0; i < senders.size(); ++i) {
-    auto device =
-        ns3::DynamicCast<ns3::WifiNetDevice>(devices.Get(static_cast<std::uint32_t>(i + 1)));
-    ns3::Ptr<ns3::NetDevice> to = devices.Get(0);
-    if (world.sender(senders[i]).downlink) {  // the actuator's node receives
-      world.attach_sink(device);
-      to = device;
-      device = ns3::DynamicCast<ns3::WifiNetDevice>(devices.Get(transmitter++));
-    }
-    world.attach_sender(senders[i], device, to->GetAddress());
-    const bool connected =
-        device->GetMac()->TraceConnectWithoutContext(
-            "DroppedMpdu", ns3::MakeBoundCallback(&dropped_mpdu, &world)) &&
-        device->GetPhy()->TraceConnectWithoutContext(
-            "PhyTxPsduBegin", ns3::MakeBoundCallback(&tx_begin, &world, senders[i])) &&
-        device->GetPhy()->GetState()->TraceConnectWithoutContext(
-            "State", ns3::MakeBoundCallback(&phy_state, &world, senders[i]));
+  world.attach_all(devices, senders, false, [&world](int s, const ns3::Ptr<ns3::NetDevice>& d) {
+    auto device = ns3::DynamicCast<ns3::WifiNetDevice>(d);
+    const bool connected = device->GetMac()->TraceConnectWithoutContext(
+                               "DroppedMpdu", ns3::MakeBoundCallback(&dropped_mpdu, &world)) &&
+                           device->GetPhy()->TraceConnectWithoutContext(
+                               "PhyTxPsduBegin", ns3::MakeBoundCallback(&tx_begin, &world, s)) &&
+                           device->GetPhy()->GetState()->TraceConnectWithoutContext(
+                               "State", ns3::MakeBoundCallback(&phy_state, &world, s));
     NCOSIM_CHECK(connected);
-  }
+  });
 }
 #else
 void WifiDesign::build(World&, const std::vector<int>&) const { NCOSIM_CHECK(false); }

@@ -5,13 +5,17 @@
 
 #include <ns3/address.h>
 #include <ns3/mobility-model.h>
+#include <ns3/net-device-container.h>
 #include <ns3/net-device.h>
+#include <ns3/node-container.h>
 #include <ns3/packet.h>
 #include <ns3/ptr.h>
 #include <ns3/random-variable-stream.h>
 
+#include <array>
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <memory>
 #include <unordered_map>
 #include <vector>
@@ -30,6 +34,20 @@ class World {
   void attach_sink(const ns3::Ptr<ns3::NetDevice>& device);
   void attach_sender(int sender, const ns3::Ptr<ns3::NetDevice>& device, const ns3::Address& sink,
                      bool confirms = false);
+  // The layout every kind builds (network.h): node 0 is the sink, nodes 1..n the nodes of
+  // `senders` in order, then one transmitter beside the sink per downlink sender (an actuator's
+  // link), in the same order. These nodes, created:
+  ns3::NodeContainer create_nodes(const std::vector<int>& senders) const;
+  // Node `node`'s position in that layout, `sink` (m) for the sink and the transmitters, set up for
+  // the session's moves (mobile_sink, mobile_sender).
+  ns3::Ptr<ns3::MobilityModel> place(std::uint32_t node, const std::vector<int>& senders,
+                                     const std::array<double, 3>& sink);
+  // Attaches the sink and every sender to its device of `devices` (one per node, in that layout):
+  // a sender sends to the sink; for a downlink sender the transmitter sends and the sender's own
+  // node receives. Then calls `connect(sender, device)` for the kind's trace sources.
+  using Connect = std::function<void(int sender, const ns3::Ptr<ns3::NetDevice>& device)>;
+  void attach_all(const ns3::NetDeviceContainer& devices, const std::vector<int>& senders,
+                  bool confirms, const Connect& connect);
   // Connects the drop trace source `trace` of a sender's device: a packet it fires for is lost
   // for `cause`.
   void connect_drop(const ns3::Ptr<ns3::NetDevice>& device, const char* trace, Drop cause);

@@ -22,6 +22,7 @@
 
 #include "cli/spawn_ncosim.h"
 #include "config/config.h"
+#include "network/network_fixtures.h"
 #include "sim/scenario/registries.h"
 #include "test_util.h"
 
@@ -36,26 +37,16 @@ using ncosim::network::Session;
 
 const fs::path kSource = NCOSIM_SOURCE_DIR;
 
-// A [[network]] table read by its kind's reader, as the scenario reader does.
-std::shared_ptr<const NetworkDesign> design(const std::string& table) {
-  static std::vector<toml::table> docs;  // the designs keep no reference, but keep them alive
-  docs.push_back(toml::parse(table));
-  const ncosim::config::Table t(docs.back(), "network[0]", "test.toml");
-  return ncosim::sim::network_registry().lookup(t, "kind", "").factory(t);
-}
+using ncosim::network::testing::advance;
+using ncosim::network::testing::burst;
+using ncosim::network::testing::design;
+using ncosim::network::testing::kMs;
 
 // 1 Mb/s: a bit is 1000 ns, so every transmission time is a whole number of ns.
 const char* kBus = "kind = \"csma\"\nrate = 1e6\ndelay = 5e-6\n";
-constexpr std::int64_t kMs = 1'000'000;
 // A packet of `payload` bytes on the bus: its 14-byte Ethernet header and 4-byte trailer included.
 constexpr std::int64_t tx_ns(std::int64_t payload) { return (payload + 18) * 8 * 1000; }
 constexpr std::int64_t kProp = 5000;
-
-std::vector<Fate> advance(Session& s, std::int64_t t) {
-  std::vector<Fate> f;
-  s.advance_to(t, f);
-  return f;
-}
 
 TEST(Wired, ALonePacketTakesItsTransmissionPlusPropagationTime) {
   auto s = Session::start({design(kBus)}, {Sender{0, 64}, Sender{0, 200}}, 1, 0);
@@ -232,18 +223,7 @@ TEST(Wpan, ANodeAtTheEdgeOfRangeLosesFramesToNoise) {
 
 // Ten nodes that send at the same instant contend: every packet gets exactly one fate (delivered
 // or dropped), whatever the retransmissions, and a run is reproducible.
-std::vector<Fate> wpan_burst(std::uint64_t run) {
-  std::vector<Sender> senders;
-  for (int n = 0; n < 10; ++n) senders.push_back(Sender{0, 40, 5.0 + n, 3.0, 0.0});
-  auto s = Session::start({design(kWpan)}, senders, 3, run);
-  std::vector<Fate> all;
-  for (int k = 0; k < 5; ++k) {
-    for (int n = 0; n < 10; ++n) s->send(n, static_cast<std::uint64_t>(10 * k + n), k * 50 * kMs);
-    s->advance_to(k * 50 * kMs, all);
-  }
-  s->advance_to(1000 * kMs, all);
-  return all;
-}
+std::vector<Fate> wpan_burst(std::uint64_t run) { return burst(kWpan, 40, run); }
 
 TEST(Wpan, ContendingNodesGetOneFatePerPacket) {
   std::vector<Fate> f = wpan_burst(0);

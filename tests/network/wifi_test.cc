@@ -11,6 +11,7 @@
 
 #include "config/config.h"
 #include "network/network.h"
+#include "network/network_fixtures.h"
 #include "sim/scenario/registries.h"
 
 namespace {
@@ -23,20 +24,10 @@ using ncosim::network::Sender;
 using ncosim::network::Session;
 using ncosim::network::Traffic;
 
-constexpr std::int64_t kMs = 1'000'000;
-
-std::shared_ptr<const NetworkDesign> design(const std::string& table) {
-  static std::vector<toml::table> docs;  // the designs keep no reference, but keep them alive
-  docs.push_back(toml::parse(table));
-  const ncosim::config::Table t(docs.back(), "network[0]", "test.toml");
-  return ncosim::sim::network_registry().lookup(t, "kind", "").factory(t);
-}
-
-std::vector<Fate> advance(Session& s, std::int64_t t) {
-  std::vector<Fate> f;
-  s.advance_to(t, f);
-  return f;
-}
+using ncosim::network::testing::advance;
+using ncosim::network::testing::burst;
+using ncosim::network::testing::design;
+using ncosim::network::testing::kMs;
 
 // ---- the wifi kind ----
 
@@ -94,18 +85,7 @@ TEST(Wifi, EveryStandardDelivers) {
 
 // Ten nodes sending at once contend; a run is a function of (seed, run) only, whatever ran before
 // it in the process.
-std::vector<Fate> wifi_burst(std::uint64_t run) {
-  std::vector<Sender> senders;
-  for (int n = 0; n < 10; ++n) senders.push_back(Sender{0, 500, 5.0 + n, 3.0, 0.0});
-  auto s = Session::start({design(kWifi)}, senders, 3, run);
-  std::vector<Fate> all;
-  for (int k = 0; k < 5; ++k) {
-    for (int n = 0; n < 10; ++n) s->send(n, static_cast<std::uint64_t>(10 * k + n), k * 50 * kMs);
-    s->advance_to(k * 50 * kMs, all);
-  }
-  s->advance_to(1000 * kMs, all);
-  return all;
-}
+std::vector<Fate> wifi_burst(std::uint64_t run) { return burst(kWifi, 500, run); }
 
 TEST(Wifi, ContendingNodesAreReproducible) {
   const auto a = wifi_burst(0);

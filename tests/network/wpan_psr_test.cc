@@ -31,6 +31,7 @@
 
 #include "config/config.h"
 #include "network/network.h"
+#include "network/network_fixtures.h"
 #include "sim/scenario/registries.h"
 
 namespace {
@@ -41,12 +42,7 @@ using ncosim::network::NetworkDesign;
 using ncosim::network::Sender;
 using ncosim::network::Session;
 
-std::shared_ptr<const NetworkDesign> design(const std::string& table) {
-  static std::vector<toml::table> docs;  // kept alive as the scenario reader keeps its document
-  docs.push_back(toml::parse(table));
-  const ncosim::config::Table t(docs.back(), "network[0]", "test.toml");
-  return ncosim::sim::network_registry().lookup(t, "kind", "").factory(t);
-}
+using ncosim::network::testing::design;
 
 constexpr std::uint32_t kPayload = 32;
 constexpr int kPpduBytes = 6 + 9 + kPayload + 2;  // PHY header, MAC header, payload, FCS
