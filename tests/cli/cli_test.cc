@@ -1,7 +1,8 @@
 // tests/cli/cli_test.cc — drives the ncosim executable as a user does: every bad-input
 // message (exit 2, FILE:LINE, key path, nothing written to --out), --set, [[sweep]], results
 // independent of --threads, the check/list/design commands, the files of `run` and exit 1 for
-// a failure that is not bad input. Contract: /work/shared/design/scenario-format.md.
+// a failure that is not bad input. Contract: scenarios/README.md (keys) and results/README.md
+// (outputs).
 //
 // Scenario variants are made by editing one unique line of tests/cli/data/base.toml and are
 // written to a fresh temporary directory per test; expected lines are found in the edited
