@@ -33,6 +33,12 @@ int Model::mode_count() const {
   return 0;
 }
 
+bool Model::is_nonlinear() const {
+  if (plant.nonlinear) return true;
+  return std::any_of(sensors.begin(), sensors.end(),
+                     [](const SensorModel& s) { return s.spec.h != nullptr; });
+}
+
 const config::Keys& initial_keys() {
   using config::Key;
   static const config::Keys keys{

@@ -54,6 +54,9 @@ struct Model {
   // Number of modes scored by mode_detection (0: none): the jump_linear plant's modes, or
   // 2^r with r actuators (delivery patterns, models/actuator.h numbering).
   int mode_count() const;
+  // True when the plant or a sensor is nonlinear (plant.nonlinear or a sensor's spec.h set,
+  // models/nonlinear.h); estimators that need a linear model refuse it.
+  bool is_nonlinear() const;
 };
 
 // A packet as delivered (models/packet.h).
@@ -196,9 +199,18 @@ class EstimatorRegistry : public config::Registry<std::unique_ptr<EstimatorDesig
   // The estimate of kind `kind` (generic_design_cost when it declared none).
   DesignCost cost(std::string_view kind, const config::Table& t, const toml::table& raw,
                   const Model& model, const std::string& state_driver) const;
+  // Kinds that accept a nonlinear model (Model::is_nonlinear(); models/nonlinear.h). Every other
+  // kind needs a linear one: the scenario reader refuses it on a nonlinear plant or sensor.
+  void accept_nonlinear(std::string name) { nonlinear_.push_back(std::move(name)); }
+  bool accepts_nonlinear(std::string_view kind) const {
+    for (const auto& n : nonlinear_)
+      if (n == kind) return true;
+    return false;
+  }
 
  private:
   std::vector<std::pair<std::string, CostEstimate>> costs_;
+  std::vector<std::string> nonlinear_;
 };
 void register_estimators(EstimatorRegistry& registry);
 

@@ -17,6 +17,7 @@
 namespace ncosim::models {
 
 struct LinearPlant;
+class NonlinearDynamics;  // models/nonlinear.h
 class PlantProcess;
 struct PlantRun;
 // Makes the per-run process of a plant (models/plant_process.h).
@@ -50,6 +51,9 @@ struct LinearPlant {
   // The per-run process of the true plant, set by the kind's reader (empty: the linear process;
   // jump_linear and sumo_vehicle set theirs: models/plant_process.h).
   PlantProcessFactory process;
+  // Non-null for a nonlinear plant (models/nonlinear.h): x[k+1] = f(x[k], u[k], k) + Bw w[k]; A and
+  // Bu are then f's Jacobians at (x0, 0, 0), and the kind's reader sets `process` to step f.
+  std::shared_ptr<const NonlinearDynamics> nonlinear;
   Eigen::Index n() const { return A.rows(); }
   Eigen::Index nu() const { return Bu.cols(); }
   Eigen::Index nw() const { return Bw.cols(); }

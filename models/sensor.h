@@ -5,6 +5,7 @@
 #pragma once
 
 #include <Eigen/Dense>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -14,6 +15,8 @@
 #include "models/send_policy.h"
 
 namespace ncosim::models {
+
+class MeasurementFunction;  // models/nonlinear.h
 
 struct SensorSpec {
   std::string name;
@@ -29,6 +32,9 @@ struct SensorSpec {
   std::shared_ptr<const SendPolicyDesign> policy = periodic_policy();  // `policy` key
   enum class Noise { kGaussian, kUniform };
   Noise noise = Noise::kGaussian;  // uniform: v_i ~ U(-sqrt(3 R_ii), sqrt(3 R_ii)), R diagonal
+  // Non-null for a nonlinear sensor (models/nonlinear.h): y = h(x, k) + v; C is then h's Jacobian
+  // at the plant's x0.
+  std::shared_ptr<const MeasurementFunction> h;
   Eigen::Index ny() const { return C.rows(); }
   // The send-on-delta thresholds (ny) when the policy is a send-on-delta dead band, else nullptr.
   const Eigen::VectorXd* deadband() const { return policy->deadband(); }

@@ -440,6 +440,9 @@ void read_estimators(const config::Table& root, const toml::table& doc,
     EstimatorEntry e;
     const auto& k = estimator_registry().lookup(t, "kind", "");
     e.kind = k.name;
+    if (sc.model.is_nonlinear() && !estimator_registry().accepts_nonlinear(k.name))
+      t.fail("kind", fmt::format("the {} estimator needs a linear model, and the {} is nonlinear",
+                                 k.name, sc.model.plant.nonlinear ? "plant" : "sensors' output"));
     const config::KeyReader common(t, estimator_common_keys());
     e.name = common.opt_string("name").value_or(fmt::format("{} {}", e.kind, i));
     if (!est_names.insert(e.name).second) {
