@@ -14,6 +14,7 @@
 #include <limits>
 #include <stdexcept>
 
+#include "kernel/wire.h"
 #include "sumo/process.h"
 #include "sumo/traffic.h"
 
@@ -69,29 +70,8 @@ const SessionApi& session_api() {
 
 constexpr std::size_t kStateBytes = 1 + 5 * sizeof(double);
 
-bool write_all(int fd, const void* data, std::size_t n) {
-  const char* p = static_cast<const char*>(data);
-  while (n > 0) {
-    const ssize_t k = ::send(fd, p, n, MSG_NOSIGNAL);
-    if (k < 0 && errno == EINTR) continue;
-    if (k <= 0) return false;
-    p += k;
-    n -= static_cast<std::size_t>(k);
-  }
-  return true;
-}
-
-bool read_all(int fd, void* data, std::size_t n) {
-  char* p = static_cast<char*>(data);
-  while (n > 0) {
-    const ssize_t k = ::read(fd, p, n);
-    if (k < 0 && errno == EINTR) continue;
-    if (k <= 0) return false;
-    p += k;
-    n -= static_cast<std::size_t>(k);
-  }
-  return true;
-}
+using kernel::read_all;
+using kernel::write_all;
 
 void put_state(std::string& buf, const models::VehicleState& s) {
   buf.push_back(s.present ? '\1' : '\0');

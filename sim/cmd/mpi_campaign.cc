@@ -15,6 +15,7 @@
 #include <thread>
 #include <vector>
 
+#include "kernel/wire.h"
 #include "sim/cmd/process_campaign.h"
 #include "sim/run/progress.h"
 #include "sim/store/store.h"
@@ -52,15 +53,7 @@ constexpr int kCurve = 5;   // rank 0 -> worker: {case}; the reply: its error cu
 constexpr int kFailure = 6;  // worker -> rank 0: 8 bytes case, 8 bytes run, why the run's process
                              // died (a network scenario's run, in a child: run_in_child)
 
-void put_u64(std::string& s, std::uint64_t v) {
-  for (int i = 0; i < 8; ++i) s.push_back(static_cast<char>((v >> (8 * i)) & 0xFF));
-}
-std::uint64_t get_u64(const std::string& s, std::size_t at) {
-  std::uint64_t v = 0;
-  for (int i = 0; i < 8; ++i)
-    v |= static_cast<std::uint64_t>(static_cast<unsigned char>(s[at + i])) << (8 * i);
-  return v;
-}
+using kernel::put_u64;
 
 }  // namespace
 
@@ -254,16 +247,16 @@ class CaseRunner {
       return false;
     }
     if (tag == kFailure && msg.size() >= 16) {
-      report_run_failure(get_u64(msg, 8), msg.substr(16));
-      deliver(get_u64(msg, 8), failed_run_metrics(sc_), RunLinks{});
+      report_run_failure(kernel::get_u64(msg.data() + 8), msg.substr(16));
+      deliver(kernel::get_u64(msg.data() + 8), failed_run_metrics(sc_), RunLinks{});
       return true;
     }
     try {
-      if (msg.size() < 24 || get_u64(msg, 16) > msg.size() - 24)
+      if (msg.size() < 24 || kernel::get_u64(msg.data() + 16) > msg.size() - 24)
         throw std::runtime_error("malformed result message");
-      const auto n_metrics = static_cast<std::size_t>(get_u64(msg, 16));
+      const auto n_metrics = static_cast<std::size_t>(kernel::get_u64(msg.data() + 16));
       const std::string links = msg.substr(24 + n_metrics);
-      deliver(get_u64(msg, 8), deserialize_run(msg.substr(24, n_metrics)),
+      deliver(kernel::get_u64(msg.data() + 8), deserialize_run(msg.substr(24, n_metrics)),
               links.empty() ? RunLinks{} : deserialize_links(links));
     } catch (const std::exception& e) {
       fail(std::make_exception_ptr(

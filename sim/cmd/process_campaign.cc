@@ -22,6 +22,7 @@
 #include <thread>
 #include <vector>
 
+#include "kernel/wire.h"
 #include "sim/run/progress.h"
 #include "sim/run/run.h"
 #include "sim/store/store_format.h"
@@ -43,52 +44,12 @@ namespace {
 // kFailure: the run's process died (its body says why); the worker goes on.
 enum : char { kResult = 'R', kError = 'E', kCurve = 'C', kFailure = 'F' };
 
-void put_u64(std::string& s, std::uint64_t v) {
-  for (int i = 0; i < 8; ++i) s.push_back(static_cast<char>((v >> (8 * i)) & 0xFF));
-}
-std::uint64_t get_u64(const char* p) {
-  std::uint64_t v = 0;
-  for (int i = 0; i < 8; ++i)
-    v |= static_cast<std::uint64_t>(static_cast<unsigned char>(p[i])) << (8 * i);
-  return v;
-}
-
-// Sockets (not pipes), so that a write to a worker that has died fails (MSG_NOSIGNAL) instead of
-// killing this process with SIGPIPE.
-bool write_all(int fd, const char* p, std::size_t n) {
-  while (n > 0) {
-    const ssize_t w = ::send(fd, p, n, MSG_NOSIGNAL);
-    if (w < 0 && errno == EINTR) continue;
-    if (w <= 0) return false;
-    p += w;
-    n -= static_cast<std::size_t>(w);
-  }
-  return true;
-}
-// Reads exactly n bytes; false at end of file (or an error) before them.
-bool read_all(int fd, char* p, std::size_t n) {
-  while (n > 0) {
-    const ssize_t r = ::read(fd, p, n);
-    if (r < 0 && errno == EINTR) continue;
-    if (r <= 0) return false;
-    p += r;
-    n -= static_cast<std::size_t>(r);
-  }
-  return true;
-}
-
-// `text` on a pipe or a terminal (not a socket: write_all's send would fail).
-void write_all_fd(int fd, const std::string& text) {
-  const char* p = text.data();
-  std::size_t n = text.size();
-  while (n > 0) {
-    const ssize_t w = ::write(fd, p, n);
-    if (w < 0 && errno == EINTR) continue;
-    if (w <= 0) return;
-    p += w;
-    n -= static_cast<std::size_t>(w);
-  }
-}
+using kernel::get_string;
+using kernel::get_u64;
+using kernel::put_string;
+using kernel::put_u64;
+using kernel::read_all;
+using kernel::write_all;
 
 bool send_message(int fd, char type, std::uint64_t run, const std::string& body) {
   std::string m(1, type);
@@ -105,21 +66,6 @@ std::string exit_text(int status) {
 
 // The text a process wrote on stderr, kept up to this many bytes (the tail, when more).
 constexpr std::size_t kStderrKept = 1 << 20;
-
-void put_string(std::string& out, const std::string& s) {
-  put_u64(out, s.size());
-  out += s;
-}
-// The next length-prefixed string of `in` at `at`; false when `in` is too short.
-bool get_string(const std::string& in, std::size_t& at, std::string& s) {
-  if (in.size() - at < 8) return false;
-  const std::uint64_t n = get_u64(in.data() + at);
-  at += 8;
-  if (n > in.size() - at) return false;
-  s = in.substr(at, n);
-  at += n;
-  return true;
-}
 
 // The child's side of run_in_child: the run, then on `out` its result ('R': the serialized
 // metrics, link counters and error curve, each length-prefixed) or its error ('E' and the text).
@@ -567,7 +513,7 @@ ChildRun run_in_child(const Scenario& sc, std::uint64_t run, bool link_counters)
   }
   if (WIFEXITED(status) && WEXITSTATUS(status) == 0) {
     // Warnings of a run that ended normally are passed on, as if it had run here.
-    if (!text.empty()) write_all_fd(STDERR_FILENO, text);
+    if (!text.empty()) write_all(STDERR_FILENO, text);
     decode_child(bytes, out);
     return out;
   }

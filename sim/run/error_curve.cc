@@ -10,6 +10,7 @@
 #include <stdexcept>
 #include <utility>
 
+#include "kernel/wire.h"
 #include "sim/files/csv.h"
 
 namespace ncosim::sim {
@@ -18,18 +19,10 @@ namespace {
 
 constexpr std::uint64_t kCurveFormat = 1;
 
-void put_u64(std::string& out, std::uint64_t v) {  // little-endian, whatever the host
-  for (int i = 0; i < 8; ++i) out.push_back(static_cast<char>((v >> (8 * i)) & 0xFF));
-}
+using kernel::put_u64;
 
 std::uint64_t get_u64(const std::string& in, std::size_t& pos) {
-  if (in.size() - pos < 8 || pos > in.size())
-    throw std::runtime_error("error curve: truncated record");
-  std::uint64_t v = 0;
-  for (int i = 0; i < 8; ++i)
-    v |= static_cast<std::uint64_t>(static_cast<unsigned char>(in[pos + i])) << (8 * i);
-  pos += 8;
-  return v;
+  return kernel::get_u64(in, pos, "error curve");
 }
 
 }  // namespace
