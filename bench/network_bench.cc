@@ -1,7 +1,7 @@
 // bench/network_bench.cc — what the co-simulation of a packet-level network costs (bench/README.md,
 // "ns-3 networks"): the same packets on the same network, (a) a bare ns-3 program (the network
 // built with ns-3's helpers, every send scheduled up front, one Simulator::Run) and (b) ncosim's
-// session (network/network.h: the network built by its kind, ns-3 advanced in lockstep to every
+// session (network/networks.h: the network built by its kind, ns-3 advanced in lockstep to every
 // period boundary, each packet's fate collected), alternating in one process so that a load change
 // on a shared machine hits both alike. Counters: bare_s, session_s (median seconds of one
 // campaign of kPeriods periods), ratio (median of session / bare, per delivered packet),
@@ -40,6 +40,8 @@
 
 #include "config/config.h"
 #include "network/network.h"
+#include "network/networks.h"
+#include "network/ns3/ns3_network.h"
 #include "sim/scenario/registries.h"
 
 namespace ncosim {
@@ -73,7 +75,7 @@ void send(ns3::Ptr<ns3::NetDevice> d, ns3::Address to) {
   d->Send(ns3::Create<ns3::Packet>(kBytes), to, 0x88B5);
 }
 
-// The wifi kind's defaults (network/wifi.cc): 802.11a at 6 Mb/s, 16 dBm, log-distance loss of
+// The wifi kind's defaults (network/ns3/wifi.cc): 802.11a at 6 Mb/s, 16 dBm, log-distance loss of
 // exponent 3 from free space at 1 m at 5.18 GHz, ad hoc stations.
 ns3::NetDeviceContainer bare_wifi(const ns3::NodeContainer& nodes, int k) {
   for (std::uint32_t i = 0; i < nodes.GetN(); ++i) {
@@ -169,7 +171,7 @@ double session(Kind kind, int k, std::int64_t& delivered_out) {
     senders.push_back(
         network::Sender{0, kBytes, coordinate(i, k, false), coordinate(i, k, true), 0.0});
   const auto start = Clock::now();
-  auto s = network::Session::start({design}, senders, 7, 0);
+  auto s = network::start_here({design.get()}, senders, 7, 0);
   std::vector<network::Fate> fates;
   std::int64_t id = 0;
   for (int p = 0; p < kPeriods; ++p) {

@@ -32,8 +32,9 @@ namespace fs = std::filesystem;
 using ncosim::network::Drop;
 using ncosim::network::Fate;
 using ncosim::network::NetworkDesign;
+using ncosim::network::NetworkRun;
 using ncosim::network::Sender;
-using ncosim::network::Session;
+using ncosim::network::testing::start;
 
 const fs::path kSource = NCOSIM_SOURCE_DIR;
 
@@ -49,7 +50,7 @@ constexpr std::int64_t tx_ns(std::int64_t payload) { return (payload + 18) * 8 *
 constexpr std::int64_t kProp = 5000;
 
 TEST(Wired, ALonePacketTakesItsTransmissionPlusPropagationTime) {
-  auto s = Session::start({design(kBus)}, {Sender{0, 64}, Sender{0, 200}}, 1, 0);
+  auto s = start({design(kBus)}, {Sender{0, 64}, Sender{0, 200}}, 1, 0);
   s->send(0, 11, 0);
   auto f = advance(*s, 10 * kMs);
   ASSERT_EQ(f.size(), 1U);
@@ -68,7 +69,7 @@ TEST(Wired, ALonePacketTakesItsTransmissionPlusPropagationTime) {
 // 96 bit times (96 us at 1 Mb/s, longer than the propagation delay, so the bus is idle again)
 // apart: the i-th (0-based) is received after i (transmission + gap) + transmission + propagation.
 TEST(Wired, ABurstFromOneNodeQueuesBackToBack) {
-  auto s = Session::start({design(kBus)}, {Sender{0, 64}}, 1, 0);
+  auto s = start({design(kBus)}, {Sender{0, 64}}, 1, 0);
   for (std::uint64_t id = 0; id < 3; ++id) s->send(0, id, 3 * kMs);
   const auto f = advance(*s, 10 * kMs);
   ASSERT_EQ(f.size(), 3U);
@@ -84,7 +85,7 @@ TEST(Wired, ABurstFromOneNodeQueuesBackToBack) {
 // A queue of 2 packets: of 4 handed over at once, one is on the wire, two wait, the fourth is
 // dropped at once (cause queue).
 TEST(Wired, AFullQueueDropsThePacket) {
-  auto s = Session::start({design(std::string(kBus) + "queue = 2\n")}, {Sender{0, 64}}, 1, 0);
+  auto s = start({design(std::string(kBus) + "queue = 2\n")}, {Sender{0, 64}}, 1, 0);
   for (std::uint64_t id = 0; id < 4; ++id) s->send(0, id, 0);
   const auto f = advance(*s, 10 * kMs);
   ASSERT_EQ(f.size(), 4U);
@@ -99,7 +100,7 @@ TEST(Wired, AFullQueueDropsThePacket) {
 // both happen in that instant (the bus is idle again exactly then, so the new packet goes at once).
 TEST(Lockstep, EveryEventUpToTheInstantAndNoneAfter) {
   constexpr std::int64_t kR = tx_ns(64) + kProp;  // 661 us
-  auto s = Session::start({design(kBus)}, {Sender{0, 64}, Sender{0, 64}}, 1, 0);
+  auto s = start({design(kBus)}, {Sender{0, 64}, Sender{0, 64}}, 1, 0);
   s->send(0, 1, 0);
   EXPECT_TRUE(advance(*s, kR - 1).empty());
   s->send(1, 2, kR);
@@ -119,7 +120,7 @@ TEST(Lockstep, EveryEventUpToTheInstantAndNoneAfter) {
 // seeded from (campaign seed, run): the same pair gives the same times, another run others.
 std::vector<std::int64_t> contention_times(std::uint64_t seed, std::uint64_t run) {
   std::vector<Sender> senders(4, Sender{0, 100});
-  auto s = Session::start({design(kBus)}, senders, seed, run);
+  auto s = start({design(kBus)}, senders, seed, run);
   std::vector<std::int64_t> times;
   for (int k = 0; k < 20; ++k) {
     for (int n = 0; n < 4; ++n) s->send(n, static_cast<std::uint64_t>(k * 4 + n), k * 5 * kMs);
@@ -145,7 +146,7 @@ const char* kWpan = "kind = \"lr_wpan\"\n";
 // CSMA/CA back-off, its clear channel assessment, turnaround and airtime: at least (payload 32 + 11
 // bytes of MAC and 6 of PHY header) x 32 us = 1.568 ms later, and well within 10 ms.
 TEST(Wpan, ANodeInRangeDeliversItsFrame) {
-  auto s = Session::start({design(kWpan)}, {Sender{0, 32, 10.0, 0.0, 0.0}}, 1, 0);
+  auto s = start({design(kWpan)}, {Sender{0, 32, 10.0, 0.0, 0.0}}, 1, 0);
   s->send(0, 5, 10 * kMs);
   const auto f = advance(*s, 100 * kMs);
   ASSERT_EQ(f.size(), 1U);
@@ -157,8 +158,8 @@ TEST(Wpan, ANodeInRangeDeliversItsFrame) {
 // The largest payload the device takes (114 bytes) is delivered. A larger one (which the scenario
 // reader refuses) is refused by the device at once, and that is a drop, not a silent loss.
 TEST(Wpan, TheLargestPayloadIsDeliveredALargerOneDropped) {
-  auto s = Session::start({design(kWpan)},
-                          {Sender{0, 114, 10.0, 0.0, 0.0}, Sender{0, 115, 0.0, 10.0, 0.0}}, 1, 0);
+  auto s = start({design(kWpan)}, {Sender{0, 114, 10.0, 0.0, 0.0}, Sender{0, 115, 0.0, 10.0, 0.0}},
+                 1, 0);
   s->send(1, 6, 5 * kMs);
   s->send(0, 5, 10 * kMs);
   const auto f = advance(*s, 100 * kMs);
@@ -176,7 +177,7 @@ TEST(Wpan, TheLargestPayloadIsDeliveredALargerOneDropped) {
 // them retransmissions, one drop for that cause, and the time it was transmitting (4 frames of
 // (32 + 11 + 6) bytes x 32 us; it hears nobody).
 TEST(Wpan, ANodeOutOfRangeLosesItsFrameAfterItsRetries) {
-  auto s = Session::start({design(kWpan)}, {Sender{0, 32, 300.0, 0.0, 0.0}}, 1, 0);
+  auto s = start({design(kWpan)}, {Sender{0, 32, 300.0, 0.0, 0.0}}, 1, 0);
   s->send(0, 5, 0);
   const auto f = advance(*s, 100 * kMs);
   ASSERT_EQ(f.size(), 1U);
@@ -194,8 +195,8 @@ TEST(Wpan, ANodeOutOfRangeLosesItsFrameAfterItsRetries) {
 // drops are collisions or noise (kNoAck), not out of range; a node 20 m away loses none, and its
 // only attempts are its frames.
 TEST(Wpan, ANodeAtTheEdgeOfRangeLosesFramesToNoise) {
-  auto s = Session::start({design(kWpan + std::string("max_frame_retries = 1\n"))},
-                          {Sender{0, 32, 112.0, 0.0, 0.0}, Sender{0, 32, 0.0, 20.0, 0.0}}, 1, 0);
+  auto s = start({design(kWpan + std::string("max_frame_retries = 1\n"))},
+                 {Sender{0, 32, 112.0, 0.0, 0.0}, Sender{0, 32, 0.0, 20.0, 0.0}}, 1, 0);
   for (std::uint64_t k = 0; k < 200; ++k) {
     s->send(0, 2 * k, static_cast<std::int64_t>(k) * 50 * kMs);
     s->send(1, 2 * k + 1, static_cast<std::int64_t>(k) * 50 * kMs + 25 * kMs);

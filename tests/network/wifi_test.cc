@@ -20,9 +20,10 @@ using ncosim::network::Drop;
 using ncosim::network::Fate;
 using ncosim::network::MacCounters;
 using ncosim::network::NetworkDesign;
+using ncosim::network::NetworkRun;
 using ncosim::network::Sender;
-using ncosim::network::Session;
 using ncosim::network::Traffic;
+using ncosim::network::testing::start;
 
 using ncosim::network::testing::advance;
 using ncosim::network::testing::burst;
@@ -36,8 +37,8 @@ using ncosim::network::testing::kMs;
 const char* kWifi = "kind = \"wifi\"\n";
 
 TEST(Wifi, ANodeInRangeDeliversAndOneFarAwayLosesEverything) {
-  auto s = Session::start({design(kWifi)},
-                          {Sender{0, 100, 10.0, 0.0, 0.0}, Sender{0, 100, 1000.0, 0.0, 0.0}}, 1, 0);
+  auto s = start({design(kWifi)},
+                 {Sender{0, 100, 10.0, 0.0, 0.0}, Sender{0, 100, 1000.0, 0.0, 0.0}}, 1, 0);
   for (std::uint64_t k = 0; k < 5; ++k) {
     s->send(0, k, static_cast<std::int64_t>(k) * 100 * kMs);
     s->send(1, 100 + k, static_cast<std::int64_t>(k) * 100 * kMs + 50 * kMs);
@@ -74,8 +75,8 @@ TEST(Wifi, ANodeInRangeDeliversAndOneFarAwayLosesEverything) {
 TEST(Wifi, EveryStandardDelivers) {
   for (const std::string standard : {"802.11a\"\ndata_mode = \"OfdmRate54Mbps", "802.11g",
                                      "802.11n\"\ndata_mode = \"HtMcs7", "802.11p"}) {
-    auto s = Session::start({design(std::string(kWifi) + "standard = \"" + standard + "\"\n")},
-                            {Sender{0, 1500, 5.0, 5.0, 0.0}}, 1, 0);
+    auto s = start({design(std::string(kWifi) + "standard = \"" + standard + "\"\n")},
+                   {Sender{0, 1500, 5.0, 5.0, 0.0}}, 1, 0);
     s->send(0, 1, 0);
     const auto f = advance(*s, 100 * kMs);
     ASSERT_EQ(f.size(), 1U) << standard;
@@ -134,7 +135,7 @@ TEST(Background, NodesContendAndAreOnlyCounted) {
   for (const bool with_saturated : {false, true}) {
     std::vector<Sender> senders{Sender{0, 100, 5.0, 0.0, 0.0}, poisson};
     if (with_saturated) senders.push_back(saturated);
-    auto s = Session::start({design(kWifi)}, senders, 5, 0);
+    auto s = start({design(kWifi)}, senders, 5, 0);
     std::vector<Fate> f;
     for (std::uint64_t k = 0; k < 100; ++k) {
       s->send(0, k, static_cast<std::int64_t>(k) * 10 * kMs);
@@ -219,7 +220,7 @@ Measured saturate(int n, std::int64_t warmup, std::int64_t batch, std::uint64_t 
       "retry_limit = 1000000\n");
   std::vector<Sender> senders(static_cast<std::size_t>(n), Sender{0, 1500});
   for (Sender& s : senders) s.traffic = Traffic::kSaturated;
-  auto session = Session::start({d}, senders, 11, run);
+  auto session = start({d}, senders, 11, run);
   auto total = [&] {
     MacCounters sum;
     for (int i = 0; i < n; ++i) {

@@ -39,8 +39,9 @@ namespace {
 using ncosim::network::Drop;
 using ncosim::network::Fate;
 using ncosim::network::NetworkDesign;
+using ncosim::network::NetworkRun;
 using ncosim::network::Sender;
-using ncosim::network::Session;
+using ncosim::network::testing::start;
 
 using ncosim::network::testing::design;
 
@@ -62,8 +63,8 @@ double expected_psr(double d) {
 
 // The share of n frames sent once, 20 ms apart, by a node d m from the sink that it delivered.
 double measured_psr(double d, int n, std::uint64_t run) {
-  auto s = Session::start({design("kind = \"lr_wpan\"\nmax_frame_retries = 0\n")},
-                          {Sender{0, kPayload, d, 0.0, 0.0}}, 25, run);
+  auto s = start({design("kind = \"lr_wpan\"\nmax_frame_retries = 0\n")},
+                 {Sender{0, kPayload, d, 0.0, 0.0}}, 25, run);
   constexpr std::int64_t kGap = 20'000'000;
   std::vector<Fate> fates;
   for (int i = 0; i < n; ++i) s->send(0, static_cast<std::uint64_t>(i), i * kGap);

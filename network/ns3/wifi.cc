@@ -1,4 +1,4 @@
-// network/wifi.cc — the `wifi` network: IEEE 802.11 (ns-3's wifi model, and its wave module for
+// network/ns3/wifi.cc — the `wifi` network: IEEE 802.11 (ns-3's wifi model, and its wave module for
 // 802.11p). Every node is an ad hoc station (802.11a/g/n: AdhocWifiMac; 802.11p: OCB mode,
 // outside the context of a BSS, 10 MHz channels) on one Yans channel with a log-distance path
 // loss from the nodes' fixed positions. Each packet is a unicast data frame to the sink, sent by
@@ -22,6 +22,7 @@
 
 #include "kernel/check.h"
 #include "network/network.h"
+#include "network/ns3/ns3_network.h"
 
 #if NCOSIM_HAVE_NS3
 #include <ns3/double.h>
@@ -42,7 +43,7 @@
 #include <ns3/yans-wifi-channel.h>
 #include <ns3/yans-wifi-helper.h>
 
-#include "network/world.h"
+#include "network/ns3/world.h"
 #endif
 
 namespace ncosim::network {
@@ -135,7 +136,16 @@ const config::Keys& wifi_keys() {
 // the 1500 of every network (its 8-byte LLC/SNAP header is the stack's own, not the payload's).
 constexpr std::uint32_t kMaxPayload = 1500;
 
-class WifiDesign final : public NetworkDesign {
+// The least power (dBm) at which ns-3.37's wifi receiver starts to receive a frame: the
+// ThresholdPreambleDetectionModel that WifiPhyHelper installs detects no preamble received below
+// its MinimumRssi (-82 dBm) or below its Threshold (4 dB) of signal to noise, the noise being the
+// thermal noise k T B (T = 290 K) of the channel's width B (20 MHz; 10 MHz for 802.11p) raised by
+// the PHY's RxNoiseFigure (7 dB): -90 dBm (-93 dBm), so the RSSI bound decides.
+constexpr double kMinimumRssiDbm = -82.0;
+constexpr double kPreambleSnrDb = 4.0;
+constexpr double kNoiseFigureDb = 7.0;
+
+class WifiDesign final : public Ns3Network {
  public:
   const Standard* standard = nullptr;
   std::string data_mode;
@@ -146,6 +156,28 @@ class WifiDesign final : public NetworkDesign {
   bool has_positions() const override { return true; }
   bool carries_actuators() const override { return true; }
   std::uint32_t max_payload() const override { return kMaxPayload; }
+  // ns-3's LogDistancePropagationLossModel (reference distance 1 m, no loss beyond the reference
+  // loss closer than that) applied to tx_power.
+  double received_dbm(double distance_m) const {
+    return tx_power - reference_loss -
+           (distance_m > 1.0 ? 10.0 * exponent * std::log10(distance_m) : 0.0);
+  }
+  double noise_dbm() const {
+    const double width_hz = std::string(standard->name) == "802.11p" ? 10e6 : 20e6;
+    return 10.0 * std::log10(1.3803e-23 * 290.0 * width_hz) + 30.0 + kNoiseFigureDb;
+  }
+  std::optional<Reach> reach(const double (&p)[3]) const override {
+    Reach r;
+    r.distance_m = std::hypot(p[0] - sink[0], p[1] - sink[1], p[2] - sink[2]);
+    r.received_dbm = received_dbm(r.distance_m);
+    const double snr_bound = noise_dbm() + kPreambleSnrDb;
+    r.threshold_dbm = std::max(kMinimumRssiDbm, snr_bound);
+    r.threshold_why = fmt::format(
+        "ns-3's wifi receiver detects no preamble below {} dBm, nor below {} dB over its noise "
+        "floor of {:.2f} dBm",
+        kMinimumRssiDbm, kPreambleSnrDb, noise_dbm());
+    return r;
+  }
 };
 
 #if NCOSIM_HAVE_NS3

@@ -1,6 +1,7 @@
-// network/world.h — one run's ns-3 simulation (builds with ns-3 only): the nodes, their devices,
-// where each sender's packets go, and what the stack did to them. The network kinds' build()
-// add their nodes and devices here (network/network.h).
+// network/ns3/world.h — one run's ns-3 simulation (builds with ns-3 only): the nodes, their
+// devices, where each sender's packets go, and what the stack did to them. The network kinds'
+// build() add their nodes and devices here (network/ns3/ns3_network.h). Private to the ns-3
+// backend.
 #pragma once
 
 #include <ns3/address.h>
@@ -20,7 +21,7 @@
 #include <unordered_map>
 #include <vector>
 
-#include "network/network.h"
+#include "network/ns3/ns3_network.h"
 
 namespace ncosim::network {
 
@@ -71,7 +72,7 @@ class World {
   }
   const MacCounters& counters(int s) const { return ports_[static_cast<std::size_t>(s)].counters; }
   // The mobility model of sender `s`'s node, and of the sink of the network being built: the
-  // session moves them (Session::move_sender, move_sink) for nodes that ride SUMO vehicles.
+  // run moves them (NetworkRun::move_sender, move_sink) for nodes that ride SUMO vehicles.
   void mobile_sender(int s, const ns3::Ptr<ns3::MobilityModel>& m) {
     ports_[static_cast<std::size_t>(s)].mobility = m;
   }
@@ -108,7 +109,7 @@ class World {
   // Starts the background nodes' own traffic (Traffic::kPoisson, kSaturated), once every network
   // is built: their random streams follow the kinds'.
   void start_traffic();
-  // Where fates are appended while ns-3 runs (Session::advance_to).
+  // Where fates are appended while ns-3 runs (NetworkRun::advance_to).
   void collect_into(std::vector<Fate>* fates) { fates_ = fates; }
 
  private:

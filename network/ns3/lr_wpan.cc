@@ -1,4 +1,4 @@
-// network/lr_wpan.cc — the `lr_wpan` network: IEEE 802.15.4 (2.4 GHz O-QPSK, 250 kb/s), ns-3's
+// network/ns3/lr_wpan.cc — the `lr_wpan` network: IEEE 802.15.4 (2.4 GHz O-QPSK, 250 kb/s), ns-3's
 // lr-wpan model, the wireless sensor network case. Every sender is a device of one PAN with the
 // sink as its destination; frames go by unslotted CSMA/CA and are acknowledged, with up to
 // max_frame_retries retransmissions (the standard's macMaxFrameRetries, 3); the channel is one
@@ -13,6 +13,7 @@
 
 #include "kernel/check.h"
 #include "network/network.h"
+#include "network/ns3/ns3_network.h"
 
 #if NCOSIM_HAVE_NS3
 #include <ns3/boolean.h>
@@ -27,7 +28,7 @@
 #include <ns3/simulator.h>
 #include <ns3/single-model-spectrum-channel.h>
 
-#include "network/world.h"
+#include "network/ns3/world.h"
 #endif
 
 namespace ncosim::network {
@@ -77,7 +78,7 @@ const config::Keys& lr_wpan_keys() {
 double noise_dbm() { return 10.0 * std::log10(1.3803e-23 * 290.0 * 5e6) + 30.0; }
 constexpr double kMinSinrDb = -5.0;
 
-class LrWpanDesign final : public NetworkDesign {
+class LrWpanDesign final : public Ns3Network {
  public:
   double tx_power = 0.0, exponent = 3.0, reference_loss = 46.6777;
   std::array<double, 3> sink{};

@@ -1,4 +1,4 @@
-// network/csma.cc — the `csma` network: a wired bus (ns-3's CSMA model: one shared half-duplex
+// network/ns3/csma.cc — the `csma` network: a wired bus (ns-3's CSMA model: one shared half-duplex
 // channel, carrier sense with exponential back-off, a drop-tail queue per device). It is the
 // network whose delays can be computed by hand: a packet alone on the bus arrives after its
 // transmission time, (payload + 18 bytes of Ethernet header and trailer) x 8 / rate, plus the
@@ -10,13 +10,14 @@
 
 #include "kernel/check.h"
 #include "network/network.h"
+#include "network/ns3/ns3_network.h"
 
 #if NCOSIM_HAVE_NS3
 #include <ns3/csma-helper.h>
 #include <ns3/node-container.h>
 #include <ns3/queue-size.h>
 
-#include "network/world.h"
+#include "network/ns3/world.h"
 #endif
 
 namespace ncosim::network {
@@ -58,7 +59,7 @@ void attempted(World* world, int sender, ns3::Ptr<const ns3::Packet> p) {
 }
 #endif
 
-class CsmaDesign final : public NetworkDesign {
+class CsmaDesign final : public Ns3Network {
  public:
   CsmaDesign(std::uint64_t rate, std::int64_t delay_ns, std::uint32_t queue)
       : rate_(rate), delay_ns_(delay_ns), queue_(queue) {}
