@@ -3,7 +3,6 @@
 // written in Python (py_estimator.h). The package's functions (run, check, compare, fit, kinds)
 // build a command line from their arguments, so a scenario, an override and an output mean
 // exactly what they mean to the ncosim executable.
-#include <pthread.h>
 #include <pybind11/functional.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
@@ -99,32 +98,9 @@ py::list kinds() {
   return out;
 }
 
-// A scenario with a [[network]] simulates each run in a process forked from a worker thread
-// (sim/cmd/process_campaign.h), where a Python estimator then runs. The fork must not happen while
-// another thread holds the GIL (the child would wait for it forever), and the child's interpreter
-// must forget the parent's other threads: so a fork from a thread without the GIL takes it first
-// and the child re-initialises the interpreter, as os.fork() does. A fork by Python code (which
-// holds the GIL and does this itself) is left alone.
-thread_local PyGILState_STATE fork_gil;
-thread_local bool fork_took_gil = false;
-
-void before_fork() {
-  fork_took_gil = Py_IsInitialized() != 0 && PyGILState_Check() == 0;
-  if (fork_took_gil) fork_gil = PyGILState_Ensure();
-}
-void after_fork_in_parent() {
-  if (fork_took_gil) PyGILState_Release(fork_gil);
-}
-void after_fork_in_child() {
-  if (!fork_took_gil) return;
-  PyOS_AfterFork_Child();
-  PyGILState_Release(fork_gil);
-}
-
 }  // namespace
 
 PYBIND11_MODULE(_ncosim, m) {
-  pthread_atfork(before_fork, after_fork_in_parent, after_fork_in_child);
   m.doc() = "ncosim's C++ core (use the package ncosim, not this module)";
   m.attr("_estimator_classes") = py::dict();
   m.def("_cli", &cli, "args"_a, "texts"_a, "progress"_a, "worker_executable"_a);

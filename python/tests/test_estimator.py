@@ -187,9 +187,10 @@ def test_the_model_an_estimator_sees(motor):
     assert {(0, 0), (0, 3), (1, 1)} <= delays and all(d <= 3 for _, d in delays)
 
 
-def test_a_python_estimator_in_forked_network_runs():
-    """A [[network]] scenario simulates each run in a process forked from a worker thread: the
-    Python estimator runs there, with the progress bar's thread taking the GIL in the parent."""
+def test_a_python_estimator_in_network_runs():
+    """A [[network]] scenario simulates each run's ns-3 in a worker process (network/worker.h):
+    the Python estimator runs in the campaign's threads of this process, beside the progress
+    bar's thread, and sees the packets the network delivered."""
     import tomllib
     from conftest import ROOT
     k = ncosim.kinds("network")

@@ -29,7 +29,6 @@
 #include "sim/analysis/paired.h"
 #include "sim/cmd/manifest.h"
 #include "sim/cmd/mpi_campaign.h"
-#include "sim/cmd/process_campaign.h"
 #include "sim/cmd/store_sink.h"
 #include "sim/files/output_set.h"
 #include "sim/present/table_view.h"
@@ -417,9 +416,7 @@ void run_case_batch(RunSession& session, StoreSink& sink, std::size_t c, std::ui
   opt.on_run = [&sink, c](std::uint64_t run, RunMetrics&& m, RunLinks&& links) {
     sink.push(c, run, std::move(m), std::move(links));
   };
-  CampaignResult res = session.mpi                  ? session.mpi->run(sc, c, opt)
-                       : needs_worker_processes(sc) ? run_in_processes(sc, opt)
-                                                    : run_campaign(sc, opt);
+  CampaignResult res = run_case(sc, c, opt, session.mpi);
   sink.flush();
   // After its runs are committed: a kill in between leaves runs that the stored curve lacks,
   // which the export simulates again (error_curve_for).
@@ -481,12 +478,11 @@ void store_timing_and_trace(RunSession& session, StoreSink& sink) {
   }
   if (session.cmd.trace && session.trace.empty() &&
       g_stop.load() == 0) {  // run 0 was done by an earlier session
-    const Scenario& first = *loaded.cases.front().scenario;
-    if (needs_worker_processes(first)) {
-      session.trace = trace_in_child(first, 0);
-    } else {
-      simulate_run(first, 0, &session.trace);
-    }
+    std::string failure;     // run 0's network died: no trace (its rows say network_failure)
+    campaign_run(*loaded.cases.front().scenario, 0, nullptr, nullptr, failure, &session.trace);
+    if (!failure.empty())
+      std::cerr << fmt::format("ncosim: run 0: the replay for the trace: {}; no trajectory.csv\n",
+                               failure);
   }
   if (session.cmd.trace && !session.trace.empty()) {
     const std::string csv = trajectory_csv(*loaded.cases.front().scenario, session.trace);

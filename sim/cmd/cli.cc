@@ -17,6 +17,7 @@
 #include "estimators/export_c.h"
 #include "lmi/limits.h"
 #include "ncosim_version.h"
+#include "network/worker.h"
 #include "sim/analysis/compare.h"
 #include "sim/analysis/output.h"
 #include "sim/analysis/paired.h"
@@ -568,6 +569,18 @@ std::optional<int> unknown_command(const CLI::App& app, int argc, char** argv) {
 int run_cli(int argc, char** argv) { return run_cli(argc, argv, CliHooks{}); }
 
 int run_cli(int argc, char** argv, const CliHooks& hooks) {
+  // Hidden: a network worker (network/worker.h), started by a run whose networks need a process
+  // of their own; and the executable such workers are started as: this one, or the embedder's.
+  if (argc > 1 && std::string_view(argv[1]) == "network-worker")
+    return network::worker_main(network_registry());
+  {
+    std::error_code ec;
+    const auto self = std::filesystem::read_symlink("/proc/self/exe", ec);
+    if (!hooks.worker_executable.empty())
+      network::set_worker_executable(hooks.worker_executable);
+    else if (!ec)
+      network::set_worker_executable(self.string());
+  }
 #if NCOSIM_HAVE_SUMO
   // Hidden: one live SUMO run stepped in this process (started by a [sumo] mode = "live" run).
   if (argc > 1 && std::string_view(argv[1]) == "sumo-live") {

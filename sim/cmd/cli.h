@@ -16,8 +16,9 @@ int run_cli(int argc, char** argv);
 struct CliHooks {
   // `run`: the campaign's progress goes to this observer instead of the line on stderr.
   CampaignProgress::Observer progress;
-  // The ncosim executable that the SUMO live workers start (`ncosim sumo-live`); empty: this
-  // process's own executable, which an embedding interpreter is not.
+  // The ncosim executable that the SUMO live workers and the network workers start (`ncosim
+  // sumo-live`, `ncosim network-worker`); empty: this process's own executable, which an
+  // embedding interpreter is not.
   std::string worker_executable;
   // `run`: a second SIGINT/SIGTERM ends the process at once (the command line), or, false, only
   // stops the campaign as the first did (an interpreter whose end would lose the user's session).

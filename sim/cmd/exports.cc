@@ -30,7 +30,6 @@
 #include "sim/cmd/campaign_meta.h"
 #include "sim/cmd/manifest.h"
 #include "sim/cmd/mpi_campaign.h"
-#include "sim/cmd/process_campaign.h"
 #include "sim/files/output_set.h"
 #include "sim/present/table_view.h"
 #include "sim/run/campaign.h"
@@ -96,8 +95,7 @@ ErrorCurve error_curve_for(const LoadedScenario& loaded, const RunStore& store, 
     opt.link_counters = false;
     opt.only_runs = std::move(missing);
     opt.on_run = [](std::uint64_t, RunMetrics&&, RunLinks&&) {};
-    curve.merge(
-        (needs_worker_processes(sc) ? run_in_processes(sc, opt) : run_campaign(sc, opt)).curve);
+    curve.merge(run_case(sc, 0, opt, nullptr).curve);
   }
   return curve;
 }

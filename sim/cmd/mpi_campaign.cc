@@ -16,7 +16,6 @@
 #include <vector>
 
 #include "kernel/wire.h"
-#include "sim/cmd/process_campaign.h"
 #include "sim/run/progress.h"
 #include "sim/store/store.h"
 
@@ -50,8 +49,8 @@ constexpr int kError = 3;   // worker -> rank 0: what failed
 constexpr int kStop = 4;    // rank 0 -> worker: no more work
 constexpr int kCurve = 5;   // rank 0 -> worker: {case}; the reply: its error curve of that case
                             // (serialized, empty when none), which it then starts afresh
-constexpr int kFailure = 6;  // worker -> rank 0: 8 bytes case, 8 bytes run, why the run's process
-                             // died (a network scenario's run, in a child: run_in_child)
+constexpr int kFailure = 6;  // worker -> rank 0: 8 bytes case, 8 bytes run, why the run's network
+                             // died (its worker process: sim/run/campaign.h, campaign_run)
 
 using kernel::put_u64;
 
@@ -146,13 +145,11 @@ class CaseRunner {
       const std::size_t i = next_.fetch_add(1);
       if (i >= todo_.size()) return;
       try {
-        if (needs_worker_processes(sc_)) {
-          local_child(todo_[i], curve);
-          continue;
-        }
         RunLinks links;
-        RunMetrics m = simulate_run(sc_, todo_[i], nullptr, nullptr,
-                                    options_.link_counters ? &links : nullptr, curve);
+        std::string failure;  // a run whose network died (sim/run/campaign.h)
+        RunMetrics m =
+            campaign_run(sc_, todo_[i], options_.link_counters ? &links : nullptr, curve, failure);
+        if (!failure.empty()) report_run_failure(todo_[i], failure);
         deliver(todo_[i], std::move(m), std::move(links));
       } catch (...) {
         fail(std::current_exception());
@@ -193,21 +190,6 @@ class CaseRunner {
   }
 
  private:
-  // A run of a network scenario: simulated in a process of its own (ns-3 has one simulator per
-  // process, and this one must start every run from the same state); a run whose process died is
-  // reported and delivered as failed.
-  void local_child(std::uint64_t run, ErrorCurve* curve) {
-    ChildRun c = run_in_child(sc_, run, options_.link_counters);
-    if (!c.error.empty()) throw std::runtime_error(c.error);
-    if (!c.failure.empty()) {
-      report_run_failure(run, c.failure);
-      deliver(run, failed_run_metrics(sc_), RunLinks{});
-      return;
-    }
-    if (curve != nullptr) curve->merge(std::move(c.curve));
-    deliver(run, std::move(c.metrics), std::move(c.links));
-  }
-
   bool stop_requested() const {
     return (options_.stop != nullptr && options_.stop->load() != 0) || failed_.load();
   }
@@ -302,11 +284,11 @@ CampaignResult MpiSession::run(const Scenario& sc, std::size_t case_index,
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   result.ns_per_period.assign(sc.estimators.size(), std::nan(""));
   if (options.time_estimators && !result.stopped && n > 0) {
-    if (needs_worker_processes(sc)) {  // this process never simulates a network
-      result.ns_per_period = timing_in_child(sc, runner.first_run());
-    } else {
-      simulate_run(sc, runner.first_run(), nullptr, &result.ns_per_period);
-    }
+    std::string failure;
+    ReplayLog log;
+    campaign_run(sc, runner.first_run(), nullptr, nullptr, failure, nullptr, &log);
+    if (failure.empty())
+      result.ns_per_period = time_estimators(sc, log, std::chrono::milliseconds(200));
   }
   return result;
 }
@@ -346,22 +328,14 @@ void MpiSession::serve(const std::vector<const Scenario*>& cases) {
         if (fresh) it->second = error_curve_of(sc);
         curve = &it->second;
       }
-      RunMetrics m;
-      if (needs_worker_processes(sc)) {  // as CaseRunner::local_child
-        ChildRun c = run_in_child(sc, work[1], work[2] != 0);
-        if (!c.error.empty()) throw std::runtime_error(c.error);
-        if (!c.failure.empty()) {
-          std::string msg;
-          put_u64(msg, work[0]);
-          put_u64(msg, work[1]);
-          world.send(0, kFailure, msg + c.failure);
-          continue;
-        }
-        if (curve != nullptr) curve->merge(std::move(c.curve));
-        m = std::move(c.metrics);
-        links = std::move(c.links);
-      } else {
-        m = simulate_run(sc, work[1], nullptr, nullptr, work[2] != 0 ? &links : nullptr, curve);
+      std::string failure;  // a run whose network died (sim/run/campaign.h): rank 0 reports it
+      RunMetrics m = campaign_run(sc, work[1], work[2] != 0 ? &links : nullptr, curve, failure);
+      if (!failure.empty()) {
+        std::string msg;
+        put_u64(msg, work[0]);
+        put_u64(msg, work[1]);
+        world.send(0, kFailure, msg + failure);
+        continue;
       }
       std::string msg;
       put_u64(msg, work[0]);
@@ -398,5 +372,10 @@ void MpiSession::serve(const std::vector<const Scenario*>&) {}
 #endif
 
 int mpi_finish(int exit_code) { return MpiSession::finish(exit_code); }
+
+CampaignResult run_case(const Scenario& sc, std::size_t case_index, const CampaignOptions& options,
+                        MpiSession* mpi) {
+  return mpi != nullptr ? mpi->run(sc, case_index, options) : run_campaign(sc, options);
+}
 
 }  // namespace ncosim::sim

@@ -2,10 +2,10 @@
 // (Boost.MPI) through a dynamic work queue (one run per request, so unequal nodes balance). Rank 0
 // owns the run store and the exports and simulates too; ranks 1..K-1 simulate the runs rank 0 hands
 // out and send back each run's serialized metrics. Results are bit-identical to one process (every
-// run depends on (seed, run index) alone). A scenario with networks (ns-3: one simulator per
-// process) has each run simulated in a child process of the rank (run_in_child), which never calls
-// MPI. Built when NCOSIM_MPI is ON (Boost.MPI + an MPI
-// library found); otherwise a run under mpirun with more than one rank is refused.
+// run depends on (seed, run index) alone). A scenario with networks runs them as everywhere else
+// (network/worker.h: each run's ns-3 in a worker process the rank spawns, which never calls MPI).
+// Built when NCOSIM_MPI is ON (Boost.MPI + an MPI library found); otherwise a run under mpirun with
+// more than one rank is refused.
 #pragma once
 
 #include <cstdint>
@@ -48,6 +48,13 @@ class MpiSession {
   std::unique_ptr<Impl> impl_;
   static std::unique_ptr<Impl>& ended();  // the Impl of a destroyed session, until finish
 };
+
+// The runs of case `case_index` of `options`: over every rank with `mpi` (under mpirun), else over
+// this process's threads (run_campaign). The one place where a campaign chooses how to run: a
+// scenario with networks runs the same way (its engines' worker processes are the network layer's
+// business, network/worker.h).
+CampaignResult run_case(const Scenario& sc, std::size_t case_index, const CampaignOptions& options,
+                        MpiSession* mpi);
 
 // The process's exit code once MPI is done (call it last, after the error, if any, is printed).
 // Without an MPI session: `exit_code`. Rank 0: tells every worker to stop with `exit_code`, then

@@ -13,7 +13,6 @@
 #include "kernel/time.h"
 #include "models/link.h"
 #include "sim/analysis/output.h"
-#include "sim/cmd/process_campaign.h"
 #include "sim/files/output_set.h"
 #include "sim/run/run.h"
 
@@ -60,32 +59,24 @@ std::vector<std::size_t> senders(const Scenario& sc, std::size_t l) {
 }
 
 // A network link's packets: their fates come from the whole run (every sender of the network
-// contends), each run simulated in a process of its own (ns-3 keeps state across the simulations
-// of a process), as the campaign does (sim/cmd/process_campaign.h).
+// contends), the network in a worker process of its own per run (network/worker.h), as in a
+// campaign.
 void record_network_runs(const Scenario& sc, std::size_t l, std::int64_t runs, RecordedTrace& out) {
   for (std::int64_t r = 0; r < runs; ++r) {
     const auto run = static_cast<std::uint64_t>(r);
-    const std::string bytes = bytes_from_child(
-        [&] {
-          std::string b;
-          for (const RecordedPacket& p : record_network_link(sc, run, l)) {
-            const auto d = static_cast<std::uint64_t>(p.delay);
-            for (int i = 0; i < 8; ++i) b.push_back(static_cast<char>((d >> (8 * i)) & 0xFF));
-          }
-          return b;
-        },
-        fmt::format("record-link: run {} of link '{}'", run, sc.links[l].name));
-    if (bytes.size() != static_cast<std::size_t>(out.per_run) * 8) {
+    std::vector<RecordedPacket> packets;
+    try {
+      packets = record_network_link(sc, run, l);
+    } catch (const network::EngineFailure& e) {
+      throw std::runtime_error(
+          fmt::format("record-link: run {} of link '{}': {}", run, sc.links[l].name, e.what()));
+    }
+    if (packets.size() != static_cast<std::size_t>(out.per_run)) {
       throw std::runtime_error(
           fmt::format("record-link: run {} of link '{}' sent {} packets, expected {}", run,
-                      sc.links[l].name, bytes.size() / 8, out.per_run));
+                      sc.links[l].name, packets.size(), out.per_run));
     }
-    for (std::size_t i = 0; i < bytes.size(); i += 8) {
-      std::uint64_t d = 0;
-      for (int b = 0; b < 8; ++b)
-        d |= static_cast<std::uint64_t>(static_cast<unsigned char>(bytes[i + b])) << (8 * b);
-      out.delays.push_back(static_cast<std::int64_t>(d));
-    }
+    for (const RecordedPacket& p : packets) out.delays.push_back(p.delay);
   }
 }
 

@@ -24,10 +24,12 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <map>
 #include <mutex>
 #include <stdexcept>
+#include <vector>
 
 #include "config/config.h"
 
@@ -274,6 +276,56 @@ std::string output_set_folder(const std::string& dir) {
   return p.string();
 }
 
+namespace {
+
+// The processes that hold the flock on the open file `fd` refers to, this one aside: every
+// descriptor of every process (that /proc lets us see) on the same file whose fdinfo lists a
+// lock. The PID written in the file names the process that took the lock, which may have ended
+// while a process it started still holds its descriptor; these are the live holders.
+std::vector<long> lock_holders(int fd) {
+  struct stat locked {};
+  std::vector<long> out;
+  if (::fstat(fd, &locked) != 0) return out;
+  std::error_code ec;
+  for (const auto& proc : fs::directory_iterator("/proc", ec)) {
+    const std::string name = proc.path().filename().string();
+    if (name.empty() || name.find_first_not_of("0123456789") != std::string::npos) continue;
+    const long pid = std::atol(name.c_str());
+    if (pid == static_cast<long>(::getpid())) continue;
+    std::error_code fd_ec;
+    for (const auto& entry : fs::directory_iterator(proc.path() / "fd", fd_ec)) {
+      struct stat st {};
+      if (::stat(entry.path().c_str(), &st) != 0 || st.st_dev != locked.st_dev ||
+          st.st_ino != locked.st_ino)
+        continue;
+      std::ifstream info(proc.path() / "fdinfo" / entry.path().filename());
+      std::string line;
+      bool holds = false;
+      while (std::getline(info, line)) holds = holds || line.rfind("lock:", 0) == 0;
+      if (holds && std::find(out.begin(), out.end(), pid) == out.end()) out.push_back(pid);
+    }
+  }
+  return out;
+}
+
+// "PID 123" for the live holders of the lock on `fd` (several: "PID 123, 456"), saying who took
+// it when that was another process (a worker that outlived ncosim); `written` (the PID the taker
+// wrote in the file) when /proc shows none.
+std::string holder_text(int fd, const std::string& written) {
+  const std::vector<long> live = lock_holders(fd);
+  if (live.empty()) return fmt::format("PID {}", written.empty() ? "unknown" : written);
+  std::string pids;
+  for (const long p : live) pids += (pids.empty() ? "" : ", ") + std::to_string(p);
+  const long taker = std::atol(written.c_str());
+  if (taker <= 0 || std::find(live.begin(), live.end(), taker) != live.end())
+    return fmt::format("PID {}", pids);
+  const bool ended = ::kill(static_cast<pid_t>(taker), 0) != 0 && errno == ESRCH;
+  return fmt::format("PID {}, which holds the lock PID {} took{}", pids, taker,
+                     ended ? " before it ended" : "");
+}
+
+}  // namespace
+
 OutputFolderLock::OutputFolderLock(const std::string& dir) {
   const fs::path folder = output_set_folder(dir);
   const fs::path parent = folder.parent_path();
@@ -303,14 +355,15 @@ OutputFolderLock::OutputFolderLock(const std::string& dir) {
     const ssize_t n = ::pread(fd, buf, sizeof buf - 1, 0);
     if (n > 0) pid.assign(buf, static_cast<std::size_t>(n));
     while (!pid.empty() && (pid.back() == '\n' || pid.back() == ' ')) pid.pop_back();
+    const std::string holder = e == EWOULDBLOCK ? holder_text(fd, pid) : std::string();
     ::close(fd);
     held_locks().erase(key_);
     if (e == EWOULDBLOCK) {
       throw config::ScenarioError(
-          fmt::format("{}: the output folder is in use by another ncosim process (PID {}; lock "
+          fmt::format("{}: the output folder is in use by another ncosim process ({}; lock "
                       "{}); wait for it to finish or "
                       "choose another --out",
-                      dir, pid.empty() ? std::string("unknown") : pid, lock_path.string()));
+                      dir, holder, lock_path.string()));
     }
     throw std::runtime_error(
         fmt::format("cannot lock '{}': {}", lock_path.string(), errno_text(e)));

@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cmath>
 #include <exception>
+#include <iostream>
 #include <mutex>
 #include <system_error>
 #include <thread>
@@ -60,6 +61,56 @@ void keep_completed(const std::vector<std::uint64_t>& todo, const std::vector<ch
 
 ErrorCurve error_curve_of(const Scenario& sc) {
   return ErrorCurve(sc.run.periods, sc.estimators.size(), sc.model.plant.n());
+}
+
+RunMetrics failed_run_metrics(const Scenario& sc) {
+  RunMetrics m(sc.estimators.size());
+  for (EstimatorRunMetrics& e : m) {
+    e.diverged = true;
+    e.status = kNetworkFailure;
+    // Every per-state and per-sensor vector sized, with nothing counted: the exports index them.
+    e.sse_state.assign(static_cast<std::size_t>(sc.model.plant.n()), 0.0);
+    e.sensor_taken.assign(sc.model.sensors.size(), 0);
+    e.sensor_sent.assign(sc.model.sensors.size(), 0);
+    for (const auto& s : sc.model.sensors)
+      e.sensor_virtual_sse.emplace_back(static_cast<std::size_t>(s.spec.ny()), 0.0);
+  }
+  return m;
+}
+
+void report_run_failure(std::uint64_t run, const std::string& failure) {
+  std::cerr << fmt::format("ncosim: run {}: {}: {}; the campaign goes on without its results\n",
+                           run, kNetworkFailure, failure)
+            << std::flush;
+}
+
+RunMetrics campaign_run(const Scenario& sc, std::uint64_t run, RunLinks* links, ErrorCurve* curve,
+                        std::string& failure, std::vector<TraceRow>* trace, ReplayLog* log) {
+  if (!sc.networks.needs_own_process()) {
+    RunMetrics m = execute_run(sc, run, trace, log, links, curve);
+    if (curve != nullptr) curve->add_run(run);
+    return m;
+  }
+  // A run whose network may die: its errors are added to the curve only once it has ended.
+  ErrorCurve own = curve != nullptr ? error_curve_of(sc) : ErrorCurve();
+  try {
+    RunMetrics m = execute_run(sc, run, trace, log, links, curve != nullptr ? &own : nullptr);
+    if (curve != nullptr) {
+      own.add_run(run);
+      curve->merge(std::move(own));
+    }
+    return m;
+  } catch (const network::EngineFailure& e) {
+    failure = e.what();
+    if (links != nullptr) links->clear();
+    if (trace != nullptr) trace->clear();
+    if (log != nullptr) {
+      const std::size_t limit = log->limit;
+      *log = ReplayLog();
+      log->limit = limit;
+    }
+    return failed_run_metrics(sc);
+  }
 }
 
 RunMetrics simulate_run(const Scenario& sc, std::uint64_t run, std::vector<TraceRow>* trace,
@@ -152,9 +203,10 @@ CampaignResult run_campaign(const Scenario& sc, const CampaignOptions& options) 
       try {
         ReplayLog* lg = i == 0 && options.time_estimators ? &log : nullptr;
         RunLinks links;
-        RunMetrics m = execute_run(sc, r, r == 0 && options.trace ? &result.trace : nullptr, lg,
-                                   options.link_counters ? &links : nullptr, curve);
-        if (curve != nullptr) curve->add_run(r);
+        std::string failure;
+        RunMetrics m = campaign_run(sc, r, options.link_counters ? &links : nullptr, curve, failure,
+                                    r == 0 && options.trace ? &result.trace : nullptr, lg);
+        if (!failure.empty()) report_run_failure(r, failure);
         if (keep) {
           result.runs[i] = std::move(m);
           if (options.link_counters) result.link_runs[i] = std::move(links);

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "sim/run/error_curve.h"
+#include "sim/run/run.h"
 #include "sim/run/run_results.h"
 #include "sim/scenario/scenario.h"
 
@@ -48,6 +49,23 @@ RunMetrics simulate_run(const Scenario& sc, std::uint64_t run,
                         ErrorCurve* curve = nullptr);
 // An empty error curve of the scenario's shape (periods x estimators x plant states).
 ErrorCurve error_curve_of(const Scenario& sc);
+
+// One run as a campaign runs it: simulate_run's outputs (the links, the errors added to `curve`
+// with add_run, run 0's trace, the replay log). A run whose network died
+// (network::EngineFailure: its worker process ended abnormally, e.g. ns-3 aborted) is no error:
+// `failure` says why, and the run is failed_run_metrics, with no links and nothing added to the
+// curve, the trace or the log.
+RunMetrics campaign_run(const Scenario& sc, std::uint64_t run, RunLinks* links, ErrorCurve* curve,
+                        std::string& failure, std::vector<TraceRow>* trace = nullptr,
+                        ReplayLog* log = nullptr);
+
+// The status of every estimator's record of a run whose network died.
+inline constexpr const char* kNetworkFailure = "network_failure";
+// The record of such a run: per estimator, status kNetworkFailure, counted as diverged (no errors,
+// excluded from every error statistic; results/README.md, `status`).
+RunMetrics failed_run_metrics(const Scenario& sc);
+// "ncosim: run RUN: network_failure: FAILURE; the campaign goes on without its results" on stderr.
+void report_run_failure(std::uint64_t run, const std::string& failure);
 
 CampaignResult run_campaign(const Scenario& sc, const CampaignOptions& options);
 

@@ -13,8 +13,8 @@
 #include "models/actuator.h"
 #include "models/plant_process.h"
 #include "models/sensor_process.h"
-#include "network/network.h"
 #include "sim/run/link_report.h"
+#include "sim/run/network_path.h"
 #include "sim/run/run_recorder.h"
 
 namespace ncosim::sim {
@@ -73,45 +73,10 @@ class ActuationPath {
   int mode() const { return mode_; }  // the delivery pattern of the last actuation
   models::ActuatorStage* stage() { return stage_.get(); }
 
-  // Actuator links over a network (models::ActuatorStage::networked): channel a's command of
-  // period k is a packet of network sender senders[a] (-1: not networked), sent at the close of
-  // period k (after the control law); it is applied if ns-3 delivers it to the actuator's node
-  // before (k + 1) T, the next plant step (phase order: the plant steps first at (k + 1) T, so a
-  // command received exactly then is late, as a sample received then is used after that step).
-  void attach_network(std::vector<int> senders) {
-    sender_ = std::move(senders);
-    command_.assign(sender_.size(), -1);
-    arrived_.assign(sender_.size(), 0);
-  }
-  bool networked() const { return !sender_.empty(); }
-  void send_commands(network::Session& net, std::int64_t k, kernel::SimTime now) {
-    for (std::size_t a = 0; a < sender_.size(); ++a) {
-      if (sender_[a] < 0) continue;
-      net.send(sender_[a], static_cast<std::uint64_t>(k), now);  // the id: its period
-      command_[a] = k;
-      arrived_[a] = 0;
-    }
-  }
-  // Whether `f` is a command's fate (else a sensor's): counted (when `count`) with its delay in
-  // periods after its sending period, kept when it is in time for its period.
-  bool on_fate(const network::Fate& f, std::int64_t period_ns, bool count) {
-    const auto at = std::find(sender_.begin(), sender_.end(), f.sender);
-    if (at == sender_.end()) return false;
-    const auto a = static_cast<std::size_t>(at - sender_.begin());
-    const auto k = static_cast<std::int64_t>(f.id);
-    const bool delivered = f.drop == network::Drop::kNone;
-    const std::int64_t delay = (f.time - k * period_ns) / period_ns;
-    if (count) stage_->counters()[a].record(delivered ? delay : models::kLost, -1);
-    if (delivered && delay == 0 && command_[a] == k) arrived_[a] = 1;
-    return true;
-  }
-  // Before the plant step of period k: the commands of period k - 1 applied or not.
-  void resolve(std::int64_t k) {
-    for (std::size_t a = 0; a < sender_.size(); ++a) {
-      if (sender_[a] < 0 || command_[a] != k - 1) continue;
-      mode_ |= stage_->resolve(static_cast<int>(a), arrived_[a] != 0);
-      command_[a] = -1;
-    }
+  // Commands delivered over a network (sim/run/network_path.h): the delivery pattern's bits of
+  // the commands resolved before this plant step, and what the plant applies now.
+  void resolved(int mode) {
+    mode_ |= mode;
     applied_ = stage_->applied();
   }
 
@@ -121,9 +86,6 @@ class ActuationPath {
   Eigen::VectorXd delayed_, applied_, sent_;
   std::unique_ptr<models::ActuatorStage> stage_;  // nullptr: ideal actuation
   int mode_ = 0;
-  std::vector<int> sender_;            // per channel: its network sender, -1 (empty: none)
-  std::vector<std::int64_t> command_;  // per channel: the period of its command in flight, or -1
-  std::vector<char> arrived_;          // per channel: that command arrived in time
 };
 
 class RunSimulation {
@@ -172,7 +134,7 @@ class RunSimulation {
       ls.link->reset(ls.rng);
       links_.push_back(std::move(ls));
     }
-    start_networks(seed, run);
+    network_ = NetworkPath::start(sc, mobility_.get(), run);  // null without [[network]]
     if (link_out_ != nullptr) {
       flows_ = link_flows(sc);
       flow_of_ = flow_index(sc, flows_);
@@ -203,141 +165,47 @@ class RunSimulation {
           if (f >= 0) link_counters_[static_cast<std::size_t>(f)] = std::move(stage->counters()[a]);
         }
       }
-      stack_counters();
+      if (network_) stack_counters();
       for (auto& c : link_counters_) c.close();
       *link_out_ = std::move(link_counters_);
     }
     return recorder_.finish();
   }
 
-  // Records the fate of every packet sensor `sensors` send over network link `link` instead of
-  // counting (record_network_link).
-  void record(std::size_t link, std::vector<RecordedPacket>* out) {
-    record_link_ = static_cast<int>(link);
-    record_out_ = out;
-  }
-
-  // After the run's last period, ns-3 goes on (nothing else does) until every recorded packet has
-  // its fate, for at most kDrainNs of simulated time.
-  void drain() {
-    constexpr kernel::SimTime kDrainNs = 60'000'000'000;
-    const kernel::SimTime end = network_now_ + kDrainNs;
-    for (kernel::SimTime t = network_now_ + period_ns_; pending_ > 0 && t <= end; t += period_ns_)
-      advance_networks(t);
-  }
+  // record_network_link: the network path's record of link `link` (sim/run/network_path.h).
+  NetworkPath& network() { return *network_; }
 
  private:
   struct LinkState {
     std::unique_ptr<models::Link> link;
     kernel::Rng rng;
-    int sender = -1;   // its sender in the network session (a link of kind network), else -1
-    int vehicle = -1;  // the SUMO vehicle its network node rides, else -1
   };
 
-  // The run's networks (network/network.h): every link that is a node of one is a sender, then
-  // the [[background]] nodes, whose traffic stays inside the session (counted, never a fate).
-  void start_networks(std::uint64_t seed, std::uint64_t run) {
-    if (sc_.networks.empty()) return;
-    std::vector<network::Sender> senders;
-    for (auto& ls : links_) {
-      if (const models::NetworkAttachment* a = ls.link->network_attachment()) {
-        ls.sender = static_cast<int>(senders.size());
-        ls.vehicle = a->vehicle;
-        senders.push_back(network::Sender{a->network, a->bytes, a->x, a->y, a->z});
-      }
-    }
-    // An actuator's network link (its own: the reader refuses one shared) sends downlink.
-    std::vector<int> actuator_senders;
-    for (const auto& am : sc_.model.actuators) {
-      const int l = am.spec.link;
-      const int sender = l >= 0 ? links_[static_cast<std::size_t>(l)].sender : -1;
-      if (sender >= 0) senders[static_cast<std::size_t>(sender)].downlink = true;
-      actuator_senders.push_back(sender);
-    }
-    if (std::any_of(actuator_senders.begin(), actuator_senders.end(), [](int x) { return x >= 0; }))
-      actuation_.attach_network(std::move(actuator_senders));
-    first_background_ = static_cast<int>(senders.size());
-    senders.insert(senders.end(), sc_.background.begin(), sc_.background.end());
-    std::vector<std::shared_ptr<const network::NetworkDesign>> designs;
-    for (const auto& n : sc_.networks) designs.push_back(n.design);
-    network_ = network::Session::start(designs, senders, seed, run);
-  }
-
-  // What each network node's stack did in the run (network::Session::counters), on the rows of
-  // its link's sensors.
+  // What each network node's stack did in the run, on the rows of its link's sensors.
   void stack_counters() {
     for (std::size_t s = 0; s < sensors_.size(); ++s) {
-      const int l = sensors_[s].spec().link;
-      if (l < 0 || links_[static_cast<std::size_t>(l)].sender < 0) continue;
-      const network::MacCounters c = network_->counters(links_[static_cast<std::size_t>(l)].sender);
-      models::StackCounters k;
-      k.attempts = static_cast<std::int64_t>(c.attempts);
-      k.retries = static_cast<std::int64_t>(c.retries);
-      for (const std::uint64_t d : c.dropped) k.drops.push_back(static_cast<std::int64_t>(d));
-      k.busy_ns = c.busy_ns;
-      k.simulated_ns = network_now_;
-      link_counters_[static_cast<std::size_t>(flow_of_.sensor[s])].stack = std::move(k);
+      if (auto k = network_->stack(sensors_[s].spec().link)) {
+        link_counters_[static_cast<std::size_t>(flow_of_.sensor[s])].stack = std::move(*k);
+      }
     }
   }
 
-  // Lockstep with ns-3 at the start of period k, after its sends: every packet the networks
-  // delivered in ((k - 1) T, k T] arrives at k T (this period's arrival phase); a dropped one is
-  // counted lost.
+  // The networks through `now` (sim/run/network_path.h): a packet delivered in ((k - 1) T, k T]
+  // arrives at k T (this period's arrival phase); a dropped one is counted lost.
   void advance_networks(kernel::SimTime now) {
-    fates_.clear();
-    network_->advance_to(now, fates_);
-    network_now_ = now;
-    for (const network::Fate& f : fates_) {
-      if (actuation_.networked() && actuation_.on_fate(f, period_ns_, link_out_ != nullptr))
-        continue;
-      const auto id = static_cast<std::size_t>(f.id);
-      const models::Packet& p = pool_[id];
-      const std::int64_t arrival = period_of(f.time);
-      const bool delivered = f.drop == network::Drop::kNone;
-      if (link_out_ != nullptr) {
-        link_counters_[static_cast<std::size_t>(
-                           flow_of_.sensor[static_cast<std::size_t>(p.sensor)])]
-            .record(delivered ? arrival - p.stamps[0] : models::kLost, -1);
-      }
-      if (record_out_ != nullptr && id < record_slot_.size() && record_slot_[id] >= 0) {
-        (*record_out_)[static_cast<std::size_t>(record_slot_[id])].delay =
-            delivered ? arrival - p.stamps[0] : models::kLost;
-        record_slot_[id] = -1;
-        --pending_;
-      }
-      if (delivered && arrival < sc_.run.periods) {
-        queue_.schedule(arrival * period_ns_, kernel::Phase::kArrival, &arrival_handler_, id);
-      } else {
-        free_.push_back(id);
-      }
-    }
+    network_->advance(now, network_fate_, actuation_.stage(), link_out_ != nullptr);
   }
-
-  // The network nodes that ride SUMO vehicles are where their vehicles are at this period's
-  // start, from then on (before its sends); a vehicle not in the traffic puts its node out of
-  // everyone's range (network::kAway).
-  void move_network_nodes(kernel::SimTime now) {
-    constexpr double kAntenna = 1.5;  // m above the road
-    const auto place = [&](int vehicle, auto&& move) {
-      const models::VehicleState& v = mobility_->vehicle(vehicle);
-      move(v.x, v.y, v.present ? kAntenna : network::kAway);
-    };
-    for (const LinkState& ls : links_) {
-      if (ls.vehicle < 0) continue;
-      place(ls.vehicle,
-            [&](double x, double y, double z) { network_->move_sender(ls.sender, x, y, z, now); });
+  void on_network_fate(std::size_t id, std::int64_t arrival) {
+    const models::Packet& p = pool_[id];
+    const bool delivered = arrival != models::kLost;
+    if (link_out_ != nullptr) {
+      link_counters_[static_cast<std::size_t>(flow_of_.sensor[static_cast<std::size_t>(p.sensor)])]
+          .record(delivered ? arrival - p.stamps[0] : models::kLost, -1);
     }
-    for (std::size_t b = 0; b < sc_.background.size(); ++b) {
-      if (sc_.background[b].vehicle < 0) continue;
-      place(sc_.background[b].vehicle, [&](double x, double y, double z) {
-        network_->move_sender(first_background_ + static_cast<int>(b), x, y, z, now);
-      });
-    }
-    for (std::size_t n = 0; n < sc_.networks.size(); ++n) {
-      if (sc_.networks[n].sink_vehicle < 0) continue;
-      place(sc_.networks[n].sink_vehicle, [&](double x, double y, double z) {
-        network_->move_sink(static_cast<int>(n), x, y, z, now);
-      });
+    if (delivered && arrival < sc_.run.periods) {
+      queue_.schedule(arrival * period_ns_, kernel::Phase::kArrival, &arrival_handler_, id);
+    } else {
+      free_.push_back(id);
     }
   }
 
@@ -357,9 +225,9 @@ class RunSimulation {
   // per packet arrival, instead of eight or more.
   void on_open(kernel::SimTime now, std::uint64_t) {
     const std::int64_t k = now / period_ns_;
-    if (actuation_.networked() && k > 0) {  // the commands that arrived before this plant step
+    if (network_ && network_->commands() && k > 0) {  // commands arrived before this plant step
       advance_networks(now - 1);
-      actuation_.resolve(k);
+      actuation_.resolved(network_->resolve_commands(k, *actuation_.stage()));
     }
     on_plant(now, k);
     // The sensors due now sample in the order their samples were scheduled, as separate
@@ -380,7 +248,7 @@ class RunSimulation {
       next_sample_[s] = k + sensors_[s].spec().every;
       if (on_sample(k, s)) sending_.push_back(s);
     }
-    if (network_) move_network_nodes(now);
+    if (network_) network_->move_nodes(now);
     for (const std::size_t s : sending_) on_send(k, s);
     if (network_) advance_networks(now);
     reschedule(now, 1, kernel::Phase::kPlant, &open_handler_, 0);
@@ -391,7 +259,7 @@ class RunSimulation {
     on_estimate(k);
     on_control(k);
     actuation_.actuate(u_);
-    if (actuation_.networked()) actuation_.send_commands(*network_, k, now);
+    if (network_ && network_->commands()) network_->send_commands(k, now);
     recorder_.on_period(k, signals_.x, signals_.mode, u_, reference_);
     reschedule(now, 1, kernel::Phase::kEstimate, &close_handler_, 0);
   }
@@ -424,26 +292,18 @@ class RunSimulation {
       deliver_copy(s, k, 0, false);
       return;
     }
-    LinkState& ls = links_[static_cast<std::size_t>(sensor.spec().link)];
-    if (ls.sender >= 0) {  // a node of a network: the network decides (advance_networks)
-      const bool recorded = record_out_ != nullptr && sensor.spec().link == record_link_;
-      if (ls.vehicle >= 0 && !mobility_->vehicle(ls.vehicle).present) {
-        // A vehicle not in the traffic sends nothing: the packet is lost.
+    const int link = sensor.spec().link;
+    if (network_ && network_->carries(link)) {  // a node of a network: the network decides
+      if (!network_->in_traffic(link)) {        // a vehicle not in the traffic sends nothing
+        network_->lost(link, s, k);
         if (link_out_ != nullptr)
           link_counters_[static_cast<std::size_t>(flow_of_.sensor[s])].record(models::kLost, -1);
-        if (recorded) record_out_->push_back(RecordedPacket{k, s, models::kLost});
         return;
       }
-      const std::size_t id = take_packet(s, k, false);
-      if (recorded) {
-        if (record_slot_.size() < pool_.size()) record_slot_.resize(pool_.size(), -1);
-        record_slot_[id] = static_cast<std::int64_t>(record_out_->size());
-        record_out_->push_back(RecordedPacket{k, s, models::kLost});
-        ++pending_;
-      }
-      network_->send(ls.sender, id, k * period_ns_);
+      network_->send(link, s, take_packet(s, k, false), k);
       return;
     }
+    LinkState& ls = links_[static_cast<std::size_t>(link)];
     ls.link->advance(k, ls.rng);
     const int state = models::state_of(*ls.link);
     ls.link->transmit_copies(ls.rng, delays_);
@@ -536,14 +396,10 @@ class RunSimulation {
   bool nominal_drive_ = true;
   std::vector<models::SensorProcess> sensors_;
   std::vector<LinkState> links_;
-  std::unique_ptr<network::Session> network_;  // the run's networks (null without [[network]])
-  std::vector<network::Fate> fates_;
-  int first_background_ = 0;         // the session's index of the first [[background]] node
-  kernel::SimTime network_now_ = 0;  // where ns-3 is (its last advance_to)
-  int record_link_ = -1;             // the network link being recorded (record_network_link)
-  std::vector<RecordedPacket>* record_out_ = nullptr;
-  std::vector<std::int64_t> record_slot_;  // per pool packet: its row in record_out_, or -1
-  std::int64_t pending_ = 0;               // recorded packets without a fate yet
+  std::unique_ptr<NetworkPath> network_;  // the run's networks (null without [[network]])
+  NetworkPath::PacketFate network_fate_ = [this](std::size_t id, std::int64_t arrival) {
+    on_network_fate(id, arrival);
+  };
   std::vector<std::int64_t> delays_;
   std::vector<std::size_t>
       sample_order_;  // the sensors in the order their next samples were scheduled
@@ -583,9 +439,9 @@ std::vector<RecordedPacket> record_network_link(const Scenario& sc, std::uint64_
                                                 std::size_t link) {
   std::vector<RecordedPacket> out;
   RunSimulation sim(sc, run, nullptr, nullptr, nullptr, nullptr);
-  sim.record(link, &out);
+  sim.network().record(static_cast<int>(link), &out);
   sim.execute();
-  sim.drain();
+  sim.network().drain(kernel::seconds_to_time(sc.run.period));
   std::stable_sort(out.begin(), out.end(), [](const RecordedPacket& a, const RecordedPacket& b) {
     return a.period != b.period ? a.period < b.period : a.sensor < b.sensor;
   });

@@ -34,19 +34,11 @@ RunMetrics execute_run(const Scenario& sc, std::uint64_t run, std::vector<TraceR
                        ReplayLog* log, std::vector<models::LinkCounters>* links,
                        ErrorCurve* curve = nullptr);
 
-// One packet a sensor sent over a network link, and its fate: its delay (periods from the sample
-// to its arrival) or models::kLost.
-struct RecordedPacket {
-  std::int64_t period = 0;
-  std::size_t sensor = 0;
-  std::int64_t delay = 0;
-};
 // Simulates run `run` and returns the fate of every packet sent over link `link` (a node of a
-// [[network]]: ns-3 decides the fates, with every other sender of the scenario contending), by
-// period and within a period by sensor. After the last period ns-3 runs on until every packet has
-// a fate (at most 60 s of simulated time more; a packet still in the network then is lost). ns-3
-// keeps state across the simulations of a process: call it in a process of its own per run
-// (sim/cmd/process_campaign.h).
+// [[network]]: its network decides the fates, with every other sender of the scenario
+// contending), by period and within a period by sensor. After the last period the networks run on
+// until every packet has a fate (at most 60 s of simulated time more; a packet still in the
+// network then is lost).
 std::vector<RecordedPacket> record_network_link(const Scenario& sc, std::uint64_t run,
                                                 std::size_t link);
 

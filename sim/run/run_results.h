@@ -65,6 +65,14 @@ struct TraceRow {
   double reference = 0.0;                 // controller reference (NaN when none)
 };
 
+// One packet a sensor sent over a network link, and its fate: its delay (periods from the sample
+// to its arrival) or models::kLost.
+struct RecordedPacket {
+  std::int64_t period = 0;
+  std::size_t sensor = 0;
+  std::int64_t delay = 0;
+};
+
 struct CampaignResult {
   std::vector<RunMetrics> runs;        // [run][estimator]
   std::vector<std::uint64_t> run_ids;  // the run index of each entry of `runs` (empty: 0, 1, ...)

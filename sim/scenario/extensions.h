@@ -1,6 +1,7 @@
 // sim/scenario/extensions.h — kinds added from outside the tree (docs/extending.md): a program
-// built on the installed package registers its plants, links, inputs and estimators with one call
-// in its own main, then runs the ncosim command line (sim/cmd/cli.h) as usual.
+// built on the installed package registers its plants, links, inputs, estimators, send policies
+// and network kinds with one call in its own main, then runs the ncosim command line
+// (sim/cmd/cli.h) as usual.
 #pragma once
 
 #include <functional>
@@ -10,6 +11,7 @@
 #include "models/link_factory.h"
 #include "models/plant.h"
 #include "models/send_policy.h"
+#include "network/backend.h"
 
 namespace ncosim::sim {
 
@@ -20,6 +22,7 @@ struct Registries {
   models::InputRegistry& inputs;
   est::EstimatorRegistry& estimators;
   models::SendPolicyRegistry& send_policies;  // [[sensor]] policy
+  network::NetworkRegistry& networks;         // [[network]] kind (network/backend.h)
 };
 using Extension = std::function<void(Registries&)>;
 

@@ -9,6 +9,7 @@
 #include <stdexcept>
 #include <vector>
 
+#include "network/network.h"
 #include "sim/scenario/extensions.h"
 
 #if NCOSIM_HAVE_SUMO
@@ -71,7 +72,7 @@ AllRegistries& mutable_registries() {
     sumo::declare_vehicle_keys(sumo::VehicleTable::kNetwork, "", {"sink_vehicle"});
 #endif
     std::lock_guard<std::mutex> lock(extension_mutex());
-    Registries view{a.plants, a.links, a.inputs, a.estimators, a.send_policies};
+    Registries view{a.plants, a.links, a.inputs, a.estimators, a.send_policies, a.networks};
     for (const auto& e : extensions()) e(view);
     registries_built() = true;
     check_unique(a.plants, "plant");
@@ -94,13 +95,15 @@ void add_extension_now(const Extension& extension) {
   std::lock_guard<std::mutex> lock(extension_mutex());
   // Into copies first: a name registered twice leaves the registries as they were.
   AllRegistries next = a;
-  Registries view{next.plants, next.links, next.inputs, next.estimators, next.send_policies};
+  Registries view{next.plants,     next.links,         next.inputs,
+                  next.estimators, next.send_policies, next.networks};
   extension(view);
   check_unique(next.plants, "plant");
   check_unique(next.links, "link");
   check_unique(next.inputs, "input");
   check_unique(next.estimators, "estimator");
   check_unique(next.send_policies, "send policy");
+  check_unique(next.networks, "network");
   a = std::move(next);
 }
 

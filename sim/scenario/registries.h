@@ -13,7 +13,7 @@
 #include "models/mobility.h"
 #include "models/plant.h"
 #include "models/send_policy.h"
-#include "network/network.h"
+#include "network/backend.h"
 
 namespace ncosim::sim {
 

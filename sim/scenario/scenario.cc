@@ -65,7 +65,6 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
   if (const auto sumo = root.opt_table("sumo")) sc->mobility = make_mobility(*sumo, sc->run, dir);
   const std::string state_size_driver = read_plant(root, doc, *sc);
   read_networks(root, *sc);
-  read_background(root, *sc);
   read_links(root, dir, *sc);
   read_sensors(root, *sc);
   drop_doubled_riders(*sc);

@@ -114,50 +114,9 @@ const config::Keys& link_common_keys() {
   return keys;
 }
 
-const config::Keys& network_common_keys() {
-  static const config::Keys keys{
-      config::Key::string("name").help(
-          "unique among networks; a [[link]] of kind network names it"),
-      config::Key::string("kind").help("the network kind (below)"),
-      config::Key::string("sink_vehicle")
-          .optional("none: the kind's fixed sink_position")
-          .help("a [sumo] vehicle the sink (the estimators' node) rides, for kinds with "
-                "positions: its position is the vehicle's (x, y, z = 1.5 m) at every period, out "
-                "of everyone's range while the vehicle is not in the traffic"),
-  };
-  return keys;
-}
-
-const config::Keys& background_keys() {
-  static const config::Keys keys{
-      config::Key::string("network").help("the [[network]] the nodes are nodes of (its name)"),
-      config::Key::integer("nodes")
-          .range(1, 10000)
-          .optional("1, or the number of positions")
-          .help("how many nodes of this traffic"),
-      config::Key::any("rate", "number or \"saturated\"")
-          .unit("packets/s")
-          .help("each node's own traffic: a Poisson process of this many packets per second (> 0), "
-                "or \"saturated\": a packet always waiting (a new one the moment the stack is "
-                "done with one)"),
-      config::Key::integer("bytes").range(1, 1500).or_default(32).unit("bytes").help(
-          "payload of each packet (at most the network's largest payload)"),
-      config::Key::numbers("position")
-          .optional("[0, 0, 0]")
-          .unit("m")
-          .help("[x, y, z] of every node, for the network kinds with positions"),
-      config::Key::matrix("positions")
-          .optional("none: every node at `position`")
-          .unit("m")
-          .help("[[x, y, z], ...]: one row per node (instead of position)"),
-      config::Key::string("vehicles")
-          .optional("none: fixed positions")
-          .help("\"all\": one node riding each vehicle of the [sumo] traffic (every vehicle its "
-                "route files define by id), moved at every period's start; a vehicle not in the "
-                "traffic is out of everyone's range (instead of nodes, position, positions)"),
-  };
-  return keys;
-}
+// Read by the network layer (network/networks.h), declared there.
+const config::Keys& network_common_keys() { return network::network_keys(); }
+const config::Keys& background_keys() { return network::background_keys(); }
 
 const config::Keys& actuator_keys() { return models::actuator_keys(); }
 

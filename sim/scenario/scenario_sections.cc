@@ -94,209 +94,31 @@ std::string read_plant(const config::Table& root, const toml::table& doc, Scenar
 }
 
 void read_networks(const config::Table& root, Scenario& sc) {
-  for (const config::Table& t : root.tables("network")) {
-    NetworkEntry e;
-    const config::KeyReader common(t, network_common_keys());
-    e.name = common.string("name");
-    if (std::any_of(sc.networks.begin(), sc.networks.end(),
-                    [&](const NetworkEntry& n) { return n.name == e.name; })) {
-      t.fail("name", fmt::format("expected a unique network name, got \"{}\" twice", e.name));
-    }
-    const auto& k = network_registry().lookup(t, "kind", "");
-    e.kind = k.name;
-    e.design = k.factory(t);
-    if (common.has("sink_vehicle")) {
-      if (!e.design->has_positions()) {
-        t.fail("sink_vehicle",
-               fmt::format("expected no sink_vehicle: network kind {} has no positions", e.kind));
-      }
-      if (!sc.mobility)
-        t.fail("sink_vehicle",
-               "expected a [sumo] table (the vehicles' mobility) for a sink that "
-               "rides a vehicle");
-      if (t.has("sink_position"))
-        t.fail("sink_vehicle", "expected `sink_vehicle` or `sink_position`, not both");
-      e.sink_vehicle = sc.mobility->vehicle(t, "sink_vehicle");
-    }
-    t.finish();
-    sc.networks.push_back(std::move(e));
-  }
+  sc.networks.read(root, network_registry(), sc.mobility.get());  // network/networks.h
 }
 
 namespace {
 
-// The index of the [[network]] named by key `key` of `t` (an error listing the names otherwise).
-int network_named(const config::Table& t, std::string_view key, const std::string& name,
-                  const Scenario& sc) {
-  for (std::size_t n = 0; n < sc.networks.size(); ++n) {
-    if (sc.networks[n].name == name) return static_cast<int>(n);
-  }
-  std::string names;
-  for (const auto& n : sc.networks)
-    names += (names.empty() ? "" : ", ") + fmt::format("\"{}\"", n.name);
-  t.fail(key, fmt::format("expected the name of a [[network]] ({}), got \"{}\"",
-                          names.empty() ? "the scenario has none" : names, name));
-}
-
-// A background table's traffic: rate (packets/s, a Poisson process) or "saturated".
-void read_traffic(const config::Table& t, network::Sender& s) {
-  if (!t.has("rate")) t.fail("rate", "expected a rate in packets/s or \"saturated\", got nothing");
-  if (t.is_string("rate")) {
-    const std::string v = t.string("rate");
-    if (v != "saturated")
-      t.fail("rate", fmt::format("expected a rate in packets/s or \"saturated\", got \"{}\"", v));
-    s.traffic = network::Traffic::kSaturated;
-    return;
-  }
-  s.traffic = network::Traffic::kPoisson;
-  s.rate = t.number("rate");
-  if (!(s.rate > 0.0 && s.rate <= 1e7))
-    t.fail("rate",
-           fmt::format("expected a rate in (0, 1e7] packets/s or \"saturated\", got {}", s.rate));
-}
-
-// A background table with `vehicles = "all"`: a node on every vehicle of the [sumo] traffic.
-void read_vehicle_nodes(const config::Table& t, const config::KeyReader& r, const NetworkEntry& n,
-                        network::Sender s, Scenario& sc) {
-  if (r.string("vehicles") != "all")
-    t.fail("vehicles", fmt::format("expected \"all\", got \"{}\"", r.string("vehicles")));
-  for (const char* key : {"nodes", "position", "positions"}) {
-    if (t.has(key)) t.fail(key, fmt::format("expected no {} with vehicles", key));
-  }
-  if (!n.design->has_positions()) {
-    t.fail("vehicles",
-           fmt::format("expected no vehicles: network \"{}\" (kind {}) has no positions", n.name,
-                       n.kind));
-  }
-  if (!sc.mobility)
-    t.fail("vehicles",
-           "expected a [sumo] table (the vehicles' mobility) for nodes that ride "
-           "vehicles");
-  for (const int v : sc.mobility->every_vehicle(t, "vehicles")) {
-    s.vehicle = v;
-    s.z = network::kAway;  // until its vehicle is placed, at the run's first period
-    sc.background.push_back(s);
-  }
-  t.finish();
+// Per [[link]]: its attachment to a [[network]] (nullptr: not a node of one).
+std::vector<const models::NetworkAttachment*> attachments(const Scenario& sc) {
+  std::vector<const models::NetworkAttachment*> out;
+  for (const auto& l : sc.links) out.push_back(l.link->network_attachment());
+  return out;
 }
 
 }  // namespace
 
-void read_background(const config::Table& root, Scenario& sc) {
-  for (const config::Table& t : root.tables("background")) {
-    const config::KeyReader r(t, background_keys());
-    network::Sender s;
-    s.network = network_named(t, "network", r.string("network"), sc);
-    const NetworkEntry& n = sc.networks[static_cast<std::size_t>(s.network)];
-    read_traffic(t, s);
-    s.bytes = static_cast<std::uint32_t>(r.integer("bytes"));
-    if (s.bytes > n.design->max_payload()) {
-      t.fail("bytes", fmt::format("expected at most {} bytes, the largest payload of network "
-                                  "\"{}\" (kind {}), got {}",
-                                  n.design->max_payload(), n.name, n.kind, s.bytes));
-    }
-    for (const char* key : {"position", "positions"}) {
-      if (t.has(key) && !n.design->has_positions())
-        t.fail(key, fmt::format("expected no position: network \"{}\" (kind {}) has none", n.name,
-                                n.kind));
-    }
-    if (t.has("position") && t.has("positions"))
-      t.fail("positions", "expected either position or positions, got both");
-    if (r.has("vehicles")) {
-      read_vehicle_nodes(t, r, n, s, sc);
-      continue;
-    }
-    Eigen::MatrixXd at = Eigen::MatrixXd::Zero(1, 3);
-    if (t.has("position")) {
-      const std::array<double, 3> p = network::read_xyz(t, r, "position");
-      for (int i = 0; i < 3; ++i) at(0, i) = p[static_cast<std::size_t>(i)];
-    }
-    if (t.has("positions")) {
-      at = r.matrix("positions");
-      if (at.cols() != 3)
-        t.fail("positions",
-               fmt::format("expected rows [x, y, z] (m), got rows of {} numbers", at.cols()));
-    }
-    const std::int64_t nodes = r.opt_integer("nodes").value_or(t.has("positions") ? at.rows() : 1);
-    if (t.has("positions") && nodes != at.rows())
-      t.fail("nodes",
-             fmt::format("expected as many nodes as positions ({}), got {}", at.rows(), nodes));
-    for (std::int64_t i = 0; i < nodes; ++i) {
-      const Eigen::Index row = t.has("positions") ? static_cast<Eigen::Index>(i) : 0;
-      s.x = at(row, 0);
-      s.y = at(row, 1);
-      s.z = at(row, 2);
-      sc.background.push_back(s);
-    }
-    t.finish();
-  }
-}
-
-void drop_doubled_riders(Scenario& sc) {
-  std::vector<std::pair<int, int>> riders;  // (network, vehicle) of the links' nodes and sinks
-  for (const auto& l : sc.links) {
-    if (const models::NetworkAttachment* a = l.link->network_attachment(); a && a->vehicle >= 0)
-      riders.emplace_back(a->network, a->vehicle);
-  }
-  for (std::size_t n = 0; n < sc.networks.size(); ++n) {
-    if (sc.networks[n].sink_vehicle >= 0)
-      riders.emplace_back(static_cast<int>(n), sc.networks[n].sink_vehicle);
-  }
-  std::erase_if(sc.background, [&](const network::Sender& s) {
-    return s.vehicle >= 0 &&
-           std::find(riders.begin(), riders.end(), std::pair{s.network, s.vehicle}) != riders.end();
-  });
-}
+void drop_doubled_riders(Scenario& sc) { sc.networks.drop_doubled_riders(attachments(sc)); }
 
 void check_networks(const config::Table& root, const Scenario& sc) {
-  const auto tables = root.tables("network");
-  const auto link_tables = root.tables("link");
-  for (std::size_t l = 0; l < sc.links.size(); ++l) {
-    const models::NetworkAttachment* a = sc.links[l].link->network_attachment();
-    if (a == nullptr) continue;
-    const NetworkEntry& n = sc.networks[static_cast<std::size_t>(a->network)];
-    if (a->bytes > n.design->max_payload()) {
-      link_tables[l].fail("bytes", fmt::format("expected at most {} bytes, the largest payload of "
-                                               "network \"{}\" (kind {}), got {}",
-                                               n.design->max_payload(), n.name, n.kind, a->bytes));
-    }
-    for (const std::string key : {"position", "vehicle"}) {
-      if (link_tables[l].has(key) && !n.design->has_positions()) {
-        link_tables[l].fail(
-            key, fmt::format("expected no {}: network \"{}\" (kind {}) has {}", key, n.name, n.kind,
-                             key == "position" ? "none" : "no positions"));
-      }
-    }
-    // A sender the sink cannot hear loses every packet: a mistake, not a network to study (nodes
-    // that ride SUMO vehicles move in and out of range: no check).
-    if (a->vehicle >= 0 || n.sink_vehicle >= 0) continue;
-    const double at[3] = {a->x, a->y, a->z};
-    const auto r = n.design->reach(at);
-    if (r && !(r->received_dbm >= r->threshold_dbm)) {
-      link_tables[l].fail(
-          "position",
-          fmt::format("expected a node within range of network \"{}\"'s sink (kind {}): at {:.4g} "
-                      "m the sink receives {:.2f} dBm from it, below the {:.2f} dBm it needs ({})",
-                      n.name, n.kind, r->distance_m, r->received_dbm, r->threshold_dbm,
-                      r->threshold_why));
-    }
+  std::vector<char> used(sc.links.size(), 0);
+  for (const auto& s : sc.model.sensors) {
+    if (s.spec.link >= 0) used[static_cast<std::size_t>(s.spec.link)] = 1;
   }
-  for (std::size_t n = 0; n < sc.networks.size(); ++n) {
-    auto on_n = [&](const models::Link* l) {
-      const models::NetworkAttachment* a = l != nullptr ? l->network_attachment() : nullptr;
-      return a != nullptr && a->network == static_cast<int>(n);
-    };
-    const bool used = std::any_of(sc.model.sensors.begin(), sc.model.sensors.end(),
-                                  [&](const auto& s) { return on_n(s.link); }) ||
-                      std::any_of(sc.model.actuators.begin(), sc.model.actuators.end(),
-                                  [&](const auto& a) { return on_n(a.link); });
-    if (!used) {
-      tables[n].fail("name", fmt::format("expected a network that a sensor's or an actuator's "
-                                         "link is a node of, got \"{}\", which no [[sensor]] "
-                                         "or [[actuator]] sends over",
-                                         sc.networks[n].name));
-    }
+  for (const auto& a : sc.model.actuators) {
+    if (a.spec.link >= 0) used[static_cast<std::size_t>(a.spec.link)] = 1;
   }
+  sc.networks.check(root, attachments(sc), used);
 }
 
 void read_links(const config::Table& root, const std::string& dir, Scenario& sc,
@@ -399,7 +221,7 @@ void read_actuators(const config::Table& root, Scenario& sc) {
                            "is a node of a [[network]], one node per sender",
                            links[static_cast<std::size_t>(am.spec.link)]));
       if (const models::NetworkAttachment* a = am.link->network_attachment()) {
-        const NetworkEntry& n = sc.networks[static_cast<std::size_t>(a->network)];
+        const network::NetworkEntry& n = sc.networks[static_cast<std::size_t>(a->network)];
         if (!n.design->carries_actuators() || a->vehicle >= 0 || n.sink_vehicle >= 0)
           t.fail("link", fmt::format("expected a link whose network carries actuator commands: "
                                      "network \"{}\" (kind {}{}) does not",

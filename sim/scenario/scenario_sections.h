@@ -29,11 +29,10 @@ std::string read_plant(const config::Table& root, const toml::table& doc, Scenar
 
 // [[link]]: one link of its kind per table, unique names; relative paths from `dir`. Needs
 // sc.run and sc.mobility.
-// [[network]] (before the links, which name them) and, once the sensors are read, the check that
-// a sensor sends over each network.
+// [[network]] and [[background]] (before the links, which name them; read by the network layer,
+// network/networks.h) and, once the sensors are read, the check that a sensor sends over each
+// network.
 void read_networks(const config::Table& root, Scenario& sc);
-// [[background]] (after the networks it names): background traffic nodes of a network.
-void read_background(const config::Table& root, Scenario& sc);
 // A vehicle whose node on a network is a link's or the sink has no background node there too
 // ([[background]] vehicles = "all" names every vehicle).
 void drop_doubled_riders(Scenario& sc);

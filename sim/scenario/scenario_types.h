@@ -19,7 +19,7 @@
 #include "models/link.h"
 #include "models/mobility.h"
 #include "models/plant.h"
-#include "network/network.h"
+#include "network/networks.h"
 
 namespace ncosim::sim {
 
@@ -27,14 +27,6 @@ struct LinkEntry {
   std::string name;
   std::string kind;
   std::unique_ptr<models::Link> link;
-};
-
-// A [[network]] once read (network/network.h): what builds it in every run.
-struct NetworkEntry {
-  std::string name;
-  std::string kind;
-  std::shared_ptr<const network::NetworkDesign> design;
-  int sink_vehicle = -1;  // the [sumo] vehicle the sink rides (index in the mobility), or -1
 };
 
 struct EstimatorEntry {
@@ -71,10 +63,9 @@ struct Scenario {
   models::InputSpec input;
   models::Disturbance disturbance;  // deterministic part of w ([plant.disturbance])
   std::vector<LinkEntry> links;
-  std::vector<NetworkEntry> networks;  // [[network]], in order (the links name them)
-  // [[background]]: every background node, table by table (network::Traffic kPoisson or
-  // kSaturated), after the links' senders in each run's network session.
-  std::vector<network::Sender> background;
+  // [[network]], in order (the links name them), and their [[background]] nodes
+  // (network/networks.h).
+  network::Networks networks;
   std::vector<EstimatorEntry> estimators;
   bool recentre = false;  // simulate in re-centred coordinates (see scenarios/README.md)
   // [sumo]: the mobility source (null without it) and the vehicle whose longitudinal motion is
