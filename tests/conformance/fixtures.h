@@ -54,6 +54,14 @@ inline const std::map<std::string, std::string> kLinks{
     {"network", "network = \"bus\"\ndesign_pmf = [0.0, 0.7, 0.2]"},
 };
 
+// Network kinds ([[network]] kind): a minimal table each (their nodes at a few metres from the
+// sink), run by network_conformance_test.cc with two sensors' links as its nodes.
+inline const std::map<std::string, std::string> kNetworks{
+    {"csma", "rate = 1e6"},
+    {"lr_wpan", "tx_power = 0.0"},
+    {"wifi", "standard = \"802.11a\""},
+};
+
 inline const std::map<std::string, std::string> kPlants{
     {"lti",
      "A = [[0.8821, -0.0351], [-0.0351, 0.7347]]\nBu = [[-0.3359], [0.3466]]\nW = [[0.01, 0], [0, "
