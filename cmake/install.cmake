@@ -33,7 +33,8 @@ if(NCOSIM_SUMO)
 endif()
 foreach(dir kernel config sim models estimators lmi network sumo)
   install(DIRECTORY ${PROJECT_SOURCE_DIR}/${dir}/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/ncosim/${dir}
-          FILES_MATCHING PATTERN "*.h")
+          FILES_MATCHING PATTERN "*.h"
+          PATTERN "ns3" EXCLUDE)  # the ns-3 backend's own headers (network/ns3/) are private
 endforeach()
 
 install(EXPORT ncosim-targets NAMESPACE ncosim:: DESTINATION ${NCOSIM_INSTALL_CMAKEDIR})
