@@ -35,6 +35,7 @@ TEST(FolderLock, NamesTheLiveHolderWhenTheTakerHasEnded) {
     if (heir == 0) {
       char c = 0;
       ::close(holder[1]);
+      ::close(release[1]);                            // else its own copy would keep the pipe open
       if (::read(release[0], &c, 1) < 0) ::_exit(1);  // until the test is done (or has ended)
       ::_exit(0);
     }
