@@ -3,6 +3,7 @@
 # installed network/backend.h), and check that the fates a campaign records are those computed by
 # hand in examples/tdma_bus/scenario.toml: record-link's delays of the first 13 packets, and
 # links.csv's delay histogram of a 13-period run.
+cmake_policy(SET CMP0007 NEW)  # links.csv's empty cells are list elements too
 foreach(v BUILD_DIR SOURCE_DIR WORK_DIR CXX)
   if(NOT DEFINED ${v})
     message(FATAL_ERROR "tdma_test.cmake: ${v} not set")
@@ -33,14 +34,10 @@ run("configuring the example" ${CMAKE_COMMAND} -S ${example} -B ${WORK_DIR}/buil
 run("building the example" ${CMAKE_COMMAND} --build ${WORK_DIR}/build -j2)
 set(exe ${WORK_DIR}/build/my_tdma)
 
-run("my_tdma list" ${exe} list)
-string(FIND "${last_output}" "tdma_bus" at)
-if(at EQUAL -1)
-  message(FATAL_ERROR "my_tdma list does not show tdma_bus:\n${last_output}")
-endif()
-
+# (`list` shows no network kinds, built-in or not: that the program knows tdma_bus is shown by
+# the record-link below, which reads the scenario's [[network]] kind = "tdma_bus".)
 # Packet by packet: the table of scenario.toml (an empty delay: lost at the full queue).
-run("my_tdma record-link" ${exe} record-link ${example}/scenario.toml --link bus --runs 1
+run("my_tdma record-link" ${exe} record-link ${example}/scenario.toml --link bus --runs 1 --set run.warmup=1
     --periods 13 --out ${WORK_DIR}/record --quiet)
 file(READ ${WORK_DIR}/record/bus.csv recorded)
 set(expected "seq,delay\n0,1\n1,2\n2,2\n3,3\n4,4\n5,4\n6,\n7,4\n8,4\n9,\n10,4\n11,\n12,4\n")
