@@ -433,20 +433,24 @@ struct CommandLine {
   void add_other_commands() {
     compare = app.add_subcommand("compare",
                                  "compare two `run` output folders row by row (paired where the "
-                                 "seeds match): exit 1 on a regression");
+                                 "seeds match): exit 1 on a regression, 4 when inconclusive "
+                                 "(docs/compare.md)");
     compare->add_option("BASE", cmp.base, "the baseline output folder")->required();
     compare->add_option("NEW", cmp.fresh, "the output folder to check")->required();
     compare->add_option("--metric", cmp.options.metric,
                         "per-run column of runs.csv (default mse; mse_ext, mde_percent, rmse_xI)");
-    compare->add_option(
-        "--tolerance", cmp.options.tolerance,
-        "relative change never reported as worse or better (default 0; 0.01 = 1 %)");
+    compare->add_option("--tolerance", cmp.options.tolerance,
+                        "relative band of the typical per-run ratio: worse above 1 + T, better "
+                        "below 1 - T, unchanged when shown inside (default 0.05)");
     compare->add_option("--alpha", cmp.options.alpha,
-                        "significance level of the one-sided tests (default 0.05)");
+                        "level of each one-sided test, in (0, 0.5); intervals at 1 - 2 alpha "
+                        "(default 0.05)");
     compare
         ->add_option("--correction", cmp.correction,
                      "multiple-testing correction over the rows (default holm)")
         ->check(CLI::IsMember({"holm", "none"}));
+    compare->add_flag("--allow-inconclusive", cmp.options.allow_inconclusive,
+                      "an inconclusive row (too few runs to tell) passes: exit 0 instead of 4");
     compare->add_flag("--allow-scenario-change", cmp.options.allow_scenario_change,
                       "compare folders of another scenario text, --set or input files (other "
                       "--runs, --periods or "
