@@ -271,17 +271,23 @@ def _folder(x):
 
 class Comparison:
     """`ncosim compare`: ``table`` (compare.csv as a DataFrame), ``markdown`` (what it prints),
-    ``regression`` (True when a row got worse: the command's exit 1)."""
+    ``regression`` (True when a row got worse: the command's exit 1), ``inconclusive`` (True when
+    no row got worse but one could not be told from a change beyond the tolerance: exit 4, or 0
+    with allow_inconclusive)."""
 
-    def __init__(self, table, markdown, regression, warnings_text):
+    def __init__(self, table, markdown, regression, warnings_text, inconclusive=False):
         self.table = table
         self.markdown = markdown
         self.regression = regression
+        self.inconclusive = inconclusive
         self.warnings = warnings_text
 
     @property
     def verdict(self):
-        return "regression" if self.regression else "no regression"
+        """``regression``, ``inconclusive`` or ``no regression`` (docs/compare.md)."""
+        if self.regression:
+            return "regression"
+        return "inconclusive" if self.inconclusive else "no regression"
 
     def __repr__(self):
         return f"<ncosim.Comparison: {self.verdict}>\n{self.markdown}"
@@ -291,7 +297,7 @@ class Comparison:
 
 
 def compare(base, new, *, metric=None, tolerance=None, alpha=None, correction=None,
-            allow_scenario_change=False):
+            allow_inconclusive=False, allow_scenario_change=False):
     """Compares two campaigns (Campaign objects or output folders) row by row, paired where the
     seeds match (`ncosim compare BASE NEW`). Returns a Comparison."""
     with tempfile.TemporaryDirectory(prefix="ncosim-compare-") as tmp:
@@ -300,14 +306,16 @@ def compare(base, new, *, metric=None, tolerance=None, alpha=None, correction=No
                         ("--correction", correction)):
             if v is not None:
                 args += [flag, v]
+        args += ["--allow-inconclusive"] * bool(allow_inconclusive)
         args += ["--allow-scenario-change"] * bool(allow_scenario_change)
         code, out, err = _cli(args)
-        if code not in (0, 1):
+        if code not in (0, 1, 4):
             _raise_for(code, err, "compare")
         table = _read_csv(os.path.join(tmp, "cmp", "compare.csv"))
         with open(os.path.join(tmp, "cmp", "compare.md"), encoding="utf-8") as f:
             markdown = f.read()
-    return Comparison(table, markdown, code == 1, _message(err))
+    inconclusive = code == 4 or (code == 0 and "inconclusive" in set(table["verdict"]))
+    return Comparison(table, markdown, code == 1, _message(err), inconclusive)
 
 
 class Fit:

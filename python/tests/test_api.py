@@ -127,6 +127,12 @@ def test_compare_finds_a_regression_and_no_change(motor):
     assert r.regression
     assert r.table.loc[0, "verdict"] == "worse"
     assert "worse" in r.markdown
+    # 2 runs a side cannot show anything: inconclusive (exit 4), passed when allowed.
+    few = ncosim.compare(ncosim.run(motor, runs=2, progress=False),
+                         ncosim.run(motor, runs=2, progress=False))
+    assert few.inconclusive and not few.regression and few.verdict == "inconclusive"
+    assert set(few.table["verdict"]) == {"inconclusive"}
+    assert few.table.loc[0, "ci_level"] == pytest.approx(0.9)
     with pytest.raises(ncosim.ScenarioError):
         ncosim.compare(base, worse)  # another scenario text without allow_scenario_change
     with pytest.raises(ValueError):
