@@ -44,14 +44,14 @@ std::string pairing_text(const CompareResult& r) {
       unpaired, r.base.seed, r.fresh.seed);
 }
 
-// The typical change with its interval: in % when every end lies within x0.5 .. x2, else as
-// factors (readable at any size: x1.2e+160).
+// The typical change with its interval: in % when every end lies within ×0.5 .. ×2, else as
+// factors (readable at any size: ×1.2e+160).
 std::string change_cell(const CompareRow& row) {
   if (!row.log_ratio || !row.log_low || !row.log_high) return "–";
   const double half = std::log(2.0);
   const auto near = [half](double v) { return std::abs(v) <= half; };  // false for +-inf
   if (near(*row.log_ratio) && near(*row.log_low) && near(*row.log_high)) {
-    // Decimals that give the interval's width two significant digits.
+    // Decimals that give the interval's width three significant digits.
     const double width = 100.0 * (std::expm1(*row.log_high) - std::expm1(*row.log_low));
     const int decimals =
         width >= 1e-4 ? std::clamp(2 - static_cast<int>(std::floor(std::log10(width))), 0, 6) : -1;

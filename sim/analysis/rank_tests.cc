@@ -6,6 +6,9 @@
 #include <bit>
 #include <cmath>
 #include <cstdint>
+#include <map>
+#include <mutex>
+#include <tuple>
 
 #include "kernel/check.h"
 
@@ -42,6 +45,51 @@ double from_order_key(std::uint64_t k) {
   return std::bit_cast<double>((k >> 63) != 0 ? (k & 0x7FFFFFFFFFFFFFFFULL) : ~k);
 }
 
+// The exact tail tables computed so far, by (law, m, n): each computed once per process.
+using TailTable = std::shared_ptr<const std::vector<double>>;
+TailTable cached(char law, std::size_t m, std::size_t n,
+                 std::vector<double> (*compute)(std::size_t, std::size_t)) {
+  static std::mutex mutex;
+  static std::map<std::tuple<char, std::size_t, std::size_t>, TailTable> tables;
+  const std::lock_guard<std::mutex> lock(mutex);
+  auto& t = tables[{law, m, n}];
+  if (!t) t = std::make_shared<const std::vector<double>>(compute(m, n));
+  return t;
+}
+
+// P(W+ >= c) of n ranks: the probability that the ranks with a positive sign sum to s, each sign
+// 1/2, summed from the top.
+std::vector<double> signed_rank_tail(std::size_t n, std::size_t /*unused*/) {
+  std::vector<double> p(n * (n + 1) / 2 + 1, 0.0);
+  p[0] = 1.0;
+  std::size_t top = 0;
+  for (std::size_t k = 1; k <= n; ++k) {
+    top += k;
+    for (std::size_t s = top + 1; s-- > 0;) p[s] = 0.5 * (p[s] + (s >= k ? p[s - k] : 0.0));
+  }
+  return upper_tails(p);
+}
+
+// P(U >= c) of samples of m and n: ways[j][s] counts the subsets of j of the first e elements
+// (0-based ranks) whose ranks sum to s; U is the sum of the k = min(m, n) chosen ranks minus
+// k (k - 1) / 2 (each pair counted once), in 0 .. m n.
+std::vector<double> rank_sum_tail(std::size_t m, std::size_t n) {
+  const std::size_t k = std::min(m, n), total = m + n, width = k * total + 1;
+  std::vector<std::vector<double>> ways(k + 1, std::vector<double>(width, 0.0));
+  ways[0][0] = 1.0;
+  for (std::size_t e = 0; e < total; ++e) {
+    for (std::size_t j = std::min(e + 1, k); j >= 1; --j) {
+      for (std::size_t s = width; s-- > e;) ways[j][s] += ways[j - 1][s - e];
+    }
+  }
+  const std::size_t offset = k * (k - 1) / 2;
+  std::vector<double> p(m * n + 1, 0.0);
+  double all = 0.0;
+  for (std::size_t u = 0; u <= m * n; ++u) all += ways[k][u + offset];
+  for (std::size_t u = 0; u <= m * n; ++u) p[u] = ways[k][u + offset] / all;
+  return upper_tails(p);
+}
+
 }  // namespace
 
 RankNull RankNull::signed_rank(std::size_t n) {
@@ -50,16 +98,7 @@ RankNull RankNull::signed_rank(std::size_t n) {
   const double nd = static_cast<double>(n);
   r.mean_ = nd * (nd + 1.0) / 4.0;
   r.sd_ = std::sqrt(nd * (nd + 1.0) * (2.0 * nd + 1.0) / 24.0);
-  if (n > kExactSignedRank) return r;
-  // p[s]: the probability that the ranks with a positive sign sum to s (each sign 1/2).
-  std::vector<double> p(r.n_ + 1, 0.0);
-  p[0] = 1.0;
-  std::size_t top = 0;
-  for (std::size_t k = 1; k <= n; ++k) {
-    top += k;
-    for (std::size_t s = top + 1; s-- > 0;) p[s] = 0.5 * (p[s] + (s >= k ? p[s - k] : 0.0));
-  }
-  r.tail_ = upper_tails(p);
+  if (n <= kExactSignedRank) r.tail_ = cached('s', n, 0, signed_rank_tail);
   return r;
 }
 
@@ -71,30 +110,14 @@ RankNull RankNull::rank_sum(std::size_t m, std::size_t n) {
   r.sd_ = std::sqrt(md * nd * (md + nd + 1.0) / 12.0);
   const std::size_t k = std::min(m, n), total = m + n;
   const double kd = static_cast<double>(k), td = static_cast<double>(total);
-  if (kd * kd * td * td > kExactRankSumWork) return r;
-  // ways[j][s]: subsets of j of the first e elements (0-based ranks) whose ranks sum to s; U is
-  // the sum of the k chosen ranks minus k (k - 1) / 2 (each pair counted once), in 0 .. m n.
-  const std::size_t width = k * total + 1;
-  std::vector<std::vector<double>> ways(k + 1, std::vector<double>(width, 0.0));
-  ways[0][0] = 1.0;
-  for (std::size_t e = 0; e < total; ++e) {
-    for (std::size_t j = std::min(e + 1, k); j >= 1; --j) {
-      for (std::size_t s = width; s-- > e;) ways[j][s] += ways[j - 1][s - e];
-    }
-  }
-  const std::size_t offset = k * (k - (k > 0 ? 1 : 0)) / 2;
-  std::vector<double> p(r.n_ + 1, 0.0);
-  double all = 0.0;
-  for (std::size_t u = 0; u <= r.n_; ++u) all += ways[k][u + offset];
-  for (std::size_t u = 0; u <= r.n_; ++u) p[u] = ways[k][u + offset] / all;
-  r.tail_ = upper_tails(p);
+  if (kd * kd * td * td <= kExactRankSumWork) r.tail_ = cached('r', m, n, rank_sum_tail);
   return r;
 }
 
 double RankNull::upper_tail(std::size_t c) const {
   if (c == 0) return 1.0;
   if (c > n_) return 0.0;
-  if (exact()) return tail_[c];
+  if (exact()) return (*tail_)[c];
   if (!(sd_ > 0.0)) return 0.0;
   return normal_upper((static_cast<double>(c) - 0.5 - mean_) / sd_);
 }

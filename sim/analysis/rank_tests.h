@@ -13,8 +13,9 @@
 // statement, in floating point too (one count, one table). A value w equal to delta counts against
 // the claim (conservative for ties).
 //
-// The null laws are exact (a dynamic program) up to n = 200 (signed-rank) or m n (m + n) min(m, n)
-// <= 1e7 (rank-sum), and the normal approximation with a continuity correction beyond. The w are
+// The null laws are exact (a dynamic program, each size computed once per process) up to n = 200
+// (signed-rank) or min(m, n)^2 (m + n)^2 <= 1e7 (rank-sum: up to 39 runs a side), and the normal
+// approximation with a continuity correction beyond. The w are
 // never stored: order statistics are found by bisection over the doubles, counting in O(n).
 // Failure behaviour: empty samples are programmer errors (checked by the callers); non-finite
 // values are not allowed (the caller maps them to finite ones).
@@ -22,6 +23,7 @@
 
 #include <cstddef>
 #include <limits>
+#include <memory>
 #include <vector>
 
 namespace ncosim::sim {
@@ -35,7 +37,7 @@ class RankNull {
   static RankNull rank_sum(std::size_t m, std::size_t n);
 
   std::size_t max() const { return n_; }
-  bool exact() const { return !tail_.empty(); }
+  bool exact() const { return tail_ != nullptr; }
   // P0(S >= c); 1 for c == 0, 0 for c > max().
   double upper_tail(std::size_t c) const;
   // The smallest c with P0(S >= c) <= a (max() + 1 when there is none: too few values).
@@ -44,7 +46,9 @@ class RankNull {
  private:
   std::size_t n_ = 0;
   double mean_ = 0.0, sd_ = 0.0;  // of the normal approximation
-  std::vector<double> tail_;      // exact: tail_[c] = P0(S >= c), c = 0 .. N + 1
+  // Exact: (*tail_)[c] = P0(S >= c), c = 0 .. N + 1; shared by every law of the same sizes (a
+  // compare of many rows computes each table once).
+  std::shared_ptr<const std::vector<double>> tail_;
 };
 
 // The shift values of a sample and counts over them.

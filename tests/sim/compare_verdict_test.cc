@@ -63,6 +63,17 @@ TEST(CompareVerdict, FourVerdictsAndTheirExitCodes) {
   EXPECT_EQ(kCompareInconclusive, 4);
 }
 
+TEST(CompareVerdict, EqualRowsGetEqualIntervals) {
+  // Three identical rows (equal p-values) share the level of the first Holm step, alpha / 3:
+  // they were printed at 98.3 %, 98 % and 97.5 % before.
+  const CompareSample s = paired_sample("x", 20, 1.0, 1);
+  const auto rows = compare_samples({s, s, s}, CompareOptions{});
+  for (const auto& r : rows) {
+    EXPECT_EQ(r.verdict, "unchanged");
+    EXPECT_DOUBLE_EQ(*r.ci_level, 1.0 - 2.0 * 0.05 / 3.0);
+  }
+}
+
 TEST(CompareVerdict, EveryIntervalReadsAsItsVerdictUnderHolm) {
   // Random families of 1..12 rows, paired and unpaired, changes around the band's edges: the
   // printed interval (at ci_level) read against the tolerance gives the verdict, always. Before,
