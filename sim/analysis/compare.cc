@@ -122,7 +122,7 @@ void values_to_test(const RunValues& vb, const RunValues& vn, bool same_seed,
   c.clear();
   for (const auto& [run, v] : vb) a.push_back(v);
   for (const auto& [run, v] : vn) c.push_back(v);
-  out.note = same_seed ? "no common runs: unpaired" : "different seeds: unpaired";
+  out.note = same_seed ? "fewer than 2 common runs: unpaired" : "different seeds: unpaired";
 }
 
 // Tests one matched row: divergence first, then the rank test of the per-run ratio (paired or
