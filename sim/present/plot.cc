@@ -311,6 +311,15 @@ void plot_per_estimator(const Summary& s, const MetricColumns& mc, const std::st
 // growing in width: 32 rows were 3770 px, shrunk on a page until no label could be read).
 constexpr std::size_t kMostRowsAcross = 12;
 
+// A title as a gnuplot string expression on two lines, broken before the scenario's title
+// (" — "), so that a long one fits a 900-px figure.
+std::string two_line_title(const std::string& title) {
+  const auto at = title.find(" — ");
+  if (at == std::string::npos) return gnuplot_quote(title);
+  return gnuplot_quote(title.substr(0, at)) + ".\"\\n\"." +
+         gnuplot_quote(title.substr(at + std::string(" — ").size()));
+}
+
 // Without sweep keys, many rows: one line per row of summary.csv, the estimators down the y
 // axis (first on top), the metric along x with its CI as a horizontal bar, the prediction as a
 // square on the same line.
@@ -574,8 +583,9 @@ Figure summary_figure(const std::string& dir, const Summary& s, const PlotOption
   SummaryPlot p;
   p.dat = fmt::format("# {} — numbers copied from summary.csv as written ('?' = empty)\n",
                       comment(f.title));
-  p.body = fmt::format("  set title {}\n  set {}label {}\n  set grid\n", gnuplot_quote(f.title),
-                       axis, gnuplot_quote(opt.metric + (mc.ci >= 0 ? "  (bars: 95 % CI)" : "")));
+  p.body = fmt::format("  set title {}\n  set {}label {}\n  set grid\n",
+                       rows_down ? two_line_title(f.title) : gnuplot_quote(f.title), axis,
+                       gnuplot_quote(opt.metric + (mc.ci >= 0 ? "  (bars: 95 % CI)" : "")));
   if (logy) p.body += fmt::format("  set logscale {}\n", axis);
   if (mc.paired) p.body += fmt::format("  set {}zeroaxis lt -1 lw 1.5\n", rows_down ? "y" : "x");
   if (rows_down) {
