@@ -233,7 +233,9 @@ void record_session(RunStore& store, double wall, int used_threads, int ranks, i
 
 // What one `run` session did, for its closing line.
 struct SessionTotals {
-  double wall = 0.0;
+  std::chrono::steady_clock::time_point started = std::chrono::steady_clock::now();
+  double design = 0.0;  // reading, validating and designing every case (load_cases), seconds
+  double wall = 0.0;    // the campaigns' simulation, seconds
   int threads = 1;
   int ranks = 1;  // MPI ranks (1 without mpirun)
   std::uint64_t simulated = 0, skipped = 0;
@@ -262,16 +264,23 @@ std::string campaign_size(const LoadedScenario& loaded,
                      range(rlo, rhi), range(plo, phi), total);
 }
 
-// The closing line: "ncosim: 3 cases x 20 runs x 5000 periods = 60 runs in 8.7 s on 2 threads
-// [x 3 MPI ranks][, shard I/N]; results in DIR/", with the runs stored before when resumed.
+// Seconds as the closing line prints them: 2 decimals below 10 s, 1 above.
+std::string seconds_text(double s) {
+  return s >= 10.0 ? fmt::format("{:.1f}", s) : fmt::format("{:.2f}", s);
+}
+
+// The closing line: "ncosim: 3 cases x 20 runs x 5000 periods = 60 runs in 9.9 s: design 1.1 s,
+// simulation 8.7 s on 2 threads [x 3 MPI ranks][, shard I/N]; results in DIR/", with the runs
+// stored before when resumed. The first time is the command's whole (`total` seconds); the rest
+// (exports, writing files) is neither design nor simulation.
 std::string closing_line(const RunCommand& cmd, const LoadedScenario& loaded,
-                         const SessionTotals& t) {
+                         const SessionTotals& t, double total) {
   return fmt::format(
-      "ncosim: {}{} in {} s on {} thread{}{}{}; results in {}/\n",
+      "ncosim: {}{} in {} s: design {} s, simulation {} s on {} thread{}{}{}; results in {}/\n",
       campaign_size(loaded, t.case_runs),
       t.skipped > 0 ? fmt::format(" ({} stored before, {} simulated now)", t.skipped, t.simulated)
                     : "",
-      t.wall >= 10.0 ? fmt::format("{:.1f}", t.wall) : fmt::format("{:.2f}", t.wall), t.threads,
+      seconds_text(total), seconds_text(t.design), seconds_text(t.wall), t.threads,
       t.threads == 1 ? "" : "s", t.ranks > 1 ? fmt::format(" x {} MPI ranks", t.ranks) : "",
       cmd.shard.empty() ? "" : fmt::format(", shard {}", cmd.shard), cmd.out);
 }
@@ -304,7 +313,9 @@ int finish_session(const RunCommand& cmd, const std::string& md, const LoadedSce
   // With --format csv|json stdout holds the data alone: the closing line goes to stderr.
   (cmd.format == "csv" || cmd.format == "json" ? std::cerr : std::cout)
       << "\n"
-      << closing_line(cmd, loaded, t);
+      << closing_line(
+             cmd, loaded, t,
+             std::chrono::duration<double>(std::chrono::steady_clock::now() - t.started).count());
   if (sig > 0) {
     // A signal after the last run had started stopped nothing: the results are complete (the
     // exit status still says a signal came).
@@ -520,17 +531,21 @@ void simulate_session(RunSession& session, RunStore& store) {
 }  // namespace
 
 int cmd_run_campaign(const RunCommand& cmd) {
+  const auto started = std::chrono::steady_clock::now();
   const Shard shard = cmd.shard.empty() ? Shard{} : parse_shard(cmd.shard);
   check_target_options(cmd);
   LoadedScenario loaded = load_cases(cmd.file, cmd.sets, cmd.overrides);
+  const double design =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
   reference_case_index(loaded);  // [paired] reference_case: bad input before t = 0
   const std::string& out = cmd.out;
   auto meta =
       campaign_meta(loaded, cmd.overrides,
                     cmd.shard.empty() ? "" : fmt::format("{}/{}", shard.index + 1, shard.count));
   const TargetRule rule = target_rule(cmd, loaded, meta);
-  const TableRequest table{cmd.columns,
-                           cmd.format};  // sim/present/table_view.h: bad --columns before t = 0
+  // sim/present/table_view.h: bad --columns before t = 0; the table fits COLUMNS or the terminal.
+  const TableRequest table{cmd.columns, cmd.format,
+                           table_width(std::getenv("COLUMNS"), STDOUT_FILENO)};
   check_table_request(
       table, summary_csv_columns(loaded.sweeps, loaded.cases.front().scenario->model.plant.n(),
                                  rule.on()));
@@ -555,6 +570,8 @@ int cmd_run_campaign(const RunCommand& cmd) {
   RunStore store = open_run_store(cmd, loaded, meta);
   const std::string path = store_path(out);
   RunSession session(cmd, loaded, shard, rule, mpi.get());
+  session.totals.started = started;
+  session.totals.design = design;
   session.stored = register_cases(store, loaded, cmd.resume);
 
   // One progress line for the whole campaign: redrawn on a terminal, a line every 5 s in a log.

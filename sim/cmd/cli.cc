@@ -379,11 +379,12 @@ struct CommandLine {
         ->required();
     run->add_option("--columns", columns_text,
                     "the summary.csv columns printed on stdout, comma-separated (default: those "
-                    "that fit 120 columns)");
-    run->add_option("--format", run_cmd.format,
-                    "what stdout gets: md (the Markdown table), csv (summary.csv's text) or json "
-                    "(an array of rows); "
-                    "default: the table fitted to 120 columns");
+                    "that fit the terminal: COLUMNS, its width, 120 when not a terminal)");
+    run->add_option(
+        "--format", run_cmd.format,
+        "what stdout gets: md (the Markdown table), csv (summary.csv's text) or json "
+        "(an array of rows); "
+        "default: the table fitted to the terminal (COLUMNS, else its width, else 120)");
     run->add_flag("--fail-on-status", run_cmd.fail_on_status,
                   "exit 3 (after writing the results) when any row's status is not its expected "
                   "one (default ok; "

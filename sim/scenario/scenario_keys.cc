@@ -204,7 +204,7 @@ const config::Keys& sweep_keys() {
 const config::Keys& paired_keys() {
   static const config::Keys keys{
       config::Key::string("reference")
-          .optional("the default reference of the kinds, else the first estimator")
+          .optional("the first Kalman-type row whose status is ok, else the first ok row")
           .help("the name of the reference estimator of the paired columns"),
       config::Key::table("reference_case")
           .optional("the first case")
