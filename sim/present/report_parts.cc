@@ -6,8 +6,38 @@
 #include <fstream>
 #include <sstream>
 
-#include "sim/present/report.h"
 #include "sim/store/store.h"
+
+namespace ncosim::sim {
+
+std::string html_escape(const std::string& s) {
+  std::string out;
+  out.reserve(s.size() + s.size() / 8);
+  for (char c : s) {
+    switch (c) {
+      case '&':
+        out += "&amp;";
+        break;
+      case '<':
+        out += "&lt;";
+        break;
+      case '>':
+        out += "&gt;";
+        break;
+      case '"':
+        out += "&quot;";
+        break;
+      case '\'':
+        out += "&#39;";
+        break;
+      default:
+        out += c;
+    }
+  }
+  return out;
+}
+
+}  // namespace ncosim::sim
 
 namespace ncosim::sim::report_parts {
 

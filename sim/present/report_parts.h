@@ -10,6 +10,13 @@
 #include <optional>
 #include <string>
 
+namespace ncosim::sim {
+
+// HTML text escaping (&, <, >, ", ').
+std::string html_escape(const std::string& s);
+
+}  // namespace ncosim::sim
+
 namespace ncosim::sim::report_parts {
 
 // The file's bytes, or nullopt when it cannot be read.
