@@ -78,6 +78,12 @@ transition = [[0.98, 0.02], [0.1, 0.9]]
 loss = [0.05, 0.6]
 delay_pmf = [[0.8, 0.2], [0.0, 0.2, 0.4, 0.4]]
 step = "period")";
+// Independent losses (Bernoulli, 20 %) and independent delays (negative binomial, mean 2): the
+// textbook case, where the block means are independent too.
+const char* const kBernoulli = R"(kind = "negative_binomial"
+successes = 2
+p = 0.5
+loss = 0.2)";
 const char* const kGilbert = R"(kind = "gilbert_elliott"
 mean_loss = 0.3
 mean_burst = 100.0
@@ -176,6 +182,15 @@ struct Counts {
   }
 };
 
+// The Clopper–Pearson 95 % interval of k successes in n trials.
+std::string clopper_pearson(std::size_t k, std::size_t n) {
+  using B = boost::math::binomial;
+  const auto kd = static_cast<double>(k), nd = static_cast<double>(n);
+  return fmt::format("[{:.3g}, {:.3g}]",
+                     B::find_lower_bound_on_p(nd, kd, 0.025, B::clopper_pearson_exact_interval),
+                     B::find_upper_bound_on_p(nd, kd, 0.025, B::clopper_pearson_exact_interval));
+}
+
 // The 0.999 quantile of Binomial(n, a).
 double bound(std::size_t n, double a) {
   return boost::math::quantile(boost::math::binomial(static_cast<double>(n), a), 0.999);
@@ -205,10 +220,11 @@ Rates false_alarms(const char* link, std::size_t runs, int periods, double a) {
 
 void report(const char* what, const Counts& c, double a, bool naive = true) {
   const std::string msg = fmt::format(
-      "{}: {} campaigns tested; p < {:g} in {}{}, bound {:g}; told (level {:g} and material "
-      "growth) {}",
-      what, c.tested, a, c.below, naive ? fmt::format(" (naive test: {})", c.naive) : "",
-      bound(c.tested, a), kTrendAlpha, c.told);
+      "{}: {} campaigns tested; p < {:g} in {} {}{}, bound {:g}; told (level {:g} and material "
+      "growth) {} {}",
+      what, c.tested, a, c.below, clopper_pearson(c.below, c.tested),
+      naive ? fmt::format(" (naive test: {})", c.naive) : "", bound(c.tested, a), kTrendAlpha,
+      c.told, clopper_pearson(c.told, c.tested));
   ::testing::Test::RecordProperty(what, msg);
   std::cout << msg << "\n";
 }
@@ -244,6 +260,22 @@ TEST(OverloadStatistics, GilbertElliottLinkFalseAlarmsAcrossRuns) {
   EXPECT_GT(r.loss.naive, bound(kCampaigns, kLevel));
   EXPECT_LE(r.delay.told, bound(kCampaigns, 2 * kTrendAlpha));
   EXPECT_LE(r.error.told, bound(kCampaigns, kTrendAlpha));
+}
+
+TEST(OverloadStatistics, BernoulliLinkFalseAlarmsAcrossAndWithinRuns) {
+  for (const std::size_t runs : {10u, 1u}) {
+    const Rates r = false_alarms(kBernoulli, runs, 3000, kLevel);
+    const std::string n = fmt::format("bernoulli, {} run(s)", runs);
+    report((n + ", delay").c_str(), r.delay, kLevel);
+    report((n + ", loss").c_str(), r.loss, kLevel);
+    report((n + ", Kalman error").c_str(), r.error, kLevel, false);
+    ASSERT_EQ(r.delay.tested, kCampaigns) << n;
+    EXPECT_LE(r.delay.below, bound(kCampaigns, kLevel)) << n;
+    EXPECT_LE(r.loss.below, bound(kCampaigns, kLevel)) << n;
+    EXPECT_LE(r.error.below, bound(kCampaigns, kLevel)) << n;
+    EXPECT_LE(r.delay.told, bound(kCampaigns, 2 * kTrendAlpha)) << n;
+    EXPECT_LE(r.error.told, bound(kCampaigns, kTrendAlpha)) << n;
+  }
 }
 
 // Fewer than 5 runs: Mann–Kendall on each run's 8 batch means, summed over the runs. Where its
