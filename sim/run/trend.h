@@ -15,9 +15,8 @@
 //    hundreds of periods): Mann–Kendall on kBatches batch means of each run, each an eighth of
 //    its blocks, the runs' S summed, with the sum's exact null law (every order of each run's
 //    batch means equally likely, runs independent). It assumes the link forgets its state within
-//    an eighth of a run (its batch means then nearly independent); the Hamed–Rao variance
-//    correction on the blocks themselves was measured too liberal where this assumption holds
-//    (results/README.md, "Overload and growth").
+//    an eighth of a run (its batch means then nearly independent); where it does not, the test is
+//    liberal (measured in results/README.md, "Overload and growth").
 #pragma once
 
 #include <cstddef>
