@@ -252,6 +252,7 @@ TEST(OverloadStatistics, MarkovLinkFalseAlarmsAcrossRuns) {
 
 TEST(OverloadStatistics, GilbertElliottLinkFalseAlarmsAcrossRuns) {
   const Rates r = false_alarms(kGilbert, 10, 3000, kLevel);
+  report("gilbert_elliott delay (0: untold), 10 runs", r.delay, kLevel);
   report("gilbert_elliott loss, 10 runs", r.loss, kLevel);
   report("gilbert_elliott Kalman error, 10 runs", r.error, kLevel, false);
   ASSERT_EQ(r.loss.tested, kCampaigns);
