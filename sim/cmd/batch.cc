@@ -338,10 +338,18 @@ int finish_session(const RunCommand& cmd, const std::string& md, const LoadedSce
   if ((cmd.fail_on_status || crashed) && !not_ok.empty()) {
     std::string list;
     for (const auto& r : not_ok) list += "  " + r + "\n";
-    std::cerr << fmt::format(
-        "ncosim: {}: {} row(s) with an unexpected status (results written to {}/):\n{}",
-        cmd.fail_on_status ? "--fail-on-status" : "a run's process died", not_ok.size(), cmd.out,
-        list);
+    // Overloaded links (sim/run/overload.h) are listed after the rows.
+    const auto links = std::count_if(not_ok.begin(), not_ok.end(), [](const std::string& r) {
+      return r.find(": overloaded (offered") != std::string::npos;
+    });
+    const auto rows = static_cast<std::ptrdiff_t>(not_ok.size()) - links;
+    std::string what = fmt::format("{} row(s) with an unexpected status", rows);
+    if (links > 0)
+      what = rows > 0 ? fmt::format("{} and {} overloaded link(s)", what, links)
+                      : fmt::format("{} overloaded link(s)", links);
+    std::cerr << fmt::format("ncosim: {}: {} (results written to {}/):\n{}",
+                             cmd.fail_on_status ? "--fail-on-status" : "a run's process died", what,
+                             cmd.out, list);
     return kExitFlagged;
   }
   return 0;

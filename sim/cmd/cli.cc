@@ -388,7 +388,8 @@ struct CommandLine {
     run->add_flag("--fail-on-status", run_cmd.fail_on_status,
                   "exit 3 (after writing the results) when any row's status is not its expected "
                   "one (default ok; "
-                  "[[estimator]] expected_status), listing those rows");
+                  "[[estimator]] expected_status) or a network link is overloaded (links.csv "
+                  "overload), listing those rows and links");
   }
 
   // design, find, codesign: offline design.

@@ -35,6 +35,7 @@
 #include "sim/present/table_view.h"
 #include "sim/run/campaign.h"
 #include "sim/run/link_report.h"
+#include "sim/run/overload.h"
 #include "sim/run/progress.h"
 #include "sim/scenario/resource_limits.h"
 #include "sim/store/store.h"
@@ -175,6 +176,22 @@ void summarise_cases(const LoadedScenario& loaded, const RunStore& store, Export
   add_paired_across_cases(s.rows, loaded, reference_case_index(loaded));  // sim/analysis/paired.h
 }
 
+// The cases as the per-case reports take them: labels, scenarios, results.
+struct CaseViews {
+  std::vector<std::vector<std::string>> labels;
+  std::vector<const Scenario*> scenarios;
+  std::vector<const CampaignResult*> results;
+};
+CaseViews case_views(const LoadedScenario& loaded, const ExportState& s) {
+  CaseViews v;
+  for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
+    v.labels.push_back(loaded.cases[c].labels);
+    v.scenarios.push_back(loaded.cases[c].scenario.get());
+    v.results.push_back(&s.results[c]);
+  }
+  return v;
+}
+
 // "case, \"estimator\": status" of each row whose status is not as its scenario expects.
 void report_not_ok(const LoadedScenario& loaded, const std::vector<SummaryRow>& rows,
                    std::vector<std::string>& not_ok) {
@@ -193,6 +210,8 @@ void report_not_ok(const LoadedScenario& loaded, const std::vector<SummaryRow>& 
 std::string summary_extras(const LoadedScenario& loaded, const ExportState& s,
                            const ExportInfo& info) {
   std::string extras = consistency_notes(loaded.sweeps, s.rows);
+  const CaseViews views = case_views(loaded, s);  // links and errors that grow: sim/run/overload.h
+  extras += growth_notes(loaded.sweeps, views.labels, views.scenarios, views.results);
   const TargetRule& rule = s.rule;
   if (s.decision.decided) {
     extras += s.decision.reason == "target_ci"
@@ -315,7 +334,12 @@ std::vector<std::pair<std::string, std::string>> derive_exports(const LoadedScen
   s.rule = target_of(s.meta, loaded);
   load_runs(loaded, store, s);
   summarise_cases(loaded, store, s);
-  if (info.not_ok != nullptr) report_not_ok(loaded, s.rows, *info.not_ok);
+  if (info.not_ok != nullptr) {
+    report_not_ok(loaded, s.rows, *info.not_ok);
+    const CaseViews views = case_views(loaded, s);  // --fail-on-status fails on an overload too
+    for (auto& line : overloaded_flows(loaded.sweeps, views.labels, views.scenarios, views.results))
+      info.not_ok->push_back(std::move(line));
+  }
   const Scenario& first = *loaded.cases.front().scenario;
   const Eigen::Index n = first.model.plant.n();
   s.complete = s.decision.decided || (!s.rule.on() && s.done == s.expected);

@@ -53,10 +53,19 @@ TEST_F(ChannelCli, RunWritesLinksCsvWithARowPerLinkAndSender) {
             "delay_pmf,nominal_delay_pmf,bursts,burst_mean,nominal_burst_mean,burst_p95,burst_max,"
             "state_occupancy,"
             "nominal_state_occupancy,step,mac_attempts,mac_retries,drops_queue,drops_channel_"
-            "access,drops_no_ack,drops_out_of_range,busy_ratio");
+            "access,drops_no_ack,drops_out_of_range,busy_ratio,offered_rate,delivered_rate,"
+            "delay_first,delay_last,delay_growth,delay_trend_p,loss_first,loss_last,loss_"
+            "growth,loss_trend_p,overload");
   EXPECT_EQ(l[1].rfind("net1,delay,y1,4,8000,", 0), 0u) << l[1];
-  // Not network links: the stack's columns are empty.
-  EXPECT_EQ(l[1].substr(l[1].size() - 7), ",,,,,,,") << l[1];
+  // Not network links: the stack's 7 columns are empty; the overload test's 11 follow
+  // (results/README.md, "Overload and growth"): stationary links, tested, `none`.
+  std::vector<std::string> cells;
+  std::istringstream row(l[1]);
+  for (std::string c; std::getline(row, c, ',');) cells.push_back(c);
+  ASSERT_EQ(cells.size(), 37u) << l[1];
+  for (std::size_t i = 19; i < 26; ++i) EXPECT_EQ(cells[i], "") << i << ": " << l[1];
+  EXPECT_EQ(cells[26], "1") << l[1];  // offered_rate: one sample per period
+  EXPECT_EQ(cells[36], "none") << l[1];
   EXPECT_EQ(l[2].rfind("net2,bernoulli,y2,4,8000,", 0), 0u) << l[2];
 }
 
