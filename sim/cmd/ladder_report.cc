@@ -12,8 +12,8 @@ namespace ncosim::sim {
 
 namespace {
 
-// The verdict that puts a row inside the band (sim/analysis/compare.h).
-constexpr const char* kInside = "unchanged";
+// The verdict that can put a row inside the band (sim/analysis/compare.h).
+constexpr const char* kUnchanged = "unchanged";
 
 std::string opt(const std::optional<double>& v, const char* f = "{:.6g}") {
   return v && std::isfinite(*v) ? fmt::format(fmt::runtime(f), *v) : std::string();
@@ -35,23 +35,25 @@ std::string speed_text(const LadderReport& r, const Rung& rung) {
   return fmt::format("{:.3g} s, {:.3g}x", rung.wall, net / rung.wall);
 }
 
-// Per surrogate, where it leaves the band: the rows not inside it.
-std::string band_text(const LadderReport& r) {
+// Per surrogate, where it leaves the band: the rows not inside it (`md`: as a Markdown list).
+std::string band_text(const LadderReport& r, bool md) {
   std::string s = fmt::format(
-      "\nWhere each surrogate leaves the band (the network's mse +-{:.3g} %; compare's paired "
-      "test at alpha {:.3g}, same seed and runs):\n",
+      "\nWhere each surrogate leaves the band (the network's mse +-{:.3g} %: compare's verdict "
+      "unchanged, its 95 % interval inside the band; paired at alpha {:.3g}, same seed and "
+      "runs):\n",
       100.0 * r.tolerance, r.alpha);
   std::string lowest;
   for (std::size_t i = 1; i < r.rungs.size(); ++i) {
     const Rung& rung = r.rungs[i];
     std::string out;
     for (const auto& row : rung.compare.rows) {
-      if (row.verdict == kInside) continue;
-      out += fmt::format("{}{} {} ({})", out.empty() ? "" : ", ", row.estimator, row.verdict,
+      const std::string where = band_verdict(row, r.tolerance);
+      if (where == kInside) continue;
+      out += fmt::format("{}{} {} ({})", out.empty() ? "" : ", ", row.estimator, where,
                          change_text(row));
     }
     if (out.empty() && lowest.empty()) lowest = rung.name;
-    s += fmt::format("  {:<16} {}{}\n", rung.name,
+    s += fmt::format(fmt::runtime(md ? "- {}: {}{}\n" : "  {:<16} {}{}\n"), rung.name,
                      out.empty() ? "inside it for every estimator" : "leaves it: " + out,
                      rung.note.empty() ? "" : fmt::format("  [{}]", rung.note));
   }
@@ -76,11 +78,11 @@ std::string link_summary(const std::string& name, const FitSet& set,
       set.fits[set.best].converged ? "" : " (not converged)", pmf);
 }
 
-bool inside_band(const Rung& r) {
-  for (const auto& row : r.compare.rows) {
-    if (row.verdict != kInside) return false;
-  }
-  return true;
+std::string band_verdict(const CompareRow& row, double tolerance) {
+  if (row.verdict != kUnchanged) return row.verdict;
+  const bool inside = row.relative_low && row.relative_high && *row.relative_low >= -tolerance &&
+                      *row.relative_high <= tolerance;
+  return inside ? kInside : "inconclusive";
 }
 
 std::string ladder_summary(const LadderReport& r) {
@@ -90,7 +92,7 @@ std::string ladder_summary(const LadderReport& r) {
       r.file, r.links.size(), r.runs, r.periods, r.seed, r.record_seconds, r.fit_seconds);
   for (const auto& l : r.links) s += "  " + l + "\n";
   s += fmt::format("\n{:<16} {:<20} {:>12} {:>12} {:>26} {:>14} {:>16}\n", "rung", "estimator",
-                   "network mse", "rung mse", "change % [95 % CI]", "verdict", "wall, speed-up");
+                   "network mse", "rung mse", "change % [95 % CI]", "band", "wall, speed-up");
   for (std::size_t i = 0; i < r.rungs.size(); ++i) {
     const Rung& rung = r.rungs[i];
     if (i == 0) {
@@ -103,10 +105,10 @@ std::string ladder_summary(const LadderReport& r) {
       s +=
           fmt::format("{:<16} {:<20} {:>12} {:>12} {:>26} {:>14} {:>16}\n", k == 0 ? rung.name : "",
                       row.estimator, opt(row.base_mean), opt(row.new_mean), change_text(row),
-                      row.verdict, k == 0 ? speed_text(r, rung) : "");
+                      band_verdict(row, r.tolerance), k == 0 ? speed_text(r, rung) : "");
     }
   }
-  s += band_text(r);
+  s += band_text(r, false);
   std::string names;
   for (const auto& rung : r.rungs) names += (names.empty() ? "" : ", ") + rung.name + ".toml";
   s += fmt::format(
@@ -118,7 +120,7 @@ std::string ladder_summary(const LadderReport& r) {
 
 std::string ladder_csv(const LadderReport& r) {
   std::string csv =
-      "rung,estimator,verdict,test,pairs,network_mse,rung_mse,change,change_ci95_low,"
+      "rung,estimator,verdict,band,test,pairs,network_mse,rung_mse,change,change_ci95_low,"
       "change_ci95_high,wall_seconds,speedup,note\n";
   const double net = r.rungs.empty() ? 0.0 : r.rungs.front().wall;
   for (std::size_t i = 0; i < r.rungs.size(); ++i) {
@@ -128,17 +130,17 @@ std::string ladder_csv(const LadderReport& r) {
     if (i == 0) {
       for (const auto& row :
            r.rungs.size() > 1 ? r.rungs[1].compare.rows : std::vector<CompareRow>{}) {
-        csv += fmt::format("network,{},,,,{},{},,,,{:.6g},1,\n", csv_field(row.estimator),
+        csv += fmt::format("network,{},,,,,{},{},,,,{:.6g},1,\n", csv_field(row.estimator),
                            opt(row.base_mean), opt(row.base_mean), rung.wall);
       }
       continue;
     }
     for (const auto& row : rung.compare.rows) {
-      csv += fmt::format("{},{},{},{},{},{},{},{},{},{},{:.6g},{},{}\n", rung.name,
-                         csv_field(row.estimator), csv_field(row.verdict), row.test, row.pairs,
-                         opt(row.base_mean), opt(row.new_mean), opt(row.relative),
-                         opt(row.relative_low), opt(row.relative_high), rung.wall, speed,
-                         csv_field(rung.note));
+      csv += fmt::format("{},{},{},{},{},{},{},{},{},{},{},{:.6g},{},{}\n", rung.name,
+                         csv_field(row.estimator), csv_field(row.verdict),
+                         band_verdict(row, r.tolerance), row.test, row.pairs, opt(row.base_mean),
+                         opt(row.new_mean), opt(row.relative), opt(row.relative_low),
+                         opt(row.relative_high), rung.wall, speed, csv_field(rung.note));
     }
   }
   return csv;
@@ -151,19 +153,19 @@ std::string ladder_markdown(const LadderReport& r) {
       r.file, r.runs, r.periods, r.seed, 100.0 * r.tolerance, r.alpha);
   for (const auto& l : r.links) md += "- " + l + "\n";
   md +=
-      "\n| rung | estimator | network mse | rung mse | change % [95 % CI] | verdict | wall s | "
-      "speed-up |\n|---|---|---|---|---|---|---|---|\n";
+      "\n| rung | estimator | network mse | rung mse | change % [95 % CI] | compare | band | "
+      "wall s | speed-up |\n|---|---|---|---|---|---|---|---|---|\n";
   for (std::size_t i = 1; i < r.rungs.size(); ++i) {
     const Rung& rung = r.rungs[i];
     for (const auto& row : rung.compare.rows) {
-      md += fmt::format("| {} | {} | {} | {} | {} | {} | {:.3g} | {:.3g} |\n", rung.name,
+      md += fmt::format("| {} | {} | {} | {} | {} | {} | {} | {:.3g} | {:.3g} |\n", rung.name,
                         row.estimator, opt(row.base_mean), opt(row.new_mean), change_text(row),
-                        row.verdict, rung.wall,
+                        row.verdict, band_verdict(row, r.tolerance), rung.wall,
                         rung.wall > 0.0 ? r.rungs.front().wall / rung.wall : 0.0);
     }
   }
   md += fmt::format("\nThe network's campaign: {:.3g} s of simulation.\n", r.rungs.front().wall);
-  return md + band_text(r);
+  return md + band_text(r, true);
 }
 
 }  // namespace ncosim::sim

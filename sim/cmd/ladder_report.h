@@ -35,8 +35,13 @@ struct LadderReport {
 std::string link_summary(const std::string& name, const FitSet& set,
                          const std::vector<double>& design_pmf);
 
-// Whether every estimator of a surrogate rung is inside the band (compare's `unchanged`).
-bool inside_band(const Rung& r);
+// Where a surrogate's row stands against the band of +-tolerance around the network's mse:
+// "inside" when compare's verdict is `unchanged` and its interval of the relative change lies
+// within +-tolerance (equivalence shown); "inconclusive" when the verdict is `unchanged` but the
+// interval reaches beyond the band (no significant change, no equivalence either); else compare's
+// verdict (`worse`, `better`, ...).
+inline constexpr const char* kInside = "inside";
+std::string band_verdict(const CompareRow& row, double tolerance);
 
 std::string ladder_summary(const LadderReport& r);
 std::string ladder_csv(const LadderReport& r);

@@ -134,7 +134,7 @@ TEST_F(Ladder, RecordsFitsWritesOrdinaryScenariosRunsThemPairedAndCompares) {
   const auto rows = ncosim::testing::split_lines(slurp(out / "ladder.csv"));
   ASSERT_EQ(rows.size(), 1U + 3 * 2);
   EXPECT_EQ(rows[0],
-            "rung,estimator,verdict,test,pairs,network_mse,rung_mse,change,change_ci95_low,"
+            "rung,estimator,verdict,band,test,pairs,network_mse,rung_mse,change,change_ci95_low,"
             "change_ci95_high,wall_seconds,speedup,note");
   for (std::size_t i = 3; i < rows.size(); ++i) {  // the surrogates' rows
     std::vector<std::string> cells;
