@@ -514,6 +514,7 @@ struct CommandLine {
     add_trace_commands();
     ladder = add_ladder_command(app, ladder_args);
     add_common(ladder, true);
+    ladder->get_option("--out")->description("output folder (default: out/ladder_<file stem>)");
     if (have_sumo()) {
       channel = app.add_subcommand(
           "channel", "print p(d) and the delay law of a sumo_distance channel preset");

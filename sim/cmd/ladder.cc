@@ -475,7 +475,9 @@ CLI::App* add_ladder_command(CLI::App& app, LadderArgs& a) {
   sub->add_option("--max-iterations", a.max_iterations,
                   "EM iterations per hidden-state family (default 2000)")
       ->check(CLI::Range(1, 1'000'000));
-  sub->add_option("--threads", a.threads, "worker threads of each campaign (default: all cores)")
+  sub->add_option("--threads", a.threads,
+                  "worker threads of each campaign, and network runs recorded at a time "
+                  "(default: all cores)")
       ->check(CLI::Range(0, 4096));
   sub->add_flag("--replace", a.replace, "replace an --out folder that already holds files");
   sub->add_flag("--quiet", a.quiet, "no progress lines");

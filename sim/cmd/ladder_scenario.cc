@@ -24,13 +24,12 @@ std::pair<int, int> position(const toml::node& n, const std::string& file) {
   return {static_cast<int>(s.begin.line), static_cast<int>(s.begin.column)};
 }
 
-// An array written as [[key]] tables (every element a table not written inline).
+// An array written as [[key]] tables: every element a table (also one the file wrote inline,
+// `link = [{...}]`, the same document).
 bool table_array(const toml::node& n) {
   const toml::array* a = n.as_array();
   if (a == nullptr || a->empty()) return false;
-  return std::all_of(a->begin(), a->end(), [](const toml::node& e) {
-    return e.is_table() && !e.as_table()->is_inline();
-  });
+  return std::all_of(a->begin(), a->end(), [](const toml::node& e) { return e.is_table(); });
 }
 
 bool section(const toml::node& n) {

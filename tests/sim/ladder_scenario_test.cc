@@ -77,6 +77,19 @@ TEST(LadderScenario, OptionsApplyAndTheSurrogateDropsTheNetworkAndReplacesItsLin
   EXPECT_EQ(back["link"][1]["kind"].value<std::string>(), "trace");  // the others stay
 }
 
+// Links written as an inline array (or set so by --set) are [[link]] tables like any others:
+// the surrogate replaces them too.
+TEST(LadderScenario, AnInlineArrayOfLinksIsReplacedToo) {
+  const toml::table doc = ladder_document(
+      "s.toml", kText, {"link=[{name = \"n1\", kind = \"network\", network = \"wsn\"}]"}, 0, 0,
+      std::nullopt);
+  const std::string text = scenario_text(
+      doc, "s.toml", {{0, "[[link]]\nname = \"n1\"\nkind = \"ideal\"\n"}}, {"network"});
+  const toml::table back = toml::parse(text);
+  ASSERT_EQ(back["link"].as_array()->size(), 1U) << text;
+  EXPECT_EQ(back["link"][0]["kind"].value<std::string>(), "ideal") << text;
+}
+
 TEST(LadderScenario, RelativeInputPathsAreRebasedOnTheOutputFolder) {
   toml::table doc = ladder_document("proj/s.toml", kText, {}, 0, 0, std::nullopt);
   rebase_input_paths(doc, {{"data/t.csv", "0123456789abcdef"}}, "proj", "proj/out/ladder");
