@@ -3,8 +3,10 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <nlohmann/json.hpp>
+#include <vector>
 
 #include "sim/analysis/output.h"
 
@@ -23,14 +25,20 @@ bool has_interval(const models::FitParameter& p) {
   return std::isfinite(p.ci_low) && std::isfinite(p.ci_high);
 }
 
-// "  NAME  ESTIMATE  [LOW, HIGH]  METHOD", or the reason there is no interval.
-std::string parameter_line(const models::FitParameter& p) {
+// "  NAME  ESTIMATE  [LOW, HIGH]  METHOD", or the reason there is no interval (said once: a
+// reason already in `said` reads "as above").
+std::string parameter_line(const models::FitParameter& p, std::vector<std::string>& said) {
   std::string tail;
   if (has_interval(p)) {
     tail = fmt::format("[{:.6g}, {:.6g}]  {}", p.ci_low, p.ci_high, p.interval);
     if (p.interval == "likelihood_ratio") tail += " (at the edge of its range)";
+  } else if (p.note.empty()) {
+    tail = "(no interval)";
+  } else if (std::find(said.begin(), said.end(), p.note) != said.end()) {
+    tail = "(no interval, as above)";
   } else {
-    tail = p.note.empty() ? std::string("(no interval)") : fmt::format("({})", p.note);
+    said.push_back(p.note);
+    tail = fmt::format("({})", p.note);
   }
   return fmt::format("  {:<18} {:>12.6g}  {}\n", p.name, p.estimate, tail);
 }
@@ -40,9 +48,10 @@ std::string parameters_text(const models::FitResult& r, bool every) {
   std::string s;
   std::size_t left = 0;
   std::string left_names;
+  std::vector<std::string> said;
   for (const auto& p : r.params) {
     if (every || p.summary) {
-      s += parameter_line(p);
+      s += parameter_line(p, said);
       continue;
     }
     const std::string stem = p.name.substr(0, p.name.find('['));
@@ -50,7 +59,7 @@ std::string parameters_text(const models::FitResult& r, bool every) {
       left_names += (left_names.empty() ? "" : ", ") + stem;
     ++left;
   }
-  for (const auto& p : r.derived) s += parameter_line(p);
+  for (const auto& p : r.derived) s += parameter_line(p, said);
   if (left > 0) {
     s += fmt::format("  ({} more: {}, in fit.json and fit.csv; --verbose prints them)\n", left,
                      left_names);

@@ -124,6 +124,30 @@ TEST_F(FitCli, ALongDelayLawIsSummarisedAndItsIntervalsAreIntervals) {
   EXPECT_NE(v.output.find("  delay_pmf[2][38]"), std::string::npos) << v.output;
 }
 
+// Three hidden states fitted to independent packets: the states are not identified and no
+// interval can be computed. The reason is said once, not on each of the 21 lines.
+TEST_F(FitCli, AReasonForNoIntervalIsSaidOnce) {
+  std::string trace = "seq,delay\n";
+  std::uint64_t x = 777;
+  for (int i = 0; i < 3000; ++i) {
+    x = x * 6364136223846793005ULL + 1442695040888963407ULL;
+    const int u = static_cast<int>((x >> 33) % 1000);
+    trace += fmt::format("{},{}\n", i, u < 100 ? "" : u < 300 ? "1" : "0");
+  }
+  const std::string file = write("iid.csv", trace);
+  const Outcome o = run_ncosim(
+      {"fit", file, "--out", (dir_ / "iid").string(), "--family", "markov3", "--verbose"});
+  ASSERT_EQ(o.code, 0) << o.output;
+  int said = 0, as_above = 0;
+  for (const auto& l : split_lines(o.output)) {
+    if (l.rfind("  ", 0) != 0) continue;  // the parameter lines
+    said += l.find("the observed information is singular") != std::string::npos ? 1 : 0;
+    as_above += l.find("(no interval, as above)") != std::string::npos ? 1 : 0;
+  }
+  EXPECT_EQ(said, 1) << o.output;
+  EXPECT_EQ(as_above, 20) << o.output;  // 9 + 3 + 6 parameters and 3 mean delays, less the first
+}
+
 TEST_F(FitCli, ABadMaxIterationsIsRefusedAndNothingIsWritten) {
   const std::string trace = bursty();
   for (const std::string bad : {"0", "-3", "x", "2000000"}) {
