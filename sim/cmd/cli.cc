@@ -25,6 +25,7 @@
 #include "sim/cmd/figure_cli.h"
 #include "sim/cmd/find.h"
 #include "sim/cmd/fit_cmd.h"
+#include "sim/cmd/ladder.h"
 #include "sim/cmd/list_keys.h"
 #include "sim/cmd/manifest.h"
 #include "sim/cmd/mpi_campaign.h"
@@ -313,6 +314,8 @@ struct CommandLine {
   FitArgs fit_args;
   CLI::App* record_link = nullptr;  // sim/cmd/record_link.h
   CLI::App* schema = nullptr;       // sim/cmd/schema.h
+  CLI::App* ladder = nullptr;       // sim/cmd/ladder.h
+  LadderArgs ladder_args;
   std::string schema_out;
   std::string record_link_name;
 
@@ -431,7 +434,50 @@ struct CommandLine {
     codesign->add_flag("--quiet", quiet, "no progress lines");
   }
 
-  // compare, check, list, plot, report and (SUMO builds) channel.
+  // fit and record-link: a link's trace recorded and fitted.
+  void add_trace_commands() {
+    fit = app.add_subcommand(
+        "fit", "fit channel models to a packet trace (seq,delay): a [[link]] table and fit.csv");
+    fit->add_option("TRACE", fit_args.trace,
+                    "trace CSV in the `trace` link's format (seq,delay; empty delay = lost)")
+        ->required();
+    fit->add_option("--out", fit_args.out, "output directory (default: out/fit_<trace stem>)");
+    fit->add_option(
+        "--family", fit_args.families,
+        "family to fit (repeatable): bernoulli, delay, gilbert_elliott, markov2 .. markov8 "
+        "(default: bernoulli, delay, gilbert_elliott, markov2, markov3)");
+    fit->add_option("--criterion", fit_args.criterion,
+                    "bic (default) or aic: which family link.toml proposes");
+    fit->add_option("--starts", fit_args.starts, "EM starts per hidden-state family (default 4)")
+        ->check(CLI::Range(1, 100));
+    fit->add_option("--name", fit_args.name,
+                    "name of the [[link]] table (default: the trace's file stem)");
+    fit->add_option("--max-iterations", fit_args.max_iterations,
+                    "EM iterations per hidden-state family before it is reported not converged "
+                    "(default 2000)")
+        ->check(CLI::Range(1, 1'000'000));
+    fit->add_flag("--verbose", fit_args.verbose, "print every family's every parameter");
+    record_link = app.add_subcommand("record-link",
+                                     "the fate of every packet one link carries, run after run, as "
+                                     "a trace (seq,delay) per case");
+    add_common(record_link, true);
+    record_link->add_option("--link", record_link_name, "the [[link]] to record (its name)")
+        ->required();
+    record_link->add_option("--runs", a.overrides.runs, "runs recorded (overrides run.runs)")
+        ->check(CLI::Range(std::int64_t{1}, std::int64_t{10'000'000}));
+    record_link
+        ->add_option("--periods", a.overrides.periods, "periods per run (overrides run.periods)")
+        ->check(CLI::Range(std::int64_t{1}, std::int64_t{1'000'000'000}));
+    record_link->add_option("--seed", a.seed, "campaign seed (overrides run.seed)")
+        ->check(CLI::Range(std::int64_t{0}, std::numeric_limits<std::int64_t>::max()));
+    record_link->add_flag("--quiet", quiet, "no progress lines");
+    record_link
+        ->add_option("--threads", threads,
+                     "a network link's runs simulated at a time (default: all cores)")
+        ->check(CLI::Range(0, 4096));
+  }
+
+  // compare, check, list, plot, report, fit, record-link, ladder and (SUMO builds) channel.
   void add_other_commands() {
     compare = app.add_subcommand("compare",
                                  "compare two `run` output folders row by row (paired where the "
@@ -471,36 +517,10 @@ struct CommandLine {
         "schema", "write a JSON Schema (draft-07) of the scenario format, for TOML editors");
     schema->add_option("--out", schema_out, "write it into this file (default: stdout)");
     add_figure_commands(app, figure_commands);
-    fit = app.add_subcommand(
-        "fit", "fit channel models to a packet trace (seq,delay): a [[link]] table and fit.csv");
-    fit->add_option("TRACE", fit_args.trace,
-                    "trace CSV in the `trace` link's format (seq,delay; empty delay = lost)")
-        ->required();
-    fit->add_option("--out", fit_args.out, "output directory (default: out/fit_<trace stem>)");
-    fit->add_option(
-        "--family", fit_args.families,
-        "family to fit (repeatable): bernoulli, delay, gilbert_elliott, markov2 .. markov8 "
-        "(default: bernoulli, delay, gilbert_elliott, markov2, markov3)");
-    fit->add_option("--criterion", fit_args.criterion,
-                    "bic (default) or aic: which family link.toml proposes");
-    fit->add_option("--starts", fit_args.starts, "EM starts per hidden-state family (default 4)")
-        ->check(CLI::Range(1, 100));
-    fit->add_option("--name", fit_args.name,
-                    "name of the [[link]] table (default: the trace's file stem)");
-    record_link = app.add_subcommand("record-link",
-                                     "the fate of every packet one link carries, run after run, as "
-                                     "a trace (seq,delay) per case");
-    add_common(record_link, true);
-    record_link->add_option("--link", record_link_name, "the [[link]] to record (its name)")
-        ->required();
-    record_link->add_option("--runs", a.overrides.runs, "runs recorded (overrides run.runs)")
-        ->check(CLI::Range(std::int64_t{1}, std::int64_t{10'000'000}));
-    record_link
-        ->add_option("--periods", a.overrides.periods, "periods per run (overrides run.periods)")
-        ->check(CLI::Range(std::int64_t{1}, std::int64_t{1'000'000'000}));
-    record_link->add_option("--seed", a.seed, "campaign seed (overrides run.seed)")
-        ->check(CLI::Range(std::int64_t{0}, std::numeric_limits<std::int64_t>::max()));
-    record_link->add_flag("--quiet", quiet, "no progress lines");
+    add_trace_commands();
+    ladder = add_ladder_command(app, ladder_args);
+    add_common(ladder, true);
+    ladder->get_option("--out")->description("output folder (default: out/ladder_<file stem>)");
     if (have_sumo()) {
       channel = app.add_subcommand(
           "channel", "print p(d) and the delay law of a sumo_distance channel preset");
@@ -534,9 +554,16 @@ struct CommandLine {
     if (fit->parsed()) return cmd_fit(fit_args);
     if (schema->parsed()) return cmd_schema(schema_out);
     if (record_link->parsed()) {
-      RecordLinkArgs r{a.file, a.sets, a.overrides, record_link_name, a.out, quiet};
+      RecordLinkArgs r{a.file, a.sets, a.overrides, record_link_name, a.out, quiet, threads};
       if (a.seed >= 0) r.overrides.seed = static_cast<std::uint64_t>(a.seed);
       return cmd_record_link(r);
+    }
+    if (ladder->parsed()) {
+      ladder_args.file = a.file;
+      ladder_args.sets = a.sets;
+      ladder_args.out = a.out;
+      ladder_args.command_line = command_line;
+      return cmd_ladder(ladder_args);
     }
     if (const auto status = run_figure_commands(figure_commands)) return *status;
     if (codesign->parsed()) {
@@ -563,7 +590,7 @@ std::optional<int> unknown_command(const CLI::App& app, int argc, char** argv) {
   const std::string hint = config::did_you_mean(argv[1], commands);
   std::cerr << fmt::format(
       "ncosim: expected a command (run, export, merge, design, find, codesign, compare, fit, "
-      "record-link, check, plot, report or list), got "
+      "record-link, ladder, check, plot, report or list), got "
       "'{}'{}\n",
       argv[1], hint.empty() ? "" : fmt::format(" (did you mean '{}'?)", hint));
   return 2;

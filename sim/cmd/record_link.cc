@@ -2,18 +2,28 @@
 #include "sim/cmd/record_link.h"
 
 #include <fmt/format.h>
+#include <poll.h>
+#include <sys/prctl.h>
+#include <sys/socket.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
+#include <csignal>
+#include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
+#include <sstream>
 #include <stdexcept>
 #include <string>
+#include <thread>
 
 #include "config/config.h"
+#include "config/toml_path.h"
 #include "kernel/rng.h"
 #include "kernel/time.h"
 #include "models/link.h"
 #include "sim/analysis/output.h"
-#include "sim/cmd/process_campaign.h"
 #include "sim/files/output_set.h"
 #include "sim/run/run.h"
 
@@ -23,6 +33,8 @@ namespace {
 
 // What a trace link reads at most (models/link.cc): a longer record could not be replayed.
 constexpr std::int64_t kMaxPackets = 50'000'000;
+// The design law given to network links without one while recording (every packet on time).
+constexpr const char* kPlaceholderLaw = "[1.0]";
 
 // The senders of link `l`: its sensors, in sensor order. Refuses what cannot be recorded alone.
 std::vector<std::size_t> senders(const Scenario& sc, std::size_t l) {
@@ -59,27 +71,121 @@ std::vector<std::size_t> senders(const Scenario& sc, std::size_t l) {
   return out;
 }
 
+// What a record with placeholder laws should be told: which links, and that a controller reading
+// an estimator's estimate makes the plant (and the send times of send-on-delta senders) depend
+// on its design.
+void note_placeholders(const Scenario& sc, const std::vector<std::string>& links) {
+  std::string names;
+  for (const auto& n : links) names += (names.empty() ? "'" : ", '") + n + "'";
+  std::cerr << fmt::format(
+      "record-link: no design_pmf on network link(s) {}: the designs (which a record does not "
+      "use) are made with design_pmf = {}\n",
+      names, kPlaceholderLaw);
+  if (sc.input.source_index >= 0) {
+    std::cerr << fmt::format(
+        "record-link: note: the controller reads estimator \"{}\", whose design may use that "
+        "placeholder: where send times depend on the measurements, the record is of that "
+        "design's loop\n",
+        sc.input.source);
+  }
+}
+
+// One forked process recording run `run` of a network link (its delays, 8 bytes each, on `fd`).
+struct RecordChild {
+  pid_t pid = -1;
+  int fd = -1;
+  std::int64_t run = 0;
+  std::string bytes;
+};
+
+RecordChild start_record_child(const Scenario& sc, std::size_t l, std::int64_t run) {
+  int sv[2];
+  if (::socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, sv) != 0)
+    throw std::runtime_error(fmt::format("cannot create a socket pair: {}", std::strerror(errno)));
+  const pid_t pid = ::fork();
+  if (pid < 0) throw std::runtime_error(fmt::format("cannot fork: {}", std::strerror(errno)));
+  if (pid == 0) {
+    ::close(sv[0]);
+    ::prctl(PR_SET_PDEATHSIG, SIGKILL);  // no orphan simulating on (forked by the main thread)
+    try {
+      std::string b;
+      for (const RecordedPacket& p : record_network_link(sc, static_cast<std::uint64_t>(run), l)) {
+        const auto d = static_cast<std::uint64_t>(p.delay);
+        for (int i = 0; i < 8; ++i) b.push_back(static_cast<char>((d >> (8 * i)) & 0xFF));
+      }
+      for (std::size_t at = 0; at < b.size();) {
+        const ssize_t w = ::send(sv[1], b.data() + at, b.size() - at, MSG_NOSIGNAL);
+        if (w < 0 && errno == EINTR) continue;
+        if (w <= 0) ::_exit(1);
+        at += static_cast<std::size_t>(w);
+      }
+      ::_exit(0);
+    } catch (...) {  // never unwind into the parent's code, which this process is a copy of
+      ::_exit(2);
+    }
+  }
+  ::close(sv[1]);
+  return {pid, sv[0], run, {}};
+}
+
+// Reads what child `c` sent until it ends; throws when it did not end well with every packet.
+void finish_record_child(RecordChild& c, const std::string& link, std::int64_t per_run) {
+  ::close(c.fd);
+  int status = 0;
+  while (::waitpid(c.pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  const std::string what = fmt::format("record-link: run {} of link '{}'", c.run, link);
+  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+    throw std::runtime_error(fmt::format("{} ended abnormally ({})", what,
+                                         WIFSIGNALED(status)
+                                             ? fmt::format("signal {}", WTERMSIG(status))
+                                             : fmt::format("exit status {}", WEXITSTATUS(status))));
+  }
+  if (c.bytes.size() != static_cast<std::size_t>(per_run) * 8) {
+    throw std::runtime_error(
+        fmt::format("{} sent {} packets, expected {}", what, c.bytes.size() / 8, per_run));
+  }
+}
+
 // A network link's packets: their fates come from the whole run (every sender of the network
 // contends), each run simulated in a process of its own (ns-3 keeps state across the simulations
-// of a process), as the campaign does (sim/cmd/process_campaign.h).
-void record_network_runs(const Scenario& sc, std::size_t l, std::int64_t runs, RecordedTrace& out) {
-  for (std::int64_t r = 0; r < runs; ++r) {
-    const auto run = static_cast<std::uint64_t>(r);
-    const std::string bytes = bytes_from_child(
-        [&] {
-          std::string b;
-          for (const RecordedPacket& p : record_network_link(sc, run, l)) {
-            const auto d = static_cast<std::uint64_t>(p.delay);
-            for (int i = 0; i < 8; ++i) b.push_back(static_cast<char>((d >> (8 * i)) & 0xFF));
-          }
-          return b;
-        },
-        fmt::format("record-link: run {} of link '{}'", run, sc.links[l].name));
-    if (bytes.size() != static_cast<std::size_t>(out.per_run) * 8) {
-      throw std::runtime_error(
-          fmt::format("record-link: run {} of link '{}' sent {} packets, expected {}", run,
-                      sc.links[l].name, bytes.size() / 8, out.per_run));
+// of a process), as the campaign does (sim/cmd/process_campaign.h); up to `jobs` at a time.
+void record_network_runs(const Scenario& sc, std::size_t l, std::int64_t runs, int jobs,
+                         RecordedTrace& out) {
+  std::vector<std::string> done(static_cast<std::size_t>(runs));
+  std::vector<RecordChild> live;
+  std::int64_t next = 0;
+  try {
+    while (next < runs || !live.empty()) {
+      while (next < runs && static_cast<int>(live.size()) < std::max(1, jobs))
+        live.push_back(start_record_child(sc, l, next++));
+      std::vector<pollfd> fds;
+      for (const auto& c : live) fds.push_back({c.fd, POLLIN, 0});
+      if (::poll(fds.data(), fds.size(), -1) < 0 && errno != EINTR)
+        throw std::runtime_error(fmt::format("poll: {}", std::strerror(errno)));
+      for (std::size_t i = fds.size(); i-- > 0;) {
+        if (fds[i].revents == 0) continue;
+        char buf[65536];
+        const ssize_t r = ::read(live[i].fd, buf, sizeof buf);
+        if (r < 0 && errno == EINTR) continue;
+        if (r > 0) {
+          live[i].bytes.append(buf, static_cast<std::size_t>(r));
+          continue;
+        }
+        finish_record_child(live[i], sc.links[l].name, out.per_run);
+        done[static_cast<std::size_t>(live[i].run)] = std::move(live[i].bytes);
+        live.erase(live.begin() + static_cast<std::ptrdiff_t>(i));
+      }
     }
+  } catch (...) {
+    for (auto& c : live) {  // the others are of no use now
+      ::kill(c.pid, SIGKILL);
+      ::close(c.fd);
+      ::waitpid(c.pid, nullptr, 0);
+    }
+    throw;
+  }
+  for (const std::string& bytes : done) {
     for (std::size_t i = 0; i < bytes.size(); i += 8) {
       std::uint64_t d = 0;
       for (int b = 0; b < 8; ++b)
@@ -91,7 +197,39 @@ void record_network_runs(const Scenario& sc, std::size_t l, std::int64_t runs, R
 
 }  // namespace
 
-RecordedTrace record_link(const Scenario& sc, std::size_t l, std::int64_t runs) {
+int record_jobs(int threads) {
+  return threads > 0 ? threads
+                     : static_cast<int>(std::max(1U, std::thread::hardware_concurrency()));
+}
+
+std::vector<std::string> placeholder_design_laws(const std::string& file,
+                                                 const std::vector<std::string>& sets,
+                                                 std::vector<std::string>* names) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) return {};  // the load says what is wrong with the file
+  std::stringstream text;
+  text << in.rdbuf();
+  toml::table doc;
+  try {
+    doc = toml::parse(text.str(), std::string_view(file));
+    for (const auto& s : sets) config::apply_set(doc, s, "--set");
+  } catch (const std::exception&) {
+    return {};  // likewise
+  }
+  std::vector<std::string> out;
+  const toml::array* links = doc["link"].as_array();
+  for (std::size_t i = 0; links != nullptr && i < links->size(); ++i) {
+    const toml::table* t = links->get(i)->as_table();
+    if (t == nullptr || t->get("design_pmf") != nullptr) continue;
+    const auto kind = (*t)["kind"].value<std::string>();
+    if (!kind || *kind != "network") continue;
+    out.push_back(fmt::format("link[{}].design_pmf={}", i, kPlaceholderLaw));
+    if (names != nullptr) names->push_back((*t)["name"].value_or(fmt::format("link[{}]", i)));
+  }
+  return out;
+}
+
+RecordedTrace record_link(const Scenario& sc, std::size_t l, std::int64_t runs, int jobs) {
   const std::vector<std::size_t> from = senders(sc, l);
   const std::int64_t periods = sc.run.periods;
   RecordedTrace out;
@@ -108,7 +246,7 @@ RecordedTrace record_link(const Scenario& sc, std::size_t l, std::int64_t runs) 
   }
   out.delays.reserve(static_cast<std::size_t>(out.per_run * runs));
   if (sc.links[l].link->network_attachment() != nullptr) {
-    record_network_runs(sc, l, runs, out);
+    record_network_runs(sc, l, runs, jobs, out);
     return out;
   }
   const std::uint64_t seed = sc.run.seed;
@@ -138,7 +276,12 @@ RecordedTrace record_link(const Scenario& sc, std::size_t l, std::int64_t runs) 
 }
 
 int cmd_record_link(const RecordLinkArgs& a) {
-  LoadedScenario loaded = load_cases(a.file, a.sets, a.overrides);
+  // A record needs no design law: the designs are made on a placeholder where the file has none.
+  std::vector<std::string> sets = a.sets, placeholders;
+  for (auto& s : placeholder_design_laws(a.file, a.sets, &placeholders)) sets.push_back(s);
+  LoadedScenario loaded = load_cases(a.file, sets, a.overrides);
+  if (!placeholders.empty() && !a.quiet)
+    note_placeholders(*loaded.cases.front().scenario, placeholders);
   const Scenario& first = *loaded.cases.front().scenario;
   std::size_t l = first.links.size();
   std::string names;
@@ -162,7 +305,7 @@ int cmd_record_link(const RecordLinkArgs& a) {
   std::vector<std::pair<std::string, std::string>> files;
   for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
     const Scenario& sc = *loaded.cases[c].scenario;
-    const RecordedTrace t = record_link(sc, l, sc.run.runs);
+    const RecordedTrace t = record_link(sc, l, sc.run.runs, record_jobs(a.threads));
     const std::string name = loaded.cases.size() == 1 ? fmt::format("{}.csv", a.link)
                                                       : fmt::format("{}_case{}.csv", a.link, c);
     std::string csv = "seq,delay\n";

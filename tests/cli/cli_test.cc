@@ -502,7 +502,7 @@ TEST_F(Cli, UnknownCommandSuggestsTheClosest) {
   const Outcome o = ncosim({"chek", scenario(base_)});
   EXPECT_EQ(o.code, 2) << o.output;
   EXPECT_NE(o.output.find("expected a command (run, export, merge, design, find, codesign, "
-                          "compare, fit, record-link, check, plot, report or list), "
+                          "compare, fit, record-link, ladder, check, plot, report or list), "
                           "got 'chek' (did you mean "
                           "'check'?)"),
             std::string::npos)
