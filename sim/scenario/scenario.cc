@@ -82,8 +82,10 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
                              sc->estimators.size(), sc->model.plant.n(),
                              sc->model.sensors.size());  // sim/scenario/resource_limits.h
     if (sc->run.error_curve) {
-      check_error_curve_resources(file, rt ? rt->line_of("error_curve") : 1, sc->run.periods,
-                                  sc->estimators.size(), sc->model.plant.n());
+      CurveTotals curve;
+      curve.add(sc->run.periods, sc->estimators.size(), sc->model.plant.n());
+      check_error_curve_resources(file, rt ? rt->line_of("error_curve") : 1, "run.error_curve",
+                                  curve);
     }
   }
   sc->paired = read_paired(root, doc, *sc);
@@ -450,6 +452,7 @@ LoadedScenario load_cases_text(const std::string& file, const std::string& text,
       announce_mobility(case_doc, file, dir);
     }
   }
+  CurveTotals curves;  // sim/scenario/resource_limits.h
   for (std::size_t c = 0; c < total; ++c) {
     if (only_case && c != *only_case) continue;
     toml::table case_doc =
@@ -461,6 +464,11 @@ LoadedScenario load_cases_text(const std::string& file, const std::string& text,
           file, last_sweep_line, "run.error_curve",
           "expected the same value in every sweep case (error_curve.csv covers them "
           "all), got both true and false"));
+    }
+    const Scenario& built = *out.cases.back().scenario;
+    if (built.run.error_curve) {  // the exports hold every case's curve at once
+      curves.add(built.run.periods, built.estimators.size(), built.model.plant.n());
+      if (curves.cases() > 1) check_error_curve_resources(file, last_sweep_line, "sweep", curves);
     }
   }
   return out;
