@@ -433,6 +433,18 @@ struct CommandLine {
     codesign->add_flag("--quiet", quiet, "no progress lines");
   }
 
+  // check, with what run's options change validated as run would see it (the Python check()
+  // passes them).
+  void add_check_command() {
+    check = app.add_subcommand("check", "parse and validate only");
+    add_common(check, false);
+    check->add_option("--runs", a.overrides.runs, "Monte Carlo runs (overrides run.runs)")
+        ->check(CLI::Range(std::int64_t{1}, std::int64_t{10'000'000}));
+    check->add_option("--periods", a.overrides.periods, "periods per run (overrides run.periods)")
+        ->check(CLI::Range(std::int64_t{1}, std::int64_t{1'000'000'000}));
+    check->add_option("--seed", a.seed, "campaign seed (overrides run.seed)")->check(seed_range());
+  }
+
   // compare, check, list, plot, report and (SUMO builds) channel.
   void add_other_commands() {
     compare = app.add_subcommand("compare",
@@ -457,14 +469,7 @@ struct CommandLine {
                       "--seed need no option); rows in one folder only are not comparable");
     compare->add_option("--out", cmp.out,
                         "also write compare.csv and compare.md into this directory");
-    check = app.add_subcommand("check", "parse and validate only");
-    add_common(check, false);
-    // What run's options change is validated as run would see it (the Python check() passes them).
-    check->add_option("--runs", a.overrides.runs, "Monte Carlo runs (overrides run.runs)")
-        ->check(CLI::Range(std::int64_t{1}, std::int64_t{10'000'000}));
-    check->add_option("--periods", a.overrides.periods, "periods per run (overrides run.periods)")
-        ->check(CLI::Range(std::int64_t{1}, std::int64_t{1'000'000'000}));
-    check->add_option("--seed", a.seed, "campaign seed (overrides run.seed)")->check(seed_range());
+    add_check_command();
     CLI::App* list = app.add_subcommand("list", "list every registered kind with a one-line help");
     list->add_option("--keys", keys_kind,
                      "print the declared keys of KIND (e.g. link.bernoulli), or of every kind")

@@ -95,6 +95,23 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
 
 namespace {
 
+// The error curve of the case just built: error_curve.csv is one file for every case (so the key
+// is the same in every case), and the exports hold every case's curve at once (`curves`, checked
+// against --max-memory as the cases are built).
+void check_case_curve(const LoadedScenario& out, const std::string& file, int line,
+                      CurveTotals& curves) {
+  const Scenario& built = *out.cases.back().scenario;
+  if (built.run.error_curve != out.cases.front().scenario->run.error_curve) {
+    throw config::ScenarioError(config::format_error(
+        file, line, "run.error_curve",
+        "expected the same value in every sweep case (error_curve.csv covers them "
+        "all), got both true and false"));
+  }
+  if (!built.run.error_curve) return;
+  curves.add(built.run.periods, built.estimators.size(), built.model.plant.n());
+  if (curves.cases() > 1) check_error_curve_resources(file, line, "sweep", curves);
+}
+
 // The scenario text parsed, with --set and the [run] options applied. Parsed afresh for every
 // sweep case: toml++ copies drop the source lines that error messages need.
 toml::table parse_document(const std::string& text, const std::string& file,
@@ -458,18 +475,7 @@ LoadedScenario load_cases_text(const std::string& file, const std::string& text,
     toml::table case_doc =
         c == 0 ? std::move(doc) : parse_document(out.text, file, sets, overrides);
     out.cases.push_back(build_case(case_doc, c, shape, out));
-    // error_curve.csv is one file for every case (and every case's curve is in the store).
-    if (out.cases.back().scenario->run.error_curve != out.cases.front().scenario->run.error_curve) {
-      throw config::ScenarioError(config::format_error(
-          file, last_sweep_line, "run.error_curve",
-          "expected the same value in every sweep case (error_curve.csv covers them "
-          "all), got both true and false"));
-    }
-    const Scenario& built = *out.cases.back().scenario;
-    if (built.run.error_curve) {  // the exports hold every case's curve at once
-      curves.add(built.run.periods, built.estimators.size(), built.model.plant.n());
-      if (curves.cases() > 1) check_error_curve_resources(file, last_sweep_line, "sweep", curves);
-    }
+    check_case_curve(out, file, last_sweep_line, curves);
   }
   return out;
 }

@@ -247,18 +247,12 @@ bool has_column(sqlite3* db, const std::string& table, const std::string& column
 
 }  // namespace
 
+bool RunStore::holds_nothing(const std::string& path) { return store_file_holds_nothing(path); }
+
 RunStore RunStore::open(const std::string& path, bool writable) {
   namespace fs = std::filesystem;
   std::error_code ec;
-  if (!fs::exists(path, ec)) throw StoreError(fmt::format("no run store at '{}'", path));
-  if (!fs::is_regular_file(path, ec))
-    throw StoreError(fmt::format("'{}' is not an ncosim run store (not a regular file)", path));
-  if (fs::file_size(path, ec) == 0 && !ec) {
-    throw StoreError(fmt::format(
-        "'{}' is empty (0 bytes), not an ncosim run store: it holds no run (a campaign killed "
-        "while creating its store leaves one); `ncosim run` without --resume replaces it",
-        path));
-  }
+  check_store_file(path);  // sim/store/store_sqlite.h
   RunStore s;
   s.path_ = path;
   s.writable_ = writable;

@@ -9,7 +9,7 @@
 #include <filesystem>
 
 #include "config/config.h"
-#include "sim/store/store.h"
+#include "sim/store/store_format.h"
 
 namespace ncosim::sim {
 
@@ -71,7 +71,21 @@ std::string uri_of(const std::string& path, const std::string& query) {
   return out + "?" + query;
 }
 
-bool RunStore::holds_nothing(const std::string& path) {
+void check_store_file(const std::string& path) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (!fs::exists(path, ec)) throw StoreError(fmt::format("no run store at '{}'", path));
+  if (!fs::is_regular_file(path, ec))
+    throw StoreError(fmt::format("'{}' is not an ncosim run store (not a regular file)", path));
+  if (fs::file_size(path, ec) == 0 && !ec) {
+    throw StoreError(fmt::format(
+        "'{}' is empty (0 bytes), not an ncosim run store: it holds no run (a campaign killed "
+        "while creating its store leaves one); `ncosim run` without --resume replaces it",
+        path));
+  }
+}
+
+bool store_file_holds_nothing(const std::string& path) {
   namespace fs = std::filesystem;
   std::error_code ec;
   if (!fs::is_regular_file(path, ec)) return false;
