@@ -109,6 +109,18 @@ std::function<void(const lmi::SolveEstimate&)> large_solve_note(const config::Ta
   };
 }
 
+void check_network_work(const config::Table& t, const std::string& key, double seconds,
+                        const std::string& what) {
+  const ResourceLimits& lim = resource_limits();
+  const double flops = seconds * kFlopsPerSecond;
+  if (!(lim.work_flops > 0.0 && flops > lim.work_flops)) return;
+  t.fail(key, fmt::format("the networks' simulation needs at least an estimated {} s of one core "
+                          "({}), above the work limit of {} (--max-work, about {} s of one "
+                          "core)",
+                          static_cast<long long>(std::ceil(seconds)), what, gflop(lim.work_flops),
+                          static_cast<long long>(std::ceil(lim.work_flops / kFlopsPerSecond))));
+}
+
 void check_campaign_resources(const std::string& file, int line, std::int64_t runs,
                               std::size_t cases, std::size_t estimators, std::int64_t states,
                               std::size_t sensors) {

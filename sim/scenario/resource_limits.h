@@ -81,6 +81,12 @@ void check_error_curve_resources(const std::string& file, int line, const std::s
 void check_trace_resources(const std::string& trace, int line, std::int64_t delay,
                            std::int64_t runs, const std::string& named_by);
 
+// Before a campaign on packet-level networks ([[network]]): ns-3's work, estimated as `seconds`
+// of one core (`what` says what it counts), against --max-work (the design code's rate converts
+// it). Throws ScenarioError at key `key` of `t`, the table whose size drives it.
+void check_network_work(const config::Table& t, const std::string& key, double seconds,
+                        const std::string& what);
+
 // Before the cases of a sweep are built: every case holds its parsed document while it is built
 // and its designed scenario until the campaign ends. Throws ScenarioError at the last sweep.
 void check_sweep_resources(const std::string& file, int line, std::size_t cases,
