@@ -83,6 +83,15 @@ def _names_python_estimator(scenario, texts, set_):
     return any(re.search(r'["\']' + re.escape(n) + r'["\']', text) for n in names)
 
 
+def _integer(flag, v):
+    """An integer argument as the command line gets it: a float, string or bool is refused, not
+    rounded (the command line checks the range: a seed outside 0 .. 2**63 - 1 is refused)."""
+    import numbers
+    if isinstance(v, bool) or not isinstance(v, numbers.Integral):
+        raise ScenarioError(f"{flag[2:]}: expected an integer, got {v!r}")
+    return int(v)
+
+
 def _sets(set_):
     args = []
     for k, v in (set_ or {}).items():
@@ -133,14 +142,30 @@ class _Progress:
 
 
 # One command at a time per process: the command line captures std::cout and holds in-memory
-# scenarios by name; a second thread's call waits for the first.
+# scenarios by name; a second thread's call waits for the first. A call from inside a command
+# (an estimator's method, the progress callback, or the thread that runs the command) would wait
+# for itself forever: it raises RuntimeError instead.
 _COMMAND_LOCK = threading.Lock()
+_COMMAND_THREAD = None  # the thread running a command, while one runs
+
+
+def _refuse_nested(what):
+    if _ncosim._in_hook() or _COMMAND_THREAD == threading.get_ident():
+        raise RuntimeError(
+            f"ncosim.{what}: called from inside a running ncosim command (an estimator's method or "
+            "the progress callback); commands do not nest: call it after the command returns")
 
 
 def _cli(args, texts=None, progress=None):
     """(exit status, stdout, stderr) of `ncosim ARGS...` run in this process."""
+    global _COMMAND_THREAD
+    _refuse_nested(args[0] if args else "command")
     with _COMMAND_LOCK:
-        return _ncosim._cli([str(a) for a in args], texts or {}, progress, _EXECUTABLE)
+        _COMMAND_THREAD = threading.get_ident()
+        try:
+            return _ncosim._cli([str(a) for a in args], texts or {}, progress, _EXECUTABLE)
+        finally:
+            _COMMAND_THREAD = None
 
 
 def _raise_for(code, err, what):
@@ -224,7 +249,7 @@ def run(scenario, *, runs=None, periods=None, seed=None, threads=None, set=None,
     args = ["run", name, "--out", os.fspath(out)]
     for flag, v in (("--runs", runs), ("--periods", periods), ("--seed", seed), ("--threads", threads)):
         if v is not None:
-            args += [flag, int(v)]
+            args += [flag, _integer(flag, v)]
     args += _sets(set)
     args += ["--resume"] * bool(resume) + ["--replace"] * bool(replace) + ["--trace"] * bool(trace)
     args += ["--no-timing"] * (not timing) + ["--fail-on-status"] * bool(fail_on_status)
@@ -256,7 +281,7 @@ def check(scenario, *, set=None, runs=None, periods=None, seed=None):
     args = ["check", name] + _sets(set)
     for flag, v in (("--runs", runs), ("--periods", periods), ("--seed", seed)):
         if v is not None:
-            args += [flag, int(v)]
+            args += [flag, _integer(flag, v)]
     code, out, err = _cli(args, texts)
     _raise_for(code, err, "check")
     text = _text(out)

@@ -183,13 +183,24 @@ RunStore open_run_store(const RunCommand& cmd, const LoadedScenario& loaded,
     check_campaign_meta(stored, what);
     const std::string diff = identity_difference(stored, meta, true);
     if (!diff.empty()) {
-      throw config::ScenarioError(
-          fmt::format("--resume: {} holds a different campaign: {} differ(s) (stored vs now); run "
-                      "without --resume to start afresh, or choose another --out",
-                      what, diff));
+      throw config::ScenarioError(fmt::format(
+          "--resume: {} holds a different campaign: {} differ(s) (stored vs now); `--replace` "
+          "(without --resume) starts afresh and replaces it, or choose another --out",
+          what, diff));
     }
   };
   bool copied = false;  // a copy made here is removed again when it cannot be resumed
+  if (fs::exists(partial, ec) && RunStore::holds_nothing(partial)) {
+    // A campaign killed while it created its store: nothing to lose, nothing to resume from it.
+    remove_store_files(partial);
+    if (!fs::exists(live, ec)) {
+      std::cerr << fmt::format(
+          "ncosim: --resume: {} held no run (a campaign killed while creating its store): "
+          "starting afresh\n",
+          partial);
+      return RunStore::create(partial, meta);
+    }
+  }
   try {
     if (!fs::exists(partial, ec)) {
       if (!fs::exists(live, ec)) {

@@ -6,6 +6,7 @@
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <charconv>
 #include <chrono>
 #include <ctime>
 #include <filesystem>
@@ -21,6 +22,7 @@
 #include "sim/analysis/output.h"
 #include "sim/analysis/paired.h"
 #include "sim/cmd/batch.h"
+#include "sim/cmd/cli_checks.h"
 #include "sim/cmd/codesign.h"
 #include "sim/cmd/figure_cli.h"
 #include "sim/cmd/find.h"
@@ -215,32 +217,7 @@ int cmd_codesign(const CommonArgs& a, const CodesignOptions& opt, const std::str
   write_files_atomically(
       out, {{"codesign.json", j.dump(2) + "\n"},
             {"manifest.json", manifest(loaded, command_line, 1, 0.0).dump(2) + "\n"}});
-  bool all_ok = true;
-  for (const auto& e : j) {
-    if (e["status"] != "ok") {
-      // Nothing to apply: say why instead of printing thresholds that miss the target.
-      all_ok = false;
-      std::cout << fmt::format(
-          "{}: {} {} mu = {} (z0 = {:.5g}, target {:.5g}): status {}: the bound at delta0 = {} "
-          "is {} (must be below the target); no thresholds to apply (raise --mu or lower delta0)\n",
-          e["estimator"].get<std::string>(), e["design"].get<std::string>(),
-          e["gain"].get<std::string>(), e["mu"].get<double>(), e["z0"].get<double>(),
-          e["target"].get<double>(), e["status"].get<std::string>(), e["delta0"].dump(),
-          e["bound"].is_number() ? fmt::format("{:.5g}", e["bound"].get<double>())
-                                 : std::string("not found (the LMI is infeasible)"));
-      continue;
-    }
-    std::cout << fmt::format(
-        "{}: {} {} mu = {} (z0 = {:.5g}, target {:.5g}): delta = {} cost {:.5g} bound {} "
-        "[{} LMI problems, {:.2f} s solving, {:.2f} s total; epsilon {} {}, delta0 {}]\n  apply: "
-        "{}\n",
-        e["estimator"].get<std::string>(), e["design"].get<std::string>(),
-        e["gain"].get<std::string>(), e["mu"].get<double>(), e["z0"].get<double>(),
-        e["target"].get<double>(), e["delta"].dump(), e["cost"].get<double>(), e["bound"].dump(),
-        e["lmi_problems"].get<int>(), e["lmi_seconds"].get<double>(), e["seconds"].get<double>(),
-        e["epsilon"].get<double>(), e["step"].get<std::string>(), e["delta0"].dump(),
-        e["apply"].get<std::string>());
-  }
+  const bool all_ok = print_codesign(j, std::cout);  // sim/cmd/codesign.h
   std::cout << fmt::format("codesign.json written to {}/\n", out);
   if (!all_ok) {
     std::cerr << "ncosim: codesign: a status is not ok (see above and codesign.json)\n";
@@ -250,7 +227,9 @@ int cmd_codesign(const CommonArgs& a, const CodesignOptions& opt, const std::str
 }
 
 int cmd_check(const CommonArgs& a) {
-  LoadedScenario loaded = load_cases(a.file, a.sets, a.overrides);
+  RunOverrides overrides = a.overrides;
+  if (a.seed >= 0) overrides.seed = static_cast<std::uint64_t>(a.seed);
+  LoadedScenario loaded = load_cases(a.file, a.sets, overrides);
   std::cout << fmt::format("{}: ok ({} case(s), {} estimator(s))\n", a.file, loaded.cases.size(),
                            loaded.cases.front().scenario->estimators.size());
   return 0;
@@ -297,6 +276,7 @@ struct CommandLine {
   CliHooks hooks;
   std::string columns_text;  // --columns a,b,c
   std::string export_dir, export_out;
+  bool export_replace = false, merge_replace = false;
   std::string merge_out;
   std::vector<std::string> merge_dirs;
   std::string export_c_dir;
@@ -350,8 +330,7 @@ struct CommandLine {
         ->check(CLI::Range(std::int64_t{1}, std::int64_t{10'000'000}));
     run->add_option("--periods", a.overrides.periods, "periods per run (overrides run.periods)")
         ->check(CLI::Range(std::int64_t{1}, std::int64_t{1'000'000'000}));
-    run->add_option("--seed", a.seed, "campaign seed (overrides run.seed)")
-        ->check(CLI::Range(std::int64_t{0}, std::numeric_limits<std::int64_t>::max()));
+    run->add_option("--seed", a.seed, "campaign seed (overrides run.seed)")->check(seed_range());
     run->add_option("--threads", threads, "worker threads (default: all cores)")
         ->check(CLI::Range(0, 4096));
     run->add_flag("--trace", trace, "also write trajectory.csv (x, xhat, arrivals of run 0)");
@@ -376,10 +355,16 @@ struct CommandLine {
         app.add_subcommand("export", "re-derive every export of a campaign from its run store");
     export_cmd->add_option("DIR", export_dir, "output folder holding runs.sqlite")->required();
     export_cmd->add_option("--out", export_out, "write the exports here instead of DIR");
+    export_cmd->add_flag("--replace", export_replace,
+                         "replace the run store in --out even when it holds runs of a different "
+                         "campaign or runs DIR's store lacks");
     merge = app.add_subcommand("merge", "combine the run stores of a campaign's shards and export");
     merge->add_option("OUT", merge_out, "output folder of the merged campaign")->required();
     merge->add_option("DIR", merge_dirs, "output folders of the shards (each with runs.sqlite)")
         ->required();
+    merge->add_flag("--replace", merge_replace,
+                    "replace the run store in OUT (or an unfinished one beside it) even when it "
+                    "holds runs of a different campaign or runs the shards lack");
     run->add_option("--columns", columns_text,
                     "the summary.csv columns printed on stdout, comma-separated (default: those "
                     "that fit the terminal: COLUMNS, its width, 120 when not a terminal)");
@@ -407,8 +392,10 @@ struct CommandLine {
     add_common(find, false);
     out_options.push_back(find->add_option(
         "--out", a.out, "also write find.csv and manifest.json into this directory"));
-    find->add_option("--key", find_opt.key,
-                     "scenario key path to vary, set as a float (e.g. link[0].delivery)")
+    find->add_option(
+            "--key", find_opt.key,
+            "scenario key path to vary, set as a float (e.g. link[0].delivery), or an entry "
+            "of an array of numbers (e.g. link[0].pmf[1])")
         ->required();
     find->add_option("--target", target_text,
                      "QUANTITY<=VALUE (or >=, <, >) on a design.json field, "
@@ -469,12 +456,24 @@ struct CommandLine {
         ->add_option("--periods", a.overrides.periods, "periods per run (overrides run.periods)")
         ->check(CLI::Range(std::int64_t{1}, std::int64_t{1'000'000'000}));
     record_link->add_option("--seed", a.seed, "campaign seed (overrides run.seed)")
-        ->check(CLI::Range(std::int64_t{0}, std::numeric_limits<std::int64_t>::max()));
+        ->check(seed_range());
     record_link->add_flag("--quiet", quiet, "no progress lines");
     record_link
         ->add_option("--threads", threads,
                      "a network link's runs simulated at a time (default: all cores)")
         ->check(CLI::Range(0, 4096));
+  }
+
+  // check, with what run's options change validated as run would see it (the Python check()
+  // passes them).
+  void add_check_command() {
+    check = app.add_subcommand("check", "parse and validate only");
+    add_common(check, false);
+    check->add_option("--runs", a.overrides.runs, "Monte Carlo runs (overrides run.runs)")
+        ->check(CLI::Range(std::int64_t{1}, std::int64_t{10'000'000}));
+    check->add_option("--periods", a.overrides.periods, "periods per run (overrides run.periods)")
+        ->check(CLI::Range(std::int64_t{1}, std::int64_t{1'000'000'000}));
+    check->add_option("--seed", a.seed, "campaign seed (overrides run.seed)")->check(seed_range());
   }
 
   // compare, check, list, plot, report, fit, record-link, ladder and (SUMO builds) channel.
@@ -505,8 +504,7 @@ struct CommandLine {
                       "--seed need no option); rows in one folder only are not comparable");
     compare->add_option("--out", cmp.out,
                         "also write compare.csv and compare.md into this directory");
-    check = app.add_subcommand("check", "parse and validate only");
-    add_common(check, false);
+    add_check_command();
     CLI::App* list = app.add_subcommand("list", "list every registered kind with a one-line help");
     list->add_option("--keys", keys_kind,
                      "print the declared keys of KIND (e.g. link.bernoulli), or of every kind")
@@ -545,8 +543,9 @@ struct CommandLine {
         run_cmd.columns = parse_column_list(columns_text);  // sim/present/table_view.h
       return cmd_run(a, run_cmd);
     }
-    if (export_cmd->parsed()) return cmd_export(export_dir, export_out, command_line);
-    if (merge->parsed()) return cmd_merge(merge_out, merge_dirs, command_line);
+    if (export_cmd->parsed())
+      return cmd_export(export_dir, export_out, export_replace, command_line);
+    if (merge->parsed()) return cmd_merge(merge_out, merge_dirs, merge_replace, command_line);
     if (design->parsed()) return cmd_design(a, command_line, export_c_dir);
     if (find->parsed()) return cmd_find(a, find_opt, target_text, command_line);
     if (check->parsed()) return cmd_check(a);

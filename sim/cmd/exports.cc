@@ -440,12 +440,50 @@ void settle_partial(const std::string& out) {
   }
 }
 
-int cmd_export(const std::string& dir, const std::string& out, const std::string& command_line) {
+void check_folder_replace(const FolderWrite& w) {
+  for (const bool partial : {false, true}) {
+    if (partial && !w.with_partial) continue;
+    const std::string path = partial ? partial_store_path(w.out) : store_path(w.out);
+    std::error_code ec;
+    if (!std::filesystem::exists(path, ec)) continue;
+    std::int64_t runs = 0, lost = 0;
+    std::string diff;
+    try {
+      const RunStore store = RunStore::open(path, false);
+      runs = store.count_runs();
+      if (runs == 0) continue;
+      const auto stored = store.meta();
+      check_campaign_meta(stored, path);
+      diff = identity_difference(stored, *w.meta, true);
+      for (std::size_t c = 0; diff.empty() && c < w.cases; ++c) {
+        for (const std::uint64_t r : store.done_runs(c)) lost += w.holds(c, r) ? 0 : 1;
+      }
+    } catch (const StoreError&) {
+      continue;  // damaged: nothing in it can be resumed or exported (replaced, as by `run`)
+    }
+    if (diff.empty() && lost == 0) continue;  // every run it holds comes back: nothing is lost
+    const std::string what = !diff.empty()
+                                 ? fmt::format("{} finished run(s) of a different campaign", runs)
+                                 : fmt::format("{} run(s) that {} lack(s)", lost, w.source);
+    if (w.replace) {
+      std::cerr << fmt::format("ncosim: --replace: replacing {} in {}\n", what, path);
+      continue;
+    }
+    throw config::ScenarioError(fmt::format(
+        "{}: '{}' holds {} ({}{}){}; `--replace` replaces them, or choose another output folder",
+        w.command, w.out, what, path, partial ? ", the store of an unfinished campaign" : "",
+        diff.empty() ? "" : fmt::format(": {} differ(s) (stored vs {})", diff, w.source)));
+  }
+}
+
+int cmd_export(const std::string& dir, const std::string& out, bool replace,
+               const std::string& command_line) {
   const std::string path = store_path(dir);
   const std::string target = out.empty() ? dir : out;
   // One writer per folder, for the whole command: a set swapped in by another process between
   // reading the store and writing the exports would otherwise pair its store with these exports.
-  const OutputFolderLock folder_lock(target);
+  const OutputFolderLock folder_lock(target);  // restores a set an interrupted write moved aside
+  if (!out.empty()) restore_interrupted_write(dir);  // the source's too
   RunStore store;
   LoadedScenario loaded;
   std::map<std::string, std::string> meta;
@@ -463,6 +501,16 @@ int cmd_export(const std::string& dir, const std::string& out, const std::string
     same_folder =
         output_set_folder(dir) == output_set_folder(target) ||
         (std::filesystem::exists(target, ec) && std::filesystem::equivalent(dir, target, ec));
+  }
+  if (!same_folder) {  // the rule of `run --out`: never lose another folder's runs silently
+    std::vector<std::vector<std::uint64_t>> done;
+    for (std::size_t c = 0; c < loaded.cases.size(); ++c) done.push_back(store.done_runs(c));
+    check_folder_replace(FolderWrite{
+        "export", target, &meta, fmt::format("the store of '{}'", dir), loaded.cases.size(),
+        [&](std::size_t c, std::uint64_t r) {
+          return c < done.size() && std::binary_search(done[c].begin(), done[c].end(), r);
+        },
+        replace, false});
   }
   ExportInfo info;
   info.command_line = command_line;

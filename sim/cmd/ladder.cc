@@ -19,6 +19,7 @@
 #include "sim/analysis/compare.h"
 #include "sim/analysis/output.h"
 #include "sim/cmd/batch.h"
+#include "sim/cmd/cli_checks.h"
 #include "sim/cmd/fit_report.h"
 #include "sim/cmd/ladder_report.h"
 #include "sim/cmd/ladder_scenario.h"
@@ -460,8 +461,7 @@ CLI::App* add_ladder_command(CLI::App& app, LadderArgs& a) {
       ->check(CLI::Range(std::int64_t{1}, std::int64_t{10'000'000}));
   sub->add_option("--periods", a.periods, "periods per run (overrides run.periods)")
       ->check(CLI::Range(std::int64_t{1}, std::int64_t{1'000'000'000}));
-  sub->add_option("--seed", a.seed, "campaign seed (overrides run.seed)")
-      ->check(CLI::Range(std::int64_t{0}, std::numeric_limits<std::int64_t>::max()));
+  sub->add_option("--seed", a.seed, "campaign seed (overrides run.seed)")->check(seed_range());
   sub->add_option("--family", a.families,
                   "family to fit and run, repeatable, lowest rung first (default: bernoulli, "
                   "delay, gilbert_elliott, markov2)");
