@@ -15,6 +15,7 @@
 
 #include "sim/scenario/registries.h"
 #include "sim/scenario/resource_limits.h"
+#include "sim/scenario/scenario_check.h"
 #include "sim/scenario/scenario_keys.h"
 #include "sim/scenario/scenario_sections.h"
 
@@ -405,6 +406,9 @@ LoadedScenario load_cases_text(const std::string& file, const std::string& text,
   out.hash = fnv1a_hex(hashed);
 
   toml::table doc = parse_document(out.text, file, sets, overrides);
+  // Every key-level error of the file at once, before anything is built
+  // (sim/scenario/scenario_check.h).
+  check_scenario_keys(doc, file);
   // Sweeps: cartesian product, the first axis varying slowest (zipped axes: one dimension).
   std::vector<std::size_t> axis_sizes, axis_dim;
   const int last_sweep_line = read_sweeps(doc, file, out, axis_sizes, axis_dim);
