@@ -106,13 +106,25 @@ void check_table(const Table& t, const Keys& keys, bool closed, const KeyCheckOp
                  std::vector<LineError>& errors) {
   const KeyReader r(t, keys);
   std::vector<std::string> names;
+  for (const Key& k : keys.list()) names.push_back(k.name());
+  // The declared keys that this table's unknown keys are typos of ("sdt" for "std"): such a key
+  // missing is the typo's error, told once (at the typo, with its did-you-mean).
+  std::vector<std::string> meant;
+  if (closed) {
+    for (const auto& [key, value] : t.raw()) {
+      if (std::find(names.begin(), names.end(), key.str()) != names.end()) continue;
+      if (std::string hint = did_you_mean(key.str(), names); !hint.empty()) meant.push_back(hint);
+    }
+  }
+  const auto typo_of = [&](const std::string& name) {
+    return !t.has(name) && std::find(meant.begin(), meant.end(), name) != meant.end();
+  };
   for (const Key& k : keys.list()) {
-    names.push_back(k.name());
-    check_key(t, r, k, options, errors);
+    if (!typo_of(k.name())) check_key(t, r, k, options, errors);
   }
   for (const auto& group : keys.one_of()) {
     const bool given = std::any_of(group.begin(), group.end(), [&](const std::string& k) {
-      return t.has(k) || set_elsewhere(t.key_path(k), options);
+      return t.has(k) || typo_of(k) || set_elsewhere(t.key_path(k), options);
     });
     if (!given) {
       errors.push_back(

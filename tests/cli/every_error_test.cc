@@ -82,6 +82,26 @@ TEST_F(EveryError, CheckAndRunReportEveryKeyErrorOfTheFileAtOnce) {
   }
 }
 
+// A typo of a required key is one error (at the typo, with its did-you-mean), not also "the key
+// is required": three typos in three sections, three lines.
+TEST_F(EveryError, ATypoOfARequiredKeyIsOneError) {
+  const std::string text =
+      edited({{"seed = 7", "sed = 7"}, {"std = 1.0", "sdt = 1.0"}, {"history = 2", "histroy = 2"}});
+  const std::string file = write("three.toml", text);
+  const CommandOutcome o = run_ncosim({"check", file});
+  EXPECT_EQ(o.code, 2) << o.output;
+  const std::vector<std::string> expected{
+      fmt::format("ncosim: {}:{}: key 'run.sed': unknown key (did you mean 'seed'?)", file,
+                  line_of(text, "sed = 7")),
+      fmt::format("ncosim: {}:{}: key 'input.sdt': unknown key (did you mean 'std'?)", file,
+                  line_of(text, "sdt = 1.0")),
+      fmt::format("ncosim: {}:{}: key 'estimator[0].histroy': unknown key (did you mean "
+                  "'history'?)",
+                  file, line_of(text, "histroy = 2")),
+  };
+  EXPECT_EQ(split_lines(o.output), expected) << o.output;
+}
+
 // A file with 25 unknown keys: the first 20, then a line counting the rest.
 TEST_F(EveryError, ManyErrorsAreCappedWithACount) {
   std::string keys;
