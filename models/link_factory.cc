@@ -116,6 +116,7 @@ const config::Keys& gilbert_elliott_keys() {
       Key::number("mean_burst")
           .optional("none")
           .min(1.0)
+          .says("a finite mean burst length >= 1")
           .help("mean length of a run of consecutive lost packets: >= 1 and in the range these "
                 "losses allow (below)"),
   };

@@ -618,7 +618,11 @@ int run_cli(int argc, char** argv, const CliHooks& hooks) {
     try {
       return cl.dispatch(command_line);
     } catch (const config::ScenarioError& e) {
-      // Every error on its own line (a file's independent errors are reported together).
+      // Every error of a file on its own line (one error's message may hold several lines).
+      if (e.messages().size() == 1) {
+        std::cerr << "ncosim: " << e.what() << "\n";
+        return 2;
+      }
       std::string_view text = e.what();
       for (std::size_t end; (end = text.find('\n')) != std::string_view::npos;
            text.remove_prefix(end + 1))
