@@ -32,7 +32,13 @@ _EXIT_FLAGGED = 3
 class ScenarioError(ValueError):
     """Bad input: the scenario, an override or an argument. The message is the command line's:
     ``FILE:LINE: key 'PATH': ...`` for a file or TOML string, ``<dict>: key 'PATH': ...`` for a
-    dict. Nothing was written."""
+    dict, one line per error (every independent error of a file: the first 20, then a line
+    ``and N more errors``). Nothing was written."""
+
+    @property
+    def errors(self):
+        """The message's lines, one error each."""
+        return str(self).splitlines()
 
 
 def _scenario_source(scenario):

@@ -13,6 +13,7 @@
 #include <iostream>
 #include <limits>
 #include <optional>
+#include <string_view>
 #include <thread>
 
 #include "estimators/export_c.h"
@@ -649,7 +650,16 @@ int run_cli(int argc, char** argv, const CliHooks& hooks) {
     try {
       return cl.dispatch(command_line);
     } catch (const config::ScenarioError& e) {
-      std::cerr << "ncosim: " << e.what() << "\n";
+      // Every error of a file on its own line (one error's message may hold several lines).
+      if (e.messages().size() == 1) {
+        std::cerr << "ncosim: " << e.what() << "\n";
+        return 2;
+      }
+      std::string_view text = e.what();
+      for (std::size_t end; (end = text.find('\n')) != std::string_view::npos;
+           text.remove_prefix(end + 1))
+        std::cerr << "ncosim: " << text.substr(0, end) << "\n";
+      std::cerr << "ncosim: " << text << "\n";
       return 2;
     } catch (const lmi::ResourceLimitError& e) {
       std::cerr << "ncosim: " << e.what() << " (--max-memory / --max-work raise the limits)\n";

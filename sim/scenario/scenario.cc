@@ -15,6 +15,7 @@
 
 #include "sim/scenario/registries.h"
 #include "sim/scenario/resource_limits.h"
+#include "sim/scenario/scenario_check.h"
 #include "sim/scenario/scenario_keys.h"
 #include "sim/scenario/scenario_sections.h"
 
@@ -424,6 +425,7 @@ LoadedScenario load_cases_text(const std::string& file, const std::string& text,
   out.hash = fnv1a_hex(hashed);
 
   toml::table doc = parse_document(out.text, file, sets, overrides);
+  check_scenario_keys(doc, file);  // every key-level error at once, before anything is built
   // Sweeps: cartesian product, the first axis varying slowest (zipped axes: one dimension).
   std::vector<std::size_t> axis_sizes, axis_dim;
   const int last_sweep_line = read_sweeps(doc, file, out, axis_sizes, axis_dim);
@@ -437,8 +439,7 @@ LoadedScenario load_cases_text(const std::string& file, const std::string& text,
           "got more"));
     }
   }
-  check_sweep_resources(file, last_sweep_line, total,
-                        out.text.size());  // sim/scenario/resource_limits.h
+  check_sweep_resources(file, last_sweep_line, total, out.text.size());  // resource_limits.h
   const std::string dir = std::filesystem::path(file).parent_path().string();
   const SweepShape shape{axis_sizes, axis_dim, total, &sets, &overrides, dir};
   if (!out.sweeps.empty() && !only_case) check_base_scenario(doc, out, shape);

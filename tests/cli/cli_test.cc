@@ -291,7 +291,7 @@ TEST_F(Cli, PmfSummingAboveOneIsRejected) {
 
 TEST_F(Cli, PmfWithNegativeEntryIsRejected) {
   expect_edit_rejected("pmf = [0.5, 0.3]", "pmf = [0.5, -0.3]", "link[0].pmf",
-                       {"probabilities must be non-negative, got -0.3 at index 1"});
+                       {"expected probabilities in [0, 1], got -0.3 at index 1"});
 }
 
 TEST_F(Cli, NonSymmetricCovarianceIsRejected) {
