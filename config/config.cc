@@ -4,6 +4,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <sstream>
 
@@ -49,6 +50,25 @@ std::string escape_text(std::string_view text, bool keep_newlines) {
   return out;
 }
 
+namespace {
+
+std::string joined(const std::vector<std::string>& messages) {
+  std::string out;
+  const std::size_t shown = std::min(messages.size(), ScenarioError::kMaxShown);
+  for (std::size_t i = 0; i < shown; ++i) out += (i ? "\n" : "") + messages[i];
+  if (shown < messages.size()) {
+    out += fmt::format("\nand {} more errors ({} in all; the first {} are shown)",
+                       messages.size() - shown, messages.size(), shown);
+  }
+  return out;
+}
+
+}  // namespace
+
+ScenarioError::ScenarioError(std::vector<std::string> messages)
+    : std::runtime_error(joined(messages)),
+      messages_(std::make_shared<const std::vector<std::string>>(std::move(messages))) {}
+
 std::string format_error(const std::string& file, int line, const std::string& path,
                          const std::string& message) {
   std::string out;
@@ -89,6 +109,16 @@ std::string did_you_mean(std::string_view word, const std::vector<std::string>& 
       best_d = d;
       best = c;
     }
+  }
+  if (!best.empty()) return best;
+  // The same word in other capitals ("SATURATED", "Periodic").
+  auto lower = [](std::string_view s) {
+    std::string out(s);
+    for (char& ch : out) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+    return out;
+  };
+  for (const auto& c : candidates) {
+    if (lower(c) == lower(word)) return c;
   }
   return best;
 }
@@ -381,19 +411,39 @@ std::vector<Table> Table::tables(std::string_view key) const {
   return out;
 }
 
-void Table::finish() const {
-  std::vector<std::string> known(known_->begin(), known_->end());
+std::vector<LineError> Table::unknown_keys(const std::vector<std::string>& known_keys) const {
+  std::vector<std::string> known = known_keys;
+  std::sort(known.begin(), known.end());
+  std::vector<LineError> out;
   for (const auto& [k, v] : *table_) {
-    if (known_->count(k.str()) != 0) continue;
+    if (std::find(known.begin(), known.end(), k.str()) != known.end()) continue;
     std::string hint = did_you_mean(k.str(), known);
     const auto [file, l] = location(v);
     std::string list;
     for (const auto& c : known) list += (list.empty() ? "" : ", ") + escape_text(c);
-    throw ScenarioError(format_error(
-        file, l, key_path(k.str()),
-        hint.empty() ? fmt::format("unknown key (valid keys here: {})", list)
-                     : fmt::format("unknown key (did you mean '{}'?)", escape_text(hint))));
+    out.push_back({l, format_error(file, l, key_path(k.str()),
+                                   hint.empty() ? fmt::format("unknown key (valid keys here: {})",
+                                                              list.empty() ? "none" : list)
+                                                : fmt::format("unknown key (did you mean '{}'?)",
+                                                              escape_text(hint)))});
   }
+  std::stable_sort(out.begin(), out.end(),
+                   [](const LineError& a, const LineError& b) { return a.line < b.line; });
+  return out;
+}
+
+void Table::finish() const {
+  const auto errors = unknown_keys({known_->begin(), known_->end()});
+  if (errors.size() == 1) throw ScenarioError(errors[0].message);
+  if (!errors.empty()) throw ScenarioError(in_file_order(errors));
+}
+
+std::vector<std::string> in_file_order(std::vector<LineError> errors) {
+  std::stable_sort(errors.begin(), errors.end(),
+                   [](const LineError& a, const LineError& b) { return a.line < b.line; });
+  std::vector<std::string> out;
+  for (auto& e : errors) out.push_back(std::move(e.message));
+  return out;
 }
 
 void require_shape(const Table& t, std::string_view key, const Eigen::MatrixXd& m,

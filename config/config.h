@@ -21,10 +21,24 @@
 
 namespace ncosim::config {
 
-// Bad user input: the message is complete and ready to print.
+// Bad user input: the message is complete and ready to print. One error, or several independent
+// ones of one input (every key-level error of a scenario, sim/scenario/key_check.h): what() then
+// holds the first kMaxShown, one per line, and a last line "and N more errors (M in all; ...)".
 class ScenarioError : public std::runtime_error {
  public:
-  explicit ScenarioError(const std::string& message) : std::runtime_error(message) {}
+  static constexpr std::size_t kMaxShown = 20;
+
+  explicit ScenarioError(const std::string& message)
+      : std::runtime_error(message),
+        messages_(std::make_shared<const std::vector<std::string>>(1, message)) {}
+  // `messages` (at least one), each a complete message, in the order to print.
+  explicit ScenarioError(std::vector<std::string> messages);
+
+  // Every error, the ones beyond kMaxShown included (one for a single error).
+  const std::vector<std::string>& messages() const { return *messages_; }
+
+ private:
+  std::shared_ptr<const std::vector<std::string>> messages_;
 };
 
 // `text` safe to print: control characters, DEL and bytes that are not well-formed UTF-8 become
@@ -43,6 +57,14 @@ inline constexpr std::string_view kDictOrigin = "<dict>";
 
 // Closest candidate by edit distance, or "" when none is close enough.
 std::string did_you_mean(std::string_view word, const std::vector<std::string>& candidates);
+
+// One error of an input and its line (0 when it has none): several are sorted into file order.
+struct LineError {
+  int line = 0;
+  std::string message;
+};
+// The messages of `errors` sorted by line (stable), ready for ScenarioError(messages).
+std::vector<std::string> in_file_order(std::vector<LineError> errors);
 
 class Table {
  public:
@@ -92,8 +114,12 @@ class Table {
   // The line of this key's value (of this table when absent or set on the command line).
   int line_of(std::string_view key) const;
 
-  // Rejects keys of this table that no getter asked for. Call once all keys are read.
+  // Rejects keys of this table that no getter asked for (every one, in file order). Call once
+  // all keys are read.
   void finish() const;
+  // The keys of this table that are not among `known`, each an "unknown key" message (with a
+  // did-you-mean among `known`) and its line, in file order.
+  std::vector<LineError> unknown_keys(const std::vector<std::string>& known) const;
 
   // Marks a key as known without reading it (a key read by another component).
   void allow(std::string_view key) const;

@@ -3,6 +3,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
@@ -32,6 +33,8 @@ std::string_view key_type_name(KeyType type) {
       return "table";
     case KeyType::kTables:
       return "tables";
+    case KeyType::kArray:
+      return "array";
     case KeyType::kAny:
       return "any";
   }
@@ -133,10 +136,76 @@ Key& Key::fields(const Keys& keys) {
   fields_ = std::make_shared<const Keys>(keys);
   return *this;
 }
+Key& Key::or_words(std::vector<std::string> words) {
+  words_ = std::move(words);
+  return *this;
+}
+Key& Key::entries(std::size_t lo, std::size_t hi) {
+  min_entries_ = lo;
+  max_entries_ = hi;
+  return *this;
+}
+Key& Key::columns(std::size_t n) {
+  columns_ = n;
+  return *this;
+}
 
 std::string Key::type_text() const {
   if (type_ == KeyType::kAny) return any_text_;
-  return std::string(key_type_name(type_));
+  std::string text(key_type_name(type_));
+  for (const auto& w : words_) text += fmt::format(" or \"{}\"", w);
+  return text;
+}
+
+namespace {
+
+// What an array key's entries are called: "numbers", "rows", "tables", "values".
+std::string entry_noun(KeyType t, std::size_t count) {
+  const bool one = count == 1;
+  switch (t) {
+    case KeyType::kMatrix:
+    case KeyType::kRagged:
+      return one ? "row" : "rows";
+    case KeyType::kTables:
+      return one ? "table" : "tables";
+    case KeyType::kArray:
+      return one ? "value" : "values";
+    default:
+      return one ? "number" : "numbers";
+  }
+}
+
+}  // namespace
+
+std::string Key::shape_text() const {
+  std::string out;
+  const std::size_t lo = min_entries_, hi = max_entries_;
+  if (lo > 0 && lo == hi)
+    out = fmt::format("{} {}", lo, entry_noun(type_, lo));
+  else if (lo > 0 && hi > 0)
+    out = fmt::format("{}..{} {}", lo, hi, entry_noun(type_, hi));
+  else if (lo > 0)
+    out = fmt::format("at least {} {}", lo, entry_noun(type_, lo));
+  else if (hi > 0)
+    out = fmt::format("at most {} {}", hi, entry_noun(type_, hi));
+  if (columns_ > 0)
+    out += fmt::format("{}rows of {} {}", out.empty() ? "" : ", ", columns_,
+                       columns_ == 1 ? "number" : "numbers");
+  return out;
+}
+
+std::string Key::entries_error(std::size_t got) const {
+  std::string phrase = says_;
+  if (phrase.empty()) {
+    phrase = shape_text();
+    if (columns_ > 0) phrase = phrase.substr(0, phrase.find(", rows of"));
+  }
+  return fmt::format("expected {}, got {} {}", phrase, got, entry_noun(type_, got));
+}
+
+std::string Key::columns_error(std::size_t got, std::size_t row) const {
+  return fmt::format("expected rows of {} {}, got {} in row {}", columns_,
+                     columns_ == 1 ? "number" : "numbers", got, row);
 }
 
 std::string Key::default_text() const {
@@ -214,7 +283,23 @@ const Key& Keys::at(std::string_view name) const {
 Keys Keys::operator+(const Keys& more) const {
   std::vector<Key> all = keys_;
   all.insert(all.end(), more.keys_.begin(), more.keys_.end());
-  return Keys(std::move(all));
+  Keys out(std::move(all));
+  out.one_of_ = one_of_;
+  out.one_of_.insert(out.one_of_.end(), more.one_of_.begin(), more.one_of_.end());
+  return out;
+}
+
+Keys& Keys::require_one_of(std::vector<std::string> names) {
+  one_of_.push_back(std::move(names));
+  return *this;
+}
+
+std::string Keys::one_of_error(const std::vector<std::string>& names) {
+  std::string list;
+  for (std::size_t i = 0; i < names.size(); ++i) {
+    list += (i == 0 ? "" : (i + 1 == names.size() ? " or " : ", ")) + fmt::format("`{}`", names[i]);
+  }
+  return fmt::format("expected {}, got {}", list, names.size() == 2 ? "neither" : "none of them");
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -230,6 +315,19 @@ const Key& KeyReader::declared(std::string_view key, std::initializer_list<KeyTy
 
 void KeyReader::check(const Key& k, double v, const std::string& index) const {
   if (!k.in_range(v)) t_.fail(k.name(), k.range_error(v, index));
+}
+
+void KeyReader::check_entries(const Key& k, std::size_t count) const {
+  if ((k.min_entries() > 0 && count < k.min_entries()) ||
+      (k.max_entries() > 0 && count > k.max_entries()))
+    t_.fail(k.name(), k.entries_error(count));
+}
+
+void KeyReader::check_columns(const Key& k, const std::vector<std::vector<double>>& rows) const {
+  if (k.columns() == 0) return;
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    if (rows[i].size() != k.columns()) t_.fail(k.name(), k.columns_error(rows[i].size(), i));
+  }
 }
 
 const Key::Value& KeyReader::fallback(const Key& k, const std::string& expected) const {
@@ -305,6 +403,7 @@ std::vector<double> KeyReader::numbers(std::string_view key) const {
   const Key& k = declared(key, {KeyType::kNumbers, KeyType::kVector});
   if (!t_.has(key)) return std::get<std::vector<double>>(fallback(k, "an array of numbers"));
   std::vector<double> v = t_.numbers(key);
+  check_entries(k, v.size());
   for (std::size_t i = 0; i < v.size(); ++i) check(k, v[i], fmt::format(" at index {}", i));
   return v;
 }
@@ -318,6 +417,9 @@ Eigen::MatrixXd KeyReader::matrix(std::string_view key) const {
   const Key& k = declared(key, {KeyType::kMatrix});
   if (!t_.has(key)) (void)fallback(k, "a matrix [[...], ...]");
   Eigen::MatrixXd m = t_.matrix(key);
+  check_entries(k, static_cast<std::size_t>(m.rows()));
+  if (k.columns() > 0 && static_cast<std::size_t>(m.cols()) != k.columns())
+    t_.fail(k.name(), k.columns_error(static_cast<std::size_t>(m.cols()), 0));
   for (Eigen::Index i = 0; i < m.rows(); ++i) {
     for (Eigen::Index j = 0; j < m.cols(); ++j)
       check(k, m(i, j), fmt::format(" at [{}][{}]", i, j));
@@ -329,6 +431,8 @@ std::vector<std::vector<double>> KeyReader::ragged(std::string_view key) const {
   const Key& k = declared(key, {KeyType::kRagged});
   if (!t_.has(key)) (void)fallback(k, "an array of arrays of numbers");
   auto rows = t_.ragged(key);
+  check_entries(k, rows.size());
+  check_columns(k, rows);
   for (std::size_t i = 0; i < rows.size(); ++i) {
     for (std::size_t j = 0; j < rows[i].size(); ++j)
       check(k, rows[i][j], fmt::format(" at [{}][{}]", i, j));
@@ -348,8 +452,35 @@ std::optional<Table> KeyReader::opt_table(std::string_view key) const {
 }
 
 std::vector<Table> KeyReader::tables(std::string_view key) const {
-  (void)declared(key, {KeyType::kTables});
-  return t_.tables(key);
+  const Key& k = declared(key, {KeyType::kTables});
+  std::vector<Table> out = t_.tables(key);
+  if (t_.has(key)) check_entries(k, out.size());
+  return out;
+}
+
+std::optional<std::string> KeyReader::word(std::string_view key) const {
+  const Key& k = keys_.at(key);
+  if (!t_.is_string(key)) return std::nullopt;
+  const std::string v = t_.string(key);
+  if (std::find(k.words().begin(), k.words().end(), v) != k.words().end()) return v;
+  const std::string hint = did_you_mean(v, k.words());
+  t_.fail(key, fmt::format("expected {}, got a string \"{}\"{}",
+                           k.says_text().empty() ? k.type_text() : k.says_text(), escape_text(v),
+                           hint.empty() ? "" : fmt::format(" (did you mean \"{}\"?)", hint)));
+}
+
+const toml::array* KeyReader::array(std::string_view key) const {
+  const Key& k = declared(key, {KeyType::kArray});
+  const std::string expected = k.says_text().empty() ? "an array" : k.says_text();
+  if (!t_.has(key)) {
+    (void)fallback(k, expected);
+    return nullptr;
+  }
+  const toml::array* a = t_.raw().get(key)->as_array();
+  if (a == nullptr)
+    t_.fail(key, fmt::format("expected {}, got {}", expected, describe(*t_.raw().get(key))));
+  check_entries(k, a->size());
+  return a;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -369,7 +500,8 @@ std::string values_text(const Key& k) {
     for (const auto& v : k.values()) out += (out.empty() ? "" : ", ") + fmt::format("\"{}\"", v);
     return out;
   }
-  return k.range_text();
+  const std::string range = k.range_text(), shape = k.shape_text();
+  return range.empty() || shape.empty() ? range + shape : range + "; " + shape;
 }
 
 // Every key with its name prefixed (`reference.` for a table's fields), fields after their table.

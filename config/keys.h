@@ -32,6 +32,7 @@ enum class KeyType {
   kRagged,   // an array of arrays of numbers, rows of any length
   kTable,    // a sub-table, read by its own reader
   kTables,   // an array of tables
+  kArray,    // an array of values of any type, each read by the kind's own code (sweep values)
   kAny,      // read by the kind's own code (several accepted types); `type_text` names them
 };
 
@@ -58,6 +59,7 @@ class Key {
   static Key ragged(std::string name) { return Key(std::move(name), KeyType::kRagged); }
   static Key table(std::string name) { return Key(std::move(name), KeyType::kTable); }
   static Key tables(std::string name) { return Key(std::move(name), KeyType::kTables); }
+  static Key array(std::string name) { return Key(std::move(name), KeyType::kArray); }
   // A key read by the kind's own code; `type_text` says what it accepts ("number or string").
   static Key any(std::string name, std::string type_text);
 
@@ -88,11 +90,22 @@ class Key {
   // "an integer" by default; `plural` for array entries, "numbers" by default).
   Key& noun(std::string singular, std::string plural = "");
   // The whole "expected ..." phrase of a range error, when a bound is not a plain number
-  // ("an integer in 1..1000000 (1e6)").
+  // ("an integer in 1..1000000 (1e6)"); of an entries error and an array's type error too ("a
+  // non-empty array of values").
   Key& says(std::string phrase);
   // A table key's own keys (docs print them as `reference.kind`, ...); read the sub-table with
   // KeyReader(sub, key.fields()).
   Key& fields(const Keys& keys);
+  // Besides values of its type, the key accepts these strings (C = "output", rate = "saturated");
+  // the type's getters refuse a string, KeyReader::word reads one. Docs print the type as
+  // `matrix or "output"`.
+  Key& or_words(std::vector<std::string> words);
+  // How many entries an array key holds: numbers and vectors their numbers (a bare number is one),
+  // matrices and ragged arrays their rows, tables and arrays their elements; `hi` 0 = no maximum.
+  Key& entries(std::size_t lo, std::size_t hi);
+  Key& entries(std::size_t n) { return entries(n, n); }
+  // A matrix's or ragged array's numbers per row.
+  Key& columns(std::size_t n);
 
   // --- the declaration ---
   const std::string& name() const { return name_; }
@@ -110,6 +123,17 @@ class Key {
   bool lo_open() const { return lo_open_; }
   bool hi_open() const { return hi_open_; }
   const Keys* fields() const { return fields_.get(); }  // null when none
+  const std::vector<std::string>& words() const { return words_; }
+  const std::string& says_text() const { return says_; }    // "" when the range phrase is generic
+  std::size_t min_entries() const { return min_entries_; }  // 0 = no minimum
+  std::size_t max_entries() const { return max_entries_; }  // 0 = no maximum
+  std::size_t columns() const { return columns_; }          // 0 = any
+  // "3 numbers", "at least 1 value", "2..64 tables", "rows of 3 numbers"; "" when unconstrained.
+  std::string shape_text() const;
+  // "expected 3 numbers, got 2" (`got`: the count found).
+  std::string entries_error(std::size_t got) const;
+  // "expected rows of 3 numbers, got 2 in row 1".
+  std::string columns_error(std::size_t got, std::size_t row) const;
 
   // Does `v` satisfy the range? (true when unbounded)
   bool in_range(double v) const;
@@ -132,6 +156,8 @@ class Key {
   bool lo_open_ = false, hi_open_ = false;
   std::string noun_, plural_, says_;
   std::shared_ptr<const Keys> fields_;
+  std::vector<std::string> words_;
+  std::size_t min_entries_ = 0, max_entries_ = 0, columns_ = 0;
 };
 
 // The ordered keys of one component (a kind, a section).
@@ -148,9 +174,16 @@ class Keys {
   bool empty() const { return keys_.empty(); }
   // These keys followed by `more` (shared declarations, e.g. a Markov chain's `step`).
   Keys operator+(const Keys& more) const;
+  // At least one of these optional keys must be given (a delay link's pmf or delivery): the reader
+  // requires one; the key check and the schema say so before it runs.
+  Keys& require_one_of(std::vector<std::string> names);
+  const std::vector<std::vector<std::string>>& one_of() const { return one_of_; }
+  // "expected `pmf` or `delivery`, got neither".
+  static std::string one_of_error(const std::vector<std::string>& names);
 
  private:
   std::vector<Key> keys_;
+  std::vector<std::vector<std::string>> one_of_;
 };
 
 // Reads a Table through declarations (`keys` must outlive the reader: a static of the kind): the
@@ -179,6 +212,12 @@ class KeyReader {
   Table table(std::string_view key) const;
   std::optional<Table> opt_table(std::string_view key) const;
   std::vector<Table> tables(std::string_view key) const;
+  // The string of a key declared with or_words(): nullopt when the value is not a string (read it
+  // with the getter of its type), the word when it is one, else the error listing them.
+  std::optional<std::string> word(std::string_view key) const;
+  // An array of values of any type (KeyType::kArray), its entries counted; nullptr when absent and
+  // optional.
+  const toml::array* array(std::string_view key) const;
 
   [[noreturn]] void fail(std::string_view key, const std::string& message) const {
     t_.fail(key, message);
@@ -187,6 +226,8 @@ class KeyReader {
  private:
   const Key& declared(std::string_view key, std::initializer_list<KeyType> types) const;
   void check(const Key& k, double v, const std::string& index = "") const;
+  void check_entries(const Key& k, std::size_t count) const;
+  void check_columns(const Key& k, const std::vector<std::vector<double>>& rows) const;
   // The declared default of an absent key (required: the "got nothing" error of `expected`).
   const Key::Value& fallback(const Key& k, const std::string& expected) const;
 

@@ -174,13 +174,16 @@ const config::Keys& sod_jump_keys() {
               .says("||w||_RMS >= 0")
               .help("||w||_RMS of the whole disturbance vector (required)"),
           Key::vector("v_rms")
+              .min(0.0)
               .optional("sqrt of the sensors' R diagonals")
               .help("||v_i||_RMS: 1 or total outputs values >= 0"),
-          Key::any("Cz", "matrix nz x n or \"output\"")
+          Key::matrix("Cz")
+              .or_words({"output"})
               .optional("identity")
               .help("the signal of interest z = Cz x, n columns (\"output\": the stacked "
                     "sensors' C)"),
           Key::vector("delta")
+              .min(0.0)
               .optional("the sensors' thresholds")
               .help("thresholds designed for: 1 or total outputs values >= 0"),
           Key::choice("virtual_noise", {"delta2", "delta2_over_3"})
@@ -190,12 +193,13 @@ const config::Keys& sod_jump_keys() {
           Key::choice("assumption", {"uniform", "gaussian"})
               .or_default("uniform")
               .help("stochastic only: the law of the sensor noise (eqs. 29-30 or 33-34)"),
-          Key::vector("r").optional("none").help(
+          Key::vector("r").min(0.0).optional("none").help(
               "stochastic: the uniform range r_i > 0 (or w_inf and v_inf by eq. 28); "
               "deterministic: the co-design cost weights g_i of eq. 35 (default 1)"),
-          Key::vector("w_inf").optional("none").help("||w_j||_inf, nw values, for eq. 28"),
-          Key::vector("v_inf").optional("none").help("||v_i||_inf, total outputs, for eq. 28"),
-          Key::vector("sigma").optional("none").help(
+          Key::vector("w_inf").min(0.0).optional("none").help("||w_j||_inf, nw values, for eq. 28"),
+          Key::vector("v_inf").min(0.0).optional("none").help(
+              "||v_i||_inf, total outputs, for eq. 28"),
+          Key::vector("sigma").min(0.0).optional("none").help(
               "sigma_i > 0 of eq. 31 (required with assumption = \"gaussian\")"),
           Key::choice("vertices", {"all", "lower"})
               .or_default("all")
@@ -203,6 +207,7 @@ const config::Keys& sod_jump_keys() {
                     "beta = beta'"),
           Key::table("codesign")
               .optional("none")
+              .fields(codesign_keys())
               .help("parameters of ncosim codesign: mu (>= 1, required), epsilon, step, delta0"),
       } +
       initial_keys();

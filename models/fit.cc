@@ -398,9 +398,9 @@ EmOutcome fit_hidden(int K, const std::vector<int>& sym, const FitOptions& o, in
     burn_iterations += r.iterations;
     if (r.loglik > best.loglik) best = r;
   }
-  if (!best.converged) {
+  if (!best.converged && best.iterations < o.max_iterations) {
     const int done = best.iterations;
-    EmOutcome r = baum_welch(best.hmm, sym, std::max(1, o.max_iterations - done), tol);
+    EmOutcome r = baum_welch(best.hmm, sym, o.max_iterations - done, tol);
     r.iterations += done;
     best = r;
   }
@@ -437,46 +437,6 @@ FateHmm moved(const FateHmm& h, const Coordinates& c, const Eigen::VectorXd& del
     mat(e.row, e.dependent) -= delta(static_cast<Eigen::Index>(k));
   }
   return m;
-}
-
-// Covariance of the free coordinates: the inverse observed information, by central differences
-// of the exact log-likelihood. Empty when the Hessian is not negative definite.
-Eigen::MatrixXd covariance(const FateHmm& h, const Coordinates& c, const std::vector<int>& sym) {
-  const auto F = static_cast<Eigen::Index>(c.entries.size());
-  Eigen::VectorXd step(F);
-  for (Eigen::Index k = 0; k < F; ++k) {
-    const auto& e = c.entries[static_cast<std::size_t>(k)];
-    const Eigen::MatrixXd& mat = e.emission ? h.emission : h.transition;
-    step(k) = std::min({1e-4, 0.25 * mat(e.row, e.col), 0.25 * mat(e.row, e.dependent)});
-  }
-  const double f0 = hmm_loglik(h, sym);
-  auto f = [&](Eigen::Index a, double sa, Eigen::Index b, double sb) {
-    Eigen::VectorXd d = Eigen::VectorXd::Zero(F);
-    d(a) += sa * step(a);
-    if (b >= 0) d(b) += sb * step(b);
-    return hmm_loglik(moved(h, c, d), sym);
-  };
-  Eigen::MatrixXd H(F, F);
-  for (Eigen::Index a = 0; a < F; ++a) {
-    H(a, a) = (f(a, 1, -1, 0) - 2.0 * f0 + f(a, -1, -1, 0)) / (step(a) * step(a));
-    for (Eigen::Index b = 0; b < a; ++b) {
-      H(a, b) = H(b, a) = (f(a, 1, b, 1) - f(a, 1, b, -1) - f(a, -1, b, 1) + f(a, -1, b, -1)) /
-                          (4.0 * step(a) * step(b));
-    }
-  }
-  Eigen::LLT<Eigen::MatrixXd> llt(-H);
-  if (llt.info() != Eigen::Success) return {};
-  return llt.solve(Eigen::MatrixXd::Identity(F, F));
-}
-
-FitParameter binomial(const std::string& name, double p, double n) {
-  FitParameter r;
-  r.name = name;
-  r.estimate = p;
-  const double se = n > 0 ? std::sqrt(p * (1.0 - p) / n) : 0.0;
-  r.ci_low = std::max(0.0, p - 1.959963985 * se);
-  r.ci_high = std::min(1.0, p + 1.959963985 * se);
-  return r;
 }
 
 std::string num(double v) { return fmt::format("{:.12g}", v); }
@@ -581,13 +541,30 @@ double hmm_loglik(const FateHmm& hmm, const std::vector<int>& symbols) {
 }
 
 std::size_t best_fit(const std::vector<FitResult>& fits, const std::string& criterion) {
-  std::size_t best = 0;
-  for (std::size_t i = 1; i < fits.size(); ++i) {
+  // A family whose EM stopped at its cap is not at a maximum: it never wins over one that is.
+  bool any_converged = false;
+  for (const auto& f : fits) any_converged = any_converged || f.converged;
+  std::size_t best = fits.size();
+  for (std::size_t i = 0; i < fits.size(); ++i) {
+    if (any_converged && !fits[i].converged) continue;
+    if (best == fits.size()) {
+      best = i;
+      continue;
+    }
     const double a = criterion == "aic" ? fits[i].aic : fits[i].bic;
     const double b = criterion == "aic" ? fits[best].aic : fits[best].bic;
     if (a < b - 1e-6 * std::max(1.0, std::abs(b))) best = i;  // ties: the family listed first
   }
-  return best;
+  return best == fits.size() ? 0 : best;
+}
+
+std::vector<double> FitResult::marginal_pmf() const {
+  const Eigen::VectorXd pi = model.stationary();
+  std::vector<double> pmf;
+  for (Eigen::Index m = 1; m < model.emission.cols(); ++m)
+    pmf.push_back(pi.dot(model.emission.col(m)));
+  if (pmf.empty()) pmf.push_back(0.0);
+  return pmf;
 }
 
 }  // namespace ncosim::models

@@ -9,10 +9,14 @@
 //                    state (both free), delays independent of the state (their empirical law);
 //                    fitted by Baum–Welch (EM, SQUAREM-accelerated) from several starts.
 //   markov<K>        hidden K-state chain, per-state loss and per-state delay pmf (Baum–Welch).
-// For each: log-likelihood, parameter count k, AIC = 2k - 2 LL, BIC = k ln N - 2 LL, Wald 95 %
-// intervals from the observed information (numerical Hessian of the exact log-likelihood in the
-// free probabilities; iid families: the binomial standard error), and goodness of fit: the
-// loss-run length distribution and the loss indicator's autocorrelation, model against trace.
+// For each: log-likelihood, parameter count k, AIC = 2k - 2 LL, BIC = k ln N - 2 LL, 95 %
+// intervals (FitParameter::interval says how each was computed: Clopper–Pearson for the iid
+// families' probabilities, exact at 0 and 1; Wald from the observed information of the hidden
+// families, a numerical Hessian of the exact log-likelihood, or of its score when the model has
+// many free probabilities; a likelihood-ratio bound for a probability the fit puts at 0 or 1),
+// and goodness of fit: the loss-run length distribution and the loss indicator's
+// autocorrelation, model against trace. An EM that reaches its iteration cap leaves the family
+// marked not converged: best_fit() does not select it.
 #pragma once
 
 #include <Eigen/Dense>
@@ -33,7 +37,15 @@ struct FateHmm {
 struct FitParameter {
   std::string name;  // e.g. "p_good_to_bad", "loss[1]", "delay_pmf[0][2]"
   double estimate = 0.0;
-  double ci_low = 0.0, ci_high = 0.0;  // Wald 95 %, clipped to [0, 1]
+  double ci_low = 0.0, ci_high = 0.0;  // 95 %, within the parameter's range; NaN: none
+  // How the interval was computed: "clopper_pearson", "wald", "likelihood_ratio" (a bound for an
+  // estimate at the edge of its range, the other parameters held at their estimates), "normal"
+  // (a mean delay: the sample mean's normal interval), or "" with `note` saying why there is none.
+  std::string interval;
+  std::string note;
+  // Whether `ncosim fit` prints it by default (the long per-delay laws are summarised; every
+  // parameter is in fit.json and fit.csv).
+  bool summary = true;
 };
 
 struct FitResult {
@@ -43,14 +55,21 @@ struct FitResult {
   double loglik = 0.0;
   int parameters = 0;
   double aic = 0.0, bic = 0.0;
-  int iterations = 0;  // EM iterations of the best start (0: closed form)
+  int iterations = 0;     // EM iterations of the best start (0: closed form)
+  int iteration_cap = 0;  // the EM's cap (FitOptions::max_iterations; 0: closed form)
   int starts = 0;
-  bool converged = true;
+  bool converged = true;  // false: the EM stopped at its cap (see `note`)
+  std::string note;       // why the family is not converged, or its intervals are partial
   std::vector<FitParameter> params;
-  // gilbert_elliott: the stationary loss probability (`mean_loss`) and the mean loss-run length
-  // (`mean_burst`), the keys by which a [[link]] of kind gilbert_elliott is written, with Wald 95 %
-  // intervals by the delta method on the same covariance as `params` (mean_burst in [1, inf)).
+  // Quantities a user reads, derived from `params`: gilbert_elliott's stationary loss probability
+  // (`mean_loss`) and mean loss-run length (`mean_burst`), the keys by which a [[link]] of kind
+  // gilbert_elliott is written (Wald intervals by the delta method on the same covariance as
+  // `params`; mean_burst in [1, inf)); every family's mean delay of a delivered packet
+  // (`mean_delay`, per state `mean_delay[i]` for markov<K>).
   std::vector<FitParameter> derived;
+  // The marginal law of the fates: P(delay = d), d = 0 .. the longest delay seen (the rest lost),
+  // under the fitted model's stationary law: what a design assumes of the link (design_pmf).
+  std::vector<double> marginal_pmf() const;
   std::string link_toml;  // a [[link]] table reproducing the fitted model
   // Goodness of fit: P(loss run = L), L = 1..burst_observed.size(), and the autocorrelation
   // of the loss indicator at lags 1..acf_observed.size(), observed and under the model.
@@ -98,7 +117,8 @@ FitResult fit_family(const std::string& family, const std::vector<int>& symbols,
 // The number of hidden states of a family name (1 for bernoulli and delay), 0 when unknown.
 int family_states(const std::string& family);
 
-// Index of the result with the smallest criterion ("bic" or "aic").
+// Index of the converged result with the smallest criterion ("bic" or "aic"); when no result
+// converged, of the smallest among all (the caller says so).
 std::size_t best_fit(const std::vector<FitResult>& fits, const std::string& criterion);
 
 }  // namespace ncosim::models

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <optional>
 #include <stdexcept>
 
 #include "models/fit.h"
@@ -61,6 +62,15 @@ TraceSummary summarise(const std::vector<int>& sym) {
 
 // ---- iid families: bernoulli and delay --------------------------------------------------------
 
+// Laws of the delivered packets' delays longer than this are summarised in `ncosim fit`'s
+// printout (mean delay), every bin staying in fit.json and fit.csv.
+constexpr int kSummaryBins = 6;
+
+// The delivered packets' count per delay (d = 0 .. D).
+std::vector<double> delivered_counts(const TraceSummary& t) {
+  return {t.counts.begin() + 1, t.counts.end()};
+}
+
 void fit_iid(const TraceSummary& t, FitResult& r) {
   r.model.transition = Eigen::MatrixXd::Ones(1, 1);
   r.model.emission = Eigen::MatrixXd::Zero(1, t.M);
@@ -69,6 +79,7 @@ void fit_iid(const TraceSummary& t, FitResult& r) {
     r.model.emission(0, d + 1) = t.counts[static_cast<std::size_t>(d + 1)] / t.N;
   r.loglik = t.loss_ll + t.delay_ll;
   r.params.push_back(binomial("loss", t.lost / t.N, t.N));
+  if (t.D > 0) r.derived.push_back(mean_delay("mean_delay", delivered_counts(t)));
 }
 
 int bernoulli_parameters(const TraceSummary& t, int) {
@@ -95,8 +106,72 @@ void fit_delay(const TraceSummary& t, const FitOptions&, FitResult& r) {
   for (int d = 0; d <= t.D; ++d) {
     pmf.push_back(t.counts[static_cast<std::size_t>(d + 1)] / t.N);
     r.params.push_back(binomial(fmt::format("pmf[{}]", d), pmf.back(), t.N));
+    r.params.back().summary = t.D < kSummaryBins;
   }
   r.link_toml = fmt::format("kind = \"delay\"\npmf = {}\n", list(pmf));
+}
+
+// ---- hidden families: their parameters' intervals -------------------------------------------
+
+// Where a parameter sits in the model: entry (row, col) of the transition or emission matrix;
+// `scale` maps the entry to the parameter (a conditional delay law: 1 / P(delivered)).
+struct Entry {
+  bool emission = false;
+  Eigen::Index row = 0, col = 0;
+  double scale = 1.0;
+};
+
+// What the intervals of a hidden family's parameters are computed from.
+struct Information {
+  Information(const FateHmm& model, const std::vector<int>& s, bool on) : h(model), sym(s) {
+    if (!on) return;
+    intervals = true;
+    c = free_coordinates(h);
+    cov = hidden_covariance(h, c, sym, why);
+  }
+  const FateHmm& h;
+  const std::vector<int>& sym;
+  bool intervals = false;
+  Coordinates c;
+  Eigen::MatrixXd cov;
+  std::string why;  // set when `cov` could not be computed
+
+  // g(h) with its interval: Wald on `cov`; a likelihood-ratio bound at `entry` when that comes
+  // out degenerate (the fit put the entry at 0 or 1); none, with a note, when `cov` is missing.
+  template <class G>
+  FitParameter parameter(const std::string& name, G g, std::optional<Entry> entry = std::nullopt,
+                         double lo = 0.0, double hi = 1.0) const {
+    FitParameter p;
+    if (!intervals) {
+      p.name = name;
+      p.estimate = g(h);
+      p.ci_low = p.ci_high = std::nan("");
+      return p;
+    }
+    p = wald(name, h, c, cov, g, lo, hi);
+    if (!why.empty()) {
+      p.note = why;
+      return p;
+    }
+    const double width = p.ci_high - p.ci_low;
+    if (!std::isfinite(width) || width > 1e-12 * std::max(1.0, std::abs(p.estimate))) return p;
+    if (entry) {
+      likelihood_ratio_interval(p, h, entry->emission, entry->row, entry->col, sym, entry->scale);
+    } else {
+      p.ci_low = p.ci_high = std::nan("");
+      p.interval.clear();
+      p.note = "no interval: its parameters are at the edge of their range";
+    }
+    return p;
+  }
+};
+
+// The note of a family whose EM stopped at its cap.
+std::string cap_note(const FitOptions& o) {
+  return fmt::format(
+      "not converged: the EM stopped at its cap of {} iterations with the log-likelihood still "
+      "rising (not a maximum; never selected)",
+      o.max_iterations);
 }
 
 // ---- gilbert_elliott ------------------------------------------------------------------------
@@ -104,17 +179,19 @@ void fit_delay(const TraceSummary& t, const FitOptions&, FitResult& r) {
 // The chain's parameters, the derived mean_loss and mean_burst, and the delays' law.
 void gilbert_elliott_parameters(const TraceSummary& t, const FateHmm& b,
                                 const std::vector<int>& binary, const FitOptions& o, FitResult& r) {
-  Coordinates c;
-  Eigen::MatrixXd cov;
-  if (o.intervals && t.lost > 0.0 && t.delivered > 0.0) {
-    c = free_coordinates(b);
-    cov = covariance(b, c, binary);
-  }
-  const auto ge = [&](const char* name, auto g) { r.params.push_back(wald(name, b, c, cov, g)); };
-  ge("p_good_to_bad", [](const FateHmm& h) { return h.transition(0, 1); });
-  ge("p_bad_to_good", [](const FateHmm& h) { return h.transition(1, 0); });
-  ge("loss_good", [](const FateHmm& h) { return h.emission(0, 0); });
-  ge("loss_bad", [](const FateHmm& h) { return h.emission(1, 0); });
+  const bool identified = t.lost > 0.0 && t.delivered > 0.0;
+  const Information info(b, binary, o.intervals && identified);
+  const auto ge = [&](const char* name, Entry e, auto g) {
+    r.params.push_back(info.parameter(name, g, e));
+    if (o.intervals && !identified)
+      r.params.back().note =
+          "no interval: without both losses and deliveries the chain is not "
+          "identified";
+  };
+  ge("p_good_to_bad", {false, 0, 1}, [](const FateHmm& h) { return h.transition(0, 1); });
+  ge("p_bad_to_good", {false, 1, 0}, [](const FateHmm& h) { return h.transition(1, 0); });
+  ge("loss_good", {true, 0, 0}, [](const FateHmm& h) { return h.emission(0, 0); });
+  ge("loss_bad", {true, 1, 0}, [](const FateHmm& h) { return h.emission(1, 0); });
   // Mean loss P(L) = pi' e and mean burst P(L) / (P(L) - P(L, L)), P(L, L) = pi' diag(e) T e
   // (e: the loss probability per state), smooth in the free coordinates: delta method.
   const auto loss_pair = [](const FateHmm& h) {
@@ -122,20 +199,28 @@ void gilbert_elliott_parameters(const TraceSummary& t, const FateHmm& b,
     const Eigen::VectorXd e = h.emission.col(0);
     return std::make_pair(pi.dot(e), pi.cwiseProduct(e).dot(h.transition * e));
   };
-  r.derived.push_back(
-      wald("mean_loss", b, c, cov, [&](const FateHmm& h) { return loss_pair(h).first; }));
-  r.derived.push_back(wald(
-      "mean_burst", b, c, cov,
+  if (identified || !o.intervals) {
+    r.derived.push_back(
+        info.parameter("mean_loss", [&](const FateHmm& h) { return loss_pair(h).first; }));
+  } else {
+    r.derived.push_back(binomial("mean_loss", t.lost / t.N, t.N));
+  }
+  r.derived.push_back(info.parameter(
+      "mean_burst",
       [&](const FateHmm& h) {
         const auto [pl, pll] = loss_pair(h);
         return pl > 0.0 && pl > pll ? pl / (pl - pll) : std::nan("");
       },
-      1.0, INFINITY));
+      std::nullopt, 1.0, INFINITY));
   if (t.D > 0) {
-    for (int d = 0; d <= t.D; ++d)
+    r.derived.push_back(mean_delay("mean_delay", delivered_counts(t)));
+    for (int d = 0; d <= t.D; ++d) {
       r.params.push_back(
           binomial(fmt::format("delay_pmf[{}]", d), t.q[static_cast<std::size_t>(d)], t.delivered));
+      r.params.back().summary = t.D < kSummaryBins;
+    }
   }
+  if (!info.why.empty()) r.note += (r.note.empty() ? "" : "; ") + info.why;
 }
 
 std::string gilbert_elliott_toml(const TraceSummary& t, const FateHmm& b) {
@@ -173,9 +258,11 @@ void fit_gilbert_elliott(const TraceSummary& t, const FitOptions& o, FitResult& 
     r.starts = 0;
   } else {
     em = fit_hidden(2, binary, o, r.starts, t.mean_burst);
+    r.iteration_cap = o.max_iterations;
   }
   r.iterations = em.iterations;
   r.converged = em.converged;
+  if (!r.converged) r.note = cap_note(o);
   r.loglik = em.loglik + t.delay_ll;
   const FateHmm& b = em.hmm;
   r.model.transition = b.transition;
@@ -191,38 +278,45 @@ void fit_gilbert_elliott(const TraceSummary& t, const FitOptions& o, FitResult& 
 
 // ---- markov<K> ------------------------------------------------------------------------------
 
+// Transitions (every entry up to 3 states, else the stays in the summary), per-state losses,
+// per-state delay laws (summarised by their mean delay when long).
 void markov_parameters(const TraceSummary& t, const FitOptions& o, FitResult& r) {
   const auto K = static_cast<int>(r.model.transition.rows());
-  Coordinates c;
-  Eigen::MatrixXd cov;
-  if (o.intervals) {
-    c = free_coordinates(r.model);
-    if (c.entries.size() <= 30)
-      cov = covariance(r.model, c, t.sym);
-    else
-      c.entries.clear(), cov.resize(0, 0);
-  }
-  const bool have_ci = cov.size() > 0 || (o.intervals && c.entries.empty());
-  auto add = [&](const std::string& name, auto g) {
-    FitParameter p = wald(name, r.model, c, have_ci ? cov : Eigen::MatrixXd(), g);
-    if (!have_ci) p.ci_low = p.ci_high = std::nan("");
-    r.params.push_back(p);
+  const Information info(r.model, t.sym, o.intervals);
+  auto add = [&](const std::string& name, std::optional<Entry> e, bool summary, auto g) {
+    r.params.push_back(info.parameter(name, g, e));
+    r.params.back().summary = summary;
   };
   for (int i = 0; i < K; ++i) {
     for (int j = 0; j < K; ++j)
-      add(fmt::format("transition[{}][{}]", i, j),
+      add(fmt::format("transition[{}][{}]", i, j), Entry{false, i, j}, K <= 3 || i == j,
           [i, j](const FateHmm& h) { return h.transition(i, j); });
   }
   for (int i = 0; i < K; ++i)
-    add(fmt::format("loss[{}]", i), [i](const FateHmm& h) { return h.emission(i, 0); });
+    add(fmt::format("loss[{}]", i), Entry{true, i, 0}, true,
+        [i](const FateHmm& h) { return h.emission(i, 0); });
   for (int i = 0; i < K; ++i) {
+    const double delivered = 1.0 - r.model.emission(i, 0);
+    const double scale = delivered > 0.0 ? 1.0 / delivered : std::nan("");
     for (int d = 0; d <= t.D; ++d) {
-      add(fmt::format("delay_pmf[{}][{}]", i, d), [i, d](const FateHmm& h) {
-        const double del = 1.0 - h.emission(i, 0);
-        return del > 0.0 ? h.emission(i, d + 1) / del : (d == 0 ? 1.0 : 0.0);
-      });
+      add(fmt::format("delay_pmf[{}][{}]", i, d), Entry{true, i, d + 1, scale},
+          t.D < kSummaryBins / 2, [i, d](const FateHmm& h) {
+            const double del = 1.0 - h.emission(i, 0);
+            return del > 0.0 ? h.emission(i, d + 1) / del : (d == 0 ? 1.0 : 0.0);
+          });
     }
+    if (t.D == 0) continue;
+    r.derived.push_back(info.parameter(
+        fmt::format("mean_delay[{}]", i),
+        [i, D = t.D](const FateHmm& h) {
+          double m = 0.0;
+          for (int d = 1; d <= D; ++d) m += d * h.emission(i, d + 1);
+          const double del = 1.0 - h.emission(i, 0);
+          return del > 0.0 ? m / del : std::nan("");
+        },
+        std::nullopt, 0.0, INFINITY));
   }
+  if (!info.why.empty()) r.note += (r.note.empty() ? "" : "; ") + info.why;
 }
 
 std::string markov_toml(const TraceSummary& t, const FateHmm& m) {
@@ -247,7 +341,9 @@ void fit_markov(const TraceSummary& t, const FitOptions& o, FitResult& r) {
   const int K = r.states;
   EmOutcome em = fit_hidden(K, t.sym, o, r.starts, t.mean_burst);
   r.iterations = em.iterations;
+  r.iteration_cap = o.max_iterations;
   r.converged = em.converged;
+  if (!r.converged) r.note = cap_note(o);
   r.loglik = em.loglik;
   r.model = em.hmm;
   if (r.model.emission.cols() < t.M) {

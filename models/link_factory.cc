@@ -25,27 +25,33 @@ Key step_key() {
 }
 
 const config::Keys& delay_keys() {
-  static const config::Keys keys{
-      Key::numbers("pmf")
-          .optional("required unless delivery")
-          .help("pmf[d] = P[delay = d periods], d = 0..len-1, lost with probability 1 - sum: "
-                "non-empty, entries >= 0, sum <= 1 (+1e-9); with independent, each entry in [0, "
-                "1], any sum"),
-      Key::number("delivery")
-          .optional("none (use pmf)")
-          .probability()
-          .help("not with pmf: pmf[d] = delivery * shape[d] / sum(shape), one scalar (the "
-                "probability that a sample is delivered; with independent, the scale of every "
-                "copy's probability) to sweep or search with `ncosim find`"),
-      Key::numbers("shape")
-          .optional("[1.0] (delay 0)")
-          .help("only with delivery: relative weights of the delays 0..len-1 (entries >= 0 and "
-                "finite, at least one > 0)"),
-      Key::boolean("independent")
-          .or_default(false)
-          .help("true: every d is an independent copy, delivered with probability pmf[d]; a "
-                "sample may arrive 0..len times (sensors on the link need buffer = 0)"),
-  };
+  static const config::Keys keys =
+      config::Keys{
+          Key::numbers("pmf")
+              .optional("required unless delivery")
+              .probability()
+              .entries(1, 0)
+              .help(
+                  "pmf[d] = P[delay = d periods], d = 0..len-1, lost with probability 1 - sum: "
+                  "non-empty, entries >= 0, sum <= 1 (+1e-9); with independent, each entry in [0, "
+                  "1], any sum"),
+          Key::number("delivery")
+              .optional("none (use pmf)")
+              .probability()
+              .help("not with pmf: pmf[d] = delivery * shape[d] / sum(shape), one scalar (the "
+                    "probability that a sample is delivered; with independent, the scale of every "
+                    "copy's probability) to sweep or search with `ncosim find`"),
+          Key::numbers("shape")
+              .optional("[1.0] (delay 0)")
+              .min(0.0)
+              .help("only with delivery: relative weights of the delays 0..len-1 (entries >= 0 and "
+                    "finite, at least one > 0)"),
+          Key::boolean("independent")
+              .or_default(false)
+              .help("true: every d is an independent copy, delivered with probability pmf[d]; a "
+                    "sample may arrive 0..len times (sensors on the link need buffer = 0)"),
+      }
+          .require_one_of({"pmf", "delivery"});
   return keys;
 }
 
@@ -78,7 +84,7 @@ const config::Keys& negative_binomial_keys() {
 
 const config::Keys& arrival_cdf_keys() {
   static const config::Keys keys{
-      Key::numbers("cdf").help(
+      Key::numbers("cdf").probability().entries(1, 0).help(
           "lambda_h = P[delay <= h periods] for h = 0, 1, ...: non-empty, entries in [0, 1], "
           "non-decreasing"),
       Key::number("tail")
@@ -104,10 +110,13 @@ const config::Keys& gilbert_elliott_keys() {
       step_key(),
       Key::number("mean_loss")
           .optional("none")
+          .probability()
           .help("stationary loss probability P, loss_good < P < loss_bad; with mean_burst, "
                 "instead of p_good_to_bad and p_bad_to_good"),
       Key::number("mean_burst")
           .optional("none")
+          .min(1.0)
+          .says("a finite mean burst length >= 1")
           .help("mean length of a run of consecutive lost packets: >= 1 and in the range these "
                 "losses allow (below)"),
   };
@@ -117,15 +126,18 @@ const config::Keys& gilbert_elliott_keys() {
 const config::Keys& markov_keys() {
   static const config::Keys keys{
       Key::matrix("transition")
+          .probability()
           .help("S x S transition matrix of the chain: square, entries >= 0, rows sum to 1 "
                 "(+-1e-9)"),
-      Key::numbers("loss").help("per-state loss probability: S entries in [0, 1]"),
+      Key::numbers("loss").probability().help("per-state loss probability: S entries in [0, 1]"),
       Key::ragged("delay_pmf")
           .optional("delay 0")
+          .probability()
           .help("per-state delay law of a delivered packet (loss is `loss`): S rows of any "
                 "length, entries >= 0 summing to 1 (+-1e-9)"),
       Key::numbers("initial")
           .optional("the stationary law")
+          .probability()
           .help("law of the first state: S entries >= 0 summing to 1 (+-1e-9)"),
       step_key(),
   };

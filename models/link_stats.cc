@@ -14,6 +14,20 @@ void add_into(std::vector<std::int64_t>& to, const std::vector<std::int64_t>& fr
 
 }  // namespace
 
+void DelayBlocks::push() {
+  delivered.push_back(fill_delivered);
+  delay.push_back(fill_delay);
+  fill = fill_delivered = fill_delay = 0;
+  if (delivered.size() < 2 * kBlocks) return;
+  for (std::size_t i = 0; i < kBlocks; ++i) {
+    delivered[i] = delivered[2 * i] + delivered[2 * i + 1];
+    delay[i] = delay[2 * i] + delay[2 * i + 1];
+  }
+  delivered.resize(kBlocks);
+  delay.resize(kBlocks);
+  size *= 2;
+}
+
 void StackCounters::add(const StackCounters& o) {
   attempts += o.attempts;
   retries += o.retries;

@@ -4,6 +4,7 @@
 // channel state but are counted apart. sim/link_stats.* turns the counters into links.csv.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <optional>
 #include <vector>
@@ -24,6 +25,32 @@ struct StackCounters {
   void add(const StackCounters& o);
 };
 
+// One run's packet delays in the order they were counted, as means over blocks of equal size:
+// what the overload test (sim/run/overload.h) fits a trend to. The blocks start one packet long;
+// when 2 kBlocks are full, neighbours are merged and the size doubles, so a run of n >= kBlocks
+// packets ends with kBlocks .. 2 kBlocks - 1 full blocks whatever n (the block being filled is
+// left out). A per-run record: LinkCounters::add does not sum it.
+struct DelayBlocks {
+  static constexpr std::size_t kBlocks = 32;
+  std::int64_t size = 1;                // packets per block
+  std::vector<std::int64_t> delivered;  // per full block: packets delivered
+  std::vector<std::int64_t> delay;      // per full block: their delays summed (periods)
+  std::int64_t fill = 0, fill_delivered = 0, fill_delay = 0;  // the block being filled
+
+  // One packet: its delay (its first copy's), or kLost.
+  void add(std::int64_t d) {
+    ++fill;
+    if (d != kLost) {
+      ++fill_delivered;
+      fill_delay += d;
+    }
+    if (fill == size) push();
+  }
+
+ private:
+  void push();  // the filled block, merging when 2 kBlocks are full
+};
+
 struct LinkCounters {
   std::int64_t sent = 0;       // packets handed to the link
   std::int64_t delivered = 0;  // packets with at least one delivered copy
@@ -37,6 +64,7 @@ struct LinkCounters {
   std::vector<std::int64_t> states;
   std::int64_t open_burst = 0;         // losses in a row so far (not yet in `bursts`)
   std::optional<StackCounters> stack;  // a network node's stack (nullopt: not a network link)
+  DelayBlocks blocks;                  // this run's delays in order (not summed by add)
 
   // One packet: the delays of its delivered copies (empty: lost) and the channel state it met
   // (-1: the link has no state).
@@ -45,16 +73,23 @@ struct LinkCounters {
     count_state(state);
     if (delays.empty()) {
       ++open_burst;
+      blocks.add(kLost);
       return;
     }
     ++delivered;
     close();
-    for (const std::int64_t d : delays) count_copy(d);
+    std::int64_t first = delays.front();
+    for (const std::int64_t d : delays) {
+      count_copy(d);
+      first = std::min(first, d);
+    }
+    blocks.add(first);
   }
   // One packet of a physical link: its delay, or kLost.
   void record(std::int64_t delay, int state) {
     ++sent;
     count_state(state);
+    blocks.add(delay);
     if (delay == kLost) {
       ++open_burst;
       return;

@@ -12,7 +12,8 @@ const config::Keys& sensor_keys() {
       config::Key::string("name")
           .optional("\"y1\", \"y2\", ... (1-based position)")
           .help("unique among sensors; names the arrived: column of trajectory.csv"),
-      config::Key::any("C", "matrix ny x n or \"output\"")
+      config::Key::matrix("C")
+          .or_words({"output"})
           .help("output matrix, one row per output of this sensor (all rows travel in one packet), "
                 "n columns; \"output\": the plant's own output matrix (a plant kind with an "
                 "output, e.g. transfer_function)"),

@@ -24,6 +24,7 @@ std::array<double, 3> read_xyz(const config::Table& t, const config::KeyReader& 
 config::Key sink_position_key() {
   return config::Key::numbers("sink_position")
       .optional("[0, 0, 0]")
+      .entries(3)
       .unit("m")
       .help("[x, y, z] of the sink, the estimators' node");
 }

@@ -49,6 +49,7 @@ const config::Keys& network_link_keys() {
           "payload of each packet (the stack adds its own headers)"),
       Key::numbers("position")
           .optional("[0, 0, 0]")
+          .entries(3)
           .unit("m")
           .help("[x, y, z] of this node, for the network kinds with positions (the sink's is the "
                 "network's sink_position)"),
@@ -59,7 +60,7 @@ const config::Keys& network_link_keys() {
                 "(not sent) and the node is out of everyone's range (not with `position`)"),
       Key::numbers("design_pmf")
           .optional("none: a design that needs the law is refused")
-          .noun("a probability", "probabilities")
+          .probability()
           .help("the delay law the offline designs assume: P[delay = d periods], d = 0, 1, ...; "
                 "the rest lost (e.g. from `ncosim fit` on the network's recorded trace)"),
   };

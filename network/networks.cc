@@ -36,7 +36,11 @@ const config::Keys& background_keys() {
           .range(1, 10000)
           .optional("1, or the number of positions")
           .help("how many nodes of this traffic"),
-      Key::any("rate", "number or \"saturated\"")
+      Key::number("rate")
+          .above(0.0)
+          .max(1e7)
+          .or_words({"saturated"})
+          .says("a rate in (0, 1e7] packets/s or \"saturated\"")
           .unit("packets/s")
           .help("each node's own traffic: a Poisson process of this many packets per second (> 0), "
                 "or \"saturated\": a packet always waiting (a new one the moment the stack is "
@@ -45,10 +49,12 @@ const config::Keys& background_keys() {
           "payload of each packet (at most the network's largest payload)"),
       Key::numbers("position")
           .optional("[0, 0, 0]")
+          .entries(3)
           .unit("m")
           .help("[x, y, z] of every node, for the network kinds with positions"),
       Key::matrix("positions")
           .optional("none: every node at `position`")
+          .columns(3)
           .unit("m")
           .help("[[x, y, z], ...]: one row per node (instead of position)"),
       Key::string("vehicles")

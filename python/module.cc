@@ -52,6 +52,7 @@ py::tuple cli(const std::vector<std::string>& args, const std::map<std::string, 
     auto callback = std::make_shared<py::object>(progress);
     hooks.progress = [callback](const ncosim::sim::CampaignProgress::Snapshot& s) {
       py::gil_scoped_acquire gil;
+      const ncosim::python::HookCall hook;  // a command called from here is refused (_in_hook)
       try {
         (*callback)(s.done, s.total, s.final);
       } catch (py::error_already_set& e) {
@@ -107,5 +108,6 @@ PYBIND11_MODULE(_ncosim, m) {
   m.def("_kinds", &kinds);
   m.def("_register_estimator", &ncosim::python::register_estimator, "name"_a, "help"_a, "cls"_a);
   m.def("_registered_estimators", &ncosim::python::registered_estimators);
+  m.def("_in_hook", &ncosim::python::in_hook);
   ncosim::python::bind_packet(m);
 }

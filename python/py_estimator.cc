@@ -3,14 +3,19 @@
 
 #include <fmt/format.h>
 #include <pybind11/eigen.h>
+#include <pybind11/numpy.h>
 #include <pybind11/stl.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <sstream>
 #include <stdexcept>
 
+#include "config/config.h"
 #include "estimators/estimator.h"
 #include "sim/scenario/extensions.h"
 #include "sim/scenario/registries.h"
@@ -89,6 +94,17 @@ py::object model_to_python(const est::Model& m) {
             "x0"_a = p.x0, "C"_a = C, "R"_a = R, "sensors"_a = sensors);
 }
 
+// How many calls into Python code of a command (hooks, constructors) this thread is inside.
+thread_local int hook_depth = 0;
+
+}  // namespace
+
+HookCall::HookCall() { ++hook_depth; }
+HookCall::~HookCall() { --hook_depth; }
+bool in_hook() { return hook_depth > 0; }
+
+namespace {
+
 // The GIL for the Python estimators' calls from a run's worker thread. Handing the GIL from thread
 // to thread at every call (three or more per period and estimator) costs more than a small
 // filter's update, and with several workers the hand-offs dominate (measured: bench/README.md,
@@ -146,7 +162,8 @@ class ThreadGil {
   double since_ = 0.0;
 };
 
-// One call's hold of the GIL (kept past the call while the thread's budget lasts).
+// One call's hold of the GIL (kept past the call while the thread's budget lasts), and the mark
+// that this thread is inside a hook (in_hook()).
 class Gil {
  public:
   Gil() : g_(ThreadGil::get()) { g_.enter(); }
@@ -156,17 +173,108 @@ class Gil {
 
  private:
   ThreadGil& g_;
+  const HookCall hook_;
 };
 
-// "TypeError: message" of the Python exception being handled, on one line.
+// The longest message of a Python exception kept in a run's status: it is stored with every run
+// (runs.sqlite, runs.csv) and printed in the summary table.
+constexpr std::size_t kMessageBytes = 400;
+
+// `text` on one line, escaped (config::escape_text: control bytes, DEL and malformed UTF-8 as
+// \xNN) and cut to about `limit` bytes, never inside a UTF-8 sequence, saying how much was cut.
+std::string one_line(std::string text, std::size_t limit) {
+  for (char& c : text) {
+    if (c == '\n' || c == '\r' || c == '\t') c = ' ';
+  }
+  std::string out = config::escape_text(text);
+  if (out.size() <= limit) return out;
+  std::size_t cut = limit;
+  while (cut > 0 && (static_cast<unsigned char>(out[cut]) & 0xC0) == 0x80) --cut;
+  const std::size_t esc = out.rfind("\\x", cut - 1);  // nor inside an escape \xNN
+  if (esc != std::string::npos && esc + 4 > cut) cut = esc;
+  const std::size_t more = out.size() - cut;
+  out.resize(cut);
+  return out + fmt::format("... ({} more bytes)", more);
+}
+
+// "TypeError: message" of the Python exception being handled, on one line, escaped and capped.
 std::string describe(const py::error_already_set& e) {
   std::string text = e.what();
   const auto tb = text.find("\n\nAt:");
   if (tb != std::string::npos) text.resize(tb);
-  for (char& c : text) {
-    if (c == '\n' || c == '\r') c = ' ';
+  return one_line(std::move(text), kMessageBytes);
+}
+
+// What a returned value is, for a message: "str 'abc'", "an array of complex128, shape (2,)".
+std::string what_is(const py::handle& o) {
+  if (py::isinstance<py::array>(o)) {
+    const auto a = py::reinterpret_borrow<py::array>(o);
+    std::string shape;
+    for (py::ssize_t i = 0; i < a.ndim(); ++i)
+      shape += fmt::format("{}{}", i ? ", " : "", a.shape(i));
+    if (a.ndim() == 1) shape += ",";
+    return fmt::format("an array of {}, shape ({})", py::str(a.dtype()).cast<std::string>(), shape);
   }
-  return text;
+  const std::string type = py::str(py::type::handle_of(o).attr("__name__")).cast<std::string>();
+  std::string repr;
+  try {
+    repr = py::repr(o).cast<std::string>();
+  } catch (const py::error_already_set&) {
+    repr = "?";
+  }
+  return fmt::format("{} {}", type, one_line(repr, 60));
+}
+
+// A value of the wrong type or shape returned by a hook: the run's status says which and why.
+struct BadValue {
+  std::string what;
+};
+
+// `o` as an array of real numbers (NumPy's bool, integer or float dtypes; lists of numbers): a
+// complex, string or object array is refused, never converted.
+py::array real_array(const py::handle& o, const std::string& expected) {
+  py::array a = py::array::ensure(o);
+  const char kind = a ? a.dtype().kind() : 'O';
+  if (!a || (kind != 'b' && kind != 'i' && kind != 'u' && kind != 'f'))
+    throw BadValue{fmt::format("expected {}, got {}", expected, what_is(o))};
+  return py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(a);
+}
+
+// state(): n real numbers (a 1-D array, or one row or column).
+void read_vector(const py::handle& o, Eigen::VectorXd& x) {
+  const std::string expected = fmt::format("a vector of {} real numbers", x.size());
+  const py::array a = real_array(o, expected);
+  const bool vector = a.ndim() == 1 || (a.ndim() == 2 && (a.shape(0) == 1 || a.shape(1) == 1));
+  if (!vector || a.size() != x.size())
+    throw BadValue{fmt::format("expected {}, got {}", expected, what_is(o))};
+  std::copy_n(static_cast<const double*>(a.data()), x.size(), x.data());
+}
+
+// covariance(): an n x n matrix of real numbers.
+void read_matrix(const py::handle& o, Eigen::MatrixXd& P, Eigen::Index n) {
+  const std::string expected = fmt::format("None or a {} x {} matrix of real numbers", n, n);
+  const py::array a = real_array(o, expected);
+  if (a.ndim() != 2 || a.shape(0) != n || a.shape(1) != n)
+    throw BadValue{fmt::format("expected {}, got {}", expected, what_is(o))};
+  P.resize(n, n);
+  const auto* d = static_cast<const double*>(a.data());  // C order: row by row
+  for (Eigen::Index i = 0; i < n; ++i) {
+    for (Eigen::Index j = 0; j < n; ++j) P(i, j) = d[i * n + j];
+  }
+}
+
+// An integer (Python's or NumPy's; not a bool, a float or a string) in [lo, hi].
+long long read_integer(const py::handle& o, long long lo, long long hi,
+                       const std::string& expected) {
+  if (PyBool_Check(o.ptr()) || PyFloat_Check(o.ptr()) || !PyIndex_Check(o.ptr()))
+    throw BadValue{fmt::format("expected {}, got {}", expected, what_is(o))};
+  const py::object i = py::reinterpret_steal<py::object>(PyNumber_Index(o.ptr()));
+  if (!i) throw py::error_already_set();
+  int overflow = 0;
+  const long long v = PyLong_AsLongLongAndOverflow(i.ptr(), &overflow);
+  if (overflow != 0 || v < lo || v > hi)
+    throw BadValue{fmt::format("expected {}, got {}", expected, what_is(o))};
+  return v;
 }
 
 class PyEstimator final : public est::Estimator {
@@ -203,15 +311,12 @@ class PyEstimator final : public est::Estimator {
     try {
       const py::object used = on_packet_(py::cast(p), k);
       if (used.is_none()) return p.count;
-      const int n = used.cast<int>();
-      if (n >= 0 && n <= p.count) return n;
-      fail("on_packet", k,
-           fmt::format("expected None or the number of samples used, 0..{}, got {}", p.count, n));
+      return static_cast<int>(read_integer(
+          used, 0, p.count, fmt::format("None or the number of samples used, 0..{}", p.count)));
     } catch (py::error_already_set& e) {
       fail("on_packet", k, describe(e));
-    } catch (const py::cast_error& e) {
-      fail("on_packet", k,
-           fmt::format("expected None or the number of samples used: {}", e.what()));
+    } catch (const BadValue& e) {
+      fail("on_packet", k, e.what);
     }
     ThreadGil::get().release();  // failed: no more calls from this run
     return 0;
@@ -220,13 +325,30 @@ class PyEstimator final : public est::Estimator {
   void on_period(std::int64_t k, const PeriodInput& in) override {
     if (status_ != "ok") return;
     const Gil gil;
+    const char* hook = "on_period";  // the hook being called or read, for the status
     try {
       on_period_(k, in.u, in.drive);
-      read_state(k);
+      hook = "state";
+      read_vector(state_(), x_);
+      if (covariance_) {
+        hook = "covariance";
+        const py::object P = covariance_();
+        has_P_ = !P.is_none();
+        if (has_P_) read_matrix(P, P_, x_.size());
+      }
+      if (mode_) {
+        hook = "mode";
+        const py::object m = mode_();
+        mode_value_ =
+            m.is_none()
+                ? std::nullopt
+                : std::optional<int>(static_cast<int>(read_integer(
+                      m, 0, std::numeric_limits<int>::max(), "None or a mode, an integer from 0")));
+      }
     } catch (py::error_already_set& e) {
-      fail("on_period", k, describe(e));
-    } catch (const py::cast_error& e) {
-      fail("state", k, fmt::format("expected a vector of {} numbers: {}", x_.size(), e.what()));
+      fail(hook, k, describe(e));
+    } catch (const BadValue& e) {
+      fail(hook, k, e.what);
     }
     if (status_ != "ok") ThreadGil::get().release();  // failed: no more calls from this run
   }
@@ -237,23 +359,6 @@ class PyEstimator final : public est::Estimator {
   std::string status() const override { return status_; }
 
  private:
-  void read_state(std::int64_t k) {
-    const auto x = state_().cast<Eigen::VectorXd>();
-    if (x.size() != x_.size()) {
-      fail("state", k, fmt::format("expected a vector of {} numbers, got {}", x_.size(), x.size()));
-      return;
-    }
-    x_ = x;
-    if (covariance_) {
-      const py::object P = covariance_();
-      has_P_ = !P.is_none();
-      if (has_P_) P_ = P.cast<Eigen::MatrixXd>();
-    }
-    if (mode_) {
-      const py::object m = mode_();
-      mode_value_ = m.is_none() ? std::nullopt : std::optional<int>(m.cast<int>());
-    }
-  }
   void fail(const char* hook, std::int64_t k, const std::string& what) {
     status_ = fmt::format("python_error: {} (in {} at k = {})", what, hook, k);
   }
@@ -266,6 +371,17 @@ class PyEstimator final : public est::Estimator {
   std::string status_ = "ok";
 };
 
+// `flops`: a finite, non-negative real number (FLOPs per period).
+double read_flops(const py::handle& o) {
+  const std::string expected = "None or a finite number >= 0 (FLOPs per period)";
+  if (PyBool_Check(o.ptr()) || !(PyFloat_Check(o.ptr()) || PyIndex_Check(o.ptr())))
+    throw BadValue{fmt::format("expected {}, got {}", expected, what_is(o))};
+  const double v = py::float_(py::reinterpret_borrow<py::object>(o)).cast<double>();
+  if (!std::isfinite(v) || v < 0.0)
+    throw BadValue{fmt::format("expected {}, got {}", expected, what_is(o))};
+  return v;
+}
+
 class PyDesign final : public est::EstimatorDesign {
  public:
   // Holds the GIL when called.
@@ -277,7 +393,7 @@ class PyDesign final : public est::EstimatorDesign {
     // One instance now: bad parameters are bad input, reported before t = 0.
     const py::object probe = cls_(model_, params_);
     const py::object flops = py::getattr(probe, "flops", py::none());
-    if (!flops.is_none()) flops_ = flops.cast<double>();
+    if (!flops.is_none()) flops_ = read_flops(flops);
     report_.method = "python";
     report_.extra["class"] =
         fmt::format("{}.{}", py::str(cls_.attr("__module__")).cast<std::string>(),
@@ -315,6 +431,7 @@ class PyDesign final : public est::EstimatorDesign {
 std::unique_ptr<est::EstimatorDesign> make_design(const std::string& name, const config::Table& t,
                                                   const est::Model& model) {
   py::gil_scoped_acquire gil;
+  const HookCall hook;  // the class's constructor runs here
   const py::dict params;
   for (const auto& [k, v] : t.raw()) {
     const std::string key(k.str());
@@ -331,9 +448,8 @@ std::unique_ptr<est::EstimatorDesign> make_design(const std::string& name, const
   } catch (py::error_already_set& e) {
     t.fail("kind",
            fmt::format("the Python estimator \"{}\" refused its table: {}", name, describe(e)));
-  } catch (const py::cast_error& e) {
-    t.fail("kind", fmt::format("the Python estimator \"{}\": flops: expected a number ({})", name,
-                               e.what()));
+  } catch (const BadValue& e) {
+    t.fail("kind", fmt::format("the Python estimator \"{}\": flops: {}", name, e.what));
   }
 }
 

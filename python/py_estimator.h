@@ -21,6 +21,18 @@ pybind11::list registered_estimators();
 // across calls for a few milliseconds: py_estimator.cc, ThreadGil).
 void release_thread_gil();
 
+// While one is alive, this thread is inside Python code that a running command called (an
+// estimator's hook or constructor, the progress callback): in_hook() is true there, and the
+// package refuses to start another command (it would wait for the one that called it forever).
+class HookCall {
+ public:
+  HookCall();
+  ~HookCall();
+  HookCall(const HookCall&) = delete;
+  HookCall& operator=(const HookCall&) = delete;
+};
+bool in_hook();
+
 // Binds ncosim's Packet (what on_packet receives) into module `m`.
 void bind_packet(pybind11::module_& m);
 

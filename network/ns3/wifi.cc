@@ -17,6 +17,7 @@
 #include <algorithm>
 #include <cmath>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -93,6 +94,14 @@ double free_space_at_1m(double carrier_hz) {
   return 20.0 * std::log10(4.0 * kPi * carrier_hz / 299'792'458.0);
 }
 
+// Every standard's data modes: the values data_mode may take (the reader then checks the
+// standard's own).
+std::vector<std::string> all_data_modes() {
+  std::vector<std::string> out;
+  for (const Standard& s : standards()) out.insert(out.end(), s.modes.begin(), s.modes.end());
+  return out;
+}
+
 const config::Keys& wifi_keys() {
   static const config::Keys keys{
       Key::choice("standard", {"802.11a", "802.11g", "802.11n", "802.11p"})
@@ -105,7 +114,7 @@ const config::Keys& wifi_keys() {
           .or_default(16.0)
           .unit("dBm")
           .help("transmit power of every node"),
-      Key::string("data_mode")
+      Key::choice("data_mode", all_data_modes())
           .optional(
               "the standard's base rate: OfdmRate6Mbps (a), ErpOfdmRate6Mbps (g), HtMcs0 (n), "
               "OfdmRate6MbpsBW10MHz (p)")

@@ -32,7 +32,13 @@ _EXIT_FLAGGED = 3
 class ScenarioError(ValueError):
     """Bad input: the scenario, an override or an argument. The message is the command line's:
     ``FILE:LINE: key 'PATH': ...`` for a file or TOML string, ``<dict>: key 'PATH': ...`` for a
-    dict. Nothing was written."""
+    dict, one line per error (every independent error of a file: the first 20, then a line
+    ``and N more errors``). Nothing was written."""
+
+    @property
+    def errors(self):
+        """The message's lines, one error each."""
+        return str(self).splitlines()
 
 
 def _scenario_source(scenario):
@@ -81,6 +87,15 @@ def _names_python_estimator(scenario, texts, set_):
             return False
     import re
     return any(re.search(r'["\']' + re.escape(n) + r'["\']', text) for n in names)
+
+
+def _integer(flag, v):
+    """An integer argument as the command line gets it: a float, string or bool is refused, not
+    rounded (the command line checks the range: a seed outside 0 .. 2**63 - 1 is refused)."""
+    import numbers
+    if isinstance(v, bool) or not isinstance(v, numbers.Integral):
+        raise ScenarioError(f"{flag[2:]}: expected an integer, got {v!r}")
+    return int(v)
 
 
 def _sets(set_):
@@ -133,14 +148,30 @@ class _Progress:
 
 
 # One command at a time per process: the command line captures std::cout and holds in-memory
-# scenarios by name; a second thread's call waits for the first.
+# scenarios by name; a second thread's call waits for the first. A call from inside a command
+# (an estimator's method, the progress callback, or the thread that runs the command) would wait
+# for itself forever: it raises RuntimeError instead.
 _COMMAND_LOCK = threading.Lock()
+_COMMAND_THREAD = None  # the thread running a command, while one runs
+
+
+def _refuse_nested(what):
+    if _ncosim._in_hook() or _COMMAND_THREAD == threading.get_ident():
+        raise RuntimeError(
+            f"ncosim.{what}: called from inside a running ncosim command (an estimator's method or "
+            "the progress callback); commands do not nest: call it after the command returns")
 
 
 def _cli(args, texts=None, progress=None):
     """(exit status, stdout, stderr) of `ncosim ARGS...` run in this process."""
+    global _COMMAND_THREAD
+    _refuse_nested(args[0] if args else "command")
     with _COMMAND_LOCK:
-        return _ncosim._cli([str(a) for a in args], texts or {}, progress, _EXECUTABLE)
+        _COMMAND_THREAD = threading.get_ident()
+        try:
+            return _ncosim._cli([str(a) for a in args], texts or {}, progress, _EXECUTABLE)
+        finally:
+            _COMMAND_THREAD = None
 
 
 def _raise_for(code, err, what):
@@ -224,7 +255,7 @@ def run(scenario, *, runs=None, periods=None, seed=None, threads=None, set=None,
     args = ["run", name, "--out", os.fspath(out)]
     for flag, v in (("--runs", runs), ("--periods", periods), ("--seed", seed), ("--threads", threads)):
         if v is not None:
-            args += [flag, int(v)]
+            args += [flag, _integer(flag, v)]
     args += _sets(set)
     args += ["--resume"] * bool(resume) + ["--replace"] * bool(replace) + ["--trace"] * bool(trace)
     args += ["--no-timing"] * (not timing) + ["--fail-on-status"] * bool(fail_on_status)
@@ -256,7 +287,7 @@ def check(scenario, *, set=None, runs=None, periods=None, seed=None):
     args = ["check", name] + _sets(set)
     for flag, v in (("--runs", runs), ("--periods", periods), ("--seed", seed)):
         if v is not None:
-            args += [flag, int(v)]
+            args += [flag, _integer(flag, v)]
     code, out, err = _cli(args, texts)
     _raise_for(code, err, "check")
     text = _text(out)
@@ -271,17 +302,23 @@ def _folder(x):
 
 class Comparison:
     """`ncosim compare`: ``table`` (compare.csv as a DataFrame), ``markdown`` (what it prints),
-    ``regression`` (True when a row got worse: the command's exit 1)."""
+    ``regression`` (True when a row got worse: the command's exit 1), ``inconclusive`` (True when
+    no row got worse but one could not be told from a change beyond the tolerance: exit 4, or 0
+    with allow_inconclusive)."""
 
-    def __init__(self, table, markdown, regression, warnings_text):
+    def __init__(self, table, markdown, regression, warnings_text, inconclusive=False):
         self.table = table
         self.markdown = markdown
         self.regression = regression
+        self.inconclusive = inconclusive
         self.warnings = warnings_text
 
     @property
     def verdict(self):
-        return "regression" if self.regression else "no regression"
+        """``regression``, ``inconclusive`` or ``no regression`` (docs/compare.md)."""
+        if self.regression:
+            return "regression"
+        return "inconclusive" if self.inconclusive else "no regression"
 
     def __repr__(self):
         return f"<ncosim.Comparison: {self.verdict}>\n{self.markdown}"
@@ -291,7 +328,7 @@ class Comparison:
 
 
 def compare(base, new, *, metric=None, tolerance=None, alpha=None, correction=None,
-            allow_scenario_change=False):
+            allow_inconclusive=False, allow_scenario_change=False):
     """Compares two campaigns (Campaign objects or output folders) row by row, paired where the
     seeds match (`ncosim compare BASE NEW`). Returns a Comparison."""
     with tempfile.TemporaryDirectory(prefix="ncosim-compare-") as tmp:
@@ -300,14 +337,16 @@ def compare(base, new, *, metric=None, tolerance=None, alpha=None, correction=No
                         ("--correction", correction)):
             if v is not None:
                 args += [flag, v]
+        args += ["--allow-inconclusive"] * bool(allow_inconclusive)
         args += ["--allow-scenario-change"] * bool(allow_scenario_change)
         code, out, err = _cli(args)
-        if code not in (0, 1):
+        if code not in (0, 1, 4):
             _raise_for(code, err, "compare")
         table = _read_csv(os.path.join(tmp, "cmp", "compare.csv"))
         with open(os.path.join(tmp, "cmp", "compare.md"), encoding="utf-8") as f:
             markdown = f.read()
-    return Comparison(table, markdown, code == 1, _message(err))
+    inconclusive = code == 4 or (code == 0 and "inconclusive" in set(table["verdict"]))
+    return Comparison(table, markdown, code == 1, _message(err), inconclusive)
 
 
 class Fit:

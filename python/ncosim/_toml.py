@@ -35,6 +35,10 @@ def value(v, where="value"):
     if isinstance(v, bool):
         return "true" if v else "false"
     if isinstance(v, int):
+        if not -2**63 <= v < 2**63:
+            from ._api import ScenarioError
+            raise ScenarioError(f"{where}: expected an integer TOML can hold (-2**63 .. 2**63 - 1), "
+                                f"got {v}")
         return str(v)
     if isinstance(v, float):
         if math.isnan(v):

@@ -94,8 +94,30 @@ def test_bad_input_raises_with_its_location_and_writes_nothing(motor, tmp_path):
     assert not Path("nothing").exists()
 
 
+def test_seeds_outside_0_to_2_63_are_refused_not_clamped(motor):
+    """Issue 40 part 7: seed=2**64 ran as 2**63 - 1 (two requests, one campaign)."""
+    for seed in (2**64, 2**63, -1):
+        with pytest.raises(ncosim.ScenarioError, match=r"--seed: expected an integer in 0 \.\. "
+                                                       r"9223372036854775807 \(2\^63 - 1\)"):
+            ncosim.run(motor, seed=seed, out="nothing", progress=False)
+        with pytest.raises(ncosim.ScenarioError, match=r"--seed: expected an integer in 0"):
+            ncosim.check(motor, seed=seed)
+    for seed in (1.5, "3", True):
+        with pytest.raises(ncosim.ScenarioError, match=r"^seed: expected an integer, got "):
+            ncosim.run(motor, seed=seed, out="nothing", progress=False)
+    with pytest.raises(ncosim.ScenarioError, match=r"run\.seed: expected an integer TOML can hold"):
+        ncosim.run(motor, set={"run.seed": 2**64}, out="nothing", progress=False)
+    with pytest.raises(ncosim.ScenarioError, match=r"run\.seed: expected an integer TOML can hold"):
+        ncosim.run(dict(motor, run=dict(motor["run"], seed=2**64)), out="nothing", progress=False)
+    assert not Path("nothing").exists()
+    a = ncosim.run(motor, seed=2**63 - 1, runs=2, timing=False, progress=False)
+    b = ncosim.run(motor, seed=np.int64(2**63 - 1), runs=2, timing=False, progress=False)
+    assert (a.out / "runs.csv").read_bytes() == (b.out / "runs.csv").read_bytes()
+
+
 def test_check(motor):
     assert ncosim.check(motor) == {"cases": 1, "estimators": 1}
+    assert ncosim.check(motor, runs=3, periods=500, seed=4) == {"cases": 1, "estimators": 1}
     swept = dict(motor, sweep=[{"key": "link[1].loss", "values": [0.1, 0.2, 0.3]}])
     assert ncosim.check(swept)["cases"] == 3
 
@@ -127,6 +149,12 @@ def test_compare_finds_a_regression_and_no_change(motor):
     assert r.regression
     assert r.table.loc[0, "verdict"] == "worse"
     assert "worse" in r.markdown
+    # 2 runs a side cannot show anything: inconclusive (exit 4), passed when allowed.
+    few = ncosim.compare(ncosim.run(motor, runs=2, progress=False),
+                         ncosim.run(motor, runs=2, progress=False))
+    assert few.inconclusive and not few.regression and few.verdict == "inconclusive"
+    assert set(few.table["verdict"]) == {"inconclusive"}
+    assert few.table.loc[0, "ci_level"] == pytest.approx(0.9)
     with pytest.raises(ncosim.ScenarioError):
         ncosim.compare(base, worse)  # another scenario text without allow_scenario_change
     with pytest.raises(ValueError):

@@ -1,4 +1,6 @@
 """Estimators written in Python, in the same campaign as the C++ ones."""
+import re
+
 import numpy as np
 import pytest
 
@@ -73,7 +75,8 @@ def test_an_estimator_that_raises_gets_a_status_and_the_campaign_goes_on(motor):
     status = runs.loc["r", "status"]
     assert len(status) == 4
     assert status.str.startswith("python_error: ZeroDivisionError: division by zero (in on_period at k = 40)").all()
-    assert runs.loc["w", "status"].str.contains("expected a vector of 2 numbers, got 3").all()
+    assert runs.loc["w", "status"].str.contains(
+        r"expected a vector of 2 real numbers, got an array of float64, shape \(3,\) \(in state").all()
     s = c.summary.set_index("estimator")
     assert s.loc["KF", "status"] == "ok"
     assert s.loc["r", "status"].startswith("python_error: ZeroDivisionError")
@@ -113,9 +116,143 @@ def test_broken_hooks_end_the_run_not_the_campaign(motor):
         runs = ncosim.run(sc, threads=threads, progress=False).runs.set_index(["estimator", "run"])
         assert (runs.loc["KF", "status"] == "ok").all()
         assert runs.loc["b", "status"].str.contains("no on_packet today").all()
-        assert runs.loc["c", "status"].str.contains(r"samples used, 0\.\.1, got 2").all()
+        assert runs.loc["c", "status"].str.contains(r"samples used, 0\.\.1, got int 2").all()
         assert runs.loc["r", "status"].str.contains("a command is running").all()
     assert "too_late" not in ncosim.registered()
+
+
+class ReturnsRight(Raising):
+    def on_period(self, k, u, drive):
+        pass
+
+
+def returning(hook, value):
+    """A class whose `hook` returns `value` (state, covariance or mode)."""
+    return type(f"Returns_{hook}", (ReturnsRight,), {hook: lambda self: value})
+
+
+# (hook, returned value, what the status must say)
+BAD_VALUES = [
+    ("covariance", np.eye(3), r"expected None or a 2 x 2 matrix of real numbers, got an array of "
+                              r"float64, shape \(3, 3\) \(in covariance at k = 0\)"),
+    ("covariance", np.eye(1), r"2 x 2 matrix .*shape \(1, 1\) \(in covariance at k = 0\)"),
+    ("covariance", np.ones(4), r"2 x 2 matrix .*shape \(4,\) \(in covariance at k = 0\)"),
+    ("covariance", np.eye(2) * (1 + 1j), r"got an array of complex128.* \(in covariance at k = 0\)"),
+    ("mode", "one", r"expected None or a mode, an integer from 0, got str 'one' \(in mode at k = 0\)"),
+    ("mode", 1.5, r"got float 1\.5 \(in mode at k = 0\)"),
+    ("mode", -1, r"got int -1 \(in mode at k = 0\)"),
+    ("state", np.array(["1", "2"]), r"expected a vector of 2 real numbers, got an array of <U1, "
+                                    r"shape \(2,\) \(in state at k = 0\)"),
+    ("state", ["1", "2"], r"got list \['1', '2'\] \(in state at k = 0\)"),
+    ("state", np.array([1 + 1j, 2]), r"got an array of complex128, shape \(2,\) \(in state"),
+    ("state", "12", r"got str '12' \(in state at k = 0\)"),
+    ("state", 1.0, r"got float 1\.0 \(in state at k = 0\)"),
+]
+
+
+def test_a_value_of_the_wrong_type_or_shape_is_a_python_error_naming_its_hook(motor):
+    """Issue 40 part 7: a covariance() of the wrong shape was cut to its top-left block or gave
+    NaN with status ok; a bad mode() or covariance() was reported "in state", with pybind11's
+    PYBIND11_DETAILED_ERROR_MESSAGES hint; complex and string arrays were taken as numbers."""
+    extra = []
+    for i, (hook, value, _) in enumerate(BAD_VALUES):
+        ncosim.register(f"bad_value_{i}", returning(hook, value))
+        extra.append({"name": f"b{i}", "kind": f"bad_value_{i}"})
+    ncosim.register("good_values", returning("mode", np.int64(1)))
+    sc = with_estimators(motor, *extra, {"name": "good", "kind": "good_values"})
+    sc["run"].update(runs=2, periods=100)
+    runs = ncosim.run(sc, progress=False).runs.set_index(["estimator", "run"])
+    for i, (hook, value, expected) in enumerate(BAD_VALUES):
+        status = runs.loc[f"b{i}", "status"]
+        assert status.str.startswith("python_error: expected ").all(), status.iloc[0]
+        assert status.str.contains(expected).all(), (hook, value, status.iloc[0])
+        assert not status.str.contains("PYBIND11|Unable to cast").any(), status.iloc[0]
+    assert (runs.loc["good", "status"] == "ok").all()
+
+
+class LongMessage(ReturnsRight):
+    def on_period(self, k, u, drive):
+        raise ValueError("\x1b[31mred\x07" + "é" * 50_000)
+
+
+def test_a_long_exception_text_is_capped_and_escaped_in_the_status(motor):
+    """A 100 KB message with raw escape bytes was stored whole in every run's status."""
+    ncosim.register("long_message", LongMessage)
+    sc = with_estimators(motor, {"name": "l", "kind": "long_message"})
+    sc["run"].update(runs=2, periods=50)
+    c = ncosim.run(sc, progress=False)
+    for status in c.runs.set_index("estimator").loc["l", "status"]:
+        assert status.startswith(r"python_error: ValueError: \x1b[31mred\x07éé")
+        assert "\x1b" not in status and "\x07" not in status
+        assert len(status.encode()) < 600
+        assert re.search(r"é\.\.\. \(\d+ more bytes\) \(in on_period at k = 0\)$", status), status
+    assert "\x1b" not in c.summary.set_index("estimator").loc["l", "status"]
+
+
+@pytest.mark.parametrize("flops", [-1, float("nan"), float("inf"), "100", 1 + 2j, True])
+def test_flops_must_be_a_finite_non_negative_number(motor, flops):
+    cls = type("Flops", (ReturnsRight,), {"flops": flops})
+    ncosim.register("flops_check", cls)
+    with pytest.raises(ncosim.ScenarioError, match=r"flops: expected None or a finite number >= 0 "
+                                                   r"\(FLOPs per period\), got "):
+        ncosim.check(with_estimators(motor, {"name": "f", "kind": "flops_check"}))
+    ncosim.register("flops_check", type("Flops", (ReturnsRight,), {"flops": np.float64(12.5)}))
+    assert ncosim.check(with_estimators(motor, {"name": "f", "kind": "flops_check"}))
+
+
+class RunsInAHook(ReturnsRight):
+    def on_period(self, k, u, drive):
+        if k == 3:
+            ncosim.check(self.params["scenario"])
+
+
+class ChecksInItsConstructor(ReturnsRight):
+    def __init__(self, model, params):
+        super().__init__(model, params)
+        ncosim.check(params["scenario"])
+
+
+def test_a_command_from_inside_a_command_raises_instead_of_waiting_forever(motor):
+    """Issue 40 part 7: ncosim.run/check from an estimator's hook deadlocked (a non-re-entrant
+    lock; SIGINT said "stopping" and stayed hung)."""
+    import threading
+    ncosim.register("runs_in_a_hook", RunsInAHook)
+    ncosim.register("checks_in_its_constructor", ChecksInItsConstructor)
+    inner = dict(motor)
+    sc = with_estimators(motor, {"name": "h", "kind": "runs_in_a_hook", "scenario": {"x": 1}})
+    sc["run"].update(runs=2, periods=50)
+    done = {}
+
+    def go():
+        for threads in (1, 2):
+            done[threads] = ncosim.run(sc, threads=threads, progress=False)
+
+    t = threading.Thread(target=go, daemon=True)
+    t.start()
+    t.join(120)
+    assert not t.is_alive(), "ncosim.check from a hook hangs"
+    for c in done.values():
+        status = c.runs.set_index("estimator").loc["h", "status"]
+        assert status.str.startswith("python_error: RuntimeError: ncosim.check: called from inside "
+                                     "a running ncosim command").all(), status.iloc[0]
+        assert status.str.endswith("(in on_period at k = 3)").all()
+    with pytest.raises(ncosim.ScenarioError, match="RuntimeError: ncosim.check: called from inside"):
+        ncosim.check(with_estimators(inner, {"name": "c", "kind": "checks_in_its_constructor",
+                                             "scenario": {"x": 1}}))
+    calls = []
+
+    def progress(done_runs, total, final):
+        try:
+            ncosim.check(inner)
+        except RuntimeError as e:
+            calls.append(str(e))
+
+    from ncosim import _api, _toml
+    code, _, err = _api._cli(["run", "<dict>", "--out", "p", "--runs", "2", "--periods", "50"],
+                             {"<dict>": _toml.dumps(inner)}, progress)
+    assert code == 0, err
+    assert calls and all("ncosim.check: called from inside" in c for c in calls), calls
+    assert ncosim.check(inner)  # and commands work again afterwards
 
 
 def test_bad_parameters_are_bad_input_with_their_location(motor):

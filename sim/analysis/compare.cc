@@ -18,8 +18,8 @@
 #include <sstream>
 
 #include "sim/analysis/compare_manifest.h"
+#include "sim/analysis/compare_stats.h"
 #include "sim/analysis/output.h"
-#include "sim/analysis/paired.h"
 #include "sim/files/csv.h"
 
 namespace ncosim::sim {
@@ -98,28 +98,10 @@ RunValues finite_values(const RunFolder::Row& r) {
   return v;
 }
 
-// Scales both rows' values by 2^-e, the largest |value| scaled into [0.5, 1), and returns e:
-// sums, squares and variances of values up to the largest double cannot overflow, and a power of
-// two changes no digit (the p-values and the relative change do not depend on the scale).
-int scale_values(RunValues& vb, RunValues& vn) {
-  double largest = 0.0;
-  for (const auto* m : {&vb, &vn}) {
-    for (const auto& [run, v] : *m) largest = std::max(largest, std::abs(v));
-  }
-  int e = 0;
-  std::frexp(largest, &e);
-  for (auto* m : {&vb, &vn}) {
-    for (auto& [run, v] : *m) v = std::ldexp(v, -e);
-  }
-  return e;
-}
-
-// The difference of the scaled values: paired on the runs both have when the case's seeds agree
-// and at least two pair, else Welch's unpaired test. Sets out.test, out.pairs and the note; a and
-// c get the values tested. False when there are fewer than 2 runs to test.
-bool difference_of(const RunValues& vb, const RunValues& vn, bool same_seed,
-                   const CompareOptions& o, std::vector<double>& a, std::vector<double>& c,
-                   std::optional<Difference>& d, CompareRow& out) {
+// The values to test: paired on the runs both have when the case's seeds agree and at least two
+// pair (note when fewer than all), else every value of each side, unpaired (note why).
+void values_to_test(const RunValues& vb, const RunValues& vn, bool same_seed,
+                    std::vector<double>& a, std::vector<double>& c, bool& paired, CompareRow& out) {
   if (same_seed) {
     auto it = vn.begin();
     for (const auto& [run, v] : vb) {
@@ -130,100 +112,40 @@ bool difference_of(const RunValues& vb, const RunValues& vn, bool same_seed,
       c.push_back(it->second);
     }
   }
-  const double level = 1.0 - o.alpha;
-  if (a.size() >= 2) {
-    d = paired_difference(a, c, level);
-    out.test = "paired";
-    out.pairs = a.size();
-    if (a.size() < vb.size() || a.size() < vn.size()) {
+  paired = a.size() >= 2;
+  if (paired) {
+    if (a.size() < vb.size() || a.size() < vn.size())
       out.note = fmt::format("paired on the {} runs both have", a.size());
-    }
-    return true;
+    return;
   }
   a.clear();
   c.clear();
   for (const auto& [run, v] : vb) a.push_back(v);
   for (const auto& [run, v] : vn) c.push_back(v);
-  if (a.size() < 2 || c.size() < 2) {
-    out.note = "fewer than 2 runs";
-    return false;
-  }
-  d = welch_difference(a, c, level);
-  out.test = "welch";
-  out.note = same_seed ? "no common runs" : "different seeds: unpaired";
-  return true;
+  out.note = same_seed ? "fewer than 2 common runs: unpaired" : "different seeds: unpaired";
 }
 
-// The difference back in the metric's unit (2^e times the scaled one); what exceeds a double
-// there (a difference or CI beyond 1.8e308, a relative change of new / base > 1.8e308) is left
-// empty and said in the note.
-void set_difference(const Difference& d, int e, CompareRow& out) {
-  const auto unscaled = [e](double v) { return std::ldexp(v, e); };
-  std::vector<std::string> beyond;
-  out.base_mean = unscaled(d.base_mean);
-  out.new_mean = unscaled(d.new_mean);
-  const double diff = unscaled(d.diff);
-  if (std::isfinite(diff)) out.diff = diff;
-  if (d.diff_half) {
-    const double low = unscaled(d.diff - *d.diff_half), high = unscaled(d.diff + *d.diff_half);
-    if (std::isfinite(low) && std::isfinite(high)) {
-      out.diff_low = low;
-      out.diff_high = high;
-    }
-  }
-  if (!out.diff || (d.diff_half && !out.diff_low)) beyond.emplace_back("difference");
-  if (d.ratio) {
-    if (std::isfinite(*d.ratio - 1.0)) out.relative = *d.ratio - 1.0;
-    if (out.relative && d.ratio_half && std::isfinite(*out.relative - *d.ratio_half) &&
-        std::isfinite(*out.relative + *d.ratio_half)) {
-      out.relative_low = *out.relative - *d.ratio_half;
-      out.relative_high = *out.relative + *d.ratio_half;
-    }
-    if (!out.relative || (d.ratio_half && !out.relative_low))
-      beyond.emplace_back("relative change");
-  }
-  if (!beyond.empty()) {
-    out.note += fmt::format("{}{} or its CI beyond the range of a double",
-                            out.note.empty() ? "" : "; ", fmt::join(beyond, " and "));
-  }
-}
-
-// Tests one matched row: divergence first, then the difference of the metric's means (paired or
-// Welch) with its one-sided p-values against the tolerance.
-void test_row(const RunFolder& bf, const RunFolder::Row& b, const RunFolder& nf,
-              const RunFolder::Row& n, const CompareOptions& o, CompareRow& out) {
+// Tests one matched row: divergence first, then the rank test of the per-run ratio (paired or
+// not); the verdict waits for the family (judge_family).
+std::optional<RowShift> test_row(const RunFolder& bf, const RunFolder::Row& b, const RunFolder& nf,
+                                 const RunFolder::Row& n, const CompareOptions& o,
+                                 CompareRow& out) {
   out.runs_base = b.run.size();
   out.runs_new = n.run.size();
-  if (judge_divergence(b, nf, n, out)) return;
-  auto vb = finite_values(b), vn = finite_values(n);
+  if (judge_divergence(b, nf, n, out)) return std::nullopt;
+  const auto vb = finite_values(b), vn = finite_values(n);
   if (vb.empty() && vn.empty()) {
     out.note = fmt::format("no {} values", o.metric);
-    return;
+    return std::nullopt;
   }
   if (vb.empty() || vn.empty()) {
     out.note = fmt::format("{} only in {}", o.metric, vb.empty() ? "NEW" : "BASE");
-    return;
+    return std::nullopt;
   }
-  const int e = scale_values(vb, vn);
   std::vector<double> a, c;
-  std::optional<Difference> d;
-  if (!difference_of(vb, vn, case_seed(bf, b) == case_seed(nf, n), o, a, c, d, out)) return;
-  if (!d) {
-    out.test = "none";
-    out.note = "no interval";
-    return;
-  }
-  const RelativeTest t = relative_test(a, c, out.test == "paired", o.tolerance);
-  if (!std::isfinite(t.p_worse) || !std::isfinite(t.p_better)) {
-    // Not reached on finite input after the scaling; never let it pass for "unchanged".
-    throw CompareInputError(fmt::format("{}: {}: the test of {} is not finite (p = {}, {})",
-                                        (fs::path(nf.dir) / "runs.csv").string(),
-                                        row_text(nf.sweep_keys, n), o.metric, t.p_worse,
-                                        t.p_better));
-  }
-  out.p_worse = t.p_worse;
-  out.p_better = t.p_better;
-  set_difference(*d, e, out);
+  bool paired = false;
+  values_to_test(vb, vn, case_seed(bf, b) == case_seed(nf, n), a, c, paired, out);
+  return test_values(a, c, paired, out);
 }
 
 // The refusal's tail: each differing manifest field on its own line, and why a folder of an
@@ -318,7 +240,7 @@ void check_comparable(const RunFolder& base, const RunFolder& fresh, const Compa
 // the same key, then NEW's rows not in BASE. A row in one folder only is refused unless
 // --allow-scenario-change.
 void match_rows(const RunFolder& base, const RunFolder& fresh, const CompareOptions& options,
-                CompareResult& res) {
+                CompareResult& res, std::vector<std::optional<RowShift>>& shifts) {
   const std::string base_runs = (fs::path(base.dir) / "runs.csv").string();
   const std::string new_runs = (fs::path(fresh.dir) / "runs.csv").string();
   std::map<std::pair<std::vector<std::string>, std::string>, std::size_t> in_new;
@@ -337,9 +259,10 @@ void match_rows(const RunFolder& base, const RunFolder& fresh, const CompareOpti
       }
       row.runs_base = b.run.size();
       row.note = "only in BASE";
+      shifts.emplace_back();
     } else {
       used[it->second] = true;
-      test_row(base, b, fresh, fresh.rows[it->second], options, row);
+      shifts.push_back(test_row(base, b, fresh, fresh.rows[it->second], options, row));
       note_status_change(base, b, fresh, fresh.rows[it->second], row);
     }
     res.rows.push_back(std::move(row));
@@ -356,32 +279,17 @@ void match_rows(const RunFolder& base, const RunFolder& fresh, const CompareOpti
     row.runs_new = fresh.rows[i].run.size();
     row.note = "only in NEW";
     res.rows.push_back(std::move(row));
+    shifts.emplace_back();
   }
 }
 
-// The tested rows' verdicts from their p-values, Holm-adjusted over every tested row for each
-// direction when asked; then the count of each verdict.
-void judge_rows(const CompareOptions& options, CompareResult& res) {
-  std::vector<std::size_t> tested;
-  std::vector<double> pw, pb;
-  for (std::size_t i = 0; i < res.rows.size(); ++i) {
-    if (res.rows[i].p_worse) {
-      tested.push_back(i);
-      pw.push_back(*res.rows[i].p_worse);
-      pb.push_back(*res.rows[i].p_better);
-    }
-  }
-  res.tested = tested.size();
-  if (options.holm) {
-    pw = holm_adjust(pw);
-    pb = holm_adjust(pb);
-  }
-  for (std::size_t j = 0; j < tested.size(); ++j) {
-    CompareRow& r = res.rows[tested[j]];
-    r.p_worse = pw[j];
-    r.p_better = pb[j];
-    r.verdict = pw[j] <= options.alpha ? "worse" : pb[j] <= options.alpha ? "better" : "unchanged";
-  }
+// The verdicts of the tested rows (one family, sim/analysis/compare_stats.h), then the count of
+// each verdict.
+void judge_rows(const CompareOptions& options, const std::vector<std::optional<RowShift>>& shifts,
+                CompareResult& res) {
+  judge_family(res.rows, shifts, options);
+  res.tested = static_cast<std::size_t>(
+      std::count_if(shifts.begin(), shifts.end(), [](const auto& s) { return s.has_value(); }));
   for (const auto& r : res.rows) {
     if (r.verdict == "worse")
       ++res.worse;
@@ -389,6 +297,8 @@ void judge_rows(const CompareOptions& options, CompareResult& res) {
       ++res.better;
     else if (r.verdict == "unchanged")
       ++res.unchanged;
+    else if (r.verdict == "inconclusive")
+      ++res.inconclusive;
     else
       ++res.not_comparable;
   }
@@ -404,140 +314,51 @@ CompareResult compare_folders(const RunFolder& base, const RunFolder& fresh,
   res.fresh = folder_identity(fresh);
   res.differences = manifest_differences(base, fresh);
   check_comparable(base, fresh, options, res);
-  match_rows(base, fresh, options, res);
-  judge_rows(options, res);
+  std::vector<std::optional<RowShift>> shifts;
+  match_rows(base, fresh, options, res, shifts);
+  judge_rows(options, shifts, res);
   return res;
 }
 
-std::string compare_csv(const CompareResult& r) {
-  std::string out;
-  for (const auto& k : r.base.sweep_keys) out += csv_field(k) + ",";
-  out +=
-      "estimator,metric,verdict,test,runs_base,runs_new,pairs,base_mean,new_mean,diff,diff_ci_low,"
-      "diff_ci_high,"
-      "relative_change,relative_ci_low,relative_ci_high,p_worse,p_better,note\n";
-  auto num = [](std::optional<double> v) {
-    return v && std::isfinite(*v) ? fmt::format("{:.6g}", *v) : std::string();
-  };
-  for (const auto& row : r.rows) {
-    for (const auto& l : row.labels) out += csv_field(l) + ",";
-    out += fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
-                       csv_field(row.estimator), csv_field(r.options.metric), row.verdict, row.test,
-                       row.runs_base, row.runs_new, row.pairs, num(row.base_mean),
-                       num(row.new_mean), num(row.diff), num(row.diff_low), num(row.diff_high),
-                       num(row.relative), num(row.relative_low), num(row.relative_high),
-                       num(row.p_worse), num(row.p_better), csv_field(row.note));
-  }
-  return out;
+int CompareResult::exit_code() const {
+  if (worse > 0) return kCompareWorse;
+  if (inconclusive > 0 && !options.allow_inconclusive) return kCompareInconclusive;
+  return 0;
 }
 
-namespace {
-
-// A Markdown table cell: '|' escaped.
-std::string md_cell(const std::string& s) {
-  std::string out;
-  for (char ch : s) {
-    if (ch == '|') out += '\\';
-    out += ch;
-  }
-  return out;
-}
-
-// Which test the rows use and why: paired where run r of both folders drew the same random
-// numbers (the same seed), Welch's unpaired test where they did not.
-std::string pairing_text(const CompareResult& r) {
-  const bool swept_seed = std::find(r.base.sweep_keys.begin(), r.base.sweep_keys.end(),
-                                    "run.seed") != r.base.sweep_keys.end();
-  const std::string paired =
-      "paired on the runs both folders have (run r of both drew the same random numbers: common "
-      "random numbers)";
-  if (swept_seed) {
-    return "test: per case, " + paired +
-           " where the case's run.seed is the same in both, else Welch's unpaired test";
-  }
-  if (r.base.seed == r.fresh.seed)
-    return fmt::format("test: {}; same seed {}", paired, r.base.seed);
-  return fmt::format(
-      "test: Welch's unpaired test: the seeds differ ({} -> {}), so run r is another realisation "
-      "in "
-      "each folder",
-      r.base.seed, r.fresh.seed);
-}
-
-}  // namespace
-
-std::string compare_markdown(const CompareResult& r) {
-  const auto& o = r.options;
-  std::string out = fmt::format("# ncosim compare: {}\n\n", o.metric);
-  out += fmt::format("- BASE `{}`: {} (seed {}, scenario_hash {})\n", r.base.dir, r.base.scenario,
-                     r.base.seed, r.base.scenario_hash);
-  out += fmt::format("- NEW `{}`: {} (seed {}, scenario_hash {})\n", r.fresh.dir, r.fresh.scenario,
-                     r.fresh.seed, r.fresh.scenario_hash);
-  out += fmt::format(
-      "- worse: mean {} significantly above (1 + {:g}) x BASE; one-sided tests at alpha = {:g}, {} "
-      "over "
-      "{} tested row(s); CI: two-sided {:g} %\n",
-      o.metric, o.tolerance, o.alpha, o.holm ? "Holm-corrected" : "no correction", r.tested,
-      100.0 * (1.0 - o.alpha));
-  if (!r.differences.empty()) {
-    out += "- BASE -> NEW differ in:\n";
-    for (const auto& d : r.differences) out += fmt::format("  - {}\n", d);
-  }
-  out += fmt::format("- {}\n", pairing_text(r));
-  for (const auto& w : r.warnings) out += fmt::format("- warning: {}\n", w);
-  out += "\n|";
-  for (const auto& k : r.base.sweep_keys) out += fmt::format(" {} |", md_cell(k));
-  out +=
-      " estimator | verdict | test | runs | BASE | NEW | change % [CI] | p worse | p better | note "
-      "|\n|";
-  for (std::size_t i = 0; i < r.base.sweep_keys.size() + 10; ++i) out += "---|";
-  out += "\n";
-  auto g = [](std::optional<double> v, const char* f) {
-    return v && std::isfinite(*v) ? fmt::format(fmt::runtime(f), *v) : std::string("–");
-  };
-  for (const auto& row : r.rows) {
-    out += "|";
-    for (const auto& l : row.labels) out += fmt::format(" {} |", md_cell(l));
-    std::string change = "–";
-    if (row.relative) {
-      change = fmt::format("{:+.3f}", 100.0 * *row.relative);
-      if (row.relative_low && row.relative_high) {
-        change += fmt::format(" [{:+.3f}, {:+.3f}]", 100.0 * *row.relative_low,
-                              100.0 * *row.relative_high);
-      }
-    }
-    const std::string verdict = row.verdict == "worse" ? "**worse**" : row.verdict;
-    out += fmt::format(" {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
-                       md_cell(row.estimator), verdict, row.test,
-                       row.test == "paired" ? std::to_string(row.pairs)
-                                            : fmt::format("{} / {}", row.runs_base, row.runs_new),
-                       g(row.base_mean, "{:.6g}"), g(row.new_mean, "{:.6g}"), change,
-                       g(row.p_worse, "{:.3g}"), g(row.p_better, "{:.3g}"), md_cell(row.note));
-  }
-  out += fmt::format("\n{} worse, {} better, {} unchanged, {} not comparable: exit {}\n", r.worse,
-                     r.better, r.unchanged, r.not_comparable, r.exit_code());
-  return out;
-}
-
-int run_compare_command(const CompareCommand& c) {
-  CompareOptions o = c.options;
-  if (!(o.alpha > 0.0 && o.alpha < 1.0)) {
-    throw CompareInputError(fmt::format("--alpha: expected a level in (0, 1), got {}", o.alpha));
+void check_compare_options(const CompareOptions& o) {
+  if (!(o.alpha > 0.0 && o.alpha < 0.5)) {
+    throw CompareInputError(fmt::format(
+        "--alpha: expected a level in (0, 0.5) (the intervals are at 1 - 2 alpha), got {}",
+        o.alpha));
   }
   if (!(o.tolerance >= 0.0 && o.tolerance < 1.0)) {
     throw CompareInputError(
         fmt::format("--tolerance: expected a relative tolerance in [0, 1), got {}", o.tolerance));
   }
+  if (o.tolerance == 0.0 && !o.allow_inconclusive) {
+    throw CompareInputError(
+        "--tolerance: 0 leaves no row unchanged (an equivalence needs a band), so every row "
+        "without a significant change would fail the gate: give a tolerance in (0, 1) (default "
+        "0.05) or pass --allow-inconclusive");
+  }
+}
+
+int run_compare_command(const CompareCommand& c) {
+  CompareOptions o = c.options;
   o.holm = c.correction == "holm";
-  if (!c.out.empty()) prepare_output_dir(c.out);
+  check_compare_options(o);
   RunFolder base = read_run_folder(c.base, o.metric);
   RunFolder fresh = read_run_folder(c.fresh, o.metric);
   read_row_statuses(base);  // expected and unexpected status changes
   read_row_statuses(fresh);
   const CompareResult r = compare_folders(base, fresh, o);
   const std::string md = compare_markdown(r);
-  if (!c.out.empty())
+  if (!c.out.empty()) {
+    // Created only now: bad input leaves no folder behind.
+    prepare_output_dir(c.out);
     write_files_atomically(c.out, {{"compare.csv", compare_csv(r)}, {"compare.md", md}});
+  }
   std::cout << md << std::flush;  // std::cout: what an embedding program captures (python/)
   return r.exit_code();
 }

@@ -4,6 +4,7 @@
 #include <fmt/format.h>
 
 #include <boost/math/distributions/chi_squared.hpp>
+#include <cstdlib>
 
 namespace ncosim::sim {
 
@@ -36,6 +37,26 @@ std::optional<ConsistencyStat> nis_stat(const ConsistencySums& s) {
   if (s.nis_count <= 0 || s.nis_dof <= 0) return std::nullopt;
   const auto updates = static_cast<double>(s.nis_count);
   return bounded(s.nis / updates, updates, static_cast<double>(s.nis_dof));
+}
+
+std::string consistency_stat_text(const std::string& name, const ConsistencyStat& s) {
+  const int where = s.mean > s.hi ? 1 : s.mean >= s.lo ? 0 : -1;
+  // -1, 0, 1 as a < b, a == b, a > b (a NaN compares as neither).
+  auto order = [](double a, double b) { return a < b ? -1 : a > b ? 1 : 0; };
+  std::string mean, lo, hi;
+  for (int digits = 4; digits <= 17; ++digits) {
+    mean = fmt::format("{:#.{}g}", s.mean, digits);
+    lo = fmt::format("{:#.{}g}", s.lo, digits);
+    hi = fmt::format("{:#.{}g}", s.hi, digits);
+    const double m = std::strtod(mean.c_str(), nullptr), l = std::strtod(lo.c_str(), nullptr),
+                 h = std::strtod(hi.c_str(), nullptr);
+    if (order(m, l) == order(s.mean, s.lo) && order(m, h) == order(s.mean, s.hi)) break;
+  }
+  return fmt::format("{} {} {} [{}, {}]", name, mean,
+                     where > 0   ? "above"
+                     : where < 0 ? "below"
+                                 : "in",
+                     lo, hi);
 }
 
 std::string consistency_note(const std::optional<ConsistencyStat>& nees,

@@ -39,6 +39,12 @@ std::optional<ConsistencyStat> nees_stat(const ConsistencySums& s, std::int64_t 
 // filter's innovations are white, so the sum over every update is chi-square with the summed
 // degrees of freedom. nullopt when no update was counted.
 std::optional<ConsistencyStat> nis_stat(const ConsistencySums& s);
+// "NIS 1.669 below [1.670, 1.683]": the average, where it lies ("in", "below" or "above", as
+// inside() and consistency_note judge) and the bounds, all three with the same significant
+// digits (trailing zeros kept): 4, or as many more (up to 17) as it takes for the printed
+// numbers to order as the values do, so that a value just outside never prints equal to its
+// bound.
+std::string consistency_stat_text(const std::string& name, const ConsistencyStat& s);
 // The summary's `consistency` cell: empty without a statistic, "ok" when both are inside their
 // bounds, else what is outside and what it means (e.g. "NEES above its 95 % bound: the
 // covariance is too small (overconfident)").

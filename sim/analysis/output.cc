@@ -207,7 +207,7 @@ std::vector<SummaryRow> summarise(const Scenario& sc, const CampaignResult& resu
   std::vector<SummaryRow> rows;
   for (std::size_t e = 0; e < sc.estimators.size(); ++e)
     rows.push_back(summary_row(sc, result, e, sweep_labels));
-  add_paired_within(rows, reference_estimator_index(sc));
+  add_paired_within(rows, reference_row_index(sc, rows));
   return rows;
 }
 
@@ -381,7 +381,7 @@ std::string paired_note(const std::vector<SummaryRow>& rows, bool swept) {
     if (swept)
       out += fmt::format(" Δ vs ref. case: against the same estimator in the case {}.",
                          rows.front().paired.reference_case);
-    out += " Columns mse_diff.. in summary.csv.\n";
+    out += " Columns mse_diff.. in summary.csv." + paired_reference_note(rows) + "\n";
   }
   return out;
 }

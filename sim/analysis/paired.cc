@@ -181,6 +181,38 @@ std::size_t reference_estimator_index(const Scenario& sc) {
   return 0;
 }
 
+std::size_t reference_row_index(const Scenario& sc, const std::vector<SummaryRow>& rows) {
+  const std::size_t fallback = reference_estimator_index(sc);
+  if (!sc.paired.reference.empty() || rows.size() != sc.estimators.size()) return fallback;
+  auto ok = [&](std::size_t i) { return rows[i].status == "ok"; };
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    const auto& d = sc.estimators[i].design;
+    if (d && d->is_kalman_reference() && ok(i)) return i;
+  }
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    if (ok(i)) return i;
+  }
+  return fallback;
+}
+
+std::string paired_reference_note(const std::vector<SummaryRow>& rows) {
+  std::string out;
+  std::vector<std::vector<std::string>> cases;  // the cases already named
+  for (const auto& r : rows) {
+    if (r.estimator != r.paired.reference || !r.per_run.mse.empty()) continue;
+    if (std::find(cases.begin(), cases.end(), r.sweep_labels) != cases.end()) continue;
+    cases.push_back(r.sweep_labels);
+    std::string where;
+    for (const auto& l : r.sweep_labels) where += (where.empty() ? "" : ", ") + l;
+    out += fmt::format(
+        " The reference \"{}\"{} has status {}: no per-run mse to pair with, so its "
+        "case's paired columns are empty.",
+        r.estimator, where.empty() ? "" : " of the case " + where, r.status);
+  }
+  if (!out.empty()) out += " `[paired] reference` picks another row.";
+  return out;
+}
+
 std::size_t reference_case_index(const LoadedScenario& loaded) {
   if (loaded.cases.empty()) return 0;
   const PairedSettings& p = loaded.cases.front().scenario->paired;

@@ -67,6 +67,19 @@ double t_two_sided(double dof, double level);
 // contains "kalman" (kalman_extended, kalman_buffer, sod_kalman), else the first estimator.
 std::size_t reference_estimator_index(const Scenario& sc);
 
+// The reference row of one case's summary rows (`rows`, in estimator order): [paired] reference
+// whatever its status (the user chose it; paired_reference_note says why its columns are empty);
+// else the first Kalman-type row whose status is ok, else the first row whose status is ok, else
+// reference_estimator_index. A reference that diverged has no per-run values to pair with, so
+// the default never picks one while an ok row exists.
+std::size_t reference_row_index(const Scenario& sc, const std::vector<SummaryRow>& rows);
+
+// One sentence per case whose reference row has no per-run mse (it diverged, or its design
+// failed), so that the case's paired columns are empty: ' The reference "optimal N=1" has status
+// diverged: no per-run mse to pair with, so its case's paired columns are empty.', then how to
+// pick another; "" when every reference has its values.
+std::string paired_reference_note(const std::vector<SummaryRow>& rows);
+
 // The reference case (index into loaded.cases): [paired] reference_case, axes it does not name
 // at their first value; the first case without it. Throws ScenarioError for a key that is not
 // a sweep axis or a value that is not among the axis's values.

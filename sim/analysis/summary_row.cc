@@ -16,8 +16,7 @@ std::string consistency_notes(const std::vector<SweepAxis>& sweeps,
                               const std::vector<SummaryRow>& rows) {
   std::string out;
   auto stat = [](const char* name, const std::optional<ConsistencyStat>& s) {
-    return s ? fmt::format("{} {:.4g} in [{:.4g}, {:.4g}]", name, s->mean, s->lo, s->hi)
-             : std::string();
+    return s ? consistency_stat_text(name, *s) : std::string();
   };
   for (const auto& r : rows) {
     if (r.consistency.empty() || r.consistency == "ok") continue;

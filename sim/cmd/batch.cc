@@ -182,13 +182,24 @@ RunStore open_run_store(const RunCommand& cmd, const LoadedScenario& loaded,
     check_campaign_meta(stored, what);
     const std::string diff = identity_difference(stored, meta, true);
     if (!diff.empty()) {
-      throw config::ScenarioError(
-          fmt::format("--resume: {} holds a different campaign: {} differ(s) (stored vs now); run "
-                      "without --resume to start afresh, or choose another --out",
-                      what, diff));
+      throw config::ScenarioError(fmt::format(
+          "--resume: {} holds a different campaign: {} differ(s) (stored vs now); `--replace` "
+          "(without --resume) starts afresh and replaces it, or choose another --out",
+          what, diff));
     }
   };
   bool copied = false;  // a copy made here is removed again when it cannot be resumed
+  if (fs::exists(partial, ec) && RunStore::holds_nothing(partial)) {
+    // A campaign killed while it created its store: nothing to lose, nothing to resume from it.
+    remove_store_files(partial);
+    if (!fs::exists(live, ec)) {
+      std::cerr << fmt::format(
+          "ncosim: --resume: {} held no run (a campaign killed while creating its store): "
+          "starting afresh\n",
+          partial);
+      return RunStore::create(partial, meta);
+    }
+  }
   try {
     if (!fs::exists(partial, ec)) {
       if (!fs::exists(live, ec)) {
@@ -232,7 +243,9 @@ void record_session(RunStore& store, double wall, int used_threads, int ranks, i
 
 // What one `run` session did, for its closing line.
 struct SessionTotals {
-  double wall = 0.0;
+  std::chrono::steady_clock::time_point started = std::chrono::steady_clock::now();
+  double design = 0.0;  // reading, validating and designing every case (load_cases), seconds
+  double wall = 0.0;    // the campaigns' simulation, seconds
   int threads = 1;
   int ranks = 1;  // MPI ranks (1 without mpirun)
   std::uint64_t simulated = 0, skipped = 0;
@@ -261,16 +274,23 @@ std::string campaign_size(const LoadedScenario& loaded,
                      range(rlo, rhi), range(plo, phi), total);
 }
 
-// The closing line: "ncosim: 3 cases x 20 runs x 5000 periods = 60 runs in 8.7 s on 2 threads
-// [x 3 MPI ranks][, shard I/N]; results in DIR/", with the runs stored before when resumed.
+// Seconds as the closing line prints them: 2 decimals below 10 s, 1 above.
+std::string seconds_text(double s) {
+  return s >= 10.0 ? fmt::format("{:.1f}", s) : fmt::format("{:.2f}", s);
+}
+
+// The closing line: "ncosim: 3 cases x 20 runs x 5000 periods = 60 runs in 9.9 s: design 1.1 s,
+// simulation 8.7 s on 2 threads [x 3 MPI ranks][, shard I/N]; results in DIR/", with the runs
+// stored before when resumed. The first time is the command's whole (`total` seconds); the rest
+// (exports, writing files) is neither design nor simulation.
 std::string closing_line(const RunCommand& cmd, const LoadedScenario& loaded,
-                         const SessionTotals& t) {
+                         const SessionTotals& t, double total) {
   return fmt::format(
-      "ncosim: {}{} in {} s on {} thread{}{}{}; results in {}/\n",
+      "ncosim: {}{} in {} s: design {} s, simulation {} s on {} thread{}{}{}; results in {}/\n",
       campaign_size(loaded, t.case_runs),
       t.skipped > 0 ? fmt::format(" ({} stored before, {} simulated now)", t.skipped, t.simulated)
                     : "",
-      t.wall >= 10.0 ? fmt::format("{:.1f}", t.wall) : fmt::format("{:.2f}", t.wall), t.threads,
+      seconds_text(total), seconds_text(t.design), seconds_text(t.wall), t.threads,
       t.threads == 1 ? "" : "s", t.ranks > 1 ? fmt::format(" x {} MPI ranks", t.ranks) : "",
       cmd.shard.empty() ? "" : fmt::format(", shard {}", cmd.shard), cmd.out);
 }
@@ -303,7 +323,9 @@ int finish_session(const RunCommand& cmd, const std::string& md, const LoadedSce
   // With --format csv|json stdout holds the data alone: the closing line goes to stderr.
   (cmd.format == "csv" || cmd.format == "json" ? std::cerr : std::cout)
       << "\n"
-      << closing_line(cmd, loaded, t);
+      << closing_line(
+             cmd, loaded, t,
+             std::chrono::duration<double>(std::chrono::steady_clock::now() - t.started).count());
   if (sig > 0) {
     // A signal after the last run had started stopped nothing: the results are complete (the
     // exit status still says a signal came).
@@ -326,10 +348,18 @@ int finish_session(const RunCommand& cmd, const std::string& md, const LoadedSce
   if ((cmd.fail_on_status || crashed) && !not_ok.empty()) {
     std::string list;
     for (const auto& r : not_ok) list += "  " + r + "\n";
-    std::cerr << fmt::format(
-        "ncosim: {}: {} row(s) with an unexpected status (results written to {}/):\n{}",
-        cmd.fail_on_status ? "--fail-on-status" : "a run's process died", not_ok.size(), cmd.out,
-        list);
+    // Overloaded links (sim/run/overload.h) are listed after the rows.
+    const auto links = std::count_if(not_ok.begin(), not_ok.end(), [](const std::string& r) {
+      return r.find(": overloaded (offered") != std::string::npos;
+    });
+    const auto rows = static_cast<std::ptrdiff_t>(not_ok.size()) - links;
+    std::string what = fmt::format("{} row(s) with an unexpected status", rows);
+    if (links > 0)
+      what = rows > 0 ? fmt::format("{} and {} overloaded link(s)", what, links)
+                      : fmt::format("{} overloaded link(s)", links);
+    std::cerr << fmt::format("ncosim: {}: {} (results written to {}/):\n{}",
+                             cmd.fail_on_status ? "--fail-on-status" : "a run's process died", what,
+                             cmd.out, list);
     return kExitFlagged;
   }
   return 0;
@@ -516,17 +546,21 @@ void simulate_session(RunSession& session, RunStore& store) {
 }  // namespace
 
 int cmd_run_campaign(const RunCommand& cmd) {
+  const auto started = std::chrono::steady_clock::now();
   const Shard shard = cmd.shard.empty() ? Shard{} : parse_shard(cmd.shard);
   check_target_options(cmd);
   LoadedScenario loaded = load_cases(cmd.file, cmd.sets, cmd.overrides);
+  const double design =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
   reference_case_index(loaded);  // [paired] reference_case: bad input before t = 0
   const std::string& out = cmd.out;
   auto meta =
       campaign_meta(loaded, cmd.overrides,
                     cmd.shard.empty() ? "" : fmt::format("{}/{}", shard.index + 1, shard.count));
   const TargetRule rule = target_rule(cmd, loaded, meta);
-  const TableRequest table{cmd.columns,
-                           cmd.format};  // sim/present/table_view.h: bad --columns before t = 0
+  // sim/present/table_view.h: bad --columns before t = 0; the table fits COLUMNS or the terminal.
+  const TableRequest table{cmd.columns, cmd.format,
+                           table_width(std::getenv("COLUMNS"), STDOUT_FILENO)};
   check_table_request(
       table, summary_csv_columns(loaded.sweeps, loaded.cases.front().scenario->model.plant.n(),
                                  rule.on()));
@@ -551,6 +585,8 @@ int cmd_run_campaign(const RunCommand& cmd) {
   RunStore store = open_run_store(cmd, loaded, meta);
   const std::string path = store_path(out);
   RunSession session(cmd, loaded, shard, rule, mpi.get());
+  session.totals.started = started;
+  session.totals.design = design;
   session.stored = register_cases(store, loaded, cmd.resume);
 
   // One progress line for the whole campaign: redrawn on a terminal, a line every 5 s in a log.

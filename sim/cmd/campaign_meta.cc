@@ -161,8 +161,9 @@ class MetaChecker {
 
   StoreError bad(const std::string& key, const std::string& expected) const {
     const auto it = meta_.find(key);
-    std::string got = it == meta_.end() ? std::string("nothing (the field is missing)")
-                                        : fmt::format("'{}'", it->second.substr(0, 60));
+    std::string got = it == meta_.end()
+                          ? std::string("nothing (the field is missing)")
+                          : fmt::format("'{}'", config::escape_text(it->second.substr(0, 60)));
     if (it != meta_.end() && it->second.size() > 60) got += "...";
     return StoreError(fmt::format(
         "run store '{}': campaign field '{}': expected {}, got {} (the store is damaged or "

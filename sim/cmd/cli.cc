@@ -6,12 +6,14 @@
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <charconv>
 #include <chrono>
 #include <ctime>
 #include <filesystem>
 #include <iostream>
 #include <limits>
 #include <optional>
+#include <string_view>
 #include <thread>
 
 #include "estimators/export_c.h"
@@ -22,10 +24,12 @@
 #include "sim/analysis/output.h"
 #include "sim/analysis/paired.h"
 #include "sim/cmd/batch.h"
+#include "sim/cmd/cli_checks.h"
 #include "sim/cmd/codesign.h"
 #include "sim/cmd/figure_cli.h"
 #include "sim/cmd/find.h"
 #include "sim/cmd/fit_cmd.h"
+#include "sim/cmd/ladder.h"
 #include "sim/cmd/list_keys.h"
 #include "sim/cmd/manifest.h"
 #include "sim/cmd/mpi_campaign.h"
@@ -215,32 +219,7 @@ int cmd_codesign(const CommonArgs& a, const CodesignOptions& opt, const std::str
   write_files_atomically(
       out, {{"codesign.json", j.dump(2) + "\n"},
             {"manifest.json", manifest(loaded, command_line, 1, 0.0).dump(2) + "\n"}});
-  bool all_ok = true;
-  for (const auto& e : j) {
-    if (e["status"] != "ok") {
-      // Nothing to apply: say why instead of printing thresholds that miss the target.
-      all_ok = false;
-      std::cout << fmt::format(
-          "{}: {} {} mu = {} (z0 = {:.5g}, target {:.5g}): status {}: the bound at delta0 = {} "
-          "is {} (must be below the target); no thresholds to apply (raise --mu or lower delta0)\n",
-          e["estimator"].get<std::string>(), e["design"].get<std::string>(),
-          e["gain"].get<std::string>(), e["mu"].get<double>(), e["z0"].get<double>(),
-          e["target"].get<double>(), e["status"].get<std::string>(), e["delta0"].dump(),
-          e["bound"].is_number() ? fmt::format("{:.5g}", e["bound"].get<double>())
-                                 : std::string("not found (the LMI is infeasible)"));
-      continue;
-    }
-    std::cout << fmt::format(
-        "{}: {} {} mu = {} (z0 = {:.5g}, target {:.5g}): delta = {} cost {:.5g} bound {} "
-        "[{} LMI problems, {:.2f} s solving, {:.2f} s total; epsilon {} {}, delta0 {}]\n  apply: "
-        "{}\n",
-        e["estimator"].get<std::string>(), e["design"].get<std::string>(),
-        e["gain"].get<std::string>(), e["mu"].get<double>(), e["z0"].get<double>(),
-        e["target"].get<double>(), e["delta"].dump(), e["cost"].get<double>(), e["bound"].dump(),
-        e["lmi_problems"].get<int>(), e["lmi_seconds"].get<double>(), e["seconds"].get<double>(),
-        e["epsilon"].get<double>(), e["step"].get<std::string>(), e["delta0"].dump(),
-        e["apply"].get<std::string>());
-  }
+  const bool all_ok = print_codesign(j, std::cout);  // sim/cmd/codesign.h
   std::cout << fmt::format("codesign.json written to {}/\n", out);
   if (!all_ok) {
     std::cerr << "ncosim: codesign: a status is not ok (see above and codesign.json)\n";
@@ -250,7 +229,9 @@ int cmd_codesign(const CommonArgs& a, const CodesignOptions& opt, const std::str
 }
 
 int cmd_check(const CommonArgs& a) {
-  LoadedScenario loaded = load_cases(a.file, a.sets, a.overrides);
+  RunOverrides overrides = a.overrides;
+  if (a.seed >= 0) overrides.seed = static_cast<std::uint64_t>(a.seed);
+  LoadedScenario loaded = load_cases(a.file, a.sets, overrides);
   std::cout << fmt::format("{}: ok ({} case(s), {} estimator(s))\n", a.file, loaded.cases.size(),
                            loaded.cases.front().scenario->estimators.size());
   return 0;
@@ -297,6 +278,7 @@ struct CommandLine {
   CliHooks hooks;
   std::string columns_text;  // --columns a,b,c
   std::string export_dir, export_out;
+  bool export_replace = false, merge_replace = false;
   std::string merge_out;
   std::vector<std::string> merge_dirs;
   std::string export_c_dir;
@@ -314,6 +296,8 @@ struct CommandLine {
   FitArgs fit_args;
   CLI::App* record_link = nullptr;  // sim/cmd/record_link.h
   CLI::App* schema = nullptr;       // sim/cmd/schema.h
+  CLI::App* ladder = nullptr;       // sim/cmd/ladder.h
+  LadderArgs ladder_args;
   std::string schema_out;
   std::string record_link_name;
 
@@ -348,8 +332,7 @@ struct CommandLine {
         ->check(CLI::Range(std::int64_t{1}, std::int64_t{10'000'000}));
     run->add_option("--periods", a.overrides.periods, "periods per run (overrides run.periods)")
         ->check(CLI::Range(std::int64_t{1}, std::int64_t{1'000'000'000}));
-    run->add_option("--seed", a.seed, "campaign seed (overrides run.seed)")
-        ->check(CLI::Range(std::int64_t{0}, std::numeric_limits<std::int64_t>::max()));
+    run->add_option("--seed", a.seed, "campaign seed (overrides run.seed)")->check(seed_range());
     run->add_option("--threads", threads, "worker threads (default: all cores)")
         ->check(CLI::Range(0, 4096));
     run->add_flag("--trace", trace, "also write trajectory.csv (x, xhat, arrivals of run 0)");
@@ -374,21 +357,29 @@ struct CommandLine {
         app.add_subcommand("export", "re-derive every export of a campaign from its run store");
     export_cmd->add_option("DIR", export_dir, "output folder holding runs.sqlite")->required();
     export_cmd->add_option("--out", export_out, "write the exports here instead of DIR");
+    export_cmd->add_flag("--replace", export_replace,
+                         "replace the run store in --out even when it holds runs of a different "
+                         "campaign or runs DIR's store lacks");
     merge = app.add_subcommand("merge", "combine the run stores of a campaign's shards and export");
     merge->add_option("OUT", merge_out, "output folder of the merged campaign")->required();
     merge->add_option("DIR", merge_dirs, "output folders of the shards (each with runs.sqlite)")
         ->required();
+    merge->add_flag("--replace", merge_replace,
+                    "replace the run store in OUT (or an unfinished one beside it) even when it "
+                    "holds runs of a different campaign or runs the shards lack");
     run->add_option("--columns", columns_text,
                     "the summary.csv columns printed on stdout, comma-separated (default: those "
-                    "that fit 120 columns)");
-    run->add_option("--format", run_cmd.format,
-                    "what stdout gets: md (the Markdown table), csv (summary.csv's text) or json "
-                    "(an array of rows); "
-                    "default: the table fitted to 120 columns");
+                    "that fit the terminal: COLUMNS, its width, 120 when not a terminal)");
+    run->add_option(
+        "--format", run_cmd.format,
+        "what stdout gets: md (the Markdown table), csv (summary.csv's text) or json "
+        "(an array of rows); "
+        "default: the table fitted to the terminal (COLUMNS, else its width, else 120)");
     run->add_flag("--fail-on-status", run_cmd.fail_on_status,
                   "exit 3 (after writing the results) when any row's status is not its expected "
                   "one (default ok; "
-                  "[[estimator]] expected_status), listing those rows");
+                  "[[estimator]] expected_status) or a network link is overloaded (links.csv "
+                  "overload), listing those rows and links");
   }
 
   // design, find, codesign: offline design.
@@ -403,8 +394,10 @@ struct CommandLine {
     add_common(find, false);
     out_options.push_back(find->add_option(
         "--out", a.out, "also write find.csv and manifest.json into this directory"));
-    find->add_option("--key", find_opt.key,
-                     "scenario key path to vary, set as a float (e.g. link[0].delivery)")
+    find->add_option(
+            "--key", find_opt.key,
+            "scenario key path to vary, set as a float (e.g. link[0].delivery), or an entry "
+            "of an array of numbers (e.g. link[0].pmf[1])")
         ->required();
     find->add_option("--target", target_text,
                      "QUANTITY<=VALUE (or >=, <, >) on a design.json field, "
@@ -430,42 +423,8 @@ struct CommandLine {
     codesign->add_flag("--quiet", quiet, "no progress lines");
   }
 
-  // compare, check, list, plot, report and (SUMO builds) channel.
-  void add_other_commands() {
-    compare = app.add_subcommand("compare",
-                                 "compare two `run` output folders row by row (paired where the "
-                                 "seeds match): exit 1 on a regression");
-    compare->add_option("BASE", cmp.base, "the baseline output folder")->required();
-    compare->add_option("NEW", cmp.fresh, "the output folder to check")->required();
-    compare->add_option("--metric", cmp.options.metric,
-                        "per-run column of runs.csv (default mse; mse_ext, mde_percent, rmse_xI)");
-    compare->add_option(
-        "--tolerance", cmp.options.tolerance,
-        "relative change never reported as worse or better (default 0; 0.01 = 1 %)");
-    compare->add_option("--alpha", cmp.options.alpha,
-                        "significance level of the one-sided tests (default 0.05)");
-    compare
-        ->add_option("--correction", cmp.correction,
-                     "multiple-testing correction over the rows (default holm)")
-        ->check(CLI::IsMember({"holm", "none"}));
-    compare->add_flag("--allow-scenario-change", cmp.options.allow_scenario_change,
-                      "compare folders of another scenario text, --set or input files (other "
-                      "--runs, --periods or "
-                      "--seed need no option); rows in one folder only are not comparable");
-    compare->add_option("--out", cmp.out,
-                        "also write compare.csv and compare.md into this directory");
-    check = app.add_subcommand("check", "parse and validate only");
-    add_common(check, false);
-    CLI::App* list = app.add_subcommand("list", "list every registered kind with a one-line help");
-    list->add_option("--keys", keys_kind,
-                     "print the declared keys of KIND (e.g. link.bernoulli), or of every kind")
-        ->expected(0, 1);
-    list->add_option("--format", keys_format, "text (default) or md (a Markdown table)")
-        ->check(CLI::IsMember({"text", "md"}));
-    schema = app.add_subcommand(
-        "schema", "write a JSON Schema (draft-07) of the scenario format, for TOML editors");
-    schema->add_option("--out", schema_out, "write it into this file (default: stdout)");
-    add_figure_commands(app, figure_commands);
+  // fit and record-link: a link's trace recorded and fitted.
+  void add_trace_commands() {
     fit = app.add_subcommand(
         "fit", "fit channel models to a packet trace (seq,delay): a [[link]] table and fit.csv");
     fit->add_option("TRACE", fit_args.trace,
@@ -482,6 +441,11 @@ struct CommandLine {
         ->check(CLI::Range(1, 100));
     fit->add_option("--name", fit_args.name,
                     "name of the [[link]] table (default: the trace's file stem)");
+    fit->add_option("--max-iterations", fit_args.max_iterations,
+                    "EM iterations per hidden-state family before it is reported not converged "
+                    "(default 2000)")
+        ->check(CLI::Range(1, 1'000'000));
+    fit->add_flag("--verbose", fit_args.verbose, "print every family's every parameter");
     record_link = app.add_subcommand("record-link",
                                      "the fate of every packet one link carries, run after run, as "
                                      "a trace (seq,delay) per case");
@@ -494,8 +458,69 @@ struct CommandLine {
         ->add_option("--periods", a.overrides.periods, "periods per run (overrides run.periods)")
         ->check(CLI::Range(std::int64_t{1}, std::int64_t{1'000'000'000}));
     record_link->add_option("--seed", a.seed, "campaign seed (overrides run.seed)")
-        ->check(CLI::Range(std::int64_t{0}, std::numeric_limits<std::int64_t>::max()));
+        ->check(seed_range());
     record_link->add_flag("--quiet", quiet, "no progress lines");
+    record_link
+        ->add_option("--threads", threads,
+                     "a network link's runs simulated at a time (default: all cores)")
+        ->check(CLI::Range(0, 4096));
+  }
+
+  // check, with what run's options change validated as run would see it (the Python check()
+  // passes them).
+  void add_check_command() {
+    check = app.add_subcommand("check", "parse and validate only");
+    add_common(check, false);
+    check->add_option("--runs", a.overrides.runs, "Monte Carlo runs (overrides run.runs)")
+        ->check(CLI::Range(std::int64_t{1}, std::int64_t{10'000'000}));
+    check->add_option("--periods", a.overrides.periods, "periods per run (overrides run.periods)")
+        ->check(CLI::Range(std::int64_t{1}, std::int64_t{1'000'000'000}));
+    check->add_option("--seed", a.seed, "campaign seed (overrides run.seed)")->check(seed_range());
+  }
+
+  // compare, check, list, plot, report, fit, record-link, ladder and (SUMO builds) channel.
+  void add_other_commands() {
+    compare = app.add_subcommand("compare",
+                                 "compare two `run` output folders row by row (paired where the "
+                                 "seeds match): exit 1 on a regression, 4 when inconclusive "
+                                 "(docs/compare.md)");
+    compare->add_option("BASE", cmp.base, "the baseline output folder")->required();
+    compare->add_option("NEW", cmp.fresh, "the output folder to check")->required();
+    compare->add_option("--metric", cmp.options.metric,
+                        "per-run column of runs.csv (default mse; mse_ext, mde_percent, rmse_xI)");
+    compare->add_option("--tolerance", cmp.options.tolerance,
+                        "relative band of the typical per-run ratio: worse above 1 + T, better "
+                        "below 1 - T, unchanged when shown inside (default 0.05)");
+    compare->add_option("--alpha", cmp.options.alpha,
+                        "level of each one-sided test, in (0, 0.5); intervals at 1 - 2 alpha "
+                        "(default 0.05)");
+    compare
+        ->add_option("--correction", cmp.correction,
+                     "multiple-testing correction over the rows (default holm)")
+        ->check(CLI::IsMember({"holm", "none"}));
+    compare->add_flag("--allow-inconclusive", cmp.options.allow_inconclusive,
+                      "an inconclusive row (too few runs to tell) passes: exit 0 instead of 4");
+    compare->add_flag("--allow-scenario-change", cmp.options.allow_scenario_change,
+                      "compare folders of another scenario text, --set or input files (other "
+                      "--runs, --periods or "
+                      "--seed need no option); rows in one folder only are not comparable");
+    compare->add_option("--out", cmp.out,
+                        "also write compare.csv and compare.md into this directory");
+    add_check_command();
+    CLI::App* list = app.add_subcommand("list", "list every registered kind with a one-line help");
+    list->add_option("--keys", keys_kind,
+                     "print the declared keys of KIND (e.g. link.bernoulli), or of every kind")
+        ->expected(0, 1);
+    list->add_option("--format", keys_format, "text (default) or md (a Markdown table)")
+        ->check(CLI::IsMember({"text", "md"}));
+    schema = app.add_subcommand(
+        "schema", "write a JSON Schema (draft-07) of the scenario format, for TOML editors");
+    schema->add_option("--out", schema_out, "write it into this file (default: stdout)");
+    add_figure_commands(app, figure_commands);
+    add_trace_commands();
+    ladder = add_ladder_command(app, ladder_args);
+    add_common(ladder, true);
+    ladder->get_option("--out")->description("output folder (default: out/ladder_<file stem>)");
     if (have_sumo()) {
       channel = app.add_subcommand(
           "channel", "print p(d) and the delay law of a sumo_distance channel preset");
@@ -520,8 +545,9 @@ struct CommandLine {
         run_cmd.columns = parse_column_list(columns_text);  // sim/present/table_view.h
       return cmd_run(a, run_cmd);
     }
-    if (export_cmd->parsed()) return cmd_export(export_dir, export_out, command_line);
-    if (merge->parsed()) return cmd_merge(merge_out, merge_dirs, command_line);
+    if (export_cmd->parsed())
+      return cmd_export(export_dir, export_out, export_replace, command_line);
+    if (merge->parsed()) return cmd_merge(merge_out, merge_dirs, merge_replace, command_line);
     if (design->parsed()) return cmd_design(a, command_line, export_c_dir);
     if (find->parsed()) return cmd_find(a, find_opt, target_text, command_line);
     if (check->parsed()) return cmd_check(a);
@@ -529,9 +555,16 @@ struct CommandLine {
     if (fit->parsed()) return cmd_fit(fit_args);
     if (schema->parsed()) return cmd_schema(schema_out);
     if (record_link->parsed()) {
-      RecordLinkArgs r{a.file, a.sets, a.overrides, record_link_name, a.out, quiet};
+      RecordLinkArgs r{a.file, a.sets, a.overrides, record_link_name, a.out, quiet, threads};
       if (a.seed >= 0) r.overrides.seed = static_cast<std::uint64_t>(a.seed);
       return cmd_record_link(r);
+    }
+    if (ladder->parsed()) {
+      ladder_args.file = a.file;
+      ladder_args.sets = a.sets;
+      ladder_args.out = a.out;
+      ladder_args.command_line = command_line;
+      return cmd_ladder(ladder_args);
     }
     if (const auto status = run_figure_commands(figure_commands)) return *status;
     if (codesign->parsed()) {
@@ -558,7 +591,7 @@ std::optional<int> unknown_command(const CLI::App& app, int argc, char** argv) {
   const std::string hint = config::did_you_mean(argv[1], commands);
   std::cerr << fmt::format(
       "ncosim: expected a command (run, export, merge, design, find, codesign, compare, fit, "
-      "record-link, check, plot, report or list), got "
+      "record-link, ladder, check, plot, report or list), got "
       "'{}'{}\n",
       argv[1], hint.empty() ? "" : fmt::format(" (did you mean '{}'?)", hint));
   return 2;
@@ -630,7 +663,16 @@ int run_cli(int argc, char** argv, const CliHooks& hooks) {
     try {
       return cl.dispatch(command_line);
     } catch (const config::ScenarioError& e) {
-      std::cerr << "ncosim: " << e.what() << "\n";
+      // Every error of a file on its own line (one error's message may hold several lines).
+      if (e.messages().size() == 1) {
+        std::cerr << "ncosim: " << e.what() << "\n";
+        return 2;
+      }
+      std::string_view text = e.what();
+      for (std::size_t end; (end = text.find('\n')) != std::string_view::npos;
+           text.remove_prefix(end + 1))
+        std::cerr << "ncosim: " << text.substr(0, end) << "\n";
+      std::cerr << "ncosim: " << text << "\n";
       return 2;
     } catch (const lmi::ResourceLimitError& e) {
       std::cerr << "ncosim: " << e.what() << " (--max-memory / --max-work raise the limits)\n";

@@ -4,6 +4,7 @@
 #include <fmt/format.h>
 
 #include <cstdio>
+#include <ostream>
 
 #include "estimators/sod_jump.h"
 
@@ -106,6 +107,46 @@ nlohmann::json run_codesign(const Scenario& sc, const CodesignOptions& options) 
             : fmt::format("expected a sod_jump estimator named \"{}\"", options.estimator)));
   }
   return out;
+}
+
+std::string short_numbers(const nlohmann::json& array) {
+  std::string out = "[";
+  for (std::size_t i = 0; i < array.size(); ++i) {
+    const auto& v = array[i];
+    out += (i ? ", " : "") +
+           (v.is_number() ? fmt::format("{:.6g}", v.get<double>()) : std::string(v.dump()));
+  }
+  return out + "]";
+}
+
+bool print_codesign(const nlohmann::json& j, std::ostream& os) {
+  bool all_ok = true;
+  for (const auto& e : j) {
+    const std::string head = fmt::format(
+        "{}: {} {} mu = {:.6g} (z0 = {:.5g}, target {:.5g})", e["estimator"].get<std::string>(),
+        e["design"].get<std::string>(), e["gain"].get<std::string>(), e["mu"].get<double>(),
+        e["z0"].get<double>(), e["target"].get<double>());
+    const std::string bound = e["bound"].is_number()
+                                  ? fmt::format("{:.5g}", e["bound"].get<double>())
+                                  : std::string("not found (the LMI is infeasible)");
+    if (e["status"] != "ok") {
+      // Nothing to apply: say why instead of printing thresholds that miss the target.
+      all_ok = false;
+      os << fmt::format(
+          "{}: status {}: the bound at delta0 = {} is {} (must be below the target); no "
+          "thresholds to apply (raise --mu or lower delta0)\n",
+          head, e["status"].get<std::string>(), short_numbers(e["delta0"]), bound);
+      continue;
+    }
+    os << fmt::format(
+        "{}: delta = {} cost {:.5g} bound {} [{} LMI problems, {:.2f} s solving, {:.2f} s total; "
+        "epsilon {:.6g} {}, delta0 {}]\n  apply: {}\n",
+        head, short_numbers(e["delta"]), e["cost"].get<double>(), bound,
+        e["lmi_problems"].get<int>(), e["lmi_seconds"].get<double>(), e["seconds"].get<double>(),
+        e["epsilon"].get<double>(), e["step"].get<std::string>(), short_numbers(e["delta0"]),
+        e["apply"].get<std::string>());
+  }
+  return all_ok;
 }
 
 }  // namespace ncosim::sim

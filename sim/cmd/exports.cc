@@ -34,6 +34,7 @@
 #include "sim/present/table_view.h"
 #include "sim/run/campaign.h"
 #include "sim/run/link_report.h"
+#include "sim/run/overload.h"
 #include "sim/run/progress.h"
 #include "sim/scenario/resource_limits.h"
 #include "sim/store/store.h"
@@ -173,6 +174,22 @@ void summarise_cases(const LoadedScenario& loaded, const RunStore& store, Export
   add_paired_across_cases(s.rows, loaded, reference_case_index(loaded));  // sim/analysis/paired.h
 }
 
+// The cases as the per-case reports take them: labels, scenarios, results.
+struct CaseViews {
+  std::vector<std::vector<std::string>> labels;
+  std::vector<const Scenario*> scenarios;
+  std::vector<const CampaignResult*> results;
+};
+CaseViews case_views(const LoadedScenario& loaded, const ExportState& s) {
+  CaseViews v;
+  for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
+    v.labels.push_back(loaded.cases[c].labels);
+    v.scenarios.push_back(loaded.cases[c].scenario.get());
+    v.results.push_back(&s.results[c]);
+  }
+  return v;
+}
+
 // "case, \"estimator\": status" of each row whose status is not as its scenario expects.
 void report_not_ok(const LoadedScenario& loaded, const std::vector<SummaryRow>& rows,
                    std::vector<std::string>& not_ok) {
@@ -191,6 +208,8 @@ void report_not_ok(const LoadedScenario& loaded, const std::vector<SummaryRow>& 
 std::string summary_extras(const LoadedScenario& loaded, const ExportState& s,
                            const ExportInfo& info) {
   std::string extras = consistency_notes(loaded.sweeps, s.rows);
+  const CaseViews views = case_views(loaded, s);  // links and errors that grow: sim/run/overload.h
+  extras += growth_notes(loaded.sweeps, views.labels, views.scenarios, views.results);
   const TargetRule& rule = s.rule;
   if (s.decision.decided) {
     extras += s.decision.reason == "target_ci"
@@ -313,7 +332,12 @@ std::vector<std::pair<std::string, std::string>> derive_exports(const LoadedScen
   s.rule = target_of(s.meta, loaded);
   load_runs(loaded, store, s);
   summarise_cases(loaded, store, s);
-  if (info.not_ok != nullptr) report_not_ok(loaded, s.rows, *info.not_ok);
+  if (info.not_ok != nullptr) {
+    report_not_ok(loaded, s.rows, *info.not_ok);
+    const CaseViews views = case_views(loaded, s);  // --fail-on-status fails on an overload too
+    for (auto& line : overloaded_flows(loaded.sweeps, views.labels, views.scenarios, views.results))
+      info.not_ok->push_back(std::move(line));
+  }
   const Scenario& first = *loaded.cases.front().scenario;
   const Eigen::Index n = first.model.plant.n();
   s.complete = s.decision.decided || (!s.rule.on() && s.done == s.expected);
@@ -414,12 +438,50 @@ void settle_partial(const std::string& out) {
   }
 }
 
-int cmd_export(const std::string& dir, const std::string& out, const std::string& command_line) {
+void check_folder_replace(const FolderWrite& w) {
+  for (const bool partial : {false, true}) {
+    if (partial && !w.with_partial) continue;
+    const std::string path = partial ? partial_store_path(w.out) : store_path(w.out);
+    std::error_code ec;
+    if (!std::filesystem::exists(path, ec)) continue;
+    std::int64_t runs = 0, lost = 0;
+    std::string diff;
+    try {
+      const RunStore store = RunStore::open(path, false);
+      runs = store.count_runs();
+      if (runs == 0) continue;
+      const auto stored = store.meta();
+      check_campaign_meta(stored, path);
+      diff = identity_difference(stored, *w.meta, true);
+      for (std::size_t c = 0; diff.empty() && c < w.cases; ++c) {
+        for (const std::uint64_t r : store.done_runs(c)) lost += w.holds(c, r) ? 0 : 1;
+      }
+    } catch (const StoreError&) {
+      continue;  // damaged: nothing in it can be resumed or exported (replaced, as by `run`)
+    }
+    if (diff.empty() && lost == 0) continue;  // every run it holds comes back: nothing is lost
+    const std::string what = !diff.empty()
+                                 ? fmt::format("{} finished run(s) of a different campaign", runs)
+                                 : fmt::format("{} run(s) that {} lack(s)", lost, w.source);
+    if (w.replace) {
+      std::cerr << fmt::format("ncosim: --replace: replacing {} in {}\n", what, path);
+      continue;
+    }
+    throw config::ScenarioError(fmt::format(
+        "{}: '{}' holds {} ({}{}){}; `--replace` replaces them, or choose another output folder",
+        w.command, w.out, what, path, partial ? ", the store of an unfinished campaign" : "",
+        diff.empty() ? "" : fmt::format(": {} differ(s) (stored vs {})", diff, w.source)));
+  }
+}
+
+int cmd_export(const std::string& dir, const std::string& out, bool replace,
+               const std::string& command_line) {
   const std::string path = store_path(dir);
   const std::string target = out.empty() ? dir : out;
   // One writer per folder, for the whole command: a set swapped in by another process between
   // reading the store and writing the exports would otherwise pair its store with these exports.
-  const OutputFolderLock folder_lock(target);
+  const OutputFolderLock folder_lock(target);  // restores a set an interrupted write moved aside
+  if (!out.empty()) restore_interrupted_write(dir);  // the source's too
   RunStore store;
   LoadedScenario loaded;
   std::map<std::string, std::string> meta;
@@ -437,6 +499,16 @@ int cmd_export(const std::string& dir, const std::string& out, const std::string
     same_folder =
         output_set_folder(dir) == output_set_folder(target) ||
         (std::filesystem::exists(target, ec) && std::filesystem::equivalent(dir, target, ec));
+  }
+  if (!same_folder) {  // the rule of `run --out`: never lose another folder's runs silently
+    std::vector<std::vector<std::uint64_t>> done;
+    for (std::size_t c = 0; c < loaded.cases.size(); ++c) done.push_back(store.done_runs(c));
+    check_folder_replace(FolderWrite{
+        "export", target, &meta, fmt::format("the store of '{}'", dir), loaded.cases.size(),
+        [&](std::size_t c, std::uint64_t r) {
+          return c < done.size() && std::binary_search(done[c].begin(), done[c].end(), r);
+        },
+        replace, false});
   }
   ExportInfo info;
   info.command_line = command_line;

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -66,9 +67,26 @@ std::uint64_t run_limit(const LoadedScenario& loaded,
 // swap and before its name was removed: the campaign it holds is finished, so the name goes.
 void settle_partial(const std::string& out);
 
-int cmd_export(const std::string& dir, const std::string& out, const std::string& command_line);
+// A command about to write a campaign's store into the folder `out` (export --out, merge).
+struct FolderWrite {
+  std::string command;                             // "export", "merge": the message's prefix
+  std::string out;                                 // the folder written
+  const std::map<std::string, std::string>* meta;  // the campaign table of the store written
+  std::string source;                              // what the store written is, for messages
+  std::size_t cases = 0;
+  std::function<bool(std::size_t, std::uint64_t)> holds;  // whether it holds (case, run)
+  bool replace = false;                                   // --replace
+  bool with_partial = false;  // it also replaces the unfinished store beside the folder
+};
 
-// Re-derives every export of the store in `dir` into `out` (default: `dir`).
-int cmd_export(const std::string& dir, const std::string& out, const std::string& command_line);
+// The rule of `run --out` for every command that writes a folder: refuses (ScenarioError, exit 2,
+// nothing written) to replace a store of `out` (and, with_partial, the unfinished one beside it)
+// that holds runs of a different campaign or runs the new store lacks, unless --replace (then
+// says what it replaces). A damaged store, or one whose every run comes back, is replaced.
+void check_folder_replace(const FolderWrite& w);
+
+// Re-derives every export of the store in `dir` into `out` (default: `dir`); `replace`: --replace.
+int cmd_export(const std::string& dir, const std::string& out, bool replace,
+               const std::string& command_line);
 
 }  // namespace ncosim::sim

@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "config/config.h"
+#include "sim/files/output_set.h"
 
 namespace ncosim::sim {
 
@@ -45,6 +46,9 @@ void add_figure_commands(CLI::App& app, FigureCommands& fc) {
 }
 
 std::optional<int> run_figure_commands(FigureCommands& fc) {
+  const bool reads =
+      (fc.plot != nullptr && fc.plot->parsed()) || (fc.report != nullptr && fc.report->parsed());
+  if (reads) restore_interrupted_write(fc.dir);  // sim/files/output_set.h
   if (fc.plot != nullptr && fc.plot->parsed()) {
     fc.plot_options.formats.clear();
     std::stringstream ss(fc.formats);

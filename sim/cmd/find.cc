@@ -8,6 +8,7 @@
 #include <map>
 #include <set>
 
+#include "config/toml_path.h"
 #include "sim/analysis/output.h"
 
 namespace ncosim::sim {
@@ -62,19 +63,51 @@ namespace {
 // failed or the field is not a number.
 using Sample = std::map<std::string, std::optional<double>>;
 
-// The --set that gives the key the value v: the key itself, or, when the key is swept (axis
-// `swept`), that axis reduced to the one value (a sweep is applied after --set).
-std::string assignment(const FindOptions& opt, std::optional<std::size_t> swept, double v) {
-  if (swept) return fmt::format("sweep[{}].values=[{}]", *swept, toml_float(v));
-  return fmt::format("{}={}", opt.key, toml_float(v));
+// How --key is set: the key itself; when it is swept (axis `swept`), that axis reduced to the one
+// value (a sweep is applied after --set); when it names an entry of an array (link[0].pmf[1]),
+// the whole array with that entry changed (`entries`: the others as the scenario has them).
+struct KeySetter {
+  std::optional<std::size_t> swept;
+  std::string path;                  // what the assignment sets
+  std::optional<std::size_t> entry;  // the index, for an array entry
+  std::vector<std::string> entries;  // the array's entries (TOML text)
+};
+
+std::string assignment(const KeySetter& k, double v) {
+  if (k.swept) return fmt::format("sweep[{}].values=[{}]", *k.swept, toml_float(v));
+  if (!k.entry) return fmt::format("{}={}", k.path, toml_float(v));
+  std::string arr;
+  for (std::size_t i = 0; i < k.entries.size(); ++i)
+    arr += (i ? ", " : "") + (i == *k.entry ? toml_float(v) : k.entries[i]);
+  return fmt::format("{}=[{}]", k.path, arr);
+}
+
+// An error of the assignment made for --key ("--set: key 'PATH': ...") told as the user's option,
+// with the value tried; any other error as it is.
+[[noreturn]] void rethrow_for_key(const config::ScenarioError& e, const FindOptions& opt,
+                                  const KeySetter& k, double v) {
+  const std::string msg = e.what();
+  for (const std::string& path :
+       {k.path, k.swept ? fmt::format("sweep[{}].values", *k.swept) : k.path}) {
+    const std::string head = fmt::format("--set: key '{}': ", path);
+    if (msg.starts_with(head)) {
+      throw config::ScenarioError(
+          fmt::format("--key: '{}' = {}: {}", opt.key, toml_float(v), msg.substr(head.size())));
+    }
+  }
+  throw e;
 }
 
 Sample evaluate(const std::string& file, const std::vector<std::string>& sets,
-                const FindOptions& opt, std::optional<std::size_t> swept, std::size_t case_index,
-                double v) {
+                const FindOptions& opt, const KeySetter& key, std::size_t case_index, double v) {
   std::vector<std::string> s = sets;
-  s.push_back(assignment(opt, swept, v));
-  const LoadedScenario loaded = load_cases(file, s, {}, case_index);
+  s.push_back(assignment(key, v));
+  LoadedScenario loaded;
+  try {
+    loaded = load_cases(file, s, {}, case_index);
+  } catch (const config::ScenarioError& e) {
+    rethrow_for_key(e, opt, key, v);
+  }
   const nlohmann::json dj = design_json(loaded);
   const nlohmann::json& ests =
       dj.contains("cases") ? dj["cases"][0]["estimators"] : dj["estimators"];
@@ -132,20 +165,68 @@ void check_find_options(const FindOptions& opt) {
         fmt::format("--scan: expected at least 1 interval, got {}", opt.scan));
 }
 
+// The array entry that `key` names (PATH[I] after a key: link[0].pmf[1]) in the scenario with the
+// user's --set: `k` gets the array's path, the index and the entries. Throws naming --key when
+// PATH is not an array of numbers of the scenario or I is not one of its entries.
+void resolve_entry(const LoadedScenario& probe, const std::vector<std::string>& sets,
+                   const std::string& key, KeySetter& k) {
+  const std::size_t open = key.rfind('[');
+  const std::string idx = key.substr(open + 1, key.size() - open - 2);
+  if (open == 0 || open == std::string::npos || key[open - 1] == ']' || idx.empty() ||
+      idx.find_first_not_of("0123456789") != std::string::npos || idx.size() > 9) {
+    throw config::ScenarioError(fmt::format(
+        "--key: expected a key path (link[0].delivery) or an entry of an array of numbers "
+        "(link[0].pmf[1]), got '{}'",
+        key));
+  }
+  k.path = key.substr(0, open);
+  k.entry = std::stoul(idx);
+  toml::table doc;
+  try {
+    doc = toml::parse(probe.text, std::string_view(probe.file));
+  } catch (const toml::parse_error&) {
+    return;  // load_cases reported it already
+  }
+  for (const auto& s : sets) config::apply_set(doc, s, "--set");
+  const toml::node* node = config::find_path(doc, k.path);
+  const toml::array* arr = node != nullptr ? node->as_array() : nullptr;
+  if (arr == nullptr || arr->empty() ||
+      !std::all_of(arr->begin(), arr->end(), [](const toml::node& n) { return n.is_number(); })) {
+    throw config::ScenarioError(
+        fmt::format("--key: '{}' names an entry of '{}', which is not an array of numbers in {}; "
+                    "search a key of a number (e.g. link[0].delivery) or an entry of such an "
+                    "array (e.g. link[0].pmf[1])",
+                    key, k.path, probe.file));
+  }
+  if (*k.entry >= arr->size()) {
+    throw config::ScenarioError(
+        fmt::format("--key: '{}': '{}' has {} entries (0-based: {}[0] .. {}[{}])", key, k.path,
+                    arr->size(), k.path, k.path, arr->size() - 1));
+  }
+  for (const auto& n : *arr) k.entries.push_back(config::compact_toml(n));
+}
+
 // Case 0 at lo: the sweep axes (into res), the estimator names, and a check that the key loads.
-// A swept key is searched instead of swept: `swept` gets its axis, which is reduced to the
+// A swept key is searched instead of swept: `key.swept` gets its axis, which is reduced to the
 // searched value and left out of the output's sweep columns.
 std::vector<std::string> probe_scenario(const std::string& file,
                                         const std::vector<std::string>& sets,
-                                        const FindOptions& opt, std::optional<std::size_t>& swept,
-                                        FindResult& res) {
+                                        const FindOptions& opt, KeySetter& key, FindResult& res) {
   const LoadedScenario probe = load_cases(file, sets, {}, 0);
+  key.path = opt.key;
   for (std::size_t a = 0; a < probe.sweeps.size(); ++a) {
-    if (probe.sweeps[a].key == opt.key) swept = a;
+    if (probe.sweeps[a].key == opt.key) key.swept = a;
   }
+  if (!key.swept && !opt.key.empty() && opt.key.back() == ']')
+    resolve_entry(probe, sets, opt.key, key);
   std::vector<std::string> s = sets;
-  s.push_back(assignment(opt, swept, opt.lo));
-  const LoadedScenario first = load_cases(file, s, {}, 0);
+  s.push_back(assignment(key, opt.lo));
+  LoadedScenario first;
+  try {
+    first = load_cases(file, s, {}, 0);
+  } catch (const config::ScenarioError& e) {
+    rethrow_for_key(e, opt, key, opt.lo);
+  }
   std::vector<std::string> names;
   for (const auto& e : first.cases.front().scenario->estimators) names.push_back(e.name);
   res.sweeps = first.sweeps;
@@ -182,12 +263,11 @@ std::vector<std::string> case_labels(const std::vector<SweepAxis>& sweeps, std::
 class CaseSamples {
  public:
   CaseSamples(const std::string& file, const std::vector<std::string>& sets, const FindOptions& opt,
-              std::optional<std::size_t> swept, std::size_t c)
-      : file_(file), sets_(sets), opt_(opt), swept_(swept), c_(c) {}
+              const KeySetter& key, std::size_t c)
+      : file_(file), sets_(sets), opt_(opt), key_(key), c_(c) {}
   const Sample& at(double v) {
     auto it = cache_.find(v);
-    if (it == cache_.end())
-      it = cache_.emplace(v, evaluate(file_, sets_, opt_, swept_, c_, v)).first;
+    if (it == cache_.end()) it = cache_.emplace(v, evaluate(file_, sets_, opt_, key_, c_, v)).first;
     return it->second;
   }
 
@@ -195,7 +275,7 @@ class CaseSamples {
   const std::string& file_;
   const std::vector<std::string>& sets_;
   const FindOptions& opt_;
-  std::optional<std::size_t> swept_;
+  const KeySetter& key_;
   std::size_t c_;
   std::map<double, Sample> cache_;  // key value -> every estimator's quantity
 };
@@ -264,10 +344,11 @@ void search_row(EstimatorSearch& s, const std::string& where, std::ostream& log)
 
 // The rows of case c: each chosen estimator's threshold, checked for monotonicity.
 void search_case(const std::string& file, const std::vector<std::string>& sets,
-                 const FindOptions& opt, std::optional<std::size_t> swept, std::size_t c,
+                 const FindOptions& opt, const KeySetter& key, std::size_t c,
                  const std::vector<std::string>& chosen, std::ostream& log, FindResult& res) {
+  const std::optional<std::size_t> swept = key.swept;
   const std::vector<std::string> labels = case_labels(res.sweeps, c);
-  CaseSamples samples(file, sets, opt, swept, c);
+  CaseSamples samples(file, sets, opt, key, c);
   std::vector<std::string> shown;
   for (std::size_t a = 0; a < labels.size(); ++a) {
     if (!swept || a != *swept) shown.push_back(labels[a]);
@@ -302,13 +383,13 @@ FindResult find_threshold(const std::string& file, const std::vector<std::string
                           const FindOptions& opt, std::ostream& log) {
   check_find_options(opt);
   FindResult res;
-  std::optional<std::size_t> swept;
-  const std::vector<std::string> names = probe_scenario(file, sets, opt, swept, res);
+  KeySetter key;
+  const std::vector<std::string> names = probe_scenario(file, sets, opt, key, res);
   std::size_t total = 1;
   for (const auto& a : res.sweeps) total *= a.labels.size();
   const std::vector<std::string> chosen = chosen_estimators(file, opt, names);
-  for (std::size_t c = 0; c < total; ++c) search_case(file, sets, opt, swept, c, chosen, log, res);
-  if (swept) res.sweeps.erase(res.sweeps.begin() + static_cast<std::ptrdiff_t>(*swept));
+  for (std::size_t c = 0; c < total; ++c) search_case(file, sets, opt, key, c, chosen, log, res);
+  if (key.swept) res.sweeps.erase(res.sweeps.begin() + static_cast<std::ptrdiff_t>(*key.swept));
   return res;
 }
 

@@ -14,6 +14,7 @@
 #include "models/fit.h"
 #include "models/link.h"
 #include "sim/analysis/output.h"
+#include "sim/cmd/fit_report.h"
 #include "sim/files/output_set.h"
 
 namespace ncosim::sim {
@@ -26,31 +27,6 @@ int count_lines(const std::string& path) {
   int n = 0;
   while (std::getline(in, line)) ++n;
   return std::max(n, 1);
-}
-
-std::string opt(double v) { return std::isfinite(v) ? fmt::format("{:.9g}", v) : ""; }
-
-// "  NAME  ESTIMATE  [LOW, HIGH]" (the interval left out where none could be computed).
-std::string parameter_line(const models::FitParameter& p) {
-  const bool ci = std::isfinite(p.ci_low) && std::isfinite(p.ci_high);
-  return fmt::format(
-      "  {:<18} {:>12.6g}  {}\n", p.name, p.estimate,
-      ci ? fmt::format("[{:.6g}, {:.6g}]", p.ci_low, p.ci_high) : std::string("(no interval)"));
-}
-
-// The selected family's parameters with their 95 % intervals (as in fit.csv), and the mean loss
-// and mean burst of the Gilbert–Elliott fit (how a gilbert_elliott [[link]] is written).
-std::string parameters_text(const std::vector<models::FitResult>& fits, std::size_t best) {
-  std::string s = fmt::format("\n{} parameters, estimate and 95 % interval:\n", fits[best].family);
-  for (const auto& p : fits[best].params) s += parameter_line(p);
-  for (const auto& r : fits) {
-    if (r.derived.empty()) continue;
-    s += fmt::format(
-        "{} as mean_loss and mean_burst (the keys of a gilbert_elliott [[link]]), 95 % interval:\n",
-        r.family);
-    for (const auto& p : r.derived) s += parameter_line(p);
-  }
-  return s;
 }
 
 // The fit's options from the command line: unknown families and criteria fail before the trace
@@ -70,6 +46,7 @@ models::FitOptions fit_options(const FitArgs& a, const std::string& stem) {
         fmt::format("--criterion: expected bic or aic, got '{}'", a.criterion));
   }
   o.starts = a.starts;
+  o.max_iterations = a.max_iterations;
   o.link_name = a.name.empty() ? stem : a.name;
   return o;
 }
@@ -104,7 +81,8 @@ std::vector<int> trace_symbols(const std::string& path, int last_line) {
 // Each family fitted to the symbols; a family that cannot be fitted is skipped with a note when
 // the families were not chosen, else an error.
 std::vector<models::FitResult> fit_families(const FitArgs& a, const models::FitOptions& o,
-                                            const std::vector<int>& sym, int last_line) {
+                                            const std::vector<int>& sym, int last_line,
+                                            std::vector<std::string>& skipped) {
   std::vector<models::FitResult> fits;
   for (const auto& f : o.families) {
     try {
@@ -115,7 +93,7 @@ std::vector<models::FitResult> fit_families(const FitArgs& a, const models::FitO
           fmt::format("{} (choose smaller families with --family)", e.what())));
     } catch (const std::domain_error& e) {
       if (a.families.empty()) {
-        std::cerr << fmt::format("ncosim fit: {} skipped: {}\n", f, e.what());
+        skipped.push_back(fmt::format("{}: {}", f, e.what()));
         continue;
       }
       throw config::ScenarioError(config::format_error(
@@ -125,85 +103,6 @@ std::vector<models::FitResult> fit_families(const FitArgs& a, const models::FitO
   return fits;
 }
 
-// fit.csv: per family its fit statistics, parameters, burst lengths and autocorrelations.
-std::string fit_csv(const std::vector<models::FitResult>& fits, std::size_t packets,
-                    std::size_t best) {
-  std::string csv = "family,section,item,estimate,ci95_low,ci95_high,observed\n";
-  for (std::size_t i = 0; i < fits.size(); ++i) {
-    const auto& r = fits[i];
-    auto row = [&](const std::string& section, const std::string& item, const std::string& est,
-                   const std::string& lo = "", const std::string& hi = "",
-                   const std::string& obs = "") {
-      csv += fmt::format("{},{},{},{},{},{},{}\n", r.family, section, csv_field(item), est, lo, hi,
-                         obs);
-    };
-    row("fit", "packets", std::to_string(packets));
-    row("fit", "loglik", opt(r.loglik));
-    row("fit", "parameters", std::to_string(r.parameters));
-    row("fit", "aic", opt(r.aic));
-    row("fit", "bic", opt(r.bic));
-    row("fit", "iterations", std::to_string(r.iterations));
-    row("fit", "starts", std::to_string(r.starts));
-    row("fit", "converged", r.converged ? "1" : "0");
-    row("fit", "burst_tv", opt(r.burst_tv));
-    row("fit", "acf_rmse", opt(r.acf_rmse));
-    row("fit", "selected", i == best ? "1" : "0");
-    for (const auto& p : r.params)
-      row("parameter", p.name, opt(p.estimate), opt(p.ci_low), opt(p.ci_high));
-    for (std::size_t L = 0; L < r.burst_model.size(); ++L) {
-      row("burst", std::to_string(L + 1), opt(r.burst_model[L]), "", "", opt(r.burst_observed[L]));
-    }
-    for (std::size_t k = 0; k < r.acf_model.size(); ++k) {
-      row("acf", std::to_string(k + 1), opt(r.acf_model[k]), "", "", opt(r.acf_observed[k]));
-    }
-  }
-  return csv;
-}
-
-// link.toml: the selected family's [[link]], then every other family's, commented out.
-std::string link_toml(const FitArgs& a, const std::vector<models::FitResult>& fits,
-                      std::size_t packets, std::size_t best) {
-  std::string toml =
-      fmt::format("# ncosim fit {}: {} packets; selected by {} among the families below\n", a.trace,
-                  packets, a.criterion);
-  toml += fits[best].link_toml;
-  for (std::size_t i = 0; i < fits.size(); ++i) {
-    if (i == best) continue;
-    toml += fmt::format("\n# {} (loglik {:.6g}, {} {:.6g}):\n", fits[i].family, fits[i].loglik,
-                        a.criterion, a.criterion == "aic" ? fits[i].aic : fits[i].bic);
-    std::string text = fits[i].link_toml;
-    std::string commented;
-    std::size_t pos = 0;
-    while (pos < text.size()) {
-      const std::size_t nl = text.find('\n', pos);
-      commented += "# " + text.substr(pos, nl - pos) + "\n";
-      pos = nl == std::string::npos ? text.size() : nl + 1;
-    }
-    toml += commented;
-  }
-  return toml;
-}
-
-// What `ncosim fit` prints: the trace's loss, a table of the families, the selected family's
-// parameters and its [[link]].
-void print_fits(const FitArgs& a, const std::vector<models::FitResult>& fits, std::size_t packets,
-                std::size_t best, double seconds, const std::string& out) {
-  std::cout << fmt::format("{}: {} packets, loss {:.6g}\n", a.trace, packets,
-                           fits.front().model.stationary().dot(fits.front().model.emission.col(0)));
-  std::cout << fmt::format("{:<16} {:>14} {:>4} {:>14} {:>14} {:>6} {:>9} {:>9}\n", "family",
-                           "loglik", "k", "aic", "bic", "iter", "burst_tv", "acf_rmse");
-  for (std::size_t i = 0; i < fits.size(); ++i) {
-    const auto& r = fits[i];
-    std::cout << fmt::format(
-        "{:<16} {:>14.6f} {:>4} {:>14.3f} {:>14.3f} {:>6} {:>9.4f} {:>9.4f}{}\n", r.family,
-        r.loglik, r.parameters, r.aic, r.bic, r.iterations, r.burst_tv, r.acf_rmse,
-        i == best ? "  <- " + a.criterion : std::string());
-  }
-  std::cout << parameters_text(fits, best);
-  std::cout << fmt::format("\n{}\nfitted in {:.2f} s; fit.csv and link.toml written to {}/\n",
-                           fits[best].link_toml, seconds, out);
-}
-
 }  // namespace
 
 int cmd_fit(const FitArgs& a) {
@@ -211,20 +110,33 @@ int cmd_fit(const FitArgs& a) {
   const models::FitOptions o = fit_options(a, stem);
   const int last_line = count_lines(a.trace);
   const std::vector<int> sym = trace_symbols(a.trace, last_line);
+  FitSet set;
+  set.trace = a.trace;
+  set.criterion = a.criterion;
+  set.packets = sym.size();
+  for (const int x : sym) {
+    set.lost += x == 0 ? 1 : 0;
+    set.longest_delay = std::max(set.longest_delay, x - 1);
+  }
   const auto t0 = std::chrono::steady_clock::now();
-  const std::vector<models::FitResult> fits = fit_families(a, o, sym, last_line);
-  const double seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  const std::size_t best = models::best_fit(fits, a.criterion);
-  const std::string csv = fit_csv(fits, sym.size(), best);
-  const std::string toml = link_toml(a, fits, sym.size(), best);
+  set.fits = fit_families(a, o, sym, last_line, set.skipped);
+  set.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (set.fits.empty()) {
+    throw config::ScenarioError(config::format_error(
+        a.trace, last_line, "", "no family could be fitted (choose families with --family)"));
+  }
+  set.best = models::best_fit(set.fits, a.criterion);
   // out/fit_<stem>: git-ignored, like `run`'s default (never a committed reference folder).
   const std::string out =
       a.out.empty() ? (std::filesystem::path("out") / ("fit_" + stem)).string() : a.out;
   prepare_output_dir(out);
   const OutputFolderLock lock(out);  // sim/files/output_set.h: one writer per folder
-  write_files_atomically(out, {{"fit.csv", csv}, {"link.toml", toml}});
-  print_fits(a, fits, sym.size(), best, seconds, out);
+  write_files_atomically(
+      out,
+      {{"fit.csv", fit_csv(set)}, {"fit.json", fit_json(set)}, {"link.toml", fit_link_toml(set)}});
+  std::cout << fit_summary(set, a.verbose)
+            << fmt::format("\nfitted in {:.2f} s; fit.csv, fit.json and link.toml written to {}/\n",
+                           set.seconds, out);
   return 0;
 }
 

@@ -62,6 +62,7 @@ ShardStores open_shards(const std::string& out, const std::vector<std::string>& 
   }
   ShardStores s;
   for (const auto& d : dirs) {
+    restore_interrupted_write(d);  // a shard whose last write was interrupted: its previous set
     try {
       s.stores.push_back(RunStore::open(store_path(d), false));
       s.metas.push_back(s.stores.back().meta());
@@ -179,7 +180,7 @@ void merge_case(ShardStores& shards, RunStore& merged, const Scenario& sc, std::
 
 }  // namespace
 
-int cmd_merge(const std::string& out, const std::vector<std::string>& dirs,
+int cmd_merge(const std::string& out, const std::vector<std::string>& dirs, bool replace,
               const std::string& command_line) {
   if (dirs.empty()) throw config::ScenarioError("merge: expected at least one shard folder");
   ShardStores shards = open_shards(out, dirs);
@@ -196,10 +197,18 @@ int cmd_merge(const std::string& out, const std::vector<std::string>& dirs,
   const auto owner = run_owners(shards, dirs, loaded);
   check_complete(owner, loaded, target_of(shards.metas.front(), loaded));
   const OutputFolderLock folder_lock(out);  // sim/files/output_set.h
+  const auto meta = merged_meta(shards.metas, dirs);
+  // The rule of `run --out` (sim/cmd/exports.h): the folder's runs, and those of an unfinished
+  // campaign beside it, are replaced only when every one comes back, or with --replace.
+  check_folder_replace(FolderWrite{"merge", out, &meta, "the merged shards", loaded.cases.size(),
+                                   [&](std::size_t c, std::uint64_t r) {
+                                     return owner.count({c, r}) != 0;
+                                   },
+                                   replace, true});
   prepare_output_dir(out);
   // Built beside the folder and swapped in with the exports (export_and_install).
   note_replaced_partial(out, partial_store_path(out));
-  RunStore merged = RunStore::create(partial_store_path(out), merged_meta(shards.metas, dirs));
+  RunStore merged = RunStore::create(partial_store_path(out), meta);
   try {
     for (std::size_t c = 0; c < loaded.cases.size(); ++c)
       merge_case(shards, merged, *loaded.cases[c].scenario, c);

@@ -7,8 +7,9 @@
 
 namespace ncosim::sim {
 
-// Combines the stores of `dirs` (shards of one campaign) into `out`, then exports.
-int cmd_merge(const std::string& out, const std::vector<std::string>& dirs,
+// Combines the stores of `dirs` (shards of one campaign) into `out`, then exports; `replace`:
+// --replace (a folder holding other runs is refused without it: check_folder_replace).
+int cmd_merge(const std::string& out, const std::vector<std::string>& dirs, bool replace,
               const std::string& command_line);
 
 }  // namespace ncosim::sim

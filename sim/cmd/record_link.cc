@@ -3,12 +3,20 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <atomic>
+#include <exception>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
+#include <mutex>
+#include <sstream>
 #include <stdexcept>
 #include <string>
+#include <thread>
 
 #include "config/config.h"
+#include "config/toml_path.h"
 #include "kernel/rng.h"
 #include "kernel/time.h"
 #include "models/link.h"
@@ -22,6 +30,8 @@ namespace {
 
 // What a trace link reads at most (models/link.cc): a longer record could not be replayed.
 constexpr std::int64_t kMaxPackets = 50'000'000;
+// The design law given to network links without one while recording (every packet on time).
+constexpr const char* kPlaceholderLaw = "[1.0]";
 
 // The senders of link `l`: its sensors, in sensor order. Refuses what cannot be recorded alone.
 std::vector<std::size_t> senders(const Scenario& sc, std::size_t l) {
@@ -58,23 +68,73 @@ std::vector<std::size_t> senders(const Scenario& sc, std::size_t l) {
   return out;
 }
 
+// What a record with placeholder laws should be told: which links, and that a controller reading
+// an estimator's estimate makes the plant (and the send times of send-on-delta senders) depend
+// on its design.
+void note_placeholders(const Scenario& sc, const std::vector<std::string>& links) {
+  std::string names;
+  for (const auto& n : links) names += (names.empty() ? "'" : ", '") + n + "'";
+  std::cerr << fmt::format(
+      "record-link: no design_pmf on network link(s) {}: the designs (which a record does not "
+      "use) are made with design_pmf = {}\n",
+      names, kPlaceholderLaw);
+  if (sc.input.source_index >= 0) {
+    std::cerr << fmt::format(
+        "record-link: note: the controller reads estimator \"{}\", whose design may use that "
+        "placeholder: where send times depend on the measurements, the record is of that "
+        "design's loop\n",
+        sc.input.source);
+  }
+}
+
 // A network link's packets: their fates come from the whole run (every sender of the network
 // contends), the network in a worker process of its own per run (network/worker.h), as in a
-// campaign.
-void record_network_runs(const Scenario& sc, std::size_t l, std::int64_t runs, RecordedTrace& out) {
-  for (std::int64_t r = 0; r < runs; ++r) {
-    const auto run = static_cast<std::uint64_t>(r);
-    std::vector<RecordedPacket> packets;
+// campaign; up to `jobs` runs at a time, each on a thread of this process (no fork here: the
+// workers are spawned, sim/run/network_path.h).
+void record_network_runs(const Scenario& sc, std::size_t l, std::int64_t runs, int jobs,
+                         RecordedTrace& out) {
+  std::vector<std::vector<RecordedPacket>> done(static_cast<std::size_t>(runs));
+  std::atomic<std::int64_t> next{0};
+  std::atomic<bool> failed{false};
+  std::mutex mutex;
+  std::exception_ptr error;
+  std::int64_t error_run = runs;  // the first failed run's error is the one told
+  auto work = [&] {
+    for (std::int64_t r = next++; r < runs && !failed; r = next++) {
+      try {
+        done[static_cast<std::size_t>(r)] =
+            record_network_link(sc, static_cast<std::uint64_t>(r), l);
+      } catch (...) {
+        const std::lock_guard<std::mutex> lock(mutex);
+        if (r < error_run) {
+          error_run = r;
+          error = std::current_exception();
+        }
+        failed = true;
+      }
+    }
+  };
+  const auto n = static_cast<std::int64_t>(std::max(1, jobs));
+  std::vector<std::thread> threads;
+  for (std::int64_t t = 1; t < std::min(n, runs); ++t) threads.emplace_back(work);
+  work();
+  for (auto& t : threads) t.join();
+  const std::string& name = sc.links[l].name;
+  if (error) {
     try {
-      packets = record_network_link(sc, run, l);
+      std::rethrow_exception(error);
     } catch (const network::EngineFailure& e) {
       throw std::runtime_error(
-          fmt::format("record-link: run {} of link '{}': {}", run, sc.links[l].name, e.what()));
+          fmt::format("record-link: run {} of link '{}': {}", error_run, name, e.what()));
     }
+  }
+  for (std::int64_t r = 0; r < runs; ++r) {
+    const auto& packets = done[static_cast<std::size_t>(r)];
     if (packets.size() != static_cast<std::size_t>(out.per_run)) {
       throw std::runtime_error(
-          fmt::format("record-link: run {} of link '{}' sent {} packets, expected {}", run,
-                      sc.links[l].name, packets.size(), out.per_run));
+          fmt::format("record-link: run {} of link '{}' sent {} packets, "
+                      "expected {}",
+                      r, name, packets.size(), out.per_run));
     }
     for (const RecordedPacket& p : packets) out.delays.push_back(p.delay);
   }
@@ -82,7 +142,39 @@ void record_network_runs(const Scenario& sc, std::size_t l, std::int64_t runs, R
 
 }  // namespace
 
-RecordedTrace record_link(const Scenario& sc, std::size_t l, std::int64_t runs) {
+int record_jobs(int threads) {
+  return threads > 0 ? threads
+                     : static_cast<int>(std::max(1U, std::thread::hardware_concurrency()));
+}
+
+std::vector<std::string> placeholder_design_laws(const std::string& file,
+                                                 const std::vector<std::string>& sets,
+                                                 std::vector<std::string>* names) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) return {};  // the load says what is wrong with the file
+  std::stringstream text;
+  text << in.rdbuf();
+  toml::table doc;
+  try {
+    doc = toml::parse(text.str(), std::string_view(file));
+    for (const auto& s : sets) config::apply_set(doc, s, "--set");
+  } catch (const std::exception&) {
+    return {};  // likewise
+  }
+  std::vector<std::string> out;
+  const toml::array* links = doc["link"].as_array();
+  for (std::size_t i = 0; links != nullptr && i < links->size(); ++i) {
+    const toml::table* t = links->get(i)->as_table();
+    if (t == nullptr || t->get("design_pmf") != nullptr) continue;
+    const auto kind = (*t)["kind"].value<std::string>();
+    if (!kind || *kind != "network") continue;
+    out.push_back(fmt::format("link[{}].design_pmf={}", i, kPlaceholderLaw));
+    if (names != nullptr) names->push_back((*t)["name"].value_or(fmt::format("link[{}]", i)));
+  }
+  return out;
+}
+
+RecordedTrace record_link(const Scenario& sc, std::size_t l, std::int64_t runs, int jobs) {
   const std::vector<std::size_t> from = senders(sc, l);
   const std::int64_t periods = sc.run.periods;
   RecordedTrace out;
@@ -99,7 +191,7 @@ RecordedTrace record_link(const Scenario& sc, std::size_t l, std::int64_t runs) 
   }
   out.delays.reserve(static_cast<std::size_t>(out.per_run * runs));
   if (sc.links[l].link->network_attachment() != nullptr) {
-    record_network_runs(sc, l, runs, out);
+    record_network_runs(sc, l, runs, jobs, out);
     return out;
   }
   const std::uint64_t seed = sc.run.seed;
@@ -129,7 +221,12 @@ RecordedTrace record_link(const Scenario& sc, std::size_t l, std::int64_t runs) 
 }
 
 int cmd_record_link(const RecordLinkArgs& a) {
-  LoadedScenario loaded = load_cases(a.file, a.sets, a.overrides);
+  // A record needs no design law: the designs are made on a placeholder where the file has none.
+  std::vector<std::string> sets = a.sets, placeholders;
+  for (auto& s : placeholder_design_laws(a.file, a.sets, &placeholders)) sets.push_back(s);
+  LoadedScenario loaded = load_cases(a.file, sets, a.overrides);
+  if (!placeholders.empty() && !a.quiet)
+    note_placeholders(*loaded.cases.front().scenario, placeholders);
   const Scenario& first = *loaded.cases.front().scenario;
   std::size_t l = first.links.size();
   std::string names;
@@ -153,7 +250,7 @@ int cmd_record_link(const RecordLinkArgs& a) {
   std::vector<std::pair<std::string, std::string>> files;
   for (std::size_t c = 0; c < loaded.cases.size(); ++c) {
     const Scenario& sc = *loaded.cases[c].scenario;
-    const RecordedTrace t = record_link(sc, l, sc.run.runs);
+    const RecordedTrace t = record_link(sc, l, sc.run.runs, record_jobs(a.threads));
     const std::string name = loaded.cases.size() == 1 ? fmt::format("{}.csv", a.link)
                                                       : fmt::format("{}_case{}.csv", a.link, c);
     std::string csv = "seq,delay\n";

@@ -31,9 +31,22 @@ Json number_schema(const config::Key& k, const char* type) {
   return s;
 }
 
-Json type_schema(const config::Key& k) {
+Json object_schema(const config::Keys& keys);
+
+// minItems / maxItems of an array key's entries (a bare number counts as one).
+void add_entries(Json& array, const config::Key& k) {
+  if (k.min_entries() > 0) array["minItems"] = k.min_entries();
+  if (k.max_entries() > 0) array["maxItems"] = k.max_entries();
+}
+
+// Whether a bare number (an array of one) is allowed.
+bool one_allowed(const config::Key& k) {
+  return k.min_entries() <= 1 && (k.max_entries() == 0 || k.max_entries() >= 1);
+}
+
+Json typed_schema(const config::Key& k) {
   const Json number = number_schema(k, "number");
-  const Json array_of_numbers{{"type", "array"}, {"items", number}};
+  Json array_of_numbers{{"type", "array"}, {"items", number}};
   switch (k.type()) {
     case config::KeyType::kNumber:
       return number;
@@ -46,23 +59,57 @@ Json type_schema(const config::Key& k) {
     case config::KeyType::kChoice:
       return Json{{"type", "string"}, {"enum", k.values()}};
     case config::KeyType::kNumbers:
-    case config::KeyType::kVector:  // a bare number is an array of one
+    case config::KeyType::kVector: {  // a bare number is an array of one
+      add_entries(array_of_numbers, k);
+      if (!one_allowed(k)) return array_of_numbers;
       return Json{{"anyOf", Json::array({number, array_of_numbers})}};
+    }
     case config::KeyType::kMatrix: {  // an array of rows, or a bare number (1x1)
-      Json rows{{"type", "array"}, {"minItems", 1}, {"items", array_of_numbers}};
-      rows["items"]["minItems"] = 1;
+      Json row = array_of_numbers;
+      row["minItems"] = 1;
+      if (k.columns() > 0) row["minItems"] = row["maxItems"] = k.columns();
+      Json rows{{"type", "array"}, {"minItems", 1}, {"items", row}};
+      add_entries(rows, k);
+      if (!one_allowed(k) || k.columns() > 1) return rows;
       return Json{{"anyOf", Json::array({number, rows})}};
     }
-    case config::KeyType::kRagged:
-      return Json{{"type", "array"}, {"items", array_of_numbers}};
+    case config::KeyType::kRagged: {
+      Json row = array_of_numbers;
+      if (k.columns() > 0) row["minItems"] = row["maxItems"] = k.columns();
+      Json rows{{"type", "array"}, {"items", row}};
+      add_entries(rows, k);
+      return rows;
+    }
     case config::KeyType::kTable:
-      return Json{{"type", "object"}};
-    case config::KeyType::kTables:
-      return Json{{"type", "array"}, {"items", Json{{"type", "object"}}}};
+      return k.fields() != nullptr ? object_schema(*k.fields()) : Json{{"type", "object"}};
+    case config::KeyType::kTables: {
+      Json tables{
+          {"type", "array"},
+          {"items", k.fields() != nullptr ? object_schema(*k.fields()) : Json{{"type", "object"}}}};
+      add_entries(tables, k);
+      return tables;
+    }
+    case config::KeyType::kArray: {
+      Json array{{"type", "array"}};
+      add_entries(array, k);
+      return array;
+    }
     case config::KeyType::kAny:
       return Json::object();
   }
   return Json::object();
+}
+
+// The key's type, or one of its words.
+Json type_schema(const config::Key& k) {
+  Json typed = typed_schema(k);
+  if (k.words().empty()) return typed;
+  const Json words{{"type", "string"}, {"enum", k.words()}};
+  if (typed.contains("anyOf")) {
+    typed["anyOf"].push_back(words);
+    return typed;
+  }
+  return Json{{"anyOf", Json::array({typed, words})}};
 }
 
 Json default_value(const config::Key::Value& v) {
@@ -88,6 +135,7 @@ std::string description(const config::Key& k) {
     notes = "default: " + k.default_text();
   if (!k.range_text().empty())
     notes += (notes.empty() ? "" : "; ") + ("allowed: " + k.range_text());
+  if (!k.shape_text().empty()) notes += (notes.empty() ? "" : "; ") + k.shape_text();
   if (k.type() == config::KeyType::kAny) notes += (notes.empty() ? "" : "; ") + k.type_text();
   return notes.empty() ? text : fmt::format("{} ({})", text, notes);
 }
@@ -100,7 +148,8 @@ Json key_schema(const config::Key& k) {
   return s;
 }
 
-// The properties and required keys of `keys` added to object schema `s`.
+// The properties and required keys of `keys` added to object schema `s` (a group of which one
+// is required: an anyOf of required lists in s's allOf).
 void add_keys(Json& s, const config::Keys& keys) {
   for (const config::Key& k : keys.list()) {
     s["properties"][k.name()] = key_schema(k);
@@ -109,6 +158,19 @@ void add_keys(Json& s, const config::Keys& keys) {
       if (std::find(req.begin(), req.end(), Json(k.name())) == req.end()) req.push_back(k.name());
     }
   }
+  for (const auto& group : keys.one_of()) {
+    Json any = Json::array();
+    for (const auto& name : group) any.push_back(Json{{"required", Json::array({name})}});
+    s["allOf"].push_back(Json{{"anyOf", any}});
+  }
+}
+
+// A table of declared fields: closed (its reader rejects other keys).
+Json object_schema(const config::Keys& keys) {
+  Json s{{"type", "object"}, {"properties", Json::object()}};
+  add_keys(s, keys);
+  s["additionalProperties"] = false;
+  return s;
 }
 
 Json section_schema(const Section& sec) {
@@ -127,13 +189,14 @@ Json section_schema(const Section& sec) {
       if (kind.name != sec.default_kind) cond["required"] = Json::array({sec.kind_key});
       Json then{{"description", kind.help}, {"properties", s["properties"]}};
       then["required"] = s["required"];
-      const bool declared = kind.keys != nullptr && !kind.keys->empty();
-      if (declared) add_keys(then, *kind.keys);
+      if (kind.keys != nullptr) add_keys(then, *kind.keys);
       if (then["required"].empty()) then.erase("required");
-      if (sec.closed && declared) then["additionalProperties"] = false;
+      // A kind that declared its keys (even none, as the periodic policy) closes its table; one
+      // registered without declarations (an extension's) leaves it open.
+      if (sec.closed && kind.declared) then["additionalProperties"] = false;
       all.push_back(Json{{"if", cond}, {"then", then}});
     }
-    if (!all.empty()) s["allOf"] = all;
+    for (auto& rule : all) s["allOf"].push_back(std::move(rule));
   } else if (sec.closed && sec.keys != nullptr) {
     s["additionalProperties"] = false;
   }

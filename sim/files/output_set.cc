@@ -511,6 +511,26 @@ int write_output_set(const std::string& dir,
   return removed;
 }
 
+void restore_interrupted_write(const std::string& dir) {
+  fs::path folder;
+  try {
+    folder = output_set_folder(dir);
+  } catch (const std::exception&) {
+    return;  // not a folder a set can be written to: the reader says what it cannot read
+  }
+  std::error_code ec;
+  const auto st = fs::symlink_status(folder, ec);
+  if (fs::exists(st) && !(fs::is_directory(st) && fs::is_empty(folder, ec))) return;
+  const std::string name = folder.filename().string();
+  bool moved_aside = false;
+  for (const auto& e : fs::directory_iterator(folder.parent_path(), ec))
+    moved_aside = moved_aside || is_sibling_temp(e.path().filename().string(), name, "old");
+  if (!moved_aside) return;
+  // The lock restores it (restore_moved_aside, with its message); a writer holding the lock is
+  // told as for any writer.
+  const OutputFolderLock lock(dir);
+}
+
 void prepare_output_dir(const std::string& dir) {
   namespace fs = std::filesystem;
   const fs::path folder = output_set_folder(dir);  // refuses "", "/", the current folder

@@ -73,6 +73,12 @@ void write_files_atomically(const std::string& dir,
                             const std::vector<std::pair<std::string, std::string>>& files,
                             const std::vector<std::string>& stale = {});
 
+// For a command that reads the result set in `dir` (export, merge, plot, report): when a write
+// into it was interrupted after moving the previous set aside (the fallback swap) and the folder
+// is missing, restores that set under the folder's lock, as the next writer would, and says so.
+// Does nothing otherwise (a missing folder stays missing for the reader's own message).
+void restore_interrupted_write(const std::string& dir);
+
 // Creates `dir` and checks that its parent is writable (the set is swapped in from a sibling),
 // before any work: throws std::runtime_error (ScenarioError for an empty folder name, the root or
 // the current directory).

@@ -46,6 +46,14 @@ std::string gnuplot_script(const std::string& name, const std::string& what, int
                            const std::string& body);
 std::string gnuplot_colour(std::size_t e);
 
+// At most kMostSeries series share a panel (the palette's colours, none repeated); more are split
+// into series_groups(n) groups of at most kGroupSeries, one panel each.
+inline constexpr std::size_t kMostSeries = 10;
+inline constexpr std::size_t kGroupSeries = 8;
+inline std::size_t series_groups(std::size_t series) {
+  return series <= kMostSeries ? 1 : (series + kGroupSeries - 1) / kGroupSeries;
+}
+
 // Quoted gnuplot string literal (single quotes, '' for a quote; line breaks become spaces).
 std::string gnuplot_quote(const std::string& s);
 

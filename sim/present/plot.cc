@@ -1,16 +1,11 @@
 // sim/present/plot.cc — `ncosim plot`: summary and trace figures through gnuplot (.dat + .gp +
-// images).
+// images; gnuplot itself is run by sim/present/plot_render.cc).
 #include "sim/present/plot.h"
 
-#include <fcntl.h>
 #include <fmt/format.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <algorithm>
-#include <cerrno>
 #include <cmath>
-#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -18,7 +13,6 @@
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <sstream>
-#include <string_view>
 #include <vector>
 
 #include "config/config.h"
@@ -312,6 +306,69 @@ void plot_per_estimator(const Summary& s, const MetricColumns& mc, const std::st
   p.body += "\n";
 }
 
+// Above this many rows a one-case figure lists the estimators down the y axis (a dot plot, every
+// label horizontal and readable, the figure growing in height) instead of along x (a figure
+// growing in width: 32 rows were 3770 px, shrunk on a page until no label could be read).
+constexpr std::size_t kMostRowsAcross = 12;
+
+// A title as a gnuplot string expression on two lines, broken before the scenario's title
+// (" — "), so that a long one fits a 900-px figure.
+std::string two_line_title(const std::string& title) {
+  const auto at = title.find(" — ");
+  if (at == std::string::npos) return gnuplot_quote(title);
+  return gnuplot_quote(title.substr(0, at)) + ".\"\\n\"." +
+         gnuplot_quote(title.substr(at + std::string(" — ").size()));
+}
+
+// Without sweep keys, many rows: one line per row of summary.csv, the estimators down the y
+// axis (first on top), the metric along x with its CI as a horizontal bar, the prediction as a
+// square on the same line.
+void plot_rows_down(const Summary& s, const MetricColumns& mc, const std::string& name, bool logx,
+                    SummaryPlot& p) {
+  const std::size_t n = s.t.rows.size();
+  bool any_pred = false, any_value = false;
+  p.dat += fmt::format("# index {}   (index: estimator, named in the comment above its row)\n",
+                       dat_metric_names(mc));
+  std::vector<std::string> labels;
+  for (std::size_t e = 0; e < n; ++e) {
+    const auto& r = s.t.rows[e];
+    const auto& est = r[static_cast<std::size_t>(s.est_col)];
+    p.dat += fmt::format("# {}\n{} {}\n", comment(est), e, dat_metric_fields(r, mc));
+    any_pred = any_pred || (mc.pred >= 0 && number(r[static_cast<std::size_t>(mc.pred)]));
+    const bool value = number(r[static_cast<std::size_t>(mc.value)]).has_value();
+    any_value = any_value || value;
+    const bool is_reference =
+        mc.paired && est == r[static_cast<std::size_t>(s.t.column("paired_reference"))];
+    labels.push_back(est + (value          ? ""
+                            : is_reference ? " (reference)"
+                                           : " (no " + mc.metric + ")"));
+  }
+  p.width = 900;
+  p.height = 22 * static_cast<int>(n) + 190;
+  p.body += fmt::format("  set ytics {}\n  set yrange [{}:-0.6]\n  unset ylabel\n", tics(labels),
+                        static_cast<double>(n) - 0.4);
+  p.body += "  set key outside bottom center horizontal\n";
+  if (!any_value) {
+    p.body += fmt::format(
+        "  set label 1 {} at graph 0.5, graph 0.5 center\n  set xrange [1:10]\n  plot 1/0 "
+        "notitle\n",
+        gnuplot_quote(fmt::format("no finite {} in any row", mc.metric)));
+    return;
+  }
+  const std::string x = mc.ci < 0 ? "2:1"
+                        : logx    ? "2:1:($2-$3 > 0 ? $2-$3 : $2*1e-3):($2+$3)"
+                                  : "2:1:($2-$3):($2+$3)";
+  p.body += fmt::format("  plot '{}.dat' using {} with {} pt 7 ps 1.0 lc rgb '#1f77b4' title {}",
+                        name, x, mc.ci >= 0 ? "xerrorbars" : "points",
+                        gnuplot_quote(mc.ci >= 0 ? "simulated, 95 % CI" : "simulated"));
+  if (any_pred) {
+    p.body += fmt::format(
+        ", \\\n       '' using 4:($1+0.25) with points pt 4 ps 1.2 lc rgb '#d62728' title {}",
+        gnuplot_quote("predicted (" + mc.pred_name + ")"));
+  }
+  p.body += "\n";
+}
+
 // The x axis and the panels of a figure against a sweep key.
 struct KeyAxes {
   std::string x_key;
@@ -416,17 +473,21 @@ std::string empty_series_entry(const std::string& label, const std::string& metr
 // The `plot` command of panel p: one curve per estimator, its prediction dashed in the same colour;
 // an estimator without a finite value in the panel is a legend entry saying so, and a panel with
 // nothing to draw says so in its middle (its y range fixed, so that gnuplot has one).
+// Only the estimators [lo, hi) (a group of at most kMostSeries): their colours are their places in
+// the group, so that no colour repeats within a panel.
 std::string panel_plot(const Summary& s, const MetricColumns& mc, const KeyAxes& a,
-                       const std::string& name, bool logy, std::size_t p, bool shared_yrange) {
+                       const std::string& name, bool logy, std::size_t p, bool shared_yrange,
+                       std::size_t lo, std::size_t hi) {
   const std::size_t E = s.estimators.size();
   std::string plot;
   bool drawn = false;
-  for (std::size_t e = 0; e < E; ++e) {
+  for (std::size_t e = lo; e < hi; ++e) {
     const std::size_t b = p * E + e;
     const BlockContent bc = block_content(s, mc, a, p, e);
     const std::string sep = plot.empty() ? "" : ", \\\n       ";
     if (!bc.value) {
-      plot += sep + empty_series_entry(s.estimators[e], mc.metric, bc.status, palette_style(e));
+      plot +=
+          sep + empty_series_entry(s.estimators[e], mc.metric, bc.status, palette_style(e - lo));
       continue;
     }
     drawn = true;
@@ -437,10 +498,10 @@ std::string panel_plot(const Summary& s, const MetricColumns& mc, const KeyAxes&
     plot +=
         fmt::format("{}'{}.dat' index {} using {} with {} {} ps 1.0 title {}", sep, name, b,
                     errorbar_using(x, mc.ci >= 0, logy), mc.ci >= 0 ? "yerrorlines" : "linespoints",
-                    palette_style(e), gnuplot_quote(s.estimators[e]));
+                    palette_style(e - lo), gnuplot_quote(s.estimators[e]));
     if (bc.pred) {
       plot += fmt::format(", \\\n       '' index {} using {}:4 with lines dt 2 {} title {}", b, x,
-                          gnuplot_colour(e), gnuplot_quote(s.estimators[e] + ", predicted"));
+                          gnuplot_colour(e - lo), gnuplot_quote(s.estimators[e] + ", predicted"));
     }
   }
   if (drawn) return "  plot " + plot + "\n";
@@ -453,13 +514,17 @@ std::string panel_plot(const Summary& s, const MetricColumns& mc, const KeyAxes&
 }
 
 // Against a sweep key: one curve per estimator, in one panel per value of the panel keys (a
-// grid of up to 3 columns sharing one y range).
+// grid of up to 3 columns sharing one y range); more than kMostSeries estimators are split into
+// groups of at most kGroupSeries, one panel per group and value (every colour distinct within a
+// panel).
 void plot_against_key(const Summary& s, const MetricColumns& mc, const Choice& c,
                       const PlotOptions& opt, const std::string& name, const std::string& title,
                       const Range& yr, bool logy, SummaryPlot& p) {
   const KeyAxes a = key_axes(s, c, opt.logx);
   p.dat += against_key_dat(s, mc, a);
-  const std::size_t P = a.panels.size();
+  const std::size_t E = s.estimators.size();
+  const std::size_t G = series_groups(E);
+  const std::size_t P = a.panels.size() * G;
   const std::size_t cols =
       P == 1 ? 1 : std::min<std::size_t>(3, static_cast<std::size_t>(std::ceil(std::sqrt(P))));
   const std::size_t rows = (P + cols - 1) / cols;
@@ -487,11 +552,16 @@ void plot_against_key(const Summary& s, const MetricColumns& mc, const Choice& c
   }
   const bool shared_yrange = P > 1 && !yr.empty();
   for (std::size_t i = 0; i < P; ++i) {
+    const std::size_t panel = i / G, g = i % G;
+    const std::size_t lo = g * E / G, hi = (g + 1) * E / G;
     if (P > 1) {
-      p.body += fmt::format("  set title {}\n", gnuplot_quote(a.panels[i]));
-      if (i == 1) p.body += "  unset key\n";
+      std::string t = a.panels[panel];
+      if (G > 1)
+        t += fmt::format("{}estimators {}–{} of {}", t.empty() ? "" : " · ", lo + 1, hi, E);
+      p.body += fmt::format("  set title {}\n", gnuplot_quote(t));
+      if (i == 1 && G == 1) p.body += "  unset key\n";  // every panel the same estimators
     }
-    p.body += panel_plot(s, mc, a, name, logy, i, shared_yrange);
+    p.body += panel_plot(s, mc, a, name, logy, panel, shared_yrange, lo, hi);
   }
 }
 
@@ -506,15 +576,21 @@ Figure summary_figure(const std::string& dir, const Summary& s, const PlotOption
   f.title = summary_title(s, mc, scenario_title(dir));
   const Range yr = y_range(s, mc);
   const bool logy = !mc.paired && want_log(opt.logy, yr, "--logy");
+  // Many rows of one case: the metric along x, the rows down the y axis (plot_rows_down).
+  const bool rows_down = c.kind == FigureKind::kPerEstimator && s.t.rows.size() > kMostRowsAcross;
+  const char* axis = rows_down ? "x" : "y";
 
   SummaryPlot p;
   p.dat = fmt::format("# {} — numbers copied from summary.csv as written ('?' = empty)\n",
                       comment(f.title));
-  p.body = fmt::format("  set title {}\n  set ylabel {}\n  set grid\n", gnuplot_quote(f.title),
+  p.body = fmt::format("  set title {}\n  set {}label {}\n  set grid\n",
+                       rows_down ? two_line_title(f.title) : gnuplot_quote(f.title), axis,
                        gnuplot_quote(opt.metric + (mc.ci >= 0 ? "  (bars: 95 % CI)" : "")));
-  if (logy) p.body += "  set logscale y\n";
-  if (mc.paired) p.body += "  set xzeroaxis lt -1 lw 1.5\n";
-  if (c.kind == FigureKind::kPerEstimator) {
+  if (logy) p.body += fmt::format("  set logscale {}\n", axis);
+  if (mc.paired) p.body += fmt::format("  set {}zeroaxis lt -1 lw 1.5\n", rows_down ? "y" : "x");
+  if (rows_down) {
+    plot_rows_down(s, mc, f.name, logy, p);
+  } else if (c.kind == FigureKind::kPerEstimator) {
     plot_per_estimator(s, mc, f.name, logy, p);
   } else {
     plot_against_key(s, mc, c, opt, f.name, f.title, yr, logy, p);
@@ -553,98 +629,6 @@ std::vector<Figure> build_figures(const std::string& dir, const PlotOptions& opt
   if (opt.trace) out.push_back(trace_figure(dir, opt));
   if (auto curve = error_curve_figure(dir)) out.push_back(std::move(*curve));
   return out;
-}
-
-namespace {
-
-// The environment of gnuplot: ours with LC_ALL=C.UTF-8. The scripts say `set encoding utf8`; under
-// a C or POSIX locale (a fresh Debian root, a CI container) gnuplot warns "iconv failed to convert
-// degree sign" on every script. C.UTF-8 is built into glibc, and keeps '.' as the decimal point.
-std::vector<std::string> gnuplot_environment() {
-  std::vector<std::string> env;
-  for (char** e = environ; e != nullptr && *e != nullptr; ++e) {
-    if (std::string_view(*e).starts_with("LC_ALL=")) continue;
-    env.emplace_back(*e);
-  }
-  env.emplace_back("LC_ALL=C.UTF-8");
-  return env;
-}
-
-// Runs `gnuplot -e "formats='...'" NAME.gp` in `dir`; throws with gnuplot's messages on failure
-// and passes its warnings on to stderr.
-void run_gnuplot(const std::string& dir, const std::string& gp, const std::string& formats) {
-  int pipefd[2];
-  if (::pipe(pipefd) != 0) throw std::runtime_error(fmt::format("pipe: {}", std::strerror(errno)));
-  const std::string expr = fmt::format("formats='{}'", formats);
-  // Built before fork: the child may only call async-signal-safe functions.
-  std::vector<std::string> env = gnuplot_environment();
-  std::vector<char*> envp;
-  for (auto& e : env) envp.push_back(e.data());
-  envp.push_back(nullptr);
-  std::vector<std::string> args{"gnuplot", "-e", expr, gp};
-  std::vector<char*> argv;
-  for (auto& a : args) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  const pid_t pid = ::fork();
-  if (pid < 0) throw std::runtime_error(fmt::format("fork: {}", std::strerror(errno)));
-  if (pid == 0) {
-    ::close(pipefd[0]);
-    ::dup2(pipefd[1], 2);
-    const int devnull = ::open("/dev/null", O_RDWR);
-    if (devnull >= 0) {
-      ::dup2(devnull, 0);
-      ::dup2(devnull, 1);
-    }
-    if (::chdir(dir.c_str()) != 0) ::_exit(126);
-    ::execvpe("gnuplot", argv.data(), envp.data());
-    ::_exit(127);
-  }
-  ::close(pipefd[1]);
-  std::string messages;
-  char buf[4096];
-  for (;;) {
-    const ssize_t r = ::read(pipefd[0], buf, sizeof buf);
-    if (r > 0) {
-      messages.append(buf, static_cast<std::size_t>(r));
-    } else if (r == 0 || errno != EINTR) {
-      break;
-    }
-  }
-  ::close(pipefd[0]);
-  int status = 0;
-  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
-  }
-  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
-    if (WIFEXITED(status) && WEXITSTATUS(status) == 127) {
-      throw std::runtime_error("gnuplot not found on PATH (Debian package gnuplot-nox)");
-    }
-    throw std::runtime_error(fmt::format("gnuplot {} failed in {}:\n{}", gp, dir, messages));
-  }
-  if (!messages.empty()) std::cerr << fmt::format("gnuplot {}: {}", gp, messages);
-}
-
-}  // namespace
-
-std::vector<std::string> render_figures(const std::string& dir, const std::vector<Figure>& figures,
-                                        const std::vector<std::string>& formats) {
-  std::vector<std::pair<std::string, std::string>> files;
-  for (const auto& f : figures) {
-    files.emplace_back(f.name + ".dat", f.dat);
-    files.emplace_back(f.name + ".gp", f.gp);
-  }
-  write_files_atomically(dir, files);
-  std::string fmts;
-  for (const auto& f : formats) {
-    if (f != "png" && f != "svg")
-      throw config::ScenarioError(fmt::format("--format '{}': expected png or svg", f));
-    fmts += (fmts.empty() ? "" : " ") + f;
-  }
-  std::vector<std::string> images;
-  for (const auto& f : figures) {
-    run_gnuplot(dir, f.name + ".gp", fmts);
-    for (const auto& x : formats) images.push_back((fs::path(dir) / (f.name + "." + x)).string());
-  }
-  return images;
 }
 
 int plot_command(const std::string& dir, const PlotOptions& opt) {

@@ -16,38 +16,12 @@
 
 #include "config/config.h"
 #include "sim/analysis/output.h"
-#include "sim/store/store.h"
+#include "sim/present/report_parts.h"
 
 namespace ncosim::sim {
 
 namespace fs = std::filesystem;
-
-std::string html_escape(const std::string& s) {
-  std::string out;
-  out.reserve(s.size() + s.size() / 8);
-  for (char c : s) {
-    switch (c) {
-      case '&':
-        out += "&amp;";
-        break;
-      case '<':
-        out += "&lt;";
-        break;
-      case '>':
-        out += "&gt;";
-        break;
-      case '"':
-        out += "&quot;";
-        break;
-      case '\'':
-        out += "&#39;";
-        break;
-      default:
-        out += c;
-    }
-  }
-  return out;
-}
+using namespace report_parts;  // sim/present/report_parts.h
 
 namespace {
 
@@ -56,14 +30,6 @@ void replace_all(std::string& s, const std::string& from, const std::string& to)
        pos = s.find(from, pos + to.size())) {
     s.replace(pos, from.size(), to);
   }
-}
-
-std::optional<std::string> try_read(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  if (!in) return std::nullopt;
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
 }
 
 // The columns a summary.csv of this version writes; any other column (e.g. the paired comparison
@@ -76,7 +42,7 @@ bool known_column(const std::string& c) {
       "delivered_ratio",  "status",         "predicted_mse", "flops_mean",
       "mde_ci95",         "sent_per_period"};
   if (known.count(c) != 0) return true;
-  return c.rfind("rmse_x", 0) == 0 || c.rfind("ermse_x", 0) == 0;
+  return c.rfind("rmse_x", 0) == 0;  // ermse_x*: with the further columns (a narrower table)
 }
 
 constexpr const char* kCss = R"(
@@ -88,7 +54,11 @@ table { border-collapse: collapse; margin: 0.5em 0; font-size: 0.85em; }
 th, td { border: 1px solid #d0d0d0; padding: 0.2em 0.5em; text-align: right; white-space: nowrap; }
 th { background: #f0f2f5; position: sticky; top: 0; }
 td.t, th.t { text-align: left; }
+td.status { white-space: normal; min-width: 6em; max-width: 20em; }
+th { white-space: normal; vertical-align: bottom; } span.ci { display: block; color: #555; font-size: 0.9em; }
 tr.bad td { background: #fde2e1; } td.status-bad { color: #a40000; font-weight: bold; }
+tr.expected td { background: #f0f0f0; color: #444; }
+div.expected { background: #f0f2f5; border: 1px solid #ccc; padding: 0.5em 1em; margin-top: 0.5em; }
 td.best { font-weight: bold; background: #e3f4e1; }
 .warn { background: #fff4ce; border: 1px solid #e0c060; padding: 0.5em 1em; }
 .ok { background: #e3f4e1; border: 1px solid #9c9; padding: 0.5em 1em; }
@@ -104,13 +74,37 @@ struct SummaryTable {
   CsvTable t;
   std::vector<int> keys;  // sweep key columns
   int est = -1, status = -1;
+  int expected = -1;  // expected_status ([[estimator]] expected_status), -1 when absent
+
+  // Row r's status is neither ok nor the one its scenario expects (expected_status).
+  bool bad(const std::vector<std::string>& r) const {
+    return status >= 0 && !status_as_expected(r[static_cast<std::size_t>(status)], expected_of(r));
+  }
+  // Row r's status is not ok but the one its scenario expects: told, not flagged.
+  bool expected_failure(const std::vector<std::string>& r) const {
+    return status >= 0 && !bad(r) && r[static_cast<std::size_t>(status)] != "ok";
+  }
+  // The status as the run's table prints it: "diverged (expected)", "ok (expected diverged)".
+  std::string status_text(const std::vector<std::string>& r) const {
+    const std::string& st = r[static_cast<std::size_t>(status)];
+    const std::string ex = expected_of(r);
+    if (ex.empty()) return st;
+    if (!bad(r)) return st == "ok" ? st : st + " (expected)";
+    return st + " (expected " + ex + ")";
+  }
+
+ private:
+  std::string expected_of(const std::vector<std::string>& r) const {
+    return expected >= 0 ? r[static_cast<std::size_t>(expected)] : "";
+  }
 };
 
 // Cell text of column c: "value ± ci" when a c_ci95 column exists.
+// The CI on a line of its own under the value (a narrower column).
 std::string cell(const CsvTable& t, const std::vector<std::string>& r, int c, int ci) {
   std::string v = html_escape(r[static_cast<std::size_t>(c)]);
   if (ci >= 0 && !r[static_cast<std::size_t>(ci)].empty())
-    v += " ± " + html_escape(r[static_cast<std::size_t>(ci)]);
+    v += "<span class=\"ci\"> ± " + html_escape(r[static_cast<std::size_t>(ci)]) + "</span>";
   (void)t;
   return v;
 }
@@ -135,7 +129,7 @@ std::string html_table(const SummaryTable& tb, const std::vector<std::size_t>& r
     const std::string& name = t.header[static_cast<std::size_t>(cols[i])];
     ci[i] = t.column(name + "_ci95");
     const bool text = cols[i] == tb.est || name == "kind" || cols[i] == tb.status;
-    h += fmt::format("<th{}>{}{}</th>", text ? " class=\"t\"" : "", html_escape(name),
+    h += fmt::format("<th{}>{}{}</th>", text ? " class=\"t\"" : "", header_text(name),
                      ci[i] >= 0 ? " ± 95 % CI" : "");
   }
   h += "</tr>\n";
@@ -150,103 +144,21 @@ std::string html_table(const SummaryTable& tb, const std::vector<std::size_t>& r
   }
   for (std::size_t r : rows) {
     const auto& row = t.rows[r];
-    const bool bad = tb.status >= 0 && row[static_cast<std::size_t>(tb.status)] != "ok";
-    h += bad ? "<tr class=\"bad\">" : "<tr>";
+    const bool bad = tb.bad(row), expected = tb.expected_failure(row);
+    h += bad ? "<tr class=\"bad\">" : expected ? "<tr class=\"expected\">" : "<tr>";
     for (std::size_t i = 0; i < cols.size(); ++i) {
       const int c = cols[i];
       std::string cls;
       if (c == tb.est || t.header[static_cast<std::size_t>(c)] == "kind") cls = "t";
-      if (c == tb.status) cls = bad ? "t status-bad" : "t";
+      if (c == tb.status) cls = bad ? "t status status-bad" : "t status";
       if (c == mse && rows.size() > 1 && to_double(row[static_cast<std::size_t>(c)]) == best)
         cls = "best";
       h += fmt::format("<td{}>{}</td>", cls.empty() ? "" : fmt::format(" class=\"{}\"", cls),
-                       cell(t, row, c, ci[i]));
+                       c == tb.status ? html_escape(tb.status_text(row)) : cell(t, row, c, ci[i]));
     }
     h += "</tr>\n";
   }
   return h + "</table></div>\n";
-}
-
-std::string json_text(const nlohmann::json& v) {
-  if (v.is_string()) return v.get<std::string>();
-  if (v.is_null()) return "";
-  if (v.is_number_float()) return fmt::format("{:.6g}", v.get<double>());
-  return v.dump();
-}
-
-std::string design_section(const std::string& dir) {
-  const auto text = try_read(fs::path(dir) / "design.json");
-  if (!text) return "<p>No design.json in this folder.</p>\n";
-  nlohmann::json j;
-  try {
-    j = nlohmann::json::parse(*text);
-  } catch (const std::exception& e) {
-    return fmt::format("<p class=\"warn\">design.json could not be read: {}</p>\n",
-                       html_escape(e.what()));
-  }
-  static const char* fields[] = {"name",
-                                 "kind",
-                                 "method",
-                                 "stored_gains",
-                                 "predicted_mse",
-                                 "predicted_mse_ext",
-                                 "flops_per_period",
-                                 "stable",
-                                 "status",
-                                 "design_seconds"};
-  std::vector<std::pair<std::string, const nlohmann::json*>> groups;
-  if (j.contains("cases") && j["cases"].is_array()) {
-    for (const auto& c : j["cases"]) {
-      std::string label;
-      if (c.contains("sweep")) {
-        for (const auto& [k, v] : c["sweep"].items())
-          label += (label.empty() ? "" : ", ") + k + " = " + json_text(v);
-      }
-      groups.emplace_back(label, &c["estimators"]);
-    }
-  } else if (j.contains("estimators")) {
-    groups.emplace_back("", &j["estimators"]);
-  }
-  std::string h = "<div class=\"scroll\"><table>\n<tr>";
-  if (groups.size() > 1) h += "<th class=\"t\">case</th>";
-  for (const char* f : fields) h += fmt::format("<th class=\"t\">{}</th>", f);
-  h += "</tr>\n";
-  for (const auto& [label, ests] : groups) {
-    if (ests == nullptr || !ests->is_array()) continue;
-    for (const auto& e : *ests) {
-      const bool bad =
-          e.contains("status") && e["status"].is_string() && e["status"].get<std::string>() != "ok";
-      h += bad ? "<tr class=\"bad\">" : "<tr>";
-      if (groups.size() > 1) h += fmt::format("<td class=\"t\">{}</td>", html_escape(label));
-      for (const char* f : fields) {
-        h += fmt::format("<td class=\"t\">{}</td>",
-                         e.contains(f) ? html_escape(json_text(e[f])) : "");
-      }
-      h += "</tr>\n";
-    }
-  }
-  h += "</table></div>\n";
-  if (groups.size() > 1) {
-    h = fmt::format("<details><summary>design of every case ({} cases)</summary>\n{}</details>\n",
-                    groups.size(), h);
-  }
-  return h;
-}
-
-// The scenario file named in the manifest: as given, or relative to the folders above DIR.
-std::optional<std::pair<std::string, std::string>> scenario_text(const std::string& dir,
-                                                                 const std::string& name) {
-  if (name.empty()) return std::nullopt;
-  std::vector<fs::path> tries{fs::path(name)};
-  fs::path up = fs::absolute(dir);
-  for (int i = 0; i < 4 && up.has_parent_path() && up != up.parent_path(); ++i) {
-    up = up.parent_path();
-    tries.push_back(up / name);
-  }
-  for (const auto& p : tries) {
-    if (const auto t = try_read(p)) return std::make_pair(p.string(), *t);
-  }
-  return std::nullopt;
 }
 
 // summary.csv of `dir` with its sweep key, estimator and status columns; throws when unreadable.
@@ -260,6 +172,7 @@ SummaryTable read_summary_table(const std::string& dir) {
   tb.t = parse_csv(*stext, sp.string());
   tb.est = tb.t.column("estimator");
   tb.status = tb.t.column("status");
+  tb.expected = tb.t.column("expected_status");
   if (tb.est < 0)
     throw config::ScenarioError(
         config::format_error(sp.string(), 1, "", "expected an `estimator` column"));
@@ -318,6 +231,12 @@ void split_columns(const SummaryTable& tb, std::vector<int>& main_cols,
     if (!any) continue;
     (known_column(name) ? main_cols : extra_cols).push_back(c);
   }
+  // The status next to the estimator, where a wide table's scroll never hides it.
+  const auto st = std::find(main_cols.begin(), main_cols.end(), tb.status);
+  if (st != main_cols.end() && !main_cols.empty() && main_cols.front() == tb.est) {
+    main_cols.erase(st);
+    main_cols.insert(main_cols.begin() + 1, tb.status);
+  }
 }
 
 // The document's head, title and the line under it (scenario, cases, estimators, runs, seed,
@@ -341,32 +260,38 @@ std::string page_head(const std::string& dir, const nlohmann::json& man, const s
   return h;
 }
 
-// Warnings: every row whose status is not ok (or a line saying there is none), and the
-// re-centring note.
+// Warnings: every row whose status is neither ok nor the one its scenario expects (or a line
+// saying there is none); the rows whose failure status is the expected one, listed apart as
+// expected (e.g. an open-loop reference that diverges by design); the re-centring note.
 std::string warnings_section(const std::string& dir, const SummaryTable& tb, const Cases& cases,
                              const nlohmann::json& man) {
   const CsvTable& t = tb.t;
-  std::string warn;
-  if (tb.status >= 0) {
-    for (std::size_t c = 0; c < cases.rows.size(); ++c) {
-      for (std::size_t r : cases.rows[c]) {
-        const auto& st = t.rows[r][static_cast<std::size_t>(tb.status)];
-        if (st == "ok") continue;
-        warn +=
-            fmt::format("<li>{}{}: <b>{}</b></li>\n",
-                        cases.labels[c].empty() ? "" : html_escape(cases.labels[c]) + " · ",
-                        html_escape(t.rows[r][static_cast<std::size_t>(tb.est)]), html_escape(st));
-      }
+  std::string warn, expected;
+  for (std::size_t c = 0; c < cases.rows.size() && tb.status >= 0; ++c) {
+    for (std::size_t r : cases.rows[c]) {
+      const auto& row = t.rows[r];
+      if (!tb.bad(row) && !tb.expected_failure(row)) continue;
+      (tb.bad(row) ? warn : expected) += fmt::format(
+          "<li>{}{}: <b>{}</b></li>\n",
+          cases.labels[c].empty() ? "" : html_escape(cases.labels[c]) + " · ",
+          html_escape(row[static_cast<std::size_t>(tb.est)]), html_escape(tb.status_text(row)));
     }
   }
   std::string h;
   if (!warn.empty()) {
-    h += "<div class=\"warn\" id=\"warnings\"><b>Rows whose status is not ok</b> (not trustworthy, "
-         "see the status "
-         "column in results/README.md):\n<ul>\n" +
+    h += "<div class=\"warn\" id=\"warnings\"><b>Rows whose status is not the expected one</b> "
+         "(not trustworthy; expected: ok unless the scenario declares expected_status; see the "
+         "status column in results/README.md):\n<ul>\n" +
          warn + "</ul></div>\n";
   } else {
-    h += "<p class=\"ok\" id=\"warnings\">Every row has status ok.</p>\n";
+    h += fmt::format("<p class=\"ok\" id=\"warnings\">Every row has status ok{}.</p>\n",
+                     expected.empty() ? "" : " or the status its scenario expects");
+  }
+  if (!expected.empty()) {
+    h += "<div class=\"expected\" id=\"expected\"><b>Rows with their expected status</b> (the "
+         "scenario declares it with expected_status: an outcome the campaign is meant to show, "
+         "not a fault):\n<ul>\n" +
+         expected + "</ul></div>\n";
   }
   if (man.contains("recentred") && man["recentred"].is_boolean() && man["recentred"].get<bool>()) {
     // trajectory.csv only where this folder has one (a run without --trace writes none).
@@ -424,12 +349,12 @@ std::string case_overview(const SummaryTable& tb, const Cases& cases) {
     }
     for (std::size_t r : cases.rows[c]) {
       const auto& row = t.rows[r];
-      const bool bad = tb.status >= 0 && row[static_cast<std::size_t>(tb.status)] != "ok";
+      const bool bad = tb.bad(row), told = bad || tb.expected_failure(row);
       const bool is_best = mse >= 0 && to_double(row[static_cast<std::size_t>(mse)]) == best;
-      h += fmt::format(
-          "<td{}>{}{}</td>", bad ? " class=\"status-bad\"" : (is_best ? " class=\"best\"" : ""),
-          mse >= 0 ? cell(t, row, mse, mci) : "",
-          bad ? " (" + html_escape(row[static_cast<std::size_t>(tb.status)]) + ")" : "");
+      h += fmt::format("<td{}>{}{}</td>",
+                       bad ? " class=\"status-bad\"" : (is_best ? " class=\"best\"" : ""),
+                       mse >= 0 ? cell(t, row, mse, mci) : "",
+                       told ? " " + html_escape(tb.status_text(row)) : "");
     }
     h += "</tr>\n";
   }
@@ -441,9 +366,9 @@ std::string summary_section(const SummaryTable& tb, const Cases& cases,
                             const std::vector<int>& main_cols) {
   std::string h = "<h2 id=\"summary\">Summary</h2>\n";
   h += "<p class=\"sub\">Numbers as written in summary.csv (columns: results/README.md); rows "
-       "whose status is not "
-       "ok are red; the lowest mse of each case is green. Columns empty in every row are left "
-       "out.</p>\n";
+       "whose status is neither ok nor the expected one are red, rows with their expected "
+       "failure status grey; the lowest mse of each case is green. Columns empty in every row "
+       "are left out.</p>\n";
   if (cases.rows.size() <= 1) {
     return h + html_table(tb, cases.rows.empty() ? std::vector<std::size_t>{} : cases.rows.front(),
                           main_cols, true);
@@ -472,97 +397,6 @@ std::string further_section(const SummaryTable& tb, const Cases& cases,
   const std::string table = html_table(tb, all, cols, false);
   h += cases.rows.size() > 1 ? "<details><summary>every case</summary>\n" + table + "</details>\n"
                              : table;
-  return h;
-}
-
-// The manifest as a two-column table.
-std::string manifest_section(const nlohmann::json& man) {
-  std::string h = "<h2 id=\"manifest\">Manifest</h2>\n";
-  if (man.empty()) return h + "<p>No manifest.json in this folder.</p>\n";
-  h += "<table>\n";
-  for (const auto& [k, v] : man.items()) {
-    h += fmt::format("<tr><th class=\"t\">{}</th><td class=\"t\">{}</td></tr>\n", html_escape(k),
-                     html_escape(json_text(v)));
-  }
-  return h + "</table>\n";
-}
-
-// The scenario the campaign ran, from the run store's campaign table (scenario_text, and
-// scenario_path to compare with the file on disk now); nullopt without a readable store (a
-// folder written before the run store).
-struct StoredScenario {
-  std::string text, path;
-};
-
-std::optional<StoredScenario> stored_scenario(const std::string& dir) {
-  const std::string sp = store_path(dir);
-  if (!fs::exists(sp)) return std::nullopt;
-  try {
-    const auto meta = RunStore::open(sp, false).meta();
-    const auto text = meta.find("scenario_text");
-    if (text == meta.end()) return std::nullopt;
-    const auto path = meta.find("scenario_path");
-    return StoredScenario{text->second, path == meta.end() ? "" : path->second};
-  } catch (const StoreError&) {
-    return std::nullopt;
-  }
-}
-
-// One sentence comparing the stored text with the file at its path now.
-std::string disk_note(const StoredScenario& st) {
-  const auto now = st.path.empty() ? std::nullopt : try_read(st.path);
-  if (!now) {
-    return fmt::format(
-        "<p class=\"warn\" id=\"scenario-disk\">The scenario file {} is no longer there; the text "
-        "below is the one the campaign ran.</p>\n",
-        html_escape(st.path.empty() ? "(path not stored)" : st.path));
-  }
-  if (*now != st.text) {
-    return fmt::format(
-        "<p class=\"warn\" id=\"scenario-disk\">The scenario file {} has changed since the "
-        "campaign "
-        "ran; the text below is the one the campaign ran, not the file as it is now.</p>\n",
-        html_escape(st.path));
-  }
-  return fmt::format(
-      "<p class=\"sub\" id=\"scenario-disk\">The scenario file {} is unchanged since the campaign "
-      "ran.</p>\n",
-      html_escape(st.path));
-}
-
-std::string overrides_note(const nlohmann::json& man) {
-  return man.contains("overrides") && !man["overrides"].empty()
-             ? ", before the overrides " + html_escape(json_text(man["overrides"]))
-             : "";
-}
-
-// The scenario text the campaign ran (from runs.sqlite) with whether the file on disk still
-// holds it; without a store, the file named in the manifest as read now (or a warning when it is
-// not found), saying that it may not be what the campaign ran.
-std::string scenario_section(const std::string& dir, const nlohmann::json& man) {
-  std::string h = "<h2 id=\"scenario\">Scenario</h2>\n";
-  if (const auto st = stored_scenario(dir)) {
-    h +=
-        fmt::format("<p class=\"sub\">The scenario text the campaign ran, from runs.sqlite{}</p>\n",
-                    overrides_note(man));
-    return h + disk_note(*st) + fmt::format("<pre>{}</pre>\n", html_escape(st->text));
-  }
-  const std::string sname = man.contains("scenario") ? json_text(man["scenario"]) : "";
-  if (const auto sc = scenario_text(dir, sname)) {
-    h += fmt::format(
-        "<p class=\"warn\" id=\"scenario-disk\">No run store (runs.sqlite) in this folder: the "
-        "scenario file {} as read when this report was written{}, which may differ from the text "
-        "the "
-        "campaign ran.</p>\n<pre>{}</pre>\n",
-        html_escape(sc->first), overrides_note(man), html_escape(sc->second));
-  } else {
-    h += fmt::format(
-        "<p class=\"warn\" id=\"scenario-disk\">No run store (runs.sqlite) in this folder, and the "
-        "scenario file '{}' was not found from here (relative paths are read from the current "
-        "folder and "
-        "the folders above the output folder).</p>\n",
-        html_escape(sname));
-  }
   return h;
 }
 

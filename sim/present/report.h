@@ -10,11 +10,9 @@
 #include <vector>
 
 #include "sim/present/plot.h"
+#include "sim/present/report_parts.h"  // html_escape
 
 namespace ncosim::sim {
-
-// HTML text escaping (&, <, >, ", ').
-std::string html_escape(const std::string& s);
 
 // An SVG document made embeddable: the XML prolog and DOCTYPE dropped, every id (and every
 // reference to one) prefixed with `prefix`, so that several figures share one page.

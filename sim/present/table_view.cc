@@ -2,8 +2,11 @@
 #include "sim/present/table_view.h"
 
 #include <fmt/format.h>
+#include <sys/ioctl.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <cstdlib>
 #include <map>
@@ -29,6 +32,22 @@ std::string trim(const std::string& s) {
 }
 
 }  // namespace
+
+std::size_t table_width(const char* columns_env, int fd) {
+  std::size_t width = 0;
+  if (columns_env != nullptr && *columns_env != '\0') {
+    const char* end = columns_env + std::char_traits<char>::length(columns_env);
+    std::size_t v = 0;
+    const auto [ptr, ec] = std::from_chars(columns_env, end, v);
+    if (ec == std::errc() && ptr == end && v > 0) width = v;
+  }
+  if (width == 0 && ::isatty(fd) != 0) {
+    winsize ws{};
+    if (::ioctl(fd, TIOCGWINSZ, &ws) == 0 && ws.ws_col > 0) width = ws.ws_col;
+  }
+  if (width == 0) width = kDefaultTableWidth;
+  return std::max(width, kNarrowestTableWidth);
+}
 
 std::vector<std::string> parse_column_list(const std::string& text) {
   std::vector<std::string> out;
@@ -337,12 +356,16 @@ std::string json_rows(const SummaryText& t, const std::vector<SweepAxis>& sweeps
   return arr.dump(2) + "\n";
 }
 
-std::vector<ViewColumn> text_columns(const SummaryText& t) {
+// The chosen columns as a table shows them: cells as in summary.csv, but `status` as in the
+// default table (status_text: "diverged (expected)"), the rows being `rows`.
+std::vector<ViewColumn> text_columns(const SummaryText& t, const std::vector<SummaryRow>& rows) {
   std::vector<ViewColumn> cols;
   for (std::size_t i = 0; i < t.header.size(); ++i) {
     const std::string& name = t.header[i];
     ViewColumn c{name, name, {}, name == "estimator" ? 0 : 1, name == "model_check"};
-    for (const auto& row : t.cells) c.cells.push_back(row[i]);
+    for (std::size_t r = 0; r < t.cells.size(); ++r) {
+      c.cells.push_back(name == "status" && r < rows.size() ? status_text(rows[r]) : t.cells[r][i]);
+    }
     cols.push_back(std::move(c));
   }
   return cols;
@@ -366,7 +389,8 @@ std::string stdout_table(const TableRequest& req, const std::string& title,
   if (req.format == "json") return json_rows(chosen, sweeps);
   if (req.format == "md" && req.columns.empty()) return summary_md + extras;
   const std::string head = fmt::format("# {}\n\n", title);
-  if (req.format == "md") return head + render(text_columns(chosen)) + extras;
+  if (req.format == "md") return head + render(text_columns(chosen, rows)) + extras;
+  const std::string fitted_head = wrap_text("# " + title, req.width, 2) + "\n";
   std::vector<std::string> labels;
   for (const auto& r : rows) {
     std::string where;
@@ -376,12 +400,16 @@ std::string stdout_table(const TableRequest& req, const std::string& title,
     labels.push_back(fmt::format("{}\"{}\"", where, r.estimator));
   }
   const bool chosen_columns = !req.columns.empty();
-  auto cols = chosen_columns ? text_columns(chosen) : default_columns(sweeps, rows);
+  auto cols = chosen_columns ? text_columns(chosen, rows) : default_columns(sweeps, rows);
   std::vector<std::string> kept;
-  std::string out = head + fit_table(std::move(cols), labels, req.width, !chosen_columns, &kept);
+  std::string out =
+      fitted_head + fit_table(std::move(cols), labels, req.width, !chosen_columns, &kept);
   const bool paired = std::find(kept.begin(), kept.end(), "mse_diff") != kept.end();
   const std::string pl = paired_line(summary_md);
-  if (!chosen_columns && paired && !pl.empty()) out += "\n" + wrap_text(pl, req.width, 0);
+  // The line also says when a reference has no values to pair with (every Δ column empty).
+  const bool empty_reference = pl.find("paired columns are empty") != std::string::npos;
+  if (!chosen_columns && (paired || empty_reference) && !pl.empty())
+    out += "\n" + wrap_text(pl, req.width, 0);
   std::size_t start = 0;  // the extras, each line wrapped
   while (start < extras.size()) {
     const auto end = extras.find('\n', start);

@@ -1,5 +1,6 @@
 // sim/present/table_view.h — what `ncosim run` prints on stdout (issue 28, part 1). By default a
-// table that fits the terminal (120 columns): the essential columns of summary.csv, long notes
+// table that fits the terminal (table_width: COLUMNS, else the terminal's width, else 120): the
+// essential columns of summary.csv, long notes
 // (model_check, any long text) as numbered footnotes under the table, printed once when rows
 // share them, lower-priority columns left out (and named) when a row would still be too wide.
 // `--columns a,b,c` picks summary.csv columns; `--format md|csv|json` prints the Markdown table,
@@ -14,11 +15,22 @@
 
 namespace ncosim::sim {
 
+// The width of a table when stdout is not a terminal and COLUMNS is not set (a log, a pipe).
+inline constexpr std::size_t kDefaultTableWidth = 120;
+// The narrowest width honoured (a smaller COLUMNS or terminal gives this).
+inline constexpr std::size_t kNarrowestTableWidth = 40;
+
+// The width the table on `fd` fits: the environment's COLUMNS when it holds a positive integer
+// (as ls and Python's shutil do; a user's request even into a pipe), else the terminal's width
+// when `fd` is a terminal (TIOCGWINSZ), else kDefaultTableWidth; never below
+// kNarrowestTableWidth. `columns_env` is COLUMNS' value (null: unset).
+std::size_t table_width(const char* columns_env, int fd);
+
 // The stdout options of `run`.
 struct TableRequest {
   std::vector<std::string> columns;  // --columns: summary.csv names; empty: the fitted default
   std::string format;                // --format: "" (the fitted table), "md", "csv", "json"
-  std::size_t width = 120;           // the terminal width the default table fits
+  std::size_t width = kDefaultTableWidth;  // the terminal width the default table fits
   bool machine() const { return format == "csv" || format == "json"; }
 };
 

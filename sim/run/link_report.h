@@ -9,6 +9,7 @@
 
 #include "models/link_stats.h"
 #include "sim/run/run_results.h"
+#include "sim/run/trend.h"
 #include "sim/scenario/scenario.h"
 
 namespace ncosim::sim {
@@ -36,6 +37,34 @@ struct FlowIndex {
   std::vector<int> sensor, actuator;
 };
 FlowIndex flow_index(const Scenario& sc, const std::vector<LinkFlow>& flows);
+
+// Overload told (results/README.md, "Overload and growth"): each flow's delays and losses in the
+// order they were counted, as block means per run (models::DelayBlocks), tested for a growth
+// through the run (sim/run/trend.h), one-sided at kTrendAlpha each.
+inline constexpr double kTrendAlpha = 0.001;  // a false alarm in 1000 campaigns, per test
+// A growth is told only when it is also material: the fitted mean delay grows by at least
+// kMinDelayGrowth periods over the run, the fitted loss ratio by kMinLossGrowth.
+inline constexpr double kMinDelayGrowth = 1.0;
+inline constexpr double kMinLossGrowth = 0.05;
+// A run with fewer blocks (holding a delivered packet, for delays) is not in the test.
+inline constexpr std::size_t kMinTrendBlocks = 16;
+
+struct FlowLoad {
+  double offered_rate = 0.0;    // packets the sender handed to the link per period, over the runs
+  double delivered_rate = 0.0;  // packets delivered per period
+  bool queue = false;           // the link's queue can grow (a node of a [[network]])
+  // The trends of the mean delay of delivered packets and of the loss ratio; nullopt: too few
+  // blocks to test.
+  std::optional<TrendResult> delay, loss;
+  // "" (neither tested), "none", "trend" or "overloaded": a queue link falling behind its offered
+  // rate while its delays grow.
+  std::string verdict;
+};
+
+// One per flow of `flows` (link_flows(sc)), from the runs' link counters (res.link_runs) and the
+// sensors' sent samples (res.runs).
+std::vector<FlowLoad> flow_loads(const Scenario& sc, const CampaignResult& res,
+                                 const std::vector<LinkFlow>& flows);
 
 // One row per case and flow; columns in results/README.md.
 std::string links_csv(const std::vector<SweepAxis>& sweeps,

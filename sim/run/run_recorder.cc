@@ -20,6 +20,7 @@ RunRecorder::RunRecorder(const Scenario& sc, const Estimators& estimators,
       trace_(trace),
       curve_(curve),
       warmup_(sc.run.warmup),
+      block_length_((sc.run.periods - sc.run.warmup) / kErrorBlocks),
       mode_count_(sc.model.mode_count()),
       arrivals_(sc.model.sensors.size(), 0),
       err_(sc.model.plant.n()),
@@ -33,6 +34,7 @@ RunRecorder::RunRecorder(const Scenario& sc, const Estimators& estimators,
     if (ext > 0) max_ext_blocks = std::max<int>(max_ext_blocks, static_cast<int>(ext / n));
     EstimatorRunMetrics m;
     m.sse_state.assign(static_cast<std::size_t>(n), 0.0);
+    if (block_length_ > 0) m.sse_blocks.assign(static_cast<std::size_t>(kErrorBlocks), 0.0);
     if (mode_count_ > 0 && mode_count_ <= kMaxConfusionModes) {
       m.confusion.assign(static_cast<std::size_t>(mode_count_ * mode_count_), 0);
     }
@@ -88,6 +90,9 @@ void RunRecorder::on_period(std::int64_t k, const Eigen::VectorXd& x, int true_m
   const bool scored = k >= warmup_;
   if (!scored && curve_ == nullptr) return;
   const Eigen::Index n = x.size();
+  // The error block of period k (EstimatorRunMetrics::sse_blocks; past the last: none).
+  const auto block =
+      static_cast<std::size_t>(scored && block_length_ > 0 ? (k - warmup_) / block_length_ : 0);
   for (std::size_t e = 0; e < estimators_.size(); ++e) {
     EstimatorRunMetrics& m = metrics_[e];
     if (m.diverged && curve_ == nullptr) continue;
@@ -109,6 +114,7 @@ void RunRecorder::on_period(std::int64_t k, const Eigen::VectorXd& x, int true_m
       continue;
     }
     m.sse += e2;
+    if (block < m.sse_blocks.size()) m.sse_blocks[block] += e2;
     m.sse_ext += e2_ext;
     for (Eigen::Index i = 0; i < n; ++i)
       m.sse_state[static_cast<std::size_t>(i)] += err_(i) * err_(i);

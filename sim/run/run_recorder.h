@@ -47,6 +47,7 @@ class RunRecorder {
   std::vector<TraceRow>* trace_;
   ErrorCurve* curve_;
   std::int64_t warmup_;
+  std::int64_t block_length_;  // periods per error block (0: #K < kErrorBlocks, no blocks)
   int mode_count_;
   std::vector<Eigen::VectorXd> history_;  // true x[k], x[k-1], ... (x[-j] = x0)
   std::vector<int> arrivals_;             // per sensor, this period

@@ -43,9 +43,14 @@ struct EstimatorRunMetrics {
   std::int64_t nees_count = 0;
   double nis = 0.0;
   std::int64_t nis_dof = 0, nis_count = 0;
+  // The counted periods k >= warmup cut in kErrorBlocks blocks of L = floor(#K / kErrorBlocks)
+  // periods (the last #K - kErrorBlocks L periods in none): per block, sum |x - xhat|^2. Empty when
+  // #K < kErrorBlocks; what the error-growth note fits a trend to (sim/run/overload.h).
+  std::vector<double> sse_blocks;
 };
 
 inline constexpr int kMaxConfusionModes = 64;
+inline constexpr std::int64_t kErrorBlocks = 16;
 
 using RunMetrics = std::vector<EstimatorRunMetrics>;  // one per estimator
 // What each link did to each sender's packets in one run, one entry per flow

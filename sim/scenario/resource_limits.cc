@@ -3,6 +3,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <iostream>
 #include <mutex>
@@ -108,6 +109,18 @@ std::function<void(const lmi::SolveEstimate&)> large_solve_note(const config::Ta
   };
 }
 
+void check_network_work(const config::Table& t, const std::string& key, double seconds,
+                        const std::string& what) {
+  const ResourceLimits& lim = resource_limits();
+  const double flops = seconds * kFlopsPerSecond;
+  if (!(lim.work_flops > 0.0 && flops > lim.work_flops)) return;
+  t.fail(key, fmt::format("the networks' simulation needs at least an estimated {} s of one core "
+                          "({}), above the work limit of {} (--max-work, about {} s of one "
+                          "core)",
+                          static_cast<long long>(std::ceil(seconds)), what, gflop(lim.work_flops),
+                          static_cast<long long>(std::ceil(lim.work_flops / kFlopsPerSecond))));
+}
+
 void check_campaign_resources(const std::string& file, int line, std::int64_t runs,
                               std::size_t cases, std::size_t estimators, std::int64_t states,
                               std::size_t sensors) {
@@ -128,35 +141,59 @@ void check_campaign_resources(const std::string& file, int line, std::int64_t ru
   }
 }
 
-void check_error_curve_resources(const std::string& file, int line, std::int64_t periods,
-                                 std::size_t estimators, std::int64_t states) {
+void CurveTotals::add(std::int64_t periods, std::size_t estimators, std::int64_t states) {
+  const double ke = static_cast<double>(periods) * static_cast<double>(estimators);
+  const double copy = 16.0 * ke * static_cast<double>(states + 1);
+  const double csv = ke * (16.0 + 13.0 * static_cast<double>(states + 4));
+  ++cases_;
+  largest_ = std::max(largest_, copy);
+  exports_ += copy + 2.0 * csv;
+  last_copy_ = copy;
+  last_shape_ =
+      fmt::format("{} periods x {} estimator(s) x {} cells", periods, estimators, states + 1);
+}
+
+double CurveTotals::bytes() const {
+  // Measured (peak RSS, /usr/bin/time -v, less the 40 MB of the same run without the curve;
+  // tests/cli/data/base.toml: 2 estimators, 2 states): with S = 16 bytes x (states + 1) cells per
+  // period and estimator (one copy of a curve), the peak is 4.9 S for one case (1 or 2 threads,
+  // 200k to 1M periods) and 7.3 S for a sweep of 2 cases. Where it goes: one copy per worker thread
+  // while the runs go (T S), 4 S while the curve is merged into the store (its copy, the blob and
+  // SQLite's), then the exports: the campaign's curve, every case's curve read back, and
+  // error_curve.csv built and copied once (1.3 S of text measured; bounded here by 13 bytes a
+  // number and 16 for the labels: 2 S for 2 states).
+  // The process around it (40 MB measured without the curve) is counted too, so that the estimate
+  // bounds the peak RSS that --max-memory is about. Measured against the estimate (2 threads):
+  // 140, 275 and 510 MB peak RSS at 200k, 500k and 1M periods for 178, 348 and 632 MB estimated
+  // (1.27, 1.27, 1.24 times the peak); a sweep of 2 cases at 500k, 391 MB for 584 MB (1.49).
+  constexpr double kProcessBytes = 64e6;
+  const double threads = std::max(1U, std::thread::hardware_concurrency());
+  return kProcessBytes + std::max(std::max(threads, 4.0) * largest_, largest_ + exports_);
+}
+
+void check_error_curve_resources(const std::string& file, int line, const std::string& key,
+                                 const CurveTotals& totals) {
+  if (totals.cases() == 0) return;
   const ResourceLimits& lim = resource_limits();
-  // 16 bytes a cell (a compensated sum: hi and lo), n + 1 cells per period and estimator, in one
-  // copy per worker thread plus the merged one and the stored one it is added to.
-  const double copies =
-      static_cast<double>(std::max(1U, std::thread::hardware_concurrency())) + 2.0;
-  const double bytes = 16.0 * static_cast<double>(periods) * static_cast<double>(estimators) *
-                       static_cast<double>(states + 1) * copies;
-  const double blob = 16.0 * static_cast<double>(periods) * static_cast<double>(estimators) *
-                      static_cast<double>(states + 1);
-  if (blob > 9e8) {  // SQLite's largest blob is 1e9 bytes (SQLITE_MAX_LENGTH)
+  if (totals.last_copy() > 9e8) {  // SQLite's largest blob is 1e9 bytes (SQLITE_MAX_LENGTH)
     throw config::ScenarioError(config::format_error(
-        file, line, "run.error_curve",
-        fmt::format("the error curve of {} periods x {} estimator(s) x {} cells is {}, "
-                    "above the run store's 900 MB for one case; fewer periods, or "
-                    "error_curve = false",
-                    periods, estimators, states + 1, human_bytes(blob))));
+        file, line, key,
+        fmt::format("the error curve of {} is {}, above the run store's 900 MB for one case; "
+                    "fewer periods, or error_curve = false",
+                    totals.last_shape(), human_bytes(totals.last_copy()))));
   }
+  const double bytes = totals.bytes();
   if (lim.memory_bytes > 0.0 && bytes > lim.memory_bytes) {
     throw config::ScenarioError(config::format_error(
-        file, line, "run.error_curve",
-        fmt::format("the error curve keeps {} periods x {} estimator(s) x {} cells in "
-                    "{:.0f} copies (one per thread, "
-                    "their sum, the stored one): an estimated {}, above the memory "
-                    "limit of {} (--max-memory); "
-                    "fewer periods, or error_curve = false",
-                    periods, estimators, states + 1, copies, human_bytes(bytes),
-                    human_bytes(lim.memory_bytes))));
+        file, line, key,
+        fmt::format(
+            "the error curve of {}{} needs an estimated {} (a copy per worker thread "
+            "while the runs go; for the exports every case's curve and its rows of "
+            "error_curve.csv), above the memory limit of {} (--max-memory); fewer "
+            "periods, or error_curve = false",
+            totals.last_shape(),
+            totals.cases() > 1 ? fmt::format(" (the last of {} cases)", totals.cases()) : "",
+            human_bytes(bytes), human_bytes(lim.memory_bytes))));
   }
 }
 

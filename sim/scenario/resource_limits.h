@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "config/config.h"
 #include "estimators/estimator.h"
@@ -50,10 +51,28 @@ void check_campaign_resources(const std::string& file, int line, std::int64_t ru
                               std::size_t cases, std::size_t estimators, std::int64_t states,
                               std::size_t sensors);
 
-// [run] error_curve = true: the curve of every period, estimator and state, in one copy per worker
-// thread, their sum and the stored copy it is merged with. Throws ScenarioError at run.error_curve.
-void check_error_curve_resources(const std::string& file, int line, std::int64_t periods,
-                                 std::size_t estimators, std::int64_t states);
+// The error curves of one case or of every case of a sweep built so far ([run] error_curve):
+// add() each case's shape (periods, estimators, states).
+class CurveTotals {
+ public:
+  void add(std::int64_t periods, std::size_t estimators, std::int64_t states);
+  // Peak memory (resource_limits.cc says how it was measured): an upper bound with a margin of
+  // about 1.2 to 1.5 over the peak RSS measured.
+  double bytes() const;
+  std::size_t cases() const { return cases_; }
+  double last_copy() const { return last_copy_; }  // one copy of the last case's curve
+  std::string last_shape() const { return last_shape_; }
+
+ private:
+  std::size_t cases_ = 0;
+  double largest_ = 0.0, exports_ = 0.0, last_copy_ = 0.0;
+  std::string last_shape_;
+};
+
+// [run] error_curve = true: the curves of `totals` against --max-memory, and the last case's
+// stored curve against SQLite's largest blob. Throws ScenarioError at FILE:LINE, key `key`.
+void check_error_curve_resources(const std::string& file, int line, const std::string& key,
+                                 const CurveTotals& totals);
 
 // Before a trace link (kind = "trace") is used: every run counts the delivered packets per delay
 // up to the trace's largest delay `delay` (links.csv's delay histogram, kept per run and in the
@@ -61,6 +80,12 @@ void check_error_curve_resources(const std::string& file, int line, std::int64_t
 // trace's `line`, naming the delay, the estimate and the limit, then `named_by` (the scenario key).
 void check_trace_resources(const std::string& trace, int line, std::int64_t delay,
                            std::int64_t runs, const std::string& named_by);
+
+// Before a campaign on packet-level networks ([[network]]): ns-3's work, estimated as `seconds`
+// of one core (`what` says what it counts), against --max-work (the design code's rate converts
+// it). Throws ScenarioError at key `key` of `t`, the table whose size drives it.
+void check_network_work(const config::Table& t, const std::string& key, double seconds,
+                        const std::string& what);
 
 // Before the cases of a sweep are built: every case holds its parsed document while it is built
 // and its designed scenario until the campaign ends. Throws ScenarioError at the last sweep.

@@ -15,6 +15,7 @@
 
 #include "sim/scenario/registries.h"
 #include "sim/scenario/resource_limits.h"
+#include "sim/scenario/scenario_check.h"
 #include "sim/scenario/scenario_keys.h"
 #include "sim/scenario/scenario_sections.h"
 
@@ -81,8 +82,10 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
                              sc->estimators.size(), sc->model.plant.n(),
                              sc->model.sensors.size());  // sim/scenario/resource_limits.h
     if (sc->run.error_curve) {
-      check_error_curve_resources(file, rt ? rt->line_of("error_curve") : 1, sc->run.periods,
-                                  sc->estimators.size(), sc->model.plant.n());
+      CurveTotals curve;
+      curve.add(sc->run.periods, sc->estimators.size(), sc->model.plant.n());
+      check_error_curve_resources(file, rt ? rt->line_of("error_curve") : 1, "run.error_curve",
+                                  curve);
     }
   }
   sc->paired = read_paired(root, doc, *sc);
@@ -91,6 +94,23 @@ std::unique_ptr<Scenario> build_scenario(const toml::table& doc, const std::stri
 }
 
 namespace {
+
+// The error curve of the case just built: error_curve.csv is one file for every case (so the key
+// is the same in every case), and the exports hold every case's curve at once (`curves`, checked
+// against --max-memory as the cases are built).
+void check_case_curve(const LoadedScenario& out, const std::string& file, int line,
+                      CurveTotals& curves) {
+  const Scenario& built = *out.cases.back().scenario;
+  if (built.run.error_curve != out.cases.front().scenario->run.error_curve) {
+    throw config::ScenarioError(config::format_error(
+        file, line, "run.error_curve",
+        "expected the same value in every sweep case (error_curve.csv covers them "
+        "all), got both true and false"));
+  }
+  if (!built.run.error_curve) return;
+  curves.add(built.run.periods, built.estimators.size(), built.model.plant.n());
+  if (curves.cases() > 1) check_error_curve_resources(file, line, "sweep", curves);
+}
 
 // The scenario text parsed, with --set and the [run] options applied. Parsed afresh for every
 // sweep case: toml++ copies drop the source lines that error messages need.
@@ -404,6 +424,7 @@ LoadedScenario load_cases_text(const std::string& file, const std::string& text,
   out.hash = fnv1a_hex(hashed);
 
   toml::table doc = parse_document(out.text, file, sets, overrides);
+  check_scenario_keys(doc, file);  // every key-level error at once, before anything is built
   // Sweeps: cartesian product, the first axis varying slowest (zipped axes: one dimension).
   std::vector<std::size_t> axis_sizes, axis_dim;
   const int last_sweep_line = read_sweeps(doc, file, out, axis_sizes, axis_dim);
@@ -417,8 +438,7 @@ LoadedScenario load_cases_text(const std::string& file, const std::string& text,
           "got more"));
     }
   }
-  check_sweep_resources(file, last_sweep_line, total,
-                        out.text.size());  // sim/scenario/resource_limits.h
+  check_sweep_resources(file, last_sweep_line, total, out.text.size());  // resource_limits.h
   const std::string dir = std::filesystem::path(file).parent_path().string();
   const SweepShape shape{axis_sizes, axis_dim, total, &sets, &overrides, dir};
   if (!out.sweeps.empty() && !only_case) check_base_scenario(doc, out, shape);
@@ -449,18 +469,13 @@ LoadedScenario load_cases_text(const std::string& file, const std::string& text,
       announce_mobility(case_doc, file, dir);
     }
   }
+  CurveTotals curves;  // sim/scenario/resource_limits.h
   for (std::size_t c = 0; c < total; ++c) {
     if (only_case && c != *only_case) continue;
     toml::table case_doc =
         c == 0 ? std::move(doc) : parse_document(out.text, file, sets, overrides);
     out.cases.push_back(build_case(case_doc, c, shape, out));
-    // error_curve.csv is one file for every case (and every case's curve is in the store).
-    if (out.cases.back().scenario->run.error_curve != out.cases.front().scenario->run.error_curve) {
-      throw config::ScenarioError(config::format_error(
-          file, last_sweep_line, "run.error_curve",
-          "expected the same value in every sweep case (error_curve.csv covers them "
-          "all), got both true and false"));
-    }
+    check_case_curve(out, file, last_sweep_line, curves);
   }
   return out;
 }

@@ -19,7 +19,7 @@ const config::Keys& top_level_keys() {
           .optional("the file name without extension")
           .help("heading of summary.md, title in manifest.json"),
       config::Key::table("run").optional("all defaults").help("the campaign"),
-      config::Key::table("sweep").optional("none").help(
+      config::Key::tables("sweep").optional("none").help(
           "parameter sweep (cartesian product of cases)"),
       config::Key::table("plant").help("the plant (required)"),
       config::Key::tables("link").optional("none").help(
@@ -93,11 +93,31 @@ const config::Keys& run_keys() {
   return keys;
 }
 
+namespace {
+
+// [plant.disturbance] (read by models::read_disturbance).
+const config::Keys& disturbance_keys() {
+  static const config::Keys sine{
+      config::Key::vector("amplitude").help("1 or nw entries"),
+      config::Key::number("omega").unit("rad/s").help("angular frequency (per period k)"),
+      config::Key::number("phase").or_default(0.0).unit("rad").help("phase"),
+  };
+  static const config::Keys keys{
+      config::Key::vector("offset").optional("zeros").help("constant offset, 1 or nw entries"),
+      config::Key::tables("sine").optional("none").fields(sine).help(
+          "[[plant.disturbance.sine]]: amplitude * sin(omega k + phase) each"),
+  };
+  return keys;
+}
+
+}  // namespace
+
 const config::Keys& plant_common_keys() {
   static const config::Keys keys{
       config::Key::string("kind").optional("\"lti\"").help("the plant kind (below)"),
       config::Key::table("disturbance")
           .optional("none")
+          .fields(disturbance_keys())
           .help("deterministic disturbance added to w: offset (1 or nw entries) and [[sine]] "
                 "tables (amplitude, omega in rad/s, phase)"),
   };
@@ -151,7 +171,9 @@ const config::Keys& sweep_keys() {
   static const config::Keys keys{
       config::Key::string("key").help(
           "the key path of the value to vary (not into sweep itself; each key once)"),
-      config::Key::any("values", "array")
+      config::Key::array("values")
+          .entries(1, 0)
+          .says("a non-empty array of values")
           .help("the values, in order: non-empty, each valid for the key"),
       config::Key::string("zip")
           .optional("none (an axis of its own)")
@@ -160,10 +182,42 @@ const config::Keys& sweep_keys() {
   return keys;
 }
 
+const config::Keys& sumo_keys() {
+  static const config::Keys keys =
+      config::Keys{
+          config::Key::string("config")
+              .optional("none: `net` and `routes`")
+              .help("SUMO configuration (.sumocfg; this or `net` is required): its net-file, "
+                    "route-files and additional-files must exist (those files are hashed)"),
+          config::Key::string("net").optional("none").help("road network (-n), with `routes`"),
+          config::Key::string("routes").optional("none").help("routes (-r): required with `net`"),
+          config::Key::string("additional").optional("none").help("additional file (-a)"),
+          config::Key::number("step").above(0.0).max(3600.0).or_default(0.1).unit("s").help(
+              "SUMO step length: a whole number of milliseconds (SUMO time is integer ms; "
+              "anything else is an error, not rounded)"),
+          config::Key::integer("seeds").range(1, 100000).or_default(1).help(
+              "mobility realisations"),
+          config::Key::integer("seed")
+              .range(0, 2147483647)
+              .or_default(1)
+              .help("SUMO seed of realisation 0 (realisation s uses seed + s; seed + seeds <= "
+                    "2^31 - 1)"),
+          config::Key::choice("mode", {"replay", "live"})
+              .or_default("replay")
+              .help("replay: recordings of the sumo binary; live: libsumo in a worker per run"),
+          config::Key::string("cache")
+              .optional("$NCOSIM_SUMO_CACHE, else $XDG_CACHE_HOME/ncosim/sumo, else "
+                        "~/.cache/ncosim/sumo")
+              .help("recording cache, a folder that can be created"),
+      }
+          .require_one_of({"config", "net"});
+  return keys;
+}
+
 const config::Keys& paired_keys() {
   static const config::Keys keys{
       config::Key::string("reference")
-          .optional("the default reference of the kinds, else the first estimator")
+          .optional("the first Kalman-type row whose status is ok, else the first ok row")
           .help("the name of the reference estimator of the paired columns"),
       config::Key::table("reference_case")
           .optional("the first case")
@@ -177,7 +231,7 @@ namespace {
 template <class R>
 std::vector<SectionKind> kinds_of(const R& registry) {
   std::vector<SectionKind> out;
-  for (const auto& e : registry.entries()) out.push_back({e.name, e.help, &e.keys});
+  for (const auto& e : registry.entries()) out.push_back({e.name, e.help, &e.keys, e.declared});
   return out;
 }
 
@@ -216,13 +270,20 @@ std::vector<Section> scenario_sections() {
   est.kind_key = "kind";
   est.kinds = kinds_of(estimator_registry());
   add("actuator", true, &actuator_keys());
-  add("sumo", false, nullptr).closed = false;  // read by sumo/ (its keys are not declared here)
+  add("sumo", false, &sumo_keys());
   Section& network = add("network", true, &network_common_keys());
   network.kind_key = "kind";
   network.kinds = kinds_of(network_registry());
   add("background", true, &background_keys());
   add("paired", false, &paired_keys());
   return s;
+}
+
+std::string missing_section_message(const Section& section) {
+  if (section.array)
+    return fmt::format("expected at least one [[{}]] table, got none", section.key);
+  return fmt::format("expected a [{}] table (required: {}), got none", section.key,
+                     section.key == "plant" ? std::string("the plant model") : section.help);
 }
 
 std::vector<NamedKeys> section_keys() {
@@ -236,6 +297,7 @@ std::vector<NamedKeys> section_keys() {
           {"section.estimator", &estimator_common_keys()},
           {"section.sweep", &sweep_keys()},
           {"section.paired", &paired_keys()},
+          {"section.sumo", &sumo_keys()},
           {"section.network", &network_common_keys()},
           {"section.background", &background_keys()}};
 }

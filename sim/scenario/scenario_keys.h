@@ -27,6 +27,7 @@ const config::Keys& actuator_keys();          // [[actuator]]
 const config::Keys& input_common_keys();      // [input] beside its kind's keys
 const config::Keys& estimator_common_keys();  // [[estimator]] beside its kind's keys
 const config::Keys& sweep_keys();             // [[sweep]]
+const config::Keys& sumo_keys();              // [sumo] (read by sumo/ when built with SUMO)
 const config::Keys& paired_keys();            // [paired]
 
 // One kind of a section: a registry entry's name, help and keys.
@@ -34,6 +35,7 @@ struct SectionKind {
   std::string name;
   std::string help;
   const config::Keys* keys = nullptr;  // empty when the kind declares none
+  bool declared = false;  // the kind declared its keys (config::Registry::Entry::declared)
 };
 
 // One top-level key of a scenario.
@@ -48,6 +50,10 @@ struct Section {
   std::vector<SectionKind> kinds;
   bool closed = true;  // the reader rejects keys that are not declared (Table::finish)
 };
+
+// "expected a [plant] table (required: the plant model), got none", "expected at least one
+// [[sensor]] table, got none": a required section that is absent (or an empty array).
+std::string missing_section_message(const Section& section);
 
 // Every top-level section, in the order of top_level_keys(), with the registered kinds.
 std::vector<Section> scenario_sections();

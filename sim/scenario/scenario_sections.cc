@@ -110,6 +110,78 @@ std::vector<const models::NetworkAttachment*> attachments(const Scenario& sc) {
 
 void drop_doubled_riders(Scenario& sc) { sc.networks.drop_doubled_riders(attachments(sc)); }
 
+namespace {
+
+// ns-3's work, a lower bound: every packet an application makes costs about 1 us of one core
+// (queued or dropped), and every frame on a channel reaches every node's PHY there (ns-3 computes
+// each reception), measured at 15 us (wifi) to 100 us (lr_wpan) per frame and node; a channel
+// carries at most about 1000 frames a second. So 10 us per reception, 1000 frames/s at most.
+constexpr double kPacketSeconds = 1e-6;
+constexpr double kReceptionSeconds = 10e-6;
+constexpr double kChannelFrames = 1000.0;
+
+// The background table that drives the work most: its `rate` (packets made) or its nodes.
+std::pair<std::size_t, std::string> network_work_driver(const std::vector<config::Table>& tables,
+                                                        bool receptions) {
+  std::size_t best = 0;
+  double most = -1.0;
+  for (std::size_t i = 0; i < tables.size(); ++i) {
+    const config::Table& t = tables[i];
+    const double nodes = static_cast<double>(t.has("nodes") ? t.integer("nodes") : 1);
+    const double rate = t.is_string("rate") ? kChannelFrames : t.number("rate");
+    const double size = receptions ? nodes : nodes * rate;
+    if (size > most) {
+      most = size;
+      best = i;
+    }
+  }
+  if (!receptions) return {best, "rate"};
+  const config::Table& t = tables[best];
+  return {best, t.has("nodes") ? "nodes" : t.has("positions") ? "positions" : "network"};
+}
+
+// Large networks have a cost too: 10,000 background nodes or a rate of 1e7 packets/s run for
+// hours. Refused beyond --max-work, naming the [[background]] key that drives it.
+void check_network_work(const config::Table& root, const Scenario& sc) {
+  if (sc.networks.empty()) return;
+  const double seconds_per_run = static_cast<double>(sc.run.periods) * sc.model.period;
+  double packets = 0.0, receptions = 0.0;
+  for (std::size_t n = 0; n < sc.networks.size(); ++n) {
+    double made = 0.0, nodes = 1.0;  // the sink
+    for (const auto& s : sc.model.sensors) {
+      const models::NetworkAttachment* a = s.link ? s.link->network_attachment() : nullptr;
+      if (a != nullptr && a->network == static_cast<int>(n))
+        made += 1.0 / (static_cast<double>(s.spec.every) * sc.model.period);
+    }
+    for (const auto& l : sc.links) {
+      const models::NetworkAttachment* a = l.link->network_attachment();
+      if (a != nullptr && a->network == static_cast<int>(n)) nodes += 1.0;
+    }
+    for (const auto& b : sc.networks.background()) {
+      if (b.network != static_cast<int>(n)) continue;
+      nodes += 1.0;
+      made += b.traffic == network::Traffic::kPoisson ? b.rate : kChannelFrames;
+    }
+    packets += made * seconds_per_run;
+    receptions += std::min(made, kChannelFrames) * nodes * seconds_per_run;
+  }
+  const double runs = static_cast<double>(sc.run.runs);
+  const double seconds = runs * (packets * kPacketSeconds + receptions * kReceptionSeconds);
+  const std::string what = fmt::format("{:.3g} packets made and {:.3g} frame receptions in {} runs",
+                                       runs * packets, runs * receptions, sc.run.runs);
+  const auto tables = root.tables("background");
+  if (tables.empty()) {
+    if (const auto run = root.opt_table("run"))
+      sim::check_network_work(*run, "runs", seconds, what);
+    return;
+  }
+  const bool by_receptions = receptions * kReceptionSeconds >= packets * kPacketSeconds;
+  const auto [i, key] = network_work_driver(tables, by_receptions);
+  sim::check_network_work(tables[i], key, seconds, what);
+}
+
+}  // namespace
+
 void check_networks(const config::Table& root, const Scenario& sc) {
   std::vector<char> used(sc.links.size(), 0);
   for (const auto& s : sc.model.sensors) {
@@ -119,6 +191,7 @@ void check_networks(const config::Table& root, const Scenario& sc) {
     if (a.spec.link >= 0) used[static_cast<std::size_t>(a.spec.link)] = 1;
   }
   sc.networks.check(root, attachments(sc), used);
+  check_network_work(root, sc);
 }
 
 void read_links(const config::Table& root, const std::string& dir, Scenario& sc,

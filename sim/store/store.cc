@@ -12,6 +12,7 @@
 #include <filesystem>
 
 #include "sim/files/output_set.h"
+#include "sim/store/store_sqlite.h"
 
 namespace ncosim::sim {
 
@@ -69,7 +70,7 @@ class Stmt {
     if (rc != SQLITE_OK) fail("bind");
   }
   [[noreturn]] void fail(const char* what) const {
-    throw StoreError(fmt::format("run store: {}: {}", what, sqlite3_errmsg(db_)));
+    throw StoreError(fmt::format("run store: {}: {}", what, db_message(db_)));
   }
   sqlite3* db_;
   sqlite3_stmt* st_ = nullptr;
@@ -192,28 +193,11 @@ RunStore::~RunStore() {
 void RunStore::exec(const char* sql) const {
   char* err = nullptr;
   if (sqlite3_exec(db_, sql, nullptr, nullptr, &err) != SQLITE_OK) {
-    const std::string msg = err != nullptr ? err : sqlite3_errmsg(db_);
+    const std::string msg = db_message(db_, err);
     sqlite3_free(err);
     throw StoreError(fmt::format("run store {}: {}", path_, msg));
   }
 }
-
-namespace {
-
-sqlite3* open_db(const std::string& path, int flags) {
-  sqlite3* db = nullptr;
-  const int rc = sqlite3_open_v2(path.c_str(), &db, flags, nullptr);
-  if (rc != SQLITE_OK) {
-    const std::string msg = db != nullptr ? sqlite3_errmsg(db) : sqlite3_errstr(rc);
-    sqlite3_close(db);
-    throw StoreError(fmt::format("cannot open the run store '{}': {}", path, msg));
-  }
-  sqlite3_busy_timeout(db, 5000);
-  sqlite3_extended_result_codes(db, 1);
-  return db;
-}
-
-}  // namespace
 
 RunStore RunStore::create(const std::string& path, const std::map<std::string, std::string>& meta) {
   remove_store_files(path);
@@ -261,27 +245,14 @@ bool has_column(sqlite3* db, const std::string& table, const std::string& column
   return std::find(cols.begin(), cols.end(), column) != cols.end();
 }
 
-// SQLite's "file:" URI of `path` with `query` (percent-encoding what a URI path cannot hold).
-std::string uri_of(const std::string& path, const std::string& query) {
-  std::string out = "file:";
-  for (const unsigned char c : std::filesystem::absolute(path).string()) {
-    if (c == '%' || c == '?' || c == '#' || c < 0x21 || c >= 0x7F) {
-      out += fmt::format("%{:02X}", c);
-    } else {
-      out += static_cast<char>(c);
-    }
-  }
-  return out + "?" + query;
-}
-
 }  // namespace
+
+bool RunStore::holds_nothing(const std::string& path) { return store_file_holds_nothing(path); }
 
 RunStore RunStore::open(const std::string& path, bool writable) {
   namespace fs = std::filesystem;
   std::error_code ec;
-  if (!fs::exists(path, ec)) throw StoreError(fmt::format("no run store at '{}'", path));
-  if (!fs::is_regular_file(path, ec))
-    throw StoreError(fmt::format("'{}' is not an ncosim run store (not a regular file)", path));
+  check_store_file(path);  // sim/store/store_sqlite.h
   RunStore s;
   s.path_ = path;
   s.writable_ = writable;
@@ -637,7 +608,7 @@ void RunStore::copy_to(const std::string& path) const {
   const int rc = sqlite3_exec(db_, sql, nullptr, nullptr, &err);
   sqlite3_free(sql);
   if (rc != SQLITE_OK) {
-    const std::string msg = err != nullptr ? err : sqlite3_errmsg(db_);
+    const std::string msg = db_message(db_, err);
     sqlite3_free(err);
     remove_store_files(path);
     throw StoreError(fmt::format("cannot copy the run store '{}' to '{}': {}", path_, path, msg));
@@ -657,7 +628,7 @@ void RunStore::close() {
     // the store (readers on read-only media need no -shm).
     sqlite3_wal_checkpoint_v2(db_, nullptr, SQLITE_CHECKPOINT_TRUNCATE, nullptr, nullptr);
     if (sqlite3_exec(db_, "PRAGMA journal_mode=DELETE", nullptr, nullptr, nullptr) != SQLITE_OK) {
-      const std::string msg = sqlite3_errmsg(db_);
+      const std::string msg = db_message(db_);
       sqlite3_close(db_);
       db_ = nullptr;
       throw StoreError(fmt::format("run store {}: cannot finish it: {}", path_, msg));

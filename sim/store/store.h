@@ -56,6 +56,11 @@ class RunStore {
   // never writes: on read-only media or an immutable file it reads the finished store as is.
   static RunStore open(const std::string& path, bool writable);
 
+  // Whether the file at `path` holds nothing a store could: 0 bytes, or an SQLite database without
+  // a single table (a campaign killed while it created its store). Opens it writable (an
+  // interrupted transaction is rolled back): only for a store about to be replaced or resumed.
+  static bool holds_nothing(const std::string& path);
+
   // The format this ncosim writes ("3": checksummed rows) and the oldest it reads.
   static constexpr int kFormat = 3;
   static constexpr int kOldestFormat = 1;

@@ -14,16 +14,17 @@ namespace ncosim::sim {
 // Whoever adds a field to EstimatorRunMetrics must add it to serialize_run/deserialize_run
 // (and bump kRunBlobFormat), or stored campaigns would silently lose it on export, resume and
 // merge.
-static_assert(sizeof(EstimatorRunMetrics) == 304 || sizeof(void*) != 8,
+static_assert(sizeof(EstimatorRunMetrics) == 328 || sizeof(void*) != 8,
               "EstimatorRunMetrics changed: update serialize_run/deserialize_run in "
               "sim/store/store_format.cc");
 
 namespace {
 
-constexpr std::uint32_t kRunBlobFormat = 2;  // version of the run blob (2: NEES and NIS sums)
-// Version of the link counters blob (2: a network node's stack counters; format 1 blobs, without
-// them, are still read).
-constexpr std::uint32_t kLinksFormat = 2;
+// Version of the run blob (2: NEES and NIS sums; 3: the error blocks of the error-growth note).
+constexpr std::uint32_t kRunBlobFormat = 3;
+// Version of the link counters blob (2: a network node's stack counters; 3: the run's delay blocks
+// of the overload test; format 1 and 2 blobs, without them, are still read).
+constexpr std::uint32_t kLinksFormat = 3;
 
 class Writer {
  public:
@@ -137,6 +138,7 @@ std::string serialize_run(const RunMetrics& run) {
     w.f64(m.nis);
     w.i64(m.nis_dof);
     w.i64(m.nis_count);
+    w.f64s(m.sse_blocks);
   }
   return w.take();
 }
@@ -183,6 +185,7 @@ RunMetrics deserialize_run(const std::string& blob) {
       m.nis_dof = r.i64();
       m.nis_count = r.i64();
     }
+    if (format >= 3) m.sse_blocks = r.f64s();
   }
   if (!r.at_end()) throw StoreError("run store: corrupt run record (trailing bytes)");
   return run;
@@ -207,6 +210,9 @@ std::string serialize_links(const RunLinks& links) {
       w.i64(c.stack->busy_ns);
       w.i64(c.stack->simulated_ns);
     }
+    w.i64(c.blocks.size);  // the full blocks (the one being filled is not a block)
+    w.i64s(c.blocks.delivered);
+    w.i64s(c.blocks.delay);
   }
   return w.take();
 }
@@ -214,7 +220,7 @@ std::string serialize_links(const RunLinks& links) {
 RunLinks deserialize_links(const std::string& blob) {
   Reader r(blob);
   const std::int64_t format = r.i64();
-  if (format != 1 && format != kLinksFormat) {
+  if (format < 1 || format > kLinksFormat) {
     throw StoreError(
         fmt::format("run store: link counters format {} (this ncosim reads formats 1 to {})",
                     format, kLinksFormat));
@@ -234,6 +240,13 @@ RunLinks deserialize_links(const std::string& blob) {
       k.drops = r.i64s();
       k.busy_ns = r.i64();
       k.simulated_ns = r.i64();
+    }
+    if (format >= 3) {
+      c.blocks.size = r.i64();
+      c.blocks.delivered = r.i64s();
+      c.blocks.delay = r.i64s();
+      if (c.blocks.size < 1 || c.blocks.delivered.size() != c.blocks.delay.size())
+        throw StoreError("run store: corrupt link counters (delay blocks)");
     }
   }
   if (!r.at_end()) throw StoreError("run store: corrupt link counters (trailing bytes)");

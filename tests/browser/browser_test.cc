@@ -80,11 +80,36 @@ struct Verdict {
   std::string raw;
 };
 
-Verdict probe(const fs::path& html, const fs::path& work, const std::string& extra_body = "") {
+// Measures the layout in a 1280-px-wide window: per figure its SVG's width attribute and
+// rendered width and height; the summary table's right edge and its status header's.
+const char* kLayoutProbe = R"(<script>
+window.addEventListener('load', function () {
+  var figs = [];
+  document.querySelectorAll('figure svg').forEach(function (s) {
+    figs.push([parseFloat(s.getAttribute('width')), Math.round(s.getBoundingClientRect().width),
+               parseFloat(s.getAttribute('height'))]);
+  });
+  var h = document.getElementById('summary'), t = null;
+  document.querySelectorAll('table').forEach(function (x) {
+    if (!t && (h.compareDocumentPosition(x) & Node.DOCUMENT_POSITION_FOLLOWING)) t = x;
+  });
+  var status = null;
+  if (t) t.querySelectorAll('th').forEach(function (c) { if (c.textContent === 'status') status = c.getBoundingClientRect().right; });
+  var pre = document.createElement('pre');
+  pre.id = 'ncosim-probe';
+  pre.textContent = JSON.stringify({window: window.innerWidth, figures: figs,
+                                    table_right: t ? t.getBoundingClientRect().right : null,
+                                    status_right: status});
+  document.body.appendChild(pre);
+});
+</script>)";
+
+Verdict probe(const fs::path& html, const fs::path& work, const std::string& extra_body = "",
+              const char* script = kProbe, const std::string& flags = "") {
   std::string text = ncosim::testing::read_text(html.string());
   const auto head = text.find("<head>");
   EXPECT_NE(head, std::string::npos);
-  text.insert(head + 6, kProbe);
+  text.insert(head + 6, script);
   if (!extra_body.empty()) text.insert(text.find("</body>"), extra_body);
   const fs::path copy = work / fmt::format("{}_probe{}.html", html.stem().string(),
                                            extra_body.empty() ? "" : "_broken");
@@ -95,7 +120,7 @@ Verdict probe(const fs::path& html, const fs::path& work, const std::string& ext
   const fs::path err = work / "chromium_stderr.txt";
   const auto out = ncosim::testing::run_shell(
       chromium(work / fmt::format("profile{}", extra_body.size()),
-               "--enable-logging=stderr --v=0 --virtual-time-budget=5000 --dump-dom " +
+               flags + " --enable-logging=stderr --v=0 --virtual-time-budget=5000 --dump-dom " +
                    shell_quote("file://" + copy.string())) +
       " 2>" + shell_quote(err.string()));
   Verdict v;
@@ -166,6 +191,49 @@ TEST(Browser, ReportRendersInHeadlessChromium) {
   ASSERT_TRUE(fs::exists(shot)) << s.output;
   EXPECT_GT(fs::file_size(shot), 20'000u);
   std::cout << "screenshot: " << shot.string() << "\n";
+}
+
+// Issue 40.8, on the pendulum's shape (32 estimators, 20000 periods, an error curve, one row
+// whose runs diverge): the one-case figure was 3770 px wide and shrunk until no label could be
+// read, the report was 6.5 MB (the error curve drew every period of every estimator), and the
+// summary table was wider than 1280 px with `status` behind a scroll. In a 1280-px window every
+// figure is drawn at its own width, the summary table and its status fit, and the report stays
+// under 1 MB.
+TEST(Browser, ManyRowReportFitsTheWindowAndStaysSmall) {
+  ASSERT_EQ(ncosim::testing::run_shell("command -v chromium").code, 0)
+      << "chromium is not installed (scripts/bootstrap.sh installs it)";
+  const fs::path work = kBuild / "browser_many";
+  fs::remove_all(work);
+  fs::create_directories(work);
+  const fs::path out = work / "pendulum";
+  const fs::path scenario =
+      fs::path(NCOSIM_SOURCE_DIR) / "scenarios" / "schenato2008_pendulum.toml";
+  auto r = ncosim::testing::run_shell(
+      fmt::format("{} run {} --out {} --runs 2 --no-timing --set run.error_curve=true --quiet",
+                  shell_quote(kBinary), shell_quote(scenario.string()), shell_quote(out.string())));
+  ASSERT_EQ(r.code, 0) << r.output;
+  r = ncosim::testing::run_shell(
+      fmt::format("{} report {}", shell_quote(kBinary), shell_quote(out.string())));
+  ASSERT_EQ(r.code, 0) << r.output;
+  const fs::path html = out / "report.html";
+  const auto size = fs::file_size(html);
+  std::cout << "32-estimator report: " << size << " bytes; " << r.output;
+  EXPECT_LT(size, 1'000'000u);
+  const Verdict v = probe(html, work, "", kLayoutProbe, "--window-size=1280,1024");
+  ASSERT_TRUE(v.j.is_object()) << "no probe result in the DOM dump:\n" << v.raw.substr(0, 2000);
+  std::cout << "layout: " << v.j.dump() << "\n";
+  ASSERT_EQ(v.j["window"].get<int>(), 1280) << v.j.dump();
+  ASSERT_GE(v.j["figures"].size(), 3u) << v.j.dump();  // mse, mse_diff, error curve
+  for (const auto& f : v.j["figures"]) {
+    EXPECT_LE(f[0].get<double>(), 1200.0) << f.dump();                     // drawn for the page
+    EXPECT_GE(f[1].get<double>(), 0.99 * f[0].get<double>()) << f.dump();  // not shrunk
+  }
+  // The dot plot grows downwards: 32 rows of 22 px.
+  EXPECT_GE(v.j["figures"][0][2].get<double>(), 32 * 22.0) << v.j.dump();
+  ASSERT_FALSE(v.j["table_right"].is_null()) << v.j.dump();
+  EXPECT_LE(v.j["table_right"].get<double>(), 1280.0) << v.j.dump();
+  ASSERT_FALSE(v.j["status_right"].is_null()) << v.j.dump();
+  EXPECT_LE(v.j["status_right"].get<double>(), 1280.0) << v.j.dump();
 }
 
 }  // namespace

@@ -53,10 +53,19 @@ TEST_F(ChannelCli, RunWritesLinksCsvWithARowPerLinkAndSender) {
             "delay_pmf,nominal_delay_pmf,bursts,burst_mean,nominal_burst_mean,burst_p95,burst_max,"
             "state_occupancy,"
             "nominal_state_occupancy,step,mac_attempts,mac_retries,drops_queue,drops_channel_"
-            "access,drops_no_ack,drops_out_of_range,busy_ratio");
+            "access,drops_no_ack,drops_out_of_range,busy_ratio,offered_rate,delivered_rate,"
+            "delay_first,delay_last,delay_growth,delay_trend_p,loss_first,loss_last,loss_"
+            "growth,loss_trend_p,overload");
   EXPECT_EQ(l[1].rfind("net1,delay,y1,4,8000,", 0), 0u) << l[1];
-  // Not network links: the stack's columns are empty.
-  EXPECT_EQ(l[1].substr(l[1].size() - 7), ",,,,,,,") << l[1];
+  // Not network links: the stack's 7 columns are empty; the overload test's 11 follow
+  // (results/README.md, "Overload and growth"): stationary links, tested, `none`.
+  std::vector<std::string> cells;
+  std::istringstream row(l[1]);
+  for (std::string c; std::getline(row, c, ',');) cells.push_back(c);
+  ASSERT_EQ(cells.size(), 37u) << l[1];
+  for (std::size_t i = 19; i < 26; ++i) EXPECT_EQ(cells[i], "") << i << ": " << l[1];
+  EXPECT_EQ(cells[26], "1") << l[1];  // offered_rate: one sample per period
+  EXPECT_EQ(cells[36], "none") << l[1];
   EXPECT_EQ(l[2].rfind("net2,bernoulli,y2,4,8000,", 0), 0u) << l[2];
 }
 
@@ -153,9 +162,8 @@ TEST_F(ChannelCli, FitWritesTheLinkTableAndDiagnosticsAndTheTableRuns) {
   EXPECT_NE(o.output.find("gilbert_elliott"), std::string::npos) << o.output;
   // Each parameter with its 95 % interval, and the mean loss / mean burst of the Gilbert–Elliott
   // fit (issue 28): 10 of every 50 packets lost in runs of 10.
-  EXPECT_NE(o.output.find("parameters, estimate and 95 % interval:"), std::string::npos)
-      << o.output;
-  EXPECT_NE(o.output.find("gilbert_elliott as mean_loss and mean_burst"), std::string::npos)
+  EXPECT_NE(o.output.find("gilbert_elliott, selected by bic: estimates and 95 % intervals"),
+            std::string::npos)
       << o.output;
   for (const auto& [name, truth] :
        {std::pair<std::string, double>{"mean_loss", 0.2}, {"mean_burst", 10.0}}) {
@@ -176,8 +184,8 @@ TEST_F(ChannelCli, FitWritesTheLinkTableAndDiagnosticsAndTheTableRuns) {
   EXPECT_NE(toml.find("# delay (loglik"), std::string::npos) << toml;
   const auto csv = split_lines(ncosim::testing::read_text((out_ / "fit.csv").string()));
   ASSERT_GT(csv.size(), 20u);
-  EXPECT_EQ(csv[0], "family,section,item,estimate,ci95_low,ci95_high,observed");
-  EXPECT_NE(std::find(csv.begin(), csv.end(), "gilbert_elliott,fit,selected,1,,,"), csv.end());
+  EXPECT_EQ(csv[0], "family,section,item,estimate,ci95_low,ci95_high,observed,interval");
+  EXPECT_NE(std::find(csv.begin(), csv.end(), "gilbert_elliott,fit,selected,1,,,,"), csv.end());
   // The table is a valid [[link]]: paste it into a scenario in place of net2.
   std::string link = toml.substr(toml.find("kind ="));
   link = link.substr(0, link.find("\n\n") + 1);

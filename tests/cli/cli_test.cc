@@ -291,7 +291,7 @@ TEST_F(Cli, PmfSummingAboveOneIsRejected) {
 
 TEST_F(Cli, PmfWithNegativeEntryIsRejected) {
   expect_edit_rejected("pmf = [0.5, 0.3]", "pmf = [0.5, -0.3]", "link[0].pmf",
-                       {"probabilities must be non-negative, got -0.3 at index 1"});
+                       {"expected probabilities in [0, 1], got -0.3 at index 1"});
 }
 
 TEST_F(Cli, NonSymmetricCovarianceIsRejected) {
@@ -502,7 +502,7 @@ TEST_F(Cli, UnknownCommandSuggestsTheClosest) {
   const Outcome o = ncosim({"chek", scenario(base_)});
   EXPECT_EQ(o.code, 2) << o.output;
   EXPECT_NE(o.output.find("expected a command (run, export, merge, design, find, codesign, "
-                          "compare, fit, record-link, check, plot, report or list), "
+                          "compare, fit, record-link, ladder, check, plot, report or list), "
                           "got 'chek' (did you mean "
                           "'check'?)"),
             std::string::npos)
@@ -517,6 +517,39 @@ TEST_F(Cli, OutOfRangeOptionIsBadInputWithItsRange) {
       << o.output;
   EXPECT_LT(o.output.size(), 200u) << o.output;  // no 300-digit bound
   EXPECT_TRUE(listing(out_).empty());
+}
+
+// Issue 40 part 7: a seed outside 0 .. 2^63 - 1 was clamped to 2^63 - 1 (two requests, one
+// campaign): refused on the command line (run, check, record-link), in the file and by --set.
+TEST_F(Cli, SeedsOutsideTheirRangeAreRefusedNotClamped) {
+  const std::string file = scenario(base_);
+  for (const std::string seed : {"99999999999999999999999", "18446744073709551616",
+                                 "9223372036854775808", "-1", "1e3", "+5", ""}) {
+    for (const std::string cmd : {"run", "check", "record-link"}) {
+      std::vector<std::string> args{cmd, file, "--seed", seed};
+      if (cmd != "check") args.insert(args.end(), {"--out", out_.string()});
+      if (cmd == "record-link") args.insert(args.end(), {"--link", "net1"});
+      const Outcome o = ncosim(args);
+      EXPECT_EQ(o.code, 2) << cmd << " --seed '" << seed << "': " << o.output;
+      EXPECT_NE(o.output.find(fmt::format("--seed: expected an integer in 0 .. 9223372036854775807 "
+                                          "(2^63 - 1), got '{}'",
+                                          seed)),
+                std::string::npos)
+          << cmd << ": " << o.output;
+    }
+  }
+  EXPECT_TRUE(listing(out_).empty());
+  expect_bad_input(file, {"--set: key 'run.seed'", "not representable in 64 bits"},
+                   {"--set", "run.seed=99999999999999999999"});
+  expect_bad_input(file, {"--set: key 'run.seed'", "non-negative"}, {"--set", "run.seed=-3"});
+  const std::string big = replace_once(base_, "seed = 7", "seed = 9223372036854775808");
+  expect_bad_input(scenario(big, "big.toml"), {"not representable in 64 bits"});
+  // The largest seed runs, as itself.
+  const Outcome o = ncosim({"run", file, "--out", out_.string(), "--runs", "1", "--periods", "300",
+                            "--seed", "9223372036854775807", "--quiet", "--no-timing"});
+  ASSERT_EQ(o.code, 0) << o.output;
+  EXPECT_NE(read_file(out_ / "manifest.json").find("\"seed\": 9223372036854775807"),
+            std::string::npos);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -905,6 +938,9 @@ TEST_F(Cli, CodesignWritesThresholdsUnderTheTarget) {
   EXPECT_GT(j[0]["lmi_problems"].get<int>(), 1);
   EXPECT_EQ(j[0]["epsilon"], 0.005);
   EXPECT_NE(o.output.find("apply: --set sensor[0].delta="), std::string::npos) << o.output;
+  // Numbers to six significant digits, never a double's 17 (delta0 0.009000000000000001).
+  EXPECT_NE(o.output.find("delta0 ["), std::string::npos) << o.output;
+  EXPECT_FALSE(std::regex_search(o.output, std::regex("[0-9]\\.?[0-9]{9,}"))) << o.output;
   // Not a sod_jump estimator: bad input.
   const Outcome bad =
       ncosim({"codesign", file, "--out", out_.string(), "--estimator", "suh_w0.02", "--quiet"});

@@ -1,6 +1,6 @@
-// tests/cli/compare_cli_test.cc — `ncosim compare` as a CI job drives it (exit 0 / 1 / 2, the
-// files, messages naming the file or option), `run --fail-on-status` and the exit of
-// `codesign` with a status that is not ok.
+// tests/cli/compare_cli_test.cc — `ncosim compare` as a CI job drives it (exit 0 / 1 / 2 / 4, the
+// files, messages naming the file or option, nothing written on bad input), `run
+// --fail-on-status` and the exit of `codesign` with a status that is not ok.
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <sys/resource.h>
@@ -39,9 +39,10 @@ class CompareCli : public ::testing::Test {
     std::error_code ec;
     fs::remove_all(dir_, ec);
   }
-  // A short flagship campaign into dir_/name with extra options.
+  // A short flagship campaign into dir_/name with extra options (8 runs: with 6 rows under
+  // Holm's correction, 6 pairs cannot show anything, 2^-6 > 0.05 / 6).
   void run(const std::string& name, const std::string& extra = "") {
-    const Outcome o = ncosim(fmt::format("run '{}' --out '{}' --runs 6 --periods 3000 --quiet {}",
+    const Outcome o = ncosim(fmt::format("run '{}' --out '{}' --runs 8 --periods 3000 --quiet {}",
                                          kTable2.string(), (dir_ / name).string(), extra));
     ASSERT_EQ(o.code, 0) << o.output;
   }
@@ -97,8 +98,9 @@ TEST_F(CompareCli, UnchangedIsExit0AndARegressionExit1WithTheFiles) {
   Outcome o =
       ncosim(fmt::format("compare '{}' '{}' --out '{}'", path("base"), path("same"), path("cmp")));
   EXPECT_EQ(o.code, 0) << o.output;
-  EXPECT_NE(o.output.find("0 worse, 0 better, 6 unchanged, 1 not comparable: exit 0"),
-            std::string::npos)
+  EXPECT_NE(
+      o.output.find("0 worse, 0 better, 6 unchanged, 0 inconclusive, 1 not comparable: exit 0"),
+      std::string::npos)
       << o.output;
   EXPECT_TRUE(fs::exists(dir_ / "cmp" / "compare.csv"));
   EXPECT_TRUE(fs::exists(dir_ / "cmp" / "compare.md"));
@@ -116,11 +118,40 @@ TEST_F(CompareCli, UnchangedIsExit0AndARegressionExit1WithTheFiles) {
   o = ncosim(fmt::format("compare '{}' '{}' --allow-scenario-change --metric mse_ext", path("base"),
                          path("worse")));
   EXPECT_EQ(o.code, 1) << o.output;
-  EXPECT_NE(o.output.find("| S4, 60 gains | **worse** | paired | 6 |"), std::string::npos)
+  EXPECT_NE(o.output.find("| S4, 60 gains | **worse** | paired | 8 | 0.04"), std::string::npos)
       << o.output;
-  // A bigger tolerance than the change: not a regression.
-  o = ncosim(fmt::format("compare '{}' '{}' --allow-scenario-change --tolerance 0.99", path("base"),
-                         path("worse")));
+  EXPECT_NE(o.output.find(" | ×2.5"), std::string::npos) << o.output;  // a factor, not +150 %
+  // Issue 40's regression: the Kalman filter ignoring every late sample (it was "unchanged",
+  // exit 0, with a change of +11514 % [-4061, +27090]).
+  run("md0", "--set 'estimator[5].max_delay=0'");
+  o = ncosim(fmt::format("compare '{}' '{}' --allow-scenario-change", path("base"), path("md0")));
+  EXPECT_EQ(o.code, 1) << o.output;
+  EXPECT_NE(o.output.find("| Kalman | **worse** | paired | 8 |"), std::string::npos) << o.output;
+}
+
+TEST_F(CompareCli, InconclusiveFailsTheGateWithExit4UnlessAllowed) {
+  // 3 runs a side: no claim can be made; exit 4, the hint in the output; --allow-inconclusive
+  // passes (exit 0) and says so; the files are written either way.
+  hand_made("few_a", 3, 1.0);
+  hand_made("few_b", 3, 1.0);
+  Outcome o = ncosim(
+      fmt::format("compare '{}' '{}' --out '{}'", path("few_a"), path("few_b"), path("cmp")));
+  EXPECT_EQ(o.code, 4) << o.output;
+  EXPECT_NE(
+      o.output.find("0 worse, 0 better, 0 unchanged, 2 inconclusive, 0 not comparable: exit 4\n"
+                    "- an inconclusive row fails the gate (exit 4)"),
+      std::string::npos)
+      << o.output;
+  EXPECT_NE(ncosim::testing::read_text(path("cmp") + "/compare.csv")
+                .find("b,mse,inconclusive,paired,3,3,3,"),
+            std::string::npos);
+  o = ncosim(fmt::format("compare '{}' '{}' --allow-inconclusive", path("few_a"), path("few_b")));
+  EXPECT_EQ(o.code, 0) << o.output;
+  EXPECT_NE(o.output.find("- inconclusive rows pass (--allow-inconclusive)"), std::string::npos)
+      << o.output;
+  // --tolerance 0 is the plain "did it change?" only with --allow-inconclusive.
+  o = ncosim(fmt::format("compare '{}' '{}' --tolerance 0 --allow-inconclusive", path("few_a"),
+                         path("few_b")));
   EXPECT_EQ(o.code, 0) << o.output;
 }
 
@@ -131,13 +162,16 @@ TEST_F(CompareCli, AnotherSeedOrMoreRunsOfTheSameScenarioCompareWithoutTheOption
   run("seed", "--seed 99");
   Outcome o =
       ncosim(fmt::format("compare '{}' '{}' --out '{}'", path("base"), path("seed"), path("cmp")));
-  EXPECT_EQ(o.code, 0) << o.output;
+  EXPECT_EQ(o.code, 4) << o.output;
   EXPECT_NE(o.output.find("  - seed: 2014 -> 99\n"), std::string::npos) << o.output;
-  EXPECT_NE(o.output.find("- test: Welch's unpaired test: the seeds differ (2014 -> 99)"),
+  EXPECT_NE(o.output.find("- test: unpaired, Wilcoxon's rank-sum test of the two sets of runs: the "
+                          "seeds differ (2014 -> 99)"),
             std::string::npos)
       << o.output;
-  EXPECT_NE(o.output.find("| Kalman | unchanged | welch | 6 / 6 |"), std::string::npos) << o.output;
-  EXPECT_NE(ncosim::testing::read_text(path("cmp") + "/compare.csv").find(",welch,6,6,0,"),
+  // 8 runs of 3000 periods a side cannot show a row within 5 %: inconclusive, exit 4.
+  EXPECT_NE(o.output.find("| Kalman | inconclusive | unpaired | 8 / 8 |"), std::string::npos)
+      << o.output;
+  EXPECT_NE(ncosim::testing::read_text(path("cmp") + "/compare.csv").find(",unpaired,8,8,0,"),
             std::string::npos);
   EXPECT_NE(o.output.find("different seeds: unpaired"), std::string::npos) << o.output;
   // The manifests: scenario_text_hash is the same (text and --set), scenario_hash is not (it
@@ -158,7 +192,7 @@ TEST_F(CompareCli, AnotherSeedOrMoreRunsOfTheSameScenarioCompareWithoutTheOption
   std::ofstream(path("base") + "/manifest.json")
       << mb.substr(0, line) + mb.substr(mb.find('\n', line) + 1);
   o = ncosim(fmt::format("compare '{}' '{}'", path("base"), path("seed")));
-  EXPECT_EQ(o.code, 0) << o.output;
+  EXPECT_EQ(o.code, 4) << o.output;
   EXPECT_NE(o.output.find("  - scenario_text_hash: (absent) -> "), std::string::npos) << o.output;
   fs::remove(path("base") + "/runs.sqlite");  // and without a store: by scenario_hash, refused
   o = ncosim(fmt::format("compare '{}' '{}'", path("base"), path("seed")));
@@ -169,17 +203,17 @@ TEST_F(CompareCli, AnotherSeedOrMoreRunsOfTheSameScenarioCompareWithoutTheOption
       << o.output;
   std::ofstream(path("base") + "/manifest.json") << mb;
 
-  // --runs 8 (same seed): runs 0..5 are the same realisations, paired on them.
-  o = ncosim(fmt::format("run '{}' --out '{}' --runs 8 --periods 3000 --quiet", kTable2.string(),
+  // --runs 10 (same seed): runs 0..7 are the same realisations, paired on them.
+  o = ncosim(fmt::format("run '{}' --out '{}' --runs 10 --periods 3000 --quiet", kTable2.string(),
                          path("more")));
   ASSERT_EQ(o.code, 0) << o.output;
   o = ncosim(fmt::format("compare '{}' '{}'", path("base"), path("more")));
   EXPECT_EQ(o.code, 0) << o.output;
-  EXPECT_NE(o.output.find("  - runs: 6 -> 8\n"), std::string::npos) << o.output;
+  EXPECT_NE(o.output.find("  - runs: 8 -> 10\n"), std::string::npos) << o.output;
   EXPECT_NE(o.output.find("- test: paired on the runs both folders have"), std::string::npos)
       << o.output;
-  EXPECT_NE(o.output.find("| Kalman | unchanged | paired | 6 |"), std::string::npos) << o.output;
-  EXPECT_NE(o.output.find("paired on the 6 runs both have"), std::string::npos) << o.output;
+  EXPECT_NE(o.output.find("| Kalman | unchanged | paired | 8 |"), std::string::npos) << o.output;
+  EXPECT_NE(o.output.find("paired on the 8 runs both have"), std::string::npos) << o.output;
 }
 
 TEST_F(CompareCli, AnotherScenarioTextIsRefusedWithItsFirstDifferingLine) {
@@ -195,7 +229,7 @@ TEST_F(CompareCli, AnotherScenarioTextIsRefusedWithItsFirstDifferingLine) {
   const fs::path copy = dir_ / "edited.toml";
   std::ofstream(copy) << text;
   run("base");
-  const Outcome made = ncosim(fmt::format("run '{}' --out '{}' --runs 6 --periods 3000 --quiet",
+  const Outcome made = ncosim(fmt::format("run '{}' --out '{}' --runs 8 --periods 3000 --quiet",
                                           copy.string(), path("edited")));
   fs::remove(copy);
   ASSERT_EQ(made.code, 0) << made.output;
@@ -223,25 +257,49 @@ TEST_F(CompareCli, BadInputIsExit2NamingTheFileOrOption) {
   o = ncosim(fmt::format("compare '{}' '{}' --metric msee", path("base"), path("base")));
   EXPECT_EQ(o.code, 2) << o.output;
   EXPECT_NE(o.output.find("--metric: expected a per-run column"), std::string::npos) << o.output;
-  o = ncosim(fmt::format("compare '{}' '{}' --alpha 1.5", path("base"), path("base")));
+  // Every option out of range or malformed: exit 2, the option named, no --out folder made.
+  const std::vector<std::pair<std::string, std::string>> bad{
+      {"--alpha 1.5", "--alpha: expected a level in (0, 0.5)"},
+      {"--alpha 0.5", "--alpha: expected a level in (0, 0.5)"},
+      {"--alpha x", "--alpha"},
+      {"--correction bonferroni", "--correction"},
+      {"--tolerance 0", "--tolerance: 0 leaves no row unchanged"},
+      {"--tolerance 1", "--tolerance: expected a relative tolerance in [0, 1)"},
+      {"--tolerance -0.1", "--tolerance: expected a relative tolerance in [0, 1)"},
+      {"--tolerance nan", "--tolerance"},
+      {"--tolerance five", "--tolerance"},
+      {"--allow-inconclusive=maybe", "--allow-inconclusive"},
+  };
+  for (const auto& [args, message] : bad) {
+    o = ncosim(fmt::format("compare '{}' '{}' {} --out '{}'", path("base"), path("base"), args,
+                           path("never")));
+    EXPECT_EQ(o.code, 2) << args << ": " << o.output;
+    EXPECT_NE(o.output.find(message), std::string::npos) << args << ": " << o.output;
+    EXPECT_FALSE(fs::exists(dir_ / "never")) << args;
+  }
+  // Bad input found reading the folders leaves no --out folder either (it used to be created
+  // first, empty).
+  o = ncosim(
+      fmt::format("compare '{}' '{}' --out '{}'", path("base"), path("missing"), path("never")));
   EXPECT_EQ(o.code, 2) << o.output;
-  EXPECT_NE(o.output.find("--alpha: expected a level in (0, 1)"), std::string::npos) << o.output;
-  o = ncosim(fmt::format("compare '{}' '{}' --correction bonferroni", path("base"), path("base")));
-  EXPECT_EQ(o.code, 2) << o.output;
-  EXPECT_NE(o.output.find("--correction"), std::string::npos) << o.output;
+  EXPECT_FALSE(fs::exists(dir_ / "never"));
   o = ncosim(fmt::format("compare '{}'", path("base")));
   EXPECT_EQ(o.code, 2) << o.output;
 }
 
 TEST_F(CompareCli, HandMadeNonFiniteOrHugeValuesAreRefusedOrTested) {
   hand_made("base", 10, 1.0);
-  // NEW = 1e160 x BASE is a regression (it was "unchanged": the variances overflowed).
+  // NEW = 1e160 x BASE is a regression (it was "unchanged": the variances overflowed), printed
+  // as a factor (it was a 160-digit percentage).
   hand_made("huge", 10, 1e160);
   Outcome o = ncosim(fmt::format("compare '{}' '{}'", path("base"), path("huge")));
   EXPECT_EQ(o.code, 1) << o.output;
-  EXPECT_NE(o.output.find("2 worse, 0 better, 0 unchanged, 0 not comparable: exit 1"),
-            std::string::npos)
+  EXPECT_NE(
+      o.output.find("2 worse, 0 better, 0 unchanged, 0 inconclusive, 0 not comparable: exit 1"),
+      std::string::npos)
       << o.output;
+  EXPECT_NE(o.output.find(" | ×1e+160 [×1e+160, ×1e+160] | "), std::string::npos) << o.output;
+  EXPECT_EQ(o.output.find("00000000"), std::string::npos) << o.output;
   // A non-finite, negative or out-of-range cell: exit 2 naming FILE:LINE (nan used to drop the
   // run; -1e308 gave "-inf [-nan, -nan]" and "unchanged").
   for (const std::string bad : {"nan", "inf", "-1e308", "1e999"}) {

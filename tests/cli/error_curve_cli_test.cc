@@ -4,8 +4,13 @@
 // refused with its location and nothing written.
 #include <gtest/gtest.h>
 #include <sqlite3.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
+#include <cmath>
 #include <filesystem>
+#include <thread>
 
 #include "temp_dir_test.h"
 #include "test_util.h"
@@ -129,7 +134,8 @@ TEST_F(ErrorCurveCli, BadValueAndTooMuchMemoryAreRefusedWithTheirLocation) {
   EXPECT_EQ(big.code, 2) << big.output;
   EXPECT_NE(big.output.find("curve.toml:10"), std::string::npos) << big.output;
   EXPECT_NE(big.output.find("run.error_curve"), std::string::npos) << big.output;
-  EXPECT_NE(big.output.find("error curve keeps 2000000 periods x 3 estimator(s)"),
+  EXPECT_NE(big.output.find("error curve of 2000000 periods x 3 estimator(s) x 3 cells needs an "
+                            "estimated"),
             std::string::npos)
       << big.output;
   EXPECT_FALSE(fs::exists(out("big")));
@@ -156,6 +162,52 @@ TEST_F(ErrorCurveCli, OneRunDrawsCurvesWithoutABandOrAWarning) {
   EXPECT_EQ(plot.output.find("Skipping"), std::string::npos) << plot.output;
   EXPECT_EQ(plot.output.find("warning"), std::string::npos) << plot.output;
   EXPECT_EQ(read_text(out("one") + "/plot_error_curve.gp").find("filledcurves"), std::string::npos);
+}
+
+// Peak RSS (kB) of `ncosim ARGS` alone (wait4's rusage of the child, the shell replaced by exec).
+long peak_rss_kb(const std::vector<std::string>& args) {
+  const std::string cmd = "exec " + ncosim_command(args) + " >/dev/null 2>&1";
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    ::execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  int status = 0;
+  struct rusage usage {};
+  if (pid < 0 || ::wait4(pid, &status, 0, &usage) != pid || !WIFEXITED(status) ||
+      WEXITSTATUS(status) != 0)
+    return -1;
+  return usage.ru_maxrss;
+}
+
+// Issue 40 part 7: the error curve's memory estimate was low (1.3 GB estimated, 1.68 GB peak RSS:
+// `--max-memory 1400` let it run past 1.4 GB). The estimate must bound the measured peak RSS of
+// the campaign: `check` with --max-memory at that peak refuses it; and on a machine of up to 4
+// cores (the per-thread copies then do not dominate) it is not above 1.6 times the peak.
+TEST_F(ErrorCurveCli, TheMemoryEstimateBoundsThePeakRss) {
+  const std::string sc = write("big.toml", read_text(source_path("tests/cli/data/base.toml")));
+  const std::vector<std::string> size{"--periods", "250000", "--set", "run.error_curve=true"};
+  std::vector<std::string> args{"run",         sc,        "--runs", "2",     "--threads", "2",
+                                "--no-timing", "--quiet", "--out",  out("m")};
+  args.insert(args.end(), size.begin(), size.end());
+  const long peak_kb = peak_rss_kb(args);
+  ASSERT_GT(peak_kb, 0);
+  auto check = [&](double mb) {
+    std::vector<std::string> c{"check", sc, "--max-memory", std::to_string(std::lround(mb))};
+    c.insert(c.end(), size.begin(), size.end());
+    return run(c);
+  };
+  const double peak_mb = static_cast<double>(peak_kb) * 1024.0 / 1e6;
+  const auto at_peak = check(std::floor(peak_mb));
+  EXPECT_EQ(at_peak.code, 2) << "peak RSS " << peak_mb << " MB: " << at_peak.output;
+  EXPECT_NE(at_peak.output.find("key 'run.error_curve': the error curve of 250000 periods x 2 "
+                                "estimator(s) x 3 cells needs an estimated"),
+            std::string::npos)
+      << at_peak.output;
+  if (std::thread::hardware_concurrency() <= 4) {
+    const auto above = check(std::ceil(1.6 * peak_mb));
+    EXPECT_EQ(above.code, 0) << "peak RSS " << peak_mb << " MB: " << above.output;
+  }
 }
 
 }  // namespace

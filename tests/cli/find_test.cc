@@ -82,7 +82,58 @@ TEST(FindCli, BadInputIsExit2WithAMessage) {
       "find '{}' --key 'link[0].delivery' --lo 0.5 --hi 1.5 --target 'predicted_mse<=0.03'",
       kFig5.string()));
   EXPECT_EQ(o.code, 2);
-  EXPECT_NE(o.output.find("delivery"), std::string::npos) << o.output;
+  EXPECT_NE(o.output.find("--key: 'link[0].delivery' = 1.125: expected a probability"),
+            std::string::npos)
+      << o.output;
+}
+
+// Issue 40 part 8: an entry of an array of numbers (link[0].pmf[0], the obvious key on the
+// flagship) is searched, the array's other entries as the scenario has them; errors of --key
+// name --key (they said `--set:`) with the value tried.
+TEST(FindCli, AnArrayEntryIsSearchedAndKeyErrorsNameKey) {
+  const std::string flagship =
+      (fs::path(NCOSIM_SOURCE_DIR) / "scenarios" / "dolz2014_table2.toml").string();
+  const std::string target =
+      "--target 'predicted_mse<=0.1' --estimator 'S1, 1 gain' --scan 4 --tol 1e-3";
+  const fs::path out = fresh_dir("entry");
+  Outcome o =
+      ncosim(fmt::format("find '{}' --key 'link[0].pmf[0]' --lo 0.3 --hi 0.65 {} --out '{}'",
+                         flagship, target, out.string()));
+  ASSERT_EQ(o.code, 0) << o.output;
+  const std::string csv = slurp(out / "find.csv");
+  EXPECT_NE(csv.find("\"S1, 1 gain\",link[0].pmf[0],predicted_mse,<=,0.1,0.39"), std::string::npos)
+      << csv;
+  EXPECT_NE(csv.find(",true,ok"), std::string::npos) << csv;
+  fs::remove_all(out);
+  // The threshold is the value that --set of the whole array gives the same design with.
+  o =
+      ncosim(fmt::format("find '{}' --key 'link[0].pmf[0]' --lo 0.3 --hi 0.65 {} "
+                         "--set 'link[0].pmf=[0.3, 0.2]'",
+                         flagship, target));
+  ASSERT_EQ(o.code, 0) << o.output;
+  EXPECT_EQ(o.output.find("0.394336"), std::string::npos) << "--set's array is the one searched";
+  const std::string base = fmt::format("find '{}' {} ", flagship, target);
+  struct Bad {
+    std::string key, lo_hi, says;
+  };
+  for (const Bad& b : std::vector<Bad>{
+           {"link[0].pmf[5]", "--lo 0.1 --hi 0.6",
+            "--key: 'link[0].pmf[5]': 'link[0].pmf' has 2 entries (0-based: link[0].pmf[0] .. "
+            "link[0].pmf[1])"},
+           {"link[0].name[0]", "--lo 0.1 --hi 0.6",
+            "--key: 'link[0].name[0]' names an entry of 'link[0].name', which is not an array of "
+            "numbers"},
+           {"link[0].pmf[x]", "--lo 0.1 --hi 0.6", "--key: expected a key path"},
+           {"link[0].bogus", "--lo 0.1 --hi 0.6", "--key: 'link[0].bogus' = 0.1: unknown key"},
+           {"link[7].delivery", "--lo 0.1 --hi 0.6",
+            "--key: 'link[7].delivery' = 0.1: there is no [[link]] number 7"},
+           {"link[0].pmf[0]", "--lo 0.1 --hi 0.9", "--key: 'link[0].pmf[0]' = 0.7"},
+       }) {
+    o = ncosim(base + fmt::format("--key '{}' {}", b.key, b.lo_hi));
+    EXPECT_EQ(o.code, 2) << b.key << ": " << o.output;
+    EXPECT_NE(o.output.find("ncosim: " + b.says), std::string::npos) << b.key << ": " << o.output;
+    EXPECT_EQ(o.output.find("--set"), std::string::npos) << b.key << ": " << o.output;
+  }
 }
 
 TEST(FindCli, NoThresholdInTheRangeIsAWarningAndAnEmptyThreshold) {

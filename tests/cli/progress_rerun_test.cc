@@ -85,7 +85,8 @@ TEST_F(ProgressRerun, ASweepLogsTheOneProgressFormatAndAClosingLineWithTheRightN
   const auto out_lines = split_lines(o.output);
   ASSERT_FALSE(out_lines.empty());
   const std::regex closing(
-      "ncosim: 3 cases x 20 runs x 60000 periods = 60 runs in [0-9.]+ s on 2 threads; results in " +
+      "ncosim: 3 cases x 20 runs x 60000 periods = 60 runs in [0-9.]+ s: design [0-9.]+ s, "
+      "simulation [0-9.]+ s on 2 threads; results in " +
       std::regex_replace(out(), std::regex(R"([.^$|()\[\]{}*+?\\])"), R"(\$&)") + "/");
   EXPECT_TRUE(std::regex_match(out_lines.back(), closing)) << out_lines.back();
   // Resumed: the runs stored before are said, and the campaign's total is the same.

@@ -150,6 +150,8 @@ TEST_F(RecordLinkCli, BadInputIsExit2AndWritesNothing) {
       {base_,
        {"--link", "net1", "--runs", "30000"},
        "more than the 50000000 packets a trace link reads"},
+      {base_, {"--link", "net1", "--threads", "-1"}, "--threads"},
+      {base_, {"--link", "net1", "--threads", "lots"}, "--threads"},
   };
   for (const auto& b : bad) {
     std::vector<std::string> args{"record-link", write("s.toml", b.scenario), "--out",

@@ -172,6 +172,34 @@ TEST_F(CampaignReport, ShowsTheScenarioTheCampaignRanAndWhetherTheFileChanged) {
             std::string::npos);
 }
 
+// Issue 40.6: the banner listed an `expected` divergence among the rows "not trustworthy". A
+// status the scenario declares (expected_status) is listed apart, as expected; a row whose status
+// differs from the declared one (here the Kalman filter declared to diverge) is still a warning.
+TEST_F(CampaignReport, BannerTreatsAnExpectedStatusAsExpected) {
+  const fs::path declared = dir_ / "declared", wrong = dir_ / "wrong";
+  run(declared, {"--set", "estimator[0].expected_status=\"diverged\""});
+  run(wrong, {"--set", "estimator[0].expected_status=\"diverged\"", "--set",
+              "estimator[1].expected_status=\"diverged\""});
+  for (const auto& d : {declared, wrong})
+    ASSERT_EQ(run_ncosim({"report", d.string(), "--no-figures"}).code, 0);
+  const std::string h = read_file(declared / "report.html");
+  EXPECT_EQ(h.find("not trustworthy"), std::string::npos) << h.substr(0, 3000);
+  EXPECT_NE(h.find("Every row has status ok or the status its scenario expects"),
+            std::string::npos);
+  EXPECT_NE(h.find("id=\"expected\""), std::string::npos);
+  EXPECT_NE(h.find("link[0].loss = 0.0 · open loop: <b>diverged (expected)</b>"), std::string::npos)
+      << h.substr(0, 3000);
+  EXPECT_EQ(h.find("<tr class=\"bad\">"), std::string::npos);  // no row shaded as a fault
+  EXPECT_NE(h.find("<tr class=\"expected\">"), std::string::npos);
+  // The status follows the estimator in the summary table (a wide table's scroll never hides it).
+  EXPECT_NE(h.find("<th class=\"t\">estimator</th><th class=\"t\">status</th>"), std::string::npos);
+  const std::string w = read_file(wrong / "report.html");
+  EXPECT_NE(w.find("not trustworthy"), std::string::npos);
+  EXPECT_NE(w.find("kalman: <b>ok (expected diverged)</b>"), std::string::npos)
+      << w.substr(0, 3000);
+  EXPECT_NE(w.find("open loop: <b>diverged (expected)</b>"), std::string::npos);
+}
+
 // A re-centred run without --trace writes no trajectory.csv, and the report does not name it
 // (before: "trajectory.csv carries the physical state ..."); with --trace it does.
 TEST_F(CampaignReport, NamesTrajectoryCsvOnlyWhenTheRunWroteIt) {

@@ -94,8 +94,9 @@ TEST_F(StoreIntegrity, KillsAtEveryStepOfRunMergeAndExportLeaveAStoreAndExportsT
   const std::string runs1 = read_text(at("ref1/runs.csv")), runs2 = read_text(at("ref2/runs.csv"));
   const std::vector<std::pair<std::string, std::string>> commands{
       {"run", run_cmd(out, 2, " --replace")},  // replaces the seed-1 campaign deliberately
-      {"merge", fmt::format("merge {} {} {}", quote(out), quote(at("s1")), quote(at("s2")))},
-      {"export", fmt::format("export {} --out {}", quote(at("ref2")), quote(out))},
+      {"merge",
+       fmt::format("merge {} {} {} --replace", quote(out), quote(at("s1")), quote(at("s2")))},
+      {"export", fmt::format("export {} --out {} --replace", quote(at("ref2")), quote(out))},
   };
   for (const auto& [name, cmd] : commands) {
     int kills = 0;
@@ -146,11 +147,12 @@ TEST_F(StoreIntegrity, KillsAtEveryStepOfRunMergeAndExportLeaveAStoreAndExportsT
       << r.output;
 }
 
-// Finding 3: `export A --out B` gives B A's exports *and* A's store; B's own store is gone.
+// Finding 3: `export A --out B --replace` gives B A's exports *and* A's store; B's own store is
+// gone (without --replace it is refused: ExportAndMergeReplaceAFolderOnlyWithReplace).
 TEST_F(StoreIntegrity, ExportToAnotherFolderTakesTheStoreWithIt) {
   ASSERT_EQ(ncosim(run_cmd(at("a"), 1)).code, 0);
   ASSERT_EQ(ncosim(run_cmd(at("b"), 2)).code, 0);
-  auto r = ncosim(fmt::format("export {} --out {}", quote(at("a")), quote(at("b"))));
+  auto r = ncosim(fmt::format("export {} --out {} --replace", quote(at("a")), quote(at("b"))));
   ASSERT_EQ(r.code, 0) << r.output;
   EXPECT_EQ(read_text(at("b/runs.csv")), read_text(at("a/runs.csv")));
   // Exporting B again must not flip its results back.
@@ -158,6 +160,69 @@ TEST_F(StoreIntegrity, ExportToAnotherFolderTakesTheStoreWithIt) {
   ASSERT_EQ(r.code, 0) << r.output;
   EXPECT_EQ(read_text(at("b/runs.csv")), read_text(at("a/runs.csv")));
   expect_store_and_exports_agree(at("b"), at("check"), "export --out");
+}
+
+// Issue 40 part 7: `export A --out B` and `merge B ...` follow the rule of `run --out B`: a folder
+// holding runs of a different campaign (or runs the new store lacks, or an unfinished campaign
+// beside it) is refused without --replace, exit 2, nothing written; a store whose every run
+// comes back is replaced without a word.
+TEST_F(StoreIntegrity, ExportAndMergeReplaceAFolderOnlyWithReplace) {
+  ASSERT_EQ(ncosim(run_cmd(at("a"), 1)).code, 0);
+  ASSERT_EQ(ncosim(run_cmd(at("b"), 2)).code, 0);
+  ASSERT_EQ(ncosim(run_cmd(at("s1"), 2, " --shard 1/2")).code, 0);
+  ASSERT_EQ(ncosim(run_cmd(at("s2"), 2, " --shard 2/2")).code, 0);
+  const std::string runs_b = read_text(at("b/runs.csv"));
+  auto unchanged = [&](const std::string& what) {
+    EXPECT_EQ(read_text(at("b/runs.csv")), runs_b) << what;
+    expect_store_and_exports_agree(at("b"), at("check"), what);
+  };
+  auto r = ncosim(fmt::format("export {} --out {}", quote(at("a")), quote(at("b"))));
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("export: '" + at("b") +
+                          "' holds 6 finished run(s) of a different "
+                          "campaign"),
+            std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("--seed ('2' vs '1')"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("`--replace` replaces them"), std::string::npos) << r.output;
+  unchanged("export refused");
+  // A shard of the same campaign lacks runs of the whole one: replacing would lose them.
+  r = ncosim(fmt::format("export {} --out {}", quote(at("s1")), quote(at("b"))));
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("different campaign"), std::string::npos) << r.output;
+  unchanged("export of a shard refused");
+  // merge into a folder of a different campaign: refused; of the same campaign: every run comes
+  // back, replaced.
+  r = ncosim(fmt::format("merge {} {} {}", quote(at("a")), quote(at("s1")), quote(at("s2"))));
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("merge: '" + at("a") + "' holds 6 finished run(s) of a different"),
+            std::string::npos)
+      << r.output;
+  EXPECT_FALSE(fs::exists(ncosim::sim::partial_store_path(at("a"))));
+  r = ncosim(fmt::format("merge {} {} {}", quote(at("b")), quote(at("s1")), quote(at("s2"))));
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_EQ(r.output.find("--replace"), std::string::npos) << r.output;
+  unchanged("merge of the same campaign");
+  // An unfinished campaign beside the folder is the merge's too (it builds its store there).
+  ASSERT_NE(ncosim(run_cmd(at("b"), 3, " --replace"), "NCOSIM_TEST_RAISE_AFTER_RUNS=9 ").code, 0);
+  ASSERT_TRUE(fs::exists(ncosim::sim::partial_store_path(at("b"))));
+  r = ncosim(fmt::format("merge {} {} {}", quote(at("b")), quote(at("s1")), quote(at("s2"))));
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("the store of an unfinished campaign"), std::string::npos) << r.output;
+  EXPECT_TRUE(fs::exists(ncosim::sim::partial_store_path(at("b"))));
+  r = ncosim(
+      fmt::format("merge {} {} {} --replace", quote(at("b")), quote(at("s1")), quote(at("s2"))));
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("--replace: replacing 6 finished run(s) of a different campaign"),
+            std::string::npos)
+      << r.output;
+  // With --replace, export replaces B's different campaign and says so.
+  r = ncosim(fmt::format("export {} --out {} --replace", quote(at("a")), quote(at("b"))));
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("--replace: replacing 6 finished run(s) of a different campaign"),
+            std::string::npos)
+      << r.output;
+  EXPECT_EQ(read_text(at("b/runs.csv")), read_text(at("a/runs.csv")));
 }
 
 // Finding 4: figures and reports of an earlier campaign do not survive a new one.
@@ -480,8 +545,9 @@ TEST_F(StoreIntegrity, AFullDiskAtAnyPointLeavesThePreviousSet) {
   ASSERT_EQ(ncosim(run_cmd(at("ref2"), 2)).code, 0);
   const std::vector<std::pair<std::string, std::string>> commands{
       {"run", run_cmd(out, 2, " --replace")},  // replaces the seed-1 campaign deliberately
-      {"merge", fmt::format("merge {} {} {}", quote(out), quote(at("s1")), quote(at("s2")))},
-      {"export", fmt::format("export {} --out {}", quote(at("ref2")), quote(out))},
+      {"merge",
+       fmt::format("merge {} {} {} --replace", quote(out), quote(at("s1")), quote(at("s2")))},
+      {"export", fmt::format("export {} --out {} --replace", quote(at("ref2")), quote(out))},
   };
   int points = 0;
   for (const auto& [name, cmd] : commands) {

@@ -18,6 +18,9 @@
 // the test stops early at that budget and reports how far it got). For a long campaign outside
 // CI: NCOSIM_FUZZ_MUTANTS=1000000 NCOSIM_FUZZ_SECONDS=0 NCOSIM_FUZZ_SEED=S build/tests/fuzz_test.
 // Failing mutants are written to NCOSIM_FUZZ_KEEP (default: the system temp folder).
+// NCOSIM_FUZZ_DUMP=DIR writes every mutant (DIR/mutant_N.toml) and the verdict of the load
+// (DIR/verdicts.tsv: N, "loaded" or "refused", the error's first line): the schema's agreement with
+// `ncosim check` is measured on them (tests/schema/fuzz_schema_test.py).
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <sys/resource.h>
@@ -351,6 +354,9 @@ TEST(StructuredFuzz, ShippedScenarioMutantsLoadOrFailWithFileLine) {
       "^" + std::regex_replace(file, std::regex(R"([.^$|()\[\]{}*+?\\])"), R"(\$&)") +
       R"(:[0-9]+: )");
   Rng rng(static_cast<std::uint64_t>(seed));
+  const char* dump_dir = std::getenv("NCOSIM_FUZZ_DUMP");
+  std::ofstream verdicts;
+  if (dump_dir != nullptr) verdicts.open(fs::path(dump_dir) / "verdicts.tsv");
   Stats st;
   std::map<std::string, double> seconds_by_seed;
   std::map<std::string, long> mutants_by_seed;
@@ -367,6 +373,9 @@ TEST(StructuredFuzz, ShippedScenarioMutantsLoadOrFailWithFileLine) {
     os << toml::toml_formatter(doc) << "\n";
     const std::string text = os.str();
     std::ofstream(file, std::ios::binary | std::ios::trunc) << text;
+    if (dump_dir != nullptr)
+      std::ofstream(fs::path(dump_dir) / fmt::format("mutant_{}.toml", m), std::ios::binary)
+          << text;
     ++st.mutants;
     const double t0 = cpu_seconds();
     std::size_t cases = 0;
@@ -377,6 +386,10 @@ TEST(StructuredFuzz, ShippedScenarioMutantsLoadOrFailWithFileLine) {
       loaded = true;
     } catch (const ncosim::config::ScenarioError& e) {
       ++st.refused;
+      if (verdicts.is_open()) {
+        const std::string what = e.what();
+        verdicts << m << "\trefused\t" << what.substr(0, what.find('\n')) << "\n";
+      }
       if (!std::regex_search(e.what(), file_line)) {
         ++st.failures;
         keep(text, fmt::format("exit-2 message without FILE:LINE: {}", e.what()), m);
@@ -406,6 +419,7 @@ TEST(StructuredFuzz, ShippedScenarioMutantsLoadOrFailWithFileLine) {
       std::fflush(stdout);
     }
     if (!loaded) continue;
+    if (verdicts.is_open()) verdicts << m << "\tloaded\t\n";
     ++st.loaded;
     if (run_every <= 0 || st.loaded % run_every != 0 || cases > 8) continue;
     // The whole path through the executable: tiny campaign, full output set, finite tables.

@@ -48,7 +48,7 @@ grep -q '"stop": "target_ci"' "$tmp/bmpi/manifest.json" || { echo "FAIL: target 
 
 # A network scenario (builds with ns-3): every run in a process of its own on whichever rank, the
 # same bytes as --threads 1 (run 0's trace and the error curve included); a run whose ns-3 aborts
-# (the test hook NCOSIM_TEST_CRASH_RUN, network/session_ns3.cc) gets its status on any rank.
+# (the test hook NCOSIM_TEST_CRASH_RUN, network/ns3/ns3_engine.cc) gets its status on any rank.
 wsn=$src/scenarios/wsn_star.toml
 label="no network"
 if "$ncosim" check "$wsn" >/dev/null 2>&1; then

@@ -15,6 +15,7 @@ import json
 import pathlib
 import subprocess
 import sys
+import tempfile
 import tomllib
 
 try:
@@ -55,6 +56,32 @@ BAD_EDITS = [
     ('name = "Kalman"', 'name = "Kalman"\nxhat0 = [[1.0], [2.0]]', "xhat0 not a vector"),
     ('link = "net1"', 'link = "net1"\nevery = 0', "sensor every out of range"),
     ('link = "net1"', 'link = "net1"\nnoise = "cauchy"', "unknown sensor noise"),
+    ('link = "net1"', 'link = "net1"\npolicy = "periodic"\nbogus = 1',
+     "unknown key beside the periodic policy"),
+    ('link = "net1"', 'link = "net1"\nbogus = 1', "unknown key beside the default policy"),
+    (None, '\n[[sweep]]\nkey = "estimator[0].history"\nvalues = []\n', "an empty sweep"),
+    (None, '\n[[sweep]]\nkey = "estimator[0].history"\nvalues = 3\n', "sweep values not an array"),
+]
+
+# The same on the network fixture (tests/network/data/wifi_background.toml).
+NETWORK_FILE = "tests/network/data/wifi_background.toml"
+NETWORK_EDITS = [
+    ("rate = 50.0", "rate = -1.0", "background.rate negative"),
+    ("rate = 50.0", "rate = 1e12", "background.rate above 1e7"),
+    ("rate = 50.0", 'rate = "SATURATED"', "background.rate an unknown word"),
+    ("rate = 50.0", "rate = true", "background.rate a boolean"),
+    ("position = [5.0, 0.0, 0.0]", "position = [5.0, 0.0]", "link position of 2 numbers"),
+    ("position = [5.0, 0.0, 0.0]", "position = [5.0, 0.0, 0.0, 1.0]",
+     "link position of 4 numbers"),
+    ("position = [3.0, 3.0, 0.0]", "position = [3.0, 3.0]", "background position of 2 numbers"),
+    ("positions = [[10.0, 0.0, 0.0],", "positions = [[10.0, 0.0],",
+     "background positions row of 2"),
+    ("tx_power = 16.0", "tx_power = 16.0\nsink_position = [1.0, 2.0]", "sink_position of 2"),
+    ("tx_power = 16.0", 'tx_power = 16.0\ndata_mode = "garbage"', "data_mode not a data mode"),
+    ("position = [5.0, 0.0, 0.0]", "position = [5.0, 0.0, 0.0]\ndesign_pmf = [1.5]",
+     "design_pmf above 1"),
+    ("position = [5.0, 0.0, 0.0]", "position = [5.0, 0.0, 0.0]\ndesign_pmf = [-0.1, 0.5]",
+     "design_pmf negative"),
 ]
 
 
@@ -91,22 +118,38 @@ def main():
 
     base_path = source / "tests/cli/data/base.toml"
     base = base_path.read_text()
-    if list(validator.iter_errors(tomllib.loads(base))):
-        print("FAIL tests/cli/data/base.toml is invalid: the bad edits below prove nothing")
-        return 1
+    network_path = source / NETWORK_FILE
+    network = network_path.read_text()
+    for path, text in ((base_path, base), (network_path, network)):
+        if list(validator.iter_errors(tomllib.loads(text))):
+            print(f"FAIL {path} is invalid: the bad edits below prove nothing")
+            return 1
+    edits = [(base_path, base, *e) for e in BAD_EDITS]
+    edits += [(network_path, network, *e) for e in NETWORK_EDITS]
     rejected = 0
-    for old, new, what in BAD_EDITS:
-        if old not in base:
-            print(f"FAIL bad edit '{what}': {old!r} is not in {base_path}")
-            failures += 1
-            continue
-        doc = tomllib.loads(base.replace(old, new, 1))
-        if validator.is_valid(doc):
-            print(f"FAIL bad edit '{what}' ({old!r} -> {new!r}) validates")
-            failures += 1
-        else:
+    with tempfile.TemporaryDirectory() as tmp:
+        for path, text, old, new, what in edits:
+            if old is not None and old not in text:
+                print(f"FAIL bad edit '{what}': {old!r} is not in {path}")
+                failures += 1
+                continue
+            bad = text + new if old is None else text.replace(old, new, 1)
+            doc = tomllib.loads(bad)
+            if validator.is_valid(doc):
+                print(f"FAIL bad edit '{what}' ({old!r} -> {new!r}) validates")
+                failures += 1
+                continue
+            # `ncosim check` refuses it too (exit 2).
+            file = pathlib.Path(tmp) / path.name
+            file.write_text(bad)
+            out = subprocess.run([ncosim, "check", str(file)], capture_output=True, text=True)
+            if out.returncode != 2:
+                print(f"FAIL bad edit '{what}': the schema refuses it, `ncosim check` exits "
+                      f"{out.returncode}: {out.stderr.strip()}")
+                failures += 1
+                continue
             rejected += 1
-    print(f"{rejected} of {len(BAD_EDITS)} bad edits rejected")
+    print(f"{rejected} of {len(edits)} bad edits rejected by the schema and by check")
     return 1 if failures else 0
 
 

@@ -1,5 +1,6 @@
 // tests/sim/compare_test.cc — `ncosim compare` in process: reading folders, matching rows and
-// runs, the paired and Welch tests, tolerance, verdicts and bad input.
+// runs, the paired and unpaired rank tests, tolerance, verdicts, intervals that read as their
+// verdicts, exit codes and bad input.
 #include "sim/analysis/compare.h"
 
 #include <gtest/gtest.h>
@@ -96,13 +97,15 @@ TEST(Compare, IdenticalFoldersAreUnchangedAndExitZero) {
   EXPECT_EQ(r.exit_code(), 0);
 }
 
-TEST(Compare, PairedTestFlagsAOnePercentRegressionThatWelchMisses) {
+TEST(Compare, PairedTestFlagsAOnePercentRegressionThatTheUnpairedTestCannotTell) {
   // B is 1 % worse on every run; the run-to-run spread (10 %) hides it from an unpaired test
-  // (Welch SE ~ 0.1 sqrt(2/20) = 3.2 %) but the per-run differences have spread ~0.14 %.
+  // (SE ~ 0.1 sqrt(2/20) = 3.2 %) but the per-run ratios have spread ~0.14 %.
   Folder b("reg_b"), n("reg_n"), w("reg_w");
   b.write("h", 7, 20, 1.0);
   n.write("h", 7, 20, 1.01);
-  const auto r = run(b, n);
+  CompareOptions half;  // a tolerance of 0.5 %: +1 % is beyond it
+  half.tolerance = 0.005;
+  const auto r = run(b, n, half);
   EXPECT_EQ(row(r, "B").verdict, "worse");
   EXPECT_EQ(row(r, "B").test, "paired");
   EXPECT_NEAR(*row(r, "B").relative, 0.01, 0.002);
@@ -110,23 +113,32 @@ TEST(Compare, PairedTestFlagsAOnePercentRegressionThatWelchMisses) {
   EXPECT_GT(*row(r, "B").relative_high, 0.01);
   EXPECT_EQ(row(r, "A, x").verdict, "unchanged");
   EXPECT_EQ(r.exit_code(), 1);
-  // A different seed in NEW: no common runs, Welch, not significant.
+  // A different seed in NEW: no common runs, unpaired; 20 runs of 10 % spread can neither show
+  // +1 % nor its absence within 0.5 %: inconclusive (exit 4), not "unchanged".
   w.write("h", 8, 20, 1.01);
-  const auto u = run(b, w);
-  EXPECT_EQ(row(u, "B").test, "welch");
+  const auto u = run(b, w, half);
+  EXPECT_EQ(row(u, "B").test, "unpaired");
   EXPECT_EQ(row(u, "B").note, "different seeds: unpaired");
-  EXPECT_EQ(row(u, "B").verdict, "unchanged");
-  // Beyond a 2 % tolerance the same +1 % is not worse (and not better).
+  EXPECT_EQ(row(u, "B").verdict, "inconclusive");
+  EXPECT_EQ(u.exit_code(), kCompareInconclusive);
+  half.allow_inconclusive = true;
+  EXPECT_EQ(run(b, w, half).exit_code(), 0);
+  // Within a 2 % tolerance the same +1 % is unchanged (shown inside the band), and within the
+  // default 5 % too.
   CompareOptions tol;
   tol.tolerance = 0.02;
   EXPECT_EQ(row(run(b, n, tol), "B").verdict, "unchanged");
+  EXPECT_EQ(row(run(b, n), "B").verdict, "unchanged");
 }
 
 TEST(Compare, ImprovementIsBetterAndDivergenceIsWorse) {
   Folder b("div_b"), n("div_n");
   b.write("h", 7, 10, 1.0);
   n.write("h", 7, 10, 0.97);
-  EXPECT_EQ(row(run(b, n), "B").verdict, "better");
+  CompareOptions one;
+  one.tolerance = 0.01;
+  EXPECT_EQ(row(run(b, n, one), "B").verdict, "better");
+  EXPECT_EQ(row(run(b, n), "B").verdict, "unchanged");  // -3 %, within the default 5 %
   n.write("h", 7, 10, 1.0, 3);
   const auto r = run(b, n);
   EXPECT_EQ(row(r, "B").verdict, "worse");
@@ -230,8 +242,9 @@ TEST(Compare, NonFiniteNegativeOrOverflowingValuesAreRefusedAtTheirLine) {
 }
 
 TEST(Compare, HugeValuesAreTestedWithoutOverflow) {
-  // NEW = 1e160 x BASE: squares of the differences overflow a double unless scaled; the row
-  // was "unchanged" (p = 0.5 from an infinite standard error).
+  // NEW = 1e160 x BASE: squares of the differences overflowed a double before the values were
+  // scaled; the row was "unchanged" (p = 0.5 from an infinite standard error). Now the ratio's
+  // logarithm is tested, and printed readably (it was a 160-digit number).
   Folder b("huge_b"), n("huge_n");
   b.write("h", 7, 20, 1.0);
   n.write("h", 7, 20, 1.0, -1, "", 0, 1e160);
@@ -244,11 +257,17 @@ TEST(Compare, HugeValuesAreTestedWithoutOverflow) {
   ASSERT_TRUE(row(r, "B").diff.has_value());
   EXPECT_TRUE(std::isfinite(*row(r, "B").diff));
   EXPECT_EQ(row(run(n, b), "B").verdict, "better");
+  const std::string huge = compare_markdown(r);
+  EXPECT_NE(huge.find("| B | **worse** | paired | 20 | 1.0"), std::string::npos) << huge;
+  EXPECT_NE(huge.find(" | ×1e+160 [×"), std::string::npos) << huge;
+  EXPECT_EQ(huge.find("0000000000"), std::string::npos) << huge;
   // Values near the largest double: their sum overflows (the means were inf, the change NaN),
   // yet B's +1 % is found and measured like at level 1.
   b.write("h", 7, 20, 1.0, -1, "", 0, 1e307);
   n.write("h", 7, 20, 1.01, -1, "", 0, 1e307);
-  r = run(b, n);
+  CompareOptions half;
+  half.tolerance = 0.005;
+  r = run(b, n, half);
   EXPECT_EQ(row(r, "B").verdict, "worse");
   EXPECT_EQ(row(r, "A, x").verdict, "unchanged");
   ASSERT_TRUE(row(r, "B").relative.has_value());
@@ -264,18 +283,28 @@ TEST(Compare, CsvAndMarkdownCarryEveryRow) {
   Folder b("out_b"), n("out_n");
   b.write("h", 7, 10, 1.0);
   n.write("h", 7, 10, 1.05);
-  const auto r = run(b, n);
+  CompareOptions one;
+  one.tolerance = 0.01;
+  const auto r = run(b, n, one);
   const std::string csv = compare_csv(r);
   EXPECT_EQ(csv.substr(0, csv.find('\n')),
-            "estimator,metric,verdict,test,runs_base,runs_new,pairs,base_mean,new_mean,diff,diff_"
-            "ci_low,diff_ci_high,"
-            "relative_change,relative_ci_low,relative_ci_high,p_worse,p_better,note");
+            "estimator,metric,verdict,test,runs_base,runs_new,pairs,base_mean,new_mean,diff,"
+            "relative_change,relative_ci_low,relative_ci_high,ci_level,p_worse,p_better,"
+            "p_unchanged,note");
   EXPECT_NE(csv.find("\"A, x\",mse,unchanged,paired,10,10,10,"), std::string::npos) << csv;
   EXPECT_NE(csv.find("B,mse,worse,paired,10,10,10,"), std::string::npos) << csv;
   const std::string md = compare_markdown(r);
   EXPECT_NE(md.find("| B | **worse** | paired | 10 |"), std::string::npos) << md;
-  EXPECT_NE(md.find("1 worse, 0 better, 1 unchanged, 0 not comparable: exit 1"), std::string::npos)
+  EXPECT_NE(md.find("1 worse, 0 better, 1 unchanged, 0 inconclusive, 0 not comparable: exit 1"),
+            std::string::npos)
       << md;
+  // +5 %, paired: in %, with the confidence of the Holm step that decided it (the first of 2
+  // rows: alpha / 2, 95 %).
+  EXPECT_NE(md.find("| B | **worse** | paired | 10 | 1.0"), std::string::npos) << md;
+  // The same noise in both folders: +5 % within the 6 digits of runs.csv, shown with the
+  // decimals that give the interval's width two significant digits.
+  EXPECT_NE(md.find(" | +4.999945 % [+4.999799, +5.000055] | "), std::string::npos) << md;
+  EXPECT_NE(md.find("] | 95 % | "), std::string::npos) << md;
 }
 
 TEST(CompareIdentity, SameScenarioWithAnotherSeedIsComparedUnpairedWithoutTheOption) {
@@ -287,7 +316,7 @@ TEST(CompareIdentity, SameScenarioWithAnotherSeedIsComparedUnpairedWithoutTheOpt
   b.add_to_manifest({{"scenario_text_hash", "t"}, {"runs", 20}, {"date", "2026-01-01T00:00:00Z"}});
   n.add_to_manifest({{"scenario_text_hash", "t"}, {"runs", 20}, {"date", "2026-02-02T00:00:00Z"}});
   const auto r = run(b, n);
-  EXPECT_EQ(row(r, "B").test, "welch");
+  EXPECT_EQ(row(r, "B").test, "unpaired");
   EXPECT_EQ(row(r, "B").note, "different seeds: unpaired");
   EXPECT_TRUE(r.warnings.empty());
   const std::vector<std::string> diff{"scenario_hash: h7 -> h8", "seed: 7 -> 8"};  // not `date`
@@ -296,7 +325,9 @@ TEST(CompareIdentity, SameScenarioWithAnotherSeedIsComparedUnpairedWithoutTheOpt
   EXPECT_NE(md.find("- BASE -> NEW differ in:\n  - scenario_hash: h7 -> h8\n  - seed: 7 -> 8\n"),
             std::string::npos)
       << md;
-  EXPECT_NE(md.find("- test: Welch's unpaired test: the seeds differ (7 -> 8)"), std::string::npos)
+  EXPECT_NE(md.find("- test: unpaired, Wilcoxon's rank-sum test of the two sets of runs: the "
+                    "seeds differ (7 -> 8)"),
+            std::string::npos)
       << md;
 }
 
@@ -311,7 +342,10 @@ TEST(CompareIdentity, OtherRunsWithTheSameSeedArePairedOnTheCommonRuns) {
   EXPECT_EQ(row(r, "B").test, "paired");
   EXPECT_EQ(row(r, "B").pairs, 20u);
   EXPECT_EQ(row(r, "B").note, "paired on the 20 runs both have");
-  EXPECT_EQ(row(r, "B").verdict, "worse");  // the +1 % that only pairing finds
+  EXPECT_EQ(row(r, "B").verdict, "unchanged");  // +1 %, shown within the default 5 %
+  CompareOptions half;
+  half.tolerance = 0.005;
+  EXPECT_EQ(row(run(b, n, half), "B").verdict, "worse");  // the +1 % that only pairing finds
   const std::vector<std::string> diff{"runs: 20 -> 30", "scenario_hash: h20 -> h30"};
   EXPECT_EQ(r.differences, diff);
   EXPECT_NE(compare_markdown(r).find("- test: paired on the runs both folders have"),
@@ -355,7 +389,7 @@ TEST(CompareIdentity, AnotherScenarioTextIsRefusedNamingEveryDifferingField) {
   CompareOptions allow;
   allow.allow_scenario_change = true;
   const auto r = run(b, n, allow);
-  EXPECT_EQ(row(r, "B").test, "welch");
+  EXPECT_EQ(row(r, "B").test, "unpaired");
   EXPECT_NE(compare_markdown(r).find("  - scenario_text_hash: t1 -> t2\n"), std::string::npos);
   // Same text, other inputs: refused, the file named on its own line too.
   n.add_to_manifest({{"scenario_text_hash", "t1"}});
@@ -381,7 +415,7 @@ TEST(CompareIdentity, AManifestWithoutTheTextHashGoesByTheScenarioHashAndSaysWhy
       << e;
   EXPECT_EQ(e.find("(NEW "), std::string::npos) << e;
   b.write("h8", 7, 5, 1.0);  // the same scenario_hash: the same scenario, as before
-  EXPECT_EQ(row(run(b, n), "B").test, "welch");
+  EXPECT_EQ(row(run(b, n), "B").test, "unpaired");
 }
 
 TEST(CompareIdentity, FirstDifferingLineOfTwoTexts) {

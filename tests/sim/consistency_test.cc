@@ -57,6 +57,34 @@ TEST(Consistency, NoteSaysWhichSideAndWhatItMeans) {
   EXPECT_FALSE(nis_stat(none).has_value());
 }
 
+// The flagship's Kalman NIS (issue 40.6): 1.66918 just below [1.66995, 1.68302] printed as
+// "NIS 1.669 in [1.67, 1.683]" (the word "in" for a value outside, digits that hide the order
+// when closer). Now the digits show the order and the word says the side.
+TEST(Consistency, StatTextHasTheDigitsAndTheWordOfItsSide) {
+  const ConsistencyStat below{1.66918, 1.66995, 1.68302};
+  EXPECT_EQ(consistency_stat_text("NIS", below), "NIS 1.669 below [1.670, 1.683]");
+  const ConsistencyStat inside{2.005, 1.222, 2.967};
+  EXPECT_EQ(consistency_stat_text("NEES", inside), "NEES 2.005 in [1.222, 2.967]");
+  const ConsistencyStat above{2.9671, 1.222, 2.967};
+  EXPECT_EQ(consistency_stat_text("NEES", above), "NEES 2.9671 above [1.2220, 2.9670]");
+  // 1 part in 1e5 below: 4 digits would print both as 1.670.
+  const ConsistencyStat close{1.66994, 1.66995, 1.68302};
+  EXPECT_EQ(consistency_stat_text("NIS", close), "NIS 1.6699 below [1.6700, 1.6830]");
+  const ConsistencyStat closer{1.669996, 1.669999, 1.68302};
+  EXPECT_EQ(consistency_stat_text("NIS", closer), "NIS 1.669996 below [1.669999, 1.683020]");
+  // Just inside: the printed value must not equal (or cross) the bound either.
+  const ConsistencyStat edge{1.670000001, 1.67, 1.683};
+  EXPECT_EQ(consistency_stat_text("NIS", edge), "NIS 1.670000001 in [1.670000000, 1.683000000]");
+  const ConsistencyStat far_above{1e6, 0.5, 1.5};
+  EXPECT_EQ(consistency_stat_text("NIS", far_above), "NIS 1.000e+06 above [0.5000, 1.500]");
+  // The word agrees with inside() and consistency_note for every value.
+  for (const double m : {1.66994, 1.66995, 1.67, 1.683, 1.68302, 1.68303}) {
+    const ConsistencyStat s{m, 1.66995, 1.68302};
+    const std::string text = consistency_stat_text("NIS", s);
+    EXPECT_EQ(text.find(" in ") != std::string::npos, s.inside()) << text;
+  }
+}
+
 void add(ErrorCurve& c, std::int64_t k, std::size_t e, const Eigen::VectorXd& err) {
   c.add(k, e, err.data());
 }

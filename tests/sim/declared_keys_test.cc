@@ -10,6 +10,7 @@
 
 #include "config/keys.h"
 #include "sim/scenario/registries.h"
+#include "sim/scenario/scenario_keys.h"
 
 namespace ncosim::sim {
 namespace {
@@ -50,6 +51,38 @@ TEST(DeclaredKeys, EveryKeyHasHelpAndAValidDefault) {
   EXPECT_GE(check_registry("input", input_registry()), 4);
   check_registry("estimator", estimator_registry());
   EXPECT_GE(check_registry("send_policy", send_policy_registry()), 1);
+}
+
+// A table key without fields leaves its sub-table open to any key (neither the key check nor the
+// schema could flag a typo in it).
+void expect_fields(const std::string& where, const config::Keys& keys) {
+  for (const config::Key& k : keys.list()) {
+    const bool table = k.type() == config::KeyType::kTable || k.type() == config::KeyType::kTables;
+    if (!table) continue;
+    if (k.fields() == nullptr) {
+      // Key paths of the user's choosing (sweep keys): open by design.
+      EXPECT_EQ(where + "." + k.name(), "paired.reference_case") << "declares no fields";
+      continue;
+    }
+    expect_fields(where + "." + k.name(), *k.fields());
+  }
+}
+
+// Every section and every built-in kind is closed: each kind declared its keys (even none, as the
+// periodic policy), and every table key declares its fields (issue 40 part 4).
+TEST(DeclaredKeys, EverySectionKindAndSubTableIsClosed) {
+  int kinds = 0;
+  for (const Section& sec : scenario_sections()) {
+    ASSERT_NE(sec.keys, nullptr) << sec.key;
+    EXPECT_TRUE(sec.closed) << sec.key;
+    expect_fields(sec.key, *sec.keys);
+    for (const SectionKind& kind : sec.kinds) {
+      ++kinds;
+      EXPECT_TRUE(kind.declared) << sec.key << " kind " << kind.name;
+      expect_fields(sec.key + "." + kind.name, *kind.keys);
+    }
+  }
+  EXPECT_GE(kinds, 30);
 }
 
 }  // namespace

@@ -210,5 +210,77 @@ TEST(Paired, SummaryColumnsWithinAndAcrossCases) {
   EXPECT_EQ(paired_column_names(false).size(), 13u);
 }
 
+// Issue 40.8: the default reference was the first Kalman-type row whatever its run (the
+// pendulum's "optimal N=1", which diverges), and every paired column came out empty without a
+// word. A Kalman filter with a one-period buffer never gets a sample here (every packet is at
+// least one period late) and diverges on the unstable plant; the default must skip it.
+constexpr const char* kDivergingKalman = R"(title = "a Kalman reference that diverges"
+[run]
+periods = 400
+runs = 4
+[plant]
+A = [[2.0]]
+W = [[1.0]]
+[[sensor]]
+C = [[1.0]]
+R = [[1.0]]
+link = "net"
+[[link]]
+name = "net"
+kind = "arrival_cdf"
+cdf = [0.0, 0.9]
+tail = 0.9
+[[estimator]]
+name = "static N=2"
+kind = "static_buffer"
+buffer = 2
+[[estimator]]
+name = "optimal N=1"
+kind = "kalman_buffer"
+buffer = 1
+[[estimator]]
+name = "optimal N=2"
+kind = "kalman_buffer"
+buffer = 2
+)";
+
+TEST(Paired, DefaultReferenceIsARowWhoseRunsAreOk) {
+  const std::string f = write_temp("ncosim_paired_diverging.toml", kDivergingKalman);
+  const auto loaded = load_cases(f, {});
+  const auto named = load_cases(f, {"paired.reference=\"optimal N=1\""});
+  std::filesystem::remove(f);
+  CampaignOptions opt;
+  opt.time_estimators = false;
+  const Scenario& sc = *loaded.cases[0].scenario;
+  const auto rows = summarise(sc, run_campaign(sc, opt), {});
+  ASSERT_EQ(rows.size(), 3u);
+  ASSERT_EQ(rows[1].status, "diverged");
+  ASSERT_EQ(rows[2].status, "ok");
+  EXPECT_EQ(reference_estimator_index(sc), 1u);  // the first Kalman-type row, before the runs
+  EXPECT_EQ(reference_row_index(sc, rows), 2u);  // the first Kalman-type row whose runs are ok
+  for (const auto& r : rows) EXPECT_EQ(r.paired.reference, "optimal N=2");
+  EXPECT_TRUE(rows[0].paired.mse.diff.has_value());  // static N=2 minus optimal N=2
+  EXPECT_EQ(paired_reference_note(rows), "");
+  // Without an ok Kalman row: the first ok row; without any: the first Kalman-type row.
+  std::vector<SummaryRow> no_kalman = rows;
+  no_kalman[0].status = "ok";
+  no_kalman[2].status = "heavy_tail";
+  EXPECT_EQ(reference_row_index(sc, no_kalman), 0u);
+  no_kalman[0].status = "diverged";
+  EXPECT_EQ(reference_row_index(sc, no_kalman), 1u);
+  // A reference the user names is kept whatever its status, and the note says why the
+  // columns are empty.
+  const Scenario& nsc = *named.cases[0].scenario;
+  const auto nrows = summarise(nsc, run_campaign(nsc, opt), {});
+  EXPECT_EQ(nrows[0].paired.reference, "optimal N=1");
+  EXPECT_FALSE(nrows[0].paired.mse.diff.has_value());
+  const std::string note = paired_reference_note(nrows);
+  EXPECT_NE(note.find("The reference \"optimal N=1\" has status diverged: no per-run mse to pair "
+                      "with, so its case's paired columns are empty."),
+            std::string::npos)
+      << note;
+  EXPECT_NE(summary_markdown("t", {}, nrows, 1).find(note), std::string::npos);
+}
+
 }  // namespace
 }  // namespace ncosim::sim

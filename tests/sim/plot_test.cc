@@ -3,9 +3,12 @@
 // of awkward names in the scripts, and the report's escaping and SVG id prefixing.
 #include "sim/present/plot.h"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -199,6 +202,118 @@ TEST(PlotData, LogAxisOnlyWhenTheRangeAsksForIt) {
   on.logy = "on";
   EXPECT_NE(ncosim::sim::build_figures(d.string(), on)[0].gp.find("set logscale y"),
             std::string::npos);
+  fs::remove_all(d);
+}
+
+// The `lc rgb` colours of the line series (not the bands) of each `plot` command of a script.
+std::vector<std::vector<std::string>> plot_colours(const std::string& gp) {
+  std::vector<std::vector<std::string>> out;
+  std::istringstream in(gp);
+  for (std::string line; std::getline(in, line);) {
+    if (line.find("  plot ") == 0) out.emplace_back();
+    if (out.empty() || line.find("filledcurves") != std::string::npos) continue;
+    const auto at = line.find("lc rgb '");
+    if (at != std::string::npos) out.back().push_back(line.substr(at + 8, 7));
+  }
+  return out;
+}
+
+bool all_distinct(std::vector<std::string> v) {
+  std::sort(v.begin(), v.end());
+  return std::adjacent_find(v.begin(), v.end()) == v.end();
+}
+
+// Issue 40.8: 32 rows of one case made a 3770-px-wide figure (110 px per row along x). Above 12
+// rows the estimators go down the y axis: 900 px wide, 22 px per row, labels horizontal.
+TEST(PlotLayout, ManyRowsOfOneCaseAreADotPlot) {
+  const fs::path d = temp_dir("many");
+  std::string csv = kHead;
+  for (int e = 0; e < 32; ++e) {
+    csv += e == 1 ? "optimal N=1,kalman_buffer,2,,,,diverged\n"
+                  : fmt::format("row {},static_buffer,2,{},0.5,{},ok\n", e, 20 + e, 19 + e);
+  }
+  write(d / "summary.csv", csv);
+  const auto figs = ncosim::sim::build_figures(d.string(), PlotOptions{});
+  ASSERT_EQ(figs.size(), 1u);
+  const std::string& gp = figs[0].gp;
+  EXPECT_NE(gp.find("size 900,894 "), std::string::npos) << gp;  // 32 x 22 + 190
+  EXPECT_NE(gp.find("set ytics ('row 0' 0, 'optimal N=1 (no mse)' 1, "), std::string::npos) << gp;
+  EXPECT_NE(gp.find("with xerrorbars"), std::string::npos) << gp;
+  EXPECT_NE(gp.find("set xlabel 'mse  (bars: 95 % CI)'"), std::string::npos) << gp;
+  EXPECT_EQ(dat_rows(figs[0].dat).size(), 32u);
+  EXPECT_EQ(dat_rows(figs[0].dat)[2], (std::vector<std::string>{"2", "22", "0.5", "21"}));
+  // 12 rows stay along x.
+  csv = kHead;
+  for (int e = 0; e < 12; ++e) csv += fmt::format("row {},jump,2,{},0.5,,ok\n", e, 20 + e);
+  write(d / "summary.csv", csv);
+  EXPECT_EQ(ncosim::sim::build_figures(d.string(), PlotOptions{})[0].gp.find("xerrorbars"),
+            std::string::npos);
+  fs::remove_all(d);
+}
+
+// Issue 40.8: against a key, 32 estimators shared one panel and 10 colours (each colour three
+// times). More than 10 are split into groups of at most 8, one panel each, on one y range, and no
+// colour repeats within a panel.
+TEST(PlotLayout, ManyEstimatorsAgainstAKeyAreSplitIntoPanels) {
+  const fs::path d = temp_dir("groups");
+  std::string csv = std::string("loss,") + kHead;
+  for (const char* loss : {"0.1", "0.2"}) {
+    for (int e = 0; e < 20; ++e) csv += fmt::format("{},e{},jump,2,{},0.5,,ok\n", loss, e, 1 + e);
+  }
+  write(d / "summary.csv", csv);
+  const auto figs = ncosim::sim::build_figures(d.string(), PlotOptions{});
+  ASSERT_EQ(figs.size(), 1u);
+  const std::string& gp = figs[0].gp;
+  EXPECT_NE(gp.find("set multiplot layout 2,2"), std::string::npos) << gp;  // 3 groups
+  for (const char* t :
+       {"'estimators 1–6 of 20'", "'estimators 7–13 of 20'", "'estimators 14–20 of 20'"})
+    EXPECT_NE(gp.find(t), std::string::npos) << t << "\n" << gp;
+  const auto colours = plot_colours(gp);
+  ASSERT_EQ(colours.size(), 3u) << gp;
+  for (const auto& panel : colours) {
+    EXPECT_LE(panel.size(), 8u);
+    EXPECT_TRUE(all_distinct(panel)) << gp;
+  }
+  EXPECT_NE(gp.find("set yrange ["), std::string::npos) << gp;  // one range for the panels
+  fs::remove_all(d);
+}
+
+// Issue 40.8: one diverged row's error curve (1e+140) flattened every other curve to the axis,
+// and the curve of every period of every estimator made a 6.5 MB report. A diverged row's curve
+// is left out of its panel's y range (said in its legend entry), at most 400 periods are drawn
+// per curve, and 12 estimators make two panels of 6 with distinct colours.
+TEST(PlotLayout, ErrorCurveLeavesADivergedRowOutOfTheScale) {
+  const fs::path d = temp_dir("curve");
+  std::string curve = "estimator,period,time,runs,mse,mse_ci95\n", summary = kHead;
+  for (int e = 0; e < 12; ++e) {
+    const std::string name = e == 2 ? "blown" : fmt::format("e{}", e);
+    summary +=
+        fmt::format("{},jump,3,{},,,{}\n", name, e == 2 ? "" : "5", e == 2 ? "diverged" : "ok");
+    for (int k = 0; k < 2000; ++k) {
+      const double v = e == 2 ? std::pow(10.0, std::min(140.0, 0.1 * k)) : 1.0 + e + (k % 7);
+      curve += fmt::format("{},{},{},3,{},{}\n", name, k, k, v, 0.1 * v);
+    }
+  }
+  write(d / "error_curve.csv", curve);
+  write(d / "summary.csv", summary);
+  const auto f = ncosim::sim::error_curve_figure(d.string());
+  ASSERT_TRUE(f.has_value());
+  EXPECT_NE(f->gp.find("set multiplot layout 2,1"), std::string::npos) << f->gp;
+  EXPECT_NE(f->gp.find("'estimators 1–6 of 12'"), std::string::npos) << f->gp;
+  EXPECT_NE(f->gp.find("'blown (diverged, off the scale)'"), std::string::npos) << f->gp;
+  // The first panel's range is its other curves': 1..12 with their bands, not 1e140.
+  const auto at = f->gp.find("set yrange [");
+  ASSERT_NE(at, std::string::npos) << f->gp;
+  const double hi = std::stod(f->gp.substr(f->gp.find(':', at) + 1));
+  EXPECT_LT(hi, 100.0) << f->gp.substr(at, 40);
+  EXPECT_NE(f->gp.find("set autoscale y"), std::string::npos);  // the second panel has none
+  for (const auto& panel : plot_colours(f->gp)) {
+    EXPECT_EQ(panel.size(), 6u);
+    EXPECT_TRUE(all_distinct(panel)) << f->gp;
+  }
+  // 2000 periods: one in 5 and the last, 401 points per curve.
+  EXPECT_EQ(dat_rows(f->dat).size(), 12u * 401u);
+  EXPECT_NE(f->dat.find("one period in 5 and the last"), std::string::npos);
   fs::remove_all(d);
 }
 

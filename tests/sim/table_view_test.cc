@@ -6,8 +6,12 @@
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
+#include <pty.h>
+#include <sys/ioctl.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <sstream>
 
 #include "config/config.h"
@@ -169,6 +173,62 @@ TEST(TableView, ColumnListAndFormatAreChecked) {
     EXPECT_NE(std::string(e.what()).find("--format: expected md, csv or json, got \"xml\""),
               std::string::npos);
   }
+}
+
+// Issue 40.6: the table fitted a fixed 120 columns whatever the terminal (an 80-column terminal
+// wrapped every row). COLUMNS first (a positive integer), then the terminal's width, then 120.
+TEST(TableView, WidthIsColumnsElseTheTerminalElse120) {
+  FILE* file = std::tmpfile();  // not a terminal
+  ASSERT_NE(file, nullptr);
+  const int plain = ::fileno(file);
+  EXPECT_EQ(table_width(nullptr, plain), 120u);
+  EXPECT_EQ(table_width("80", plain), 80u);
+  EXPECT_EQ(table_width("200", plain), 200u);
+  for (const char* bad : {"", "abc", "0", "-5", "80x", " 80"})
+    EXPECT_EQ(table_width(bad, plain), 120u) << "COLUMNS=\"" << bad << "\"";
+  EXPECT_EQ(table_width("12", plain), kNarrowestTableWidth);
+  std::fclose(file);
+  int master = -1, slave = -1;
+  winsize ws{};
+  ws.ws_col = 97;
+  ws.ws_row = 30;
+  ASSERT_EQ(::openpty(&master, &slave, nullptr, nullptr, &ws), 0);
+  EXPECT_EQ(table_width(nullptr, slave), 97u);  // the terminal's width
+  EXPECT_EQ(table_width("150", slave), 150u);   // COLUMNS wins
+  ::close(master);
+  ::close(slave);
+}
+
+// The table printed with the default width fits it; with a narrower one, columns are left out
+// and every line still fits.
+TEST(TableView, FlagshipLikeTableFitsAnyWidthItIsGiven) {
+  for (const std::size_t width : {80u, 100u, 160u}) {
+    const std::string out = fit_table(flagship_like(), flagship_labels(), width, true);
+    for (const auto& l : lines_of(out)) EXPECT_LE(code_points(l), width) << l;
+  }
+}
+
+// --columns ...,status shows the status as the default table does ("diverged (expected)");
+// csv and json keep summary.csv's bare status beside expected_status.
+TEST(ExpectedStatus, ChosenStatusColumnSaysExpectedLikeTheTable) {
+  SummaryRow a, b;
+  a.estimator = "Kalman";
+  a.status = "ok";
+  b.estimator = "open loop";
+  b.status = "diverged";
+  b.expected_status = "diverged";
+  const std::vector<SummaryRow> rows{a, b};
+  const std::string md = summary_markdown("t", {}, rows, 0);
+  TableRequest req{{"estimator", "status"}, ""};
+  const std::string table = stdout_table(req, "t", {}, rows, 0, md, "");
+  EXPECT_NE(table.find("| open loop | diverged (expected) |"), std::string::npos) << table;
+  req.format = "md";
+  EXPECT_NE(stdout_table(req, "t", {}, rows, 0, md, "").find("diverged (expected)"),
+            std::string::npos);
+  req.format = "csv";
+  const std::string csv = stdout_table(req, "t", {}, rows, 0, md, "");
+  EXPECT_NE(csv.find("open loop,diverged\n"), std::string::npos) << csv;
+  EXPECT_EQ(csv.find("(expected)"), std::string::npos) << csv;
 }
 
 TEST(ExpectedStatus, MatchesTheDeclaredStatusOrOkByDefault) {
