@@ -597,37 +597,37 @@ std::optional<int> unknown_command(const CLI::App& app, int argc, char** argv) {
   return 2;
 }
 
+// The hidden commands of the processes a run starts: a network worker (network/worker.h), started
+// by a run whose networks need a process of their own, and a live SUMO run stepped in this process
+// (a [sumo] mode = "live" run); nullopt for any other command, once the executable those workers
+// are started as is set: this one, or the embedder's.
+std::optional<int> hidden_worker(int argc, char** argv, const CliHooks& hooks) {
+  if (argc > 1 && std::string_view(argv[1]) == "network-worker")
+    return network::worker_main(network_registry());
+#if NCOSIM_HAVE_SUMO
+  if (argc > 1 && std::string_view(argv[1]) == "sumo-live")
+    return sumo::live_worker_main(std::vector<std::string>(argv + 2, argv + argc));
+#endif
+  std::error_code ec;
+  const auto self = std::filesystem::read_symlink("/proc/self/exe", ec);
+  const std::string exe = !hooks.worker_executable.empty() ? hooks.worker_executable
+                          : !ec                            ? self.string()
+                                                           : std::string();
+  if (!exe.empty()) {
+    network::set_worker_executable(exe);
+#if NCOSIM_HAVE_SUMO
+    sumo::set_worker_executable(exe);
+#endif
+  }
+  return std::nullopt;
+}
+
 }  // namespace
 
 int run_cli(int argc, char** argv) { return run_cli(argc, argv, CliHooks{}); }
 
 int run_cli(int argc, char** argv, const CliHooks& hooks) {
-  // Hidden: a network worker (network/worker.h), started by a run whose networks need a process
-  // of their own; and the executable such workers are started as: this one, or the embedder's.
-  if (argc > 1 && std::string_view(argv[1]) == "network-worker")
-    return network::worker_main(network_registry());
-  {
-    std::error_code ec;
-    const auto self = std::filesystem::read_symlink("/proc/self/exe", ec);
-    if (!hooks.worker_executable.empty())
-      network::set_worker_executable(hooks.worker_executable);
-    else if (!ec)
-      network::set_worker_executable(self.string());
-  }
-#if NCOSIM_HAVE_SUMO
-  // Hidden: one live SUMO run stepped in this process (started by a [sumo] mode = "live" run).
-  if (argc > 1 && std::string_view(argv[1]) == "sumo-live") {
-    return sumo::live_worker_main(std::vector<std::string>(argv + 2, argv + argc));
-  }
-  {
-    std::error_code ec;
-    const auto self = std::filesystem::read_symlink("/proc/self/exe", ec);
-    if (!hooks.worker_executable.empty())
-      sumo::set_worker_executable(hooks.worker_executable);
-    else if (!ec)
-      sumo::set_worker_executable(self.string());
-  }
-#endif
+  if (const auto status = hidden_worker(argc, argv, hooks)) return *status;
   CommandLine cl;
   cl.hooks = hooks;
   CLI::App& app = cl.app;

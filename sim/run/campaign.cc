@@ -157,6 +157,17 @@ std::vector<double> time_campaign(const Scenario& sc, const ReplayLog& log, bool
   return time_estimators(sc, log, budget);
 }
 
+// The log of the first run simulated here, for the timing: at most kReplayPeriods periods and at
+// most 2 % of the periods this call simulates (at least 200), so that one replay of every
+// estimator costs about 2 % of the campaign.
+ReplayLog timing_log(const Scenario& sc, std::size_t runs) {
+  ReplayLog log;
+  log.limit = std::min<std::size_t>(
+      kReplayPeriods,
+      std::max<std::size_t>(200, static_cast<std::size_t>(sc.run.periods) * runs / 50));
+  return log;
+}
+
 }  // namespace
 
 CampaignResult run_campaign(const Scenario& sc, const CampaignOptions& options) {
@@ -173,13 +184,7 @@ CampaignResult run_campaign(const Scenario& sc, const CampaignOptions& options) 
   result.threads = threads;
   const auto start = std::chrono::steady_clock::now();
 
-  // The first run simulated here is logged for the timing: at most kReplayPeriods periods and
-  // at most 2 % of the periods this call simulates (at least 200), so that one replay of every
-  // estimator costs about 2 % of the campaign.
-  ReplayLog log;
-  log.limit = std::min<std::size_t>(
-      kReplayPeriods,
-      std::max<std::size_t>(200, static_cast<std::size_t>(sc.run.periods) * runs / 50));
+  ReplayLog log = timing_log(sc, runs);
   std::atomic<std::size_t> next{0}, done{0};
   std::exception_ptr error;
   std::mutex error_mutex, sink_mutex;
