@@ -28,6 +28,7 @@
 #include <iostream>
 #include <map>
 #include <mutex>
+#include <sstream>
 #include <stdexcept>
 #include <vector>
 
@@ -308,11 +309,42 @@ std::vector<long> lock_holders(int fd) {
   return out;
 }
 
+// The parent of process `pid` (/proc/PID/stat's fourth field, after the command in parentheses),
+// or 0 when /proc does not say.
+long parent_of(long pid) {
+  std::ifstream in(fmt::format("/proc/{}/stat", pid));
+  std::string stat;
+  std::getline(in, stat);
+  const std::size_t close = stat.rfind(')');
+  if (close == std::string::npos) return 0;
+  std::istringstream rest(stat.substr(close + 1));
+  std::string state;
+  long parent = 0;
+  rest >> state >> parent;
+  return parent;
+}
+
+// The holders that got their descriptor from no other holder: a process started by a holder
+// (mpirun and its ranks under the shell that took the lock, a worker of ncosim) inherits its
+// descriptors, and with them the lock, but is not a holder of its own; naming only the first of
+// each line keeps the message the same whoever asks (one ncosim or a rank under mpirun).
+std::vector<long> first_holders(const std::vector<long>& holders) {
+  std::vector<long> out;
+  for (const long h : holders) {
+    bool inherited = false;
+    long p = h;
+    for (int up = 0; up < 64 && !inherited && (p = parent_of(p)) > 1; ++up)
+      inherited = std::find(holders.begin(), holders.end(), p) != holders.end();
+    if (!inherited) out.push_back(h);
+  }
+  return out;
+}
+
 // "PID 123" for the live holders of the lock on `fd` (several: "PID 123, 456"), saying who took
 // it when that was another process (a worker that outlived ncosim); `written` (the PID the taker
 // wrote in the file) when /proc shows none.
 std::string holder_text(int fd, const std::string& written) {
-  const std::vector<long> live = lock_holders(fd);
+  const std::vector<long> live = first_holders(lock_holders(fd));
   if (live.empty()) return fmt::format("PID {}", written.empty() ? "unknown" : written);
   std::string pids;
   for (const long p : live) pids += (pids.empty() ? "" : ", ") + std::to_string(p);
