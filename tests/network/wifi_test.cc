@@ -1,6 +1,6 @@
-// tests/network/wifi_test.cc — the `wifi` network (network/ns3/wifi.cc) and background traffic nodes:
-// range, reproducibility, bad input, and 802.11 DCF at saturation against Bianchi's model (IEEE
-// JSAC 18(3), 2000). Built only with ns-3 (NCOSIM_NS3).
+// tests/network/wifi_test.cc — the `wifi` network (network/ns3/wifi.cc) and background traffic
+// nodes: range, reproducibility, bad input, and 802.11 DCF at saturation against Bianchi's model
+// (IEEE JSAC 18(3), 2000). Built only with ns-3 (NCOSIM_NS3).
 #include <gtest/gtest.h>
 #include <toml++/toml.h>
 
