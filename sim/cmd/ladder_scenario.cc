@@ -9,7 +9,7 @@
 #include <sstream>
 
 #include "config/config.h"
-#include "config/toml_path.h"
+#include "sim/scenario/scenario_document.h"
 
 namespace ncosim::sim {
 
@@ -168,22 +168,7 @@ void rebase(toml::node& n, const config::InputFiles& inputs, const fs::path& sce
 toml::table ladder_document(const std::string& file, const std::string& text,
                             const std::vector<std::string>& sets, std::int64_t runs,
                             std::int64_t periods, const std::optional<std::uint64_t>& seed) {
-  toml::table doc;
-  try {
-    doc = toml::parse(text, std::string_view(file));
-  } catch (const toml::parse_error& e) {
-    throw config::ScenarioError(
-        config::format_error(file, static_cast<int>(e.source().begin.line), "",
-                             fmt::format("TOML syntax error: {}", e.description())));
-  }
-  for (const auto& s : sets) config::apply_set(doc, s, "--set");
-  const auto set_run = [&](const char* key, std::int64_t v, const char* option) {
-    config::set_path(doc, fmt::format("run.{}", key), toml::value<std::int64_t>(v), option, 0);
-  };
-  if (runs > 0) set_run("runs", runs, "--runs");
-  if (periods > 0) set_run("periods", periods, "--periods");
-  if (seed) set_run("seed", static_cast<std::int64_t>(*seed), "--seed");
-  return doc;
+  return parse_document(text, file, sets, RunOverrides{runs, periods, seed});
 }
 
 void rebase_input_paths(toml::table& doc, const config::InputFiles& inputs,

@@ -16,6 +16,7 @@
 #include "sim/scenario/registries.h"
 #include "sim/scenario/resource_limits.h"
 #include "sim/scenario/scenario_check.h"
+#include "sim/scenario/scenario_document.h"
 #include "sim/scenario/scenario_keys.h"
 #include "sim/scenario/scenario_sections.h"
 
@@ -112,6 +113,8 @@ void check_case_curve(const LoadedScenario& out, const std::string& file, int li
   if (curves.cases() > 1) check_error_curve_resources(file, line, "sweep", curves);
 }
 
+}  // namespace
+
 // The scenario text parsed, with --set and the [run] options applied. Parsed afresh for every
 // sweep case: toml++ copies drop the source lines that error messages need.
 toml::table parse_document(const std::string& text, const std::string& file,
@@ -134,6 +137,8 @@ toml::table parse_document(const std::string& text, const std::string& file,
   if (overrides.seed) override_run("seed", static_cast<std::int64_t>(*overrides.seed), "--seed");
   return doc;
 }
+
+namespace {
 
 // A swept value as written in summary.csv: strings bare, numbers in their shortest exact
 // form ("0.3", not toml++'s "0.29999999999999999"), arrays as "[0.9, 0.05]".

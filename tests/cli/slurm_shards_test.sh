@@ -81,7 +81,7 @@ merged "$dir" "killed tasks"
 # A real SIGKILL at a random moment of a longer task (Slurm's time limit past KillWait, a node
 # failure), then the same command.
 dir=$tmp/sigkill
-flags=(--runs 24 --periods 20000 --no-timing --quiet)
+flags=(--runs 24 --periods 200000 --no-timing --quiet)  # a task lasts seconds even on an idle machine
 "$ncosim" run "$scenario" --out "$tmp/ref" --threads 2 --replace "${flags[@]}" >/dev/null 2>&1 ||
   no "the second reference campaign"
 for i in 1 2; do

@@ -52,6 +52,8 @@ INEXPRESSIBLE = [
     ("a reference to another table by name, or names that must be unique",
      r"expected the name of a \[\[|expected a unique|expected an estimator name"),
     ("a bound set by another key (warmup below periods)", r"periods-1"),
+    ("a radio's reach (the power at its network's sink: positions, transmit power and the "
+     "standard together)", r"within range of network"),
     ("a resource limit (--max-memory, --max-work)", r"--max-memory|--max-work"),
     ("a design that cannot be made for this model", r"the \w+ design|cannot be posed"),
     ("a file that must exist and be well formed (a trace, SUMO inputs)",
