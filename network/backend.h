@@ -147,6 +147,18 @@ class NetworkDesign {
     (void)position;
     return std::nullopt;
   }
+  // What one run of this network holds in its worker's memory, for the estimate the scenario
+  // reader checks against --max-memory before t = 0: every node (the sink, the links' senders, the
+  // background nodes) and every packet waiting in a node's queue. Packets made beyond what the
+  // channel surely carries (`carried_per_second`, a lower bound) wait, up to `queue_packets` per
+  // node. The defaults are generous; a kind measures its own.
+  struct Footprint {
+    double node_bytes = 256e3;
+    double packet_bytes = 8e3;
+    double queue_packets = 1e300;  // no bound
+    double carried_per_second = 10.0;
+  };
+  virtual Footprint footprint() const { return {}; }
 };
 
 // The registry of network kinds: a kind's factory reads its [[network]] table (its own keys; the

@@ -32,6 +32,11 @@ if ((${#missing[@]})); then
 fi
 
 jobs=$(nproc)
+stage_start=$SECONDS
+stage() {  # how long each stage took: where CI's minutes go
+  echo "ncosim: $1 in $((SECONDS - stage_start)) s"; stage_start=$SECONDS
+}
+stage "packages checked"
 # The Python package (python/) is built for Debian's python3, whatever else is on PATH.
 python=(-DPython_EXECUTABLE=/usr/bin/python3)
 build() {  # build DIR [cmake options...]: configure and build quietly, show the log on failure
@@ -40,6 +45,7 @@ build() {  # build DIR [cmake options...]: configure and build quietly, show the
   if ! { cmake -S . -B "$dir" "$@" && cmake --build "$dir" -j "$jobs"; } >"$dir/build.log" 2>&1; then
     tail -40 "$dir/build.log"; echo "ncosim: build failed (full log: $dir/build.log)" >&2; exit 1
   fi
+  stage "built $dir"
 }
 
 if [[ $mode == run ]]; then
@@ -54,9 +60,11 @@ echo "ncosim: building (Release)..."
 build build -DCMAKE_BUILD_TYPE=Release -DNCOSIM_BUILD_TESTS=ON -DNCOSIM_BUILD_BENCH=ON -DNCOSIM_WERROR=ON "${python[@]}"
 echo "ncosim: test suite (Release)"
 ctest --test-dir build --output-on-failure -j "$jobs"
+stage "test suite ran"
 echo "ncosim: building the unit tests with -fsanitize=address,undefined..."
 build build-asan -DCMAKE_BUILD_TYPE=Debug -DNCOSIM_SANITIZE=ON -DNCOSIM_BUILD_BENCH=OFF -DNCOSIM_WERROR=ON \
   -DNCOSIM_PYTHON=OFF
 echo "ncosim: unit tests under AddressSanitizer + UndefinedBehaviorSanitizer"
 ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
   ctest --test-dir build-asan -L unit --output-on-failure -j "$jobs"
+stage "sanitizer tests ran"

@@ -65,6 +65,11 @@ class CsmaDesign final : public Ns3Network {
       : rate_(rate), delay_ns_(delay_ns), queue_(queue) {}
   void build(World& world, const std::vector<int>& senders) const override;
   bool carries_actuators() const override { return true; }
+  // Measured (peak RSS of one run, 20 and 80 saturating Poisson nodes, queue 10,000): 230 to 340
+  // bytes a queued packet; the bus surely carries rate / (8 x 1538) frames a second (full frames).
+  Footprint footprint() const override {
+    return {64e3, 400.0, static_cast<double>(queue_), static_cast<double>(rate_) / (8.0 * 1538.0)};
+  }
 
  private:
   std::uint64_t rate_;

@@ -19,6 +19,7 @@
 #include "config/toml_path.h"
 #include "kernel/rng.h"
 #include "kernel/time.h"
+#include "models/fit.h"
 #include "models/link.h"
 #include "sim/analysis/output.h"
 #include "sim/files/output_set.h"
@@ -253,6 +254,16 @@ int cmd_record_link(const RecordLinkArgs& a) {
     const RecordedTrace t = record_link(sc, l, sc.run.runs, record_jobs(a.threads));
     const std::string name = loaded.cases.size() == 1 ? fmt::format("{}.csv", a.link)
                                                       : fmt::format("{}_case{}.csv", a.link, c);
+    const std::int64_t longest =
+        t.delays.empty() ? 0 : *std::max_element(t.delays.begin(), t.delays.end());
+    if (longest > models::kMaxFitDelay) {  // a trace `fit` refuses: say why now, not there
+      std::cerr << fmt::format(
+          "ncosim: note: case {}: link '{}' delivered packets up to {} periods late ({:.3g} s at "
+          "run.period = {} s); `ncosim fit` takes delays up to {} periods: a longer run.period "
+          "fits the network's delays\n",
+          c + 1, a.link, longest, static_cast<double>(longest) * sc.run.period, sc.run.period,
+          models::kMaxFitDelay);
+    }
     std::string csv = "seq,delay\n";
     std::int64_t delivered = 0;
     for (std::size_t i = 0; i < t.delays.size(); ++i) {

@@ -154,9 +154,11 @@ std::optional<models::StackCounters> NetworkPath::stack(int link) const {
 }
 
 void NetworkPath::drain(kernel::SimTime period_ns) {
-  constexpr kernel::SimTime kDrainNs = 60'000'000'000;
-  const kernel::SimTime end = now_ + kDrainNs;
-  for (kernel::SimTime t = now_ + period_ns; pending_ > 0 && t <= end; t += period_ns)
+  // Up to 60 s, in steps of a period but at least 1 ms: a fate carries its own time, so the step
+  // changes no delay, and a period of 1 ns would otherwise take 6e10 steps.
+  constexpr kernel::SimTime kDrainNs = 60'000'000'000, kLeastStepNs = 1'000'000;
+  const kernel::SimTime end = now_ + kDrainNs, step = std::max(period_ns, kLeastStepNs);
+  for (kernel::SimTime t = now_ + step; pending_ > 0 && t <= end; t += step)
     advance(
         t, [](std::size_t, std::int64_t) {}, nullptr, false);
 }

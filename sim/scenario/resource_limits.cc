@@ -121,6 +121,15 @@ void check_network_work(const config::Table& t, const std::string& key, double s
                           static_cast<long long>(std::ceil(lim.work_flops / kFlopsPerSecond))));
 }
 
+void check_network_memory(const config::Table& t, const std::string& key, double bytes,
+                          const std::string& what) {
+  const ResourceLimits& lim = resource_limits();
+  if (!(lim.memory_bytes > 0.0 && bytes > lim.memory_bytes)) return;
+  t.fail(key, fmt::format("the networks' simulation needs an estimated {} ({}), above the memory "
+                          "limit of {} (--max-memory)",
+                          human_bytes(bytes), what, human_bytes(lim.memory_bytes)));
+}
+
 void check_campaign_resources(const std::string& file, int line, std::int64_t runs,
                               std::size_t cases, std::size_t estimators, std::int64_t states,
                               std::size_t sensors) {

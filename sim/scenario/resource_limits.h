@@ -87,6 +87,11 @@ void check_trace_resources(const std::string& trace, int line, std::int64_t dela
 void check_network_work(const config::Table& t, const std::string& key, double seconds,
                         const std::string& what);
 
+// Before a campaign on packet-level networks: the memory their workers hold (`what` says how it
+// is made up), `bytes` in all, against --max-memory. Throws ScenarioError at key `key` of `t`.
+void check_network_memory(const config::Table& t, const std::string& key, double bytes,
+                          const std::string& what);
+
 // Before the cases of a sweep are built: every case holds its parsed document while it is built
 // and its designed scenario until the campaign ends. Throws ScenarioError at the last sweep.
 void check_sweep_resources(const std::string& file, int line, std::size_t cases,

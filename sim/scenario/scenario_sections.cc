@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <set>
+#include <thread>
 #include <vector>
 
 #include "kernel/time.h"
@@ -119,6 +120,9 @@ namespace {
 constexpr double kPacketSeconds = 1e-6;
 constexpr double kReceptionSeconds = 10e-6;
 constexpr double kChannelFrames = 1000.0;
+// A network worker's own process (the executable, its libraries and ns-3's), measured at 41 MB
+// peak RSS for the 802.15.4 star without background.
+constexpr double kWorkerBytes = 48e6;
 
 // The background table that drives the work most: its `rate` (packets made) or its nodes.
 std::pair<std::size_t, std::string> network_work_driver(const std::vector<config::Table>& tables,
@@ -141,13 +145,15 @@ std::pair<std::size_t, std::string> network_work_driver(const std::vector<config
 }
 
 // Large networks have a cost too: 10,000 background nodes or a rate of 1e7 packets/s run for
-// hours. Refused beyond --max-work, naming the [[background]] key that drives it.
+// hours, and packets made faster than a channel carries them wait in its nodes' queues (ns-3's
+// 802.15.4 queue has no bound). Refused beyond --max-work and --max-memory before t = 0, naming the
+// [[background]] key that drives the estimate (or run.runs when there is none).
 void check_network_work(const config::Table& root, const Scenario& sc) {
   if (sc.networks.empty()) return;
   const double seconds_per_run = static_cast<double>(sc.run.periods) * sc.model.period;
-  double packets = 0.0, receptions = 0.0;
+  double packets = 0.0, receptions = 0.0, node_bytes = 0.0, queued_bytes = 0.0;
   for (std::size_t n = 0; n < sc.networks.size(); ++n) {
-    double made = 0.0, nodes = 1.0;  // the sink
+    double made = 0.0, nodes = 1.0, saturated = 0.0;  // nodes: the sink first
     for (const auto& s : sc.model.sensors) {
       const models::NetworkAttachment* a = s.link ? s.link->network_attachment() : nullptr;
       if (a != nullptr && a->network == static_cast<int>(n))
@@ -161,23 +167,44 @@ void check_network_work(const config::Table& root, const Scenario& sc) {
       if (b.network != static_cast<int>(n)) continue;
       nodes += 1.0;
       made += b.traffic == network::Traffic::kPoisson ? b.rate : kChannelFrames;
+      saturated += b.traffic == network::Traffic::kPoisson ? 0.0 : 1.0;
     }
     packets += made * seconds_per_run;
     receptions += std::min(made, kChannelFrames) * nodes * seconds_per_run;
+    const network::NetworkDesign::Footprint f = sc.networks[n].design->footprint();
+    node_bytes += nodes * f.node_bytes;
+    // A saturated node holds two packets. The others' packets made beyond what the channel
+    // carries wait (all of them beside saturated nodes, which keep it busy), up to each queue.
+    const double offered = made - kChannelFrames * saturated;
+    const double carried = saturated > 0.0 ? 0.0 : f.carried_per_second;
+    const double waiting = std::max(0.0, offered - carried) * seconds_per_run;
+    queued_bytes += (2.0 * saturated + std::min(waiting, f.queue_packets * nodes)) * f.packet_bytes;
   }
   const double runs = static_cast<double>(sc.run.runs);
   const double seconds = runs * (packets * kPacketSeconds + receptions * kReceptionSeconds);
   const std::string what = fmt::format("{:.3g} packets made and {:.3g} frame receptions in {} runs",
                                        runs * packets, runs * receptions, sc.run.runs);
+  // Every run that goes at once holds its networks in a worker of its own.
+  const double workers =
+      std::min(runs, static_cast<double>(std::max(1U, std::thread::hardware_concurrency())));
+  const double bytes = workers * (kWorkerBytes + node_bytes + queued_bytes);
+  const std::string held =
+      fmt::format("{} worker(s) at once, each {} for its nodes and {} of waiting packets",
+                  static_cast<long long>(workers), human_bytes(node_bytes),
+                  human_bytes(queued_bytes));
   const auto tables = root.tables("background");
   if (tables.empty()) {
-    if (const auto run = root.opt_table("run"))
+    if (const auto run = root.opt_table("run")) {
       sim::check_network_work(*run, "runs", seconds, what);
+      sim::check_network_memory(*run, "runs", bytes, held);
+    }
     return;
   }
   const bool by_receptions = receptions * kReceptionSeconds >= packets * kPacketSeconds;
   const auto [i, key] = network_work_driver(tables, by_receptions);
   sim::check_network_work(tables[i], key, seconds, what);
+  const auto [j, mkey] = network_work_driver(tables, node_bytes >= queued_bytes);
+  sim::check_network_memory(tables[j], mkey, bytes, held);
 }
 
 }  // namespace
