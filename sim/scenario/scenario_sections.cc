@@ -188,10 +188,9 @@ void check_network_work(const config::Table& root, const Scenario& sc) {
   const double workers =
       std::min(runs, static_cast<double>(std::max(1U, std::thread::hardware_concurrency())));
   const double bytes = workers * (kWorkerBytes + node_bytes + queued_bytes);
-  const std::string held =
-      fmt::format("{} worker(s) at once, each {} for its nodes and {} of waiting packets",
-                  static_cast<long long>(workers), human_bytes(node_bytes),
-                  human_bytes(queued_bytes));
+  const std::string held = fmt::format(
+      "{} worker(s) at once, each {} for its nodes and {} of waiting packets",
+      static_cast<long long>(workers), human_bytes(node_bytes), human_bytes(queued_bytes));
   const auto tables = root.tables("background");
   if (tables.empty()) {
     if (const auto run = root.opt_table("run")) {

@@ -433,9 +433,9 @@ TEST_F(NetworkCli, RecordLinkOnANetworkLinkFitsAndMatchesLinksCsv) {
 TEST_F(NetworkCli, RecordLinkAtANanosecondPeriodEndsAndSaysWhyFitRefusesIt) {
   const std::string scenario = (kSource / "scenarios/wsn_star.toml").string();
   const auto begin = std::chrono::steady_clock::now();
-  const Outcome o = ncosim({"record-link", scenario, "--link", "n1", "--out",
-                            (dir_ / "rec").string(), "--runs", "2", "--periods", "300", "--set",
-                            "run.period=1e-9", "--set", "run.warmup=0"});
+  const Outcome o =
+      ncosim({"record-link", scenario, "--link", "n1", "--out", (dir_ / "rec").string(), "--runs",
+              "2", "--periods", "300", "--set", "run.period=1e-9", "--set", "run.warmup=0"});
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - begin).count();
   ASSERT_EQ(o.code, 0) << o.output;

@@ -335,5 +335,50 @@ TEST(Campaign, RunSubsetsThroughTheSinkEqualTheFullCampaign) {
   EXPECT_TRUE(none.runs.empty());
 }
 
+// A writer killed inside a transaction of a store in rollback-journal mode (a finished store is
+// one; the kill can also land while a store is created) leaves a hot -journal that only a writer
+// can roll back: reading said SQLite's "attempt to write a readonly database". It says what
+// happened and what to do; a writable open rolls the journal back and reads the store as it was.
+TEST(RunStore, AHotJournalIsExplainedToAReaderAndRolledBackByAWriter) {
+  TempDir dir("hot");
+  const std::string path = store_path(dir.path.string());
+  {
+    RunStore s = RunStore::create(path, {});
+    s.put_runs({{0, 0, {sample_metrics(1)}, std::nullopt}});
+    s.close();  // rollback-journal mode from here
+  }
+  const std::string copy = path + ".copy";
+  {
+    sqlite3* db = nullptr;
+    ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
+    ASSERT_EQ(sqlite3_exec(db,
+                           "PRAGMA cache_size=1; BEGIN; DELETE FROM runs; "
+                           "CREATE TABLE filler(x); INSERT INTO filler VALUES (zeroblob(50000));",
+                           nullptr, nullptr, nullptr),
+              SQLITE_OK);
+    ASSERT_TRUE(fs::exists(path + "-journal"));
+    // The files as a kill now would leave them (no process holds a lock on the copy).
+    fs::copy_file(path, copy);
+    fs::copy_file(path + "-journal", copy + "-journal");
+    sqlite3_exec(db, "ROLLBACK", nullptr, nullptr, nullptr);
+    sqlite3_close(db);
+  }
+  try {
+    (void)RunStore::open(copy, false);
+    ADD_FAILURE() << "a store with a hot journal opened for reading";
+  } catch (const StoreError& e) {
+    EXPECT_NE(std::string(e.what()).find("a process writing it was killed mid-write (its "
+                                         "-journal holds a change only a writer can undo); "
+                                         "`ncosim run` with --resume undoes it"),
+              std::string::npos)
+        << e.what();
+  }
+  {
+    RunStore w = RunStore::open(copy, true);
+    w.close();
+  }
+  EXPECT_EQ(RunStore::open(copy, false).count_runs(), 1u);
+}
+
 }  // namespace
 }  // namespace ncosim::sim
