@@ -245,6 +245,21 @@ bool has_column(sqlite3* db, const std::string& table, const std::string& column
   return std::find(cols.begin(), cols.end(), column) != cols.end();
 }
 
+// What a failed open says when the user can act on it: the file is not a store, or a writer was
+// killed inside a transaction and left a hot journal (SQLite's "attempt to write a readonly
+// database"), which only a writer can roll back.
+void refuse_unusable(const std::string& path, int code, const std::string& why) {
+  if ((code & 0xFF) == SQLITE_NOTADB || why.find("no such table") != std::string::npos)
+    throw StoreError(fmt::format("'{}' is not an ncosim run store", path));
+  if (code == SQLITE_READONLY_ROLLBACK) {
+    throw StoreError(fmt::format(
+        "cannot read the run store '{}': a process writing it was killed mid-write (its "
+        "-journal holds a change only a writer can undo); `ncosim run` with --resume undoes it "
+        "and goes on, --replace starts afresh",
+        path));
+  }
+}
+
 }  // namespace
 
 bool RunStore::holds_nothing(const std::string& path) { return store_file_holds_nothing(path); }
@@ -274,18 +289,7 @@ RunStore RunStore::open(const std::string& path, bool writable) {
     const int code = s.db_ != nullptr ? sqlite3_extended_errcode(s.db_) : SQLITE_CANTOPEN;
     if (s.db_ != nullptr) sqlite3_close(s.db_);
     s.db_ = nullptr;
-    const bool not_a_db =
-        (code & 0xFF) == SQLITE_NOTADB || why.find("no such table") != std::string::npos;
-    if (not_a_db) throw StoreError(fmt::format("'{}' is not an ncosim run store", path));
-    // A hot journal: a writer was killed mid-transaction (e.g. while it created the store), and
-    // only a writer can roll it back (SQLite's "attempt to write a readonly database").
-    if (code == SQLITE_READONLY_ROLLBACK) {
-      throw StoreError(fmt::format(
-          "cannot read the run store '{}': a process writing it was killed mid-write (its "
-          "-journal holds a change only a writer can undo); `ncosim run` with --resume undoes it "
-          "and goes on, --replace starts afresh",
-          path));
-    }
+    refuse_unusable(path, code, why);
     // immutable=1 ignores locks and journals: only for a store that is complete on its own (no
     // -wal, no hot -journal) which could not be opened because nothing can be written beside it.
     const int primary = code & 0xFF;
