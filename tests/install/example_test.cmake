@@ -2,23 +2,7 @@
 # build examples/custom_estimator against it (find_package(ncosim)), run its scenario and check
 # that the example's kinds are listed, that its estimator has a row in summary.csv and that its
 # send policy skipped some samples (transmissions.csv).
-foreach(v BUILD_DIR SOURCE_DIR WORK_DIR CXX)
-  if(NOT DEFINED ${v})
-    message(FATAL_ERROR "example_test.cmake: ${v} not set")
-  endif()
-endforeach()
-
-function(run what)
-  execute_process(COMMAND ${ARGN} RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
-  if(NOT rc EQUAL 0)
-    message(FATAL_ERROR "${what} failed (${rc}):\n${out}\n${err}")
-  endif()
-  set(last_output "${out}" PARENT_SCOPE)
-endfunction()
-
-file(REMOVE_RECURSE ${WORK_DIR})
-set(prefix ${WORK_DIR}/prefix)
-run("cmake --install" ${CMAKE_COMMAND} --install ${BUILD_DIR} --prefix ${prefix})
+include(${CMAKE_CURRENT_LIST_DIR}/install_common.cmake)
 # sim/'s sub-layers: their headers keep the in-tree paths, and their libraries are exported.
 foreach(f include/ncosim/sim/scenario/scenario.h include/ncosim/sim/run/campaign.h
           include/ncosim/sim/cmd/cli.h)

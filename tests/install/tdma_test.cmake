@@ -4,23 +4,7 @@
 # hand in examples/tdma_bus/scenario.toml: record-link's delays of the first 13 packets, and
 # links.csv's delay histogram of a 13-period run.
 cmake_policy(SET CMP0007 NEW)  # links.csv's empty cells are list elements too
-foreach(v BUILD_DIR SOURCE_DIR WORK_DIR CXX)
-  if(NOT DEFINED ${v})
-    message(FATAL_ERROR "tdma_test.cmake: ${v} not set")
-  endif()
-endforeach()
-
-function(run what)
-  execute_process(COMMAND ${ARGN} RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
-  if(NOT rc EQUAL 0)
-    message(FATAL_ERROR "${what} failed (${rc}):\n${out}\n${err}")
-  endif()
-  set(last_output "${out}" PARENT_SCOPE)
-endfunction()
-
-file(REMOVE_RECURSE ${WORK_DIR})
-set(prefix ${WORK_DIR}/prefix)
-run("cmake --install" ${CMAKE_COMMAND} --install ${BUILD_DIR} --prefix ${prefix})
+include(${CMAKE_CURRENT_LIST_DIR}/install_common.cmake)
 if(EXISTS ${prefix}/include/ncosim/network/ns3/world.h)
   message(FATAL_ERROR "cmake --install installed the ns-3 backend's private header network/ns3/world.h")
 endif()
