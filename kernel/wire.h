@@ -34,4 +34,11 @@ inline bool write_all(int fd, const std::string& bytes) {
 // file (the peer closed or died) or on an error before them.
 bool read_all(int fd, void* p, std::size_t n);
 
+// Passes the descriptor `fd` over the Unix socket `socket` (SCM_RIGHTS) with the one byte `tag`,
+// retrying after signals; false when the peer has gone or on an error.
+bool send_fd(int socket, int fd, char tag);
+// Receives a descriptor sent by send_fd with `tag` (close-on-exec here); -1 at end of file (the
+// peer has gone), on an error, or when the byte or the message is not what send_fd sends.
+int receive_fd(int socket, char tag);
+
 }  // namespace ncosim::kernel

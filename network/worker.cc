@@ -96,23 +96,8 @@ class WorkerServer {
 
   // A child that serves `run_fd` (the server's copy of it is closed by the server).
   void fork_child(int run_fd) {
-    char byte = 'F';
-    iovec iov{&byte, 1};
-    alignas(cmsghdr) char control[CMSG_SPACE(sizeof(int))] = {};
-    msghdr msg{};
-    msg.msg_iov = &iov;
-    msg.msg_iovlen = 1;
-    msg.msg_control = control;
-    msg.msg_controllen = sizeof control;
-    cmsghdr* c = CMSG_FIRSTHDR(&msg);
-    c->cmsg_level = SOL_SOCKET;
-    c->cmsg_type = SCM_RIGHTS;
-    c->cmsg_len = CMSG_LEN(sizeof(int));
-    std::memcpy(CMSG_DATA(c), &run_fd, sizeof(int));
-    ssize_t sent;
-    while ((sent = ::sendmsg(fd_, &msg, MSG_NOSIGNAL)) < 0 && errno == EINTR) {
-    }
-    if (sent != 1) died_ = true;  // its end-of-run report says more (wait_child)
+    if (!kernel::send_fd(fd_, run_fd, 'F'))
+      died_ = true;  // its end-of-run report says more (wait_child)
   }
 
   // The end of the child: its exit status and what it wrote; false when the server itself died

@@ -178,25 +178,7 @@ int serve_run(int fd, const NetworkRegistry& kinds) {
 }
 
 // Receives the next run socket from the parent (-1 at end of file: the parent has gone).
-int receive_fd() {
-  char byte = 0;
-  iovec iov{&byte, 1};
-  alignas(cmsghdr) char control[CMSG_SPACE(sizeof(int))] = {};
-  msghdr msg{};
-  msg.msg_iov = &iov;
-  msg.msg_iovlen = 1;
-  msg.msg_control = control;
-  msg.msg_controllen = sizeof control;
-  ssize_t r;
-  while ((r = ::recvmsg(kServerFd, &msg, MSG_CMSG_CLOEXEC)) < 0 && errno == EINTR) {
-  }
-  if (r != 1 || byte != 'F') return -1;
-  const cmsghdr* c = CMSG_FIRSTHDR(&msg);
-  if (c == nullptr || c->cmsg_type != SCM_RIGHTS) return -1;
-  int fd = -1;
-  std::memcpy(&fd, CMSG_DATA(c), sizeof fd);
-  return fd;
-}
+int receive_fd() { return kernel::receive_fd(kServerFd, 'F'); }
 
 // Until child `pid` ends: what it writes (the tail), then its exit status. When the parent goes
 // (end of file on the server's socket), the child is killed and the server exits.
